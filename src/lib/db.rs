@@ -1,0 +1,1 @@
+//! The database directory: `manifest.json` plus layer files.

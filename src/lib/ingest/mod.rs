@@ -1,0 +1,1 @@
+//! `dbms ingest`: a DEM and an orthophoto registered onto one database grid.

@@ -1,0 +1,32 @@
+//! # dbms — the database authoring library
+//!
+//! Builds the terrain-and-object database of a height-field / voxel ray-casting visual and
+//! sensor simulator (the system of US patent 5,317,689). Every algorithm lives here and is
+//! testable without the command line; `src/bin/dbms.rs` is a thin CLI over it.
+//!
+//! Units: world coordinates are `f64` in the CRS's units (metres for projected CRSs); heights
+//! are metres; angles are degrees at public interfaces and radians inside.
+//!
+//! Stages, each a module:
+//! * [`ingest`]: DEM + orthophoto onto one database grid ([`db`] holds the result).
+//! * [`sun`]: solar position; [`shadow`]: cast-shadow masks over a height field.
+//! * [`sample`]: the generated sample scene.
+//! * [`voxel`]: sculpted and synthetic voxel objects.
+//! * [`pyramid`] and [`tiles`]: the render database.
+
+pub mod crs;
+pub mod db;
+pub mod error;
+pub mod grid;
+pub mod ingest;
+pub mod io;
+pub mod progress;
+pub mod pyramid;
+pub mod raster;
+pub mod sample;
+pub mod shadow;
+pub mod sun;
+pub mod tiles;
+pub mod voxel;
+
+pub use error::{Error, Result};

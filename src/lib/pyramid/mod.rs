@@ -1,0 +1,1 @@
+//! The max-Z / average-colour hierarchy with shadows and shading (`dbms pyramid`).

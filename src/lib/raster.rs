@@ -1,0 +1,113 @@
+//! Rasters: a [`Grid`] plus one value per cell, row-major.
+//!
+//! The two typed layers of a database:
+//! * [`Elevation`]: `f32` metres above the vertical datum; **NaN is nodata** (declared nodata
+//!   values are turned into NaN on read and back into the file's nodata value on write).
+//! * [`Colour`]: `[r, g, b, a]` 8-bit; **alpha 0 is nodata**, alpha 255 is valid (no partial
+//!   alpha is produced by dbms).
+
+use crate::grid::Grid;
+
+/// A grid of values, one per cell, row-major (`data[row * width + col]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Raster<T> {
+    /// Geometry of the data.
+    pub grid: Grid,
+    /// One value per cell; `data.len() == grid.len()`.
+    pub data: Vec<T>,
+}
+
+/// Elevation in metres; NaN = nodata.
+pub type Elevation = Raster<f32>;
+
+/// 8-bit RGBA colour; alpha 0 = nodata.
+pub type Colour = Raster<[u8; 4]>;
+
+/// The colour value of a nodata cell.
+pub const NODATA_COLOUR: [u8; 4] = [0, 0, 0, 0];
+
+impl<T: Clone> Raster<T> {
+    /// A raster with every cell set to `value`.
+    pub fn filled(grid: Grid, value: T) -> Raster<T> {
+        let n = grid.len();
+        Raster { grid, data: vec![value; n] }
+    }
+}
+
+impl<T> Raster<T> {
+    /// Wrap `data` (row-major, `grid.len()` values) on `grid`. Panics on a length mismatch,
+    /// which is a programming error, never a user one.
+    pub fn new(grid: Grid, data: Vec<T>) -> Raster<T> {
+        assert_eq!(data.len(), grid.len(), "raster data does not match its grid");
+        Raster { grid, data }
+    }
+
+    /// The value of cell `(col, row)`.
+    #[inline]
+    pub fn get(&self, col: usize, row: usize) -> &T {
+        &self.data[row * self.grid.width + col]
+    }
+
+    /// Mutable access to cell `(col, row)`.
+    #[inline]
+    pub fn get_mut(&mut self, col: usize, row: usize) -> &mut T {
+        let w = self.grid.width;
+        &mut self.data[row * w + col]
+    }
+
+    /// Width in cells.
+    pub fn width(&self) -> usize {
+        self.grid.width
+    }
+
+    /// Height in cells.
+    pub fn height(&self) -> usize {
+        self.grid.height
+    }
+
+    /// Rows as slices, top (row 0) first.
+    pub fn rows(&self) -> std::slice::ChunksExact<'_, T> {
+        self.data.chunks_exact(self.grid.width.max(1))
+    }
+}
+
+impl Elevation {
+    /// Number of nodata (NaN) cells.
+    pub fn nodata_count(&self) -> usize {
+        self.data.iter().filter(|v| v.is_nan()).count()
+    }
+
+    /// Minimum and maximum of the valid cells, or `None` when every cell is nodata.
+    pub fn min_max(&self) -> Option<(f32, f32)> {
+        self.data.iter().filter(|v| !v.is_nan()).fold(None, |acc, &v| match acc {
+            None => Some((v, v)),
+            Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
+        })
+    }
+}
+
+impl Colour {
+    /// Number of nodata (alpha 0) cells.
+    pub fn nodata_count(&self) -> usize {
+        self.data.iter().filter(|p| p[3] == 0).count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+
+    #[test]
+    fn nodata_counts_and_range_ignore_nodata() {
+        let g = Grid::north_up(0.0, 2.0, 1.0, 2, 2, Crs::unknown());
+        let e = Elevation::new(g.clone(), vec![1.0, f32::NAN, -3.0, 7.5]);
+        assert_eq!(e.nodata_count(), 1);
+        assert_eq!(e.min_max(), Some((-3.0, 7.5)));
+        let all_nan = Elevation::filled(g.clone(), f32::NAN);
+        assert_eq!(all_nan.min_max(), None);
+        let c = Colour::new(g, vec![[1, 2, 3, 255], NODATA_COLOUR, [0, 0, 0, 255], [9, 9, 9, 255]]);
+        assert_eq!(c.nodata_count(), 1);
+        assert_eq!(*c.get(0, 1), [0, 0, 0, 255]);
+    }
+}

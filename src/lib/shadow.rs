@@ -1,0 +1,1 @@
+//! Cast-shadow masks over a height field for a sun direction.

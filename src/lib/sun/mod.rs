@@ -1,0 +1,1 @@
+//! Solar position (NREL SPA) for shading and shadow-height.

@@ -1,0 +1,1 @@
+//! Paged tile files: the render database on disk, addressed by (level, tx, ty).

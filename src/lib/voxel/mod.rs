@@ -1,0 +1,1 @@
+//! Sparse voxel objects: carving from silhouettes, synthetic objects, export.
