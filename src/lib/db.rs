@@ -1,1 +1,319 @@
 //! The database directory: `manifest.json` plus layer files.
+//!
+//! A database is a directory `DB/` that `dbms ingest` creates and later stages extend:
+//! * `manifest.json` — the one source of truth ([`Manifest`], schema `schemas/manifest.schema.json`):
+//!   grid, CRS, units, the grid centre's latitude/longitude, each layer's file and SHA-256,
+//!   placed objects, provenance (inputs and their SHA-256, command line, dbms version) and the
+//!   stages that have run, in order.
+//! * `elevation.tif` (float32 GeoTIFF, nodata −9999) and `colour.tif` (RGBA8 GeoTIFF, alpha = mask).
+//!
+//! Invariant: every file the manifest names exists with the recorded SHA-256, and the manifest is
+//! rewritten atomically after the files it names are in place, so a killed stage leaves the
+//! previous consistent database.
+
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::io::atomic::write_bytes_atomic;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// The manifest's file name inside a database directory.
+pub const MANIFEST_FILE: &str = "manifest.json";
+/// Format name recorded in every manifest.
+pub const FORMAT_NAME: &str = "dbms-database";
+/// Version of the manifest format this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// The layer name of the terrain elevation.
+pub const ELEVATION: &str = "elevation";
+/// The layer name of the orthophoto colour.
+pub const COLOUR: &str = "colour";
+
+/// The contents of `manifest.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Always [`FORMAT_NAME`].
+    pub format: String,
+    /// [`FORMAT_VERSION`] of the writer.
+    pub format_version: u32,
+    /// The database grid every layer shares.
+    pub grid: Grid,
+    /// Units of coordinates and values.
+    pub units: Units,
+    /// Latitude/longitude of the grid centre (degrees), when the CRS allows it (see
+    /// [`crate::crs::Crs::to_lat_lon`]); the sun model uses it.
+    pub centre: Option<LatLon>,
+    /// Layers by name ([`ELEVATION`], [`COLOUR`], and what later stages add).
+    pub layers: BTreeMap<String, Layer>,
+    /// Voxel objects placed in the scene, in placement order.
+    #[serde(default)]
+    pub objects: Vec<PlacedObject>,
+    /// Where the database came from.
+    pub provenance: Provenance,
+    /// Stages that have run, in order (ingest first).
+    pub stages: Vec<Stage>,
+}
+
+/// Units of a database.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Units {
+    /// `metre` or `degree`: the CRS's horizontal unit.
+    pub horizontal: String,
+    /// Always `metre`.
+    pub vertical: String,
+}
+
+/// A geographic position in degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LatLon {
+    /// Latitude, degrees north.
+    pub latitude_deg: f64,
+    /// Longitude, degrees east.
+    pub longitude_deg: f64,
+}
+
+/// One layer file of the database.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Layer {
+    /// File name relative to the database directory.
+    pub file: String,
+    /// What it holds: `elevation` (float32 m), `colour` (RGBA8), `buildings` (GeoJSON), ...
+    pub kind: String,
+    /// Lower-case hex SHA-256 of the file.
+    pub sha256: String,
+    /// Number of nodata cells (raster layers).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub nodata_cells: Option<u64>,
+}
+
+/// A voxel object placed in the scene (by `dbms place`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlacedObject {
+    /// Object file relative to the database directory.
+    pub file: String,
+    /// SHA-256 of the object file.
+    pub sha256: String,
+    /// World position of the object's local origin (CRS units; z in metres, absolute).
+    pub x: f64,
+    /// See `x`.
+    pub y: f64,
+    /// See `x`.
+    pub z: f64,
+    /// Rotation about the vertical axis, degrees clockwise from north (0 = object's +y points north).
+    pub heading_deg: f64,
+}
+
+/// Inputs and tool that made the database.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// Input files with their role and SHA-256.
+    pub inputs: Vec<InputFile>,
+    /// Version of dbms that created the database.
+    pub dbms_version: String,
+}
+
+/// An input file of a stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InputFile {
+    /// What the file was used as (`dem`, `ortho`, `footprints`, ...).
+    pub role: String,
+    /// The path as given on the command line.
+    pub path: String,
+    /// Lower-case hex SHA-256 of the file's bytes.
+    pub sha256: String,
+}
+
+/// A stage that has run on the database.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Stage {
+    /// Subcommand name (`ingest`, `shadow-height`, `place`, `pyramid`, ...).
+    pub name: String,
+    /// The command line, as argv.
+    pub command_line: Vec<String>,
+    /// dbms version that ran it.
+    pub dbms_version: String,
+    /// Stage-specific parameters and results.
+    pub params: serde_json::Value,
+}
+
+impl Stage {
+    /// A stage record for the running dbms with the process's own command line.
+    pub fn now(name: &str, params: serde_json::Value) -> Stage {
+        Stage {
+            name: name.to_string(),
+            command_line: std::env::args().collect(),
+            dbms_version: env!("CARGO_PKG_VERSION").to_string(),
+            params,
+        }
+    }
+}
+
+/// An open database directory.
+#[derive(Debug, Clone)]
+pub struct Database {
+    /// The database directory.
+    pub dir: PathBuf,
+    /// Its manifest as last read or saved.
+    pub manifest: Manifest,
+}
+
+impl Database {
+    /// Start a new database in `dir` (created if missing) for `grid`; nothing is written until
+    /// [`save`](Self::save). An existing database there is replaced layer by layer.
+    pub fn create(dir: &Path, grid: Grid, inputs: Vec<InputFile>) -> Result<Database> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
+        let (cx, cy) = grid.centre();
+        let centre = grid.crs.to_lat_lon(cx, cy).map(|(latitude_deg, longitude_deg)| LatLon { latitude_deg, longitude_deg });
+        let manifest = Manifest {
+            format: FORMAT_NAME.to_string(),
+            format_version: FORMAT_VERSION,
+            units: Units { horizontal: grid.crs.unit().to_string(), vertical: "metre".to_string() },
+            grid,
+            centre,
+            layers: BTreeMap::new(),
+            objects: Vec::new(),
+            provenance: Provenance { inputs, dbms_version: env!("CARGO_PKG_VERSION").to_string() },
+            stages: Vec::new(),
+        };
+        Ok(Database { dir: dir.to_path_buf(), manifest })
+    }
+
+    /// Open an existing database, checking its manifest's format and version.
+    pub fn open(dir: &Path) -> Result<Database> {
+        let path = dir.join(MANIFEST_FILE);
+        if !dir.is_dir() {
+            return Err(Error::file(dir, "no such database directory").fix("create it with `dbms ingest ... -o DIR`"));
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => {
+                Error::file(dir, "not a dbms database (no manifest.json)").fix("create it with `dbms ingest ... -o DIR`")
+            }
+            _ => Error::io(&path, e),
+        })?;
+        let manifest: Manifest = serde_json::from_str(&text)
+            .map_err(|e| Error::file(&path, format!("not a valid dbms manifest: {e}")).fix("re-create the database with `dbms ingest`"))?;
+        if manifest.format != FORMAT_NAME {
+            return Err(Error::file(&path, format!("format is {:?}, not {FORMAT_NAME:?}", manifest.format)));
+        }
+        if manifest.format_version > FORMAT_VERSION {
+            return Err(Error::file(&path, format!("format version {} is newer than this dbms reads ({FORMAT_VERSION})", manifest.format_version))
+                .fix("upgrade dbms"));
+        }
+        Ok(Database { dir: dir.to_path_buf(), manifest })
+    }
+
+    /// The database grid.
+    pub fn grid(&self) -> &Grid {
+        &self.manifest.grid
+    }
+
+    /// Latitude/longitude of the grid centre in degrees, when known.
+    pub fn centre_lat_lon(&self) -> Option<(f64, f64)> {
+        self.manifest.centre.map(|c| (c.latitude_deg, c.longitude_deg))
+    }
+
+    /// Path of a layer's file, or an error naming the stage that makes it.
+    pub fn layer_path(&self, name: &str) -> Result<PathBuf> {
+        match self.manifest.layers.get(name) {
+            Some(l) => Ok(self.dir.join(&l.file)),
+            None => Err(Error::file(&self.dir, format!("database has no {name} layer")).fix(match name {
+                ELEVATION | COLOUR => "re-create it with `dbms ingest`",
+                "buildings" => "run `dbms shadow-height --apply` first",
+                _ => "run the stage that makes it first",
+            })),
+        }
+    }
+
+    /// Record a layer file that is already written inside the directory (hashes it now).
+    pub fn set_layer(&mut self, name: &str, kind: &str, file: &str, nodata_cells: Option<u64>) -> Result<()> {
+        let sha256 = sha256_file(&self.dir.join(file))?;
+        self.manifest.layers.insert(
+            name.to_string(),
+            Layer { file: file.to_string(), kind: kind.to_string(), sha256, nodata_cells },
+        );
+        Ok(())
+    }
+
+    /// Append a stage record (saved with the next [`save`](Self::save)).
+    pub fn record_stage(&mut self, stage: Stage) {
+        self.manifest.stages.push(stage);
+    }
+
+    /// Names of the stages that have run, in order.
+    pub fn stages_run(&self) -> Vec<&str> {
+        self.manifest.stages.iter().map(|s| s.name.as_str()).collect()
+    }
+
+    /// Write `manifest.json` atomically.
+    pub fn save(&self) -> Result<()> {
+        let mut text = serde_json::to_string_pretty(&self.manifest).expect("manifest serialises");
+        text.push('\n');
+        write_bytes_atomic(&self.dir.join(MANIFEST_FILE), text.as_bytes())
+    }
+
+    /// Check every layer and object file against its recorded SHA-256; the first mismatch is an error.
+    pub fn verify(&self) -> Result<()> {
+        let files = self.manifest.layers.values().map(|l| (&l.file, &l.sha256));
+        let objects = self.manifest.objects.iter().map(|o| (&o.file, &o.sha256));
+        for (file, sha) in files.chain(objects) {
+            let path = self.dir.join(file);
+            if &sha256_file(&path)? != sha {
+                return Err(Error::file(&path, "checksum does not match the manifest (file changed or corrupt)")
+                    .fix("re-run the stage that wrote it"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Lower-case hex SHA-256 of a file's bytes, streamed.
+pub fn sha256_file(path: &Path) -> Result<String> {
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut hasher = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let n = f.read(&mut buf).map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buf[..n]);
+    }
+    Ok(hasher.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+
+    #[test]
+    fn manifest_round_trips_and_checks_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = Grid::north_up(500_000.0, 3_620_000.0, 0.5, 4, 3, Crs::epsg(32614));
+        let mut db = Database::create(dir.path(), grid.clone(), vec![]).unwrap();
+        let c = db.manifest.centre.unwrap();
+        assert!((c.latitude_deg - 32.7177).abs() < 1e-3 && (c.longitude_deg + 98.99998).abs() < 1e-4);
+        std::fs::write(dir.path().join("a.bin"), b"abc").unwrap();
+        db.set_layer("a", "test", "a.bin", None).unwrap();
+        assert_eq!(db.manifest.layers["a"].sha256, "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+        db.record_stage(Stage::now("ingest", serde_json::json!({})));
+        db.save().unwrap();
+        let back = Database::open(dir.path()).unwrap();
+        assert_eq!(back.manifest, db.manifest);
+        assert_eq!(back.stages_run(), vec!["ingest"]);
+        back.verify().unwrap();
+        std::fs::write(dir.path().join("a.bin"), b"abd").unwrap();
+        assert!(back.verify().unwrap_err().to_string().contains("checksum"));
+    }
+
+    #[test]
+    fn opening_a_non_database_says_how_to_make_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = Database::open(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("not a dbms database") && e.contains("dbms ingest"), "{e}");
+        std::fs::write(dir.path().join(MANIFEST_FILE), "{").unwrap();
+        assert!(Database::open(dir.path()).unwrap_err().to_string().contains("not a valid dbms manifest"));
+    }
+}
