@@ -1,0 +1,281 @@
+//! One page: the layers of `P × P` cells, and its byte encoding.
+//!
+//! Invariant: a page's raw bytes are its layers in header-table order, each `P² · bytes_per_cell`
+//! little-endian bytes, row-major, followed by the `bricks` blob when flag [`FLAG_BRICKS`] is
+//! set; decoding what [`encode`] made gives back the same page bit for bit (NaN payloads too).
+
+use super::info::{Compression, TileSetInfo};
+use crate::error::{Error, Result};
+
+/// `state` of an empty or nodata cell.
+pub const STATE_EMPTY: u8 = 0;
+/// `state` of a cell with holes or overhangs: the page's voxel bricks say what is where.
+pub const STATE_PARTIAL: u8 = 1;
+/// `state` of an opaque height-field column, solid from the ground to `max_z`.
+pub const STATE_OPAQUE: u8 = 2;
+
+/// Index flag: the stored bytes are one lz4 block of the raw bytes.
+pub const FLAG_LZ4: u32 = 1;
+/// Index flag: the page carries a `bricks` blob after its layers.
+pub const FLAG_BRICKS: u32 = 2;
+/// Every flag format version 1 defines; a reader rejects any other bit.
+pub const KNOWN_FLAGS: u32 = FLAG_LZ4 | FLAG_BRICKS;
+
+/// One page's layers for `P × P` cells, row-major (`row · P + col`). Cells beyond the level's
+/// edge (padding of the right and bottom pages) are nodata: NaN, alpha 0, state 0.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Page {
+    /// Maximum height in each cell, metres; NaN = nodata.
+    pub max_z: Vec<f32>,
+    /// Average RGBA colour of each cell's visible top surface; alpha 0 = nodata.
+    pub colour: Vec<[u8; 4]>,
+    /// Occupancy of each cell: [`STATE_EMPTY`], [`STATE_PARTIAL`] or [`STATE_OPAQUE`].
+    pub state: Vec<u8>,
+    /// Sparse voxel bricks of the page's partial cells; format defined by the voxel module.
+    pub bricks: Option<Vec<u8>>,
+}
+
+/// One cell of one level, as [`TileReader::cell`](super::TileReader::cell) returns it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cell {
+    /// Maximum height, metres; NaN = nodata.
+    pub max_z: f32,
+    /// Average RGBA colour; alpha 0 = nodata.
+    pub colour: [u8; 4],
+    /// Occupancy state (see [`STATE_EMPTY`] and friends).
+    pub state: u8,
+}
+
+impl Page {
+    /// A page of `page_size²` nodata cells and no bricks: the starting point for filling one.
+    pub fn nodata(page_size: usize) -> Page {
+        let n = page_size * page_size;
+        Page { max_z: vec![f32::NAN; n], colour: vec![[0; 4]; n], state: vec![STATE_EMPTY; n], bricks: None }
+    }
+
+    /// The cell at `(col, row)` within the page.
+    #[inline]
+    pub fn cell(&self, page_size: usize, col: usize, row: usize) -> Cell {
+        let i = row * page_size + col;
+        Cell { max_z: self.max_z[i], colour: self.colour[i], state: self.state[i] }
+    }
+}
+
+/// A page as stored: what goes in the file and in its index entry.
+pub(crate) struct Encoded {
+    pub stored: Vec<u8>,
+    pub raw_len: u32,
+    pub crc: u32,
+    pub flags: u32,
+}
+
+/// Where the known layers sit in a page's raw bytes (from the header's layer table).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Layout {
+    cells: usize,
+    max_z: usize,
+    colour: usize,
+    state: usize,
+    /// Bytes of all layers together; the bricks blob starts here.
+    pub fixed_len: usize,
+}
+
+impl Layout {
+    /// The layout of `info`'s layer table (validated: the three known layers exist).
+    pub fn of(info: &TileSetInfo) -> Layout {
+        let cells = info.page_cells();
+        let (mut at, mut offsets) = (0, [0usize; 3]);
+        for l in &info.layers {
+            if let Some(i) = ["max_z", "colour", "state"].iter().position(|n| *n == l.name) {
+                offsets[i] = at;
+            }
+            at += cells * l.bytes_per_cell;
+        }
+        Layout { cells, max_z: offsets[0], colour: offsets[1], state: offsets[2], fixed_len: at }
+    }
+}
+
+/// Check `page` fits page `(level, tx, ty)` of `info`: layer lengths, nodata padding, known
+/// states. The problem text names the page.
+pub(crate) fn check(info: &TileSetInfo, level: usize, tx: usize, ty: usize, page: &Page) -> Result<()> {
+    let name = format!("page (level {level}, {tx}, {ty})");
+    let n = info.page_cells();
+    if page.max_z.len() != n || page.colour.len() != n || page.state.len() != n {
+        return Err(Error::msg(format!(
+            "{name} has {}/{}/{} max_z/colour/state cells, expected {n} each",
+            page.max_z.len(),
+            page.colour.len(),
+            page.state.len()
+        )));
+    }
+    if let Some(i) = page.state.iter().position(|&s| s > STATE_OPAQUE) {
+        return Err(Error::msg(format!("{name}: cell {i} has state {}, expected 0, 1 or 2", page.state[i])));
+    }
+    let p = info.page_size;
+    let (cols, rows) = info.page_extent(level, tx, ty);
+    for row in 0..p {
+        for col in (if row < rows { cols } else { 0 })..p {
+            let c = page.cell(p, col, row);
+            if !(c.max_z.is_nan() && c.colour[3] == 0 && c.state == STATE_EMPTY) {
+                return Err(Error::msg(format!(
+                    "{name}: padding cell ({col}, {row}) beyond the level's edge is not nodata (NaN, alpha 0, state 0)"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Encode a checked page with the standard layer table of a writer.
+pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> Result<Encoded> {
+    let bricks = page.bricks.as_deref().unwrap_or(&[]);
+    let mut raw = vec![0u8; layout.fixed_len + bricks.len()];
+    for (i, z) in page.max_z.iter().enumerate() {
+        raw[layout.max_z + 4 * i..][..4].copy_from_slice(&z.to_bits().to_le_bytes());
+    }
+    for (i, c) in page.colour.iter().enumerate() {
+        raw[layout.colour + 4 * i..][..4].copy_from_slice(c);
+    }
+    raw[layout.state..][..layout.cells].copy_from_slice(&page.state);
+    raw[layout.fixed_len..].copy_from_slice(bricks);
+    let raw_len = u32::try_from(raw.len())
+        .map_err(|_| Error::msg(format!("a page of {} bytes is over the format's 4 GiB limit", raw.len())))?;
+    let mut flags = if page.bricks.is_some() { FLAG_BRICKS } else { 0 };
+    let stored = match compression {
+        Compression::Lz4 => {
+            let packed = lz4_flex::block::compress(&raw);
+            if packed.len() < raw.len() {
+                flags |= FLAG_LZ4;
+                packed
+            } else {
+                raw
+            }
+        }
+        Compression::None => raw,
+    };
+    Ok(Encoded { crc: crc32fast::hash(&stored), stored, raw_len, flags })
+}
+
+/// Decode stored bytes whose CRC has been checked. `Err` carries the problem without the page's
+/// name (the caller adds it).
+pub(crate) fn decode(layout: &Layout, stored: &[u8], raw_len: u32, flags: u32) -> std::result::Result<Page, String> {
+    let unpacked;
+    let raw = if flags & FLAG_LZ4 != 0 {
+        unpacked = lz4_flex::block::decompress(stored, raw_len as usize).map_err(|e| format!("lz4 data is invalid ({e})"))?;
+        &unpacked[..]
+    } else {
+        stored
+    };
+    if raw.len() != raw_len as usize || raw.len() < layout.fixed_len {
+        return Err(format!("holds {} bytes, expected {raw_len}", raw.len()));
+    }
+    let n = layout.cells;
+    let word = |at: usize| -> [u8; 4] { raw[at..at + 4].try_into().expect("4 bytes") };
+    Ok(Page {
+        max_z: (0..n).map(|i| f32::from_bits(u32::from_le_bytes(word(layout.max_z + 4 * i)))).collect(),
+        colour: (0..n).map(|i| word(layout.colour + 4 * i)).collect(),
+        state: raw[layout.state..layout.state + n].to_vec(),
+        bricks: (flags & FLAG_BRICKS != 0).then(|| raw[layout.fixed_len..].to_vec()),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+    use crate::grid::Grid;
+    use crate::tiles::info::LayerInfo;
+
+    fn info(w: usize, h: usize, p: usize) -> TileSetInfo {
+        TileSetInfo::new(Grid::north_up(0.0, 0.0, 1.0, w, h, Crs::unknown()), p, 4, None).unwrap()
+    }
+
+    fn sample(p: usize) -> Page {
+        let mut page = Page::nodata(p);
+        for i in 0..p * p {
+            page.max_z[i] = i as f32 * 0.25 - 3.0;
+            page.colour[i] = [i as u8, 2, 3, 255];
+            page.state[i] = (i % 3) as u8;
+        }
+        page.max_z[1] = f32::from_bits(0x7fc0_1234); // a NaN with a payload
+        page.bricks = Some(vec![9, 8, 7]);
+        page
+    }
+
+    #[test]
+    fn encode_decode_is_bit_exact_with_and_without_lz4() {
+        let info = info(16, 16, 8);
+        let layout = Layout::of(&info);
+        let page = sample(8);
+        for c in [Compression::None, Compression::Lz4] {
+            let e = encode(&layout, &page, c).unwrap();
+            assert_eq!(e.raw_len as usize, 8 * 8 * 9 + 3);
+            assert_eq!(e.crc, crc32fast::hash(&e.stored));
+            let back = decode(&layout, &e.stored, e.raw_len, e.flags).unwrap();
+            assert_eq!(back.max_z[1].to_bits(), 0x7fc0_1234);
+            assert_eq!(back.colour, page.colour);
+            assert_eq!(back.state, page.state);
+            assert_eq!(back.bricks, page.bricks);
+            assert!(back.max_z.iter().zip(&page.max_z).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+        // A nodata page compresses; lz4 keeps it only when smaller.
+        let e = encode(&layout, &Page::nodata(8), Compression::Lz4).unwrap();
+        assert_eq!(e.flags, FLAG_LZ4);
+        assert!(e.stored.len() < e.raw_len as usize);
+    }
+
+    #[test]
+    fn empty_bricks_differ_from_no_bricks() {
+        let info = info(8, 8, 8);
+        let layout = Layout::of(&info);
+        let mut page = Page::nodata(8);
+        page.bricks = Some(vec![]);
+        let e = encode(&layout, &page, Compression::None).unwrap();
+        assert_eq!(e.flags, FLAG_BRICKS);
+        assert_eq!(decode(&layout, &e.stored, e.raw_len, e.flags).unwrap().bricks, Some(vec![]));
+    }
+
+    #[test]
+    fn decode_skips_unknown_layers() {
+        let mut grown = info(8, 8, 4);
+        grown.layers.insert(1, LayerInfo {
+            name: "temperature".into(),
+            kind: "f32".into(),
+            bytes_per_cell: 4,
+            nodata: "NaN".into(),
+            description: "kelvin".into(),
+        });
+        let layout = Layout::of(&grown);
+        assert_eq!(layout.fixed_len, 16 * 13);
+        let mut raw = vec![0u8; layout.fixed_len];
+        raw[16 * 4..16 * 8].fill(0xee); // the unknown layer
+        raw[16 * 8..16 * 12].copy_from_slice(&[1, 2, 3, 4].repeat(16)); // colour
+        let page = decode(&layout, &raw, raw.len() as u32, 0).unwrap();
+        assert!(page.colour.iter().all(|c| *c == [1, 2, 3, 4]));
+        assert!(page.max_z.iter().all(|z| *z == 0.0));
+    }
+
+    #[test]
+    fn check_names_the_page_and_the_bad_cell() {
+        let info = info(10, 6, 8); // page (0, 1, 0) has 2 valid columns, 6 valid rows
+        let mut page = Page::nodata(8);
+        page.max_z[0] = 1.0;
+        check(&info, 0, 1, 0, &page).unwrap();
+        page.max_z[8 * 6] = 1.0; // (0, 6): below the edge
+        let e = check(&info, 0, 1, 0, &page).unwrap_err().to_string();
+        assert!(e.contains("page (level 0, 1, 0)") && e.contains("(0, 6)"), "{e}");
+        let mut page = Page::nodata(8);
+        page.state[3] = 7;
+        assert!(check(&info, 0, 0, 0, &page).unwrap_err().to_string().contains("state 7"));
+        let page = Page::nodata(4);
+        assert!(check(&info, 0, 0, 0, &page).unwrap_err().to_string().contains("expected 64"));
+    }
+
+    #[test]
+    fn decode_rejects_wrong_lengths() {
+        let info = info(8, 8, 4);
+        let layout = Layout::of(&info);
+        assert!(decode(&layout, &[0u8; 10], 10, 0).is_err());
+        assert!(decode(&layout, &[0xff; 20], 144, FLAG_LZ4).is_err());
+    }
+}
