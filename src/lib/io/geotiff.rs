@@ -1,0 +1,590 @@
+//! GeoTIFF reading (any layout the `tiff` crate decodes) and writing (our three layer kinds).
+//!
+//! # Invariant
+//! [`read`] returns the corner-convention grid GDAL reports for the same file: ModelTiepoint +
+//! ModelPixelScale or a non-rotated ModelTransformation, shifted by half a cell when
+//! GTRasterTypeGeoKey says PixelIsPoint (GDAL's default, `GTIFF_POINT_GEO_IGNORE=NO`). Anything we
+//! cannot represent exactly (rotation, ground control points, scale/offset metadata, palettes) is
+//! an error with a fix, never an approximation. The writers produce byte-identical files for
+//! identical rasters: Deflate strips, no timestamps, georeference and CRS from the [`Grid`].
+
+use super::{crs_from_wkt, image_world, Samples, SourceRaster};
+use crate::crs::Crs;
+use crate::error::{Error, Result};
+use crate::grid::{GeoTransform, Grid};
+use crate::raster::{Colour, Raster};
+use rayon::prelude::*;
+use std::io::{BufReader, Seek, Write};
+use std::path::Path;
+use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::encoder::colortype::{self, ColorType};
+use tiff::encoder::{Compression, DeflateLevel, TiffEncoder, TiffKind, TiffValue};
+use tiff::tags::{ExtraSamples, Predictor, Tag};
+use tiff::{TiffError, TiffResult};
+
+/// Largest decoded image we accept, bytes: generous for DEMs, but a corrupt header claiming a
+/// gigantic size must fail cleanly instead of exhausting memory.
+const MAX_DECODED_BYTES: usize = 16 << 30;
+
+/// GeoKey IDs (GeoTIFF 1.1, section 7).
+mod key {
+    pub const GT_MODEL_TYPE: u16 = 1024;
+    pub const GT_RASTER_TYPE: u16 = 1025;
+    pub const GT_CITATION: u16 = 1026;
+    pub const GEOGRAPHIC_TYPE: u16 = 2048;
+    pub const GEOG_CITATION: u16 = 2049;
+    pub const GEOG_ANGULAR_UNITS: u16 = 2054;
+    pub const PROJECTED_CS_TYPE: u16 = 3072;
+    pub const PCS_CITATION: u16 = 3073;
+    pub const PROJ_LINEAR_UNITS: u16 = 3076;
+    /// Value meaning "user-defined" for any code key.
+    pub const USER_DEFINED: u16 = 32767;
+    pub const MODEL_PROJECTED: u16 = 1;
+    pub const MODEL_GEOGRAPHIC: u16 = 2;
+    pub const RASTER_PIXEL_IS_AREA: u16 = 1;
+    pub const RASTER_PIXEL_IS_POINT: u16 = 2;
+    pub const LINEAR_METRE: u16 = 9001;
+    pub const ANGULAR_DEGREE: u16 = 9102;
+}
+
+/// GDAL's private TIFF tag holding band metadata as XML (scale, offset, statistics).
+const TAG_GDAL_METADATA: Tag = Tag::Unknown(42112);
+
+/// Prefix GDAL (and we) use to carry a WKT CRS in GTCitationGeoKey.
+const ESRI_PE_STRING: &str = "ESRI PE String = ";
+
+/// The nodata value [`write_f32`] writes for NaN cells.
+pub const F32_NODATA: f32 = -9999.0;
+
+fn corrupt(path: &Path, e: TiffError) -> Error {
+    match e {
+        TiffError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            Error::file(path, "corrupt or truncated TIFF: file ends early").fix("re-create or re-download the file")
+        }
+        TiffError::LimitsExceeded => Error::file(path, "image too large to read into memory")
+            .fix("cut it into tiles with gdal_retile.py or gdal_translate -srcwin"),
+        TiffError::UnsupportedError(u) => Error::file(path, format!("unsupported TIFF layout: {u}"))
+            .fix("convert it: gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=1 in.tif out.tif"),
+        other => Error::file(path, format!("corrupt or truncated TIFF: {}", other.to_string().replace('\n', " ")))
+            .fix("re-create the file, or check it with gdalinfo"),
+    }
+}
+
+/// Read a GeoTIFF (or a plain TIFF with a `.tfw` world file): int8/16/32, uint8/16/32,
+/// float16/32/64; stripped or tiled; chunky or planar; any compression and predictor the `tiff`
+/// crate decodes (none, LZW, Deflate, PackBits, JPEG; predictors 2 and 3).
+pub fn read(path: &Path) -> Result<SourceRaster> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let limits = {
+        let mut l = Limits::default();
+        l.decoding_buffer_size = MAX_DECODED_BYTES;
+        l.intermediate_buffer_size = MAX_DECODED_BYTES;
+        l.ifd_value_size = 64 << 20;
+        l
+    };
+    let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| corrupt(path, e))?.with_limits(limits);
+    let err = |e| corrupt(path, e);
+    let (width, height) = dec.dimensions().map_err(err)?;
+    let photometric: Option<u16> = dec.find_tag_unsigned(Tag::PhotometricInterpretation).map_err(err)?;
+    if photometric == Some(3) {
+        return Err(Error::file(path, "palette (colour-mapped) TIFF").fix("expand it: gdal_translate -expand rgba in.tif out.tif"));
+    }
+    let color = dec.colortype().map_err(err)?;
+    if !matches!(color.bit_depth(), 8 | 16 | 32 | 64) {
+        return Err(Error::file(path, format!("{}-bit samples are not supported", color.bit_depth()))
+            .fix("convert it: gdal_translate -ot Byte in.tif out.tif"));
+    }
+    let bands = color.num_samples() as usize;
+    let extra: Vec<u16> = dec.find_tag_unsigned_vec(Tag::ExtraSamples).map_err(err)?.unwrap_or_default();
+    let alpha_band = extra
+        .iter()
+        .position(|&e| e == ExtraSamples::AssociatedAlpha.to_u16() || e == ExtraSamples::UnassociatedAlpha.to_u16())
+        .map(|i| bands - extra.len() + i);
+    let tags = GeoTags::read(&mut dec).map_err(err)?;
+
+    let mut buf = DecodingResult::U8(Vec::new());
+    let layout = dec.read_image_to_buffer(&mut buf).map_err(err)?;
+    let pixels = width as usize * height as usize;
+    let mut samples = samples_from(path, buf)?;
+    if samples.len() != pixels * bands {
+        return Err(Error::file(path, format!("decoded {} samples, expected {width} × {height} × {bands}", samples.len()))
+            .fix("convert it: gdal_translate -co INTERLEAVE=PIXEL in.tif out.tif"));
+    }
+    if layout.planes > 1 {
+        samples = interleave(samples, bands);
+    }
+
+    let (crs, pixel_is_point) = tags.crs(path)?;
+    let transform = match tags.transform(path, pixel_is_point)? {
+        Some(t) => t,
+        None => image_world::read_world_file(path)?.ok_or_else(|| {
+            Error::file(path, "no georeference (no GeoTIFF tags and no .tfw world file)")
+                .fix("assign one: gdal_translate -a_ullr ULX ULY LRX LRY -a_srs EPSG:CODE in.tif out.tif")
+        })?,
+    };
+    tags.check_no_scale_offset(path)?;
+    let crs = if crs.is_unknown() { super::read_prj(path)? } else { crs };
+    Ok(SourceRaster {
+        path: path.to_path_buf(),
+        grid: Grid { width: width as usize, height: height as usize, transform, crs },
+        bands,
+        samples,
+        nodata: tags.nodata(path)?,
+        alpha_band,
+        pixel_is_point,
+        format: "GTiff",
+    })
+}
+
+/// Our sample vector from the decoder's; small types widen exactly (int8 → Int16, float16 → Float32).
+fn samples_from(path: &Path, buf: DecodingResult) -> Result<Samples> {
+    Ok(match buf {
+        DecodingResult::U8(v) => Samples::U8(v),
+        DecodingResult::U16(v) => Samples::U16(v),
+        DecodingResult::I16(v) => Samples::I16(v),
+        DecodingResult::U32(v) => Samples::U32(v),
+        DecodingResult::I32(v) => Samples::I32(v),
+        DecodingResult::F32(v) => Samples::F32(v),
+        DecodingResult::F64(v) => Samples::F64(v),
+        DecodingResult::I8(v) => Samples::I16(v.into_iter().map(i16::from).collect()),
+        DecodingResult::F16(v) => Samples::F32(v.into_iter().map(|x| x.to_f32()).collect()),
+        DecodingResult::U64(_) | DecodingResult::I64(_) => {
+            return Err(Error::file(path, "64-bit integer samples are not supported")
+                .fix("convert it: gdal_translate -ot Float64 in.tif out.tif"))
+        }
+    })
+}
+
+/// Planar (band-sequential) samples to pixel-interleaved.
+fn interleave(samples: Samples, bands: usize) -> Samples {
+    fn go<T: Copy + Send + Sync>(v: Vec<T>, bands: usize) -> Vec<T> {
+        let n = v.len() / bands;
+        (0..v.len()).into_par_iter().map(|i| v[(i % bands) * n + i / bands]).collect()
+    }
+    match samples {
+        Samples::U8(v) => Samples::U8(go(v, bands)),
+        Samples::U16(v) => Samples::U16(go(v, bands)),
+        Samples::I16(v) => Samples::I16(go(v, bands)),
+        Samples::U32(v) => Samples::U32(go(v, bands)),
+        Samples::I32(v) => Samples::I32(go(v, bands)),
+        Samples::F32(v) => Samples::F32(go(v, bands)),
+        Samples::F64(v) => Samples::F64(go(v, bands)),
+    }
+}
+
+/// The georeferencing tags of a TIFF, raw.
+#[derive(Debug, Default)]
+struct GeoTags {
+    pixel_scale: Option<Vec<f64>>,
+    tiepoints: Option<Vec<f64>>,
+    transformation: Option<Vec<f64>>,
+    geokeys: Option<Vec<u16>>,
+    doubles: Option<Vec<f64>>,
+    ascii: Option<String>,
+    nodata: Option<String>,
+    metadata: Option<String>,
+}
+
+/// A GeoKey's value: a short, doubles, or text.
+#[derive(Debug, Clone, PartialEq)]
+enum KeyValue {
+    Short(u16),
+    Doubles(Vec<f64>),
+    Ascii(String),
+}
+
+impl GeoTags {
+    fn read<R: std::io::Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<GeoTags> {
+        let f64s = |dec: &mut Decoder<R>, t| dec.find_tag(t).and_then(|v| v.map(|v| v.into_f64_vec()).transpose());
+        let text = |dec: &mut Decoder<R>, t| dec.find_tag(t).and_then(|v| v.map(|v| v.into_string()).transpose());
+        Ok(GeoTags {
+            pixel_scale: f64s(dec, Tag::ModelPixelScaleTag)?,
+            tiepoints: f64s(dec, Tag::ModelTiepointTag)?,
+            transformation: f64s(dec, Tag::ModelTransformationTag)?,
+            geokeys: dec.find_tag_unsigned_vec(Tag::GeoKeyDirectoryTag)?,
+            doubles: f64s(dec, Tag::GeoDoubleParamsTag)?,
+            ascii: text(dec, Tag::GeoAsciiParamsTag)?,
+            nodata: text(dec, Tag::GdalNodata)?,
+            metadata: text(dec, TAG_GDAL_METADATA)?,
+        })
+    }
+
+    /// The GeoKeys as (id, value), in file order. Malformed directories are an error.
+    fn keys(&self, path: &Path) -> Result<Vec<(u16, KeyValue)>> {
+        let Some(dir) = &self.geokeys else { return Ok(Vec::new()) };
+        let bad = |what: &str| Error::file(path, format!("corrupt GeoKeyDirectory: {what}")).fix("re-create the georeference with gdal_translate -a_srs");
+        if dir.len() < 4 {
+            return Err(bad("too short"));
+        }
+        let n = dir[3] as usize;
+        let entries = dir.get(4..4 + 4 * n).ok_or_else(|| bad("fewer keys than it declares"))?;
+        entries
+            .chunks_exact(4)
+            .map(|e| {
+                let (id, loc, count, off) = (e[0], e[1], e[2] as usize, e[3] as usize);
+                let value = match loc {
+                    0 => KeyValue::Short(off as u16),
+                    34736 => KeyValue::Doubles(
+                        self.doubles.as_ref().and_then(|d| d.get(off..off + count)).ok_or_else(|| bad("double out of range"))?.to_vec(),
+                    ),
+                    34737 => {
+                        let s = self.ascii.as_deref().and_then(|a| a.get(off..off + count)).ok_or_else(|| bad("text out of range"))?;
+                        KeyValue::Ascii(s.trim_end_matches(['|', '\0']).to_string())
+                    }
+                    34735 => KeyValue::Short(*dir.get(off).ok_or_else(|| bad("short out of range"))?),
+                    _ => return Err(bad("unknown value location")),
+                };
+                Ok((id, value))
+            })
+            .collect()
+    }
+
+    /// The CRS from the GeoKeys, and whether the raster type is PixelIsPoint.
+    ///
+    /// EPSG codes come from ProjectedCSTypeGeoKey (projected) or GeographicTypeGeoKey
+    /// (geographic). A user-defined CRS (code 32767) has no EPSG code: it keeps the WKT carried in
+    /// an `ESRI PE String = ` citation if there is one, else a `LOCAL_CS["<citation>"]` WKT that
+    /// names it (so it compares unequal to every EPSG CRS instead of matching anything).
+    fn crs(&self, path: &Path) -> Result<(Crs, bool)> {
+        let keys = self.keys(path)?;
+        let short = |id| keys.iter().find(|(k, _)| *k == id).and_then(|(_, v)| if let KeyValue::Short(s) = v { Some(*s) } else { None });
+        let text = |id| keys.iter().find(|(k, _)| *k == id).and_then(|(_, v)| if let KeyValue::Ascii(s) = v { Some(s.clone()) } else { None });
+        let point = short(key::GT_RASTER_TYPE) == Some(key::RASTER_PIXEL_IS_POINT);
+        if let Some(wkt) = text(key::GT_CITATION).and_then(|c| c.strip_prefix(ESRI_PE_STRING).map(str::to_string)) {
+            if let Some(crs) = crs_from_wkt(&wkt) {
+                return Ok((crs, point));
+            }
+        }
+        let projected = short(key::PROJECTED_CS_TYPE);
+        let geographic = short(key::GEOGRAPHIC_TYPE);
+        let model = short(key::GT_MODEL_TYPE).or(match (projected, geographic) {
+            (Some(_), _) => Some(key::MODEL_PROJECTED),
+            (None, Some(_)) => Some(key::MODEL_GEOGRAPHIC),
+            _ => None,
+        });
+        let (code, citation_keys, is_geo) = match model {
+            Some(key::MODEL_PROJECTED) => (projected, [key::PCS_CITATION, key::GT_CITATION], false),
+            Some(key::MODEL_GEOGRAPHIC) => (geographic, [key::GEOG_CITATION, key::GT_CITATION], true),
+            Some(other) => {
+                return Err(Error::file(path, format!("unsupported GeoTIFF model type {other} (geocentric?)"))
+                    .fix("reproject it: gdalwarp -t_srs EPSG:CODE in.tif out.tif"))
+            }
+            None => return Ok((Crs::unknown(), point)),
+        };
+        let crs = match code {
+            Some(c) if c != key::USER_DEFINED && c != 0 => Crs { geographic: is_geo, ..Crs::epsg(c as u32) },
+            _ => {
+                let name = citation_keys.iter().find_map(|&k| text(k)).unwrap_or_else(|| "user-defined".to_string());
+                let name = name.replace('"', "'");
+                Crs { epsg: None, wkt: Some(format!("LOCAL_CS[\"{name}\"]")), geographic: is_geo }
+            }
+        };
+        Ok((crs, point))
+    }
+
+    /// The corner-convention transform, or `None` when the file has no georeferencing tags.
+    fn transform(&self, path: &Path, pixel_is_point: bool) -> Result<Option<GeoTransform>> {
+        let t = match (&self.transformation, &self.tiepoints, &self.pixel_scale) {
+            (Some(m), _, _) => {
+                if m.len() < 8 {
+                    return Err(Error::file(path, "ModelTransformation has fewer than 16 values").fix("re-create the georeference with gdal_translate"));
+                }
+                if m[1] != 0.0 || m[4] != 0.0 {
+                    return Err(Error::file(path, format!("rotated or sheared georeference (ModelTransformation terms {}, {})", m[1], m[4]))
+                        .fix("make it north-up first: gdalwarp in.tif out.tif"));
+                }
+                GeoTransform { origin_x: m[3], origin_y: m[7], cell_x: m[0], cell_y: m[5] }
+            }
+            (None, Some(tp), Some(sc)) if tp.len() == 6 && sc.len() >= 2 => GeoTransform {
+                origin_x: tp[3] - tp[0] * sc[0],
+                origin_y: tp[4] + tp[1] * sc[1],
+                cell_x: sc[0],
+                cell_y: -sc[1],
+            },
+            (None, Some(tp), _) if tp.len() >= 6 => {
+                return Err(Error::file(path, format!("georeferenced by {} ground control points, not a grid", tp.len() / 6))
+                    .fix("warp it onto a north-up grid first: gdalwarp in.tif out.tif"))
+            }
+            _ => return Ok(None),
+        };
+        let GeoTransform { origin_x, origin_y, cell_x, cell_y } = t;
+        if ![origin_x, origin_y, cell_x, cell_y].iter().all(|v| v.is_finite()) || cell_x <= 0.0 || cell_y == 0.0 {
+            return Err(Error::file(path, format!("bad georeference (origin {origin_x}, {origin_y}; cell {cell_x} × {cell_y})"))
+                .fix("assign one: gdal_translate -a_ullr ULX ULY LRX LRY in.tif out.tif"));
+        }
+        Ok(Some(if pixel_is_point {
+            // The tiepoint is a pixel centre: the corner is half a cell up and left (GDAL does the same).
+            GeoTransform { origin_x: origin_x - 0.5 * cell_x, origin_y: origin_y - 0.5 * cell_y, ..t }
+        } else {
+            t
+        }))
+    }
+
+    /// The GDAL_NODATA value: a number, `nan`, `inf` or `-inf`.
+    fn nodata(&self, path: &Path) -> Result<Option<f64>> {
+        let Some(s) = &self.nodata else { return Ok(None) };
+        let s = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
+        if s.is_empty() {
+            return Ok(None);
+        }
+        s.parse::<f64>().map(Some).map_err(|_| {
+            Error::file(path, format!("GDAL_NODATA tag '{s}' is not a number")).fix("set it: gdal_edit.py -a_nodata VALUE in.tif")
+        })
+    }
+
+    /// GDAL stores band scale/offset in its metadata XML; values would need `v·scale + offset`,
+    /// which we do not apply, so refuse rather than return unscaled numbers.
+    fn check_no_scale_offset(&self, path: &Path) -> Result<()> {
+        let Some(xml) = &self.metadata else { return Ok(()) };
+        for (role, identity) in [("scale", 1.0), ("offset", 0.0)] {
+            let needle = format!("role=\"{role}\">");
+            for (at, _) in xml.match_indices(&needle) {
+                let rest = &xml[at + needle.len()..];
+                let value = rest.split('<').next().unwrap_or("").trim();
+                if value.parse::<f64>().map_or(true, |v| v != identity) {
+                    return Err(Error::file(path, format!("band {role} {value} is set (values are not in their final units)"))
+                        .fix("apply it: gdal_translate -unscale -ot Float32 in.tif out.tif"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Write a Float32 GeoTIFF (elevation, metres): NaN is written as [`F32_NODATA`] (-9999) with the
+/// GDAL_NODATA tag "-9999". Deflate-compressed strips (the `tiff` crate cannot write the
+/// floating-point predictor). A valid cell that equals -9999 exactly would read back as nodata,
+/// so it is an error.
+pub fn write_f32(path: &Path, r: &Raster<f32>) -> Result<()> {
+    let data: Vec<f32> = r.data.par_iter().map(|&v| if v.is_nan() { F32_NODATA } else { v }).collect();
+    if let Some(i) = r.data.par_iter().position_first(|&v| v == F32_NODATA) {
+        return Err(Error::file(
+            path,
+            format!("cell ({}, {}) holds {F32_NODATA}, the nodata value of our GeoTIFFs", i % r.width().max(1), i / r.width().max(1)),
+        )
+        .fix("offset the heights or mark that cell as nodata"));
+    }
+    write_image::<colortype::Gray32Float>(path, &r.grid, &data, Layout { nodata: Some("-9999".into()), predictor: Predictor::None, alpha: false })
+}
+
+/// Write an RGBA8 GeoTIFF (ExtraSamples = unassociated alpha, so GDAL/QGIS treat band 4 as the
+/// mask); same georeference as [`write_f32`]. Deflate with horizontal predictor.
+pub fn write_rgba8(path: &Path, r: &Colour) -> Result<()> {
+    let flat: &[u8] = r.data.as_flattened();
+    write_image::<colortype::RGBA8>(path, &r.grid, flat, Layout { nodata: None, predictor: Predictor::Horizontal, alpha: true })
+}
+
+/// Write a single-band 8-bit GeoTIFF with an optional nodata value (used for masks: 1 = shadow,
+/// 0 = lit, 255 nodata). Deflate with horizontal predictor.
+pub fn write_u8(path: &Path, r: &Raster<u8>, nodata: Option<u8>) -> Result<()> {
+    let layout = Layout { nodata: nodata.map(|v| v.to_string()), predictor: Predictor::Horizontal, alpha: false };
+    write_image::<colortype::Gray8>(path, &r.grid, &r.data, layout)
+}
+
+/// What differs between our writers besides the sample type.
+struct Layout {
+    nodata: Option<String>,
+    predictor: Predictor,
+    alpha: bool,
+}
+
+/// Classic TIFF offsets are 32-bit: beyond this many bytes of samples we write BigTIFF.
+const BIGTIFF_ABOVE: u64 = 3 << 30;
+
+fn write_image<C: ColorType>(path: &Path, grid: &Grid, data: &[C::Inner], layout: Layout) -> Result<()>
+where
+    [C::Inner]: TiffValue,
+{
+    let (w, h) = (u32::try_from(grid.width), u32::try_from(grid.height));
+    let (Ok(w), Ok(h)) = (w, h) else {
+        return Err(Error::file(path, format!("{} × {} cells is too large for a TIFF", grid.width, grid.height)));
+    };
+    if w == 0 || h == 0 {
+        return Err(Error::file(path, "cannot write an empty raster"));
+    }
+    let bytes = std::mem::size_of_val(data) as u64;
+    let fail = |e: TiffError| Error::file(path, format!("cannot write TIFF: {e}"));
+    super::atomic::write_atomic(path, |out| {
+        let compression = Compression::Deflate(DeflateLevel::Balanced);
+        if bytes > BIGTIFF_ABOVE {
+            let enc = TiffEncoder::new_big(out).map_err(fail)?;
+            encode::<_, _, C>(enc.with_compression(compression).with_predictor(layout.predictor), grid, data, &layout).map_err(fail)
+        } else {
+            let enc = TiffEncoder::new(out).map_err(fail)?;
+            encode::<_, _, C>(enc.with_compression(compression).with_predictor(layout.predictor), grid, data, &layout).map_err(fail)
+        }
+    })
+}
+
+fn encode<W: Write + Seek, K: TiffKind, C: ColorType>(mut enc: TiffEncoder<W, K>, grid: &Grid, data: &[C::Inner], layout: &Layout) -> TiffResult<()>
+where
+    [C::Inner]: TiffValue,
+{
+    let mut img = enc.new_image::<C>(grid.width as u32, grid.height as u32)?;
+    let t = &grid.transform;
+    let dir = img.encoder();
+    if layout.alpha {
+        // The 4-sample colour type keeps the predictor's stride right; the tag marks band 4 as alpha.
+        dir.write_tag(Tag::ExtraSamples, &[ExtraSamples::UnassociatedAlpha.to_u16()][..])?;
+    }
+    if t.cell_y < 0.0 {
+        dir.write_tag(Tag::ModelPixelScaleTag, &[t.cell_x, -t.cell_y, 0.0][..])?;
+        dir.write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, t.origin_x, t.origin_y, 0.0][..])?;
+    } else {
+        let m = [t.cell_x, 0.0, 0.0, t.origin_x, 0.0, t.cell_y, 0.0, t.origin_y, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        dir.write_tag(Tag::ModelTransformationTag, &m[..])?;
+    }
+    let (keys, ascii) = geokeys(&grid.crs);
+    dir.write_tag(Tag::GeoKeyDirectoryTag, &keys[..])?;
+    if let Some(a) = &ascii {
+        dir.write_tag(Tag::GeoAsciiParamsTag, a.as_str())?;
+    }
+    if let Some(nd) = &layout.nodata {
+        dir.write_tag(Tag::GdalNodata, nd.as_str())?;
+    }
+    img.write_data(data)
+}
+
+/// The GeoKeyDirectory (sorted by key, as the spec requires) and GeoAsciiParams for a CRS:
+/// EPSG codes as ProjectedCSType (linear unit metre) or GeographicType (angular unit degree);
+/// a WKT-only CRS as user-defined with the WKT in an `ESRI PE String = ` citation (GDAL reads it).
+fn geokeys(crs: &Crs) -> (Vec<u16>, Option<String>) {
+    let mut entries: Vec<[u16; 4]> = vec![[key::GT_RASTER_TYPE, 0, 1, key::RASTER_PIXEL_IS_AREA]];
+    let mut ascii = None;
+    let wkt = crs.wkt.as_deref().filter(|w| w.is_ascii() && !w.contains('|'));
+    let code = match (crs.epsg, wkt) {
+        (Some(c), _) if c < key::USER_DEFINED as u32 => Some(c as u16),
+        (_, Some(w)) => {
+            let citation = format!("{ESRI_PE_STRING}{w}|");
+            entries.push([key::GT_CITATION, 34737, citation.len() as u16, 0]);
+            ascii = Some(citation);
+            Some(key::USER_DEFINED)
+        }
+        _ => None,
+    };
+    if let Some(code) = code {
+        if crs.geographic {
+            entries.push([key::GT_MODEL_TYPE, 0, 1, key::MODEL_GEOGRAPHIC]);
+            entries.push([key::GEOGRAPHIC_TYPE, 0, 1, code]);
+            entries.push([key::GEOG_ANGULAR_UNITS, 0, 1, key::ANGULAR_DEGREE]);
+        } else {
+            entries.push([key::GT_MODEL_TYPE, 0, 1, key::MODEL_PROJECTED]);
+            entries.push([key::PROJECTED_CS_TYPE, 0, 1, code]);
+            entries.push([key::PROJ_LINEAR_UNITS, 0, 1, key::LINEAR_METRE]);
+        }
+    }
+    entries.sort_by_key(|e| e[0]);
+    let mut dir = vec![1, 1, 0, entries.len() as u16];
+    dir.extend(entries.into_iter().flatten());
+    (dir, ascii)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::NODATA_COLOUR;
+
+    fn grid(crs: Crs) -> Grid {
+        Grid::north_up(500_000.25, 5_000_000.75, 0.5, 5, 3, crs)
+    }
+
+    #[test]
+    fn f32_round_trip_is_bit_exact_with_nan_as_nodata() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("e.tif");
+        let data = vec![1.0, f32::NAN, -3.5, 1e-7, 8848.86, 0.0, -0.0, f32::MIN_POSITIVE, 12.0, 1e30, 2.0, 3.0, 4.0, 5.0, f32::NAN];
+        let r = Raster::new(grid(Crs::epsg(32614)), data.clone());
+        write_f32(&p, &r).unwrap();
+        let s = read(&p).unwrap();
+        assert_eq!(s.grid, r.grid);
+        assert_eq!(s.nodata, Some(-9999.0));
+        let e = s.to_elevation().unwrap();
+        for (a, b) in e.data.iter().zip(&data) {
+            assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{a} vs {b}");
+        }
+        let again = dir.path().join("e2.tif");
+        write_f32(&again, &r).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&again).unwrap(), "output must be deterministic");
+    }
+
+    #[test]
+    fn f32_refuses_a_valid_nodata_value() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = Raster::new(grid(Crs::unknown()), vec![F32_NODATA; 15]);
+        assert!(write_f32(&dir.path().join("x.tif"), &r).is_err());
+    }
+
+    #[test]
+    fn rgba_and_u8_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let g = grid(Crs::epsg(4326));
+        let c = Raster::new(g.clone(), (0..15u8).map(|i| if i == 3 { NODATA_COLOUR } else { [i, 2 * i, 255 - i, 255] }).collect());
+        let p = dir.path().join("c.tif");
+        write_rgba8(&p, &c).unwrap();
+        let s = read(&p).unwrap();
+        assert_eq!((s.bands, s.alpha_band), (4, Some(3)));
+        assert_eq!(s.grid, g);
+        assert!(s.grid.crs.geographic);
+        assert_eq!(s.to_colour().unwrap(), c);
+
+        let m = Raster::new(g.clone(), (0..15u8).map(|i| i % 3).collect());
+        let p = dir.path().join("m.tif");
+        write_u8(&p, &m, Some(255)).unwrap();
+        let s = read(&p).unwrap();
+        assert_eq!(s.samples, Samples::U8(m.data.clone()));
+        assert_eq!(s.nodata, Some(255.0));
+    }
+
+    #[test]
+    fn wkt_only_crs_round_trips_through_citation() {
+        let dir = tempfile::tempdir().unwrap();
+        let wkt = r#"PROJCS["Local_Grid",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984"]],UNIT["Meter",1.0]]"#;
+        let crs = Crs { epsg: None, wkt: Some(wkt.to_string()), geographic: false };
+        let r = Raster::new(grid(crs.clone()), vec![1.0; 15]);
+        let p = dir.path().join("w.tif");
+        write_f32(&p, &r).unwrap();
+        assert_eq!(read(&p).unwrap().grid.crs, crs);
+    }
+
+    #[test]
+    fn tiepoint_scale_and_pixel_is_point() {
+        let tags = GeoTags { tiepoints: Some(vec![2.0, 1.0, 0.0, 100.0, 200.0, 0.0]), pixel_scale: Some(vec![10.0, 5.0, 0.0]), ..Default::default() };
+        let t = tags.transform(Path::new("x"), false).unwrap().unwrap();
+        assert_eq!(t, GeoTransform { origin_x: 80.0, origin_y: 205.0, cell_x: 10.0, cell_y: -5.0 });
+        let t = tags.transform(Path::new("x"), true).unwrap().unwrap();
+        assert_eq!(t, GeoTransform { origin_x: 75.0, origin_y: 207.5, cell_x: 10.0, cell_y: -5.0 });
+    }
+
+    #[test]
+    fn rotation_and_gcps_are_errors() {
+        let mut m = vec![0.0; 16];
+        (m[0], m[1], m[3], m[4], m[5], m[7]) = (1.0, 0.2, 0.0, 0.0, -1.0, 0.0);
+        let tags = GeoTags { transformation: Some(m), ..Default::default() };
+        let e = tags.transform(Path::new("r.tif"), false).unwrap_err().to_string();
+        assert!(e.starts_with("r.tif: rotated"), "{e}");
+        let tags = GeoTags { tiepoints: Some(vec![0.0; 18]), ..Default::default() };
+        let e = tags.transform(Path::new("g.tif"), false).unwrap_err().to_string();
+        assert!(e.contains("3 ground control points"), "{e}");
+    }
+
+    #[test]
+    fn geokeys_user_defined_citation() {
+        let keys = [1u16, 1, 0, 3, 1024, 0, 1, 1, 1026, 34737, 8, 0, 3072, 0, 1, 32767];
+        let tags = GeoTags { geokeys: Some(keys.to_vec()), ascii: Some("My Grid|".into()), ..Default::default() };
+        let (crs, point) = tags.crs(Path::new("x")).unwrap();
+        assert!(!point);
+        assert_eq!(crs.epsg, None);
+        assert_eq!(crs.name(), "\"My Grid\"");
+        assert!(!crs.same_as(&Crs::epsg(32614)));
+    }
+
+    #[test]
+    fn scale_offset_metadata_is_refused() {
+        let xml = r#"<GDALMetadata><Item name="SCALE" sample="0" role="scale">0.1</Item></GDALMetadata>"#;
+        let tags = GeoTags { metadata: Some(xml.into()), ..Default::default() };
+        assert!(tags.check_no_scale_offset(Path::new("x")).is_err());
+        let xml = r#"<GDALMetadata><Item name="OFFSET" sample="0" role="offset">0</Item><Item name="SCALE" sample="0" role="scale">1</Item></GDALMetadata>"#;
+        let tags = GeoTags { metadata: Some(xml.into()), ..Default::default() };
+        assert!(tags.check_no_scale_offset(Path::new("x")).is_ok());
+    }
+}
