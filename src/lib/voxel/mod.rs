@@ -1,1 +1,12 @@
 //! Sparse voxel objects: carving from silhouettes, synthetic objects, export.
+//!
+//! World units are metres; an object's voxels are axis-aligned with the world (x east, y north,
+//! z up) and addressed by [`grid::VoxelGrid`].
+
+pub mod camera;
+pub mod carve;
+pub mod grid;
+pub mod occupancy;
+pub mod silhouette;
+pub mod solids;
+mod vec3;
