@@ -6,3 +6,4 @@
 
 pub mod cascade;
 pub mod reduce;
+pub mod raised;

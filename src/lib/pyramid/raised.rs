@@ -1,0 +1,396 @@
+//! Level-0 merge: what stands on the terrain — raised buildings and placed voxel objects.
+//!
+//! Invariant: a [`Raised`] set holds at most one [`RaisedCell`] per grid cell, sorted by cell
+//! index, and only cells whose top is above valid terrain (a building or object over a DEM hole
+//! stays a hole: nodata never becomes data). Merging into level 0 is then a per-cell rule:
+//! `max_z = top_z`, the state opaque unless the cell has voxel overhangs or holes (partial), and
+//! the colour of an object cell is its top voxel's (the orthophoto never saw objects placed
+//! afterwards), while a building cell keeps the photo's roof colour.
+//!
+//! * Buildings are flat-roofed prisms (GeoJSON polygons with an absolute `roof_z` in metres, the
+//!   `buildings` layer that `dbms shadow-height --apply` writes): a cell is inside when its
+//!   **centre** is inside the polygon (even-odd rule, so holes work), like `gdal_rasterize`.
+//! * A voxel object marks every cell whose centre lies inside one of its voxels' footprints (the
+//!   voxel's square rotated by the heading), and always the cell holding the voxel's centre, so
+//!   voxels smaller than a cell are not lost. Per cell the column's voxel z-intervals are merged:
+//!   `top_z` is the highest voxel top; the cell is **partial** when the column has a gap between
+//!   voxels, or its lowest voxel starts more than half a voxel above the ground (an overhang);
+//!   otherwise it is an opaque column from the ground up.
+
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::raster::Elevation;
+use rayon::prelude::*;
+use std::path::Path;
+
+/// One level-0 cell with something standing on it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RaisedCell {
+    /// Row-major cell index in the database grid.
+    pub index: usize,
+    /// Top of the column, metres (above the terrain height of the cell).
+    pub top_z: f32,
+    /// Colour of the top surface when it is not the photo's (objects); `None` keeps the photo's.
+    pub colour: Option<[u8; 4]>,
+    /// True when the column has holes or overhangs (state partial; the bricks hold the detail).
+    pub partial: bool,
+}
+
+/// The raised cells of a database grid, sorted by index, one per cell.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Raised {
+    cells: Vec<RaisedCell>,
+}
+
+impl Raised {
+    /// Combine cells from any sources: per cell the highest top wins (with its colour), and the
+    /// cell is partial when any source says so. Cells not above valid terrain are dropped.
+    pub fn new(mut cells: Vec<RaisedCell>, terrain: &Elevation) -> Raised {
+        cells.retain(|c| {
+            let t = terrain.data[c.index];
+            !t.is_nan() && c.top_z > t
+        });
+        cells.par_sort_by(|a, b| a.index.cmp(&b.index).then(b.top_z.total_cmp(&a.top_z)));
+        let mut out: Vec<RaisedCell> = Vec::with_capacity(cells.len());
+        for c in cells {
+            match out.last_mut() {
+                // Sorted highest first within an index: the first is the top; later ones only add partiality.
+                Some(last) if last.index == c.index => last.partial |= c.partial,
+                _ => out.push(c),
+            }
+        }
+        Raised { cells: out }
+    }
+
+    /// Number of raised cells.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// True when nothing is raised.
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
+
+    /// The raised cells with index in `start..end`, sorted.
+    pub fn range(&self, start: usize, end: usize) -> &[RaisedCell] {
+        let a = self.cells.partition_point(|c| c.index < start);
+        let b = self.cells.partition_point(|c| c.index < end);
+        &self.cells[a..b]
+    }
+
+    /// The raised cell at `index`, if any.
+    pub fn get(&self, index: usize) -> Option<&RaisedCell> {
+        self.range(index, index + 1).first()
+    }
+
+    /// The terrain with every raised cell at its top: the surface shadows are cast over.
+    pub fn heights(&self, terrain: &Elevation) -> Elevation {
+        let mut h = terrain.clone();
+        for c in &self.cells {
+            h.data[c.index] = c.top_z;
+        }
+        h
+    }
+}
+
+/// A flat-roofed prism: a polygon (outer ring and holes, CRS units) raised to `roof_z` metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prism {
+    /// Rings of `(x, y)` vertices; the even-odd rule decides inside, so holes are just rings.
+    pub rings: Vec<Vec<(f64, f64)>>,
+    /// Absolute roof height, metres.
+    pub roof_z: f64,
+}
+
+/// Read the `buildings` layer: a GeoJSON FeatureCollection of Polygon / MultiPolygon features
+/// in the database CRS, each with a numeric `roof_z` property (absolute metres).
+pub fn read_buildings(path: &Path) -> Result<Vec<Prism>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let doc: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix("re-run `dbms shadow-height --apply`"))?;
+    let features = doc.get("features").and_then(|f| f.as_array()).ok_or_else(|| {
+        Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix("re-run `dbms shadow-height --apply`")
+    })?;
+    let mut prisms = Vec::new();
+    for (i, f) in features.iter().enumerate() {
+        let bad = |what: &str| {
+            Error::file(path, format!("feature {i}: {what}")).fix("each building needs a Polygon or MultiPolygon and a numeric roof_z")
+        };
+        let roof_z = f.pointer("/properties/roof_z").and_then(|v| v.as_f64()).ok_or_else(|| bad("no numeric roof_z property"))?;
+        if !roof_z.is_finite() {
+            return Err(bad("roof_z is not finite"));
+        }
+        let geom = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
+        let coords = geom.get("coordinates").ok_or_else(|| bad("geometry has no coordinates"))?;
+        let polygons: Vec<&serde_json::Value> = match geom.get("type").and_then(|t| t.as_str()) {
+            Some("Polygon") => vec![coords],
+            Some("MultiPolygon") => coords.as_array().ok_or_else(|| bad("bad MultiPolygon coordinates"))?.iter().collect(),
+            other => return Err(bad(&format!("geometry type {other:?} is not Polygon or MultiPolygon"))),
+        };
+        for poly in polygons {
+            let rings = parse_rings(poly).ok_or_else(|| bad("bad polygon coordinates"))?;
+            prisms.push(Prism { rings, roof_z });
+        }
+    }
+    Ok(prisms)
+}
+
+fn parse_rings(poly: &serde_json::Value) -> Option<Vec<Vec<(f64, f64)>>> {
+    poly.as_array()?
+        .iter()
+        .map(|ring| {
+            ring.as_array()?
+                .iter()
+                .map(|p| {
+                    let p = p.as_array()?;
+                    let (x, y) = (p.first()?.as_f64()?, p.get(1)?.as_f64()?);
+                    (x.is_finite() && y.is_finite()).then_some((x, y))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The cells of `grid` whose centres are inside each prism, raised to its roof (opaque, photo
+/// colour). Scanline fill per row: the crossings of every ring edge with the row's centre line,
+/// sorted, filled pairwise (even-odd).
+pub fn rasterise_prisms(grid: &Grid, prisms: &[Prism]) -> Vec<RaisedCell> {
+    prisms
+        .par_iter()
+        .flat_map_iter(|prism| {
+            let mut out = Vec::new();
+            let t = &grid.transform;
+            // Only the rows the prism's y extent can reach.
+            let ys = prism.rings.iter().flatten().map(|p| p.1);
+            let (y_lo, y_hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| (a.min(y), b.max(y)));
+            let (p0, p1) = (grid.transform.world_to_pixel(0.0, y_lo).1, grid.transform.world_to_pixel(0.0, y_hi).1);
+            let first = (p0.min(p1).floor().max(0.0) as usize).min(grid.height);
+            let last = (p0.max(p1).ceil().max(0.0) as usize).min(grid.height);
+            for row in first..last {
+                let y = t.origin_y + (row as f64 + 0.5) * t.cell_y;
+                let mut xs: Vec<f64> = Vec::new();
+                for ring in &prism.rings {
+                    for (k, &(x0, y0)) in ring.iter().enumerate() {
+                        let (x1, y1) = ring[(k + 1) % ring.len()];
+                        // Half-open in y so a vertex on the line is counted once.
+                        if (y0 <= y) != (y1 <= y) {
+                            xs.push(x0 + (y - y0) / (y1 - y0) * (x1 - x0));
+                        }
+                    }
+                }
+                xs.sort_by(f64::total_cmp);
+                for pair in xs.chunks_exact(2) {
+                    // Columns whose centre x is in [pair[0], pair[1]).
+                    let c0 = ((pair[0] - t.origin_x) / t.cell_x - 0.5).ceil().max(0.0) as usize;
+                    let c1 = ((pair[1] - t.origin_x) / t.cell_x - 0.5).ceil().clamp(0.0, grid.width as f64) as usize;
+                    for col in c0..c1.max(c0) {
+                        out.push(RaisedCell { index: grid.index(col, row), top_z: prism.roof_z as f32, colour: None, partial: false });
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// A voxel object placed in the world: cubic voxels of `voxel_size` metres at local centres
+/// `(u, v, w)` (metres; u right, v forward, w up), the local origin at world `origin`, the
+/// object's +v axis pointing `heading_deg` clockwise from north.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlacedVoxels {
+    /// World position of the local origin (CRS units; z metres, absolute).
+    pub origin: [f64; 3],
+    /// Degrees clockwise from north of the object's +v axis.
+    pub heading_deg: f64,
+    /// Voxel edge, metres.
+    pub voxel_size: f64,
+    /// Occupied voxels: local centre and RGB colour.
+    pub voxels: Vec<([f64; 3], [u8; 3])>,
+}
+
+/// The cells an object stands on (see the module doc for the footprint and partial rules).
+pub fn rasterise_object(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) -> Vec<RaisedCell> {
+    let h = obj.heading_deg.to_radians();
+    let (s, c) = h.sin_cos();
+    // Local u → world (cos h, −sin h); local v → world (sin h, cos h).
+    let to_world = |u: f64, v: f64| (obj.origin[0] + u * c + v * s, obj.origin[1] - u * s + v * c);
+    let half = obj.voxel_size / 2.0;
+    // (cell index, bottom, top, colour) for every voxel and cell it marks.
+    let mut marks: Vec<(usize, f64, f64, [u8; 3])> = obj
+        .voxels
+        .par_iter()
+        .flat_map_iter(|&([u, v, w], rgb)| {
+            let (bottom, top) = (obj.origin[2] + w - half, obj.origin[2] + w + half);
+            let mut cells: Vec<usize> = Vec::new();
+            let (wx, wy) = to_world(u, v);
+            if let Some((col, row)) = grid.cell_at(wx, wy) {
+                cells.push(grid.index(col, row));
+            }
+            // Cells whose centre lies in the rotated footprint: scan its bounding box.
+            let r = half * std::f64::consts::SQRT_2;
+            let (px0, py0) = grid.transform.world_to_pixel(wx - r, wy + r);
+            let (px1, py1) = grid.transform.world_to_pixel(wx + r, wy - r);
+            let lo = |a: f64, b: f64| (a.min(b) - 0.5).ceil().max(0.0) as usize;
+            let hi = |a: f64, b: f64, n: usize| ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
+            for row in lo(py0, py1)..hi(py0, py1, grid.height) {
+                for col in lo(px0, px1)..hi(px0, px1, grid.width) {
+                    let (x, y) = grid.cell_centre(col, row);
+                    let (dx, dy) = (x - wx, y - wy);
+                    // Back into the object's frame: u = dx·cos h − dy·sin h, v = dx·sin h + dy·cos h.
+                    let (lu, lv) = (dx * c - dy * s, dx * s + dy * c);
+                    if lu.abs() <= half && lv.abs() <= half {
+                        cells.push(grid.index(col, row));
+                    }
+                }
+            }
+            cells.sort_unstable();
+            cells.dedup();
+            cells.into_iter().map(move |i| (i, bottom, top, rgb))
+        })
+        .collect();
+    marks.par_sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.3.cmp(&b.3)));
+    marks
+        .chunk_by(|a, b| a.0 == b.0)
+        .filter_map(|col| {
+            let index = col[0].0;
+            let ground = terrain.data[index] as f64;
+            if ground.is_nan() {
+                return None;
+            }
+            // Intervals sorted by bottom: merge, noting any gap.
+            let (mut reach, mut gap) = (col[0].2, false);
+            for m in &col[1..] {
+                gap |= m.1 > reach + 1e-9;
+                reach = reach.max(m.2);
+            }
+            let floating = col[0].1 > ground + half;
+            // Top colour: the highest voxel's (ties: the last in the sort, deterministic).
+            let top = col.iter().max_by(|a, b| a.2.total_cmp(&b.2)).expect("non-empty chunk");
+            let [r, g, b] = top.3;
+            Some(RaisedCell { index, top_z: reach as f32, colour: Some([r, g, b, 255]), partial: gap || floating })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+
+    fn flat(w: usize, h: usize, z: f32) -> Elevation {
+        Elevation::filled(Grid::north_up(0.0, h as f64, 1.0, w, h, Crs::unknown()), z)
+    }
+
+    fn square(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<(f64, f64)> {
+        vec![(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+    }
+
+    #[test]
+    fn prism_covers_the_cells_whose_centres_are_inside_and_holes_stay_terrain() {
+        let t = flat(10, 10, 100.0);
+        // 2..8 × 2..8 with a hole 4..6 × 4..6: 36 − 4 = 32 cells.
+        let p = Prism { rings: vec![square(2.0, 2.0, 8.0, 8.0), square(4.0, 4.0, 6.0, 6.0)], roof_z: 110.0 };
+        let raised = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
+        assert_eq!(raised.len(), 32);
+        // Cell (2, 2) has centre (2.5, 7.5): inside. Cell (4, 4) centre (4.5, 5.5): in the hole.
+        assert_eq!(raised.get(t.grid.index(2, 2)).unwrap().top_z, 110.0);
+        assert!(raised.get(t.grid.index(4, 4)).is_none());
+        assert!(raised.get(t.grid.index(1, 2)).is_none());
+        let h = raised.heights(&t);
+        assert_eq!(h.data.iter().filter(|&&z| z == 110.0).count(), 32);
+    }
+
+    #[test]
+    fn buried_roofs_and_nodata_terrain_are_not_raised() {
+        let mut t = flat(4, 4, 100.0);
+        t.data[5] = f32::NAN;
+        let low = Prism { rings: vec![square(0.0, 0.0, 4.0, 4.0)], roof_z: 99.0 };
+        assert!(Raised::new(rasterise_prisms(&t.grid, &[low]), &t).is_empty());
+        let high = Prism { rings: vec![square(0.0, 0.0, 4.0, 4.0)], roof_z: 101.0 };
+        let r = Raised::new(rasterise_prisms(&t.grid, &[high]), &t);
+        assert_eq!(r.len(), 15);
+        assert!(r.get(5).is_none());
+    }
+
+    #[test]
+    fn overlapping_sources_keep_the_highest_top() {
+        let t = flat(4, 4, 0.0);
+        let a = Prism { rings: vec![square(0.0, 0.0, 3.0, 3.0)], roof_z: 5.0 };
+        let b = Prism { rings: vec![square(1.0, 1.0, 4.0, 4.0)], roof_z: 9.0 };
+        let r = Raised::new(rasterise_prisms(&t.grid, &[a, b]), &t);
+        assert_eq!(r.get(t.grid.index(0, 3)).unwrap().top_z, 5.0);
+        assert_eq!(r.get(t.grid.index(1, 2)).unwrap().top_z, 9.0);
+        assert_eq!(r.len(), 9 + 9 - 4);
+    }
+
+    #[test]
+    fn geojson_buildings_parse_and_bad_ones_name_the_feature() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("b.geojson");
+        std::fs::write(&p, r#"{"type":"FeatureCollection","features":[
+            {"type":"Feature","properties":{"id":1,"roof_z":12.5},"geometry":{"type":"Polygon","coordinates":[[[0,0],[2,0],[2,2],[0,0]]]}},
+            {"type":"Feature","properties":{"roof_z":3},"geometry":{"type":"MultiPolygon","coordinates":[[[[0,0],[1,0],[1,1],[0,0]]],[[[5,5],[6,5],[6,6],[5,5]]]]}}]}"#).unwrap();
+        let b = read_buildings(&p).unwrap();
+        assert_eq!(b.len(), 3);
+        assert_eq!(b[0].roof_z, 12.5);
+        assert_eq!(b[2].rings[0][0], (5.0, 5.0));
+        std::fs::write(&p, r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[]}}]}"#).unwrap();
+        let e = read_buildings(&p).unwrap_err().to_string();
+        assert!(e.contains("b.geojson") && e.contains("feature 0") && e.contains("roof_z"), "{e}");
+    }
+
+    fn object(voxels: Vec<([f64; 3], [u8; 3])>, heading_deg: f64) -> PlacedVoxels {
+        PlacedVoxels { origin: [5.0, 5.0, 100.0], heading_deg, voxel_size: 1.0, voxels }
+    }
+
+    #[test]
+    fn solid_voxel_column_is_opaque_and_takes_the_top_voxel_colour() {
+        let t = flat(10, 10, 100.0);
+        // A 1×1×3 column centred on cell (5, 4) (centre x 5.5, y 5.5 → origin + (0.5, 0.5)).
+        let vox = (0..3).map(|k| ([0.5, 0.5, 0.5 + k as f64], [k as u8, 0, 0])).collect();
+        let r = Raised::new(rasterise_object(&t.grid, &object(vox, 0.0), &t), &t);
+        assert_eq!(r.len(), 1);
+        let c = r.get(t.grid.index(5, 4)).unwrap();
+        assert_eq!((c.top_z, c.partial, c.colour), (103.0, false, Some([2, 0, 0, 255])));
+    }
+
+    #[test]
+    fn overhangs_and_holes_make_partial_cells() {
+        let t = flat(10, 10, 100.0);
+        // An arch: two legs (u = 0.5 and 2.5) and a lintel at w = 2.5 spanning u = 0.5..2.5.
+        let mut vox = vec![([0.5, 0.5, 0.5], [1, 1, 1]), ([2.5, 0.5, 0.5], [1, 1, 1])];
+        vox.extend((0..3).map(|u| ([0.5 + u as f64, 0.5, 2.5], [9, 9, 9])));
+        let r = Raised::new(rasterise_object(&t.grid, &object(vox, 0.0), &t), &t);
+        assert_eq!(r.len(), 3);
+        let leg = r.get(t.grid.index(5, 4)).unwrap();
+        let gap = r.get(t.grid.index(6, 4)).unwrap();
+        assert!(leg.partial, "leg column has a hole between w 1 and 2");
+        assert!(gap.partial, "the lintel floats over the ground");
+        assert_eq!((leg.top_z, gap.top_z), (103.0, 103.0));
+    }
+
+    #[test]
+    fn heading_rotates_the_footprint_clockwise() {
+        let t = flat(10, 10, 100.0);
+        // A voxel 2 m along +v: heading 90° puts it 2 m east of the origin.
+        let vox = vec![([0.0, 2.0, 0.5], [5, 5, 5])];
+        let r = Raised::new(rasterise_object(&t.grid, &object(vox, 90.0), &t), &t);
+        let (col, row) = t.grid.cell_at(7.0 + 1e-9, 5.0 + 1e-9).unwrap();
+        assert!(r.get(t.grid.index(col, row)).is_some(), "{:?}", r);
+        assert!(r.range(0, 100).iter().all(|c| {
+            let (cx, _) = t.grid.cell_centre(c.index % 10, c.index / 10);
+            cx > 6.0
+        }));
+    }
+
+    #[test]
+    fn big_voxels_cover_several_cells() {
+        let t = flat(10, 10, 100.0);
+        let obj = PlacedVoxels { origin: [5.0, 5.0, 100.0], heading_deg: 0.0, voxel_size: 3.0, voxels: vec![([0.0, 0.0, 1.5], [1, 2, 3])] };
+        let r = Raised::new(rasterise_object(&t.grid, &obj, &t), &t);
+        // Footprint 3.5..6.5: centres 3.5 (edge, inside), 4.5, 5.5, 6.5 (edge) → 4 × 4 cells.
+        assert_eq!(r.len(), 16);
+        assert!(r.range(0, 100).iter().all(|c| c.top_z == 103.0 && !c.partial));
+    }
+}
