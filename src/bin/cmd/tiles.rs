@@ -1,0 +1,94 @@
+//! `dbms tiles TILES [--verify]`: describe a tile file and optionally check every page.
+
+use super::Ctx;
+use dbms::tiles::{TileReader, FLAG_BRICKS, FLAG_LZ4};
+use serde_json::json;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Print a tile file's header summary; with --verify, check every page's checksum.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The tile file (written by `dbms pyramid`).
+    tiles: PathBuf,
+    /// Read every page and check its checksum; exit non-zero naming the first bad page.
+    #[arg(long)]
+    verify: bool,
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let reader = TileReader::open(&args.tiles, 0)?;
+    let verified = if args.verify {
+        let progress = ctx.progress(reader.entries().len() as u64, "verifying");
+        let n = reader.verify(&progress)?;
+        progress.finish();
+        Some(n)
+    } else {
+        None
+    };
+    let info = reader.info();
+    let entries = reader.entries();
+    let stored: u64 = entries.iter().map(|e| e.stored_len as u64).sum();
+    let raw: u64 = entries.iter().map(|e| e.raw_len as u64).sum();
+    let compressed = entries.iter().filter(|e| e.flags & FLAG_LZ4 != 0).count();
+    let with_bricks = entries.iter().filter(|e| e.flags & FLAG_BRICKS != 0).count();
+
+    let mut human = String::new();
+    let g = &info.grid;
+    let (cx, cy) = g.cell_size();
+    let _ = writeln!(human, "{}: dbms tile file, format version {}, {} bytes", args.tiles.display(), reader.version(), reader.file_len());
+    let _ = writeln!(
+        human,
+        "grid {}×{} cells of {cx}×{cy} {} ({}), origin ({}, {})",
+        g.width,
+        g.height,
+        g.crs.unit(),
+        g.crs.name(),
+        g.transform.origin_x,
+        g.transform.origin_y
+    );
+    let _ = writeln!(human, "pages of {0}×{0} cells, factor {1}, {2} levels:", info.page_size, info.factor, info.levels.len());
+    for l in &info.levels {
+        let _ = writeln!(
+            human,
+            "  level {}: {}×{} cells of {}×{}, {}×{} = {} pages",
+            l.level,
+            l.width,
+            l.height,
+            l.cell_x.abs(),
+            l.cell_y.abs(),
+            l.pages_x,
+            l.pages_y,
+            l.pages()
+        );
+    }
+    let layers: Vec<String> = info.layers.iter().map(|l| format!("{} ({})", l.name, l.kind)).collect();
+    let _ = writeln!(human, "layers: {}", layers.join(", "));
+    let _ = writeln!(
+        human,
+        "compression: {} ({compressed} of {} pages compressed, {stored} of {raw} bytes stored); {with_bricks} pages with bricks",
+        info.compression.name(),
+        entries.len()
+    );
+    let _ = write!(human, "effects: {}", info.effects);
+    if let Some(n) = verified {
+        let _ = write!(human, "\nverified: all {n} pages match their checksums");
+    }
+
+    ctx.report(
+        human,
+        json!({
+            "path": args.tiles,
+            "format_version": reader.version(),
+            "file_bytes": reader.file_len(),
+            "header": info,
+            "pages": entries.len(),
+            "compressed_pages": compressed,
+            "pages_with_bricks": with_bricks,
+            "stored_bytes": stored,
+            "raw_bytes": raw,
+            "verified_pages": verified,
+        }),
+    );
+    Ok(())
+}

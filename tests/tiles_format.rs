@@ -1,0 +1,489 @@
+//! The paged tile file format end to end: writer → file bytes → reader, and `dbms tiles`.
+
+use dbms::crs::Crs;
+use dbms::grid::Grid;
+use dbms::tiles::{
+    morton, Cell, Compression, IndexEntry, Page, TileReader, TileSetInfo, TileWriter, ENTRY_LEN, PAGE_ALIGN,
+};
+use proptest::prelude::*;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// SplitMix64: deterministic pseudo-random values for test content.
+fn mix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A tile set with known content: every cell of every level, row-major, and each page's bricks.
+struct Fixture {
+    info: TileSetInfo,
+    cells: Vec<Vec<Cell>>,
+    seed: u64,
+}
+
+impl Fixture {
+    fn new(width: usize, height: usize, page: usize, factor: usize, compression: Compression, seed: u64) -> Fixture {
+        let grid = Grid::north_up(500_000.0, 5_000_000.0, 0.5, width, height, Crs::epsg(32614));
+        let mut info = TileSetInfo::new(grid, page, factor, None).unwrap();
+        info.compression = compression;
+        info.effects = serde_json::json!({"shadows": false, "note": "test"});
+        let cells = info
+            .levels
+            .iter()
+            .map(|l| {
+                (0..l.width * l.height)
+                    .map(|i| {
+                        let r = mix(seed ^ mix(l.level as u64) ^ (i as u64) << 8);
+                        if r % 8 == 0 {
+                            Cell { max_z: f32::NAN, colour: [0; 4], state: 0 }
+                        } else {
+                            // Any bit pattern: NaN payloads and infinities must survive too.
+                            let max_z = if r % 8 == 1 { f32::from_bits((r >> 32) as u32) } else { (r % 100_000) as f32 * 0.01 };
+                            Cell { max_z, colour: [(r >> 8) as u8, (r >> 16) as u8, (r >> 24) as u8, 255], state: 1 + (r % 2) as u8 }
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Fixture { info, cells, seed }
+    }
+
+    fn page(&self, level: usize, tx: usize, ty: usize) -> Page {
+        let p = self.info.page_size;
+        let l = &self.info.levels[level];
+        let mut page = Page::nodata(p);
+        for row in 0..p.min(l.height - ty * p) {
+            for col in 0..p.min(l.width - tx * p) {
+                let c = self.cells[level][(ty * p + row) * l.width + tx * p + col];
+                let i = row * p + col;
+                (page.max_z[i], page.colour[i], page.state[i]) = (c.max_z, c.colour, c.state);
+            }
+        }
+        let r = mix(self.seed ^ ((level * 1000 + ty * 31 + tx) as u64));
+        if r % 3 == 0 {
+            page.bricks = Some((0..(r % 50) as usize).map(|i| (r >> (i % 56)) as u8).collect());
+        }
+        page
+    }
+
+    /// Every page `(level, tx, ty)` in index order.
+    fn pages(&self) -> Vec<(usize, usize, usize)> {
+        self.info
+            .levels
+            .iter()
+            .flat_map(|l| (0..l.pages_y).flat_map(move |ty| (0..l.pages_x).map(move |tx| (l.level, tx, ty))))
+            .collect()
+    }
+
+    fn write(&self, path: &Path, order: &[(usize, usize, usize)]) {
+        let w = TileWriter::create(path, self.info.clone()).unwrap();
+        for &(level, tx, ty) in order {
+            w.write_page(level, tx, ty, &self.page(level, tx, ty)).unwrap();
+        }
+        w.finish().unwrap();
+    }
+}
+
+fn same_bits(a: f32, b: f32) -> bool {
+    a.to_bits() == b.to_bits()
+}
+
+/// Check every cell of every level reads back bit for bit, across page edges, and that cells
+/// beyond each level's edge are absent.
+fn assert_reads_back(fx: &Fixture, reader: &TileReader) {
+    assert_eq!(reader.info(), &fx.info);
+    for l in &fx.info.levels {
+        for row in 0..l.height {
+            for col in 0..l.width {
+                let want = fx.cells[l.level][row * l.width + col];
+                let got = reader.cell(l.level, col, row).unwrap().unwrap();
+                assert!(
+                    same_bits(got.max_z, want.max_z) && got.colour == want.colour && got.state == want.state,
+                    "level {} cell ({col}, {row}): {got:?} != {want:?}",
+                    l.level
+                );
+            }
+        }
+        assert_eq!(reader.cell(l.level, l.width, 0).unwrap(), None);
+        assert_eq!(reader.cell(l.level, 0, l.height).unwrap(), None);
+    }
+    for (level, tx, ty) in fx.pages() {
+        assert_eq!(reader.page(level, tx, ty).unwrap().bricks, fx.page(level, tx, ty).bricks);
+    }
+}
+
+fn shuffled(mut v: Vec<(usize, usize, usize)>, seed: u64) -> Vec<(usize, usize, usize)> {
+    for i in (1..v.len()).rev() {
+        v.swap(i, (mix(seed + i as u64) % (i as u64 + 1)) as usize);
+    }
+    v
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 40, ..ProptestConfig::default() })]
+
+    /// Round trip is bit-exact, and the file bytes do not depend on the order pages came in.
+    #[test]
+    fn round_trip_is_bit_exact_and_order_free(
+        width in 1usize..70, height in 1usize..70, page in 1usize..20,
+        factor in prop::sample::select(vec![2usize, 4]), lz4 in any::<bool>(), seed in any::<u64>(),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let compression = if lz4 { Compression::Lz4 } else { Compression::None };
+        let fx = Fixture::new(width, height, page, factor, compression, seed);
+        let (a, b) = (dir.path().join("a.dbt"), dir.path().join("b.dbt"));
+        fx.write(&a, &fx.pages());
+        fx.write(&b, &shuffled(fx.pages(), seed));
+        prop_assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(), "page order changed the file");
+        let reader = TileReader::open(&a, 3).unwrap();
+        assert_reads_back(&fx, &reader);
+    }
+}
+
+fn tmp_file(dir: &tempfile::TempDir, name: &str) -> PathBuf {
+    dir.path().join(name)
+}
+
+/// A multi-level fixture: 70×45 cells, pages of 8, factor 2 → levels of 9×6, 5×3, 3×2, 2×1, 1×1 pages.
+fn standard(dir: &tempfile::TempDir, compression: Compression) -> (Fixture, PathBuf) {
+    let fx = Fixture::new(70, 45, 8, 2, compression, 7);
+    let path = tmp_file(dir, "tiles.dbt");
+    fx.write(&path, &fx.pages());
+    (fx, path)
+}
+
+#[test]
+fn index_entry_is_found_by_arithmetic_in_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (fx, path) = standard(&dir, Compression::Lz4);
+    let bytes = std::fs::read(&path).unwrap();
+    let index_offset = u64::from_le_bytes(bytes[32..40].try_into().unwrap()) as usize;
+    let reader = TileReader::open(&path, 0).unwrap();
+    assert_eq!(reader.index_offset() as usize, index_offset);
+    let mut level_base = 0;
+    for l in &fx.info.levels {
+        for ty in 0..l.pages_y {
+            for tx in 0..l.pages_x {
+                let at = index_offset + ENTRY_LEN * (level_base + ty * l.pages_x + tx);
+                let e = IndexEntry::decode(bytes[at..at + ENTRY_LEN].try_into().unwrap());
+                assert_eq!(Some(e), reader.entry(l.level, tx, ty));
+                let stored = &bytes[e.offset as usize..][..e.stored_len as usize];
+                assert_eq!(crc32fast::hash(stored), e.crc);
+            }
+        }
+        level_base += l.pages();
+    }
+    assert_eq!(level_base, reader.entries().len());
+}
+
+#[test]
+fn coarse_levels_come_first_in_z_order_at_aligned_offsets() {
+    let dir = tempfile::tempdir().unwrap();
+    let (fx, path) = standard(&dir, Compression::None);
+    assert_eq!(fx.info.levels.len(), 5);
+    let reader = TileReader::open(&path, 0).unwrap();
+    let file_len = std::fs::metadata(&path).unwrap().len();
+    assert_eq!(reader.file_len(), file_len);
+    let mut previous_level_end = 0;
+    for l in fx.info.levels.iter().rev() {
+        let mut pages: Vec<(u64, IndexEntry)> = (0..l.pages_y)
+            .flat_map(|ty| (0..l.pages_x).map(move |tx| (tx, ty)))
+            .map(|(tx, ty)| (morton(tx as u32, ty as u32), reader.entry(l.level, tx, ty).unwrap()))
+            .collect();
+        pages.sort_by_key(|p| p.0);
+        for (_, e) in &pages {
+            assert_eq!(e.offset % PAGE_ALIGN, 0, "unaligned page offset {}", e.offset);
+            assert!(e.offset > previous_level_end, "level {} is not after the coarser levels / out of Z-order", l.level);
+            previous_level_end = e.offset;
+        }
+    }
+    // The whole coarse part (levels ≥ 1) sits before any level-0 page.
+    let first_level0 = (0..fx.info.levels[0].pages()).map(|p| reader.entries()[p].offset).min().unwrap();
+    let last_coarse = reader.entries()[fx.info.levels[0].pages()..].iter().map(|e| e.offset).max().unwrap();
+    assert!(last_coarse < first_level0);
+}
+
+#[test]
+fn flipped_byte_in_a_page_is_a_checksum_error_naming_the_page() {
+    let dir = tempfile::tempdir().unwrap();
+    let (fx, path) = standard(&dir, Compression::None);
+    let e = TileReader::open(&path, 0).unwrap().entry(1, 2, 1).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[e.offset as usize + 77] ^= 0x10;
+    std::fs::write(&path, &bytes).unwrap();
+    let reader = TileReader::open(&path, 4).unwrap(); // the index is intact: open succeeds
+    let err = reader.page(1, 2, 1).unwrap_err().to_string();
+    assert_eq!(
+        err,
+        format!(
+            "{}: page (level 1, 2, 1) checksum mismatch; the file is corrupt, rebuild it with dbms pyramid",
+            path.display()
+        )
+    );
+    // The cell lookup reports it too; other pages are unaffected.
+    assert!(reader.cell(1, 2 * 8 + 3, 8).unwrap_err().to_string().contains("page (level 1, 2, 1)"));
+    assert_eq!(reader.page(1, 1, 1).unwrap().max_z.len(), 64);
+    assert!(reader.verify(&dbms::progress::Progress::hidden()).unwrap_err().to_string().contains("page (level 1, 2, 1)"));
+    drop(fx);
+}
+
+#[test]
+fn flipped_byte_in_an_lz4_page_is_a_checksum_error_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::Lz4);
+    let e = TileReader::open(&path, 0).unwrap().entry(0, 8, 5).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[e.offset as usize + e.stored_len as usize - 1] ^= 1;
+    std::fs::write(&path, &bytes).unwrap();
+    let err = TileReader::open(&path, 0).unwrap().page(0, 8, 5).unwrap_err().to_string();
+    assert!(err.contains("page (level 0, 8, 5) checksum mismatch"), "{err}");
+}
+
+#[test]
+fn truncated_file_is_a_clear_error_at_open_for_every_length() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::Lz4);
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = tmp_file(&dir, "cut.dbt");
+    for len in [0, 4, 8, 12, 40, 63, 64, 100, 4096, bytes.len() / 2, bytes.len() - 1] {
+        std::fs::write(&cut, &bytes[..len]).unwrap();
+        let err = TileReader::open(&cut, 0).err().unwrap_or_else(|| panic!("{len} bytes opened")).to_string();
+        assert!(err.starts_with(&format!("{}: ", cut.display())), "{err}");
+        assert!(err.contains("truncated") || err.contains("bad magic"), "{len} bytes: {err}");
+        assert!(!err.contains('\n'));
+    }
+    std::fs::write(&cut, &bytes[..bytes.len() - 1]).unwrap();
+    let err = TileReader::open(&cut, 0).err().unwrap().to_string();
+    assert!(err.contains(&format!("file is truncated ({} of {} bytes)", bytes.len() - 1, bytes.len())), "{err}");
+}
+
+#[test]
+fn file_truncated_after_open_names_the_page() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::None);
+    let reader = TileReader::open(&path, 0).unwrap();
+    let last = *reader.entries().iter().max_by_key(|e| e.offset).unwrap();
+    let pos = reader.entries().iter().position(|e| *e == last).unwrap();
+    std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(last.offset + 10).unwrap();
+    let (level, tx, ty) = reader.info().page_at(pos).unwrap();
+    let err = reader.page(level, tx, ty).unwrap_err().to_string();
+    assert!(err.contains(&format!("page (level {level}, {tx}, {ty})")) && err.contains("truncated"), "{err}");
+}
+
+#[test]
+fn bad_magic_future_version_and_corrupt_header_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::None);
+    let bytes = std::fs::read(&path).unwrap();
+    let bad = tmp_file(&dir, "bad.dbt");
+    let open_err = |b: &[u8]| {
+        std::fs::write(&bad, b).unwrap();
+        TileReader::open(&bad, 0).err().expect("must not open").to_string()
+    };
+
+    let mut b = bytes.clone();
+    b[..8].copy_from_slice(b"GIF89a\0\0");
+    assert_eq!(
+        open_err(&b),
+        format!("{}: not a dbms tile file (bad magic bytes); give a file written by dbms pyramid", bad.display())
+    );
+    let mut b = bytes.clone();
+    b[8..12].copy_from_slice(&2u32.to_le_bytes());
+    assert!(open_err(&b).contains("tile format version 2 is newer than this dbms reads (version 1); upgrade dbms"));
+    let mut b = bytes.clone();
+    b[70] ^= 1; // inside the JSON header
+    assert!(open_err(&b).contains("header checksum mismatch"));
+    let index_offset = u64::from_le_bytes(bytes[32..40].try_into().unwrap()) as usize;
+    let mut b = bytes.clone();
+    b[index_offset + 3] ^= 1;
+    assert!(open_err(&b).contains("index checksum mismatch"));
+    let mut b = bytes.clone();
+    b.extend_from_slice(b"junk");
+    assert!(open_err(&b).contains("4 bytes after its end"));
+}
+
+#[test]
+fn partial_edge_pages_are_padded_with_nodata() {
+    let dir = tempfile::tempdir().unwrap();
+    // 10×7 cells, pages of 4: level 0 has 3×2 pages, the right ones 2 columns wide, the bottom 3 rows.
+    let fx = Fixture::new(10, 7, 4, 4, Compression::None, 3);
+    let path = tmp_file(&dir, "edge.dbt");
+    fx.write(&path, &fx.pages());
+    let reader = TileReader::open(&path, 0).unwrap();
+    let page = reader.page(0, 2, 1).unwrap();
+    assert_eq!(page.max_z.len(), 16);
+    for row in 0..4 {
+        for col in 0..4 {
+            let c = page.cell(4, col, row);
+            if col < 2 && row < 3 {
+                let want = fx.cells[0][(4 + row) * 10 + 8 + col];
+                assert!(same_bits(c.max_z, want.max_z) && c.colour == want.colour);
+            } else {
+                assert!(c.max_z.is_nan() && c.colour[3] == 0 && c.state == 0, "padding ({col}, {row}) is {c:?}");
+            }
+        }
+    }
+    assert_eq!(reader.cell(0, 10, 6).unwrap(), None);
+    assert!(reader.cell(0, 9, 6).unwrap().is_some());
+    assert!(reader.cell(2, 0, 0).is_err(), "level 2 does not exist");
+
+    // The writer refuses data in the padding instead of storing it silently.
+    let w = TileWriter::create(&tmp_file(&dir, "x.dbt"), fx.info.clone()).unwrap();
+    let mut page = fx.page(0, 2, 1);
+    page.max_z[3] = 5.0; // (3, 0): beyond the 2 valid columns
+    let err = w.write_page(0, 2, 1, &page).unwrap_err().to_string();
+    assert!(err.contains("page (level 0, 2, 1): padding cell (3, 0)"), "{err}");
+}
+
+#[test]
+fn missing_or_duplicate_pages_are_errors_and_leave_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let fx = Fixture::new(20, 20, 8, 4, Compression::None, 1);
+    let path = tmp_file(&dir, "t.dbt");
+    let w = TileWriter::create(&path, fx.info.clone()).unwrap();
+    let pages = fx.pages();
+    for &(l, x, y) in &pages[..4] {
+        w.write_page(l, x, y, &fx.page(l, x, y)).unwrap();
+    }
+    let err = w.write_page(0, 0, 0, &fx.page(0, 0, 0)).unwrap_err().to_string();
+    assert!(err.contains("page (level 0, 0, 0) was written twice"), "{err}");
+    assert!(w.write_page(0, 3, 0, &Page::nodata(8)).unwrap_err().to_string().contains("outside the tile set"));
+    let err = w.finish().unwrap_err().to_string();
+    // 20×20 / 8 → 3×3 pages at level 0 (positions 0..9), then level 1 (5×5 cells, 1 page).
+    assert!(err.contains("6 page(s) were never written, the first is (level 0, 1, 1)"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "spool or output left behind: {left:?}");
+}
+
+#[test]
+fn pages_written_from_many_threads_give_the_same_file() {
+    use rayon::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let fx = Fixture::new(130, 70, 16, 2, Compression::Lz4, 11);
+    let (a, b) = (tmp_file(&dir, "a.dbt"), tmp_file(&dir, "b.dbt"));
+    fx.write(&a, &fx.pages());
+    let w = TileWriter::create(&b, fx.info.clone()).unwrap();
+    fx.pages().par_iter().for_each(|&(l, x, y)| w.write_page(l, x, y, &fx.page(l, x, y)).unwrap());
+    w.finish().unwrap();
+    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
+}
+
+#[test]
+fn one_reader_serves_many_threads_and_counts_its_reads() {
+    fn shareable<T: Send + Sync>() {}
+    shareable::<TileReader>();
+    let dir = tempfile::tempdir().unwrap();
+    let (fx, path) = standard(&dir, Compression::Lz4);
+    let reader = TileReader::open(&path, 2).unwrap();
+    std::thread::scope(|s| {
+        for t in 0..4 {
+            let (reader, fx) = (&reader, &fx);
+            s.spawn(move || {
+                let l = &fx.info.levels[t % 2];
+                for row in (t..l.height).step_by(3) {
+                    for col in 0..l.width {
+                        let want = fx.cells[l.level][row * l.width + col];
+                        let got = reader.cell(l.level, col, row).unwrap().unwrap();
+                        assert!(same_bits(got.max_z, want.max_z) && got.colour == want.colour);
+                    }
+                }
+            });
+        }
+    });
+    let before = reader.stats();
+    assert!(before.pages_read > 0 && before.bytes_read > 0 && before.cache_hits > 0);
+    reader.page(4, 0, 0).unwrap();
+    reader.page(4, 0, 0).unwrap();
+    let after = reader.stats();
+    let e = reader.entry(4, 0, 0).unwrap();
+    assert_eq!(after.pages_read, before.pages_read + 1);
+    assert_eq!(after.bytes_read, before.bytes_read + e.stored_len as u64);
+    assert_eq!(after.cache_hits, before.cache_hits + 1);
+}
+
+#[test]
+fn header_has_the_schema_s_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::None);
+    let bytes = std::fs::read(&path).unwrap();
+    let len = u64::from_le_bytes(bytes[24..32].try_into().unwrap()) as usize;
+    let header: serde_json::Value = serde_json::from_slice(&bytes[64..64 + len]).unwrap();
+    let schema_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/tiles-header.schema.json");
+    let schema: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(schema_path).unwrap()).unwrap();
+    let props = schema["properties"].as_object().unwrap();
+    let header = header.as_object().unwrap();
+    for key in header.keys() {
+        assert!(props.contains_key(key), "header field {key} is not in the schema");
+    }
+    for key in schema["required"].as_array().unwrap() {
+        assert!(header.contains_key(key.as_str().unwrap()), "schema requires {key}, header lacks it");
+    }
+    let level_props = schema["$defs"]["level"]["properties"].as_object().unwrap();
+    for key in header["levels"][0].as_object().unwrap().keys() {
+        assert!(level_props.contains_key(key), "level field {key} is not in the schema");
+    }
+}
+
+fn dbms(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().unwrap()
+}
+
+#[test]
+fn cli_prints_the_summary_and_verifies() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::Lz4);
+    let p = path.to_str().unwrap();
+    let out = dbms(&["tiles", p]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("pages of 8×8 cells, factor 2, 5 levels"), "{text}");
+    assert!(text.contains("level 0: 70×45 cells of 0.5×0.5, 9×6 = 54 pages"), "{text}");
+    assert!(text.contains("layers: max_z (f32), colour (rgba8), state (u8)"), "{text}");
+    assert!(!text.contains("verified"));
+
+    let out = dbms(&["tiles", p, "--verify", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["pages"], 54 + 15 + 6 + 2 + 1);
+    assert_eq!(j["verified_pages"], 78);
+    assert_eq!(j["header"]["factor"], 2);
+    assert_eq!(j["header"]["compression"], "lz4");
+    assert_eq!(j["header"]["effects"]["note"], "test");
+}
+
+#[test]
+fn cli_verify_fails_naming_the_first_bad_page() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::None);
+    let reader = TileReader::open(&path, 0).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    // Corrupt two level-0 pages; the first in file order is reported.
+    let (a, b) = (reader.entry(0, 1, 1).unwrap(), reader.entry(0, 8, 5).unwrap());
+    assert!(a.offset < b.offset);
+    bytes[a.offset as usize] ^= 0xff;
+    bytes[b.offset as usize] ^= 0xff;
+    std::fs::write(&path, &bytes).unwrap();
+    let p = path.to_str().unwrap();
+    let out = dbms(&["tiles", p]);
+    assert!(out.status.success(), "without --verify only the header is read");
+    let out = dbms(&["tiles", p, "--verify"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(
+        err.trim_end(),
+        format!("dbms: error: {p}: page (level 0, 1, 1) checksum mismatch; the file is corrupt, rebuild it with dbms pyramid")
+    );
+}
+
+#[test]
+fn cli_rejects_a_file_that_is_not_a_tile_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = tmp_file(&dir, "dem.tif");
+    std::fs::write(&path, b"II*\0 not tiles at all, but long enough to hold a preamble of sixty-four bytes").unwrap();
+    let out = dbms(&["tiles", path.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8(out.stderr).unwrap().contains("not a dbms tile file (bad magic bytes)"));
+}
