@@ -7,3 +7,4 @@
 pub mod cascade;
 pub mod reduce;
 pub mod raised;
+pub mod shade;

@@ -1,0 +1,412 @@
+//! Sun effects on level-0 colour: cast shadows, Lambert shading, walls, photo compensation.
+//!
+//! # Model (the invariant)
+//! The illumination of a surface with unit normal `n`, relative to flat sunlit ground, is
+//! `I = F + (1 − F) · min(max(0, n·s) / s_z, G_MAX)` when lit and `I = F` in cast shadow, where `s`
+//! is the unit vector to the sun, `s_z = sin(elevation)` and `F` the shadow factor (skylight
+//! only, as a fraction of full sun on flat ground; the Hughes patent's `F`). Flat lit ground has
+//! `I = 1`, flat shadowed ground `I = F`. A cell's colour is multiplied by `I_new / I_photo`
+//! (rounded, clamped to 255): `I_new` for the requested sun over the merged surface,
+//! `I_photo` for the orthophoto's own sun over what the photo saw (terrain and buildings) —
+//! or 1 when the photo's sun is unknown (the photo taken as evenly lit) and for placed objects
+//! (their voxel colours are unlit albedo). So one rule gives every case of issue 5:
+//! * no sun → no effect is prepared at all (nothing is cast or shaded);
+//! * the photo's own sun → terrain and roofs keep `I_new / I_photo = 1` (the photo holds their
+//!   shading and shadows; nothing is computed for them), walls and objects are shaded and
+//!   objects' new shadows darken what they fall on;
+//! * a different sun → the photo's shadows (cast over terrain + buildings for the photo's sun)
+//!   are brightened by `1 / F`, the new ones darkened by `F`, slopes re-shaded.
+//!
+//! Normals are central differences of the heights (one-sided at edges, nodata and class
+//! boundaries: terrain, building and object cells only use neighbours of their own class, so a
+//! wall's jump does not tilt the roof or the ground at its foot). A **wall cell** is a building
+//! or object cell with a 4-neighbour lower by at least one cell size; the renderer sees the wall
+//! as that column's side, so its colour becomes the roof's colour times the mean illumination of
+//! its exposed vertical faces (face normals horizontal, toward the lower neighbours).
+
+use super::raised::Raised;
+use crate::error::Result;
+use crate::raster::{Elevation, Raster};
+use crate::shadow::{cast_shadows, Sun, SHADOW};
+use serde_json::json;
+
+/// Default shadow factor `F`: a shadowed surface gets this fraction of the light of a sunlit
+/// one. 0.45 is typical of aerial photos on clear days (skylight); the patent's example, 0.02,
+/// would make shadows black.
+pub const DEFAULT_SHADOW_FACTOR: f64 = 0.45;
+
+/// Most a tilted surface can be brighter than flat lit ground (caps `n·s / s_z`, which grows
+/// without bound for a low sun).
+pub const G_MAX: f64 = 2.0;
+
+/// Two sun directions closer than this (degrees, in elevation and azimuth) are the same sun.
+pub const SAME_SUN_DEG: f64 = 0.01;
+
+/// Cell classes for normals and walls.
+const TERRAIN: u8 = 0;
+const BUILDING: u8 = 1;
+const OBJECT: u8 = 2;
+
+/// The prepared effects for one sun over one database: shadow masks and what to apply.
+pub struct Effects {
+    sun: Sun,
+    s: [f64; 3],
+    photo: Option<(Sun, [f64; 3])>,
+    same_sun: bool,
+    factor: f64,
+    /// Heights over the merged surface (terrain + buildings + objects).
+    new_heights: Elevation,
+    /// Heights the photo saw (terrain + buildings), when they differ from `new_heights`.
+    photo_heights: Option<Elevation>,
+    /// Class per cell (TERRAIN, BUILDING, OBJECT); empty when nothing is raised.
+    class: Vec<u8>,
+    new_shadow: Option<Raster<u8>>,
+    photo_shadow: Option<Raster<u8>>,
+    lambert: bool,
+    applied: Vec<&'static str>,
+}
+
+/// Does a sun need effects at all? `sun: None` → nothing (no work).
+/// `photo_sun` is the orthophoto's own sun when the database records it.
+pub fn prepare(
+    sun: Option<Sun>,
+    photo_sun: Option<Sun>,
+    shadow_factor: f64,
+    terrain: &Elevation,
+    buildings: &Raised,
+    objects: &Raised,
+    all: &Raised,
+) -> Result<Option<Effects>> {
+    let Some(sun) = sun else { return Ok(None) };
+    let same_sun = photo_sun.is_some_and(|p| same(&p, &sun));
+    let nothing_unseen = buildings.is_empty() && objects.is_empty();
+    if same_sun && nothing_unseen {
+        // The photo holds every shadow and all shading for this sun: nothing to do.
+        return Ok(None);
+    }
+    let new_heights = if all.is_empty() { terrain.clone() } else { all.heights(terrain) };
+    let photo_heights = (!objects.is_empty() && photo_sun.is_some()).then(|| buildings.heights(terrain));
+    let mut class = Vec::new();
+    if !all.is_empty() {
+        class = vec![TERRAIN; terrain.data.len()];
+        for c in buildings.range(0, usize::MAX) {
+            class[c.index] = BUILDING;
+        }
+        for c in objects.range(0, usize::MAX) {
+            class[c.index] = OBJECT;
+        }
+    }
+    let new_shadow = Some(cast_shadows(&new_heights, sun.elevation_deg, sun.azimuth_deg)?);
+    // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
+    let photo_shadow = match photo_sun {
+        Some(p) if !same_sun || photo_heights.is_some() => {
+            let h = photo_heights.as_ref().unwrap_or(&new_heights);
+            Some(cast_shadows(h, p.elevation_deg, p.azimuth_deg)?)
+        }
+        _ => None,
+    };
+    let mut applied = Vec::new();
+    if !same_sun {
+        applied.extend(["cast_shadows", "terrain_lambert"]);
+        if photo_sun.is_some() {
+            applied.extend(["photo_shadow_compensation", "photo_shading_compensation"]);
+        }
+    } else if !objects.is_empty() {
+        applied.push("object_shadows");
+    }
+    if !all.is_empty() {
+        applied.push("wall_shading");
+    }
+    if !objects.is_empty() {
+        applied.push("object_shading");
+    }
+    Ok(Some(Effects {
+        s: enu(&sun),
+        sun,
+        photo: photo_sun.map(|p| (p, enu(&p))),
+        same_sun,
+        factor: shadow_factor,
+        new_heights,
+        photo_heights,
+        class,
+        new_shadow,
+        photo_shadow,
+        lambert: !same_sun,
+        applied,
+    }))
+}
+
+/// The effects record for the tile header and the manifest when no sun was given or nothing
+/// was needed: which sun, and an empty list of applied effects.
+pub fn record_none(sun: Option<Sun>, photo_sun: Option<Sun>, shadow_factor: f64) -> serde_json::Value {
+    let reason = match (sun, photo_sun) {
+        (None, _) => "no sun given",
+        _ => "the photo's own sun and nothing the photo did not see",
+    };
+    json!({
+        "sun": sun.map(sun_json),
+        "photo_sun": photo_sun.map(sun_json),
+        "shadow_factor": shadow_factor,
+        "applied": [],
+        "reason": reason,
+    })
+}
+
+fn sun_json(s: Sun) -> serde_json::Value {
+    json!({ "elevation_deg": s.elevation_deg, "azimuth_deg": s.azimuth_deg })
+}
+
+fn same(a: &Sun, b: &Sun) -> bool {
+    let daz = (a.azimuth_deg - b.azimuth_deg).rem_euclid(360.0);
+    (a.elevation_deg - b.elevation_deg).abs() < SAME_SUN_DEG && daz.min(360.0 - daz) < SAME_SUN_DEG
+}
+
+fn enu(s: &Sun) -> [f64; 3] {
+    let (e, a) = (s.elevation_deg.to_radians(), s.azimuth_deg.to_radians());
+    [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()]
+}
+
+impl Effects {
+    /// What was applied, for the tile header and the manifest.
+    pub fn record(&self) -> serde_json::Value {
+        let count = |m: &Option<Raster<u8>>| m.as_ref().map(|m| m.data.iter().filter(|&&v| v == SHADOW).count());
+        json!({
+            "sun": sun_json(self.sun),
+            "photo_sun": self.photo.map(|p| sun_json(p.0)),
+            "shadow_factor": self.factor,
+            "applied": self.applied,
+            "shadow_cells": count(&self.new_shadow),
+            "photo_shadow_cells": count(&self.photo_shadow),
+            "wall_cells": self.wall_cells(),
+        })
+    }
+
+    fn wall_cells(&self) -> usize {
+        if self.class.is_empty() {
+            return 0;
+        }
+        let g = &self.new_heights.grid;
+        (0..g.len()).filter(|&i| self.class[i] != TERRAIN && !self.faces(i % g.width, i / g.width).is_empty()).count()
+    }
+
+    /// Multiply the colours of level-0 rows `row0..` (a band of `colour.len() / width` rows) by
+    /// each cell's `I_new / I_photo`. Nodata cells are left alone.
+    pub fn shade_band(&self, row0: usize, colour: &mut [[u8; 4]]) {
+        use rayon::prelude::*;
+        let w = self.new_heights.grid.width;
+        colour.par_chunks_mut(w).enumerate().for_each(|(r, line)| {
+            for (col, c) in line.iter_mut().enumerate() {
+                if c[3] == 0 {
+                    continue;
+                }
+                let k = self.factor_at(col, row0 + r);
+                if k != 1.0 {
+                    for ch in &mut c[..3] {
+                        *ch = (*ch as f64 * k).round().min(255.0) as u8;
+                    }
+                }
+            }
+        });
+    }
+
+    /// `I_new / I_photo` of cell `(col, row)`.
+    pub fn factor_at(&self, col: usize, row: usize) -> f64 {
+        let g = &self.new_heights.grid;
+        let i = g.index(col, row);
+        let class = self.class.get(i).copied().unwrap_or(TERRAIN);
+        let shadow_new = self.new_shadow.as_ref().is_some_and(|m| m.data[i] == SHADOW);
+        let shadow_photo = match &self.photo_shadow {
+            Some(m) => m.data[i] == SHADOW,
+            None => self.same_sun && shadow_new,
+        };
+        let faces = if class == TERRAIN { Vec::new() } else { self.faces(col, row) };
+        let i_new = if !faces.is_empty() {
+            faces.iter().map(|n| self.illum(n, &self.s, shadow_new)).sum::<f64>() / faces.len() as f64
+        } else if self.lambert || class == OBJECT {
+            self.illum(&self.normal(&self.new_heights, col, row), &self.s, shadow_new)
+        } else {
+            self.illum(&[0.0, 0.0, 1.0], &self.s, shadow_new)
+        };
+        let i_photo = match self.photo {
+            Some((_, sp)) if class != OBJECT => {
+                // The photo saw roofs from above: for a wall cell its roof's normal, up.
+                let n = if !faces.is_empty() || !self.lambert {
+                    [0.0, 0.0, 1.0]
+                } else {
+                    self.normal(self.photo_heights.as_ref().unwrap_or(&self.new_heights), col, row)
+                };
+                self.illum(&n, &sp, shadow_photo)
+            }
+            _ => 1.0,
+        };
+        i_new / i_photo
+    }
+
+    /// Illumination relative to flat sunlit ground (see the module doc).
+    fn illum(&self, n: &[f64; 3], s: &[f64; 3], shadowed: bool) -> f64 {
+        if shadowed {
+            return self.factor;
+        }
+        let ns = n[0] * s[0] + n[1] * s[1] + n[2] * s[2];
+        self.factor + (1.0 - self.factor) * (ns.max(0.0) / s[2]).min(G_MAX)
+    }
+
+    /// Height at `(col, row)` when it is a usable neighbour of a cell of class `class`.
+    fn neighbour(&self, h: &Elevation, class: u8, col: isize, row: isize) -> Option<f64> {
+        let g = &h.grid;
+        if col < 0 || row < 0 || col >= g.width as isize || row >= g.height as isize {
+            return None;
+        }
+        let i = g.index(col as usize, row as usize);
+        let z = h.data[i];
+        (!z.is_nan() && self.class.get(i).copied().unwrap_or(TERRAIN) == class).then_some(z as f64)
+    }
+
+    /// Unit normal (east, north, up) by central differences within the cell's class.
+    fn normal(&self, h: &Elevation, col: usize, row: usize) -> [f64; 3] {
+        let g = &h.grid;
+        let i = g.index(col, row);
+        let z = h.data[i] as f64;
+        let class = self.class.get(i).copied().unwrap_or(TERRAIN);
+        let (c, r) = (col as isize, row as isize);
+        let (dx, dy) = g.cell_size();
+        let slope = |a: Option<f64>, b: Option<f64>, d: f64| match (a, b) {
+            (Some(a), Some(b)) => (b - a) / (2.0 * d),
+            (Some(a), None) => (z - a) / d,
+            (None, Some(b)) => (b - z) / d,
+            (None, None) => 0.0,
+        };
+        let dzdx = slope(self.neighbour(h, class, c - 1, r), self.neighbour(h, class, c + 1, r), dx);
+        // Rows run southward: north of the cell is row − 1.
+        let dzdy = slope(self.neighbour(h, class, c, r + 1), self.neighbour(h, class, c, r - 1), dy);
+        let len = (dzdx * dzdx + dzdy * dzdy + 1.0).sqrt();
+        [-dzdx / len, -dzdy / len, 1.0 / len]
+    }
+
+    /// Horizontal normals of the exposed vertical faces of a raised cell: toward each
+    /// 4-neighbour lower by at least one cell size (valid neighbours only).
+    fn faces(&self, col: usize, row: usize) -> Vec<[f64; 3]> {
+        let h = &self.new_heights;
+        let g = &h.grid;
+        let z = h.data[g.index(col, row)] as f64;
+        let step = g.cell_size().0.min(g.cell_size().1);
+        let (c, r) = (col as isize, row as isize);
+        [(1, 0, [1.0, 0.0, 0.0]), (-1, 0, [-1.0, 0.0, 0.0]), (0, -1, [0.0, 1.0, 0.0]), (0, 1, [0.0, -1.0, 0.0])]
+            .into_iter()
+            .filter(|&(dc, dr, _)| {
+                let (nc, nr) = (c + dc, r + dr);
+                if nc < 0 || nr < 0 || nc >= g.width as isize || nr >= g.height as isize {
+                    return false;
+                }
+                let nz = h.data[g.index(nc as usize, nr as usize)];
+                !nz.is_nan() && z - nz as f64 >= step
+            })
+            .map(|(_, _, n)| n)
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+    use crate::grid::Grid;
+    use crate::pyramid::raised::{rasterise_prisms, Prism};
+
+    fn terrain(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Elevation {
+        let g = Grid::north_up(0.0, h as f64, 1.0, w, h, Crs::unknown());
+        let data = (0..w * h).map(|i| f(i % w, i / w)).collect();
+        Elevation::new(g, data)
+    }
+
+    fn sun(e: f64, a: f64) -> Sun {
+        Sun::new(e, a).unwrap()
+    }
+
+    fn none() -> Raised {
+        Raised::default()
+    }
+
+    #[test]
+    fn no_sun_prepares_nothing() {
+        let t = terrain(8, 8, |c, _| c as f32);
+        assert!(prepare(None, None, 0.5, &t, &none(), &none(), &none()).unwrap().is_none());
+        let r = record_none(None, None, 0.5);
+        assert_eq!(r["applied"], json!([]));
+        assert!(r["sun"].is_null());
+    }
+
+    #[test]
+    fn flat_ground_without_photo_sun_is_unchanged() {
+        let t = terrain(8, 8, |_, _| 10.0);
+        let fx = prepare(Some(sun(30.0, 135.0)), None, 0.5, &t, &none(), &none(), &none()).unwrap().unwrap();
+        let mut c = vec![[100, 150, 200, 255]; 64];
+        fx.shade_band(0, &mut c);
+        assert!(c.iter().all(|p| *p == [100, 150, 200, 255]));
+        assert_eq!(fx.record()["shadow_cells"], json!(0));
+    }
+
+    #[test]
+    fn slopes_facing_the_sun_brighten_and_facing_away_darken() {
+        // Ridge along north-south at column 5: west side rises eastward, east side falls.
+        let t = terrain(11, 5, |c, _| 10.0 - (c as f32 - 5.0).abs() * 0.3);
+        let fx = prepare(Some(sun(40.0, 90.0)), None, 0.4, &t, &none(), &none(), &none()).unwrap().unwrap();
+        assert!(fx.factor_at(8, 2) > 1.0, "east slope faces the eastern sun");
+        assert!(fx.factor_at(2, 2) < 1.0, "west slope faces away");
+        // n·s on the east slope: normal (0.3, 0, 1)/|.|, s = (cos40, 0, sin40).
+        let n = [0.3 / 1.09f64.sqrt(), 0.0, 1.0 / 1.09f64.sqrt()];
+        let s = 40f64.to_radians();
+        let want = 0.4 + 0.6 * (n[0] * s.cos() + n[2] * s.sin()) / s.sin();
+        assert!((fx.factor_at(8, 2) - want).abs() < 1e-6, "heights are f32");
+    }
+
+    #[test]
+    fn cliff_shadow_darkens_by_the_shadow_factor() {
+        // A 10 m cliff face at column 3 (west high), sun in the west at 45°: 10 cells of shadow.
+        let t = terrain(30, 3, |c, _| if c <= 3 { 10.0 } else { 0.0 });
+        let fx = prepare(Some(sun(45.0, 270.0)), None, 0.5, &t, &none(), &none(), &none()).unwrap().unwrap();
+        let mut c = vec![[200, 100, 50, 255]; 90];
+        fx.shade_band(0, &mut c);
+        assert_eq!(c[31 + 5], [100, 50, 25, 255], "in the cliff's shadow");
+        assert_eq!(c[30 + 25], [200, 100, 50, 255], "beyond the shadow");
+    }
+
+    fn building_scene() -> (Elevation, Raised) {
+        let t = terrain(20, 20, |_, _| 0.0);
+        let p = Prism { rings: vec![vec![(8.0, 8.0), (12.0, 8.0), (12.0, 12.0), (8.0, 12.0)]], roof_z: 6.0 };
+        let b = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
+        (t, b)
+    }
+
+    #[test]
+    fn photo_sun_equal_to_the_sun_shades_only_walls() {
+        let (t, b) = building_scene();
+        let s = sun(35.0, 90.0);
+        // Nothing raised: nothing at all to do.
+        assert!(prepare(Some(s), Some(s), 0.5, &t, &none(), &none(), &none()).unwrap().is_none());
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &none(), &b).unwrap().unwrap();
+        assert_eq!(fx.record()["applied"], json!(["wall_shading"]));
+        // Ground in the building's shadow (west of it) and plain ground: unchanged.
+        assert_eq!(fx.factor_at(6, 10), 1.0);
+        assert_eq!(fx.factor_at(2, 2), 1.0);
+        // Roof interior unchanged; the east wall is brighter than the west wall.
+        assert_eq!(fx.factor_at(10, 10), 1.0);
+        let (east, west) = (fx.factor_at(11, 10), fx.factor_at(8, 10));
+        assert!(east > 1.0 && west < 1.0, "east {east} west {west}");
+        assert_eq!(fx.record()["wall_cells"], json!(12));
+    }
+
+    #[test]
+    fn a_different_sun_compensates_the_photos_shadows_and_casts_new_ones() {
+        let (t, b) = building_scene();
+        let (photo, now) = (sun(35.0, 90.0), sun(35.0, 270.0));
+        let fx = prepare(Some(now), Some(photo), 0.5, &t, &b, &none(), &b).unwrap().unwrap();
+        let applied = fx.record()["applied"].clone();
+        assert!(applied.as_array().unwrap().contains(&json!("photo_shadow_compensation")), "{applied}");
+        // West of the building: shadowed in the photo (eastern sun), lit now → × 1/F.
+        assert!((fx.factor_at(6, 10) - 2.0).abs() < 1e-12);
+        // East of it: lit in the photo, shadowed now → × F.
+        assert!((fx.factor_at(13, 10) - 0.5).abs() < 1e-12);
+        assert_eq!(fx.factor_at(2, 2), 1.0);
+    }
+}
