@@ -1,1 +1,0 @@
-//! Cast-shadow masks over a height field for a sun direction.
