@@ -5,8 +5,12 @@
 
 pub mod camera;
 pub mod carve;
+pub mod colour;
+pub mod format;
 pub mod grid;
+pub mod object;
 pub mod occupancy;
+pub mod picture;
 pub mod silhouette;
 pub mod solids;
 mod vec3;
