@@ -21,12 +21,27 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Register a DEM and an orthophoto onto one database grid (creates the database).
+    Ingest(cmd::ingest::Args),
+    /// Show what a database holds: grid, layers, checksums, stages run.
+    Info(cmd::info::Args),
+    /// Write the cast-shadow mask of a database for a sun (time or angles).
+    Shadows(cmd::shadows::Args),
+    /// Sun elevation, azimuth and zenith for a place (or a database's centre) and time (NREL SPA).
+    Sun(cmd::sun::Args),
+    /// Describe a paged tile file; --verify checks every page's checksum.
+    Tiles(cmd::tiles::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let ctx = cmd::Ctx { quiet: cli.quiet, json: cli.json };
     let result: dbms::Result<()> = match cli.command {
+        Command::Ingest(a) => cmd::ingest::run(a, &ctx),
+        Command::Info(a) => cmd::info::run(a, &ctx),
+        Command::Shadows(a) => cmd::shadows::run(a, &ctx),
+        Command::Sun(a) => cmd::sun::run(a, &ctx),
+        Command::Tiles(a) => cmd::tiles::run(a, &ctx),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

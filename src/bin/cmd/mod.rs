@@ -1,6 +1,12 @@
 //! One module per subcommand: its clap `Args` and its `run`. Each stays thin: parse, call the
 //! library, report. Shared output rules live in [`Ctx`].
 
+pub mod info;
+pub mod ingest;
+pub mod shadows;
+pub mod sun;
+pub mod tiles;
+
 use dbms::progress::Progress;
 use std::fmt::Display;
 

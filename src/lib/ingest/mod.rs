@@ -1,1 +1,216 @@
 //! `dbms ingest`: a DEM and an orthophoto registered onto one database grid.
+//!
+//! The database grid is, by default, in the DEM's CRS with the orthophoto's cell size over the
+//! intersection of both extents, snapped to the orthophoto's cell lattice so that at its own
+//! resolution the photo is copied, not resampled. `--cell` and `--bounds` override. The DEM is
+//! resampled (bilinear by default); colour is area-averaged when coarsening and bilinear when
+//! refining ([`resample`]). Nodata never enters a result; `--fill-voids` fills DEM voids by
+//! Delaunay interpolation ([`fill`]).
+
+pub mod fill;
+pub mod resample;
+
+use crate::db::{self, Database, InputFile, Stage};
+use crate::error::{Error, Result};
+use crate::grid::{Bounds, Grid};
+use crate::io::{self, SourceRaster};
+use crate::progress::Progress;
+use resample::Resampling;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Default `--max-cells`: 400 million cells (20 000²; about 3.2 GB of layers), far above any
+/// sample and far below a typo such as `--cell 0.0005`.
+pub const DEFAULT_MAX_CELLS: u64 = 400_000_000;
+
+/// What `dbms ingest` was asked to do.
+#[derive(Debug, Clone)]
+pub struct IngestOptions {
+    /// The elevation raster.
+    pub dem: PathBuf,
+    /// The orthophoto.
+    pub ortho: PathBuf,
+    /// Database cell size in CRS units (metres for a projected CRS); default the photo's.
+    pub cell: Option<f64>,
+    /// Database extent; default the intersection of the DEM's and the photo's.
+    pub bounds: Option<Bounds>,
+    /// How the DEM is interpolated onto the database grid.
+    pub dem_resampling: Resampling,
+    /// Fill DEM voids by interpolation.
+    pub fill_voids: bool,
+    /// Refuse grids with more cells than this.
+    pub max_cells: u64,
+    /// UTC time the orthophoto was taken (RFC 3339), when known: later stages use its sun to
+    /// tell the photo's own shadows from new ones.
+    pub photo_time: Option<String>,
+}
+
+/// What ingest produced, for the summary and `--json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct IngestSummary {
+    /// The database directory.
+    pub database: PathBuf,
+    /// The database grid.
+    pub grid: Grid,
+    /// Elevation statistics.
+    pub elevation: LayerSummary,
+    /// Colour statistics.
+    pub colour: LayerSummary,
+}
+
+/// Per-layer counts of a summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct LayerSummary {
+    /// Cells left without valid data.
+    pub nodata_cells: u64,
+    /// Voids filled by `--fill-voids` (elevation only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub filled_cells: Option<u64>,
+    /// Lowest and highest valid elevation, metres (elevation only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range_m: Option<(f32, f32)>,
+}
+
+/// Read both inputs, register them onto one grid and write the database to `out`.
+pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<IngestSummary> {
+    if let Some(t) = &opts.photo_time {
+        chrono::DateTime::parse_from_rfc3339(t)
+            .map_err(|e| Error::msg(format!("--photo-time {t:?} is not an RFC 3339 time ({e})")).fix("e.g. 2026-06-21T10:30:00Z"))?;
+    }
+    progress.phase(6, "ingest");
+    let dem_src = io::read_raster(&opts.dem)?;
+    progress.inc(1);
+    let ortho_src = io::read_raster(&opts.ortho)?;
+    progress.inc(1);
+    let grid = plan_grid(&dem_src, &ortho_src, opts)?;
+
+    let dem = dem_src.to_elevation()?;
+    let mut elevation = resample::resample_elevation(&dem, &grid, opts.dem_resampling);
+    drop(dem);
+    progress.inc(1);
+    let filled = opts.fill_voids.then(|| fill::fill_voids(&mut elevation) as u64);
+    if elevation.min_max().is_none() {
+        return Err(Error::file(&opts.dem, "no valid elevation falls inside the database grid")
+            .fix("check --bounds, or the DEM's nodata value and extent"));
+    }
+    let colour = resample::resample_colour(&ortho_src.to_colour()?, &grid);
+    drop(ortho_src);
+    progress.inc(1);
+
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e).fix("choose a writable output directory"))?;
+    io::geotiff::write_f32(&out.join("elevation.tif"), &elevation)?;
+    io::geotiff::write_rgba8(&out.join("colour.tif"), &colour)?;
+    progress.inc(1);
+
+    let inputs = vec![input_file("dem", &opts.dem)?, input_file("ortho", &opts.ortho)?];
+    let mut database = Database::create(out, grid.clone(), inputs)?;
+    let elevation_nodata = elevation.nodata_count() as u64;
+    let colour_nodata = colour.nodata_count() as u64;
+    database.set_layer(db::ELEVATION, "elevation", "elevation.tif", Some(elevation_nodata))?;
+    database.set_layer(db::COLOUR, "colour", "colour.tif", Some(colour_nodata))?;
+    database.record_stage(Stage::now(
+        "ingest",
+        serde_json::json!({
+            "dem": opts.dem, "ortho": opts.ortho, "cell": opts.cell, "bounds": opts.bounds,
+            "dem_resampling": opts.dem_resampling, "fill_voids": opts.fill_voids,
+            "photo_time": opts.photo_time,
+            "dem_format": dem_src.format, "dem_pixel_is_point": dem_src.pixel_is_point,
+        }),
+    ));
+    database.save()?;
+    progress.inc(1);
+    progress.finish();
+    Ok(IngestSummary {
+        database: out.to_path_buf(),
+        grid,
+        elevation: LayerSummary { nodata_cells: elevation_nodata, filled_cells: filled, range_m: elevation.min_max() },
+        colour: LayerSummary { nodata_cells: colour_nodata, filled_cells: None, range_m: None },
+    })
+}
+
+fn input_file(role: &str, path: &Path) -> Result<InputFile> {
+    Ok(InputFile { role: role.to_string(), path: path.display().to_string(), sha256: db::sha256_file(path)? })
+}
+
+/// Decide the database grid from the inputs and options (see the module docs), checking CRSs,
+/// overlap, cell size and `max_cells`.
+pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions) -> Result<Grid> {
+    let (dcrs, ocrs) = (&dem.grid.crs, &ortho.grid.crs);
+    if !dcrs.same_as(ocrs) {
+        return Err(Error::file(
+            &opts.ortho,
+            format!("orthophoto CRS {} differs from the DEM's {}", ocrs.name(), dcrs.name()),
+        )
+        .fix(format!(
+            "reproject the photo onto the DEM's CRS (gdalwarp -t_srs {} ...), or build dbms with --features gdal",
+            dcrs.name()
+        )));
+    }
+    // An unknown CRS on one side takes the other's: they were judged compatible above.
+    let crs = if dcrs.is_unknown() { ocrs.clone() } else { dcrs.clone() };
+    if let Some(cell) = opts.cell {
+        if !(cell.is_finite() && cell > 0.0) {
+            return Err(Error::msg(format!("--cell {cell} is not a positive size")).fix("give the cell size in metres, e.g. --cell 0.5"));
+        }
+        if crs.geographic {
+            return Err(Error::file(&opts.dem, format!("the DEM is in geographic coordinates (degrees, {}) but --cell is in metres", crs.name()))
+                .fix("reproject the DEM to a projected CRS first (gdalwarp -t_srs EPSG:326NN for UTM), or build dbms with --features gdal"));
+        }
+    }
+    let (db, ob) = (dem.grid.bounds(), ortho.grid.bounds());
+    let overlap = db.intersection(&ob).ok_or_else(|| {
+        Error::file(&opts.ortho, format!("orthophoto extent {} does not overlap the DEM's {}", show(&ob), show(&db)))
+            .fix("check that both files cover the same area in the same CRS")
+    })?;
+    let ot = &ortho.grid.transform;
+    let grid = match (opts.bounds, opts.cell) {
+        (Some(b), cell) => {
+            let cell = cell.unwrap_or(ot.cell_x.abs());
+            with_cells(&b, cell, cell, crs)?
+        }
+        (None, Some(cell)) => with_cells(&overlap, cell, cell, crs)?,
+        (None, None) => {
+            // Snap the overlap inward to the photo's lattice: the photo is then copied 1:1.
+            let (cx, cy) = (ot.cell_x.abs(), ot.cell_y.abs());
+            let snap = |v: f64, origin: f64, c: f64, up: bool| {
+                let k = (v - origin) / c;
+                let k = if up { (k - 1e-9).ceil() } else { (k + 1e-9).floor() };
+                origin + k * c
+            };
+            let b = Bounds {
+                min_x: snap(overlap.min_x, ob.min_x, cx, true),
+                max_x: snap(overlap.max_x, ob.min_x, cx, false),
+                min_y: snap(overlap.min_y, ob.max_y, cy, true),
+                max_y: snap(overlap.max_y, ob.max_y, cy, false),
+            };
+            if !(b.min_x < b.max_x && b.min_y < b.max_y) {
+                return Err(Error::file(&opts.ortho, "the DEM and orthophoto overlap by less than one photo cell")
+                    .fix("check that both files cover the same area"));
+            }
+            with_cells(&b, cx, cy, crs)?
+        }
+    };
+    let cells = grid.width as u64 * grid.height as u64;
+    if cells > opts.max_cells {
+        return Err(Error::msg(format!(
+            "the database grid would be {} x {} = {cells} cells, more than --max-cells {}",
+            grid.width, grid.height, opts.max_cells
+        ))
+        .fix("check --cell and --bounds, or raise --max-cells if this is really wanted"));
+    }
+    Ok(grid)
+}
+
+/// The grid of `cell_x` × `cell_y` cells covering `b`, top-left at `(min_x, max_y)`.
+fn with_cells(b: &Bounds, cell_x: f64, cell_y: f64, crs: crate::crs::Crs) -> Result<Grid> {
+    let mut g = Grid::covering(b, cell_x, crs)?;
+    if cell_y != cell_x {
+        g.height = ((b.height() / cell_y) - 1e-9).ceil().max(1.0) as usize;
+        g.transform.cell_y = -cell_y;
+    }
+    Ok(g)
+}
+
+fn show(b: &Bounds) -> String {
+    format!("[{}, {}, {}, {}]", b.min_x, b.min_y, b.max_x, b.max_y)
+}

@@ -1,0 +1,74 @@
+//! `dbms ingest`: register a DEM and an orthophoto onto one database grid.
+
+use super::Ctx;
+use dbms::grid::Bounds;
+use dbms::ingest::{self, resample::Resampling, IngestOptions};
+use std::path::PathBuf;
+
+/// Register a DEM and an orthophoto onto one database grid and write the database directory.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Elevation raster: GeoTIFF (int16/uint16/int32/float32/float64) or Esri ASCII grid.
+    #[arg(long, value_name = "DEM")]
+    dem: PathBuf,
+    /// Orthophoto: GeoTIFF (RGB, RGBA or grey, 8/16 bit) or PNG/JPEG with a world file.
+    #[arg(long, value_name = "ORTHO")]
+    ortho: PathBuf,
+    /// Database cell size in metres [default: the orthophoto's].
+    #[arg(long, value_name = "METRES")]
+    cell: Option<f64>,
+    /// Database extent in the DEM's CRS [default: the intersection of both inputs].
+    #[arg(long, value_name = "MINX,MINY,MAXX,MAXY", value_parser = parse_bounds, allow_hyphen_values = true)]
+    bounds: Option<Bounds>,
+    /// How the DEM is resampled onto the database grid.
+    #[arg(long, value_enum, default_value = "bilinear")]
+    dem_resampling: Resampling,
+    /// Fill DEM voids by Delaunay interpolation from their borders.
+    #[arg(long)]
+    fill_voids: bool,
+    /// Refuse a database grid with more cells than this (a guard against typos).
+    #[arg(long, default_value_t = ingest::DEFAULT_MAX_CELLS)]
+    max_cells: u64,
+    /// UTC time the orthophoto was taken (RFC 3339): lets later stages tell its shadows from new ones.
+    #[arg(long, value_name = "TIME")]
+    photo_time: Option<String>,
+    /// Output database directory.
+    #[arg(short, long, value_name = "DB")]
+    output: PathBuf,
+}
+
+fn parse_bounds(s: &str) -> Result<Bounds, String> {
+    Bounds::parse(s).map_err(|e| e.to_string())
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let opts = IngestOptions {
+        dem: args.dem,
+        ortho: args.ortho,
+        cell: args.cell,
+        bounds: args.bounds,
+        dem_resampling: args.dem_resampling,
+        fill_voids: args.fill_voids,
+        max_cells: args.max_cells,
+        photo_time: args.photo_time,
+    };
+    let progress = ctx.progress(6, "ingest");
+    let s = ingest::ingest(&opts, &args.output, &progress)?;
+    let g = &s.grid;
+    let (cx, cy) = g.cell_size();
+    let b = g.bounds();
+    let mut human = format!(
+        "{}: {} x {} cells of {} x {} {} in {}, extent [{}, {}, {}, {}]\n  elevation: {} nodata cells",
+        s.database.display(), g.width, g.height, cx, cy, g.crs.unit(), g.crs.name(),
+        b.min_x, b.min_y, b.max_x, b.max_y, s.elevation.nodata_cells,
+    );
+    if let Some(f) = s.elevation.filled_cells {
+        human += &format!(", {f} filled");
+    }
+    if let Some((lo, hi)) = s.elevation.range_m {
+        human += &format!(", {lo} to {hi} m");
+    }
+    human += &format!("\n  colour: {} nodata cells", s.colour.nodata_cells);
+    ctx.report(human, serde_json::to_value(&s).expect("summary serialises"));
+    Ok(())
+}
