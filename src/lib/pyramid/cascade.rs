@@ -132,6 +132,88 @@ mod tests {
         assert_eq!(seen, want);
     }
 
+    /// Level 0 from whole arrays, as `build_pyramid` cuts it.
+    fn cut(base: &BaseRows, row0: usize, rows: usize) -> BaseRows {
+        let w = base.width;
+        let r = row0 * w..(row0 + rows) * w;
+        BaseRows { width: w, max_z: base.max_z[r.clone()].to_vec(), colour: base.colour[r.clone()].to_vec(), state: base.state[r].to_vec() }
+    }
+
+    fn build(base: &BaseRows, height: usize, page: usize, factor: usize) -> (TileSetInfo, Vec<crate::pyramid::export::LevelRasters>) {
+        let grid = Grid::north_up(500_000.0, 5_000_000.0, 0.5, base.width, height, Crs::epsg(32632));
+        let info = TileSetInfo::new(grid, page, factor, None).unwrap();
+        let collector = crate::pyramid::export::LevelCollector::new(&info);
+        build_levels(&info, |row0, rows| Ok(cut(base, row0, rows)), &|l, tx, ty, p| {
+            collector.put(l, tx, ty, &p);
+            Ok(())
+        })
+        .unwrap();
+        (info, collector.into_levels())
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Every coarse cell against its whole level-0 block: the max exactly (NaN only when the
+        /// block has no valid cell), the colour the rounded mean of the valid cells (so within ½
+        /// of the true mean), the state by the block rule. Sizes are not multiples of anything.
+        #[test]
+        fn coarse_cells_are_exact_over_their_level0_block(
+            w in 1usize..70, h in 1usize..70, page_pow in 2u32..5, f4 in proptest::bool::ANY,
+            seed in 0u64..u64::MAX, nodata_pct in 0u64..101,
+        ) {
+            let (page, factor) = (1usize << page_pow, if f4 { 4 } else { 2 });
+            let mut s = seed | 1;
+            let mut next = || { s ^= s << 13; s ^= s >> 7; s ^= s << 17; s };
+            let mut base = BaseRows::nodata(w, h);
+            for i in 0..w * h {
+                let v = next();
+                if v % 100 >= nodata_pct {
+                    base.max_z[i] = ((v >> 8) % 100_000) as f32 * 0.01 - 300.0;
+                    base.colour[i] = [(v >> 20) as u8, (v >> 28) as u8, (v >> 36) as u8, 255];
+                    base.state[i] = if (v >> 44) % 7 == 0 { 1 } else { 2 };
+                }
+            }
+            let (info, levels) = build(&base, h, page, factor);
+            proptest::prop_assert_eq!(levels.len(), info.levels.len());
+            proptest::prop_assert!(levels[0].max_z.data.iter().zip(&base.max_z).all(|(a, b)| a.to_bits() == b.to_bits()));
+            proptest::prop_assert_eq!(&levels[0].colour.data, &base.colour);
+            for (k, l) in levels.iter().enumerate().skip(1) {
+                let span = factor.pow(k as u32);
+                for row in 0..l.max_z.grid.height {
+                    for col in 0..l.max_z.grid.width {
+                        let (mut z, mut sum, mut n, mut filled, mut opaque) = (f32::NAN, [0u64; 3], 0u64, false, true);
+                        for r in row * span..((row + 1) * span).min(h) {
+                            for c in col * span..((col + 1) * span).min(w) {
+                                let i = r * w + c;
+                                if !base.max_z[i].is_nan() && (z.is_nan() || base.max_z[i] > z) {
+                                    z = base.max_z[i];
+                                }
+                                if base.colour[i][3] != 0 {
+                                    for ch in 0..3 { sum[ch] += base.colour[i][ch] as u64; }
+                                    n += 1;
+                                }
+                                filled |= base.state[i] != 0;
+                                opaque &= base.state[i] == 2;
+                            }
+                        }
+                        let got = *l.max_z.get(col, row);
+                        proptest::prop_assert!(got.to_bits() == z.to_bits() || (got.is_nan() && z.is_nan()), "level {} ({}, {}): {} vs {}", k, col, row, got, z);
+                        let c = *l.colour.get(col, row);
+                        proptest::prop_assert_eq!(c[3] == 0, n == 0, "nodata colour exactly where no valid cell");
+                        for ch in 0..3 {
+                            if n > 0 {
+                                let mean = sum[ch] as f64 / n as f64;
+                                proptest::prop_assert!((c[ch] as f64 - mean).abs() <= 0.5, "level {} colour {} vs mean {}", k, c[ch], mean);
+                            }
+                        }
+                        let want = if !filled { 0 } else if opaque { 2 } else { 1 };
+                        proptest::prop_assert_eq!(*l.state.get(col, row), want);
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn page_size_not_a_multiple_of_the_factor_is_an_error() {
         let grid = Grid::north_up(0.0, 7.0, 1.0, 10, 7, Crs::unknown());

@@ -2,9 +2,233 @@
 //!
 //! Invariant: every cell of every coarse level holds the exact max of the heights of its level-0
 //! block (a conservative bound for ray marching), the rounded average colour of the block's valid
-//! level-0 cells, and an occupancy state; nodata never becomes data. See `docs/pyramid.md`.
+//! level-0 cells, and an occupancy state; nodata never becomes data. Same database and options →
+//! byte-identical tile file. See `docs/pyramid.md`.
+//!
+//! The stages, each a module:
+//! * [`raised`]: buildings (GeoJSON prisms) and placed voxel objects standing on the terrain;
+//! * [`shade`]: the sun effects prepared for the whole grid (shadow masks, what to apply);
+//! * [`base`]: level-0 bands with both merged in;
+//! * [`reduce`] and [`cascade`]: the coarser levels, streamed page-row by page-row to the
+//!   tile writer ([`crate::tiles::TileWriter`]);
+//! * [`export`]: every level as GeoTIFF (`--export-levels`).
 
+pub mod base;
 pub mod cascade;
-pub mod reduce;
+pub mod export;
 pub mod raised;
+pub mod reduce;
 pub mod shade;
+
+use crate::db::{self, Database, PlacedObject, Stage};
+use crate::error::{Error, Result};
+use crate::io;
+use crate::progress::Progress;
+use crate::shadow::Sun;
+use crate::tiles::{Compression, TileSetInfo, TileWriter};
+use crate::voxel::object::VoxelObject;
+use raised::{PlacedVoxels, Raised};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Default page edge, cells.
+pub const DEFAULT_PAGE: usize = 256;
+/// Default ratio of cell sizes between levels.
+pub const DEFAULT_FACTOR: usize = 4;
+
+/// How `dbms pyramid` is asked to build.
+#[derive(Debug, Clone)]
+pub struct PyramidOptions {
+    /// Ratio of cell sizes between consecutive levels: 2 or 4.
+    pub factor: usize,
+    /// Number of levels; `None` goes down to the first level that fits in one page.
+    pub levels: Option<usize>,
+    /// Page edge in cells.
+    pub page_size: usize,
+    /// The sun to shade for; `None` applies no effect at all.
+    pub sun: Option<Sun>,
+    /// Shadow factor `F` in (0, 1] (see [`shade`]).
+    pub shadow_factor: f64,
+    /// Per-page compression of the tile file.
+    pub compression: Compression,
+    /// Write every level as GeoTIFF into this directory.
+    pub export_levels: Option<PathBuf>,
+}
+
+impl Default for PyramidOptions {
+    fn default() -> PyramidOptions {
+        PyramidOptions {
+            factor: DEFAULT_FACTOR,
+            levels: None,
+            page_size: DEFAULT_PAGE,
+            sun: None,
+            shadow_factor: shade::DEFAULT_SHADOW_FACTOR,
+            compression: Compression::None,
+            export_levels: None,
+        }
+    }
+}
+
+/// What was built, for the CLI summary, `--json` and the manifest's stage record.
+#[derive(Debug, Clone, Serialize)]
+pub struct PyramidSummary {
+    /// The tile file.
+    pub tiles: PathBuf,
+    /// `(width, height)` of each level, finest first.
+    pub levels: Vec<(usize, usize)>,
+    /// Pages written.
+    pub pages: usize,
+    /// Level-0 cells raised by buildings.
+    pub building_cells: usize,
+    /// Level-0 cells covered by placed objects.
+    pub object_cells: usize,
+    /// Level-0 cells with state partial (object overhangs or holes).
+    pub partial_cells: usize,
+    /// Cells dropped to nodata because only one of elevation and colour was valid.
+    pub half_valid_cells: usize,
+    /// The effects record (also in the tile header and the manifest).
+    pub effects: serde_json::Value,
+    /// GeoTIFFs written by `--export-levels`.
+    pub exported: Vec<PathBuf>,
+}
+
+/// Build the tile file `out` for the database `db` and record a `pyramid` stage in its manifest.
+pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progress: &Progress) -> Result<PyramidSummary> {
+    if !(opts.shadow_factor > 0.0 && opts.shadow_factor <= 1.0) {
+        return Err(Error::msg(format!("--shadow-factor {}: must be in (0, 1]", opts.shadow_factor))
+            .fix(format!("the default is {}", shade::DEFAULT_SHADOW_FACTOR)));
+    }
+    let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
+    info.compression = opts.compression;
+    let terrain = read_layer(db, db::ELEVATION, |s| s.to_elevation())?;
+    let colour = read_layer(db, db::COLOUR, |s| s.to_colour())?;
+
+    let buildings = match db.manifest.layers.contains_key("buildings") {
+        true => {
+            let prisms = raised::read_buildings(&db.layer_path("buildings")?)?;
+            Raised::new(raised::rasterise_prisms(&terrain.grid, &prisms), &terrain)
+        }
+        false => Raised::default(),
+    };
+    let mut object_cells = Vec::new();
+    for placed in &db.manifest.objects {
+        let path = db.dir.join(&placed.file);
+        let (obj, _) = crate::voxel::format::read(&path)?;
+        object_cells.extend(raised::rasterise_object(&terrain.grid, &placed_voxels(&obj, placed), &terrain));
+    }
+    let objects = Raised::new(object_cells.clone(), &terrain);
+    let mut all_cells = buildings.range(0, usize::MAX).to_vec();
+    all_cells.extend(object_cells);
+    let all = Raised::new(all_cells, &terrain);
+
+    let photo_sun = photo_sun(db)?;
+    let effects = shade::prepare(opts.sun, photo_sun, opts.shadow_factor, &terrain, &buildings, &objects, &all)?;
+    info.effects = match &effects {
+        Some(fx) => fx.record(),
+        None => shade::record_none(opts.sun, photo_sun, opts.shadow_factor),
+    };
+
+    let level0 = base::Level0 { terrain: &terrain, colour: &colour, raised: &all, effects: effects.as_ref() };
+    let writer = TileWriter::create(out, info.clone())?;
+    let collector = opts.export_levels.as_ref().map(|_| export::LevelCollector::new(&info));
+    progress.phase(info.page_count() as u64, "pyramid");
+    cascade::build_levels(&info, |row0, rows| Ok(level0.band(row0, rows)), &|level, tx, ty, page| {
+        if let Some(c) = &collector {
+            c.put(level, tx, ty, &page);
+        }
+        writer.write_page(level, tx, ty, &page)?;
+        progress.inc(1);
+        Ok(())
+    })?;
+    writer.finish()?;
+    progress.finish();
+    let exported = match (collector, &opts.export_levels) {
+        (Some(c), Some(dir)) => c.write(dir)?,
+        _ => Vec::new(),
+    };
+
+    let summary = PyramidSummary {
+        tiles: out.to_path_buf(),
+        levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
+        pages: info.page_count(),
+        building_cells: buildings.len(),
+        object_cells: objects.len(),
+        partial_cells: all.range(0, usize::MAX).iter().filter(|c| c.partial).count(),
+        half_valid_cells: level0.half_valid_cells(),
+        effects: info.effects.clone(),
+        exported,
+    };
+    db.record_stage(Stage::now(
+        "pyramid",
+        serde_json::json!({
+            "tiles": out, "factor": opts.factor, "page_size": opts.page_size, "levels": summary.levels,
+            "compression": opts.compression.name(), "export_levels": opts.export_levels,
+            "tiles_sha256": db::sha256_file(out)?, "effects": summary.effects,
+            "building_cells": summary.building_cells, "object_cells": summary.object_cells,
+            "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
+        }),
+    ));
+    db.save()?;
+    Ok(summary)
+}
+
+/// Read a raster layer of the database and check it lies on the database grid.
+fn read_layer<T>(db: &Database, name: &str, convert: impl FnOnce(&io::SourceRaster) -> Result<T>) -> Result<T>
+where
+    T: LayerGrid,
+{
+    let path = db.layer_path(name)?;
+    let layer = convert(&io::read_raster(&path)?)?;
+    let (g, want) = (layer.grid(), db.grid());
+    if (g.width, g.height) != (want.width, want.height) {
+        return Err(Error::file(&path, format!("is {}×{} cells but the database grid is {}×{}", g.width, g.height, want.width, want.height))
+            .fix("re-create the database with `dbms ingest`"));
+    }
+    Ok(layer)
+}
+
+/// The grid of a raster layer, whatever its cell type.
+trait LayerGrid {
+    fn grid(&self) -> &crate::grid::Grid;
+}
+
+impl<T> LayerGrid for crate::raster::Raster<T> {
+    fn grid(&self) -> &crate::grid::Grid {
+        &self.grid
+    }
+}
+
+/// The orthophoto's own sun: from the last ingest stage's `photo_time` and the grid centre.
+/// `None` when the database does not record the photo's time.
+pub fn photo_sun(db: &Database) -> Result<Option<Sun>> {
+    let time = db.manifest.stages.iter().rev().find(|s| s.name == "ingest").and_then(|s| s.params.get("photo_time"));
+    let Some(time) = time.and_then(|t| t.as_str()) else { return Ok(None) };
+    let sun = sun_at(db, time).map_err(|e| e.in_file(db.dir.join(db::MANIFEST_FILE)))?;
+    Ok(Some(sun))
+}
+
+/// The sun over the database centre at an RFC 3339 time (`--time`).
+pub fn sun_at(db: &Database, time: &str) -> Result<Sun> {
+    let utc = crate::sun::parse_time(time)?;
+    let (latitude_deg, longitude_deg) = db.centre_lat_lon().ok_or_else(|| {
+        Error::file(&db.dir, format!("cannot place the grid centre on the globe ({})", db.grid().crs.name()))
+            .fix("give --sun-elevation and --sun-azimuth instead of a time")
+    })?;
+    let obs = crate::sun::Observer { latitude_deg, longitude_deg, height_m: 0.0 };
+    let pos = crate::sun::sun_position(&obs, utc, &crate::sun::SunOptions::default())?;
+    Sun::new(pos.elevation_deg, pos.azimuth_deg).map_err(|e| Error::msg(format!("at {time}: {}", e.problem)).fix(e.fix.unwrap_or_default()))
+}
+
+/// A placed object's voxels relative to its anchor (the centre of its grid's bottom face, which
+/// `dbms place` puts at the placement point), for [`raised::rasterise_object`].
+fn placed_voxels(obj: &VoxelObject, placed: &PlacedObject) -> PlacedVoxels {
+    let a = obj.anchor();
+    let voxels = obj
+        .voxels()
+        .map(|([x, y, z], rgb)| {
+            let c = obj.grid.centre(x, y, z);
+            ([c[0] - a[0], c[1] - a[1], c[2] - a[2]], rgb)
+        })
+        .collect();
+    PlacedVoxels { origin: [placed.x, placed.y, placed.z], heading_deg: placed.heading_deg, voxel_size: obj.grid.voxel_size, voxels }
+}
