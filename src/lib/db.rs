@@ -14,6 +14,8 @@
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::io::atomic::write_bytes_atomic;
+use crate::io::SourceRaster;
+use crate::raster::{Colour, Elevation, Raster};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
@@ -224,6 +226,28 @@ impl Database {
                 _ => "run the stage that makes it first",
             })),
         }
+    }
+
+    /// Read the terrain elevation layer (metres, NaN = nodata), checked against the grid.
+    pub fn read_elevation(&self) -> Result<Elevation> {
+        self.read_layer(ELEVATION, SourceRaster::to_elevation)
+    }
+
+    /// Read the colour layer (RGBA8, alpha 0 = nodata), checked against the grid.
+    pub fn read_colour(&self) -> Result<Colour> {
+        self.read_layer(COLOUR, SourceRaster::to_colour)
+    }
+
+    /// Read a raster layer and check it lies on the database grid.
+    fn read_layer<T>(&self, name: &str, convert: impl FnOnce(&SourceRaster) -> Result<Raster<T>>) -> Result<Raster<T>> {
+        let path = self.layer_path(name)?;
+        let layer = convert(&crate::io::read_raster(&path)?).map_err(|e| e.in_file(&path))?;
+        let (g, want) = (&layer.grid, self.grid());
+        if (g.width, g.height) != (want.width, want.height) {
+            return Err(Error::file(&path, format!("is {}x{} cells but the database grid is {}x{}", g.width, g.height, want.width, want.height))
+                .fix("re-create the database with `dbms ingest`"));
+        }
+        Ok(layer)
     }
 
     /// Record a layer file that is already written inside the directory (hashes it now).
