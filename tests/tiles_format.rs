@@ -440,7 +440,7 @@ fn cli_prints_the_summary_and_verifies() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("pages of 8×8 cells, factor 2, 5 levels"), "{text}");
-    assert!(text.contains("level 0: 70×45 cells of 0.5×0.5, 9×6 = 54 pages"), "{text}");
+    assert!(text.contains("level 0: 70×45 cells of 0.5×0.5, 9×6 pages"), "{text}");
     assert!(text.contains("layers: max_z (f32), colour (rgba8), state (u8)"), "{text}");
     assert!(!text.contains("verified"));
 

@@ -51,15 +51,14 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     for l in &info.levels {
         let _ = writeln!(
             human,
-            "  level {}: {}×{} cells of {}×{}, {}×{} = {} pages",
+            "  level {}: {}×{} cells of {}×{}, {}×{} pages",
             l.level,
             l.width,
             l.height,
             l.cell_x.abs(),
             l.cell_y.abs(),
             l.pages_x,
-            l.pages_y,
-            l.pages()
+            l.pages_y
         );
     }
     let layers: Vec<String> = info.layers.iter().map(|l| format!("{} ({})", l.name, l.kind)).collect();

@@ -2,41 +2,44 @@
 //!
 //! Invariant: never holds more than `capacity` pages; a hit makes the page the most recent;
 //! an insert beyond capacity evicts the least recent. Capacity 0 caches nothing.
+//!
+//! Hits are the hot path of every ray step, so they take only a shared read lock and stamp
+//! the page's atomic last-use tick; the O(capacity) search for the victim happens on inserts,
+//! which follow a page read from the file and are far costlier anyway.
 
 use super::page::Page;
-use std::collections::{BTreeMap, HashMap};
-use std::sync::{Arc, Mutex};
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, RwLock};
 
 /// LRU of pages keyed by index position.
 pub(crate) struct PageCache {
     capacity: usize,
-    inner: Mutex<Lru>,
+    tick: AtomicU64,
+    pages: RwLock<HashMap<usize, Slot>>,
 }
 
-#[derive(Default)]
-struct Lru {
-    /// Position → (page, last-use tick).
-    pages: HashMap<usize, (Arc<Page>, u64)>,
-    /// Last-use tick → position: the smallest tick is the eviction victim.
-    by_use: BTreeMap<u64, usize>,
-    tick: u64,
+struct Slot {
+    page: Arc<Page>,
+    /// Tick of the last use; ticks are unique, so the least recent page is unambiguous.
+    used: AtomicU64,
 }
 
 impl PageCache {
     pub fn new(capacity: usize) -> PageCache {
-        PageCache { capacity, inner: Mutex::new(Lru::default()) }
+        PageCache { capacity, tick: AtomicU64::new(0), pages: RwLock::new(HashMap::new()) }
+    }
+
+    fn next_tick(&self) -> u64 {
+        self.tick.fetch_add(1, Ordering::Relaxed) + 1
     }
 
     /// The cached page at `pos`, marking it most recently used.
     pub fn get(&self, pos: usize) -> Option<Arc<Page>> {
-        let mut lru = self.inner.lock().unwrap_or_else(|p| p.into_inner());
-        let lru = &mut *lru;
-        lru.tick += 1;
-        let (page, used) = lru.pages.get_mut(&pos)?;
-        lru.by_use.remove(used);
-        *used = lru.tick;
-        lru.by_use.insert(lru.tick, pos);
-        Some(page.clone())
+        let pages = self.pages.read().unwrap_or_else(|p| p.into_inner());
+        let slot = pages.get(&pos)?;
+        slot.used.store(self.next_tick(), Ordering::Relaxed);
+        Some(slot.page.clone())
     }
 
     /// Cache `page` at `pos` (replacing what another thread may have inserted meanwhile).
@@ -44,23 +47,22 @@ impl PageCache {
         if self.capacity == 0 {
             return;
         }
-        let mut lru = self.inner.lock().unwrap_or_else(|p| p.into_inner());
-        let lru = &mut *lru;
-        lru.tick += 1;
-        if let Some((_, used)) = lru.pages.insert(pos, (page, lru.tick)) {
-            lru.by_use.remove(&used);
-        }
-        lru.by_use.insert(lru.tick, pos);
-        while lru.pages.len() > self.capacity {
-            let (_, victim) = lru.by_use.pop_first().expect("by_use mirrors pages");
-            lru.pages.remove(&victim);
+        let mut pages = self.pages.write().unwrap_or_else(|p| p.into_inner());
+        pages.insert(pos, Slot { page, used: AtomicU64::new(self.next_tick()) });
+        while pages.len() > self.capacity {
+            let victim = *pages
+                .iter()
+                .min_by_key(|(_, s)| s.used.load(Ordering::Relaxed))
+                .map(|(k, _)| k)
+                .expect("over capacity, so not empty");
+            pages.remove(&victim);
         }
     }
 
     /// Number of pages held.
     #[cfg(test)]
     pub fn len(&self) -> usize {
-        self.inner.lock().unwrap().pages.len()
+        self.pages.read().unwrap().len()
     }
 }
 
