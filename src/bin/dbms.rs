@@ -25,6 +25,8 @@ enum Command {
     Ingest(cmd::ingest::Args),
     /// Show what a database holds: grid, layers, checksums, stages run.
     Info(cmd::info::Args),
+    /// Build the render database: max-Z / average-colour levels as a paged tile file, shaded for a sun.
+    Pyramid(cmd::pyramid::Args),
     /// Write the cast-shadow mask of a database for a sun (time or angles).
     Shadows(cmd::shadows::Args),
     /// Sun elevation, azimuth and zenith for a place (or a database's centre) and time (NREL SPA).
@@ -39,6 +41,7 @@ fn main() -> ExitCode {
     let result: dbms::Result<()> = match cli.command {
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),
+        Command::Pyramid(a) => cmd::pyramid::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),
         Command::Sun(a) => cmd::sun::run(a, &ctx),
         Command::Tiles(a) => cmd::tiles::run(a, &ctx),

@@ -3,6 +3,7 @@
 
 pub mod info;
 pub mod ingest;
+pub mod pyramid;
 pub mod shadows;
 pub mod sun;
 pub mod tiles;

@@ -1,0 +1,86 @@
+//! `dbms pyramid`: the max-Z / average-colour hierarchy of a database as a paged tile file.
+
+use super::Ctx;
+use dbms::db::Database;
+use dbms::pyramid::{build_pyramid, PyramidOptions, DEFAULT_FACTOR, DEFAULT_PAGE};
+use dbms::shadow::Sun;
+use dbms::tiles::Compression;
+use serde_json::json;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Build the render database: every level (max Z, average colour, occupancy) in one tile file,
+/// with shadows and shading for a sun when one is given.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The database directory.
+    #[arg(long)]
+    db: PathBuf,
+    /// Ratio of cell sizes between levels: 4 (cells of 1, 4, 16, 64) or 2.
+    #[arg(long, default_value_t = DEFAULT_FACTOR)]
+    factor: usize,
+    /// Number of levels (default: down to the first level that fits in one page).
+    #[arg(long)]
+    levels: Option<usize>,
+    /// Page edge in cells (a multiple of the factor).
+    #[arg(long, default_value_t = DEFAULT_PAGE)]
+    page: usize,
+    /// UTC time (RFC 3339, e.g. 2026-06-21T10:00:00Z): shade for the sun over the database centre.
+    #[arg(long, conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
+    time: Option<String>,
+    /// Sun elevation above the horizon, degrees (0, 90].
+    #[arg(long, requires = "sun_azimuth", allow_negative_numbers = true)]
+    sun_elevation: Option<f64>,
+    /// Sun azimuth, degrees clockwise from north, toward the sun.
+    #[arg(long, requires = "sun_elevation", allow_negative_numbers = true)]
+    sun_azimuth: Option<f64>,
+    /// Fraction of full-sun brightness left in shadow (the patent's F), in (0, 1].
+    #[arg(long, default_value_t = dbms::pyramid::shade::DEFAULT_SHADOW_FACTOR)]
+    shadow_factor: f64,
+    /// Per-page compression: none or lz4.
+    #[arg(long, default_value = "none")]
+    compression: String,
+    /// Also write every level as GeoTIFF here (level<N>_maxz.tif, level<N>_colour.tif).
+    #[arg(long)]
+    export_levels: Option<PathBuf>,
+    /// Output tile file.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let mut db = Database::open(&args.db)?;
+    let sun = match (&args.time, args.sun_elevation, args.sun_azimuth) {
+        (Some(t), _, _) => Some(dbms::pyramid::sun_at(&db, t)?),
+        (None, Some(e), Some(a)) => Some(Sun::new(e, a)?),
+        _ => None,
+    };
+    let opts = PyramidOptions {
+        factor: args.factor,
+        levels: args.levels,
+        page_size: args.page,
+        sun,
+        shadow_factor: args.shadow_factor,
+        compression: Compression::parse(&args.compression)?,
+        export_levels: args.export_levels,
+    };
+    let progress = ctx.progress(0, "pyramid");
+    let s = build_pyramid(&mut db, &args.output, &opts, &progress)?;
+
+    let mut human = String::new();
+    let sizes: Vec<String> = s.levels.iter().map(|(w, h)| format!("{w}×{h}")).collect();
+    let _ = write!(human, "{}: {} levels ({}), {} pages", s.tiles.display(), s.levels.len(), sizes.join(", "), s.pages);
+    let applied: Vec<&str> = s.effects["applied"].as_array().map(|a| a.iter().filter_map(|v| v.as_str()).collect()).unwrap_or_default();
+    let _ = write!(human, "\neffects: {}", if applied.is_empty() { "none".to_string() } else { applied.join(", ") });
+    if s.building_cells + s.object_cells > 0 {
+        let _ = write!(human, "\nraised: {} building cells, {} object cells ({} partial)", s.building_cells, s.object_cells, s.partial_cells);
+    }
+    if s.half_valid_cells > 0 {
+        let _ = write!(human, "\nnodata: {} cells had only one of elevation and colour", s.half_valid_cells);
+    }
+    if !s.exported.is_empty() {
+        let _ = write!(human, "\nexported {} GeoTIFFs", s.exported.len());
+    }
+    ctx.report(human, json!(s));
+    Ok(())
+}
