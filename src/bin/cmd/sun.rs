@@ -1,0 +1,94 @@
+//! `dbms sun`: where the sun is, seen from a point or from a database's centre.
+
+use super::Ctx;
+use chrono::SecondsFormat;
+use dbms::db::Database;
+use dbms::sun::{self, Atmosphere, Observer, SunOptions};
+use dbms::Error;
+use serde_json::json;
+use std::path::PathBuf;
+
+/// Sun elevation, azimuth (clockwise from north) and zenith in degrees, by NREL SPA.
+#[derive(clap::Args)]
+#[command(group = clap::ArgGroup::new("place").required(true).args(["lat", "db"]))]
+pub struct Args {
+    /// Observer latitude, degrees north (-90..90).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, requires = "lon")]
+    lat: Option<f64>,
+    /// Observer longitude, degrees east (-180..180).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, requires = "lat")]
+    lon: Option<f64>,
+    /// Use the centre of this database instead of --lat/--lon.
+    #[arg(long, value_name = "DB", conflicts_with_all = ["lat", "lon"])]
+    db: Option<PathBuf>,
+    /// The instant, RFC 3339 with a UTC offset: 2026-06-21T10:00:00Z or 2026-06-21T12:00:00+02:00.
+    #[arg(long, value_name = "RFC3339")]
+    time: String,
+    /// Observer height above the ellipsoid, metres (only the parallax uses it: 1e-7° per 100 m).
+    #[arg(long, value_name = "M", default_value_t = 0.0, allow_negative_numbers = true)]
+    height: f64,
+    /// The geometric sun, without atmospheric refraction.
+    #[arg(long)]
+    no_refraction: bool,
+    /// TT - UT1 in seconds [default: Espenak & Meeus model].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    delta_t: Option<f64>,
+    /// UT1 - UTC in seconds, |dUT1| < 1 (IERS Bulletin A).
+    #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true)]
+    delta_ut1: f64,
+    /// Station air pressure for refraction, millibar (hPa).
+    #[arg(long, value_name = "MBAR", default_value_t = Atmosphere::default().pressure_mbar, allow_negative_numbers = true)]
+    pressure: f64,
+    /// Air temperature for refraction, degrees Celsius.
+    #[arg(long, value_name = "C", default_value_t = Atmosphere::default().temperature_c, allow_negative_numbers = true)]
+    temperature: f64,
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let utc = sun::parse_time(&args.time)?;
+    let (latitude_deg, longitude_deg) = match (&args.db, args.lat, args.lon) {
+        (Some(dir), _, _) => Database::open(dir)?.centre_lat_lon().ok_or_else(|| {
+            Error::file(dir, "the database's CRS cannot be converted to latitude/longitude without GDAL")
+                .fix("give --lat and --lon, or use a dbms built with --features gdal")
+        })?,
+        (None, Some(lat), Some(lon)) => (lat, lon),
+        _ => unreachable!("clap requires --db or both --lat and --lon"),
+    };
+    let observer = Observer { latitude_deg, longitude_deg, height_m: args.height };
+    let opts = SunOptions {
+        refraction: !args.no_refraction,
+        delta_t_s: args.delta_t,
+        delta_ut1_s: args.delta_ut1,
+        atmosphere: Atmosphere { pressure_mbar: args.pressure, temperature_c: args.temperature },
+    };
+    let p = sun::sun_position(&observer, utc, &opts)?;
+    let delta_t_s = args.delta_t.unwrap_or_else(|| sun::delta_t_model_s(utc));
+    let time = utc.to_rfc3339_opts(SecondsFormat::AutoSi, true);
+
+    let human = format!(
+        "sun at {time} seen from {latitude_deg:.6} N, {longitude_deg:.6} E, {} m ({}):\n  elevation {:11.6} deg\n  azimuth   {:11.6} deg (clockwise from north)\n  zenith    {:11.6} deg",
+        args.height,
+        if opts.refraction { "with refraction" } else { "geometric, no refraction" },
+        p.elevation_deg,
+        p.azimuth_deg,
+        p.zenith_deg,
+    );
+    let json = json!({
+        "elevation_deg": p.elevation_deg,
+        "azimuth_deg": p.azimuth_deg,
+        "zenith_deg": p.zenith_deg,
+        "time": time,
+        "latitude_deg": latitude_deg,
+        "longitude_deg": longitude_deg,
+        "height_m": args.height,
+        "db": args.db.as_ref().map(|d| d.display().to_string()),
+        "refraction": opts.refraction,
+        "pressure_mbar": args.pressure,
+        "temperature_c": args.temperature,
+        "delta_t_s": delta_t_s,
+        "delta_t_source": if args.delta_t.is_some() { "given" } else { "Espenak & Meeus 2006 model" },
+        "delta_ut1_s": args.delta_ut1,
+    });
+    ctx.report(human, json);
+    Ok(())
+}
