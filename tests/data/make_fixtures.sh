@@ -43,12 +43,15 @@ write("alpha", "B", "Byte", [0 if (c + r) % 5 == 0 else 255 for c, r in cells])
 # South-up (positive cell height): GDAL writes ModelTransformation. Rotated: a rotation term.
 write("south_up", "h", "Int16", [e(c, r) for c, r in cells], (500000.0, 30.0, 0.0, 4999550.0, 0.0, 30.0))
 write("rotated", "h", "Int16", [e(c, r) for c, r in cells], (500000.0, 30.0, 5.0, 5000000.0, 0.0, -30.0))
+# DTED level 0 needs 121 x 121 posts: d(c, r) = 100 + 3c - 2r.
+W = H = 121
+write("dted", "h", "Int16", [100 + 3 * c - 2 * r for r in range(H) for c in range(W)])
 PY
 
 utm="-a_srs EPSG:32614 -a_ullr 500000 5000000 500600 4999550"
 geo="-a_srs EPSG:4326 -a_ullr -97.5 33 -97.48 32.985"
 t="gdal_translate -q"
-rm -f ./*.tif ./*.tfw ./*.asc ./*.prj ./*.png ./*.pgw ./*.jpg ./*.jgw ./*.aux.xml ./*.txt
+rm -f ./*.tif ./*.tfw ./*.dt0 ./*.vrt ./*.asc ./*.prj ./*.png ./*.pgw ./*.jpg ./*.jgw ./*.aux.xml ./*.txt
 
 $t $utm -a_nodata -32768 -co TILED=NO -co COMPRESS=NONE "$tmp/e_nd.vrt" int16_strip_none_nodata.tif
 $t $utm -ot UInt16 -co TILED=YES -co BLOCKXSIZE=16 -co BLOCKYSIZE=16 -co COMPRESS=LZW "$tmp/e.vrt" uint16_tiled_lzw.tif
@@ -84,7 +87,12 @@ printf '30\n0\n0\n-30\n500015\n4999985\n' > ortho.pgw
 cp grid.prj ortho.prj
 $t -of JPEG -co QUALITY=95 "$tmp/rgb.vrt" ortho.jpg
 printf '30\n0\n0\n-30\n500015\n4999985\n' > ortho.jgw
-rm -f ./*.aux.xml grid.asc.aux.xml
+rm -f ./*.aux.xml
+
+# For the gdal feature: a DTED level 0 tile (1 degree, posts at whole 30") and a VRT over a GeoTIFF.
+$t -of DTED -a_srs EPSG:4326 -a_ullr -98.004166666666667 33.004166666666667 -96.995833333333333 31.995833333333333 \
+   "$tmp/dted.vrt" n32_w098.dt0
+gdalbuildvrt -q int16.vrt int16_strip_none_nodata.tif
 
 # Bad inputs: a TIFF cut short inside its image data, a text file, an empty file.
 head -c 700 int16_strip_none_nodata.tif > truncated.tif
