@@ -27,6 +27,8 @@ enum Command {
     Info(cmd::info::Args),
     /// Build the render database: max-Z / average-colour levels as a paged tile file, shaded for a sun.
     Pyramid(cmd::pyramid::Args),
+    /// Carve a coloured voxel object from calibrated silhouettes (visual hull).
+    Sculpt(cmd::sculpt::Args),
     /// Write the cast-shadow mask of a database for a sun (time or angles).
     Shadows(cmd::shadows::Args),
     /// Sun elevation, azimuth and zenith for a place (or a database's centre) and time (NREL SPA).
@@ -42,6 +44,7 @@ fn main() -> ExitCode {
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),
         Command::Pyramid(a) => cmd::pyramid::run(a, &ctx),
+        Command::Sculpt(a) => cmd::sculpt::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),
         Command::Sun(a) => cmd::sun::run(a, &ctx),
         Command::Tiles(a) => cmd::tiles::run(a, &ctx),

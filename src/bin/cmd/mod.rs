@@ -4,6 +4,7 @@
 pub mod info;
 pub mod ingest;
 pub mod pyramid;
+pub mod sculpt;
 pub mod shadows;
 pub mod sun;
 pub mod tiles;

@@ -111,6 +111,20 @@ impl VoxelGrid {
     }
 }
 
+/// Parse `MINX,MINY,MINZ,MAXX,MAXY,MAXZ` (metres; the `--bounds` option of `dbms sculpt`).
+pub fn parse_box(s: &str) -> Result<[f64; 6]> {
+    let bad = || Error::msg(format!("--bounds {s}: expected six numbers MINX,MINY,MINZ,MAXX,MAXY,MAXZ")).fix("e.g. --bounds -1,-1,0,1,1,2");
+    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| bad())?;
+    let b: [f64; 6] = v.try_into().map_err(|_| bad())?;
+    if b.iter().any(|x| !x.is_finite()) {
+        return Err(bad());
+    }
+    if (0..3).any(|a| b[a] >= b[a + 3]) {
+        return Err(Error::msg(format!("--bounds {s}: each minimum must be below its maximum")).fix("give MINX,MINY,MINZ,MAXX,MAXY,MAXZ"));
+    }
+    Ok(b)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -136,5 +150,14 @@ mod tests {
         assert!(VoxelGrid::covering([0.0; 3], [1.0; 3], 0.0).is_err());
         assert!(VoxelGrid::covering([0.0; 3], [1.0, -1.0, 1.0], 0.1).is_err());
         assert!(VoxelGrid::covering([0.0; 3], [1e6; 3], 1e-3).is_err());
+    }
+
+    #[test]
+    fn parse_box_accepts_six_ordered_numbers_only() {
+        assert_eq!(parse_box("-1,-2,0,1,2,3.5").unwrap(), [-1.0, -2.0, 0.0, 1.0, 2.0, 3.5]);
+        assert!(parse_box("0,0,0,1,1").is_err());
+        assert!(parse_box("0,0,1,1,1,1").is_err());
+        assert!(parse_box("0,0,0,1,1,nan").is_err());
+        assert!(parse_box("a,0,0,1,1,1").is_err());
     }
 }

@@ -6,11 +6,14 @@
 pub mod camera;
 pub mod carve;
 pub mod colour;
+pub mod export;
 pub mod format;
 pub mod grid;
 pub mod object;
 pub mod occupancy;
 pub mod picture;
+pub mod sculpt;
 pub mod silhouette;
 pub mod solids;
 mod vec3;
+pub mod views;

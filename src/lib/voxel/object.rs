@@ -99,6 +99,13 @@ impl VoxelObject {
     }
 }
 
+/// Parse an 8-bit colour `R,G,B` (the `--colour` and `--fill` options).
+pub fn parse_rgb(s: &str) -> crate::error::Result<[u8; 3]> {
+    let bad = || crate::error::Error::msg(format!("colour {s}: expected R,G,B with each 0..255")).fix("e.g. 128,128,128");
+    let v: Vec<u8> = s.split(',').map(|t| t.trim().parse::<u8>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+    v.try_into().map_err(|_| bad())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -118,5 +125,11 @@ mod tests {
         assert_eq!(o.anchor(), [11.0, 20.75, 0.0]);
         assert_eq!(o.occupied_extent(), Some(([0, 0, 0], [3, 2, 1])));
         assert_eq!(o.surface_count(), o.len(), "a two-voxel-thick slab is all surface");
+    }
+
+    #[test]
+    fn rgb_parsing() {
+        assert_eq!(parse_rgb("1, 2,255").unwrap(), [1, 2, 255]);
+        assert!(parse_rgb("1,2").is_err() && parse_rgb("1,2,256").is_err() && parse_rgb("a,b,c").is_err());
     }
 }
