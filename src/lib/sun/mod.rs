@@ -390,6 +390,27 @@ mod tests {
             prop_assert!(p.zenith_deg < 1e-4, "{:?} at {} ({}, {})", p, t, geo.delta, lon);
         }
 
+        /// Anywhere, any time in 1900–2100: results are in range, and over a short step the sun
+        /// moves no faster than the rotation-plus-refraction bound (no jumps, wrap or poles aside,
+        /// which the direction vector does not see).
+        #[test]
+        fn continuous_and_in_range_everywhere(
+            lat in -90.0f64..=90.0,
+            lon in -180.0f64..=180.0,
+            secs in -3_155_760_000i64..3_155_760_000i64,
+            step in 1i64..=120,
+        ) {
+            let o = obs(lat, lon);
+            let t = Utc.timestamp_opt(946_728_000 + secs, 0).unwrap();
+            let a = sun_position(&o, t, &SunOptions::default()).unwrap();
+            let b = sun_position(&o, t + Duration::seconds(step), &SunOptions::default()).unwrap();
+            for p in [a, b] {
+                prop_assert!((-90.0..=90.0).contains(&p.elevation_deg) && (0.0..360.0).contains(&p.azimuth_deg), "{:?}", p);
+            }
+            let moved = angle_between(a.direction_enu(), b.direction_enu());
+            prop_assert!(moved <= MAX_RATE_DEG_PER_S * step as f64, "moved {}° in {} s: {:?} -> {:?}", moved, step, a, b);
+        }
+
         /// Direction vectors are unit length and agree with elevation and azimuth.
         #[test]
         fn direction_is_unit_and_consistent(e in -90.0f64..=90.0, a in -720.0f64..720.0) {
