@@ -22,7 +22,6 @@ pub mod shade;
 
 use crate::db::{self, Database, PlacedObject, Stage};
 use crate::error::{Error, Result};
-use crate::io;
 use crate::progress::Progress;
 use crate::shadow::Sun;
 use crate::tiles::{Compression, TileSetInfo, TileWriter};
@@ -100,8 +99,8 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
     }
     let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
     info.compression = opts.compression;
-    let terrain = read_layer(db, db::ELEVATION, |s| s.to_elevation())?;
-    let colour = read_layer(db, db::COLOUR, |s| s.to_colour())?;
+    let terrain = db.read_elevation()?;
+    let colour = db.read_colour()?;
 
     let buildings = match db.manifest.layers.contains_key("buildings") {
         true => {
@@ -170,32 +169,6 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
     ));
     db.save()?;
     Ok(summary)
-}
-
-/// Read a raster layer of the database and check it lies on the database grid.
-fn read_layer<T>(db: &Database, name: &str, convert: impl FnOnce(&io::SourceRaster) -> Result<T>) -> Result<T>
-where
-    T: LayerGrid,
-{
-    let path = db.layer_path(name)?;
-    let layer = convert(&io::read_raster(&path)?)?;
-    let (g, want) = (layer.grid(), db.grid());
-    if (g.width, g.height) != (want.width, want.height) {
-        return Err(Error::file(&path, format!("is {}×{} cells but the database grid is {}×{}", g.width, g.height, want.width, want.height))
-            .fix("re-create the database with `dbms ingest`"));
-    }
-    Ok(layer)
-}
-
-/// The grid of a raster layer, whatever its cell type.
-trait LayerGrid {
-    fn grid(&self) -> &crate::grid::Grid;
-}
-
-impl<T> LayerGrid for crate::raster::Raster<T> {
-    fn grid(&self) -> &crate::grid::Grid {
-        &self.grid
-    }
 }
 
 /// The orthophoto's own sun: from the last ingest stage's `photo_time` and the grid centre.
