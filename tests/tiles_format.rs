@@ -143,6 +143,54 @@ proptest! {
     }
 }
 
+/// Byte ranges a reader checks: preamble, header, index and every page's stored bytes. What lies
+/// outside them is zero padding.
+fn covered(bytes: &[u8], reader: &TileReader) -> Vec<std::ops::Range<usize>> {
+    let header_len = u64::from_le_bytes(bytes[24..32].try_into().unwrap()) as usize;
+    let index_offset = reader.index_offset() as usize;
+    let mut ranges = vec![0..64 + header_len, index_offset..index_offset + ENTRY_LEN * reader.entries().len()];
+    ranges.extend(reader.entries().iter().map(|e| e.offset as usize..(e.offset + e.stored_len as u64) as usize));
+    ranges
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// Any flipped byte is caught at open or when its page is read, unless it is padding; no panic.
+    #[test]
+    fn any_flipped_byte_is_detected_or_harmless(at in 0.0f64..1.0, mask in 1u8..=255, lz4 in any::<bool>()) {
+        let dir = tempfile::tempdir().unwrap();
+        let fx = Fixture::new(30, 20, 8, 2, if lz4 { Compression::Lz4 } else { Compression::None }, 5);
+        let path = dir.path().join("t.dbt");
+        fx.write(&path, &fx.pages());
+        let mut bytes = std::fs::read(&path).unwrap();
+        let ranges = covered(&bytes, &TileReader::open(&path, 0).unwrap());
+        let at = ((bytes.len() as f64 * at) as usize).min(bytes.len() - 1);
+        bytes[at] ^= mask;
+        std::fs::write(&path, &bytes).unwrap();
+        let detected = match TileReader::open(&path, 0) {
+            Err(_) => true,
+            Ok(r) => fx.pages().iter().any(|&(l, x, y)| r.page(l, x, y).is_err()),
+        };
+        let is_padding = !ranges.iter().any(|r| r.contains(&at));
+        prop_assert!(detected != is_padding, "byte {at} (padding: {is_padding}) detected: {detected}");
+    }
+
+    /// A file cut anywhere does not open.
+    #[test]
+    fn a_file_cut_anywhere_does_not_open(at in 0.0f64..1.0) {
+        let dir = tempfile::tempdir().unwrap();
+        let fx = Fixture::new(30, 20, 8, 4, Compression::Lz4, 9);
+        let path = dir.path().join("t.dbt");
+        fx.write(&path, &fx.pages());
+        let bytes = std::fs::read(&path).unwrap();
+        let len = (bytes.len() as f64 * at) as usize;
+        std::fs::write(&path, &bytes[..len]).unwrap();
+        let err = TileReader::open(&path, 0).err().expect("a cut file must not open").to_string();
+        prop_assert!(err.contains("truncated"), "{len} bytes: {err}");
+    }
+}
+
 fn tmp_file(dir: &tempfile::TempDir, name: &str) -> PathBuf {
     dir.path().join(name)
 }

@@ -14,6 +14,11 @@ use serde::{Deserialize, Serialize};
 pub const MAX_PAGE_SIZE: usize = 4096;
 /// Most levels a tile set may have (factor 2 reaches one cell from 2³¹ cells in 32 levels).
 pub const MAX_LEVELS: usize = 32;
+/// Largest grid side in cells: keeps page coordinates within u32 (Morton codes) and all index
+/// arithmetic exact.
+const MAX_GRID_SIDE: usize = 1 << 31;
+/// Most pages a tile set may have (the writer keeps 32 bytes of bookkeeping per page in memory).
+const MAX_PAGES: usize = 1 << 28;
 /// Alignment of every page's offset in the file, bytes (a memory page; direct I/O friendly).
 pub const PAGE_ALIGN: u64 = 4096;
 
@@ -163,6 +168,7 @@ impl TileSetInfo {
             Some(n) => return Err(Error::msg(format!("--levels {n}: must be 1 to {MAX_LEVELS}"))),
         };
         let levels = derive_levels(&grid.transform, grid.width, grid.height, page_size, factor, n);
+        check_page_count(&levels)?;
         Ok(TileSetInfo {
             dbms_version: env!("CARGO_PKG_VERSION").to_string(),
             page_size,
@@ -191,7 +197,11 @@ impl TileSetInfo {
         if let Some(k) = (0..n).find(|&k| want[k] != self.levels[k]) {
             return Err(Error::msg(format!("header's level {k} does not follow from the grid, page size and factor")));
         }
-        for l in &self.layers {
+        check_page_count(&self.levels)?;
+        for (i, l) in self.layers.iter().enumerate() {
+            if self.layers[..i].iter().any(|other| other.name == l.name) {
+                return Err(Error::msg(format!("the layer table lists {} twice", l.name)));
+            }
             if l.bytes_per_cell == 0 || l.bytes_per_cell > 64 {
                 return Err(Error::msg(format!("layer {} has {} bytes per cell, expected 1 to 64", l.name, l.bytes_per_cell)));
             }
@@ -274,8 +284,26 @@ fn check_params(grid: &Grid, page_size: usize, factor: usize) -> Result<()> {
     if factor != 2 && factor != 4 {
         return Err(Error::msg(format!("--factor {factor}: factor must be 2 or 4")));
     }
-    if grid.is_empty() {
-        return Err(Error::msg(format!("the grid is {}×{} cells: nothing to tile", grid.width, grid.height)));
+    let (w, h) = (grid.width, grid.height);
+    if !(1..=MAX_GRID_SIDE).contains(&w) || !(1..=MAX_GRID_SIDE).contains(&h) {
+        return Err(Error::msg(format!("the grid is {w}×{h} cells, expected 1 to {MAX_GRID_SIDE} on each side")));
+    }
+    let t = &grid.transform;
+    let finite = [t.origin_x, t.origin_y, t.cell_x, t.cell_y].iter().all(|v| v.is_finite());
+    if !finite || t.cell_x <= 0.0 || t.cell_y == 0.0 {
+        return Err(Error::msg(format!(
+            "the grid's transform (origin {}, {}; cell {}, {}) is not a north-up grid with finite non-zero cells",
+            t.origin_x, t.origin_y, t.cell_x, t.cell_y
+        )));
+    }
+    Ok(())
+}
+
+fn check_page_count(levels: &[LevelInfo]) -> Result<()> {
+    let n: usize = levels.iter().map(LevelInfo::pages).sum();
+    if n > MAX_PAGES {
+        return Err(Error::msg(format!("the tile set would have {n} pages, over the limit of {MAX_PAGES}"))
+            .fix("use a larger --page"));
     }
     Ok(())
 }
@@ -355,6 +383,15 @@ mod tests {
         assert!(TileSetInfo::new(grid(100, 100), 0, 4, None).is_err());
         assert!(TileSetInfo::new(grid(100, 100), 8, 4, Some(0)).is_err());
         assert!(TileSetInfo::new(grid(0, 100), 8, 4, None).is_err());
+        assert!(TileSetInfo::new(grid(1 << 32, 100), 256, 4, None).is_err());
+        let err = TileSetInfo::new(grid(1 << 20, 1 << 20), 1, 4, None).unwrap_err();
+        assert!(err.to_string().contains("use a larger --page"), "{err}");
+        let mut g = grid(10, 10);
+        g.transform.cell_x = f64::NAN;
+        assert!(TileSetInfo::new(g, 8, 4, None).is_err());
+        let mut g = grid(10, 10);
+        g.transform.cell_y = 0.0;
+        assert!(TileSetInfo::new(g, 8, 4, None).is_err());
     }
 
     #[test]
@@ -386,6 +423,9 @@ mod tests {
         let mut bad = info.clone();
         bad.layers.retain(|l| l.name != "state");
         assert!(bad.validate().unwrap_err().problem.contains("state"));
+        let mut bad = info.clone();
+        bad.layers.push(bad.layers[0].clone());
+        assert!(bad.validate().unwrap_err().problem.contains("max_z twice"));
         let mut bad = info.clone();
         bad.effects = serde_json::json!([1]);
         assert!(bad.validate().is_err());

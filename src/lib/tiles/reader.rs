@@ -251,5 +251,37 @@ fn entry_problem(e: &IndexEntry, layout: &Layout, align: u64, data_start: u64, f
     if e.flags & FLAG_LZ4 == 0 && e.stored_len != e.raw_len {
         return Some(format!("stores {} bytes uncompressed, expected {raw}", e.stored_len));
     }
+    // LZ4 expands at most 255:1; a larger claim is corruption (and would be a huge allocation).
+    if e.flags & FLAG_LZ4 != 0 && raw > 255 * e.stored_len as u64 + 16 {
+        return Some(format!("claims {raw} raw bytes from {} compressed ones", e.stored_len));
+    }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+    use crate::grid::Grid;
+
+    #[test]
+    fn lz4_ratio_bound_admits_the_most_compressible_pages() {
+        // A page of one cell (9 bytes of layers) whose bricks blob makes up the rest.
+        let info = TileSetInfo::new(Grid::north_up(0.0, 0.0, 1.0, 1, 1, Crs::unknown()), 1, 4, None).unwrap();
+        let layout = Layout::of(&info);
+        let entry = |stored_len: usize, raw_len: usize| IndexEntry {
+            offset: 4096,
+            stored_len: stored_len as u32,
+            raw_len: raw_len as u32,
+            crc: 0,
+            flags: FLAG_LZ4 | FLAG_BRICKS,
+        };
+        // All-equal bytes are lz4's best case: every real page must pass the open-time check.
+        for len in [9usize, 16 * 9, 256 * 256 * 9, 1024 * 1024 * 9] {
+            let stored = lz4_flex::block::compress(&vec![0u8; len]).len();
+            assert_eq!(entry_problem(&entry(stored, len), &layout, 4096, 0, u64::MAX), None, "{len} → {stored} bytes");
+        }
+        let problem = entry_problem(&entry(10, 100_000), &layout, 4096, 0, u64::MAX).unwrap();
+        assert!(problem.contains("claims 100000 raw bytes from 10"), "{problem}");
+    }
 }
