@@ -1,0 +1,255 @@
+//! `dbms sculpt` end to end: views rendered from analytic solids, carved by the binary, checked
+//! against the truth; plus the hard cases of issue 4.
+
+use dbms::voxel::format;
+use dbms::voxel::grid::VoxelGrid;
+use dbms::voxel::solids::{self, Solid};
+use dbms::voxel::views::CameraSpec;
+use serde_json::{json, Value};
+use std::path::Path;
+use std::process::Command;
+
+const SIZE: u32 = 128;
+
+fn dbms(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+fn sphere() -> Solid {
+    solids::benchmark_solids()[0].clone()
+}
+
+/// Render `solid` for each camera JSON: a photo (red object on blue) and a mask; write the
+/// views file with `silhouette` = "mask" or "key".
+fn write_views(dir: &Path, solid: &Solid, cameras: &[Value], silhouette: &str) -> std::path::PathBuf {
+    let mut views = vec![];
+    for (i, cam) in cameras.iter().enumerate() {
+        let spec: CameraSpec = serde_json::from_value(cam.clone()).unwrap();
+        let camera = spec.build(SIZE, SIZE).unwrap();
+        let sil = solids::render(solid, &camera, SIZE, SIZE);
+        let mut photo = Vec::new();
+        let mut mask = Vec::new();
+        for r in 0..SIZE {
+            for c in 0..SIZE {
+                let on = sil.contains(c, r);
+                photo.extend_from_slice(if on { &[220, 30, 30] } else { &[0, 0, 255] });
+                mask.push(if on { 255u8 } else { 0 });
+            }
+        }
+        let (img, msk) = (format!("view{i}.png"), format!("mask{i}.png"));
+        image::save_buffer(dir.join(&img), &photo, SIZE, SIZE, image::ExtendedColorType::Rgb8).unwrap();
+        image::save_buffer(dir.join(&msk), &mask, SIZE, SIZE, image::ExtendedColorType::L8).unwrap();
+        let mut v = json!({ "image": img, "camera": cam });
+        if silhouette == "mask" {
+            v["mask"] = json!(msk);
+        } else {
+            v["key"] = json!({ "colour": [0, 0, 255], "tolerance": 10 });
+        }
+        views.push(v);
+    }
+    let p = dir.join("views.json");
+    std::fs::write(&p, serde_json::to_string_pretty(&json!({ "views": views, "bounds": [-1, -1, -1, 1, 1, 1] })).unwrap()).unwrap();
+    p
+}
+
+fn ortho3() -> Vec<Value> {
+    let s = SIZE as f64 / 2.4;
+    vec![
+        json!({"type": "orthographic", "direction": [0, 0, -1], "up": [0, 1, 0], "scale": s}),
+        json!({"type": "orthographic", "direction": [0, 1, 0], "scale": s}),
+        json!({"type": "orthographic", "direction": [-1, 0, 0], "scale": s}),
+    ]
+}
+
+fn pinhole(pos: [f64; 3]) -> Value {
+    json!({"type": "pinhole", "fx": SIZE as f64, "fy": SIZE as f64, "position": pos, "look_at": [0, 0, 0]})
+}
+
+fn ring8() -> Vec<Value> {
+    (0..8)
+        .map(|i| {
+            let a = i as f64 * std::f64::consts::TAU / 8.0;
+            pinhole([4.0 * a.cos(), 4.0 * a.sin(), 1.5])
+        })
+        .collect()
+}
+
+/// Fraction of the true solid's voxels (centres inside it) that the object keeps, and the IoU.
+fn against_truth(obj_path: &Path, solid: &Solid) -> (f64, f64) {
+    let (obj, _) = format::read(obj_path).unwrap();
+    let truth = solids::voxelize(solid, &obj.grid);
+    (truth.count_and(&obj.occupancy) as f64 / truth.count() as f64, truth.iou(&obj.occupancy))
+}
+
+fn sculpt(dir: &Path, views: &Path, extra: &[&str]) -> (bool, String, String) {
+    let out = dir.join("obj.dvox");
+    let mut args = vec!["sculpt", "--views", views.to_str().unwrap(), "--voxel", "0.05", "-o", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    dbms(&args)
+}
+
+#[test]
+fn three_orthographic_views_carve_a_cylinder_with_exports() {
+    let dir = tempfile::tempdir().unwrap();
+    let solid = solids::benchmark_solids()[1].clone();
+    let views = write_views(dir.path(), &solid, &ortho3(), "mask");
+    let (ok, stdout, stderr) = sculpt(dir.path(), &views, &["--export", "ply", "--export", "vox"]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.contains("voxels in a 40x40x40 grid"), "{stdout}");
+    let (kept, iou) = against_truth(&dir.path().join("obj.dvox"), &solid);
+    assert!(kept > 0.98 && iou > 0.7, "kept {kept} iou {iou}");
+    assert!(dir.path().join("obj.ply").exists() && dir.path().join("obj.vox").exists());
+}
+
+#[test]
+fn eight_pinhole_views_carve_and_colour_a_sphere_from_a_colour_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = write_views(dir.path(), &sphere(), &ring8(), "key");
+    let out = dir.path().join("obj.dvox");
+    let args = ["--json", "sculpt", "--views", views.to_str().unwrap(), "--voxel", "0.05", "-o", out.to_str().unwrap()];
+    let (ok, stdout, stderr) = dbms(&args);
+    assert!(ok, "{stderr}");
+    let j: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(j["views"], 8);
+    assert!(j["colour"]["seen"].as_u64().unwrap() > 0);
+    let (kept, iou) = against_truth(&out, &sphere());
+    assert!(kept > 0.98 && iou > 0.8, "kept {kept} iou {iou}");
+    // Seen surface voxels are the object's red, never the blue background.
+    let (obj, _) = format::read(&out).unwrap();
+    let red = obj.colours.iter().filter(|c| c[0] > 150 && c[2] < 80).count();
+    assert!(red as u64 >= j["colour"]["seen"].as_u64().unwrap() * 9 / 10, "red {red}");
+    // Same inputs, same bytes.
+    let first = std::fs::read(&out).unwrap();
+    assert!(dbms(&args).0);
+    assert_eq!(first, std::fs::read(&out).unwrap());
+}
+
+#[test]
+fn hard_case_empty_silhouette_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
+    image::save_buffer(dir.path().join("mask1.png"), &vec![0u8; (SIZE * SIZE) as usize], SIZE, SIZE, image::ExtendedColorType::L8).unwrap();
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(!ok);
+    assert!(stderr.contains("mask1.png: view 1: the silhouette is empty") && stderr.contains("; check the mask"), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+}
+
+#[test]
+fn hard_case_silhouette_touching_the_border_warns_and_keeps_the_object() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cams = ortho3();
+    // A close top view whose silhouette fills the image edge to edge.
+    cams[0]["scale"] = json!(SIZE as f64 / 1.0);
+    let views = write_views(dir.path(), &sphere(), &cams, "mask");
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("view 0: the silhouette touches the image border"), "{stderr}");
+    let (kept, _) = against_truth(&dir.path().join("obj.dvox"), &sphere());
+    assert!(kept > 0.98, "the part outside the close view must survive: kept {kept}");
+    // With --outside carve the close view cuts the sphere to what it sees.
+    let (ok, _, _) = sculpt(dir.path(), &views, &["--outside", "carve"]);
+    assert!(ok);
+    let (kept, _) = against_truth(&dir.path().join("obj.dvox"), &sphere());
+    assert!(kept < 0.95, "kept {kept}");
+}
+
+#[test]
+fn hard_case_camera_inside_the_bounding_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cams = ortho3();
+    // Inside the box and inside the sphere, looking north: the cap y < -0.5 (9 % of the volume) is behind it.
+    cams.push(json!({"type": "pinhole", "fx": 40, "fy": 40, "position": [0, -0.5, 0], "look_at": [0, 1, 0]}));
+    let views = write_views(dir.path(), &sphere(), &cams, "mask");
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(ok, "{stderr}");
+    let (kept, iou) = against_truth(&dir.path().join("obj.dvox"), &sphere());
+    assert!(kept > 0.98 && iou > 0.6, "kept {kept} iou {iou}");
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &["--behind", "carve"]);
+    assert!(ok, "{stderr}");
+    let (kept, _) = against_truth(&dir.path().join("obj.dvox"), &sphere());
+    assert!((0.88..0.93).contains(&kept), "carving behind the camera removes the 9 % cap y < -0.5: kept {kept}");
+}
+
+#[test]
+fn hard_case_two_nearly_parallel_views() {
+    let dir = tempfile::tempdir().unwrap();
+    // 0.01° apart: together they constrain almost nothing along the viewing direction.
+    let a = 0.01f64.to_radians();
+    let cams = vec![pinhole([0.0, -4.0, 0.0]), pinhole([4.0 * a.sin(), -4.0 * a.cos(), 0.0])];
+    let views = write_views(dir.path(), &sphere(), &cams, "mask");
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(ok, "{stderr}");
+    let (kept, iou) = against_truth(&dir.path().join("obj.dvox"), &sphere());
+    assert!(kept > 0.98, "kept {kept}");
+    assert!(iou < 0.8, "two parallel views give an elongated hull, iou {iou}");
+}
+
+#[test]
+fn hard_case_view_straight_down_with_default_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cams = ring8();
+    cams.push(pinhole([0.0, 0.0, 4.0])); // no "up": north-up by rule
+    let views = write_views(dir.path(), &solids::benchmark_solids()[3], &cams, "mask");
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(ok, "{stderr}");
+    let (kept, iou) = against_truth(&dir.path().join("obj.dvox"), &solids::benchmark_solids()[3]);
+    assert!(kept > 0.98 && iou > 0.6, "kept {kept} iou {iou}");
+}
+
+#[test]
+fn hard_case_voxel_larger_than_the_object() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
+    let out = dir.path().join("obj.dvox");
+    let (ok, stdout, stderr) = dbms(&["sculpt", "--views", views.to_str().unwrap(), "--voxel", "5", "-o", out.to_str().unwrap()]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.contains("1 voxels in a 1x1x1 grid"), "{stdout}");
+    // A 2 m voxel (wider than the 1.6 m sphere) whose centre (-0.8, -0.8, -0.8) is in every
+    // image but outside every silhouette: a clear error, not an empty file.
+    let (ok, _, stderr) = dbms(&[
+        "sculpt", "--views", views.to_str().unwrap(), "--voxel", "2", "--bounds", "-1.8,-1.8,-1.8,-1.7,-1.7,-1.7", "-o", dir.path().join("x.dvox").to_str().unwrap(),
+    ]);
+    assert!(!ok && stderr.contains("no voxel survives carving") && stderr.contains("smaller --voxel"), "{stderr}");
+    assert!(!dir.path().join("x.dvox").exists());
+}
+
+#[test]
+fn hard_case_non_invertible_camera_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&views).unwrap()).unwrap();
+    v["views"][2]["camera"] = json!({"type": "pinhole", "fx": 100, "fy": 100, "R": [[1, 0, 0], [0, 1, 0], [1, 1, 0]], "t": [0, 0, 4]});
+    std::fs::write(&views, v.to_string()).unwrap();
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(!ok);
+    assert!(stderr.contains("views.json: view 2: rotation R is singular") && stderr.contains("not invertible"), "{stderr}");
+}
+
+#[test]
+fn vox_export_of_an_oversized_object_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
+    let (ok, _, stderr) = dbms(&[
+        "sculpt", "--views", views.to_str().unwrap(), "--voxel", "0.007", "--export", "vox", "-o", dir.path().join("o.dvox").to_str().unwrap(),
+    ]);
+    assert!(!ok && stderr.contains("at most 256 per axis") && stderr.contains("--export ply"), "{stderr}");
+    // The grid geometry behind it: 2 m / 7 mm = 286 voxels.
+    assert_eq!(VoxelGrid::covering([-1.0; 3], [1.0; 3], 0.007).unwrap().dims[0], 286);
+}
+
+#[test]
+fn missing_bounds_and_bad_views_files_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("v.json");
+    std::fs::write(&p, r#"{"views": [{"image": "a.png", "mask": "m.png", "camera": {"type": "fisheye"}}]}"#).unwrap();
+    let (ok, _, stderr) = sculpt(dir.path(), &p, &[]);
+    assert!(!ok && stderr.contains("v.json: not a valid views file") && stderr.lines().count() == 1, "{stderr}");
+    let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&views).unwrap()).unwrap();
+    v.as_object_mut().unwrap().remove("bounds");
+    std::fs::write(&views, v.to_string()).unwrap();
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(!ok && stderr.contains("no bounds to carve"), "{stderr}");
+}
