@@ -1,0 +1,205 @@
+//! Benchmark: `dbms pyramid` against GDAL making the same levels, on one generated grid.
+//!
+//! `cargo bench --bench pyramid` (size from `DBMS_BENCH_SIZE`, default 8192; work directory from
+//! `DBMS_BENCH_DIR`, default a temporary one). Steps:
+//! 1. generate a W×W database (rolling terrain with nodata holes, a textured colour layer) with
+//!    the library's GeoTIFF writers — not timed;
+//! 2. ours: the pyramid (factor 4, pages of 256, no sun) from the database's GeoTIFFs to the
+//!    tile file, in a child process (this bench re-run with `--child`) that reads its own peak
+//!    resident memory (`VmHWM` in /proc/self/status);
+//! 3. GDAL, when `gdalwarp` is on PATH: the same max-Z levels with `gdalwarp -r max -tr`, each
+//!    level from the previous, and the average-colour levels with `gdaladdo -r average 4 16 64`
+//!    (both multi-threaded), each run under `/usr/bin/time` for its peak memory;
+//! 4. every max-Z level of ours compared cell by cell with GDAL's (must be identical).
+//!
+//! Prints a Markdown table for docs/pyramid.md.
+
+use dbms::crs::Crs;
+use dbms::db::{Database, Stage};
+use dbms::grid::Grid;
+use dbms::progress::Progress;
+use dbms::pyramid::{build_pyramid, PyramidOptions};
+use dbms::raster::{Colour, Elevation};
+use dbms::tiles::TileReader;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(i) = args.iter().position(|a| a == "--child") {
+        child(Path::new(&args[i + 1]), Path::new(&args[i + 2]));
+        return;
+    }
+    let size: usize = std::env::var("DBMS_BENCH_SIZE").ok().and_then(|s| s.parse().ok()).unwrap_or(8192);
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let work = std::env::var("DBMS_BENCH_DIR").map(PathBuf::from).unwrap_or_else(|_| tmp.path().to_path_buf());
+    std::fs::create_dir_all(&work).expect("work dir");
+    let db_dir = work.join("db");
+    let t = Instant::now();
+    make_database(&db_dir, size);
+    eprintln!("generated {size}×{size} database in {:.1} s", t.elapsed().as_secs_f64());
+
+    let tiles = work.join("bench.dbt");
+    let (ours_s, ours_kb) = run_ours(&db_dir, &tiles);
+    let mut rows = vec![("dbms pyramid (all levels: max Z, colour, state; tile file)".to_string(), ours_s, Some(ours_kb))];
+
+    if which("gdalwarp") && which("gdaladdo") {
+        let cell = [1.0f64, 4.0, 16.0, 64.0];
+        let mut prev = db_dir.join("elevation.tif");
+        let mut gdal_total = 0.0;
+        let mut gdal_peak = 0u64;
+        for (k, c) in cell.iter().enumerate().skip(1) {
+            let out = work.join(format!("gdal_level{k}_maxz.tif"));
+            let _ = std::fs::remove_file(&out);
+            let (s, kb) = timed(
+                Command::new("gdalwarp")
+                    .args(["-q", "-multi", "-wo", "NUM_THREADS=ALL_CPUS", "-r", "max", "-tr"])
+                    .arg(c.to_string())
+                    .arg(c.to_string())
+                    .arg(&prev)
+                    .arg(&out),
+            );
+            rows.push((format!("gdalwarp -r max -tr {c} {c} (level {k} from level {})", k - 1), s, kb));
+            gdal_total += s;
+            gdal_peak = gdal_peak.max(kb.unwrap_or(0));
+            prev = out;
+        }
+        let colour = work.join("gdal_colour.tif");
+        std::fs::copy(db_dir.join("colour.tif"), &colour).expect("copy colour");
+        let (s, kb) = timed(
+            Command::new("gdaladdo").args(["-q", "-r", "average", "--config", "GDAL_NUM_THREADS", "ALL_CPUS"]).arg(&colour).args(["4", "16", "64"]),
+        );
+        rows.push(("gdaladdo -r average 4 16 64 (colour)".to_string(), s, kb));
+        gdal_total += s;
+        gdal_peak = gdal_peak.max(kb.unwrap_or(0));
+        rows.push(("GDAL total (max-Z levels + colour overviews)".to_string(), gdal_total, Some(gdal_peak)));
+        let identical = compare_max_z(&tiles, &work);
+        print_table(size, &rows);
+        println!("\nours / GDAL speed-up: {:.2}×; max-Z identical to GDAL's on levels 1–3: {identical}", gdal_total / ours_s);
+    } else {
+        print_table(size, &rows);
+        println!("\nskipped GDAL comparison: gdalwarp / gdaladdo not found on PATH");
+    }
+}
+
+/// The child: build the pyramid and report seconds and peak resident memory (kB).
+fn child(db_dir: &Path, tiles: &Path) {
+    let mut db = Database::open(db_dir).expect("open bench database");
+    let t = Instant::now();
+    build_pyramid(&mut db, tiles, &PyramidOptions::default(), &Progress::hidden()).expect("pyramid");
+    let secs = t.elapsed().as_secs_f64();
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let hwm = status.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)).unwrap_or("0");
+    println!("{secs} {hwm}");
+}
+
+fn run_ours(db_dir: &Path, tiles: &Path) -> (f64, u64) {
+    let exe = std::env::current_exe().expect("bench executable");
+    let o = Command::new(exe).arg("--child").arg(db_dir).arg(tiles).output().expect("run child");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let mut it = text.split_whitespace();
+    let secs: f64 = it.next().and_then(|s| s.parse().ok()).expect("child seconds");
+    let kb: u64 = it.next().and_then(|s| s.parse().ok()).expect("child VmHWM");
+    (secs, kb)
+}
+
+/// Run a command, returning wall seconds and (under /usr/bin/time) peak resident kB.
+fn timed(cmd: &mut Command) -> (f64, Option<u64>) {
+    let have_time = Path::new("/usr/bin/time").exists();
+    let t = Instant::now();
+    let o = if have_time {
+        let mut wrapped = Command::new("/usr/bin/time");
+        wrapped.args(["-f", "%M"]).arg(cmd.get_program()).args(cmd.get_args());
+        wrapped.output()
+    } else {
+        cmd.output()
+    }
+    .expect("run command");
+    let secs = t.elapsed().as_secs_f64();
+    assert!(o.status.success(), "{:?}: {}", cmd, String::from_utf8_lossy(&o.stderr));
+    let kb = have_time.then(|| String::from_utf8_lossy(&o.stderr).lines().last().and_then(|l| l.trim().parse().ok())).flatten();
+    (secs, kb)
+}
+
+fn which(tool: &str) -> bool {
+    Command::new(tool).arg("--version").output().map(|o| o.status.success()).unwrap_or(false)
+}
+
+/// A rolling terrain (metres) with a few nodata holes, and a textured colour.
+fn make_database(dir: &Path, n: usize) {
+    let grid = Grid::north_up(500_000.0, 5_300_000.0, 1.0, n, n, Crs::epsg(32632));
+    let z: Vec<f32> = (0..n * n)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = ((i % n) as f64, (i / n) as f64);
+            let hole = ((x - 0.3 * n as f64).powi(2) + (y - 0.6 * n as f64).powi(2)).sqrt() < n as f64 / 40.0;
+            if hole {
+                return f32::NAN;
+            }
+            let h = 300.0 + 40.0 * (x / 700.0).sin() * (y / 900.0).cos() + 8.0 * (x / 97.0 + y / 131.0).sin() + hash(i) as f64 * 0.5;
+            h as f32
+        })
+        .collect();
+    let c: Vec<[u8; 4]> = (0..n * n)
+        .into_par_iter()
+        .map(|i| {
+            let v = hash(i as u64 as usize ^ 0x5bd1e995);
+            [(90.0 + 60.0 * v) as u8, (110.0 + 50.0 * v) as u8, (70.0 + 40.0 * v) as u8, 255]
+        })
+        .collect();
+    std::fs::create_dir_all(dir).expect("db dir");
+    let mut db = Database::create(dir, grid.clone(), vec![]).expect("create");
+    dbms::io::geotiff::write_f32(&dir.join("elevation.tif"), &Elevation::new(grid.clone(), z)).expect("write elevation");
+    dbms::io::geotiff::write_rgba8(&dir.join("colour.tif"), &Colour::new(grid, c)).expect("write colour");
+    db.set_layer("elevation", "elevation", "elevation.tif", None).expect("layer");
+    db.set_layer("colour", "colour", "colour.tif", None).expect("layer");
+    db.record_stage(Stage::now("ingest", serde_json::json!({})));
+    db.save().expect("save");
+}
+
+/// A value in [0, 1) from a cell index (deterministic).
+fn hash(i: usize) -> f32 {
+    let mut x = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    x ^= x >> 31;
+    x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x ^= x >> 29;
+    (x >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Every cell of our levels 1..3 against GDAL's max-Z GeoTIFFs: bit-identical or both nodata.
+fn compare_max_z(tiles: &Path, work: &Path) -> bool {
+    let r = TileReader::open(tiles, 4096).expect("open tiles");
+    let mut all = true;
+    for k in 1..r.info().levels.len().min(4) {
+        let g = dbms::io::read_raster(&work.join(format!("gdal_level{k}_maxz.tif"))).expect("read GDAL level").to_elevation().expect("as elevation");
+        let l = &r.info().levels[k];
+        if (g.grid.width, g.grid.height) != (l.width, l.height) {
+            println!("level {k}: GDAL made {}×{}, we made {}×{}", g.grid.width, g.grid.height, l.width, l.height);
+            all = false;
+            continue;
+        }
+        let differ = (0..l.width * l.height)
+            .filter(|&i| {
+                let ours = r.cell(k, i % l.width, i / l.width).expect("cell").expect("in range").max_z;
+                let theirs = g.data[i];
+                !(ours.to_bits() == theirs.to_bits() || (ours.is_nan() && theirs.is_nan()))
+            })
+            .count();
+        println!("level {k}: {differ} of {} max-Z cells differ from GDAL", l.width * l.height);
+        all &= differ == 0;
+    }
+    all
+}
+
+fn print_table(size: usize, rows: &[(String, f64, Option<u64>)]) {
+    println!("\n{size}×{size} cells, {} threads\n", rayon::current_num_threads());
+    println!("| step | wall time (s) | peak memory (MB) |");
+    println!("|---|---:|---:|");
+    for (what, s, kb) in rows {
+        let mb = kb.map(|k| format!("{:.0}", k as f64 / 1024.0)).unwrap_or_else(|| "n/a".to_string());
+        println!("| {what} | {s:.2} | {mb} |");
+    }
+}
