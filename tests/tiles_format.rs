@@ -3,7 +3,8 @@
 use dbms::crs::Crs;
 use dbms::grid::Grid;
 use dbms::tiles::{
-    morton, Cell, Compression, IndexEntry, Page, TileReader, TileSetInfo, TileWriter, ENTRY_LEN, PAGE_ALIGN,
+    morton, Cell, Compression, IndexEntry, Page, TileReader, TileSetInfo, TileWriter, ENTRY_LEN,
+    PAGE_ALIGN,
 };
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
@@ -25,7 +26,14 @@ struct Fixture {
 }
 
 impl Fixture {
-    fn new(width: usize, height: usize, page: usize, factor: usize, compression: Compression, seed: u64) -> Fixture {
+    fn new(
+        width: usize,
+        height: usize,
+        page: usize,
+        factor: usize,
+        compression: Compression,
+        seed: u64,
+    ) -> Fixture {
         let grid = Grid::north_up(500_000.0, 5_000_000.0, 0.5, width, height, Crs::epsg(32614));
         let mut info = TileSetInfo::new(grid, page, factor, None).unwrap();
         info.compression = compression;
@@ -38,11 +46,23 @@ impl Fixture {
                     .map(|i| {
                         let r = mix(seed ^ mix(l.level as u64) ^ (i as u64) << 8);
                         if r % 8 == 0 {
-                            Cell { max_z: f32::NAN, colour: [0; 4], state: 0 }
+                            Cell {
+                                max_z: f32::NAN,
+                                colour: [0; 4],
+                                state: 0,
+                            }
                         } else {
                             // Any bit pattern: NaN payloads and infinities must survive too.
-                            let max_z = if r % 8 == 1 { f32::from_bits((r >> 32) as u32) } else { (r % 100_000) as f32 * 0.01 };
-                            Cell { max_z, colour: [(r >> 8) as u8, (r >> 16) as u8, (r >> 24) as u8, 255], state: 1 + (r % 2) as u8 }
+                            let max_z = if r % 8 == 1 {
+                                f32::from_bits((r >> 32) as u32)
+                            } else {
+                                (r % 100_000) as f32 * 0.01
+                            };
+                            Cell {
+                                max_z,
+                                colour: [(r >> 8) as u8, (r >> 16) as u8, (r >> 24) as u8, 255],
+                                state: 1 + (r % 2) as u8,
+                            }
                         }
                     })
                     .collect()
@@ -64,7 +84,11 @@ impl Fixture {
         }
         let r = mix(self.seed ^ ((level * 1000 + ty * 31 + tx) as u64));
         if r % 3 == 0 {
-            page.bricks = Some((0..(r % 50) as usize).map(|i| (r >> (i % 56)) as u8).collect());
+            page.bricks = Some(
+                (0..(r % 50) as usize)
+                    .map(|i| (r >> (i % 56)) as u8)
+                    .collect(),
+            );
         }
         page
     }
@@ -74,14 +98,17 @@ impl Fixture {
         self.info
             .levels
             .iter()
-            .flat_map(|l| (0..l.pages_y).flat_map(move |ty| (0..l.pages_x).map(move |tx| (l.level, tx, ty))))
+            .flat_map(|l| {
+                (0..l.pages_y).flat_map(move |ty| (0..l.pages_x).map(move |tx| (l.level, tx, ty)))
+            })
             .collect()
     }
 
     fn write(&self, path: &Path, order: &[(usize, usize, usize)]) {
         let w = TileWriter::create(path, self.info.clone()).unwrap();
         for &(level, tx, ty) in order {
-            w.write_page(level, tx, ty, &self.page(level, tx, ty)).unwrap();
+            w.write_page(level, tx, ty, &self.page(level, tx, ty))
+                .unwrap();
         }
         w.finish().unwrap();
     }
@@ -101,7 +128,9 @@ fn assert_reads_back(fx: &Fixture, reader: &TileReader) {
                 let want = fx.cells[l.level][row * l.width + col];
                 let got = reader.cell(l.level, col, row).unwrap().unwrap();
                 assert!(
-                    same_bits(got.max_z, want.max_z) && got.colour == want.colour && got.state == want.state,
+                    same_bits(got.max_z, want.max_z)
+                        && got.colour == want.colour
+                        && got.state == want.state,
                     "level {} cell ({col}, {row}): {got:?} != {want:?}",
                     l.level
                 );
@@ -111,7 +140,10 @@ fn assert_reads_back(fx: &Fixture, reader: &TileReader) {
         assert_eq!(reader.cell(l.level, 0, l.height).unwrap(), None);
     }
     for (level, tx, ty) in fx.pages() {
-        assert_eq!(reader.page(level, tx, ty).unwrap().bricks, fx.page(level, tx, ty).bricks);
+        assert_eq!(
+            reader.page(level, tx, ty).unwrap().bricks,
+            fx.page(level, tx, ty).bricks
+        );
     }
 }
 
@@ -148,8 +180,16 @@ proptest! {
 fn covered(bytes: &[u8], reader: &TileReader) -> Vec<std::ops::Range<usize>> {
     let header_len = u64::from_le_bytes(bytes[24..32].try_into().unwrap()) as usize;
     let index_offset = reader.index_offset() as usize;
-    let mut ranges = vec![0..64 + header_len, index_offset..index_offset + ENTRY_LEN * reader.entries().len()];
-    ranges.extend(reader.entries().iter().map(|e| e.offset as usize..(e.offset + e.stored_len as u64) as usize));
+    let mut ranges = vec![
+        0..64 + header_len,
+        index_offset..index_offset + ENTRY_LEN * reader.entries().len(),
+    ];
+    ranges.extend(
+        reader
+            .entries()
+            .iter()
+            .map(|e| e.offset as usize..(e.offset + e.stored_len as u64) as usize),
+    );
     ranges
 }
 
@@ -239,18 +279,39 @@ fn coarse_levels_come_first_in_z_order_at_aligned_offsets() {
     for l in fx.info.levels.iter().rev() {
         let mut pages: Vec<(u64, IndexEntry)> = (0..l.pages_y)
             .flat_map(|ty| (0..l.pages_x).map(move |tx| (tx, ty)))
-            .map(|(tx, ty)| (morton(tx as u32, ty as u32), reader.entry(l.level, tx, ty).unwrap()))
+            .map(|(tx, ty)| {
+                (
+                    morton(tx as u32, ty as u32),
+                    reader.entry(l.level, tx, ty).unwrap(),
+                )
+            })
             .collect();
         pages.sort_by_key(|p| p.0);
         for (_, e) in &pages {
-            assert_eq!(e.offset % PAGE_ALIGN, 0, "unaligned page offset {}", e.offset);
-            assert!(e.offset > previous_level_end, "level {} is not after the coarser levels / out of Z-order", l.level);
+            assert_eq!(
+                e.offset % PAGE_ALIGN,
+                0,
+                "unaligned page offset {}",
+                e.offset
+            );
+            assert!(
+                e.offset > previous_level_end,
+                "level {} is not after the coarser levels / out of Z-order",
+                l.level
+            );
             previous_level_end = e.offset;
         }
     }
     // The whole coarse part (levels ≥ 1) sits before any level-0 page.
-    let first_level0 = (0..fx.info.levels[0].pages()).map(|p| reader.entries()[p].offset).min().unwrap();
-    let last_coarse = reader.entries()[fx.info.levels[0].pages()..].iter().map(|e| e.offset).max().unwrap();
+    let first_level0 = (0..fx.info.levels[0].pages())
+        .map(|p| reader.entries()[p].offset)
+        .min()
+        .unwrap();
+    let last_coarse = reader.entries()[fx.info.levels[0].pages()..]
+        .iter()
+        .map(|e| e.offset)
+        .max()
+        .unwrap();
     assert!(last_coarse < first_level0);
 }
 
@@ -272,9 +333,17 @@ fn flipped_byte_in_a_page_is_a_checksum_error_naming_the_page() {
         )
     );
     // The cell lookup reports it too; other pages are unaffected.
-    assert!(reader.cell(1, 2 * 8 + 3, 8).unwrap_err().to_string().contains("page (level 1, 2, 1)"));
+    assert!(reader
+        .cell(1, 2 * 8 + 3, 8)
+        .unwrap_err()
+        .to_string()
+        .contains("page (level 1, 2, 1)"));
     assert_eq!(reader.page(1, 1, 1).unwrap().max_z.len(), 64);
-    assert!(reader.verify(&dbms::progress::Progress::hidden()).unwrap_err().to_string().contains("page (level 1, 2, 1)"));
+    assert!(reader
+        .verify(&dbms::progress::Progress::hidden())
+        .unwrap_err()
+        .to_string()
+        .contains("page (level 1, 2, 1)"));
     drop(fx);
 }
 
@@ -286,8 +355,15 @@ fn flipped_byte_in_an_lz4_page_is_a_checksum_error_too() {
     let mut bytes = std::fs::read(&path).unwrap();
     bytes[e.offset as usize + e.stored_len as usize - 1] ^= 1;
     std::fs::write(&path, &bytes).unwrap();
-    let err = TileReader::open(&path, 0).unwrap().page(0, 8, 5).unwrap_err().to_string();
-    assert!(err.contains("page (level 0, 8, 5) checksum mismatch"), "{err}");
+    let err = TileReader::open(&path, 0)
+        .unwrap()
+        .page(0, 8, 5)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("page (level 0, 8, 5) checksum mismatch"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -296,16 +372,41 @@ fn truncated_file_is_a_clear_error_at_open_for_every_length() {
     let (_, path) = standard(&dir, Compression::Lz4);
     let bytes = std::fs::read(&path).unwrap();
     let cut = tmp_file(&dir, "cut.dbt");
-    for len in [0, 4, 8, 12, 40, 63, 64, 100, 4096, bytes.len() / 2, bytes.len() - 1] {
+    for len in [
+        0,
+        4,
+        8,
+        12,
+        40,
+        63,
+        64,
+        100,
+        4096,
+        bytes.len() / 2,
+        bytes.len() - 1,
+    ] {
         std::fs::write(&cut, &bytes[..len]).unwrap();
-        let err = TileReader::open(&cut, 0).err().unwrap_or_else(|| panic!("{len} bytes opened")).to_string();
+        let err = TileReader::open(&cut, 0)
+            .err()
+            .unwrap_or_else(|| panic!("{len} bytes opened"))
+            .to_string();
         assert!(err.starts_with(&format!("{}: ", cut.display())), "{err}");
-        assert!(err.contains("truncated") || err.contains("bad magic"), "{len} bytes: {err}");
+        assert!(
+            err.contains("truncated") || err.contains("bad magic"),
+            "{len} bytes: {err}"
+        );
         assert!(!err.contains('\n'));
     }
     std::fs::write(&cut, &bytes[..bytes.len() - 1]).unwrap();
     let err = TileReader::open(&cut, 0).err().unwrap().to_string();
-    assert!(err.contains(&format!("file is truncated ({} of {} bytes)", bytes.len() - 1, bytes.len())), "{err}");
+    assert!(
+        err.contains(&format!(
+            "file is truncated ({} of {} bytes)",
+            bytes.len() - 1,
+            bytes.len()
+        )),
+        "{err}"
+    );
 }
 
 #[test]
@@ -315,10 +416,18 @@ fn file_truncated_after_open_names_the_page() {
     let reader = TileReader::open(&path, 0).unwrap();
     let last = *reader.entries().iter().max_by_key(|e| e.offset).unwrap();
     let pos = reader.entries().iter().position(|e| *e == last).unwrap();
-    std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(last.offset + 10).unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(last.offset + 10)
+        .unwrap();
     let (level, tx, ty) = reader.info().page_at(pos).unwrap();
     let err = reader.page(level, tx, ty).unwrap_err().to_string();
-    assert!(err.contains(&format!("page (level {level}, {tx}, {ty})")) && err.contains("truncated"), "{err}");
+    assert!(
+        err.contains(&format!("page (level {level}, {tx}, {ty})")) && err.contains("truncated"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -329,18 +438,25 @@ fn bad_magic_future_version_and_corrupt_header_are_clear_errors() {
     let bad = tmp_file(&dir, "bad.dbt");
     let open_err = |b: &[u8]| {
         std::fs::write(&bad, b).unwrap();
-        TileReader::open(&bad, 0).err().expect("must not open").to_string()
+        TileReader::open(&bad, 0)
+            .err()
+            .expect("must not open")
+            .to_string()
     };
 
     let mut b = bytes.clone();
     b[..8].copy_from_slice(b"GIF89a\0\0");
     assert_eq!(
         open_err(&b),
-        format!("{}: not a dbms tile file (bad magic bytes); give a file written by dbms pyramid", bad.display())
+        format!(
+            "{}: not a dbms tile file (bad magic bytes); give a file written by dbms pyramid",
+            bad.display()
+        )
     );
     let mut b = bytes.clone();
     b[8..12].copy_from_slice(&2u32.to_le_bytes());
-    assert!(open_err(&b).contains("tile format version 2 is newer than this dbms reads (version 1); upgrade dbms"));
+    assert!(open_err(&b)
+        .contains("tile format version 2 is newer than this dbms reads (version 1); upgrade dbms"));
     let mut b = bytes.clone();
     b[70] ^= 1; // inside the JSON header
     assert!(open_err(&b).contains("header checksum mismatch"));
@@ -370,7 +486,10 @@ fn partial_edge_pages_are_padded_with_nodata() {
                 let want = fx.cells[0][(4 + row) * 10 + 8 + col];
                 assert!(same_bits(c.max_z, want.max_z) && c.colour == want.colour);
             } else {
-                assert!(c.max_z.is_nan() && c.colour[3] == 0 && c.state == 0, "padding ({col}, {row}) is {c:?}");
+                assert!(
+                    c.max_z.is_nan() && c.colour[3] == 0 && c.state == 0,
+                    "padding ({col}, {row}) is {c:?}"
+                );
             }
         }
     }
@@ -383,7 +502,10 @@ fn partial_edge_pages_are_padded_with_nodata() {
     let mut page = fx.page(0, 2, 1);
     page.max_z[3] = 5.0; // (3, 0): beyond the 2 valid columns
     let err = w.write_page(0, 2, 1, &page).unwrap_err().to_string();
-    assert!(err.contains("page (level 0, 2, 1): padding cell (3, 0)"), "{err}");
+    assert!(
+        err.contains("page (level 0, 2, 1): padding cell (3, 0)"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -396,12 +518,25 @@ fn missing_or_duplicate_pages_are_errors_and_leave_no_file() {
     for &(l, x, y) in &pages[..4] {
         w.write_page(l, x, y, &fx.page(l, x, y)).unwrap();
     }
-    let err = w.write_page(0, 0, 0, &fx.page(0, 0, 0)).unwrap_err().to_string();
-    assert!(err.contains("page (level 0, 0, 0) was written twice"), "{err}");
-    assert!(w.write_page(0, 3, 0, &Page::nodata(8)).unwrap_err().to_string().contains("outside the tile set"));
+    let err = w
+        .write_page(0, 0, 0, &fx.page(0, 0, 0))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("page (level 0, 0, 0) was written twice"),
+        "{err}"
+    );
+    assert!(w
+        .write_page(0, 3, 0, &Page::nodata(8))
+        .unwrap_err()
+        .to_string()
+        .contains("outside the tile set"));
     let err = w.finish().unwrap_err().to_string();
     // 20×20 / 8 → 3×3 pages at level 0 (positions 0..9), then level 1 (5×5 cells, 1 page).
-    assert!(err.contains("6 page(s) were never written, the first is (level 0, 1, 1)"), "{err}");
+    assert!(
+        err.contains("6 page(s) were never written, the first is (level 0, 1, 1)"),
+        "{err}"
+    );
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert!(left.is_empty(), "spool or output left behind: {left:?}");
 }
@@ -414,7 +549,9 @@ fn pages_written_from_many_threads_give_the_same_file() {
     let (a, b) = (tmp_file(&dir, "a.dbt"), tmp_file(&dir, "b.dbt"));
     fx.write(&a, &fx.pages());
     let w = TileWriter::create(&b, fx.info.clone()).unwrap();
-    fx.pages().par_iter().for_each(|&(l, x, y)| w.write_page(l, x, y, &fx.page(l, x, y)).unwrap());
+    fx.pages()
+        .par_iter()
+        .for_each(|&(l, x, y)| w.write_page(l, x, y, &fx.page(l, x, y)).unwrap());
     w.finish().unwrap();
     assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
 }
@@ -459,24 +596,38 @@ fn header_has_the_schema_s_fields() {
     let bytes = std::fs::read(&path).unwrap();
     let len = u64::from_le_bytes(bytes[24..32].try_into().unwrap()) as usize;
     let header: serde_json::Value = serde_json::from_slice(&bytes[64..64 + len]).unwrap();
-    let schema_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/tiles-header.schema.json");
-    let schema: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(schema_path).unwrap()).unwrap();
+    let schema_path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/tiles-header.schema.json");
+    let schema: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(schema_path).unwrap()).unwrap();
     let props = schema["properties"].as_object().unwrap();
     let header = header.as_object().unwrap();
     for key in header.keys() {
-        assert!(props.contains_key(key), "header field {key} is not in the schema");
+        assert!(
+            props.contains_key(key),
+            "header field {key} is not in the schema"
+        );
     }
     for key in schema["required"].as_array().unwrap() {
-        assert!(header.contains_key(key.as_str().unwrap()), "schema requires {key}, header lacks it");
+        assert!(
+            header.contains_key(key.as_str().unwrap()),
+            "schema requires {key}, header lacks it"
+        );
     }
     let level_props = schema["$defs"]["level"]["properties"].as_object().unwrap();
     for key in header["levels"][0].as_object().unwrap().keys() {
-        assert!(level_props.contains_key(key), "level field {key} is not in the schema");
+        assert!(
+            level_props.contains_key(key),
+            "level field {key} is not in the schema"
+        );
     }
 }
 
 fn dbms(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 #[test]
@@ -485,15 +636,32 @@ fn cli_prints_the_summary_and_verifies() {
     let (_, path) = standard(&dir, Compression::Lz4);
     let p = path.to_str().unwrap();
     let out = dbms(&["tiles", p]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
-    assert!(text.contains("pages of 8×8 cells, factor 2, 5 levels"), "{text}");
-    assert!(text.contains("level 0: 70×45 cells of 0.5×0.5, 9×6 pages"), "{text}");
-    assert!(text.contains("layers: max_z (f32), colour (rgba8), state (u8)"), "{text}");
+    assert!(
+        text.contains("pages of 8×8 cells, factor 2, 5 levels"),
+        "{text}"
+    );
+    assert!(
+        text.contains("level 0: 70×45 cells of 0.5×0.5, 9×6 pages"),
+        "{text}"
+    );
+    assert!(
+        text.contains("layers: max_z (f32), colour (rgba8), state (u8)"),
+        "{text}"
+    );
     assert!(!text.contains("verified"));
 
     let out = dbms(&["tiles", p, "--verify", "--json"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(j["pages"], 54 + 15 + 6 + 2 + 1);
     assert_eq!(j["verified_pages"], 78);
@@ -509,14 +677,20 @@ fn cli_verify_fails_naming_the_first_bad_page() {
     let reader = TileReader::open(&path, 0).unwrap();
     let mut bytes = std::fs::read(&path).unwrap();
     // Corrupt two level-0 pages; the first in file order is reported.
-    let (a, b) = (reader.entry(0, 1, 1).unwrap(), reader.entry(0, 8, 5).unwrap());
+    let (a, b) = (
+        reader.entry(0, 1, 1).unwrap(),
+        reader.entry(0, 8, 5).unwrap(),
+    );
     assert!(a.offset < b.offset);
     bytes[a.offset as usize] ^= 0xff;
     bytes[b.offset as usize] ^= 0xff;
     std::fs::write(&path, &bytes).unwrap();
     let p = path.to_str().unwrap();
     let out = dbms(&["tiles", p]);
-    assert!(out.status.success(), "without --verify only the header is read");
+    assert!(
+        out.status.success(),
+        "without --verify only the header is read"
+    );
     let out = dbms(&["tiles", p, "--verify"]);
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
@@ -530,8 +704,14 @@ fn cli_verify_fails_naming_the_first_bad_page() {
 fn cli_rejects_a_file_that_is_not_a_tile_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = tmp_file(&dir, "dem.tif");
-    std::fs::write(&path, b"II*\0 not tiles at all, but long enough to hold a preamble of sixty-four bytes").unwrap();
+    std::fs::write(
+        &path,
+        b"II*\0 not tiles at all, but long enough to hold a preamble of sixty-four bytes",
+    )
+    .unwrap();
     let out = dbms(&["tiles", path.to_str().unwrap()]);
     assert!(!out.status.success());
-    assert!(String::from_utf8(out.stderr).unwrap().contains("not a dbms tile file (bad magic bytes)"));
+    assert!(String::from_utf8(out.stderr)
+        .unwrap()
+        .contains("not a dbms tile file (bad magic bytes)"));
 }

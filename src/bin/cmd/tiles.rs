@@ -31,12 +31,21 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let stored: u64 = entries.iter().map(|e| e.stored_len as u64).sum();
     let raw: u64 = entries.iter().map(|e| e.raw_len as u64).sum();
     let compressed = entries.iter().filter(|e| e.flags & FLAG_LZ4 != 0).count();
-    let with_bricks = entries.iter().filter(|e| e.flags & FLAG_BRICKS != 0).count();
+    let with_bricks = entries
+        .iter()
+        .filter(|e| e.flags & FLAG_BRICKS != 0)
+        .count();
 
     let mut human = String::new();
     let g = &info.grid;
     let (cx, cy) = g.cell_size();
-    let _ = writeln!(human, "{}: dbms tile file, format version {}, {} bytes", args.tiles.display(), reader.version(), reader.file_len());
+    let _ = writeln!(
+        human,
+        "{}: dbms tile file, format version {}, {} bytes",
+        args.tiles.display(),
+        reader.version(),
+        reader.file_len()
+    );
     let _ = writeln!(
         human,
         "grid {}×{} cells of {cx}×{cy} {} ({}), origin ({}, {})",
@@ -47,7 +56,13 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         g.transform.origin_x,
         g.transform.origin_y
     );
-    let _ = writeln!(human, "pages of {0}×{0} cells, factor {1}, {2} levels:", info.page_size, info.factor, info.levels.len());
+    let _ = writeln!(
+        human,
+        "pages of {0}×{0} cells, factor {1}, {2} levels:",
+        info.page_size,
+        info.factor,
+        info.levels.len()
+    );
     for l in &info.levels {
         let _ = writeln!(
             human,
@@ -61,7 +76,11 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             l.pages_y
         );
     }
-    let layers: Vec<String> = info.layers.iter().map(|l| format!("{} ({})", l.name, l.kind)).collect();
+    let layers: Vec<String> = info
+        .layers
+        .iter()
+        .map(|l| format!("{} ({})", l.name, l.kind))
+        .collect();
     let _ = writeln!(human, "layers: {}", layers.join(", "));
     let _ = writeln!(
         human,

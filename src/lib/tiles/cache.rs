@@ -27,7 +27,11 @@ struct Slot {
 
 impl PageCache {
     pub fn new(capacity: usize) -> PageCache {
-        PageCache { capacity, tick: AtomicU64::new(0), pages: RwLock::new(HashMap::new()) }
+        PageCache {
+            capacity,
+            tick: AtomicU64::new(0),
+            pages: RwLock::new(HashMap::new()),
+        }
     }
 
     fn next_tick(&self) -> u64 {
@@ -48,7 +52,13 @@ impl PageCache {
             return;
         }
         let mut pages = self.pages.write().unwrap_or_else(|p| p.into_inner());
-        pages.insert(pos, Slot { page, used: AtomicU64::new(self.next_tick()) });
+        pages.insert(
+            pos,
+            Slot {
+                page,
+                used: AtomicU64::new(self.next_tick()),
+            },
+        );
         while pages.len() > self.capacity {
             let victim = *pages
                 .iter()

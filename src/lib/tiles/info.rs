@@ -40,7 +40,10 @@ impl Compression {
         match s {
             "none" => Ok(Compression::None),
             "lz4" => Ok(Compression::Lz4),
-            _ => Err(Error::msg(format!("--compression {s}: unknown compression")).fix("use none or lz4")),
+            _ => Err(
+                Error::msg(format!("--compression {s}: unknown compression"))
+                    .fix("use none or lz4"),
+            ),
         }
     }
 
@@ -106,7 +109,13 @@ pub struct LayerInfo {
 }
 
 impl LayerInfo {
-    fn new(name: &str, kind: &str, bytes_per_cell: usize, nodata: &str, description: &str) -> LayerInfo {
+    fn new(
+        name: &str,
+        kind: &str,
+        bytes_per_cell: usize,
+        nodata: &str,
+        description: &str,
+    ) -> LayerInfo {
         LayerInfo {
             name: name.into(),
             kind: kind.into(),
@@ -160,14 +169,30 @@ impl TileSetInfo {
     /// The tile set over `grid` with pages of `page_size²` cells and levels `factor` apart.
     /// `levels: None` makes levels down to the first that fits in one page; `Some(n)` makes
     /// exactly `n` levels. Compression is `none` and effects `{}` until the caller sets them.
-    pub fn new(grid: Grid, page_size: usize, factor: usize, levels: Option<usize>) -> Result<TileSetInfo> {
+    pub fn new(
+        grid: Grid,
+        page_size: usize,
+        factor: usize,
+        levels: Option<usize>,
+    ) -> Result<TileSetInfo> {
         check_params(&grid, page_size, factor)?;
         let n = match levels {
             None => natural_levels(grid.width, grid.height, page_size, factor),
             Some(n) if (1..=MAX_LEVELS).contains(&n) => n,
-            Some(n) => return Err(Error::msg(format!("--levels {n}: must be 1 to {MAX_LEVELS}"))),
+            Some(n) => {
+                return Err(Error::msg(format!(
+                    "--levels {n}: must be 1 to {MAX_LEVELS}"
+                )))
+            }
         };
-        let levels = derive_levels(&grid.transform, grid.width, grid.height, page_size, factor, n);
+        let levels = derive_levels(
+            &grid.transform,
+            grid.width,
+            grid.height,
+            page_size,
+            factor,
+            n,
+        );
         check_page_count(&levels)?;
         Ok(TileSetInfo {
             dbms_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -190,33 +215,61 @@ impl TileSetInfo {
         check_params(&self.grid, self.page_size, self.factor)?;
         let n = self.levels.len();
         if !(1..=MAX_LEVELS).contains(&n) {
-            return Err(Error::msg(format!("header lists {n} levels, expected 1 to {MAX_LEVELS}")));
+            return Err(Error::msg(format!(
+                "header lists {n} levels, expected 1 to {MAX_LEVELS}"
+            )));
         }
         let g = &self.grid;
-        let want = derive_levels(&g.transform, g.width, g.height, self.page_size, self.factor, n);
+        let want = derive_levels(
+            &g.transform,
+            g.width,
+            g.height,
+            self.page_size,
+            self.factor,
+            n,
+        );
         if let Some(k) = (0..n).find(|&k| want[k] != self.levels[k]) {
-            return Err(Error::msg(format!("header's level {k} does not follow from the grid, page size and factor")));
+            return Err(Error::msg(format!(
+                "header's level {k} does not follow from the grid, page size and factor"
+            )));
         }
         check_page_count(&self.levels)?;
         for (i, l) in self.layers.iter().enumerate() {
             if self.layers[..i].iter().any(|other| other.name == l.name) {
-                return Err(Error::msg(format!("the layer table lists {} twice", l.name)));
+                return Err(Error::msg(format!(
+                    "the layer table lists {} twice",
+                    l.name
+                )));
             }
             if l.bytes_per_cell == 0 || l.bytes_per_cell > 64 {
-                return Err(Error::msg(format!("layer {} has {} bytes per cell, expected 1 to 64", l.name, l.bytes_per_cell)));
+                return Err(Error::msg(format!(
+                    "layer {} has {} bytes per cell, expected 1 to 64",
+                    l.name, l.bytes_per_cell
+                )));
             }
         }
         for want in standard_layers() {
             match self.layers.iter().find(|l| l.name == want.name) {
                 Some(l) if l.kind == want.kind && l.bytes_per_cell == want.bytes_per_cell => {}
                 Some(l) => {
-                    return Err(Error::msg(format!("layer {} has type {}, expected {}", l.name, l.kind, want.kind)));
+                    return Err(Error::msg(format!(
+                        "layer {} has type {}, expected {}",
+                        l.name, l.kind, want.kind
+                    )));
                 }
-                None => return Err(Error::msg(format!("the layer table has no {} layer", want.name))),
+                None => {
+                    return Err(Error::msg(format!(
+                        "the layer table has no {} layer",
+                        want.name
+                    )))
+                }
             }
         }
         if !self.alignment.is_power_of_two() || self.alignment < 8 {
-            return Err(Error::msg(format!("alignment {} is not a power of two of at least 8", self.alignment)));
+            return Err(Error::msg(format!(
+                "alignment {} is not a power of two of at least 8",
+                self.alignment
+            )));
         }
         if !self.effects.is_object() {
             return Err(Error::msg("header's effects is not a JSON object"));
@@ -230,7 +283,11 @@ impl TileSetInfo {
         Grid {
             width: l.width,
             height: l.height,
-            transform: GeoTransform { cell_x: l.cell_x, cell_y: l.cell_y, ..self.grid.transform },
+            transform: GeoTransform {
+                cell_x: l.cell_x,
+                cell_y: l.cell_y,
+                ..self.grid.transform
+            },
             crs: self.grid.crs.clone(),
         }
     }
@@ -279,17 +336,26 @@ impl TileSetInfo {
 
 fn check_params(grid: &Grid, page_size: usize, factor: usize) -> Result<()> {
     if !(1..=MAX_PAGE_SIZE).contains(&page_size) {
-        return Err(Error::msg(format!("--page {page_size}: page size must be 1 to {MAX_PAGE_SIZE} cells")).fix("the default is 256"));
+        return Err(Error::msg(format!(
+            "--page {page_size}: page size must be 1 to {MAX_PAGE_SIZE} cells"
+        ))
+        .fix("the default is 256"));
     }
     if factor != 2 && factor != 4 {
-        return Err(Error::msg(format!("--factor {factor}: factor must be 2 or 4")));
+        return Err(Error::msg(format!(
+            "--factor {factor}: factor must be 2 or 4"
+        )));
     }
     let (w, h) = (grid.width, grid.height);
     if !(1..=MAX_GRID_SIDE).contains(&w) || !(1..=MAX_GRID_SIDE).contains(&h) {
-        return Err(Error::msg(format!("the grid is {w}×{h} cells, expected 1 to {MAX_GRID_SIDE} on each side")));
+        return Err(Error::msg(format!(
+            "the grid is {w}×{h} cells, expected 1 to {MAX_GRID_SIDE} on each side"
+        )));
     }
     let t = &grid.transform;
-    let finite = [t.origin_x, t.origin_y, t.cell_x, t.cell_y].iter().all(|v| v.is_finite());
+    let finite = [t.origin_x, t.origin_y, t.cell_x, t.cell_y]
+        .iter()
+        .all(|v| v.is_finite());
     if !finite || t.cell_x <= 0.0 || t.cell_y == 0.0 {
         return Err(Error::msg(format!(
             "the grid's transform (origin {}, {}; cell {}, {}) is not a north-up grid with finite non-zero cells",
@@ -302,8 +368,10 @@ fn check_params(grid: &Grid, page_size: usize, factor: usize) -> Result<()> {
 fn check_page_count(levels: &[LevelInfo]) -> Result<()> {
     let n: usize = levels.iter().map(LevelInfo::pages).sum();
     if n > MAX_PAGES {
-        return Err(Error::msg(format!("the tile set would have {n} pages, over the limit of {MAX_PAGES}"))
-            .fix("use a larger --page"));
+        return Err(Error::msg(format!(
+            "the tile set would have {n} pages, over the limit of {MAX_PAGES}"
+        ))
+        .fix("use a larger --page"));
     }
     Ok(())
 }
@@ -319,7 +387,14 @@ fn natural_levels(width: usize, height: usize, page_size: usize, factor: usize) 
     n
 }
 
-fn derive_levels(t: &GeoTransform, width: usize, height: usize, page: usize, factor: usize, n: usize) -> Vec<LevelInfo> {
+fn derive_levels(
+    t: &GeoTransform,
+    width: usize,
+    height: usize,
+    page: usize,
+    factor: usize,
+    n: usize,
+) -> Vec<LevelInfo> {
     let (mut w, mut h, mut scale) = (width, height, 1.0f64);
     (0..n)
         .map(|level| {
@@ -353,7 +428,11 @@ mod tests {
     #[test]
     fn levels_go_down_to_one_page() {
         let info = TileSetInfo::new(grid(1000, 300), 256, 4, None).unwrap();
-        let sizes: Vec<_> = info.levels.iter().map(|l| (l.width, l.height, l.pages_x, l.pages_y)).collect();
+        let sizes: Vec<_> = info
+            .levels
+            .iter()
+            .map(|l| (l.width, l.height, l.pages_x, l.pages_y))
+            .collect();
         assert_eq!(sizes, vec![(1000, 300, 4, 2), (250, 75, 1, 1)]);
         assert_eq!(info.levels[1].cell_x, 2.0);
         assert_eq!(info.levels[1].cell_y, -2.0);
@@ -363,7 +442,10 @@ mod tests {
         let prev = &info.levels[info.levels.len() - 2];
         assert!(prev.width > 16 || prev.height > 16);
         // ceil at every level: 1000 → 500 → 250 → 125 → 63 → 32 → 16
-        assert_eq!(info.levels.iter().map(|l| l.width).collect::<Vec<_>>(), vec![1000, 500, 250, 125, 63, 32, 16]);
+        assert_eq!(
+            info.levels.iter().map(|l| l.width).collect::<Vec<_>>(),
+            vec![1000, 500, 250, 125, 63, 32, 16]
+        );
     }
 
     #[test]
@@ -431,7 +513,9 @@ mod tests {
         assert!(bad.validate().is_err());
         // Extra layers are allowed: readers skip what they do not know.
         let mut grown = info;
-        grown.layers.push(LayerInfo::new("temperature", "f32", 4, "NaN", "kelvin"));
+        grown
+            .layers
+            .push(LayerInfo::new("temperature", "f32", 4, "NaN", "kelvin"));
         grown.validate().unwrap();
     }
 
@@ -439,7 +523,10 @@ mod tests {
     fn level_grid_keeps_the_corner() {
         let info = TileSetInfo::new(grid(1000, 300), 64, 4, None).unwrap();
         let g = info.level_grid(2);
-        assert_eq!(g.transform.pixel_to_world(0.0, 0.0), (500_000.0, 5_000_000.0));
+        assert_eq!(
+            g.transform.pixel_to_world(0.0, 0.0),
+            (500_000.0, 5_000_000.0)
+        );
         assert_eq!(g.cell_size(), (8.0, 8.0));
         assert_eq!((g.width, g.height), (63, 19));
     }

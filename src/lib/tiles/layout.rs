@@ -59,7 +59,10 @@ impl Preamble {
         const REBUILD: &str = "rebuild it with dbms pyramid";
         let n = b.len().min(MAGIC.len());
         if b[..n] != MAGIC[..n] {
-            return Err(("not a dbms tile file (bad magic bytes)".into(), "give a file written by dbms pyramid"));
+            return Err((
+                "not a dbms tile file (bad magic bytes)".into(),
+                "give a file written by dbms pyramid",
+            ));
         }
         if b.len() < 12 {
             return Err(("file ends inside its preamble (truncated?)".into(), REBUILD));
@@ -153,7 +156,10 @@ pub fn storage_order(info: &TileSetInfo) -> Vec<usize> {
     for l in info.levels.iter().rev() {
         let base = info.level_base(l.level);
         let mut level: Vec<(u64, usize)> = (0..l.pages_y)
-            .flat_map(|ty| (0..l.pages_x).map(move |tx| (morton(tx as u32, ty as u32), base + ty * l.pages_x + tx)))
+            .flat_map(|ty| {
+                (0..l.pages_x)
+                    .map(move |tx| (morton(tx as u32, ty as u32), base + ty * l.pages_x + tx))
+            })
             .collect();
         level.sort_unstable();
         order.extend(level.into_iter().map(|(_, pos)| pos));
@@ -185,12 +191,21 @@ mod tests {
 
     #[test]
     fn storage_order_is_coarse_first_then_z_order() {
-        let info = TileSetInfo::new(Grid::north_up(0.0, 0.0, 1.0, 40, 24, Crs::unknown()), 8, 2, None).unwrap();
+        let info = TileSetInfo::new(
+            Grid::north_up(0.0, 0.0, 1.0, 40, 24, Crs::unknown()),
+            8,
+            2,
+            None,
+        )
+        .unwrap();
         // levels: 40×24 (5×3 pages), 20×12 (3×2), 10×6 (2×1), 5×3 (1×1)
         let order = storage_order(&info);
         let pages: Vec<_> = order.iter().map(|&p| info.page_at(p).unwrap()).collect();
         assert_eq!(&pages[..4], &[(3, 0, 0), (2, 0, 0), (2, 1, 0), (1, 0, 0)]);
-        assert_eq!(&pages[4..9], &[(1, 1, 0), (1, 0, 1), (1, 1, 1), (1, 2, 0), (1, 2, 1)]);
+        assert_eq!(
+            &pages[4..9],
+            &[(1, 1, 0), (1, 0, 1), (1, 1, 1), (1, 2, 0), (1, 2, 1)]
+        );
         assert_eq!(pages[9], (0, 0, 0));
         let mut sorted = order.clone();
         sorted.sort_unstable();
@@ -215,16 +230,34 @@ mod tests {
         assert!(Preamble::decode(&b).unwrap_err().0.contains("bad magic"));
         let mut b = p.encode();
         b[8..12].copy_from_slice(&9u32.to_le_bytes());
-        assert!(Preamble::decode(&b).unwrap_err().0.contains("version 9 is newer"));
-        assert!(Preamble::decode(&p.encode()[..40]).unwrap_err().0.contains("truncated"));
-        assert!(Preamble::decode(b"DBMS").unwrap_err().0.contains("truncated"));
+        assert!(Preamble::decode(&b)
+            .unwrap_err()
+            .0
+            .contains("version 9 is newer"));
+        assert!(Preamble::decode(&p.encode()[..40])
+            .unwrap_err()
+            .0
+            .contains("truncated"));
+        assert!(Preamble::decode(b"DBMS")
+            .unwrap_err()
+            .0
+            .contains("truncated"));
         assert!(Preamble::decode(b"").unwrap_err().0.contains("truncated"));
-        assert!(Preamble::decode(b"II*").unwrap_err().0.contains("bad magic"));
+        assert!(Preamble::decode(b"II*")
+            .unwrap_err()
+            .0
+            .contains("bad magic"));
     }
 
     #[test]
     fn entry_round_trips_and_align_up() {
-        let e = IndexEntry { offset: 1 << 40, stored_len: 3, raw_len: 4, crc: 5, flags: 2 };
+        let e = IndexEntry {
+            offset: 1 << 40,
+            stored_len: 3,
+            raw_len: 4,
+            crc: 5,
+            flags: 2,
+        };
         assert_eq!(IndexEntry::decode(&e.encode()), e);
         assert_eq!(align_up(0, 4096), 0);
         assert_eq!(align_up(1, 4096), 4096);

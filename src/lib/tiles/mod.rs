@@ -27,8 +27,8 @@ mod reader;
 mod writer;
 
 pub use info::{
-    standard_layers, Compression, LayerInfo, LevelInfo, PageOrder, TileSetInfo, BRICKS_OPAQUE, MAX_LEVELS,
-    MAX_PAGE_SIZE, PAGE_ALIGN,
+    standard_layers, Compression, LayerInfo, LevelInfo, PageOrder, TileSetInfo, BRICKS_OPAQUE,
+    MAX_LEVELS, MAX_PAGE_SIZE, PAGE_ALIGN,
 };
 pub use layout::{morton, IndexEntry, ENTRY_LEN, MAGIC, PREAMBLE_LEN, VERSION};
 pub use page::{Cell, Page, FLAG_BRICKS, FLAG_LZ4, STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL};

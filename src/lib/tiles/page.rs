@@ -50,14 +50,23 @@ impl Page {
     /// A page of `page_size²` nodata cells and no bricks: the starting point for filling one.
     pub fn nodata(page_size: usize) -> Page {
         let n = page_size * page_size;
-        Page { max_z: vec![f32::NAN; n], colour: vec![[0; 4]; n], state: vec![STATE_EMPTY; n], bricks: None }
+        Page {
+            max_z: vec![f32::NAN; n],
+            colour: vec![[0; 4]; n],
+            state: vec![STATE_EMPTY; n],
+            bricks: None,
+        }
     }
 
     /// The cell at `(col, row)` within the page.
     #[inline]
     pub fn cell(&self, page_size: usize, col: usize, row: usize) -> Cell {
         let i = row * page_size + col;
-        Cell { max_z: self.max_z[i], colour: self.colour[i], state: self.state[i] }
+        Cell {
+            max_z: self.max_z[i],
+            colour: self.colour[i],
+            state: self.state[i],
+        }
     }
 }
 
@@ -86,18 +95,33 @@ impl Layout {
         let cells = info.page_cells();
         let (mut at, mut offsets) = (0, [0usize; 3]);
         for l in &info.layers {
-            if let Some(i) = ["max_z", "colour", "state"].iter().position(|n| *n == l.name) {
+            if let Some(i) = ["max_z", "colour", "state"]
+                .iter()
+                .position(|n| *n == l.name)
+            {
                 offsets[i] = at;
             }
             at += cells * l.bytes_per_cell;
         }
-        Layout { cells, max_z: offsets[0], colour: offsets[1], state: offsets[2], fixed_len: at }
+        Layout {
+            cells,
+            max_z: offsets[0],
+            colour: offsets[1],
+            state: offsets[2],
+            fixed_len: at,
+        }
     }
 }
 
 /// Check `page` fits page `(level, tx, ty)` of `info`: layer lengths, nodata padding, known
 /// states. The problem text names the page.
-pub(crate) fn check(info: &TileSetInfo, level: usize, tx: usize, ty: usize, page: &Page) -> Result<()> {
+pub(crate) fn check(
+    info: &TileSetInfo,
+    level: usize,
+    tx: usize,
+    ty: usize,
+    page: &Page,
+) -> Result<()> {
     let name = format!("page (level {level}, {tx}, {ty})");
     let n = info.page_cells();
     if page.max_z.len() != n || page.colour.len() != n || page.state.len() != n {
@@ -109,7 +133,10 @@ pub(crate) fn check(info: &TileSetInfo, level: usize, tx: usize, ty: usize, page
         )));
     }
     if let Some(i) = page.state.iter().position(|&s| s > STATE_OPAQUE) {
-        return Err(Error::msg(format!("{name}: cell {i} has state {}, expected 0, 1 or 2", page.state[i])));
+        return Err(Error::msg(format!(
+            "{name}: cell {i} has state {}, expected 0, 1 or 2",
+            page.state[i]
+        )));
     }
     let p = info.page_size;
     let (cols, rows) = info.page_extent(level, tx, ty);
@@ -138,9 +165,17 @@ pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> 
     }
     raw[layout.state..][..layout.cells].copy_from_slice(&page.state);
     raw[layout.fixed_len..].copy_from_slice(bricks);
-    let raw_len = u32::try_from(raw.len())
-        .map_err(|_| Error::msg(format!("a page of {} bytes is over the format's 4 GiB limit", raw.len())))?;
-    let mut flags = if page.bricks.is_some() { FLAG_BRICKS } else { 0 };
+    let raw_len = u32::try_from(raw.len()).map_err(|_| {
+        Error::msg(format!(
+            "a page of {} bytes is over the format's 4 GiB limit",
+            raw.len()
+        ))
+    })?;
+    let mut flags = if page.bricks.is_some() {
+        FLAG_BRICKS
+    } else {
+        0
+    };
     let stored = match compression {
         Compression::Lz4 => {
             let packed = lz4_flex::block::compress(&raw);
@@ -153,15 +188,26 @@ pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> 
         }
         Compression::None => raw,
     };
-    Ok(Encoded { crc: crc32fast::hash(&stored), stored, raw_len, flags })
+    Ok(Encoded {
+        crc: crc32fast::hash(&stored),
+        stored,
+        raw_len,
+        flags,
+    })
 }
 
 /// Decode stored bytes whose CRC has been checked. `Err` carries the problem without the page's
 /// name (the caller adds it).
-pub(crate) fn decode(layout: &Layout, stored: &[u8], raw_len: u32, flags: u32) -> std::result::Result<Page, String> {
+pub(crate) fn decode(
+    layout: &Layout,
+    stored: &[u8],
+    raw_len: u32,
+    flags: u32,
+) -> std::result::Result<Page, String> {
     let unpacked;
     let raw = if flags & FLAG_LZ4 != 0 {
-        unpacked = lz4_flex::block::decompress(stored, raw_len as usize).map_err(|e| format!("lz4 data is invalid ({e})"))?;
+        unpacked = lz4_flex::block::decompress(stored, raw_len as usize)
+            .map_err(|e| format!("lz4 data is invalid ({e})"))?;
         &unpacked[..]
     } else {
         stored
@@ -172,7 +218,9 @@ pub(crate) fn decode(layout: &Layout, stored: &[u8], raw_len: u32, flags: u32) -
     let n = layout.cells;
     let word = |at: usize| -> [u8; 4] { raw[at..at + 4].try_into().expect("4 bytes") };
     Ok(Page {
-        max_z: (0..n).map(|i| f32::from_bits(u32::from_le_bytes(word(layout.max_z + 4 * i)))).collect(),
+        max_z: (0..n)
+            .map(|i| f32::from_bits(u32::from_le_bytes(word(layout.max_z + 4 * i))))
+            .collect(),
         colour: (0..n).map(|i| word(layout.colour + 4 * i)).collect(),
         state: raw[layout.state..layout.state + n].to_vec(),
         bricks: (flags & FLAG_BRICKS != 0).then(|| raw[layout.fixed_len..].to_vec()),
@@ -187,7 +235,13 @@ mod tests {
     use crate::tiles::info::LayerInfo;
 
     fn info(w: usize, h: usize, p: usize) -> TileSetInfo {
-        TileSetInfo::new(Grid::north_up(0.0, 0.0, 1.0, w, h, Crs::unknown()), p, 4, None).unwrap()
+        TileSetInfo::new(
+            Grid::north_up(0.0, 0.0, 1.0, w, h, Crs::unknown()),
+            p,
+            4,
+            None,
+        )
+        .unwrap()
     }
 
     fn sample(p: usize) -> Page {
@@ -216,7 +270,11 @@ mod tests {
             assert_eq!(back.colour, page.colour);
             assert_eq!(back.state, page.state);
             assert_eq!(back.bricks, page.bricks);
-            assert!(back.max_z.iter().zip(&page.max_z).all(|(a, b)| a.to_bits() == b.to_bits()));
+            assert!(back
+                .max_z
+                .iter()
+                .zip(&page.max_z)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
         }
         // A nodata page compresses; lz4 keeps it only when smaller.
         let e = encode(&layout, &Page::nodata(8), Compression::Lz4).unwrap();
@@ -232,19 +290,27 @@ mod tests {
         page.bricks = Some(vec![]);
         let e = encode(&layout, &page, Compression::None).unwrap();
         assert_eq!(e.flags, FLAG_BRICKS);
-        assert_eq!(decode(&layout, &e.stored, e.raw_len, e.flags).unwrap().bricks, Some(vec![]));
+        assert_eq!(
+            decode(&layout, &e.stored, e.raw_len, e.flags)
+                .unwrap()
+                .bricks,
+            Some(vec![])
+        );
     }
 
     #[test]
     fn decode_skips_unknown_layers() {
         let mut grown = info(8, 8, 4);
-        grown.layers.insert(1, LayerInfo {
-            name: "temperature".into(),
-            kind: "f32".into(),
-            bytes_per_cell: 4,
-            nodata: "NaN".into(),
-            description: "kelvin".into(),
-        });
+        grown.layers.insert(
+            1,
+            LayerInfo {
+                name: "temperature".into(),
+                kind: "f32".into(),
+                bytes_per_cell: 4,
+                nodata: "NaN".into(),
+                description: "kelvin".into(),
+            },
+        );
         let layout = Layout::of(&grown);
         assert_eq!(layout.fixed_len, 16 * 13);
         let mut raw = vec![0u8; layout.fixed_len];
@@ -263,12 +329,21 @@ mod tests {
         check(&info, 0, 1, 0, &page).unwrap();
         page.max_z[8 * 6] = 1.0; // (0, 6): below the edge
         let e = check(&info, 0, 1, 0, &page).unwrap_err().to_string();
-        assert!(e.contains("page (level 0, 1, 0)") && e.contains("(0, 6)"), "{e}");
+        assert!(
+            e.contains("page (level 0, 1, 0)") && e.contains("(0, 6)"),
+            "{e}"
+        );
         let mut page = Page::nodata(8);
         page.state[3] = 7;
-        assert!(check(&info, 0, 0, 0, &page).unwrap_err().to_string().contains("state 7"));
+        assert!(check(&info, 0, 0, 0, &page)
+            .unwrap_err()
+            .to_string()
+            .contains("state 7"));
         let page = Page::nodata(4);
-        assert!(check(&info, 0, 0, 0, &page).unwrap_err().to_string().contains("expected 64"));
+        assert!(check(&info, 0, 0, 0, &page)
+            .unwrap_err()
+            .to_string()
+            .contains("expected 64"));
     }
 
     #[test]

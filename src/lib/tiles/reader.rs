@@ -58,14 +58,22 @@ impl TileReader {
         let bad = |problem: String| Error::file(path, problem).fix(REBUILD);
 
         let mut head = vec![0u8; PREAMBLE_LEN.min(actual_len as usize)];
-        file.read_exact_at(&mut head, 0).map_err(|e| Error::io(path, e))?;
-        let pre = Preamble::decode(&head).map_err(|(problem, fix)| Error::file(path, problem).fix(fix))?;
+        file.read_exact_at(&mut head, 0)
+            .map_err(|e| Error::io(path, e))?;
+        let pre = Preamble::decode(&head)
+            .map_err(|(problem, fix)| Error::file(path, problem).fix(fix))?;
         if actual_len < pre.file_len {
-            return Err(Error::file(path, format!("file is truncated ({actual_len} of {} bytes)", pre.file_len))
-                .fix("rebuild it with dbms pyramid"));
+            return Err(Error::file(
+                path,
+                format!("file is truncated ({actual_len} of {} bytes)", pre.file_len),
+            )
+            .fix("rebuild it with dbms pyramid"));
         }
         if actual_len > pre.file_len {
-            return Err(bad(format!("file has {} bytes after its end", actual_len - pre.file_len)));
+            return Err(bad(format!(
+                "file has {} bytes after its end",
+                actual_len - pre.file_len
+            )));
         }
         let index_len = pre.page_count.checked_mul(ENTRY_LEN as u64);
         let index_end = index_len.and_then(|n| n.checked_add(pre.index_offset));
@@ -76,12 +84,17 @@ impl TileReader {
                     && pre.header_len <= MAX_HEADER_LEN
                     && h <= pre.index_offset
                     && i <= pre.file_len => {}
-            _ => return Err(bad("preamble's header or index lies outside the file".into())),
+            _ => {
+                return Err(bad(
+                    "preamble's header or index lies outside the file".into()
+                ))
+            }
         }
         let index_end = index_end.expect("checked");
 
         let mut header = vec![0u8; pre.header_len as usize];
-        file.read_exact_at(&mut header, pre.header_offset).map_err(|e| Error::io(path, e))?;
+        file.read_exact_at(&mut header, pre.header_offset)
+            .map_err(|e| Error::io(path, e))?;
         if crc32fast::hash(&header) != pre.header_crc {
             return Err(bad("header checksum mismatch".into()));
         }
@@ -89,19 +102,28 @@ impl TileReader {
             .map_err(|e| bad(format!("header is not a valid tile set description ({e})")))?;
         info.validate().map_err(|e| e.in_file(path).fix(REBUILD))?;
         if pre.page_count != info.page_count() as u64 {
-            return Err(bad(format!("index has {} pages, the header's levels have {}", pre.page_count, info.page_count())));
+            return Err(bad(format!(
+                "index has {} pages, the header's levels have {}",
+                pre.page_count,
+                info.page_count()
+            )));
         }
 
         let mut raw_index = vec![0u8; (index_end - pre.index_offset) as usize];
-        file.read_exact_at(&mut raw_index, pre.index_offset).map_err(|e| Error::io(path, e))?;
+        file.read_exact_at(&mut raw_index, pre.index_offset)
+            .map_err(|e| Error::io(path, e))?;
         if crc32fast::hash(&raw_index) != pre.index_crc {
             return Err(bad("index checksum mismatch".into()));
         }
-        let index: Vec<IndexEntry> =
-            raw_index.chunks_exact(ENTRY_LEN).map(|b| IndexEntry::decode(b.try_into().expect("24 bytes"))).collect();
+        let index: Vec<IndexEntry> = raw_index
+            .chunks_exact(ENTRY_LEN)
+            .map(|b| IndexEntry::decode(b.try_into().expect("24 bytes")))
+            .collect();
         let layout = Layout::of(&info);
         for (pos, e) in index.iter().enumerate() {
-            if let Some(problem) = entry_problem(e, &layout, info.alignment, index_end, pre.file_len) {
+            if let Some(problem) =
+                entry_problem(e, &layout, info.alignment, index_end, pre.file_len)
+            {
                 let (level, tx, ty) = info.page_at(pos).expect("index matches the levels");
                 return Err(bad(format!("page (level {level}, {tx}, {ty}) {problem}")));
             }
@@ -152,14 +174,19 @@ impl TileReader {
 
     /// The index entry of page `(level, tx, ty)`: one array lookup. `None` if no such page.
     pub fn entry(&self, level: usize, tx: usize, ty: usize) -> Option<IndexEntry> {
-        self.info.index_position(level, tx, ty).map(|p| self.index[p])
+        self.info
+            .index_position(level, tx, ty)
+            .map(|p| self.index[p])
     }
 
     /// Page `(level, tx, ty)`, from the cache or read and checked. Errors on a page outside the
     /// tile set, a checksum mismatch, undecodable data or a read failure, naming the page.
     pub fn page(&self, level: usize, tx: usize, ty: usize) -> Result<Arc<Page>> {
         let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
-            Error::file(&self.path, format!("page (level {level}, {tx}, {ty}) is outside the tile set"))
+            Error::file(
+                &self.path,
+                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
+            )
         })?;
         if let Some(page) = self.cache.get(pos) {
             self.cache_hits.fetch_add(1, Ordering::Relaxed);
@@ -177,7 +204,10 @@ impl TileReader {
         let Some(l) = self.info.levels.get(level) else {
             return Err(Error::file(
                 &self.path,
-                format!("level {level} does not exist (the file has {})", self.info.levels.len()),
+                format!(
+                    "level {level} does not exist (the file has {})",
+                    self.info.levels.len()
+                ),
             ));
         };
         if col >= l.width || row >= l.height {
@@ -221,9 +251,16 @@ impl TileReader {
         let mut stored = vec![0u8; e.stored_len as usize];
         self.file
             .read_exact_at(&mut stored, e.offset)
-            .map_err(|err| Error::file(&self.path, format!("{name}: {}", Error::io(&self.path, err).problem)).fix(REBUILD))?;
+            .map_err(|err| {
+                Error::file(
+                    &self.path,
+                    format!("{name}: {}", Error::io(&self.path, err).problem),
+                )
+                .fix(REBUILD)
+            })?;
         self.pages_read.fetch_add(1, Ordering::Relaxed);
-        self.bytes_read.fetch_add(stored.len() as u64, Ordering::Relaxed);
+        self.bytes_read
+            .fetch_add(stored.len() as u64, Ordering::Relaxed);
         if crc32fast::hash(&stored) != e.crc {
             return Err(Error::file(&self.path, format!("{name} checksum mismatch")).fix(REBUILD));
         }
@@ -233,14 +270,23 @@ impl TileReader {
 }
 
 /// What is wrong with an index entry, if anything.
-fn entry_problem(e: &IndexEntry, layout: &Layout, align: u64, data_start: u64, file_len: u64) -> Option<String> {
+fn entry_problem(
+    e: &IndexEntry,
+    layout: &Layout,
+    align: u64,
+    data_start: u64,
+    file_len: u64,
+) -> Option<String> {
     if e.flags & !KNOWN_FLAGS != 0 {
         return Some(format!("has unknown flags {:#x}", e.flags));
     }
     if e.offset % align != 0 || e.offset < align_up(data_start, align) {
         return Some(format!("has a misplaced offset {}", e.offset));
     }
-    if e.offset.checked_add(e.stored_len as u64).is_none_or(|end| end > file_len) {
+    if e.offset
+        .checked_add(e.stored_len as u64)
+        .is_none_or(|end| end > file_len)
+    {
         return Some("extends past the end of the file".into());
     }
     let fixed = layout.fixed_len as u64;
@@ -249,11 +295,17 @@ fn entry_problem(e: &IndexEntry, layout: &Layout, align: u64, data_start: u64, f
         return Some(format!("has a raw length of {raw} bytes, expected {fixed}"));
     }
     if e.flags & FLAG_LZ4 == 0 && e.stored_len != e.raw_len {
-        return Some(format!("stores {} bytes uncompressed, expected {raw}", e.stored_len));
+        return Some(format!(
+            "stores {} bytes uncompressed, expected {raw}",
+            e.stored_len
+        ));
     }
     // LZ4 expands at most 255:1; a larger claim is corruption (and would be a huge allocation).
     if e.flags & FLAG_LZ4 != 0 && raw > 255 * e.stored_len as u64 + 16 {
-        return Some(format!("claims {raw} raw bytes from {} compressed ones", e.stored_len));
+        return Some(format!(
+            "claims {raw} raw bytes from {} compressed ones",
+            e.stored_len
+        ));
     }
     None
 }
@@ -267,7 +319,13 @@ mod tests {
     #[test]
     fn lz4_ratio_bound_admits_the_most_compressible_pages() {
         // A page of one cell (9 bytes of layers) whose bricks blob makes up the rest.
-        let info = TileSetInfo::new(Grid::north_up(0.0, 0.0, 1.0, 1, 1, Crs::unknown()), 1, 4, None).unwrap();
+        let info = TileSetInfo::new(
+            Grid::north_up(0.0, 0.0, 1.0, 1, 1, Crs::unknown()),
+            1,
+            4,
+            None,
+        )
+        .unwrap();
         let layout = Layout::of(&info);
         let entry = |stored_len: usize, raw_len: usize| IndexEntry {
             offset: 4096,
@@ -279,9 +337,16 @@ mod tests {
         // All-equal bytes are lz4's best case: every real page must pass the open-time check.
         for len in [9usize, 16 * 9, 256 * 256 * 9, 1024 * 1024 * 9] {
             let stored = lz4_flex::block::compress(&vec![0u8; len]).len();
-            assert_eq!(entry_problem(&entry(stored, len), &layout, 4096, 0, u64::MAX), None, "{len} → {stored} bytes");
+            assert_eq!(
+                entry_problem(&entry(stored, len), &layout, 4096, 0, u64::MAX),
+                None,
+                "{len} → {stored} bytes"
+            );
         }
         let problem = entry_problem(&entry(10, 100_000), &layout, 4096, 0, u64::MAX).unwrap();
-        assert!(problem.contains("claims 100000 raw bytes from 10"), "{problem}");
+        assert!(
+            problem.contains("claims 100000 raw bytes from 10"),
+            "{problem}"
+        );
     }
 }

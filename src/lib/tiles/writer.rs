@@ -7,7 +7,9 @@
 //! through a temporary file renamed into place, so a failed run never leaves a partial file.
 
 use super::info::TileSetInfo;
-use super::layout::{align_up, storage_order, IndexEntry, Preamble, ENTRY_LEN, PREAMBLE_LEN, VERSION};
+use super::layout::{
+    align_up, storage_order, IndexEntry, Preamble, ENTRY_LEN, PREAMBLE_LEN, VERSION,
+};
 use super::page::{self, Layout, Page};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
@@ -47,7 +49,10 @@ impl TileWriter {
     pub fn create(path: &Path, info: TileSetInfo) -> Result<TileWriter> {
         info.validate().map_err(|e| e.in_file(path))?;
         if info.layers != super::info::standard_layers() {
-            return Err(Error::file(path, "this dbms writes only the standard layers max_z, colour, state"));
+            return Err(Error::file(
+                path,
+                "this dbms writes only the standard layers max_z, colour, state",
+            ));
         }
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
@@ -57,13 +62,19 @@ impl TileWriter {
             .prefix(".dbms-spool-")
             .suffix(".tmp")
             .tempfile_in(dir)
-            .map_err(|e| Error::io(dir, e).fix("check that the output directory exists and is writable"))?;
+            .map_err(|e| {
+                Error::io(dir, e).fix("check that the output directory exists and is writable")
+            })?;
         let pages = vec![None; info.page_count()];
         Ok(TileWriter {
             path: path.to_path_buf(),
             layout: Layout::of(&info),
             info,
-            spool: Mutex::new(Spool { file, len: 0, pages }),
+            spool: Mutex::new(Spool {
+                file,
+                len: 0,
+                pages,
+            }),
         })
     }
 
@@ -77,19 +88,36 @@ impl TileWriter {
     /// wrong length, padding cells that are not nodata, or an unknown state value.
     pub fn write_page(&self, level: usize, tx: usize, ty: usize, page: &Page) -> Result<()> {
         let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
-            Error::file(&self.path, format!("page (level {level}, {tx}, {ty}) is outside the tile set"))
+            Error::file(
+                &self.path,
+                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
+            )
         })?;
         page::check(&self.info, level, tx, ty, page).map_err(|e| e.in_file(&self.path))?;
-        let enc = page::encode(&self.layout, page, self.info.compression).map_err(|e| e.in_file(&self.path))?;
+        let enc = page::encode(&self.layout, page, self.info.compression)
+            .map_err(|e| e.in_file(&self.path))?;
         let mut spool = self.spool.lock().unwrap_or_else(|p| p.into_inner());
         if spool.pages[pos].is_some() {
-            return Err(Error::file(&self.path, format!("page (level {level}, {tx}, {ty}) was written twice")));
+            return Err(Error::file(
+                &self.path,
+                format!("page (level {level}, {tx}, {ty}) was written twice"),
+            ));
         }
         let at = spool.len;
-        spool.file.as_file().write_all_at(&enc.stored, at).map_err(|e| Error::io(spool.file.path(), e))?;
+        spool
+            .file
+            .as_file()
+            .write_all_at(&enc.stored, at)
+            .map_err(|e| Error::io(spool.file.path(), e))?;
         spool.len += enc.stored.len() as u64;
         let stored_len = enc.stored.len() as u32; // ≤ raw_len (lz4 kept only when smaller)
-        spool.pages[pos] = Some(Spooled { at, stored_len, raw_len: enc.raw_len, crc: enc.crc, flags: enc.flags });
+        spool.pages[pos] = Some(Spooled {
+            at,
+            stored_len,
+            raw_len: enc.raw_len,
+            crc: enc.crc,
+            flags: enc.flags,
+        });
         Ok(())
     }
 
@@ -106,7 +134,11 @@ impl TileWriter {
             )
             .fix("write every page of every level before finishing"));
         }
-        let pages: Vec<Spooled> = spool.pages.into_iter().map(|p| p.expect("checked above")).collect();
+        let pages: Vec<Spooled> = spool
+            .pages
+            .into_iter()
+            .map(|p| p.expect("checked above"))
+            .collect();
 
         let header = serde_json::to_vec_pretty(&self.info).expect("header serialises");
         let header_offset = PREAMBLE_LEN as u64;
@@ -114,12 +146,27 @@ impl TileWriter {
         let index_end = index_offset + (pages.len() * ENTRY_LEN) as u64;
         let align = self.info.alignment;
         let order = storage_order(&self.info);
-        let mut entries = vec![IndexEntry { offset: 0, stored_len: 0, raw_len: 0, crc: 0, flags: 0 }; pages.len()];
+        let mut entries = vec![
+            IndexEntry {
+                offset: 0,
+                stored_len: 0,
+                raw_len: 0,
+                crc: 0,
+                flags: 0
+            };
+            pages.len()
+        ];
         let mut end = index_end;
         for &pos in &order {
             let p = pages[pos];
             let offset = align_up(end, align);
-            entries[pos] = IndexEntry { offset, stored_len: p.stored_len, raw_len: p.raw_len, crc: p.crc, flags: p.flags };
+            entries[pos] = IndexEntry {
+                offset,
+                stored_len: p.stored_len,
+                raw_len: p.raw_len,
+                crc: p.crc,
+                flags: p.flags,
+            };
             end = offset + p.stored_len as u64;
         }
         let index: Vec<u8> = entries.iter().flat_map(|e| e.encode()).collect();
@@ -154,7 +201,11 @@ impl TileWriter {
                 let (e, p) = (entries[pos], pages[pos]);
                 put(w, &zeros[..(e.offset - at) as usize], &mut at)?;
                 buf.resize(p.stored_len as usize, 0);
-                spool.file.as_file().read_exact_at(&mut buf, p.at).map_err(|e| Error::io(&spool_path, e))?;
+                spool
+                    .file
+                    .as_file()
+                    .read_exact_at(&mut buf, p.at)
+                    .map_err(|e| Error::io(&spool_path, e))?;
                 put(w, &buf, &mut at)?;
             }
             debug_assert_eq!(at, end);
