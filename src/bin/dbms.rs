@@ -25,6 +25,8 @@ enum Command {
     Ingest(cmd::ingest::Args),
     /// Show what a database holds: grid, layers, checksums, stages run.
     Info(cmd::info::Args),
+    /// Make a synthetic voxel object: revolved tank, cone tree, or buildings extruded from footprints.
+    Object(cmd::object::Args),
     /// Build the render database: max-Z / average-colour levels as a paged tile file, shaded for a sun.
     Pyramid(cmd::pyramid::Args),
     /// Carve a coloured voxel object from calibrated silhouettes (visual hull).
@@ -43,6 +45,7 @@ fn main() -> ExitCode {
     let result: dbms::Result<()> = match cli.command {
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),
+        Command::Object(a) => cmd::object::run(a, &ctx),
         Command::Pyramid(a) => cmd::pyramid::run(a, &ctx),
         Command::Sculpt(a) => cmd::sculpt::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),

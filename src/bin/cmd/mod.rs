@@ -3,6 +3,7 @@
 
 pub mod info;
 pub mod ingest;
+pub mod object;
 pub mod pyramid;
 pub mod sculpt;
 pub mod shadows;

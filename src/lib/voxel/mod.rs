@@ -15,5 +15,6 @@ pub mod picture;
 pub mod sculpt;
 pub mod silhouette;
 pub mod solids;
+pub mod synth;
 mod vec3;
 pub mod views;

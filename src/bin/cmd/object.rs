@@ -1,0 +1,144 @@
+//! `dbms object`: synthetic voxel objects (tanks, trees, extruded buildings).
+
+use super::Ctx;
+use dbms::voxel::export::{write_exports, Export};
+use dbms::voxel::object::{parse_rgb, VoxelObject};
+use dbms::voxel::{format, synth};
+use std::path::PathBuf;
+
+/// Make a synthetic voxel object (docs/voxel-object.md).
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    kind: Kind,
+}
+
+/// Options every kind shares.
+#[derive(clap::Args)]
+struct Out {
+    /// Voxel edge, metres.
+    #[arg(long)]
+    voxel: f64,
+    /// The voxel object to write (.dvox).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write these beside the object (same name, .ply / .vox).
+    #[arg(long, value_enum)]
+    export: Vec<Export>,
+}
+
+#[derive(clap::Subcommand)]
+enum Kind {
+    /// Surface of revolution about the vertical axis (storage tanks, silos, domes).
+    Revolve {
+        /// Profile R:Z,R:Z,... metres from bottom to top, e.g. 6:0,6:8,0:9.5 (closed via the axis).
+        #[arg(long)]
+        profile: String,
+        /// Colour R,G,B.
+        #[arg(long, default_value = "200,200,195")]
+        colour: String,
+        #[command(flatten)]
+        out: Out,
+    },
+    /// A cone tree on a trunk, with seeded variation in size and shade.
+    Cone {
+        /// Nominal total height, metres.
+        #[arg(long)]
+        height: f64,
+        /// Crown radius at its base, metres.
+        #[arg(long)]
+        radius: f64,
+        /// Trunk height as a fraction of the total.
+        #[arg(long, default_value_t = 0.25)]
+        trunk: f64,
+        /// Trunk radius, metres.
+        #[arg(long, default_value_t = 0.2)]
+        trunk_radius: f64,
+        /// Relative variation of size and shade, in [0, 1).
+        #[arg(long, default_value_t = 0.2)]
+        vary: f64,
+        /// Seed of the variation.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Crown colour R,G,B.
+        #[arg(long, default_value = "40,95,40")]
+        colour: String,
+        /// Trunk colour R,G,B.
+        #[arg(long, default_value = "90,65,40")]
+        trunk_colour: String,
+        #[command(flatten)]
+        out: Out,
+    },
+    /// Flat-roofed prisms from GeoJSON footprints with heights (world x, y kept; z = 0 is the ground).
+    Extrude {
+        /// GeoJSON FeatureCollection of Polygon / MultiPolygon footprints.
+        #[arg(long)]
+        footprints: PathBuf,
+        /// The property holding each footprint's height, metres.
+        #[arg(long, default_value = "height")]
+        height_field: String,
+        /// Wall colour R,G,B.
+        #[arg(long, default_value = "180,170,160")]
+        colour: String,
+        /// Roof colour R,G,B.
+        #[arg(long, default_value = "120,110,105")]
+        roof_colour: String,
+        #[command(flatten)]
+        out: Out,
+    },
+}
+
+fn parse_profile(s: &str) -> dbms::Result<Vec<[f64; 2]>> {
+    s.split(',')
+        .map(|pair| {
+            let (r, z) = pair.split_once(':').unwrap_or((pair, ""));
+            match (r.trim().parse::<f64>(), z.trim().parse::<f64>()) {
+                (Ok(r), Ok(z)) => Ok([r, z]),
+                _ => Err(dbms::Error::msg(format!("--profile {s}: \"{pair}\" is not R:Z")).fix("e.g. --profile 6:0,6:8,0:9.5")),
+            }
+        })
+        .collect()
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let (obj, out, source, extra): (VoxelObject, Out, String, serde_json::Value) = match args.kind {
+        Kind::Revolve { profile, colour, out } => {
+            let obj = synth::revolve(&parse_profile(&profile)?, out.voxel, parse_rgb(&colour)?)?;
+            (obj, out, format!("dbms object revolve --profile {profile}"), serde_json::json!({}))
+        }
+        Kind::Cone { height, radius, trunk, trunk_radius, vary, seed, colour, trunk_colour, out } => {
+            let p = synth::TreeParams {
+                height,
+                radius,
+                trunk_fraction: trunk,
+                trunk_radius,
+                vary,
+                crown: parse_rgb(&colour)?,
+                trunk: parse_rgb(&trunk_colour)?,
+                seed,
+            };
+            let (obj, h) = synth::cone_tree(&p, out.voxel)?;
+            (obj, out, format!("dbms object cone --height {height} --radius {radius} --vary {vary} --seed {seed}"), serde_json::json!({ "tree_height_m": h }))
+        }
+        Kind::Extrude { footprints, height_field, colour, roof_colour, out } => {
+            let fp = synth::read_footprints(&footprints, &height_field)?;
+            let obj = synth::extrude(&fp, out.voxel, parse_rgb(&colour)?, parse_rgb(&roof_colour)?)?;
+            let n = fp.len();
+            (obj, out, format!("dbms object extrude ({n} footprints)"), serde_json::json!({ "footprints": n }))
+        }
+    };
+    format::write(&out.output, &obj, &source)?;
+    let exports = write_exports(&out.output, &obj, &out.export)?;
+    let d = obj.grid.dims;
+    let a = obj.anchor();
+    let human = format!(
+        "{}: {} voxels in a {}x{}x{} grid of {} m; anchor (bottom centre) at ({}, {}, {})",
+        out.output.display(), obj.len(), d[0], d[1], d[2], out.voxel, a[0], a[1], a[2]
+    );
+    let mut json = serde_json::json!({ "output": out.output, "exports": exports, "voxels": obj.len(), "dims": d, "anchor": a });
+    if let (Some(j), Some(e)) = (json.as_object_mut(), extra.as_object()) {
+        j.extend(e.clone());
+    }
+    ctx.report(human, json);
+    Ok(())
+}
