@@ -23,6 +23,7 @@ pub mod io;
 pub mod progress;
 pub mod pyramid;
 pub mod raster;
+pub mod render;
 pub mod sample;
 pub mod shadow;
 pub mod sun;

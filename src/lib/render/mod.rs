@@ -1,0 +1,384 @@
+//! `dbms render`: a ray-casting preview of a paged tile set (the Hughes patent's stepping loop).
+//!
+//! A pinhole [`Camera`] casts one ray per pixel. Each ray is moved into the database's local
+//! cell space (relative to the grid origin, so UTM-sized eyes keep full precision) and
+//! [marched](march::march) through the max-Z hierarchy: coarse steps through empty space,
+//! descents where it may hit, exact integer-boundary stepping at level 0. Range thresholds
+//! `TH_k = L_k · N_pix / H_fov` (cell edge `L_k` in metres, field of view in radians) stop a ray
+//! at a coarse level's average colour at long range. Rays that leave the database take the
+//! [sky](sky::sky), or with `repeat` continue through copies of it (modulo arithmetic).
+//! [`render_top`] is the orthographic map of the whole database.
+//!
+//! Invariants: pages come only through [`TileReader`] (bounded cache, counted reads); the same
+//! tile set and camera give the same pixels whatever the thread count; without range thresholds
+//! the hierarchical and level-0 traversals give bit-identical frames. Voxel bricks of partial
+//! cells (`state` 1) have no defined payload yet: such cells render as their `max_z` column.
+//! Conventions and figures: `docs/render.md`.
+
+pub mod camera;
+pub mod march;
+pub mod ray;
+pub mod sampler;
+pub mod sky;
+pub mod synthetic;
+
+pub use camera::{Attitude, Camera};
+pub use march::{Face, Hit, Plan, Span, Traversal};
+
+use crate::error::{Error, Result};
+use crate::io::atomic::write_bytes_atomic;
+use crate::tiles::{ReaderStats, TileReader};
+use rayon::prelude::*;
+use ray::{Axis, Ray};
+use sampler::Sampler;
+use serde::Serialize;
+use std::collections::BTreeSet;
+use std::path::Path;
+use std::time::Instant;
+
+/// With `repeat`, rays that hit nothing stop after this many database diagonals of range.
+pub const REPEAT_RANGE_DIAGONALS: f64 = 8.0;
+
+/// How to render a perspective view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewOptions {
+    /// Traversal strategy.
+    pub traversal: Traversal,
+    /// Use range thresholds (coarse colour at long range).
+    pub lod: bool,
+    /// Repeat the database over the plane by modulo arithmetic.
+    pub repeat: bool,
+    /// Range haze: distance at which `1 − 1/e` of a colour is haze, metres (`None`: off).
+    pub visibility: Option<f64>,
+    /// Stop looking beyond this range, metres (`None`: the database's edge, or
+    /// [`REPEAT_RANGE_DIAGONALS`] diagonals with `repeat`).
+    pub max_range: Option<f64>,
+}
+
+impl Default for ViewOptions {
+    fn default() -> Self {
+        ViewOptions { traversal: Traversal::Hierarchical, lod: true, repeat: false, visibility: None, max_range: None }
+    }
+}
+
+/// What rendering a frame did (for `--json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderStats {
+    /// Rays cast (pixels).
+    pub rays: u64,
+    /// Rays that hit the database.
+    pub hits: u64,
+    /// Cells visited by all rays, over all levels.
+    pub cells_stepped: u64,
+    /// Distinct pages the rays asked for.
+    pub pages_touched: usize,
+    /// Reader counters for this frame (pages and bytes read from the file, cache hits).
+    pub reader: ReaderStats,
+    /// Wall-clock time of the frame, seconds.
+    pub seconds: f64,
+    /// Rays per second.
+    pub rays_per_second: f64,
+}
+
+/// A rendered image: RGB pixels and the range of each, row-major from the top-left.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Colour of each pixel.
+    pub rgb: Vec<[u8; 3]>,
+    /// Range of each pixel's hit, metres; `+inf` where the ray saw the sky.
+    pub range: Vec<f32>,
+    /// What it took.
+    pub stats: RenderStats,
+}
+
+/// The database box and level geometry a frame needs, read once.
+struct Scene {
+    width: i64,
+    height: i64,
+    origin: [f64; 2],
+    cell: [f64; 2],
+    /// Highest `max_z` of the whole tile set, metres (NaN when it has no data).
+    z_max: f64,
+    scales: Vec<i64>,
+}
+
+impl Scene {
+    fn of(reader: &TileReader) -> Result<Scene> {
+        let info = reader.info();
+        if info.grid.crs.geographic {
+            return Err(Error::file(reader.path(), "the tile set's CRS is geographic (degrees); rendering needs metres on every axis")
+                .fix("ingest the database in a projected CRS such as UTM"));
+        }
+        let top = info.levels.len() - 1;
+        let l = &info.levels[top];
+        let mut z_max = f32::NAN;
+        for ty in 0..l.pages_y {
+            for tx in 0..l.pages_x {
+                z_max = reader.page(top, tx, ty)?.max_z.iter().fold(z_max, |m, &z| m.max(z));
+            }
+        }
+        let t = &info.grid.transform;
+        Ok(Scene {
+            width: info.grid.width as i64,
+            height: info.grid.height as i64,
+            origin: [t.origin_x, t.origin_y],
+            cell: [t.cell_x, t.cell_y],
+            z_max: z_max as f64,
+            scales: (0..info.levels.len()).map(|k| (info.factor as i64).pow(k as u32)).collect(),
+        })
+    }
+
+    /// The eye in local cell space.
+    fn local(&self, x: f64, y: f64) -> (f64, f64) {
+        ((x - self.origin[0]) / self.cell[0], (y - self.origin[1]) / self.cell[1])
+    }
+
+    /// Coarsest level usable: every level, or with `repeat` those whose cells tile the plane.
+    fn top(&self, repeat: bool) -> usize {
+        let n = self.scales.len() - 1;
+        match repeat {
+            false => n,
+            true => (0..=n).take_while(|&k| self.width % self.scales[k] == 0 && self.height % self.scales[k] == 0).last().unwrap_or(0),
+        }
+    }
+
+    fn diagonal_m(&self) -> f64 {
+        (self.width as f64 * self.cell[0]).hypot(self.height as f64 * self.cell[1])
+    }
+
+    /// The part of `ray` worth stepping: inside the box (unless repeating), below `z_max`.
+    fn span(&self, ray: &Ray, repeat: bool, max_range: f64) -> Option<Span> {
+        let (mut t0, mut t1) = (0.0f64, max_range);
+        if !repeat {
+            let (a, b) = ray.u.slab(self.width);
+            let (c, d) = ray.v.slab(self.height);
+            t0 = t0.max(a).max(c);
+            t1 = t1.min(b).min(d);
+        }
+        if self.z_max.is_nan() {
+            return None;
+        }
+        if ray.z0 > self.z_max {
+            t0 = t0.max(ray.time_at_height(self.z_max).filter(|_| ray.dz < 0.0)?);
+        } else if ray.dz > 0.0 {
+            t1 = t1.min(ray.time_at_height(self.z_max).expect("rising"));
+        }
+        (t0 < t1).then_some(Span { t0, t1 })
+    }
+}
+
+/// Render the perspective view of `camera` over the tile set behind `reader`.
+pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> Result<Frame> {
+    camera.validate()?;
+    if let Some(v) = opts.visibility.filter(|v| !(*v > 0.0 && v.is_finite())) {
+        return Err(Error::msg(format!("--haze {v}: visibility must be a positive number of metres")).fix("e.g. --haze 5000"));
+    }
+    if let Some(r) = opts.max_range.filter(|r| !(*r > 0.0)) {
+        return Err(Error::msg(format!("--max-range {r}: must be a positive number of metres")));
+    }
+    let start = Instant::now();
+    let before = reader.stats();
+    let scene = Scene::of(reader)?;
+    let [ex, ey, ez] = camera.eye;
+    let (u0, v0) = scene.local(ex, ey);
+    check_eye_above_terrain(reader, opts.repeat, u0, v0, camera)?;
+
+    let top = scene.top(opts.repeat);
+    let cell_m = scene.cell[0].abs().max(scene.cell[1].abs());
+    let per_pixel = camera.hfov.to_radians() / camera.width as f64;
+    let plan = Plan {
+        traversal: opts.traversal,
+        top,
+        scales: scene.scales.clone(),
+        thresholds: opts.lod.then(|| scene.scales.iter().map(|&s| s as f64 * cell_m / per_pixel).collect()),
+    };
+    let max_range = opts.max_range.unwrap_or(if opts.repeat { REPEAT_RANGE_DIAGONALS * scene.diagonal_m() } else { f64::INFINITY });
+    let basis = camera.basis();
+    let rows: Vec<Row> = (0..camera.height)
+        .into_par_iter()
+        .map(|j| {
+            let mut sampler = Sampler::new(reader, opts.repeat);
+            let mut row = Row::new(camera.width);
+            for i in 0..camera.width {
+                let d = basis.direction(i, j);
+                let ray = Ray { u: Axis::new(u0, d[0] / scene.cell[0]), v: Axis::new(v0, d[1] / scene.cell[1]), z0: ez, dz: d[2] };
+                let hit = match scene.span(&ray, opts.repeat, max_range) {
+                    Some(span) => {
+                        let (hit, steps) = march::march(&ray, span, &mut sampler, &plan)?;
+                        row.steps += steps;
+                        hit
+                    }
+                    None => None,
+                };
+                row.put(hit, d[2], opts.visibility);
+            }
+            row.touched = sampler.touched;
+            Ok(row)
+        })
+        .collect::<Result<_>>()?;
+    Ok(assemble(camera.width, camera.height, rows, reader, before, start))
+}
+
+/// Error if the eye is on or below the top of any level-0 column whose closed cell contains it.
+fn check_eye_above_terrain(reader: &TileReader, repeat: bool, u: f64, v: f64, camera: &Camera) -> Result<()> {
+    let near = |x: f64| {
+        let k = x.floor() as i64;
+        if x == x.floor() { vec![k - 1, k] } else { vec![k] }
+    };
+    let mut sampler = Sampler::new(reader, repeat);
+    for c in near(u) {
+        for r in near(v) {
+            if let Some(cell) = sampler.cell(0, c, r)? {
+                if !cell.max_z.is_nan() && camera.eye[2] <= cell.max_z as f64 {
+                    let [x, y, z] = camera.eye;
+                    return Err(Error::msg(format!(
+                        "--eye {x},{y},{z}: the eye is at or below the terrain, whose top there is {:.2} m",
+                        cell.max_z
+                    ))
+                    .fix("raise Z above the ground or move the eye"));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One image row as a worker renders it.
+struct Row {
+    rgb: Vec<[u8; 3]>,
+    range: Vec<f32>,
+    steps: u64,
+    hits: u64,
+    touched: BTreeSet<(usize, usize, usize)>,
+}
+
+impl Row {
+    fn new(width: usize) -> Row {
+        Row { rgb: Vec::with_capacity(width), range: Vec::with_capacity(width), steps: 0, hits: 0, touched: BTreeSet::new() }
+    }
+
+    fn put(&mut self, hit: Option<Hit>, dz: f64, visibility: Option<f64>) {
+        match hit {
+            Some(h) => {
+                self.hits += 1;
+                self.rgb.push(sky::shade(h.colour, h.face, h.t, visibility));
+                self.range.push(h.t as f32);
+            }
+            None => {
+                self.rgb.push(sky::sky(dz));
+                self.range.push(f32::INFINITY);
+            }
+        }
+    }
+}
+
+fn assemble(width: usize, height: usize, rows: Vec<Row>, reader: &TileReader, before: ReaderStats, start: Instant) -> Frame {
+    let mut frame_rgb = Vec::with_capacity(width * height);
+    let mut frame_range = Vec::with_capacity(width * height);
+    let (mut steps, mut hits, mut touched) = (0, 0, BTreeSet::new());
+    for row in rows {
+        frame_rgb.extend(row.rgb);
+        frame_range.extend(row.range);
+        steps += row.steps;
+        hits += row.hits;
+        touched.extend(row.touched);
+    }
+    let after = reader.stats();
+    let seconds = start.elapsed().as_secs_f64();
+    let rays = (width * height) as u64;
+    Frame {
+        width,
+        height,
+        rgb: frame_rgb,
+        range: frame_range,
+        stats: RenderStats {
+            rays,
+            hits,
+            cells_stepped: steps,
+            pages_touched: touched.len(),
+            reader: ReaderStats {
+                pages_read: after.pages_read - before.pages_read,
+                bytes_read: after.bytes_read - before.bytes_read,
+                cache_hits: after.cache_hits - before.cache_hits,
+            },
+            seconds,
+            rays_per_second: rays as f64 / seconds.max(1e-9),
+        },
+    }
+}
+
+/// Render the orthographic map of the whole database, `width × height` pixels, looking straight
+/// down. Each pixel shows the cell under its centre; with `lod`, from the coarsest level whose
+/// cells are no wider than a pixel's footprint. Range is the depth below the database's highest
+/// point, metres (`+inf` over nodata, drawn black).
+pub fn render_top(reader: &TileReader, width: usize, height: usize, lod: bool) -> Result<Frame> {
+    camera::check_size(width, height)?;
+    let start = Instant::now();
+    let before = reader.stats();
+    let scene = Scene::of(reader)?;
+    let (sx, sy) = (scene.width as f64 / width as f64, scene.height as f64 / height as f64);
+    let level = match lod {
+        true => scene.scales.iter().rposition(|&s| s as f64 <= sx.min(sy)).unwrap_or(0),
+        false => 0,
+    };
+    let s = scene.scales[level];
+    let rows: Vec<Row> = (0..height)
+        .into_par_iter()
+        .map(|j| {
+            let mut sampler = Sampler::new(reader, false);
+            let mut row = Row::new(width);
+            let r = (((j as f64 + 0.5) * sy).floor() as i64).div_euclid(s);
+            for i in 0..width {
+                let c = (((i as f64 + 0.5) * sx).floor() as i64).div_euclid(s);
+                row.steps += 1;
+                match sampler.cell(level, c, r)? {
+                    Some(cell) if !cell.max_z.is_nan() => {
+                        row.hits += 1;
+                        row.rgb.push([cell.colour[0], cell.colour[1], cell.colour[2]]);
+                        row.range.push((scene.z_max - cell.max_z as f64) as f32);
+                    }
+                    _ => {
+                        row.rgb.push([0, 0, 0]);
+                        row.range.push(f32::INFINITY);
+                    }
+                }
+            }
+            row.touched = sampler.touched;
+            Ok(row)
+        })
+        .collect::<Result<_>>()?;
+    Ok(assemble(width, height, rows, reader, before, start))
+}
+
+impl Frame {
+    /// The frame as PNG bytes (8-bit RGB; deterministic).
+    pub fn png(&self) -> Result<Vec<u8>> {
+        use image::ImageEncoder;
+        let mut out = Vec::new();
+        let bytes: Vec<u8> = self.rgb.iter().flatten().copied().collect();
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(&bytes, self.width as u32, self.height as u32, image::ExtendedColorType::Rgb8)
+            .map_err(|e| Error::msg(format!("encoding the PNG failed: {e}")))?;
+        Ok(out)
+    }
+
+    /// Write the frame as a PNG file, atomically.
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        write_bytes_atomic(path, &self.png()?)
+    }
+
+    /// Write the range image as a one-channel (`Z`) f32 OpenEXR file, atomically: metres per
+    /// pixel, `+inf` where the ray saw the sky.
+    pub fn write_range_exr(&self, path: &Path) -> Result<()> {
+        use exr::prelude::*;
+        let channel = AnyChannel::new("Z", FlatSamples::F32(self.range.clone()));
+        let image = Image::from_channels((self.width, self.height), AnyChannels::sort(SmallVec::from_vec(vec![channel])));
+        let mut buf = std::io::Cursor::new(Vec::new());
+        image.write().to_buffered(&mut buf).map_err(|e| crate::Error::file(path, format!("encoding the EXR failed: {e}")))?;
+        write_bytes_atomic(path, &buf.into_inner())
+    }
+}

@@ -1,0 +1,62 @@
+//! Colours that do not come from the database: the sky, haze and wall shading.
+//!
+//! Invariant: every function here is a pure function of its arguments (no state, no
+//! randomness), so the same frame renders to the same bytes.
+
+use super::march::Face;
+
+/// Haze colour at the horizon, RGB.
+pub const HORIZON: [f64; 3] = [206.0, 216.0, 228.0];
+/// Sky colour at the zenith, RGB.
+pub const ZENITH: [f64; 3] = [58.0, 108.0, 190.0];
+/// Elevation over which the horizon haze fades into the zenith blue, radians (e-folding).
+const HAZE_BAND_RAD: f64 = 0.12;
+
+/// Sky colour for a ray whose direction has vertical component `dz` (sine of its elevation):
+/// haze at and below the horizon blending into blue overhead.
+pub fn sky(dz: f64) -> [u8; 3] {
+    let elevation = dz.clamp(-1.0, 1.0).asin();
+    let w = if elevation > 0.0 { 1.0 - (-elevation / HAZE_BAND_RAD).exp() } else { 0.0 };
+    std::array::from_fn(|k| (HORIZON[k] + (ZENITH[k] - HORIZON[k]) * w).round() as u8)
+}
+
+/// Brightness factor of a face, so that walls read against the tops they stand under.
+pub fn face_factor(face: Face) -> f64 {
+    match face {
+        Face::Top => 1.0,
+        Face::WallU => 0.8,
+        Face::WallV => 0.65,
+    }
+}
+
+/// The colour of a hit seen at `range` metres: the face-shaded cell colour, blended toward the
+/// horizon haze by `1 − exp(−range / visibility)` when a visibility (metres) is given.
+pub fn shade(colour: [u8; 4], face: Face, range: f64, visibility: Option<f64>) -> [u8; 3] {
+    let f = face_factor(face);
+    let a = visibility.map_or(0.0, |v| 1.0 - (-range / v).exp());
+    std::array::from_fn(|k| {
+        let c = colour[k] as f64 * f;
+        (c + (HORIZON[k] - c) * a).round().clamp(0.0, 255.0) as u8
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sky_is_haze_at_the_horizon_and_bluer_overhead() {
+        assert_eq!(sky(0.0), [206, 216, 228]);
+        assert_eq!(sky(-0.5), sky(0.0));
+        let up = sky(1.0);
+        assert!(up[2] as i32 - up[0] as i32 > sky(0.1)[2] as i32 - sky(0.1)[0] as i32);
+    }
+
+    #[test]
+    fn haze_grows_with_range() {
+        let c = [0, 0, 0, 255];
+        assert_eq!(shade(c, Face::Top, 100.0, None), [0, 0, 0]);
+        assert!(shade(c, Face::Top, 100.0, Some(1000.0))[0] < shade(c, Face::Top, 5000.0, Some(1000.0))[0]);
+        assert_eq!(shade([100, 100, 100, 255], Face::WallV, 0.0, None), [65, 65, 65]);
+    }
+}
