@@ -38,6 +38,11 @@ impl Fixture {
         let mut info = TileSetInfo::new(grid, page, factor, None).unwrap();
         info.compression = compression;
         info.effects = serde_json::json!({"shadows": false, "note": "test"});
+        Fixture::with_info(info, seed)
+    }
+
+    /// Random content for every cell of `info`'s levels.
+    fn with_info(info: TileSetInfo, seed: u64) -> Fixture {
         let cells = info
             .levels
             .iter()
@@ -241,6 +246,56 @@ fn standard(dir: &tempfile::TempDir, compression: Compression) -> (Fixture, Path
     let path = tmp_file(dir, "tiles.dbt");
     fx.write(&path, &fx.pages());
     (fx, path)
+}
+
+#[test]
+fn single_cell_grid_with_more_levels_than_needed() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = Grid::north_up(0.0, 1.0, 1.0, 1, 1, Crs::unknown());
+    let info = TileSetInfo::new(grid, 1, 2, Some(4)).unwrap();
+    assert_eq!(
+        info.levels
+            .iter()
+            .map(|l| (l.width, l.pages()))
+            .collect::<Vec<_>>(),
+        vec![(1, 1); 4]
+    );
+    assert_eq!(info.levels[3].cell_x, 8.0);
+    let fx = Fixture::with_info(info, 2);
+    let path = tmp_file(&dir, "one.dbt");
+    fx.write(&path, &fx.pages());
+    assert_reads_back(&fx, &TileReader::open(&path, 1).unwrap());
+}
+
+#[test]
+fn georeference_round_trips_exactly_at_utm_magnitudes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut grid = Grid::north_up(
+        512_345.123_456_789,
+        5_301_234.987_654_321,
+        0.1,
+        300,
+        200,
+        Crs::epsg(32632),
+    );
+    grid.transform.cell_y = -0.299_999_999_999_999_99;
+    grid.crs.wkt = Some("PROJCRS[\"WGS 84 / UTM zone 32N\", \"quoted\" ünïcode]".into());
+    let mut info = TileSetInfo::new(grid.clone(), 64, 4, None).unwrap();
+    info.effects = serde_json::json!({"sun": {"azimuth_deg": 0.1 + 0.2, "elevation_deg": 1e-300}});
+    let fx = Fixture::with_info(info.clone(), 4);
+    let path = tmp_file(&dir, "geo.dbt");
+    fx.write(&path, &fx.pages());
+    let reader = TileReader::open(&path, 0).unwrap();
+    assert_eq!(reader.info().grid, grid);
+    assert_eq!(reader.info().effects, info.effects);
+    let (x, y) = reader.info().level_grid(1).cell_centre(10, 20);
+    assert_eq!(
+        (x, y),
+        (
+            512_345.123_456_789 + 10.5 * 0.4,
+            5_301_234.987_654_321 + 20.5 * (4.0 * -0.299_999_999_999_999_99)
+        )
+    );
 }
 
 #[test]
