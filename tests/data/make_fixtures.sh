@@ -76,6 +76,10 @@ $t $utm -co PHOTOMETRIC=RGB "$tmp/rgb.vrt" rgb8.tif
 $t $utm -co PHOTOMETRIC=RGB -co ALPHA=YES -co COMPRESS=DEFLATE "$tmp/rgba.vrt" rgba8.tif
 $t $utm -co INTERLEAVE=BAND -co PHOTOMETRIC=RGB "$tmp/rgb.vrt" rgb8_planar.tif
 $t $utm -b 1 "$tmp/rgb.vrt" grey8.tif
+# JPEG-compressed YCbCr (the usual orthophoto TIFF), and GDAL's decoding of it as raw RGB bytes.
+$t $utm -co COMPRESS=JPEG -co PHOTOMETRIC=YCBCR "$tmp/rgb.vrt" rgb8_jpeg_ycbcr.tif
+$t -of ENVI -co INTERLEAVE=BIP rgb8_jpeg_ycbcr.tif "$tmp/ycbcr_gdal.raw"
+cp "$tmp/ycbcr_gdal.raw" rgb8_jpeg_ycbcr.gdal.rgb
 $t $utm -ot UInt16 -scale 0 255 0 65535 -co PHOTOMETRIC=RGB "$tmp/rgb.vrt" rgb16.tif
 
 # ASCII grid (GDAL writes the values exactly as integers) with a WKT1 .prj that carries the EPSG code.

@@ -47,6 +47,11 @@ mod key {
     pub const ANGULAR_DEGREE: u16 = 9102;
 }
 
+const PHOTOMETRIC_WHITE_IS_ZERO: u16 = 0;
+const PHOTOMETRIC_PALETTE: u16 = 3;
+const PHOTOMETRIC_YCBCR: u16 = 6;
+const COMPRESSION_JPEG: u16 = 7;
+
 /// GDAL's private TIFF tag holding band metadata as XML (scale, offset, statistics).
 const TAG_GDAL_METADATA: Tag = Tag::Unknown(42112);
 
@@ -86,9 +91,23 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
     let err = |e| corrupt(path, e);
     let (width, height) = dec.dimensions().map_err(err)?;
     let photometric: Option<u16> = dec.find_tag_unsigned(Tag::PhotometricInterpretation).map_err(err)?;
-    if photometric == Some(3) {
-        return Err(Error::file(path, "palette (colour-mapped) TIFF").fix("expand it: gdal_translate -expand rgba in.tif out.tif"));
-    }
+    let compression: Option<u16> = dec.find_tag_unsigned(Tag::Compression).map_err(err)?;
+    let ycbcr = match (photometric, compression) {
+        (Some(PHOTOMETRIC_WHITE_IS_ZERO), _) => {
+            // The tiff crate inverts such samples; GDAL returns them as stored. Refuse the ambiguity.
+            return Err(Error::file(path, "WhiteIsZero photometric interpretation")
+                .fix("rewrite it: gdal_translate -co PHOTOMETRIC=MINISBLACK in.tif out.tif"));
+        }
+        (Some(PHOTOMETRIC_PALETTE), _) => {
+            return Err(Error::file(path, "palette (colour-mapped) TIFF").fix("expand it: gdal_translate -expand rgba in.tif out.tif"));
+        }
+        (Some(PHOTOMETRIC_YCBCR), Some(COMPRESSION_JPEG)) => true,
+        (Some(PHOTOMETRIC_YCBCR), _) => {
+            return Err(Error::file(path, "YCbCr colour without JPEG compression is not supported")
+                .fix("rewrite it: gdal_translate -co PHOTOMETRIC=RGB in.tif out.tif"));
+        }
+        _ => false,
+    };
     let color = dec.colortype().map_err(err)?;
     if !matches!(color.bit_depth(), 8 | 16 | 32 | 64) {
         return Err(Error::file(path, format!("{}-bit samples are not supported", color.bit_depth()))
@@ -113,6 +132,13 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
     if layout.planes > 1 {
         samples = interleave(samples, bands);
     }
+    if ycbcr {
+        // The decoder leaves JPEG's YCbCr as stored; GDAL (libjpeg) returns RGB.
+        match &mut samples {
+            Samples::U8(v) if bands >= 3 => v.par_chunks_mut(bands).for_each(ycbcr_to_rgb),
+            _ => return Err(Error::file(path, "YCbCr TIFF that is not 8-bit with 3 colour bands").fix("rewrite it: gdal_translate -co PHOTOMETRIC=RGB in.tif out.tif")),
+        }
+    }
 
     let (crs, pixel_is_point) = tags.crs(path)?;
     let transform = match tags.transform(path, pixel_is_point)? {
@@ -134,6 +160,15 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         pixel_is_point,
         format: "GTiff",
     })
+}
+
+/// Full-range (JFIF) YCbCr to RGB in place, on the first three samples of a pixel, as libjpeg does.
+fn ycbcr_to_rgb(px: &mut [u8]) {
+    let (y, cb, cr) = (px[0] as f64, px[1] as f64 - 128.0, px[2] as f64 - 128.0);
+    let to8 = |v: f64| v.round().clamp(0.0, 255.0) as u8;
+    px[0] = to8(y + 1.402 * cr);
+    px[1] = to8(y - 0.344_136 * cb - 0.714_136 * cr);
+    px[2] = to8(y + 1.772 * cb);
 }
 
 /// Our sample vector from the decoder's; small types widen exactly (int8 → Int16, float16 → Float32).
