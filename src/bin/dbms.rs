@@ -27,6 +27,8 @@ enum Command {
     Info(cmd::info::Args),
     /// Make a synthetic voxel object: revolved tank, cone tree, or buildings extruded from footprints.
     Object(cmd::object::Args),
+    /// Place a voxel object in a database at X,Y[,Z] with a heading (recorded in the manifest).
+    Place(cmd::place::Args),
     /// Build the render database: max-Z / average-colour levels as a paged tile file, shaded for a sun.
     Pyramid(cmd::pyramid::Args),
     /// Carve a coloured voxel object from calibrated silhouettes (visual hull).
@@ -46,6 +48,7 @@ fn main() -> ExitCode {
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),
         Command::Object(a) => cmd::object::run(a, &ctx),
+        Command::Place(a) => cmd::place::run(a, &ctx),
         Command::Pyramid(a) => cmd::pyramid::run(a, &ctx),
         Command::Sculpt(a) => cmd::sculpt::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),

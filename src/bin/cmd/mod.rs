@@ -4,6 +4,7 @@
 pub mod info;
 pub mod ingest;
 pub mod object;
+pub mod place;
 pub mod pyramid;
 pub mod sculpt;
 pub mod shadows;

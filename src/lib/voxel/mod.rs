@@ -12,6 +12,7 @@ pub mod grid;
 pub mod object;
 pub mod occupancy;
 pub mod picture;
+pub mod place;
 pub mod sculpt;
 pub mod silhouette;
 pub mod solids;
