@@ -33,6 +33,8 @@ enum Command {
     Pyramid(cmd::pyramid::Args),
     /// Carve a coloured voxel object from calibrated silhouettes (visual hull).
     Sculpt(cmd::sculpt::Args),
+    /// Generate the sample scene: terrain, orthophoto with shadows, building footprints, truth.
+    Sample(cmd::sample::Args),
     /// Write the cast-shadow mask of a database for a sun (time or angles).
     Shadows(cmd::shadows::Args),
     /// Sun elevation, azimuth and zenith for a place (or a database's centre) and time (NREL SPA).
@@ -51,6 +53,7 @@ fn main() -> ExitCode {
         Command::Place(a) => cmd::place::run(a, &ctx),
         Command::Pyramid(a) => cmd::pyramid::run(a, &ctx),
         Command::Sculpt(a) => cmd::sculpt::run(a, &ctx),
+        Command::Sample(a) => cmd::sample::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),
         Command::Sun(a) => cmd::sun::run(a, &ctx),
         Command::Tiles(a) => cmd::tiles::run(a, &ctx),

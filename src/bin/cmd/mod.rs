@@ -6,6 +6,7 @@ pub mod ingest;
 pub mod object;
 pub mod place;
 pub mod pyramid;
+pub mod sample;
 pub mod sculpt;
 pub mod shadows;
 pub mod sun;
