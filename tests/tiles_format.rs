@@ -770,3 +770,21 @@ fn cli_rejects_a_file_that_is_not_a_tile_file() {
         .unwrap()
         .contains("not a dbms tile file (bad magic bytes)"));
 }
+
+#[test]
+fn unwritable_output_and_missing_input_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let fx = Fixture::new(5, 5, 4, 4, Compression::None, 1);
+    let err = TileWriter::create(&dir.path().join("no/such/dir/t.dbt"), fx.info.clone())
+        .err()
+        .expect("no directory to spool in")
+        .to_string();
+    assert!(err.contains("no/such/dir") && err.contains("check that the output directory exists"), "{err}");
+    let missing = tmp_file(&dir, "missing.dbt");
+    let out = dbms(&["tiles", missing.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert_eq!(
+        String::from_utf8(out.stderr).unwrap().trim_end(),
+        format!("dbms: error: {}: no such file or directory; check the path", missing.display())
+    );
+}
