@@ -382,3 +382,6 @@ impl Frame {
         write_bytes_atomic(path, &buf.into_inner())
     }
 }
+
+#[cfg(test)]
+mod tests;

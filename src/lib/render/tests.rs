@@ -1,0 +1,289 @@
+//! Analytic scenes for the renderer: flat planes, a single column, a step, rough terrain.
+
+use super::*;
+use crate::crs::Crs;
+use crate::grid::Grid;
+use crate::tiles::Compression;
+use proptest::prelude::*;
+use std::sync::OnceLock;
+
+const GREY: [u8; 4] = [120, 120, 120, 255];
+
+/// A tile set over a `w × h` grid of 1 m cells with its north-west corner at `(x0, y0)`.
+fn tiles<F>(x0: f64, y0: f64, w: usize, h: usize, page: usize, factor: usize, f: F) -> (tempfile::TempDir, TileReader)
+where
+    F: Fn(usize, usize) -> (f32, [u8; 4]) + Sync,
+{
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.dbt");
+    let grid = Grid::north_up(x0, y0, 1.0, w, h, Crs::epsg(32614));
+    synthetic::write_tiles(&path, grid, page, factor, Compression::None, f).unwrap();
+    let reader = TileReader::open(&path, 64).unwrap();
+    (dir, reader)
+}
+
+fn camera(eye: [f64; 3], roll: f64, pitch: f64, yaw: f64, w: usize, h: usize) -> Camera {
+    Camera { eye, attitude: Attitude { roll, pitch, yaw }, hfov: 60.0, width: w, height: h }
+}
+
+fn no_lod(traversal: Traversal) -> ViewOptions {
+    ViewOptions { traversal, lod: false, ..ViewOptions::default() }
+}
+
+fn centre(f: &Frame) -> usize {
+    (f.height / 2) * f.width + f.width / 2
+}
+
+#[test]
+fn looking_straight_down_on_a_plane_gives_height_over_cosine() {
+    // 100 m up over the middle of 256 m: the corner rays (< 37° off vertical) stay inside.
+    let (_d, r) = tiles(0.0, 256.0, 256, 256, 64, 4, |_, _| (10.0, GREY));
+    let f = render_view(&r, &camera([128.25, 128.5, 110.0], 0.0, -90.0, 0.0, 9, 7), &ViewOptions::default()).unwrap();
+    assert_eq!(f.range[centre(&f)], 100.0);
+    let b = camera([0.0; 3], 0.0, -90.0, 0.0, 9, 7).basis();
+    for (k, &range) in f.range.iter().enumerate() {
+        let d = b.direction(k % 9, k / 9);
+        assert!((range as f64 - 100.0 / -d[2]).abs() < 1e-3, "pixel {k}: {range}");
+    }
+    assert_eq!(f.stats.hits, 63);
+    assert!(f.stats.reader.pages_read > 0 && f.stats.reader.bytes_read > 0 && f.stats.pages_touched > 0);
+}
+
+#[test]
+fn looking_straight_up_sees_only_sky() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |_, _| (10.0, GREY));
+    let f = render_view(&r, &camera([32.0, 32.0, 20.0], 0.0, 90.0, 0.0, 8, 6), &ViewOptions::default()).unwrap();
+    assert!(f.range.iter().all(|r| r.is_infinite()));
+    assert_eq!(f.stats.hits, 0);
+    assert!(f.rgb.iter().all(|&c| c[2] > c[0]), "blue overhead");
+}
+
+/// A plane at 0 with one 20 m column at cell (40, 30).
+fn column(col: usize, row: usize) -> (f32, [u8; 4]) {
+    if (col, row) == (40, 30) {
+        (20.0, [255, 0, 0, 255])
+    } else {
+        (0.0, GREY)
+    }
+}
+
+#[test]
+fn ray_exactly_parallel_to_the_x_axis_hits_the_west_wall() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
+    // Row 30 spans y in (33, 34]; eye 10 m up at x = 10.5, looking due east: the centre ray has
+    // no north component and enters cell 40 at x = 40.
+    for t in [Traversal::Hierarchical, Traversal::Level0] {
+        let f = render_view(&r, &camera([10.5, 33.5, 10.0], 0.0, 0.0, 90.0, 5, 5), &no_lod(t)).unwrap();
+        assert_eq!(f.range[centre(&f)], 29.5, "{t:?}");
+        assert_eq!(f.rgb[centre(&f)], sky::shade([255, 0, 0, 255], Face::WallU, 29.5, None));
+    }
+}
+
+#[test]
+fn ray_exactly_parallel_to_the_y_axis_hits_the_north_wall() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
+    // Column 40 spans x in [40, 41); looking due south from row 5 toward row 30 (y = 34 edge).
+    for t in [Traversal::Hierarchical, Traversal::Level0] {
+        let f = render_view(&r, &camera([40.5, 60.25, 10.0], 0.0, 0.0, 180.0, 5, 5), &no_lod(t)).unwrap();
+        assert_eq!(f.range[centre(&f)], 26.25, "{t:?}");
+        assert_eq!(f.rgb[centre(&f)], sky::shade([255, 0, 0, 255], Face::WallV, 26.25, None));
+    }
+}
+
+#[test]
+fn eye_exactly_on_a_cell_corner() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
+    // Straight down from the corner shared by columns 39..=40 and rows 29..=30: the corner
+    // touches the 20 m column, the eye is 30 m up.
+    let f = render_view(&r, &camera([40.0, 34.0, 30.0], 0.0, -90.0, 0.0, 5, 5), &ViewOptions::default()).unwrap();
+    assert!(f.range.iter().all(|r| r.is_finite()));
+    let h = render_view(&r, &camera([40.0, 34.0, 30.0], 0.0, -50.0, 45.0, 31, 23), &no_lod(Traversal::Hierarchical)).unwrap();
+    let l = render_view(&r, &camera([40.0, 34.0, 30.0], 0.0, -50.0, 45.0, 31, 23), &no_lod(Traversal::Level0)).unwrap();
+    assert_eq!(h.rgb, l.rgb);
+    assert_eq!(bits(&h.range), bits(&l.range));
+}
+
+#[test]
+fn a_step_is_hit_on_its_wall_then_its_top() {
+    // z = 0 west of column 32, 16 m from column 32 on; eye at x = 4.5, 8 m up, looking east.
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |c, _| (if c < 32 { 0.0 } else { 16.0 }, GREY));
+    let f = render_view(&r, &camera([4.5, 20.5, 8.0], 0.0, 0.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    assert_eq!(f.range[centre(&f)], 27.5);
+    // Looking down at 45°, from 24 m over x = 4.5: the ray reaches z = 16 at x = 12.5 (west
+    // of the step) and would reach the ground at x = 28.5, so it hits the ground there.
+    let f = render_view(&r, &camera([4.5, 20.5, 24.0], 0.0, -45.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    assert!((f.range[centre(&f)] as f64 - 24.0 * 2f64.sqrt()).abs() < 1e-4);
+}
+
+#[test]
+fn eye_below_the_terrain_is_an_error() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
+    let e = render_view(&r, &camera([40.5, 33.5, 19.0], 0.0, 0.0, 0.0, 4, 4), &ViewOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("below the terrain"), "{e}");
+    // exactly on the edge of the column counts too
+    let e = render_view(&r, &camera([41.0, 33.5, 20.0], 0.0, 0.0, 0.0, 4, 4), &ViewOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("--eye 41,33.5,20"), "{e}");
+}
+
+#[test]
+fn eye_outside_the_database_looking_in_hits_its_edge() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |_, _| (10.0, GREY));
+    // 100 m west of the west edge, 5 m up (below the 10 m plane), looking east: the wall at x = 0.
+    let f = render_view(&r, &camera([-100.0, 32.5, 5.0], 0.0, 0.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    assert_eq!(f.range[centre(&f)], 100.0);
+    // From above and far away, looking down at it: the top of the plane.
+    let f = render_view(&r, &camera([-50.0, 32.5, 60.0], 0.0, -45.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    assert!((f.range[centre(&f)] as f64 - 50.0 * 2f64.sqrt()).abs() < 1e-4);
+    // Looking away from it: sky and haze only.
+    let f = render_view(&r, &camera([-50.0, 32.5, 60.0], 0.0, -10.0, 270.0, 5, 5), &ViewOptions::default()).unwrap();
+    assert_eq!(f.stats.hits, 0);
+}
+
+/// Rough terrain with sharp columns: heights from a hash of the cell.
+fn rough(c: usize, r: usize) -> (f32, [u8; 4]) {
+    let h = (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+    let h = h ^ (h >> 29);
+    let base = 8.0 * ((c as f32 * 0.07).sin() + (r as f32 * 0.05).cos());
+    let spike = if h % 23 == 0 { (h % 17) as f32 } else { 0.0 };
+    let z = if h % 97 == 0 { f32::NAN } else { base + spike + (h % 5) as f32 * 0.25 };
+    (z, [(h % 251) as u8, (h >> 8) as u8, (h >> 16) as u8, 255])
+}
+
+fn bits(r: &[f32]) -> Vec<u32> {
+    r.iter().map(|x| x.to_bits()).collect()
+}
+
+fn rough_tiles() -> &'static (tempfile::TempDir, TileReader) {
+    static T: OnceLock<(tempfile::TempDir, TileReader)> = OnceLock::new();
+    T.get_or_init(|| tiles(0.0, 150.0, 200, 150, 16, 2, rough))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    #[test]
+    fn hierarchy_and_level0_stepping_give_identical_frames(
+        x in -40.0f64..240.0, y in -40.0f64..190.0, z in 18.0f64..60.0,
+        roll in -30.0f64..30.0, pitch in -89.0f64..20.0, yaw in 0.0f64..360.0, repeat in any::<bool>()
+    ) {
+        let (_d, r) = rough_tiles();
+        let cam = camera([x, y, z], roll, pitch, yaw, 24, 18);
+        let opts = |t| ViewOptions { repeat, ..no_lod(t) };
+        let h = render_view(r, &cam, &opts(Traversal::Hierarchical)).unwrap();
+        let l = render_view(r, &cam, &opts(Traversal::Level0)).unwrap();
+        prop_assert_eq!(&h.rgb, &l.rgb);
+        prop_assert_eq!(bits(&h.range), bits(&l.range));
+    }
+}
+
+#[test]
+fn hierarchy_takes_fewer_steps_than_level0() {
+    let (_d, r) = rough_tiles();
+    let cam = camera([10.0, 10.0, 30.0], 0.0, -8.0, 120.0, 32, 24);
+    let h = render_view(r, &cam, &no_lod(Traversal::Hierarchical)).unwrap();
+    let l = render_view(r, &cam, &no_lod(Traversal::Level0)).unwrap();
+    assert!(h.stats.cells_stepped * 2 < l.stats.cells_stepped, "{} vs {}", h.stats.cells_stepped, l.stats.cells_stepped);
+}
+
+#[test]
+fn utm_sized_coordinates_do_not_jitter() {
+    let (x0, y0) = (512_000.0, 5_210_000.0);
+    let (_a, near) = tiles(0.0, 150.0, 200, 150, 16, 2, rough);
+    let (_b, utm) = tiles(x0, y0 + 150.0, 200, 150, 16, 2, rough);
+    let eye = [20.25, 30.5, 30.0];
+    let local = render_view(&near, &camera(eye, 3.0, -12.0, 70.0, 48, 36), &ViewOptions::default()).unwrap();
+    let far = render_view(&utm, &camera([x0 + eye[0], y0 + eye[1], eye[2]], 3.0, -12.0, 70.0, 48, 36), &ViewOptions::default()).unwrap();
+    assert_eq!(local.rgb, far.rgb, "dyadic eye offsets subtract exactly: same frame");
+    assert_eq!(bits(&local.range), bits(&far.range));
+    // Moving the eye 1 cm changes ranges by about 1 cm and only pixels on silhouettes.
+    let moved = render_view(&utm, &camera([x0 + eye[0] + 0.01, y0 + eye[1], eye[2]], 3.0, -12.0, 70.0, 48, 36), &ViewOptions::default()).unwrap();
+    let changed = far.rgb.iter().zip(&moved.rgb).filter(|(a, b)| a != b).count();
+    assert!(changed * 50 < far.rgb.len(), "{changed} of {} pixels changed", far.rgb.len());
+    let steady = far.range.iter().zip(&moved.range).filter(|(a, b)| a.is_finite() && (**a - **b).abs() <= 0.05).count();
+    assert!(steady * 10 > far.range.iter().filter(|a| a.is_finite()).count() * 9);
+}
+
+#[test]
+fn pitch_of_89_9_degrees() {
+    let (_d, r) = rough_tiles();
+    for pitch in [89.9, -89.9] {
+        let f = render_view(r, &camera([100.0, 75.0, 40.0], 0.0, pitch, 33.0, 16, 12), &ViewOptions::default()).unwrap();
+        assert!(f.range.iter().all(|x| !x.is_nan()));
+        assert_eq!(f.stats.hits == 0, pitch > 0.0, "up sees sky, down sees ground");
+    }
+}
+
+#[test]
+fn repeat_carries_the_ground_to_the_horizon() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |_, _| (0.0, GREY));
+    let cam = camera([32.0, 32.0, 5.0], 0.0, -5.0, 0.0, 20, 20);
+    let once = render_view(&r, &cam, &ViewOptions::default()).unwrap();
+    let tiled = render_view(&r, &cam, &ViewOptions { repeat: true, ..ViewOptions::default() }).unwrap();
+    let below = |f: &Frame| f.range.iter().filter(|x| x.is_finite()).count();
+    assert!(below(&tiled) > below(&once));
+    // every ray below the horizon that reaches the ground within 8 diagonals hits it
+    let b = cam.basis();
+    for (k, &x) in tiled.range.iter().enumerate() {
+        let d = b.direction(k % 20, k / 20);
+        let ground = 5.0 / -d[2];
+        if d[2] < 0.0 && ground < REPEAT_RANGE_DIAGONALS * 64.0 * 2f64.sqrt() {
+            assert!((x as f64 - ground).abs() < 1e-3 * ground, "pixel {k}: {x} vs {ground}");
+        }
+    }
+}
+
+#[test]
+fn range_thresholds_use_coarse_average_colour_far_away() {
+    // A fine black/white checkerboard: level 1 (factor 2) averages it to grey.
+    let (_d, r) = tiles(0.0, 512.0, 512, 512, 64, 2, |c, r| (0.0, if (c + r) % 2 == 0 { [0, 0, 0, 255] } else { [255, 255, 255, 255] }));
+    let cam = camera([256.0, 0.5, 3.0], 0.0, -1.0, 0.0, 64, 48);
+    let lod = render_view(&r, &cam, &ViewOptions::default()).unwrap();
+    let far_grey = |f: &Frame| {
+        (0..f.rgb.len()).filter(|&k| f.range[k] > 200.0 && f.range[k].is_finite() && (f.rgb[k][0] as i32 - 128).abs() < 10).count()
+    };
+    let sharp = render_view(&r, &cam, &no_lod(Traversal::Hierarchical)).unwrap();
+    assert!(far_grey(&lod) > 0 && far_grey(&sharp) == 0, "{} {}", far_grey(&lod), far_grey(&sharp));
+    // level-0 stepping with thresholds recolours far hits the same way
+    let l0 = render_view(&r, &cam, &ViewOptions { traversal: Traversal::Level0, ..ViewOptions::default() }).unwrap();
+    assert!(far_grey(&l0) > 0);
+    assert!(lod.stats.cells_stepped < sharp.stats.cells_stepped);
+}
+
+#[test]
+fn frames_are_deterministic_and_encode() {
+    let (_d, r) = rough_tiles();
+    let cam = camera([5.0, 5.0, 35.0], 2.0, -15.0, 135.0, 40, 30);
+    let opts = ViewOptions { visibility: Some(300.0), ..ViewOptions::default() };
+    let a = render_view(r, &cam, &opts).unwrap();
+    let b = render_view(r, &cam, &opts).unwrap();
+    assert_eq!(a.png().unwrap(), b.png().unwrap());
+    let dir = tempfile::tempdir().unwrap();
+    a.write_range_exr(&dir.path().join("r.exr")).unwrap();
+    let img = exr::prelude::read_first_flat_layer_from_file(dir.path().join("r.exr")).unwrap();
+    let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else { panic!("f32") };
+    assert_eq!(bits(z), bits(&a.range));
+}
+
+#[test]
+fn top_view_shows_each_cell_under_its_pixel() {
+    let (_d, r) = tiles(0.0, 32.0, 32, 32, 16, 4, |c, r| (c as f32, [c as u8 * 8, r as u8 * 8, 0, 255]));
+    let f = render_top(&r, 32, 32, true).unwrap();
+    for k in 0..32 * 32 {
+        assert_eq!(f.rgb[k], [(k % 32) as u8 * 8, (k / 32) as u8 * 8, 0]);
+        assert_eq!(f.range[k], 31.0 - (k % 32) as f32);
+    }
+    // 8 × 8 pixels over 32 × 32 cells: one level-1 cell (4 × 4) per pixel, its average colour.
+    let small = render_top(&r, 8, 8, true).unwrap();
+    assert_eq!(small.rgb[0], [12, 12, 0]);
+    assert_eq!(render_top(&r, 8, 8, false).unwrap().rgb[0], [16, 16, 0]);
+}
+
+#[test]
+fn geographic_tile_sets_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("g.dbt");
+    let grid = Grid::north_up(10.0, 50.0, 0.001, 8, 8, Crs::epsg(4326));
+    synthetic::write_tiles(&path, grid, 8, 4, Compression::None, |_, _| (1.0, GREY)).unwrap();
+    let r = TileReader::open(&path, 4).unwrap();
+    let e = render_top(&r, 8, 8, false).unwrap_err();
+    assert!(e.to_string().contains("geographic"), "{e}");
+}
