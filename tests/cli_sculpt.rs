@@ -253,3 +253,117 @@ fn missing_bounds_and_bad_views_files_are_one_line_errors() {
     let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
     assert!(!ok && stderr.contains("no bounds to carve"), "{stderr}");
 }
+
+fn schema(name: &str) -> jsonschema::Validator {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas").join(name);
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    jsonschema::validator_for(&v).unwrap()
+}
+
+/// The JSON header of a .dvox file.
+fn dvox_header(path: &Path) -> Value {
+    let b = std::fs::read(path).unwrap();
+    let n = u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize;
+    serde_json::from_slice(&b[12..12 + n]).unwrap()
+}
+
+#[test]
+fn views_files_and_object_headers_match_their_schemas() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cams = ring8();
+    cams.push(json!({"type": "pinhole", "fx": 100, "fy": 100, "R": [[1, 0, 0], [0, 0, -1], [0, 1, 0]], "t": [0, 0, 4]}));
+    let views = write_views(dir.path(), &sphere(), &cams, "key");
+    let views_schema = schema("views.schema.json");
+    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&views).unwrap()).unwrap();
+    assert!(views_schema.is_valid(&doc), "{:?}", views_schema.iter_errors(&doc).map(|e| e.to_string()).collect::<Vec<_>>());
+    assert!(views_schema.is_valid(&doc["views"]), "a bare list of views is valid too");
+    let mut bad = doc.clone();
+    bad["views"][0]["mask"] = json!("m.png"); // mask and key together
+    assert!(!views_schema.is_valid(&bad));
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(ok, "{stderr}");
+    let header = dvox_header(&dir.path().join("obj.dvox"));
+    let obj_schema = schema("voxel-object.schema.json");
+    assert!(obj_schema.is_valid(&header), "{header}");
+    let mut bad = header.clone();
+    bad["dims"] = json!([0, 1, 1]);
+    assert!(!obj_schema.is_valid(&bad));
+}
+
+#[test]
+fn object_revolve_cone_and_extrude() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
+    let (ok, out, err) = dbms(&["object", "revolve", "--profile", "5:0,5:8,0:9", "--voxel", "0.5", "-o", &d("tank.dvox"), "--export", "vox"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("anchor (bottom centre) at (0, 0, 0)"), "{out}");
+    let (tank, _) = format::read(&dir.path().join("tank.dvox")).unwrap();
+    assert_eq!(tank.grid.dims, [21, 21, 18]);
+    assert!(dir.path().join("tank.vox").exists());
+    let tree = |seed: &str, name: &str| dbms(&["object", "cone", "--height", "10", "--radius", "2.5", "--seed", seed, "--voxel", "0.25", "-o", &d(name)]);
+    assert!(tree("1", "a.dvox").0 && tree("1", "b.dvox").0 && tree("2", "c.dvox").0);
+    let bytes = |n: &str| std::fs::read(dir.path().join(n)).unwrap();
+    assert_eq!(bytes("a.dvox"), bytes("b.dvox"), "same seed, same bytes");
+    assert_ne!(bytes("a.dvox"), bytes("c.dvox"));
+    std::fs::write(
+        dir.path().join("f.geojson"),
+        r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"h":7.5},"geometry":{"type":"Polygon","coordinates":[[[10,20],[18,20],[18,26],[10,26],[10,20]]]}}]}"#,
+    )
+    .unwrap();
+    let (ok, _, err) = dbms(&["object", "extrude", "--footprints", &d("f.geojson"), "--height-field", "h", "--voxel", "0.5", "-o", &d("b.dvox")]);
+    assert!(ok, "{err}");
+    let (b, _) = format::read(&dir.path().join("b.dvox")).unwrap();
+    assert_eq!(b.len(), 16 * 12 * 15);
+    let (ok, _, err) = dbms(&["object", "extrude", "--footprints", &d("f.geojson"), "--voxel", "0.5", "-o", &d("x.dvox")]);
+    assert!(!ok && err.contains("feature 0: no positive number in property \"height\""), "{err}");
+    let (ok, _, err) = dbms(&["object", "revolve", "--profile", "5;0", "--voxel", "0.5", "-o", &d("x.dvox")]);
+    assert!(!ok && err.contains("is not R:Z"), "{err}");
+}
+
+/// A 20 × 10 cell database at 1 m with flat ground at 3 m, made by `dbms ingest`.
+fn database(dir: &Path) -> std::path::PathBuf {
+    use dbms::crs::Crs;
+    use dbms::grid::Grid;
+    use dbms::raster::Raster;
+    let g = Grid::north_up(500_000.0, 5_300_000.0, 1.0, 20, 10, Crs::epsg(32632));
+    let (dem, ortho) = (dir.join("dem.tif"), dir.join("ortho.tif"));
+    dbms::io::geotiff::write_f32(&dem, &Raster::filled(g.clone(), 3.0f32)).unwrap();
+    dbms::io::geotiff::write_rgba8(&ortho, &Raster::filled(g, [1, 2, 3, 255])).unwrap();
+    let db = dir.join("db");
+    let (ok, _, err) = dbms(&[
+        "ingest", "-q", "--photo-time", "2026-06-21T10:00:00Z", "--dem", dem.to_str().unwrap(), "--ortho", ortho.to_str().unwrap(), "-o", db.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    db
+}
+
+#[test]
+fn place_records_objects_in_the_manifest() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = database(dir.path());
+    let tree = dir.path().join("tree.dvox");
+    assert!(dbms(&["object", "cone", "--height", "6", "--radius", "2", "--voxel", "0.5", "-o", tree.to_str().unwrap()]).0);
+    let (dbs, ts) = (db.to_str().unwrap(), tree.to_str().unwrap());
+    let (ok, out, err) = dbms(&["--json", "place", "--db", dbs, "--object", ts, "--at", "500005.5,5299995"]);
+    assert!(ok, "{err}");
+    let p: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(p["z"], 3.0, "z from the ground");
+    let (ok, _, err) = dbms(&["place", "--db", dbs, "--object", ts, "--at", "500010,5299995,12.5", "--heading", "-90"]);
+    assert!(ok, "{err}");
+    let m: Value = serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    let objs = m["objects"].as_array().unwrap();
+    assert_eq!(objs.len(), 2);
+    assert_eq!((objs[1]["z"].as_f64(), objs[1]["heading_deg"].as_f64()), (Some(12.5), Some(270.0)));
+    assert_eq!(objs[0]["file"], objs[1]["file"], "one stored copy of the same object");
+    assert_eq!(std::fs::read(db.join(objs[0]["file"].as_str().unwrap())).unwrap(), std::fs::read(&tree).unwrap());
+    assert!(m["stages"].as_array().unwrap().iter().filter(|s| s["name"] == "place").count() == 2);
+    let (ok, _, err) = dbms(&["info", "--verify", dbs]);
+    assert!(ok, "{err}");
+    // Outside the database, and not an object: clear errors, manifest untouched.
+    let (ok, _, err) = dbms(&["place", "--db", dbs, "--object", ts, "--at", "400000,5299995"]);
+    assert!(!ok && err.contains("outside the database extent"), "{err}");
+    let (ok, _, err) = dbms(&["place", "--db", dbs, "--object", db.join("manifest.json").to_str().unwrap(), "--at", "500005,5299995"]);
+    assert!(!ok && err.contains("not a dbms voxel object"), "{err}");
+    let m2: Value = serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(m2["objects"].as_array().unwrap().len(), 2);
+}
