@@ -31,6 +31,8 @@ enum Command {
     Place(cmd::place::Args),
     /// Build the render database: max-Z / average-colour levels as a paged tile file, shaded for a sun.
     Pyramid(cmd::pyramid::Args),
+    /// Ray-cast a view of a tile set (or --top, a map of all of it) to PNG, with optional range EXR.
+    Render(cmd::render::Args),
     /// Carve a coloured voxel object from calibrated silhouettes (visual hull).
     Sculpt(cmd::sculpt::Args),
     /// Generate the sample scene: terrain, orthophoto with shadows, building footprints, truth.
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         Command::Object(a) => cmd::object::run(a, &ctx),
         Command::Place(a) => cmd::place::run(a, &ctx),
         Command::Pyramid(a) => cmd::pyramid::run(a, &ctx),
+        Command::Render(a) => cmd::render::run(a, &ctx),
         Command::Sculpt(a) => cmd::sculpt::run(a, &ctx),
         Command::Sample(a) => cmd::sample::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),

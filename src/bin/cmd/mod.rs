@@ -6,6 +6,7 @@ pub mod ingest;
 pub mod object;
 pub mod place;
 pub mod pyramid;
+pub mod render;
 pub mod sample;
 pub mod sculpt;
 pub mod shadows;

@@ -1,0 +1,135 @@
+//! `dbms render`: a ray-cast preview of a tile set, perspective or top-down.
+
+use super::Ctx;
+use dbms::render::{self, Attitude, Camera, Traversal, ViewOptions};
+use dbms::tiles::TileReader;
+use dbms::Error;
+use serde_json::json;
+use std::path::PathBuf;
+
+/// Ray-cast a view of a tile set (or, with --top, an orthographic map of all of it) to PNG.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The tile file (written by `dbms pyramid`).
+    #[arg(long)]
+    tiles: PathBuf,
+    /// Eye position X,Y,Z: CRS units and metres.
+    #[arg(long, value_name = "X,Y,Z", required_unless_present = "top", allow_hyphen_values = true)]
+    eye: Option<String>,
+    /// ROLL,PITCH,YAW in degrees: roll right wing down positive, pitch up positive, yaw clockwise from north.
+    #[arg(long, value_name = "ROLL,PITCH,YAW", default_value = "0,0,0", allow_hyphen_values = true)]
+    attitude: String,
+    /// Horizontal field of view, degrees.
+    #[arg(long, default_value_t = 60.0)]
+    fov: f64,
+    /// Image size WxH in pixels (for --top: default the grid's size, at most 1024 on the long side).
+    #[arg(long, value_name = "WxH")]
+    size: Option<String>,
+    /// Also write the range of each pixel, metres, as a one-channel f32 OpenEXR (inf = sky).
+    #[arg(long, value_name = "RANGE.exr")]
+    range_out: Option<PathBuf>,
+    /// hierarchical (max-Z hierarchy) or level0 (cell-by-cell reference stepping).
+    #[arg(long, value_enum, default_value = "hierarchical")]
+    traversal: TraversalArg,
+    /// Turn range thresholds off: always colour from level 0.
+    #[arg(long)]
+    no_lod: bool,
+    /// Repeat the database over the plane (modulo arithmetic) instead of showing sky past its edges.
+    #[arg(long)]
+    repeat: bool,
+    /// Range haze: visibility in metres (a hit this far is 63% haze).
+    #[arg(long, value_name = "METRES")]
+    haze: Option<f64>,
+    /// Stop looking beyond this range, metres.
+    #[arg(long, value_name = "METRES")]
+    max_range: Option<f64>,
+    /// Orthographic top-down map of the whole database instead of a perspective view.
+    #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal"])]
+    top: bool,
+    /// Pages kept in the reader's cache (each 9·P² bytes: 590 kB at P = 256).
+    #[arg(long, default_value_t = 512)]
+    cache_pages: usize,
+    /// Output PNG.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum TraversalArg {
+    Hierarchical,
+    Level0,
+}
+
+/// Parse three comma-separated numbers for option `name`.
+fn triple(name: &str, s: &str, what: &str) -> dbms::Result<[f64; 3]> {
+    let v: Vec<f64> = s.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().unwrap_or_default();
+    v.try_into()
+        .map_err(|_| Error::msg(format!("{name} {s}: expected three comma-separated numbers")).fix(format!("give {what}")))
+}
+
+/// Parse `WxH`.
+fn size(s: &str) -> dbms::Result<(usize, usize)> {
+    s.split_once(['x', 'X'])
+        .and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)))
+        .ok_or_else(|| Error::msg(format!("--size {s}: expected WIDTHxHEIGHT in pixels")).fix("e.g. --size 640x480"))
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let reader = TileReader::open(&args.tiles, args.cache_pages)?;
+    let frame = if args.top {
+        let g = &reader.info().grid;
+        let (w, h) = match &args.size {
+            Some(s) => size(s)?,
+            None => {
+                let k = (g.width.max(g.height) as f64 / 1024.0).max(1.0);
+                (((g.width as f64 / k).round() as usize).max(1), ((g.height as f64 / k).round() as usize).max(1))
+            }
+        };
+        render::render_top(&reader, w, h, !args.no_lod)?
+    } else {
+        let eye = triple("--eye", args.eye.as_deref().unwrap_or_default(), "X,Y,Z in the database's CRS units and metres")?;
+        let [roll, pitch, yaw] = triple("--attitude", &args.attitude, "ROLL,PITCH,YAW in degrees")?;
+        let (width, height) = size(args.size.as_deref().unwrap_or("640x480"))?;
+        let camera = Camera { eye, attitude: Attitude { roll, pitch, yaw }, hfov: args.fov, width, height };
+        let opts = ViewOptions {
+            traversal: match args.traversal {
+                TraversalArg::Hierarchical => Traversal::Hierarchical,
+                TraversalArg::Level0 => Traversal::Level0,
+            },
+            lod: !args.no_lod,
+            repeat: args.repeat,
+            visibility: args.haze,
+            max_range: args.max_range,
+        };
+        render::render_view(&reader, &camera, &opts)?
+    };
+    frame.write_png(&args.output)?;
+    if let Some(p) = &args.range_out {
+        frame.write_range_exr(p)?;
+    }
+    let s = &frame.stats;
+    ctx.report(
+        format!(
+            "{}: {}×{}, {} of {} rays hit, {:.2} Mrays/s ({:.3} s); {} pages touched, {} read ({} bytes), {} cache hits",
+            args.output.display(),
+            frame.width,
+            frame.height,
+            s.hits,
+            s.rays,
+            s.rays_per_second / 1e6,
+            s.seconds,
+            s.pages_touched,
+            s.reader.pages_read,
+            s.reader.bytes_read,
+            s.reader.cache_hits
+        ),
+        json!({
+            "output": args.output,
+            "range_out": args.range_out,
+            "width": frame.width,
+            "height": frame.height,
+            "stats": s,
+        }),
+    );
+    Ok(())
+}
