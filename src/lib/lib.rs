@@ -26,6 +26,7 @@ pub mod raster;
 pub mod render;
 pub mod sample;
 pub mod shadow;
+pub mod shadow_height;
 pub mod sun;
 pub mod tiles;
 pub mod voxel;

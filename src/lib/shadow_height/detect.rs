@@ -1,0 +1,80 @@
+//! Shadow detection in the orthophoto colour: a shadow index and an automatic threshold.
+//!
+//! Invariant: the index is a pure function of one cell's RGB, in [0, 255], lower = more likely
+//! shadow; the threshold is Otsu's over the index histogram of the cells it is given, so it
+//! depends only on those cells (the caller passes the cells around one footprint: a local
+//! threshold). A histogram whose two classes are not clearly apart has no shadow class.
+
+/// The dark class's mean index must be below this fraction of the bright class's mean for the
+/// split to count as shadow versus lit (cast shadows keep roughly 20–60 % of the light).
+pub const MAX_DARK_RATIO: f64 = 0.75;
+/// The dark class must hold at least this fraction of the cells.
+pub const MIN_DARK_FRACTION: f64 = 0.002;
+
+/// Shadow index of an RGB colour: luminance (Rec. 601), lowered for bluish cells (shadows are lit
+/// by the blue sky): `Y · (1 − max(0, b/(r+g+b) − 1/3))`. In [0, 255].
+pub fn shadow_index(rgb: [u8; 4]) -> f64 {
+    let (r, g, b) = (rgb[0] as f64, rgb[1] as f64, rgb[2] as f64);
+    let y = 0.299 * r + 0.587 * g + 0.114 * b;
+    let blue_excess = if r + g + b > 0.0 { (b / (r + g + b) - 1.0 / 3.0).max(0.0) } else { 0.0 };
+    y * (1.0 - blue_excess)
+}
+
+/// Otsu's threshold over shadow indices: cells with index `< threshold` are shadow. `None` when
+/// there is no clear shadow class (too few cells, one class, or classes too close; see
+/// [`MAX_DARK_RATIO`], [`MIN_DARK_FRACTION`]).
+pub fn otsu_threshold(indices: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut hist = [0u64; 256];
+    let mut n = 0u64;
+    for v in indices {
+        hist[(v.round() as usize).min(255)] += 1;
+        n += 1;
+    }
+    if n < 16 {
+        return None;
+    }
+    let total: f64 = hist.iter().enumerate().map(|(i, &c)| i as f64 * c as f64).sum();
+    let (mut w0, mut sum0) = (0.0, 0.0);
+    let mut best: Option<(f64, usize, f64, f64)> = None; // (between-class variance, split, mean0, mean1)
+    for (t, &c) in hist.iter().enumerate().take(255) {
+        w0 += c as f64;
+        sum0 += t as f64 * c as f64;
+        let w1 = n as f64 - w0;
+        if w0 == 0.0 || w1 == 0.0 {
+            continue;
+        }
+        let (m0, m1) = (sum0 / w0, (total - sum0) / w1);
+        let var = w0 * w1 * (m0 - m1) * (m0 - m1);
+        if best.is_none_or(|b| var > b.0) {
+            best = Some((var, t, m0, m1));
+        }
+    }
+    let (_, split, m0, m1) = best?;
+    let dark: u64 = hist[..=split].iter().sum();
+    let clear = m0 < MAX_DARK_RATIO * m1 && dark as f64 >= MIN_DARK_FRACTION * n as f64;
+    clear.then_some(split as f64 + 0.5)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn index_orders_dark_below_lit_and_blue_below_grey() {
+        assert!(shadow_index([40, 40, 40, 255]) < shadow_index([90, 90, 90, 255]));
+        assert!(shadow_index([60, 60, 120, 255]) < shadow_index([73, 73, 73, 255]));
+        assert_eq!(shadow_index([0, 0, 0, 255]), 0.0);
+        assert!(shadow_index([255, 255, 255, 255]) <= 255.0);
+    }
+
+    #[test]
+    fn otsu_splits_two_clear_classes_and_refuses_one() {
+        let two = (0..1000).map(|i| if i % 10 == 0 { 40.0 + (i % 7) as f64 } else { 150.0 + (i % 13) as f64 });
+        let t = otsu_threshold(two).unwrap();
+        assert!(t > 46.0 && t < 150.0, "{t}");
+        // One texture class only (no shadow): the two halves of its histogram are too close.
+        let one = (0..1000).map(|i| 140.0 + (i % 30) as f64);
+        assert_eq!(otsu_threshold(one), None);
+        assert_eq!(otsu_threshold([10.0, 200.0].into_iter()), None);
+    }
+}

@@ -1,0 +1,242 @@
+//! Building footprints read from GeoJSON and validated.
+//!
+//! Invariant: a [`Footprint`] has rings of at least 3 distinct vertices (repeated and closing
+//! vertices dropped), no two edges touch except neighbours in one ring at their shared vertex,
+//! and its area (outer rings minus holes, square CRS units) is positive. Inside is decided by
+//! the even-odd rule over all rings, so holes and MultiPolygon parts need no bookkeeping.
+//!
+//! A whole-file problem (not JSON, not a FeatureCollection) is an [`Error`]; a bad feature is a
+//! per-feature message, so one bad footprint does not stop the others.
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// A validated footprint: polygon rings in the database CRS (metres).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Footprint {
+    /// Rings of `(x, y)` vertices, open (first vertex not repeated); even-odd inside rule.
+    pub rings: Vec<Vec<(f64, f64)>>,
+    /// Area in square CRS units (outer rings minus holes), > 0.
+    pub area: f64,
+}
+
+/// One input feature: its properties and geometry as given, and the footprint or why it is bad.
+#[derive(Debug, Clone)]
+pub struct InputFeature {
+    /// The feature's `properties` (an object, or `null`), kept for the output.
+    pub properties: serde_json::Value,
+    /// The feature's `geometry`, kept for the output.
+    pub geometry: serde_json::Value,
+    /// The validated footprint, or a one-line reason it is unusable.
+    pub footprint: std::result::Result<Footprint, String>,
+}
+
+/// Read a GeoJSON FeatureCollection of Polygon / MultiPolygon footprints.
+pub fn read_footprints(path: &Path) -> Result<Vec<InputFeature>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let doc: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix("give a GeoJSON FeatureCollection of footprint polygons"))?;
+    let features = doc.get("features").and_then(|f| f.as_array()).ok_or_else(|| {
+        Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix("give a GeoJSON FeatureCollection of footprint polygons")
+    })?;
+    Ok(features
+        .iter()
+        .map(|f| {
+            let geometry = f.get("geometry").cloned().unwrap_or(serde_json::Value::Null);
+            InputFeature {
+                properties: f.get("properties").cloned().unwrap_or(serde_json::Value::Null),
+                footprint: footprint_of(&geometry),
+                geometry,
+            }
+        })
+        .collect())
+}
+
+/// The footprint of a GeoJSON geometry, or why it is unusable.
+pub fn footprint_of(geometry: &serde_json::Value) -> std::result::Result<Footprint, String> {
+    let coords = geometry.get("coordinates").ok_or("geometry has no coordinates")?;
+    let polygons: Vec<&serde_json::Value> = match geometry.get("type").and_then(|t| t.as_str()) {
+        Some("Polygon") => vec![coords],
+        Some("MultiPolygon") => coords.as_array().ok_or("bad MultiPolygon coordinates")?.iter().collect(),
+        other => return Err(format!("geometry type {other:?} is not Polygon or MultiPolygon")),
+    };
+    let mut parts = Vec::new();
+    for poly in polygons {
+        parts.push(parse_polygon(poly).ok_or("bad polygon coordinates (need [[[x, y], ...], ...] of finite numbers)")?);
+    }
+    Footprint::new(parts)
+}
+
+fn parse_polygon(poly: &serde_json::Value) -> Option<Vec<Vec<(f64, f64)>>> {
+    poly.as_array()?
+        .iter()
+        .map(|ring| {
+            ring.as_array()?
+                .iter()
+                .map(|p| {
+                    let p = p.as_array()?;
+                    let (x, y) = (p.first()?.as_f64()?, p.get(1)?.as_f64()?);
+                    (x.is_finite() && y.is_finite()).then_some((x, y))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+impl Footprint {
+    /// Validate polygons (each: outer ring, then holes) into one footprint.
+    pub fn new(polygons: Vec<Vec<Vec<(f64, f64)>>>) -> std::result::Result<Footprint, String> {
+        if polygons.iter().all(|p| p.is_empty()) {
+            return Err("empty geometry".into());
+        }
+        let mut rings = Vec::new();
+        let mut area = 0.0;
+        for poly in polygons {
+            for (k, ring) in poly.into_iter().enumerate() {
+                let ring = distinct_vertices(ring);
+                if ring.len() < 3 {
+                    return Err(format!("a ring has {} distinct points, fewer than 3", ring.len()));
+                }
+                if collinear(&ring) {
+                    return Err("zero area (all points of a ring on one line)".into());
+                }
+                let a = signed_area(&ring).abs();
+                area += if k == 0 { a } else { -a };
+                rings.push(ring);
+            }
+        }
+        if let Some((i, j)) = first_crossing(&rings) {
+            return Err(format!("self-intersecting (edges {i} and {j} touch or cross)"));
+        }
+        if area.is_nan() || area <= 0.0 {
+            return Err("zero area (the holes cover the outer ring)".into());
+        }
+        Ok(Footprint { rings, area })
+    }
+
+    /// Bounding box `(min_x, min_y, max_x, max_y)`.
+    pub fn bbox(&self) -> (f64, f64, f64, f64) {
+        self.rings.iter().flatten().fold((f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY), |b, &(x, y)| {
+            (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y))
+        })
+    }
+
+    /// Every edge `(a, b)` of every ring.
+    pub fn edges(&self) -> impl Iterator<Item = ((f64, f64), (f64, f64))> + '_ {
+        self.rings.iter().flat_map(|r| (0..r.len()).map(move |k| (r[k], r[(k + 1) % r.len()])))
+    }
+}
+
+/// Drop consecutive repeats and the closing vertex.
+fn distinct_vertices(mut ring: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    ring.dedup();
+    while ring.len() > 1 && ring.first() == ring.last() {
+        ring.pop();
+    }
+    ring
+}
+
+fn cross(o: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+    (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+}
+
+fn collinear(ring: &[(f64, f64)]) -> bool {
+    ring.iter().all(|&p| cross(ring[0], ring[1], p) == 0.0)
+}
+
+/// Shoelace area, positive counter-clockwise; relative to the first vertex for precision.
+fn signed_area(ring: &[(f64, f64)]) -> f64 {
+    let o = ring[0];
+    let mut s = 0.0;
+    for k in 1..ring.len() - 1 {
+        s += cross(o, ring[k], ring[k + 1]);
+    }
+    s / 2.0
+}
+
+/// Closed segments `ab` and `cd` share a point.
+fn segments_touch(a: (f64, f64), b: (f64, f64), c: (f64, f64), d: (f64, f64)) -> bool {
+    let (d1, d2, d3, d4) = (cross(c, d, a), cross(c, d, b), cross(a, b, c), cross(a, b, d));
+    let on = |p: (f64, f64), q: (f64, f64), r: (f64, f64)| r.0 >= p.0.min(q.0) && r.0 <= p.0.max(q.0) && r.1 >= p.1.min(q.1) && r.1 <= p.1.max(q.1);
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0)) && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0)) {
+        return true;
+    }
+    (d1 == 0.0 && on(c, d, a)) || (d2 == 0.0 && on(c, d, b)) || (d3 == 0.0 && on(a, b, c)) || (d4 == 0.0 && on(a, b, d))
+}
+
+/// The first pair of edges (global edge numbers) that touch other than at a shared ring vertex.
+fn first_crossing(rings: &[Vec<(f64, f64)>]) -> Option<(usize, usize)> {
+    // (ring, index in ring, a, b) for every edge.
+    let edges: Vec<(usize, usize, (f64, f64), (f64, f64))> =
+        rings.iter().enumerate().flat_map(|(r, ring)| (0..ring.len()).map(move |k| (r, k, ring[k], ring[(k + 1) % ring.len()]))).collect();
+    for i in 0..edges.len() {
+        for j in i + 1..edges.len() {
+            let (ri, ki, a, b) = edges[i];
+            let (rj, kj, c, d) = edges[j];
+            if ri == rj {
+                let n = rings[ri].len();
+                let adjacent = kj == ki + 1 || (ki == 0 && kj == n - 1);
+                if adjacent {
+                    // Neighbours share one vertex; they are bad only if they fold back over each other.
+                    let (shared, p, q) = if kj == ki + 1 { (b, a, d) } else { (a, b, c) };
+                    if cross(shared, p, q) == 0.0 && (p.0 - shared.0) * (q.0 - shared.0) + (p.1 - shared.1) * (q.1 - shared.1) > 0.0 {
+                        return Some((i, j));
+                    }
+                    continue;
+                }
+            }
+            if segments_touch(a, b, c, d) {
+                return Some((i, j));
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn poly(coords: serde_json::Value) -> std::result::Result<Footprint, String> {
+        footprint_of(&json!({"type": "Polygon", "coordinates": coords}))
+    }
+
+    #[test]
+    fn square_with_hole_has_outer_minus_hole_area() {
+        let f = poly(json!([[[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]], [[2, 2], [2, 4], [4, 4], [4, 2], [2, 2]]])).unwrap();
+        assert_eq!(f.area, 96.0);
+        assert_eq!(f.rings.len(), 2);
+        assert_eq!(f.rings[0].len(), 4);
+    }
+
+    #[test]
+    fn concave_l_shape_is_valid() {
+        let f = poly(json!([[[0, 0], [10, 0], [10, 4], [4, 4], [4, 10], [0, 10], [0, 0]]])).unwrap();
+        assert_eq!(f.area, 64.0);
+    }
+
+    #[test]
+    fn degenerate_footprints_say_why() {
+        let two = poly(json!([[[0, 0], [1, 1], [0, 0], [0, 0]]])).unwrap_err();
+        assert!(two.contains("fewer than 3"), "{two}");
+        let line = poly(json!([[[0, 0], [1, 1], [2, 2], [0, 0]]])).unwrap_err();
+        assert!(line.contains("zero area"), "{line}");
+        let bowtie = poly(json!([[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]])).unwrap_err();
+        assert!(bowtie.contains("self-intersecting"), "{bowtie}");
+        let spike = poly(json!([[[0, 0], [4, 0], [4, 4], [4, 8], [4, 2], [0, 4]]])).unwrap_err();
+        assert!(spike.contains("self-intersecting"), "{spike}");
+        assert!(footprint_of(&json!({"type": "Point", "coordinates": [0, 0]})).unwrap_err().contains("not Polygon"));
+        assert!(poly(json!([[[0, "a"], [1, 0], [1, 1]]])).unwrap_err().contains("bad polygon"));
+    }
+
+    #[test]
+    fn multipolygon_parts_that_cross_are_rejected() {
+        let g = json!({"type": "MultiPolygon", "coordinates": [
+            [[[0, 0], [4, 0], [4, 4], [0, 4]]], [[[2, 2], [6, 2], [6, 6], [2, 6]]]]});
+        assert!(footprint_of(&g).unwrap_err().contains("self-intersecting"));
+        let ok = json!({"type": "MultiPolygon", "coordinates": [
+            [[[0, 0], [4, 0], [4, 4], [0, 4]]], [[[5, 5], [6, 5], [6, 6], [5, 6]]]]});
+        assert_eq!(footprint_of(&ok).unwrap().area, 17.0);
+    }
+}

@@ -1,0 +1,89 @@
+//! The cells around one footprint, classified once: what the scan lines and the refinement see.
+//!
+//! Invariant: a [`Local`] covers a window of the database grid (never outside it); every cell
+//! holds exactly one [`Class`], with the footprint's own cells taking precedence over other
+//! footprints', and those over the photo's lit / shadow reading. Cells whose reading cannot be
+//! trusted — nodata colour or elevation, or cells the bare terrain shadows itself — are
+//! [`Class::Unusable`]: a building's shadow reaching them has an unknown end.
+
+use crate::grid::{Grid, Window};
+
+/// What one cell is, for measuring this footprint's shadow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    /// Open ground, lit in the photo.
+    Lit,
+    /// Open ground, in shadow in the photo.
+    Shadow,
+    /// Under this footprint.
+    Own,
+    /// Under another footprint.
+    Other,
+    /// Nodata, or shadowed by the terrain alone.
+    Unusable,
+}
+
+/// A window of classified cells with their terrain heights (metres, NaN = nodata).
+#[derive(Debug, Clone)]
+pub struct Local {
+    /// The window in the database grid.
+    pub win: Window,
+    /// The window's own grid (same cells, origin at the window's corner).
+    pub grid: Grid,
+    /// One class per window cell, row-major.
+    pub class: Vec<Class>,
+    /// Terrain heights per window cell, metres.
+    pub heights: Vec<f32>,
+}
+
+impl Local {
+    /// The part of this local view inside `w` (a window of the database grid within `self.win`).
+    pub fn crop(&self, w: Window, db_grid: &Grid) -> Local {
+        let (dc, dr) = (w.col - self.win.col, w.row - self.win.row);
+        let mut class = Vec::with_capacity(w.width * w.height);
+        let mut heights = Vec::with_capacity(w.width * w.height);
+        for r in 0..w.height {
+            let start = (r + dr) * self.win.width + dc;
+            class.extend_from_slice(&self.class[start..start + w.width]);
+            heights.extend_from_slice(&self.heights[start..start + w.width]);
+        }
+        Local { win: w, grid: db_grid.window_grid(&w), class, heights }
+    }
+}
+
+/// The window of `grid` covering the world box `bbox` (min x, min y, max x, max y), the same box
+/// moved `len_m` metres along the unit vector `u` (east, north), and `margin` cells around.
+pub fn window_for(grid: &Grid, bbox: (f64, f64, f64, f64), u: (f64, f64), len_m: f64, margin: usize) -> Window {
+    let t = &grid.transform;
+    let (ax, ay) = t.world_to_pixel(bbox.0, bbox.1);
+    let (bx, by) = t.world_to_pixel(bbox.2, bbox.3);
+    let (sx, sy) = (u.0 * len_m / t.cell_x, u.1 * len_m / t.cell_y);
+    let (x0, x1) = (ax.min(bx), ax.max(bx));
+    let (y0, y1) = (ay.min(by), ay.max(by));
+    let m = margin as f64;
+    let lo_x = (x0.min(x0 + sx) - m).floor().clamp(0.0, grid.width as f64) as usize;
+    let hi_x = (x1.max(x1 + sx) + m).ceil().clamp(0.0, grid.width as f64) as usize;
+    let lo_y = (y0.min(y0 + sy) - m).floor().clamp(0.0, grid.height as f64) as usize;
+    let hi_y = (y1.max(y1 + sy) + m).ceil().clamp(0.0, grid.height as f64) as usize;
+    Window { col: lo_x, row: lo_y, width: hi_x.max(lo_x) - lo_x, height: hi_y.max(lo_y) - lo_y }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+
+    #[test]
+    fn window_reaches_along_the_shadow_and_stays_in_the_grid() {
+        let g = Grid::north_up(0.0, 100.0, 1.0, 100, 100, Crs::epsg(32632));
+        // A 10 m box at x 40..50, y 40..50, shadow 20 m to the north.
+        let w = window_for(&g, (40.0, 40.0, 50.0, 50.0), (0.0, 1.0), 20.0, 2);
+        assert_eq!(w, Window { col: 38, row: 28, width: 14, height: 34 });
+        let far = window_for(&g, (40.0, 40.0, 50.0, 50.0), (1.0, 0.0), 1e6, 2);
+        assert_eq!((far.col, far.col + far.width), (38, 100));
+        let l = Local { win: w, grid: g.window_grid(&w), class: vec![Class::Lit; 14 * 34], heights: vec![0.0; 14 * 34] };
+        let c = l.crop(Window { col: 40, row: 30, width: 3, height: 2 }, &g);
+        assert_eq!(c.class.len(), 6);
+        assert_eq!(c.grid.transform.origin_x, 40.0);
+    }
+}

@@ -1,0 +1,301 @@
+//! Building heights from their shadows in the orthophoto, refined over the real terrain
+//! (`dbms shadow-height`; issue 3, the Hughes patent's shadow-height loop).
+//!
+//! # Method (the invariant)
+//! For each valid footprint, independently (in parallel):
+//! 1. **Observe.** The cells around the footprint (a window reaching [`Options::max_height_m`]
+//!    worth of shadow along the sun azimuth) are classified ([`local::Class`]): own footprint,
+//!    other footprints, unusable (nodata colour or elevation, or shadowed by the bare terrain
+//!    itself), and open ground lit or in shadow — from a given mask, or from Otsu's threshold on
+//!    the [`detect::shadow_index`] of the window's open-ground cells (a local threshold).
+//! 2. **Measure.** [`scan::scan`]: parallel lines from the sun-far edges; the median valid
+//!    length `L` (metres).
+//! 3. **First estimate.** `Z0 = L · tan(elevation)`: the formula, exact on flat ground.
+//! 4. **Refine.** [`refine::refine`]: the footprint raised to trial heights over the real DEM,
+//!    its shadow cast with [`crate::shadow::cast_shadows_slice`] and compared with the observed
+//!    one; the best IoU wins.
+//!
+//! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
+//! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is
+//! absolute. Every result is a pure function of its inputs (no randomness, ordered output).
+
+pub mod detect;
+pub mod footprint;
+pub mod local;
+pub mod output;
+pub mod refine;
+pub mod scan;
+pub mod synth;
+
+pub use footprint::{read_footprints, Footprint, InputFeature};
+
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::pyramid::raised::{rasterise_prisms, Prism};
+use crate::raster::{Colour, Elevation, Raster};
+use crate::shadow::{cast_shadows, Sun, SHADOW};
+use local::{Class, Local};
+use rayon::prelude::*;
+
+/// Sun elevations below this (degrees) are flagged `low_sun`: long shadows leave the scene and
+/// cross other objects.
+pub const LOW_SUN_DEG: f64 = 10.0;
+/// Sun elevations above this (degrees) are flagged `high_sun`: a cell of shadow length is many
+/// metres of height.
+pub const HIGH_SUN_DEG: f64 = 75.0;
+/// Longest shadow followed, in cells, whatever `max_height_m` says (bounds the work at a low sun).
+pub const MAX_SHADOW_CELLS: f64 = 4096.0;
+
+/// Tuning of a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    /// Tallest building sought, metres above ground: bounds the search window and the refinement.
+    pub max_height_m: f64,
+}
+
+impl Default for Options {
+    fn default() -> Options {
+        Options { max_height_m: 150.0 }
+    }
+}
+
+/// What a run looks at: the database's terrain and colour on one grid, and optionally a given
+/// shadow mask on the same grid (0 = lit, 255 = nodata, anything else = shadow).
+pub struct Inputs<'a> {
+    /// Bare-earth elevation, metres, NaN = nodata.
+    pub terrain: &'a Elevation,
+    /// Orthophoto colour, alpha 0 = nodata.
+    pub colour: &'a Colour,
+    /// Observed shadow mask replacing the automatic detection.
+    pub mask: Option<&'a Raster<u8>>,
+}
+
+/// The hard cases met while measuring one footprint.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Flags {
+    /// No scan line found any shadow (sun too high, or no shadow contrast around the footprint).
+    pub no_shadow: bool,
+    /// Some scan lines were dropped: the shadow left the grid (or the search window) or reached
+    /// nodata or terrain-shadowed cells.
+    pub shadow_cut_by_edge_or_nodata: bool,
+    /// Some scan lines were dropped: the shadow reached another footprint.
+    pub shadow_on_other_building: bool,
+    /// Sun elevation below [`LOW_SUN_DEG`].
+    pub low_sun: bool,
+    /// Sun elevation above [`HIGH_SUN_DEG`].
+    pub high_sun: bool,
+}
+
+impl Flags {
+    /// The names of the set flags, in a fixed order (the output's `flags` array).
+    pub fn names(&self) -> Vec<&'static str> {
+        [
+            (self.no_shadow, "no_shadow"),
+            (self.shadow_cut_by_edge_or_nodata, "shadow_cut_by_edge_or_nodata"),
+            (self.shadow_on_other_building, "shadow_on_other_building"),
+            (self.low_sun, "low_sun"),
+            (self.high_sun, "high_sun"),
+        ]
+        .into_iter()
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect()
+    }
+}
+
+/// The measurement of one footprint. Heights are `None` when no valid scan line found shadow.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    /// Refined roof height above the highest ground under the footprint, metres.
+    pub height_m: Option<f64>,
+    /// Refined absolute roof height, metres.
+    pub roof_z: Option<f64>,
+    /// First estimate `L · tan(elevation)`, metres.
+    pub initial_height_m: Option<f64>,
+    /// IoU of the synthetic shadow at `height_m` and the observed shadow, in [0, 1].
+    pub overlap: Option<f64>,
+    /// One cell of shadow length in height: `cell · tan(elevation)`, metres.
+    pub uncertainty_m: f64,
+    /// Highest terrain under the footprint, metres.
+    pub ground_z: f64,
+    /// Median shadow length, metres.
+    pub shadow_length_m: Option<f64>,
+    /// Scan lines cast, and those that gave a length.
+    pub lines_total: usize,
+    /// See `lines_total`.
+    pub lines_used: usize,
+    /// The detection threshold on the shadow index (`None` with a given mask or no contrast).
+    pub threshold: Option<f64>,
+    /// Hard cases met.
+    pub flags: Flags,
+}
+
+/// Measure every footprint. The outer error is for the whole run (grids that differ, a grid in
+/// degrees); the inner one is a one-line reason a footprint could not be measured.
+pub fn measure(inputs: &Inputs, footprints: &[Footprint], sun: &Sun, opts: &Options) -> Result<Vec<std::result::Result<Measurement, String>>> {
+    let grid = &inputs.terrain.grid;
+    if inputs.colour.grid != *grid {
+        return Err(Error::msg("the colour and elevation layers are on different grids").fix("re-run `dbms ingest`"));
+    }
+    if inputs.mask.is_some_and(|m| m.grid != *grid) {
+        return Err(Error::msg("the shadow mask is not on the database grid")
+            .fix("make it on the database grid (same size, origin and cell size as the database layers)"));
+    }
+    if !(opts.max_height_m.is_finite() && opts.max_height_m > 0.0) {
+        return Err(Error::msg(format!("--max-height {} is not a positive number of metres", opts.max_height_m)));
+    }
+    // Shadows of the bare terrain: where a building's shadow cannot be told from the hill's.
+    let terrain_shadow = cast_shadows(inputs.terrain, sun.elevation_deg, sun.azimuth_deg)?;
+    let own_cells: Vec<Vec<usize>> = footprints
+        .par_iter()
+        .map(|f| rasterise_prisms(grid, &[Prism { rings: f.rings.clone(), roof_z: 0.0 }]).into_iter().map(|c| c.index).collect())
+        .collect();
+    let mut owner = vec![0u32; grid.len()];
+    for (k, cells) in own_cells.iter().enumerate() {
+        for &i in cells {
+            owner[i] = k as u32 + 1;
+        }
+    }
+    let shared = Shared { inputs, grid, owner: &owner, terrain_shadow: &terrain_shadow.data, sun, opts };
+    Ok(footprints.par_iter().zip(&own_cells).enumerate().map(|(k, (f, cells))| shared.one(k as u32 + 1, f, cells)).collect())
+}
+
+/// What every footprint's measurement reads.
+struct Shared<'a> {
+    inputs: &'a Inputs<'a>,
+    grid: &'a Grid,
+    owner: &'a [u32],
+    terrain_shadow: &'a [u8],
+    sun: &'a Sun,
+    opts: &'a Options,
+}
+
+impl Shared<'_> {
+    fn one(&self, id: u32, fp: &Footprint, cells: &[usize]) -> std::result::Result<Measurement, String> {
+        if cells.is_empty() {
+            return Err("covers no cell centre of the database grid (outside it, or smaller than a cell)".into());
+        }
+        let ground_z = cells.iter().map(|&i| self.inputs.terrain.data[i] as f64).filter(|z| z.is_finite()).fold(f64::NAN, f64::max);
+        if ground_z.is_nan() {
+            return Err("stands on nodata elevation only".into());
+        }
+        let e = self.sun.elevation_deg;
+        let tan_e = e.to_radians().tan();
+        let (cx, cy) = self.grid.cell_size();
+        let cell = cx.max(cy);
+        let (dx, dy) = self.sun.direction();
+        let u = (-dx, -dy);
+        let max_len = (self.opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cell);
+        let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
+        let (local, threshold) = self.classify(id, win);
+        let mut m = Measurement {
+            height_m: None,
+            roof_z: None,
+            initial_height_m: None,
+            overlap: None,
+            uncertainty_m: cell * tan_e,
+            ground_z,
+            shadow_length_m: None,
+            lines_total: 0,
+            lines_used: 0,
+            threshold,
+            flags: Flags { low_sun: e < LOW_SUN_DEG, high_sun: e > HIGH_SUN_DEG, ..Flags::default() },
+        };
+        let s = scan::scan(fp, &local, u, cell, max_len, tan_e);
+        m.lines_total = s.lines;
+        m.lines_used = s.lengths.len();
+        m.flags.shadow_cut_by_edge_or_nodata = s.cut > 0;
+        m.flags.shadow_on_other_building = s.on_other > 0;
+        m.flags.no_shadow = s.with_shadow == 0 && !s.lengths.is_empty();
+        let (Some(len), true) = (scan::median(&s.lengths), s.with_shadow > 0) else {
+            return Ok(m);
+        };
+        let z0 = len * tan_e;
+        let z_ray = scan::median(&s.tip_roofs).map_or(z0, |r| r - ground_z);
+        let z_hi = (2.0 * z0).max(1.5 * z_ray).max(z0 + 4.0 * cell * tan_e).min(self.opts.max_height_m.max(z0 + cell * tan_e));
+        let sub = local.crop(local::window_for(self.grid, fp.bbox(), u, z_hi / tan_e + cell, 3), self.grid);
+        let r = refine::refine(&sub, self.sun, ground_z, z_hi, cell * tan_e / 4.0).map_err(|e| e.to_string())?;
+        m.shadow_length_m = Some(len);
+        m.initial_height_m = Some(z0);
+        m.height_m = Some(r.height_m);
+        m.roof_z = Some(ground_z + r.height_m);
+        m.overlap = Some(r.overlap);
+        Ok(m)
+    }
+
+    /// Classify the window's cells for footprint `id`; the detection threshold used, if any.
+    fn classify(&self, id: u32, win: crate::grid::Window) -> (Local, Option<f64>) {
+        let w = self.grid.width;
+        let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
+        let n = win.width * win.height;
+        let heights: Vec<f32> = (0..n).map(|k| self.inputs.terrain.data[index(k)]).collect();
+        let base: Vec<Option<Class>> = (0..n)
+            .map(|k| {
+                let i = index(k);
+                match self.owner[i] {
+                    o if o == id => Some(Class::Own),
+                    0 => {
+                        let nodata = self.inputs.colour.data[i][3] == 0 || heights[k].is_nan() || self.terrain_shadow[i] == SHADOW;
+                        let masked = self.inputs.mask.is_some_and(|m| m.data[i] == 255);
+                        (nodata || masked).then_some(Class::Unusable)
+                    }
+                    _ => Some(Class::Other),
+                }
+            })
+            .collect();
+        // Open ground: from the mask, or below the local threshold of the shadow index.
+        let (is_shadow, threshold): (Box<dyn Fn(usize) -> bool>, Option<f64>) = match self.inputs.mask {
+            Some(mask) => (Box::new(move |i| mask.data[i] != 0), None),
+            None => {
+                let open = (0..n).filter(|&k| base[k].is_none()).map(|k| detect::shadow_index(self.inputs.colour.data[index(k)]));
+                match detect::otsu_threshold(open) {
+                    Some(t) => (Box::new(move |i| detect::shadow_index(self.inputs.colour.data[i]) < t), Some(t)),
+                    None => (Box::new(|_| false), None),
+                }
+            }
+        };
+        let class = (0..n).map(|k| base[k].unwrap_or_else(|| if is_shadow(index(k)) { Class::Shadow } else { Class::Lit })).collect();
+        (Local { win, grid: self.grid.window_grid(&win), class, heights }, threshold)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::synth::{synth_scene, SynthBuilding, SynthSpec};
+    use super::*;
+
+    fn building(x: f64, y: f64, h: f64) -> SynthBuilding {
+        SynthBuilding { centre: (x, y), size: (12.0, 9.0), rotation_deg: 17.0, height_m: h }
+    }
+
+    fn spec(e: f64, az: f64, slope: (f64, f64), buildings: Vec<SynthBuilding>) -> SynthSpec {
+        SynthSpec { cell: 0.5, size: (200, 200), slope, sun: Sun::new(e, az).unwrap(), buildings, supersample: 3 }
+    }
+
+    /// Measure a generated scene; per building the measurement (or its error) and the truth.
+    fn run(s: &SynthSpec) -> Vec<(std::result::Result<Measurement, String>, f64)> {
+        let scene = synth_scene(s);
+        let inputs = Inputs { terrain: &scene.terrain, colour: &scene.colour, mask: None };
+        let out = measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap();
+        out.into_iter().zip(scene.height_m).collect()
+    }
+
+    fn assert_within(s: &SynthSpec, tol: f64) -> Vec<Measurement> {
+        run(s)
+            .into_iter()
+            .map(|(m, truth)| {
+                let m = m.unwrap();
+                let h = m.height_m.unwrap_or_else(|| panic!("no height: {m:?}"));
+                assert!((h - truth).abs() <= tol, "height {h:.3} vs truth {truth} (±{tol}): {m:?}");
+                m
+            })
+            .collect()
+    }
+
+    #[test]
+    fn isolated_building_on_flat_ground_within_a_cell() {
+        let m = assert_within(&spec(40.0, 135.0, (0.0, 0.0), vec![building(40.0, 60.0, 12.0)]), 0.5);
+        assert!(m[0].overlap.unwrap() > 0.8, "{m:?}");
+        assert!(m[0].flags.names().is_empty(), "{m:?}");
+        assert!((m[0].initial_height_m.unwrap() - 12.0).abs() < 1.0);
+    }
+}

@@ -1,0 +1,160 @@
+//! Generated scenes with known building heights: the benchmark's and the tests' ground truth.
+//!
+//! Invariant: a scene is a pure function of its [`SynthSpec`]. The terrain is a plane; the
+//! orthophoto is rendered `supersample²` times finer than the database grid and box-averaged
+//! down, so shadow and roof edges give mixed cells as in a real photo (the shadows are cast on
+//! the fine grid, not with the coarse model the refinement uses). Truth heights follow the
+//! module's convention: roof above the highest coarse cell centre of terrain under the footprint.
+
+use super::footprint::Footprint;
+use crate::crs::Crs;
+use crate::grid::Grid;
+use crate::pyramid::raised::{rasterise_prisms, Prism};
+use crate::raster::{Colour, Elevation, Raster};
+use crate::shadow::{cast_shadows_slice, Sun, SHADOW};
+use rayon::prelude::*;
+
+/// West edge of generated scenes (a UTM-sized easting, to exercise f64 coordinates), metres.
+pub const ORIGIN_X: f64 = 500_000.0;
+/// South edge of generated scenes, metres.
+pub const ORIGIN_Y: f64 = 5_300_000.0;
+/// Terrain height at the scene's south-west corner, metres.
+pub const BASE_Z: f64 = 400.0;
+/// Shadowed colour = lit colour × this.
+pub const SHADOW_FACTOR: f64 = 0.45;
+
+/// One building: a rectangle rotated about its centre, extruded `height_m` above the highest
+/// ground under it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SynthBuilding {
+    /// Centre, metres from the scene's south-west corner (east, north).
+    pub centre: (f64, f64),
+    /// Side lengths, metres (along the rotated x, y axes).
+    pub size: (f64, f64),
+    /// Rotation, degrees counter-clockwise.
+    pub rotation_deg: f64,
+    /// Roof above the highest ground under the footprint, metres.
+    pub height_m: f64,
+}
+
+impl SynthBuilding {
+    /// The footprint's corner ring in scene CRS metres, counter-clockwise.
+    pub fn ring(&self) -> Vec<(f64, f64)> {
+        let (s, c) = self.rotation_deg.to_radians().sin_cos();
+        let (hx, hy) = (self.size.0 / 2.0, self.size.1 / 2.0);
+        [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)]
+            .iter()
+            .map(|&(x, y)| (ORIGIN_X + self.centre.0 + x * c - y * s, ORIGIN_Y + self.centre.1 + x * s + y * c))
+            .collect()
+    }
+}
+
+/// What to generate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SynthSpec {
+    /// Database cell size, metres.
+    pub cell: f64,
+    /// Grid size in cells (columns, rows).
+    pub size: (usize, usize),
+    /// Terrain slope: metres of rise per metre east and per metre north.
+    pub slope: (f64, f64),
+    /// The photo's sun.
+    pub sun: Sun,
+    /// The buildings.
+    pub buildings: Vec<SynthBuilding>,
+    /// Photo rendering factor (≥ 1): fine cells per database cell, per axis.
+    pub supersample: usize,
+}
+
+/// A generated scene: the database layers, footprints and the truth.
+pub struct SynthScene {
+    /// Terrain (no buildings), metres.
+    pub terrain: Elevation,
+    /// The photo, with roofs and shadows.
+    pub colour: Colour,
+    /// One footprint per building.
+    pub footprints: Vec<Footprint>,
+    /// True height above the highest ground under each footprint, metres.
+    pub height_m: Vec<f64>,
+    /// True absolute roof height, metres.
+    pub roof_z: Vec<f64>,
+}
+
+/// Generate a scene. Panics on a spec that makes an invalid footprint (a programming error in
+/// the caller, never user input).
+pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
+    let (w, h) = spec.size;
+    let crs = Crs::epsg(32632);
+    let top = ORIGIN_Y + h as f64 * spec.cell;
+    let grid = Grid::north_up(ORIGIN_X, top, spec.cell, w, h, crs.clone());
+    let ground = |x: f64, y: f64| BASE_Z + spec.slope.0 * (x - ORIGIN_X) + spec.slope.1 * (y - ORIGIN_Y);
+    let terrain = Raster::new(grid.clone(), cells(&grid, |x, y| ground(x, y) as f32));
+    let rings: Vec<Vec<(f64, f64)>> = spec.buildings.iter().map(|b| b.ring()).collect();
+    let footprints: Vec<Footprint> = rings.iter().map(|r| Footprint::new(vec![vec![r.clone()]]).expect("valid generated footprint")).collect();
+    let roof_z: Vec<f64> = rings
+        .iter()
+        .zip(&spec.buildings)
+        .map(|(r, b)| {
+            let under = rasterise_prisms(&grid, &[Prism { rings: vec![r.clone()], roof_z: 0.0 }]);
+            let g = under.iter().map(|c| terrain.data[c.index] as f64).fold(f64::NEG_INFINITY, f64::max);
+            g + b.height_m
+        })
+        .collect();
+
+    let k = spec.supersample.max(1);
+    let fine = Grid::north_up(ORIGIN_X, top, spec.cell / k as f64, w * k, h * k, crs);
+    let mut surface = cells(&fine, |x, y| ground(x, y) as f32);
+    let mut roof = vec![false; fine.len()];
+    for (r, z) in rings.iter().zip(&roof_z) {
+        for c in rasterise_prisms(&fine, &[Prism { rings: vec![r.clone()], roof_z: *z }]) {
+            surface[c.index] = *z as f32;
+            roof[c.index] = true;
+        }
+    }
+    let shadow = cast_shadows_slice(&surface, &fine, &spec.sun).expect("generated grid is metric");
+    let fine_rgb: Vec<[f64; 3]> = (0..fine.len())
+        .into_par_iter()
+        .map(|i| {
+            let base = if roof[i] { [170.0, 95.0, 80.0] } else { grass(i as u64) };
+            let f = if shadow[i] == SHADOW { SHADOW_FACTOR } else { 1.0 };
+            [base[0] * f, base[1] * f, base[2] * f]
+        })
+        .collect();
+    let colour: Vec<[u8; 4]> = (0..grid.len())
+        .into_par_iter()
+        .map(|i| {
+            let (c, r) = (i % w, i / w);
+            let mut sum = [0.0; 3];
+            for dr in 0..k {
+                for dc in 0..k {
+                    let v = fine_rgb[(r * k + dr) * w * k + c * k + dc];
+                    (0..3).for_each(|j| sum[j] += v[j]);
+                }
+            }
+            let n = (k * k) as f64;
+            [(sum[0] / n).round() as u8, (sum[1] / n).round() as u8, (sum[2] / n).round() as u8, 255]
+        })
+        .collect();
+    let height_m = spec.buildings.iter().map(|b| b.height_m).collect();
+    SynthScene { terrain, colour: Raster::new(grid, colour), footprints, height_m, roof_z }
+}
+
+/// Grass-like texture: a hashed ±15 % brightness variation per fine cell.
+fn grass(i: u64) -> [f64; 3] {
+    let mut x = i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    x ^= x >> 31;
+    x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x ^= x >> 29;
+    let v = 0.85 + 0.3 * (x >> 11) as f64 / (1u64 << 53) as f64;
+    [95.0 * v, 140.0 * v, 75.0 * v]
+}
+
+fn cells<T: Send>(grid: &Grid, f: impl Fn(f64, f64) -> T + Sync) -> Vec<T> {
+    (0..grid.len())
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = grid.cell_centre(i % grid.width, i / grid.width);
+            f(x, y)
+        })
+        .collect()
+}
