@@ -31,6 +31,8 @@ pub use info::{
     MAX_LEVELS, MAX_PAGE_SIZE, PAGE_ALIGN,
 };
 pub use layout::{morton, IndexEntry, ENTRY_LEN, MAGIC, PREAMBLE_LEN, VERSION};
-pub use page::{Cell, Page, FLAG_BRICKS, FLAG_LZ4, STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL};
+pub use page::{
+    Cell, Page, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE, STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL,
+};
 pub use reader::{ReaderStats, TileReader};
 pub use writer::TileWriter;

