@@ -20,7 +20,7 @@ pub struct Args {
     #[arg(long, value_name = "ROLL,PITCH,YAW", default_value = "0,0,0", allow_hyphen_values = true)]
     attitude: String,
     /// Horizontal field of view, degrees.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
     fov: f64,
     /// Image size WxH in pixels (for --top: default the grid's size, at most 1024 on the long side).
     #[arg(long, value_name = "WxH")]
@@ -38,10 +38,10 @@ pub struct Args {
     #[arg(long)]
     repeat: bool,
     /// Range haze: visibility in metres (a hit this far is 63% haze).
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     haze: Option<f64>,
     /// Stop looking beyond this range, metres.
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     max_range: Option<f64>,
     /// Orthographic top-down map of the whole database instead of a perspective view.
     #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal"])]

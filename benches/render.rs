@@ -1,0 +1,149 @@
+//! Benchmark: `dbms render` frames along a low-altitude flight path.
+//!
+//! `cargo bench --bench render` (work directory from `DBMS_BENCH_DIR`, default a temporary
+//! one; the 8192² side from `DBMS_BENCH_SIZE`). Two tile sets, made untimed:
+//! 1. the sample scene (`dbms sample`, `dbms ingest`, `dbms pyramid` run through the binary);
+//! 2. a generated `N × N` grid of 1 m cells (rolling hills, blocks of buildings, a textured
+//!    colour) written with `render::synthetic::write_tiles` (lz4 pages of 256, factor 4).
+//!
+//! On each, 640 × 480 frames (60° field of view) along a straight path 25 m above the ground,
+//! pitched 4° down, rendered three ways: hierarchical without range thresholds, level-0 stepping
+//! without them (fewer frames: it is slow), and hierarchical with them. Prints a Markdown table
+//! (rays per second, time per frame, cells stepped per ray, hierarchy speed-up) and what the
+//! range thresholds change in the image against the time they save, for docs/render.md.
+
+use dbms::crs::Crs;
+use dbms::grid::Grid;
+use dbms::render::{render_view, synthetic, Attitude, Camera, Frame, Traversal, ViewOptions};
+use dbms::tiles::{Compression, TileReader};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+fn main() {
+    let size: usize = std::env::var("DBMS_BENCH_SIZE").ok().and_then(|s| s.parse().ok()).unwrap_or(8192);
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let work = std::env::var("DBMS_BENCH_DIR").map(PathBuf::from).unwrap_or_else(|_| tmp.path().to_path_buf());
+    std::fs::create_dir_all(&work).expect("work dir");
+    println!("threads: {}", rayon::current_num_threads());
+
+    let sample = sample_tiles(&work);
+    let generated = work.join(format!("generated-{size}.dbt"));
+    if !generated.exists() {
+        let t = Instant::now();
+        let grid = Grid::north_up(600_000.0, 5_200_000.0 + size as f64, 1.0, size, size, Crs::epsg(32633));
+        synthetic::write_tiles(&generated, grid, 256, 4, Compression::Lz4, terrain).expect("generate tiles");
+        println!("generated {size}² tile set in {:.1} s", t.elapsed().as_secs_f64());
+    }
+
+    println!("\n| tile set | traversal | range thresholds | frames | time per frame (s) | rays/s | cells stepped per ray | pages touched per frame | speed-up vs level 0 |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let mut lod_rows = Vec::new();
+    for (name, path) in [("sample (1024², 0.5 m)", &sample), (&*format!("generated ({size}², 1 m)"), &generated)] {
+        let reader = TileReader::open(path, 1024).expect("open tiles");
+        let path = flight(&reader, 6);
+        let run = |traversal, lod, frames: usize| {
+            let opts = ViewOptions { traversal, lod, ..ViewOptions::default() };
+            let mut out = Vec::new();
+            let t = Instant::now();
+            for cam in path.iter().take(frames) {
+                out.push(render_view(&reader, cam, &opts).expect("render"));
+            }
+            (t.elapsed().as_secs_f64() / frames as f64, out)
+        };
+        let hier = run(Traversal::Hierarchical, false, 6);
+        let level0 = run(Traversal::Level0, false, 2);
+        let lod = run(Traversal::Hierarchical, true, 6);
+        // the two traversals must agree exactly on the frames both rendered
+        for (a, b) in hier.1.iter().zip(&level0.1) {
+            assert!(a.rgb == b.rgb, "hierarchical and level-0 frames differ");
+        }
+        for (label, lodf, (secs, frames)) in [("hierarchical", "off", &hier), ("level 0", "off", &level0), ("hierarchical", "on", &lod)] {
+            let rays: u64 = frames.iter().map(|f| f.stats.rays).sum();
+            let steps: u64 = frames.iter().map(|f| f.stats.cells_stepped).sum();
+            let pages: usize = frames.iter().map(|f| f.stats.pages_touched).sum();
+            let speedup = level0.0 / secs;
+            println!(
+                "| {name} | {label} | {lodf} | {} | {secs:.3} | {:.2e} | {:.1} | {:.0} | {speedup:.1}× |",
+                frames.len(),
+                rays as f64 / frames.len() as f64 / secs,
+                steps as f64 / rays as f64,
+                pages as f64 / frames.len() as f64
+            );
+        }
+        let (diff, changed) = image_difference(&hier.1, &lod.1);
+        lod_rows.push(format!(
+            "| {name} | {:.1} % | {diff:.2} | {changed:.1} % |",
+            100.0 * (1.0 - lod.0 / hier.0)
+        ));
+    }
+    println!("\n| tile set | time saved by range thresholds | mean absolute difference (0–255, per channel) | pixels changed |");
+    println!("|---|---|---|---|");
+    for r in lod_rows {
+        println!("{r}");
+    }
+}
+
+/// Rolling hills, a few sharp ridges and city blocks of 8–40 m buildings every 200 m.
+fn terrain(c: usize, r: usize) -> (f32, [u8; 4]) {
+    let (x, y) = (c as f32, r as f32);
+    let ground = 40.0 * (x * 0.0021).sin() * (y * 0.0017).cos() + 12.0 * (x * 0.011 + y * 0.007).sin() + 3.0 * (x * 0.05).sin() * (y * 0.043).sin();
+    let (bx, by) = (c % 200, r % 200);
+    let h = ((c / 200) * 7919 + (r / 200) * 104_729) % 97;
+    let building = bx > 60 && bx < 140 && by > 60 && by < 140 && (bx / 20 + by / 20) % 2 == 0 && h % 3 == 0;
+    let z = if building { ground + 8.0 + (h % 33) as f32 } else { ground };
+    let shade = (128.0 + ground * 2.0) as u8;
+    let colour = if building { [170, 160, 150, 255] } else { [shade / 2, shade, shade / 3, 255] };
+    (z, [colour[0] ^ ((c * 31 + r * 17) % 16) as u8, colour[1], colour[2], 255])
+}
+
+/// The sample scene's tile set, made with the dbms binary if not already in `work`.
+fn sample_tiles(work: &Path) -> PathBuf {
+    let out = work.join("sample.dbt");
+    if out.exists() {
+        return out;
+    }
+    let bin = env!("CARGO_BIN_EXE_dbms");
+    let (scene, db) = (work.join("scene"), work.join("db"));
+    let dem = scene.join("dem.tif");
+    let ortho = scene.join("ortho.tif");
+    for args in [
+        vec!["-q", "sample", "-o", scene.to_str().unwrap()],
+        vec!["-q", "ingest", "--dem", dem.to_str().unwrap(), "--ortho", ortho.to_str().unwrap(), "-o", db.to_str().unwrap()],
+        vec!["-q", "pyramid", "--db", db.to_str().unwrap(), "-o", out.to_str().unwrap()],
+    ] {
+        let o = Command::new(bin).args(&args).output().expect("run dbms");
+        assert!(o.status.success(), "dbms {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    out
+}
+
+/// `n` cameras along the database's diagonal band, 25 m over the ground, pitched 4° down,
+/// heading along the path.
+fn flight(reader: &TileReader, n: usize) -> Vec<Camera> {
+    let g = &reader.info().grid;
+    let t = &g.transform;
+    (0..n)
+        .map(|k| {
+            let f = 0.1 + 0.5 * k as f64 / n as f64;
+            let (col, row) = ((g.width as f64 * f) as usize, (g.height as f64 * (0.8 - 0.3 * f)) as usize);
+            let ground = reader.cell(0, col, row).expect("read").map(|c| c.max_z).filter(|z| !z.is_nan()).unwrap_or(0.0);
+            let (x, y) = t.pixel_to_world(col as f64 + 0.5, row as f64 + 0.5);
+            Camera { eye: [x, y, ground as f64 + 25.0], attitude: Attitude { roll: 0.0, pitch: -4.0, yaw: 30.0 }, hfov: 60.0, width: 640, height: 480 }
+        })
+        .collect()
+}
+
+/// Mean absolute difference per channel and the percentage of pixels that differ.
+fn image_difference(a: &[Frame], b: &[Frame]) -> (f64, f64) {
+    let (mut sum, mut changed, mut n) = (0u64, 0u64, 0u64);
+    for (fa, fb) in a.iter().zip(b) {
+        for (pa, pb) in fa.rgb.iter().zip(&fb.rgb) {
+            let d: u64 = (0..3).map(|k| (pa[k] as i64 - pb[k] as i64).unsigned_abs()).sum();
+            sum += d;
+            changed += (d > 0) as u64;
+            n += 1;
+        }
+    }
+    (sum as f64 / (3 * n) as f64, 100.0 * changed as f64 / n as f64)
+}

@@ -1,0 +1,156 @@
+//! `dbms render` end to end: outputs, exactness of the two traversals, errors, determinism.
+
+use dbms::crs::Crs;
+use dbms::grid::Grid;
+use dbms::render::synthetic::write_tiles;
+use dbms::tiles::Compression;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn dbms(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().unwrap()
+}
+
+/// Hills with a few tall columns, 2 m cells, UTM-sized origin; nodata in one corner.
+fn hills(dir: &Path) -> PathBuf {
+    let path = dir.join("hills.dbt");
+    let grid = Grid::north_up(431_000.0, 4_582_000.0, 2.0, 300, 200, Crs::epsg(32633));
+    write_tiles(&path, grid, 64, 4, Compression::Lz4, |c, r| {
+        if c < 10 && r < 10 {
+            return (f32::NAN, [0; 4]);
+        }
+        let z = 100.0 + 12.0 * ((c as f32 * 0.05).sin() + (r as f32 * 0.04).cos());
+        let tower = c % 37 == 5 && r % 29 == 7;
+        (if tower { z + 30.0 } else { z }, [(c % 256) as u8, (r % 256) as u8, 90, 255])
+    })
+    .unwrap();
+    path
+}
+
+fn render(tiles: &Path, out: &Path, extra: &[&str]) -> Value {
+    let mut args = vec!["--json", "render", "--tiles", tiles.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let o = dbms(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+const VIEW: [&str; 8] = ["--eye", "431020,4581620,140", "--attitude", "0,-8,60", "--fov", "70", "--size", "96x64"];
+
+#[test]
+fn renders_a_png_and_reports_pages_bytes_and_speed() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let out = dir.path().join("view.png");
+    let s = render(&tiles, &out, &VIEW);
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (96, 64));
+    let st = &s["stats"];
+    assert_eq!(st["rays"], 96 * 64);
+    assert!(st["hits"].as_u64().unwrap() > 1000, "{s}");
+    assert!(st["pages_touched"].as_u64().unwrap() > 0);
+    assert!(st["reader"]["pages_read"].as_u64().unwrap() > 0);
+    assert!(st["reader"]["bytes_read"].as_u64().unwrap() > 0);
+    assert!(st["rays_per_second"].as_f64().unwrap() > 0.0 && st["seconds"].as_f64().unwrap() > 0.0);
+    // the sky is at the top, the ground at the bottom
+    let (top, bottom) = (img.get_pixel(48, 0).0, img.get_pixel(48, 63).0);
+    assert!(top[2] > top[0], "sky {top:?}");
+    assert_ne!(top, bottom);
+}
+
+#[test]
+fn hierarchical_and_level0_traversals_are_pixel_identical_without_lod() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let mut outs = Vec::new();
+    for t in ["hierarchical", "level0"] {
+        let (png, exr) = (dir.path().join(format!("{t}.png")), dir.path().join(format!("{t}.exr")));
+        let mut args = VIEW.to_vec();
+        args.extend(["--traversal", t, "--no-lod", "--range-out", exr.to_str().unwrap()]);
+        let s = render(&tiles, &png, &args);
+        outs.push((std::fs::read(png).unwrap(), std::fs::read(exr).unwrap(), s["stats"]["cells_stepped"].as_u64().unwrap()));
+    }
+    assert!(outs[0].0 == outs[1].0, "PNGs differ");
+    assert!(outs[0].1 == outs[1].1, "range EXRs differ");
+    assert!(outs[0].2 < outs[1].2, "hierarchy steps {} vs level 0 {}", outs[0].2, outs[1].2);
+}
+
+#[test]
+fn range_exr_holds_metres_and_inf_for_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let (png, exr) = (dir.path().join("v.png"), dir.path().join("v.exr"));
+    let mut args = VIEW.to_vec();
+    args.extend(["--range-out", exr.to_str().unwrap()]);
+    render(&tiles, &png, &args);
+    let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
+    let ch = &img.layer_data.channel_data.list[0];
+    assert_eq!(ch.name.to_string(), "Z");
+    let exr::prelude::FlatSamples::F32(z) = &ch.sample_data else { panic!("f32 samples") };
+    assert_eq!(z.len(), 96 * 64);
+    assert!(z[0].is_infinite(), "top-left pixel is sky");
+    let last = z[z.len() - 48];
+    // the bottom centre looks 8° + half the vertical fov down from 140 m over ~100 m ground
+    assert!(last > 40.0 && last < 1000.0, "{last}");
+}
+
+#[test]
+fn same_command_gives_byte_identical_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
+    let mut args = VIEW.to_vec();
+    args.extend(["--haze", "800", "--repeat"]);
+    render(&tiles, &a, &args);
+    render(&tiles, &b, &args);
+    assert!(std::fs::read(a).unwrap() == std::fs::read(b).unwrap());
+}
+
+#[test]
+fn top_view_maps_the_whole_database() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let out = dir.path().join("map.png");
+    let s = render(&tiles, &out, &["--top"]);
+    assert_eq!((s["width"].as_u64(), s["height"].as_u64()), (Some(300), Some(200)));
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0], "nodata corner is black");
+    assert_eq!(img.get_pixel(123, 45).0, [123, 45, 90], "cell colour under the pixel");
+    let s = render(&tiles, &out, &["--top", "--size", "75x50"]);
+    assert_eq!(s["width"], 75);
+}
+
+#[test]
+fn eye_below_the_terrain_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let out = dir.path().join("v.png");
+    let o = dbms(&["render", "--tiles", tiles.to_str().unwrap(), "--eye", "431200,4581800,50", "-o", out.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("below the terrain") && err.lines().count() == 1, "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn bad_options_name_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let t = tiles.to_str().unwrap();
+    for (args, expect) in [
+        (vec!["--eye", "1,2"], "--eye 1,2: expected three"),
+        (vec!["--eye", "431020,4581620,140", "--size", "640"], "--size 640"),
+        (vec!["--eye", "431020,4581620,140", "--attitude", "0,100,0"], "pitch must be in [-90, 90]"),
+        (vec!["--eye", "431020,4581620,140", "--fov", "0"], "--fov 0"),
+        (vec!["--eye", "431020,4581620,140", "--haze", "-5"], "--haze -5"),
+    ] {
+        let mut a = vec!["render", "--tiles", t, "-o", "/nonexistent/x.png"];
+        a.extend(args);
+        let o = dbms(&a);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(expect), "{expect}: {err}");
+    }
+    let o = dbms(&["render", "--tiles", "/nonexistent.dbt", "--top", "-o", "x.png"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent.dbt"));
+}
