@@ -15,11 +15,10 @@ use crate::grid::{GeoTransform, Grid};
 use crate::raster::{Colour, Raster};
 use rayon::prelude::*;
 use std::io::{BufReader, Seek, Write};
+use tiff::encoder::compression::{CompressionAlgorithm, Deflate, DeflateLevel};
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
-use tiff::encoder::colortype::{self, ColorType};
-use tiff::encoder::{Compression, DeflateLevel, TiffEncoder, TiffKind, TiffValue};
-use tiff::tags::{ExtraSamples, Predictor, Tag};
+use tiff::tags::{ExtraSamples, Tag};
 use tiff::{TiffError, TiffResult};
 
 /// Largest decoded image we accept, bytes: generous for DEMs, but a corrupt header claiming a
@@ -387,97 +386,266 @@ impl GeoTags {
 }
 
 /// Write a Float32 GeoTIFF (elevation, metres): NaN is written as [`F32_NODATA`] (-9999) with the
-/// GDAL_NODATA tag "-9999". Deflate-compressed strips (the `tiff` crate cannot write the
-/// floating-point predictor). A valid cell that equals -9999 exactly would read back as nodata,
-/// so it is an error.
+/// GDAL_NODATA tag "-9999". Tiled 256 × 256, Deflate with the floating-point predictor (3).
+/// A valid cell that equals -9999 exactly would read back as nodata, so it is an error.
 pub fn write_f32(path: &Path, r: &Raster<f32>) -> Result<()> {
-    let data: Vec<f32> = r.data.par_iter().map(|&v| if v.is_nan() { F32_NODATA } else { v }).collect();
     if let Some(i) = r.data.par_iter().position_first(|&v| v == F32_NODATA) {
-        return Err(Error::file(
-            path,
-            format!("cell ({}, {}) holds {F32_NODATA}, the nodata value of our GeoTIFFs", i % r.width().max(1), i / r.width().max(1)),
-        )
-        .fix("offset the heights or mark that cell as nodata"));
+        let w = r.width().max(1);
+        return Err(Error::file(path, format!("cell ({}, {}) holds {F32_NODATA}, the nodata value of our GeoTIFFs", i % w, i / w))
+            .fix("offset the heights or mark that cell as nodata"));
     }
-    write_image::<colortype::Gray32Float>(path, &r.grid, &data, Layout { nodata: Some("-9999".into()), predictor: Predictor::None, alpha: false })
-}
-
-/// Write an RGBA8 GeoTIFF (ExtraSamples = unassociated alpha, so GDAL/QGIS treat band 4 as the
-/// mask); same georeference as [`write_f32`]. Deflate with horizontal predictor.
-pub fn write_rgba8(path: &Path, r: &Colour) -> Result<()> {
-    let flat: &[u8] = r.data.as_flattened();
-    write_image::<colortype::RGBA8>(path, &r.grid, flat, Layout { nodata: None, predictor: Predictor::Horizontal, alpha: true })
-}
-
-/// Write a single-band 8-bit GeoTIFF with an optional nodata value (used for masks: 1 = shadow,
-/// 0 = lit, 255 nodata). Deflate with horizontal predictor.
-pub fn write_u8(path: &Path, r: &Raster<u8>, nodata: Option<u8>) -> Result<()> {
-    let layout = Layout { nodata: nodata.map(|v| v.to_string()), predictor: Predictor::Horizontal, alpha: false };
-    write_image::<colortype::Gray8>(path, &r.grid, &r.data, layout)
-}
-
-/// What differs between our writers besides the sample type.
-struct Layout {
-    nodata: Option<String>,
-    predictor: Predictor,
-    alpha: bool,
-}
-
-/// Classic TIFF offsets are 32-bit: beyond this many bytes of samples we write BigTIFF.
-const BIGTIFF_ABOVE: u64 = 3 << 30;
-
-fn write_image<C: ColorType>(path: &Path, grid: &Grid, data: &[C::Inner], layout: Layout) -> Result<()>
-where
-    [C::Inner]: TiffValue,
-{
-    let (w, h) = (u32::try_from(grid.width), u32::try_from(grid.height));
-    let (Ok(w), Ok(h)) = (w, h) else {
-        return Err(Error::file(path, format!("{} × {} cells is too large for a TIFF", grid.width, grid.height)));
-    };
-    if w == 0 || h == 0 {
-        return Err(Error::file(path, "cannot write an empty raster"));
-    }
-    let bytes = std::mem::size_of_val(data) as u64;
-    let fail = |e: TiffError| Error::file(path, format!("cannot write TIFF: {e}"));
-    super::atomic::write_atomic(path, |out| {
-        let compression = Compression::Deflate(DeflateLevel::Balanced);
-        if bytes > BIGTIFF_ABOVE {
-            let enc = TiffEncoder::new_big(out).map_err(fail)?;
-            encode::<_, _, C>(enc.with_compression(compression).with_predictor(layout.predictor), grid, data, &layout).map_err(fail)
-        } else {
-            let enc = TiffEncoder::new(out).map_err(fail)?;
-            encode::<_, _, C>(enc.with_compression(compression).with_predictor(layout.predictor), grid, data, &layout).map_err(fail)
+    let spec = Spec { samples: 1, bytes: 4, float: true, rgb: false, alpha: false, nodata: Some("-9999".into()) };
+    write_tiled(path, &r.grid, &spec, |row, cols, out| {
+        for &v in &r.data[row * r.width() + cols.start..row * r.width() + cols.end] {
+            out.extend_from_slice(&if v.is_nan() { F32_NODATA } else { v }.to_le_bytes());
         }
     })
 }
 
-fn encode<W: Write + Seek, K: TiffKind, C: ColorType>(mut enc: TiffEncoder<W, K>, grid: &Grid, data: &[C::Inner], layout: &Layout) -> TiffResult<()>
+/// Write an RGBA8 GeoTIFF (ExtraSamples = unassociated alpha, so GDAL/QGIS treat band 4 as the
+/// mask); same georeference as [`write_f32`]. Tiled, Deflate with horizontal predictor.
+pub fn write_rgba8(path: &Path, r: &Colour) -> Result<()> {
+    let spec = Spec { samples: 4, bytes: 1, float: false, rgb: true, alpha: true, nodata: None };
+    write_tiled(path, &r.grid, &spec, |row, cols, out| {
+        out.extend_from_slice(r.data[row * r.width() + cols.start..row * r.width() + cols.end].as_flattened())
+    })
+}
+
+/// Write a single-band 8-bit GeoTIFF with an optional nodata value (used for masks: 1 = shadow,
+/// 0 = lit, 255 nodata). Tiled, Deflate with horizontal predictor.
+pub fn write_u8(path: &Path, r: &Raster<u8>, nodata: Option<u8>) -> Result<()> {
+    let spec = Spec { samples: 1, bytes: 1, float: false, rgb: false, alpha: false, nodata: nodata.map(|v| v.to_string()) };
+    write_tiled(path, &r.grid, &spec, |row, cols, out| {
+        out.extend_from_slice(&r.data[row * r.width() + cols.start..row * r.width() + cols.end])
+    })
+}
+
+/// Tile edge of the GeoTIFFs we write, cells (GDAL's and Cloud-Optimised GeoTIFF's default).
+const TILE: usize = 256;
+
+/// The sample layout of an image we write.
+struct Spec {
+    /// Samples per pixel.
+    samples: u16,
+    /// Bytes per sample.
+    bytes: u16,
+    /// IEEE float samples (predictor 3) rather than unsigned integers (predictor 2).
+    float: bool,
+    /// Photometric RGB rather than MinIsBlack.
+    rgb: bool,
+    /// The last sample is unassociated alpha.
+    alpha: bool,
+    /// GDAL_NODATA text.
+    nodata: Option<String>,
+}
+
+impl Spec {
+    fn pixel_bytes(&self) -> usize {
+        self.samples as usize * self.bytes as usize
+    }
+
+    /// Apply the predictor to one row of a tile, in place (TIFF 6 section 14 and Adobe's
+    /// floating-point predictor technical note 3, as libtiff writes them).
+    fn predict(&self, row: &mut [u8], scratch: &mut Vec<u8>) {
+        let stride = self.samples as usize;
+        if self.float {
+            // Byte planes, most significant first, then byte differences along the whole row.
+            let bps = self.bytes as usize;
+            let n = row.len() / bps;
+            scratch.clear();
+            scratch.extend_from_slice(row);
+            for i in 0..n {
+                for b in 0..bps {
+                    row[(bps - 1 - b) * n + i] = scratch[i * bps + b];
+                }
+            }
+        }
+        // Horizontal differencing of bytes (8-bit samples, or the float byte planes).
+        for i in (stride..row.len()).rev() {
+            row[i] = row[i].wrapping_sub(row[i - stride]);
+        }
+    }
+}
+
+/// Classic TIFF offsets are 32-bit: beyond this many bytes of (padded) samples we write BigTIFF.
+const BIGTIFF_ABOVE: u64 = 0xF000_0000;
+
+/// Write a tiled, Deflate-compressed, predicted GeoTIFF. `row_bytes(row, cols, out)` appends the
+/// little-endian sample bytes of `cols` of `row`. Tiles are compressed in parallel one tile row at
+/// a time and written in order, so memory stays at one compressed tile row and the bytes do not
+/// depend on thread timing.
+fn write_tiled<F>(path: &Path, grid: &Grid, spec: &Spec, row_bytes: F) -> Result<()>
 where
-    [C::Inner]: TiffValue,
+    F: Fn(usize, std::ops::Range<usize>, &mut Vec<u8>) + Sync,
 {
-    let mut img = enc.new_image::<C>(grid.width as u32, grid.height as u32)?;
+    let (w, h) = (grid.width, grid.height);
+    if w == 0 || h == 0 {
+        return Err(Error::file(path, "cannot write an empty raster"));
+    }
+    let (across, down) = (w.div_ceil(TILE), h.div_ceil(TILE));
+    if u32::try_from(w).is_err() || u32::try_from(h).is_err() {
+        return Err(Error::file(path, format!("{w} × {h} cells is too large for a TIFF")));
+    }
+    let tile_len = TILE * TILE * spec.pixel_bytes();
+    let big = (across * down) as u64 * tile_len as u64 > BIGTIFF_ABOVE;
+    let tile = |tx: usize, ty: usize| -> Vec<u8> {
+        let row_len = TILE * spec.pixel_bytes();
+        let (mut raw, mut scratch) = (Vec::with_capacity(tile_len), Vec::with_capacity(row_len));
+        for r in ty * TILE..(ty + 1) * TILE {
+            let start = raw.len();
+            if r < h {
+                row_bytes(r, tx * TILE..((tx + 1) * TILE).min(w), &mut raw);
+            }
+            raw.resize(start + row_len, 0);
+            spec.predict(&mut raw[start..], &mut scratch);
+        }
+        let mut packed = Vec::with_capacity(tile_len / 2);
+        // Writing into a Vec cannot fail.
+        let _ = Deflate::with_level(DeflateLevel::Balanced).write_to(&mut packed, &raw);
+        packed
+    };
+    super::atomic::write_atomic(path, |out| {
+        let io = |e| Error::io(path, e);
+        let header: &[u8] = if big { b"II\x2b\x00\x08\x00\x00\x00\0\0\0\0\0\0\0\0" } else { b"II\x2a\x00\0\0\0\0" };
+        out.write_all(header).map_err(io)?;
+        let mut pos = header.len() as u64;
+        let (mut offsets, mut counts) = (Vec::with_capacity(across * down), Vec::with_capacity(across * down));
+        for ty in 0..down {
+            let tiles: Vec<Vec<u8>> = (0..across).into_par_iter().map(|tx| tile(tx, ty)).collect();
+            for t in tiles {
+                offsets.push(pos);
+                counts.push(t.len() as u64);
+                out.write_all(&t).map_err(io)?;
+                pos += t.len() as u64;
+            }
+        }
+        if pos % 2 == 1 {
+            out.write_all(&[0]).map_err(io)?;
+            pos += 1;
+        }
+        let ifd = ifd_bytes(&ifd_entries(grid, spec, offsets, counts, big), pos, big);
+        if !big && pos + ifd.len() as u64 > u32::MAX as u64 {
+            return Err(Error::file(path, "compressed data exceeds the 4 GiB of a classic TIFF").fix("write a smaller raster (tile it)"));
+        }
+        out.write_all(&ifd).map_err(io)?;
+        out.seek(std::io::SeekFrom::Start(if big { 8 } else { 4 })).map_err(io)?;
+        if big {
+            out.write_all(&pos.to_le_bytes()).map_err(io)?;
+        } else {
+            out.write_all(&(pos as u32).to_le_bytes()).map_err(io)?;
+        }
+        Ok(())
+    })
+}
+
+/// A TIFF field value.
+enum Field {
+    Short(Vec<u16>),
+    Long(Vec<u32>),
+    Long8(Vec<u64>),
+    Double(Vec<f64>),
+    Ascii(String),
+}
+
+impl Field {
+    /// TIFF type code, count and little-endian bytes.
+    fn encode(&self) -> (u16, u64, Vec<u8>) {
+        match self {
+            Field::Short(v) => (3, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            Field::Long(v) => (4, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            Field::Long8(v) => (16, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            Field::Double(v) => (12, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            Field::Ascii(s) => {
+                let mut b = s.as_bytes().to_vec();
+                b.push(0);
+                (2, b.len() as u64, b)
+            }
+        }
+    }
+}
+
+/// The tags of an image we write, sorted by tag number as TIFF requires.
+fn ifd_entries(grid: &Grid, spec: &Spec, offsets: Vec<u64>, counts: Vec<u64>, big: bool) -> Vec<(u16, Field)> {
+    let n = spec.samples as usize;
+    let long = |v: u64| Field::Long(vec![v as u32]);
+    let chunks = |v: Vec<u64>| if big { Field::Long8(v) } else { Field::Long(v.into_iter().map(|x| x as u32).collect()) };
     let t = &grid.transform;
-    let dir = img.encoder();
-    if layout.alpha {
-        // The 4-sample colour type keeps the predictor's stride right; the tag marks band 4 as alpha.
-        dir.write_tag(Tag::ExtraSamples, &[ExtraSamples::UnassociatedAlpha.to_u16()][..])?;
+    let mut e = vec![
+        (256, long(grid.width as u64)),
+        (257, long(grid.height as u64)),
+        (258, Field::Short(vec![spec.bytes * 8; n])),
+        (259, Field::Short(vec![8])), // Deflate
+        (262, Field::Short(vec![if spec.rgb { 2 } else { 1 }])),
+        (277, Field::Short(vec![spec.samples])),
+        (284, Field::Short(vec![1])), // chunky
+        (317, Field::Short(vec![if spec.float { 3 } else { 2 }])),
+        (322, long(TILE as u64)),
+        (323, long(TILE as u64)),
+        (324, chunks(offsets)),
+        (325, chunks(counts)),
+        (339, Field::Short(vec![if spec.float { 3 } else { 1 }; n])),
+    ];
+    if spec.alpha {
+        e.push((338, Field::Short(vec![ExtraSamples::UnassociatedAlpha.to_u16()])));
     }
     if t.cell_y < 0.0 {
-        dir.write_tag(Tag::ModelPixelScaleTag, &[t.cell_x, -t.cell_y, 0.0][..])?;
-        dir.write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, t.origin_x, t.origin_y, 0.0][..])?;
+        e.push((33550, Field::Double(vec![t.cell_x, -t.cell_y, 0.0])));
+        e.push((33922, Field::Double(vec![0.0, 0.0, 0.0, t.origin_x, t.origin_y, 0.0])));
     } else {
-        let m = [t.cell_x, 0.0, 0.0, t.origin_x, 0.0, t.cell_y, 0.0, t.origin_y, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
-        dir.write_tag(Tag::ModelTransformationTag, &m[..])?;
+        let m = vec![t.cell_x, 0.0, 0.0, t.origin_x, 0.0, t.cell_y, 0.0, t.origin_y, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        e.push((34264, Field::Double(m)));
     }
     let (keys, ascii) = geokeys(&grid.crs);
-    dir.write_tag(Tag::GeoKeyDirectoryTag, &keys[..])?;
-    if let Some(a) = &ascii {
-        dir.write_tag(Tag::GeoAsciiParamsTag, a.as_str())?;
+    e.push((34735, Field::Short(keys)));
+    if let Some(a) = ascii {
+        e.push((34737, Field::Ascii(a)));
     }
-    if let Some(nd) = &layout.nodata {
-        dir.write_tag(Tag::GdalNodata, nd.as_str())?;
+    if let Some(nd) = &spec.nodata {
+        e.push((42113, Field::Ascii(nd.clone())));
     }
-    img.write_data(data)
+    e.sort_by_key(|(tag, _)| *tag);
+    e
+}
+
+/// An IFD placed at file offset `at`, followed by its out-of-line values (word-aligned).
+fn ifd_bytes(entries: &[(u16, Field)], at: u64, big: bool) -> Vec<u8> {
+    let (entry_len, inline) = if big { (20u64, 8usize) } else { (12, 4) };
+    let head = if big { 8 } else { 2 };
+    let mut data_pos = at + head + entries.len() as u64 * entry_len + inline as u64;
+    let (mut ifd, mut data) = (Vec::new(), Vec::new());
+    if big {
+        ifd.extend_from_slice(&(entries.len() as u64).to_le_bytes());
+    } else {
+        ifd.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    }
+    for (tag, field) in entries {
+        let (ty, count, mut bytes) = field.encode();
+        ifd.extend_from_slice(&tag.to_le_bytes());
+        ifd.extend_from_slice(&ty.to_le_bytes());
+        if big {
+            ifd.extend_from_slice(&count.to_le_bytes());
+        } else {
+            ifd.extend_from_slice(&(count as u32).to_le_bytes());
+        }
+        if bytes.len() <= inline {
+            bytes.resize(inline, 0);
+            ifd.extend_from_slice(&bytes);
+        } else {
+            if big {
+                ifd.extend_from_slice(&data_pos.to_le_bytes());
+            } else {
+                ifd.extend_from_slice(&(data_pos as u32).to_le_bytes());
+            }
+            if bytes.len() % 2 == 1 {
+                bytes.push(0);
+            }
+            data_pos += bytes.len() as u64;
+            data.extend_from_slice(&bytes);
+        }
+    }
+    ifd.extend_from_slice(&vec![0u8; inline]); // no next IFD
+    ifd.extend_from_slice(&data);
+    ifd
 }
 
 /// The GeoKeyDirectory (sorted by key, as the spec requires) and GeoAsciiParams for a CRS:
