@@ -298,4 +298,111 @@ mod tests {
         assert!(m[0].flags.names().is_empty(), "{m:?}");
         assert!((m[0].initial_height_m.unwrap() - 12.0).abs() < 1.0);
     }
+
+    #[test]
+    fn hard_case_sun_at_89_9_degrees_finds_no_shadow() {
+        let r = run(&spec(89.9, 180.0, (0.0, 0.0), vec![building(50.0, 50.0, 12.0)]));
+        let m = r[0].0.as_ref().unwrap();
+        assert_eq!(m.flags.names(), ["no_shadow", "high_sun"]);
+        assert_eq!((m.height_m, m.roof_z, m.overlap), (None, None, None));
+        assert!(m.uncertainty_m > 100.0, "one cell of shadow is {} m of height", m.uncertainty_m);
+    }
+
+    #[test]
+    fn hard_case_sun_at_0_5_degrees_runs_off_the_grid() {
+        let r = run(&spec(0.5, 180.0, (0.0, 0.0), vec![building(50.0, 20.0, 12.0)]));
+        let m = r[0].0.as_ref().unwrap();
+        assert_eq!(m.flags.names(), ["shadow_cut_by_edge_or_nodata", "low_sun"]);
+        assert_eq!(m.height_m, None);
+        assert_eq!(m.lines_used, 0);
+    }
+
+    #[test]
+    fn hard_case_azimuth_along_a_grid_axis_and_at_45_degrees() {
+        for az in [0.0, 90.0, 180.0, 270.0, 45.0, 225.0] {
+            let b = SynthBuilding { rotation_deg: 0.0, ..building(50.0, 50.0, 10.0) };
+            assert_within(&spec(35.0, az, (0.0, 0.0), vec![b]), 0.5);
+        }
+    }
+
+    #[test]
+    fn hard_case_twenty_percent_slope_facing_the_sun_and_facing_away() {
+        // Sun in the south. Ground rising to the north: the shadow climbs and is short; falling
+        // to the north: it runs downhill and is long. The formula is far off; the refinement is not.
+        for (slope, formula_low) in [(0.2, true), (-0.2, false)] {
+            let m = assert_within(&spec(30.0, 180.0, (0.0, slope), vec![building(50.0, 40.0, 12.0)]), 0.5);
+            let z0 = m[0].initial_height_m.unwrap();
+            assert_eq!(z0 < 12.0, formula_low, "formula {z0}");
+            assert!((z0 - 12.0).abs() > 2.0, "formula {z0} should be off by more than 2 m on a 20 % slope");
+        }
+    }
+
+    #[test]
+    fn hard_case_shadow_falling_on_a_neighbour() {
+        // The neighbour stands in the north-west half of the first building's shadow.
+        let a = SynthBuilding { centre: (40.0, 30.0), size: (12.0, 8.0), rotation_deg: 0.0, height_m: 10.0 };
+        let b = SynthBuilding { centre: (34.0, 44.0), size: (10.0, 8.0), rotation_deg: 0.0, height_m: 6.0 };
+        let r = run(&spec(40.0, 180.0, (0.0, 0.0), vec![a, b]));
+        let m = r[0].0.as_ref().unwrap();
+        assert!(m.flags.shadow_on_other_building, "{m:?}");
+        assert!(m.lines_used > 0 && m.lines_used < m.lines_total, "{m:?}");
+        let h = m.height_m.unwrap();
+        assert!((h - 10.0).abs() <= 0.5, "{h} vs 10: {m:?}");
+        let m2 = r[1].0.as_ref().unwrap();
+        assert!((m2.height_m.unwrap() - 6.0).abs() <= 0.5, "{m2:?}");
+    }
+
+    #[test]
+    fn hard_case_footprint_touching_the_grid_edge() {
+        // South edge of the footprint on the grid's south edge; the sun in the south.
+        let b = SynthBuilding { centre: (50.0, 5.0), size: (12.0, 10.0), rotation_deg: 0.0, height_m: 9.0 };
+        let m = assert_within(&spec(40.0, 180.0, (0.0, 0.0), vec![b]), 0.5);
+        assert!(m[0].flags.names().is_empty(), "{m:?}");
+        // Its shadow leaving the grid on the north edge is flagged and not measured.
+        let n = SynthBuilding { centre: (50.0, 95.0), ..b };
+        let r = run(&spec(40.0, 180.0, (0.0, 0.0), vec![n]));
+        let m = r[0].0.as_ref().unwrap();
+        assert!(m.flags.shadow_cut_by_edge_or_nodata && m.height_m.is_none(), "{m:?}");
+    }
+
+    #[test]
+    fn footprint_outside_the_grid_fails_alone() {
+        let s = spec(40.0, 180.0, (0.0, 0.0), vec![building(50.0, 50.0, 8.0)]);
+        let scene = synth_scene(&s);
+        let far = Footprint::new(vec![vec![vec![(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)]]]).unwrap();
+        let fps = vec![scene.footprints[0].clone(), far];
+        let inputs = Inputs { terrain: &scene.terrain, colour: &scene.colour, mask: None };
+        let out = measure(&inputs, &fps, &s.sun, &Options::default()).unwrap();
+        assert!((out[0].as_ref().unwrap().height_m.unwrap() - 8.0).abs() <= 0.5);
+        assert!(out[1].as_ref().unwrap_err().contains("covers no cell centre"));
+    }
+
+    #[test]
+    fn a_given_mask_replaces_detection() {
+        let s = spec(40.0, 150.0, (0.0, 0.0), vec![building(50.0, 50.0, 8.0)]);
+        let scene = synth_scene(&s);
+        // A blank photo: detection finds nothing; the mask (the caster's shadow) is what counts.
+        let blank = Raster::filled(scene.terrain.grid.clone(), [120u8, 120, 120, 255]);
+        let mut raised = scene.terrain.clone();
+        for c in rasterise_prisms(&raised.grid, &[Prism { rings: scene.footprints[0].rings.clone(), roof_z: scene.roof_z[0] }]) {
+            raised.data[c.index] = c.top_z;
+        }
+        let mask = cast_shadows(&raised, 40.0, 150.0).unwrap();
+        let with = Inputs { terrain: &scene.terrain, colour: &blank, mask: Some(&mask) };
+        let m = measure(&with, &scene.footprints, &s.sun, &Options::default()).unwrap().remove(0).unwrap();
+        assert!((m.height_m.unwrap() - 8.0).abs() <= 0.5 && m.threshold.is_none(), "{m:?}");
+        let without = Inputs { terrain: &scene.terrain, colour: &blank, mask: None };
+        let m = measure(&without, &scene.footprints, &s.sun, &Options::default()).unwrap().remove(0).unwrap();
+        assert!(m.flags.no_shadow && m.height_m.is_none(), "{m:?}");
+    }
+
+    #[test]
+    fn mismatched_grids_are_an_error_for_the_run() {
+        let s = spec(40.0, 180.0, (0.0, 0.0), vec![building(50.0, 50.0, 8.0)]);
+        let scene = synth_scene(&s);
+        let other = Raster::filled(Grid::north_up(0.0, 10.0, 1.0, 10, 10, scene.terrain.grid.crs.clone()), 0u8);
+        let inputs = Inputs { terrain: &scene.terrain, colour: &scene.colour, mask: Some(&other) };
+        let e = measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap_err();
+        assert!(e.to_string().contains("not on the database grid"), "{e}");
+    }
 }
