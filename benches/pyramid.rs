@@ -42,8 +42,12 @@ fn main() {
     eprintln!("generated {size}×{size} database in {:.1} s", t.elapsed().as_secs_f64());
 
     let tiles = work.join("bench.dbt");
-    let (ours_s, ours_kb) = run_ours(&db_dir, &tiles);
+    let (ours_s, ours_kb, steps) = run_ours(&db_dir, &tiles);
     let mut rows = vec![("dbms pyramid (all levels: max Z, colour, state; tile file)".to_string(), ours_s, Some(ours_kb))];
+    let names = ["read + decode the two layer GeoTIFFs", "prepare (no sun: nothing)", "levels: bands, reductions, pages encoded + spooled", "tile writer's final pass (spool → file)"];
+    for (name, s) in names.iter().zip(&steps) {
+        rows.push((format!("  of which: {name}"), *s, None));
+    }
 
     if which("gdalwarp") && which("gdaladdo") {
         let cell = [1.0f64, 4.0, 16.0, 64.0];
@@ -88,14 +92,15 @@ fn main() {
 fn child(db_dir: &Path, tiles: &Path) {
     let mut db = Database::open(db_dir).expect("open bench database");
     let t = Instant::now();
-    build_pyramid(&mut db, tiles, &PyramidOptions::default(), &Progress::hidden()).expect("pyramid");
+    let summary = build_pyramid(&mut db, tiles, &PyramidOptions::default(), &Progress::hidden()).expect("pyramid");
     let secs = t.elapsed().as_secs_f64();
+    let s = summary.seconds;
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
     let hwm = status.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)).unwrap_or("0");
-    println!("{secs} {hwm}");
+    println!("{secs} {hwm} {} {} {} {}", s.read, s.prepare, s.levels, s.finish);
 }
 
-fn run_ours(db_dir: &Path, tiles: &Path) -> (f64, u64) {
+fn run_ours(db_dir: &Path, tiles: &Path) -> (f64, u64, Vec<f64>) {
     let exe = std::env::current_exe().expect("bench executable");
     let o = Command::new(exe).arg("--child").arg(db_dir).arg(tiles).output().expect("run child");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -103,7 +108,8 @@ fn run_ours(db_dir: &Path, tiles: &Path) -> (f64, u64) {
     let mut it = text.split_whitespace();
     let secs: f64 = it.next().and_then(|s| s.parse().ok()).expect("child seconds");
     let kb: u64 = it.next().and_then(|s| s.parse().ok()).expect("child VmHWM");
-    (secs, kb)
+    let steps = it.map(|s| s.parse().expect("child step seconds")).collect();
+    (secs, kb, steps)
 }
 
 /// Run a command, returning wall seconds and (under /usr/bin/time) peak resident kB.

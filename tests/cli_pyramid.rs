@@ -62,7 +62,18 @@ fn pyramid(db: &Path, out: &Path, extra: &[&str]) -> Value {
     args.extend_from_slice(extra);
     let o = dbms(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
+    let summary: Value = serde_json::from_slice(&o.stdout).unwrap();
+    check_effects_schema(&summary["effects"]);
+    summary
+}
+
+/// Every effects record matches schemas/pyramid-effects.schema.json.
+fn check_effects_schema(effects: &Value) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/pyramid-effects.schema.json");
+    let schema: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let v = jsonschema::validator_for(&schema).unwrap();
+    let errors: Vec<String> = v.iter_errors(effects).map(|e| format!("{e} at {}", e.instance_path())).collect();
+    assert!(errors.is_empty(), "effects record does not match its schema: {errors:?}\n{effects}");
 }
 
 fn applied(summary: &Value) -> Vec<String> {
@@ -110,7 +121,7 @@ fn builds_every_level_with_exact_maxima_and_records_the_stage() {
     let m = Database::open(&db.dir).unwrap();
     let stage = m.manifest.stages.last().unwrap();
     assert_eq!(stage.name, "pyramid");
-    assert_eq!(stage.params["tiles_sha256"], json!(dbms::db::sha256_file(&out).unwrap()));
+    assert_eq!(stage.params["tiles"], json!(out));
     let v = dbms(&["tiles", out.to_str().unwrap(), "--verify"]);
     assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
 }

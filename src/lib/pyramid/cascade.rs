@@ -11,7 +11,7 @@
 
 use super::reduce::{reduce, BaseRows, CoarseRows, LevelRows};
 use crate::error::{Error, Result};
-use crate::tiles::{Page, TileSetInfo};
+use crate::tiles::{Page, TileSetInfo, STATE_EMPTY};
 use rayon::prelude::*;
 
 /// Build every level of `info` and hand each page to `emit(level, tx, ty, page)` (called from
@@ -22,7 +22,7 @@ use rayon::prelude::*;
 pub fn build_levels<B, E>(info: &TileSetInfo, mut band: B, emit: &E) -> Result<()>
 where
     B: FnMut(usize, usize) -> Result<BaseRows>,
-    E: Fn(usize, usize, usize, Page) -> Result<()> + Sync,
+    E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
 {
     let (p, f) = (info.page_size, info.factor);
     if info.levels.len() > 1 && p % f != 0 {
@@ -64,7 +64,7 @@ struct Pending {
 /// Add rows to level `k`; emit and reduce onward whenever a page-row is complete.
 fn push<E>(info: &TileSetInfo, pending: &mut [Pending], k: usize, rows: CoarseRows, emit: &E) -> Result<()>
 where
-    E: Fn(usize, usize, usize, Page) -> Result<()> + Sync,
+    E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
 {
     let level = &info.levels[k];
     let slot = &mut pending[k - 1];
@@ -87,23 +87,32 @@ where
 fn emit_page_row<R, E>(info: &TileSetInfo, level: usize, ty: usize, rows: &R, emit: &E) -> Result<()>
 where
     R: LevelRows,
-    E: Fn(usize, usize, usize, Page) -> Result<()> + Sync,
+    E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
 {
     let p = info.page_size;
     let w = rows.width();
-    (0..info.levels[level].pages_x).into_par_iter().try_for_each(|tx| {
-        let mut page = Page::nodata(p);
-        let cols = p.min(w - tx * p);
-        for r in 0..rows.rows() {
-            for c in 0..cols {
-                let (i, o) = (r * w + tx * p + c, r * p + c);
-                page.max_z[o] = rows.max_z(i);
-                page.colour[o] = rows.colour(i);
-                page.state[o] = rows.state(i);
+    // One page buffer per worker, refilled for each page: no allocation (and no fresh-memory
+    // page faults) per page.
+    (0..info.levels[level].pages_x).into_par_iter().try_for_each_init(
+        || Page::nodata(p),
+        |page, tx| {
+            let cols = p.min(w - tx * p);
+            for r in 0..p {
+                let o = r * p;
+                let valid = if r < rows.rows() { cols } else { 0 };
+                for c in 0..valid {
+                    let i = r * w + tx * p + c;
+                    page.max_z[o + c] = rows.max_z(i);
+                    page.colour[o + c] = rows.colour(i);
+                    page.state[o + c] = rows.state(i);
+                }
+                page.max_z[o + valid..o + p].fill(f32::NAN);
+                page.colour[o + valid..o + p].fill([0; 4]);
+                page.state[o + valid..o + p].fill(STATE_EMPTY);
             }
-        }
-        emit(level, tx, ty, page)
-    })
+            emit(level, tx, ty, page)
+        },
+    )
 }
 
 #[cfg(test)]
@@ -144,7 +153,7 @@ mod tests {
         let info = TileSetInfo::new(grid, page, factor, None).unwrap();
         let collector = crate::pyramid::export::LevelCollector::new(&info);
         build_levels(&info, |row0, rows| Ok(cut(base, row0, rows)), &|l, tx, ty, p| {
-            collector.put(l, tx, ty, &p);
+            collector.put(l, tx, ty, p);
             Ok(())
         })
         .unwrap();

@@ -89,6 +89,21 @@ pub struct PyramidSummary {
     pub effects: serde_json::Value,
     /// GeoTIFFs written by `--export-levels`.
     pub exported: Vec<PathBuf>,
+    /// Where the time went (not recorded in the manifest: it would break reproducibility).
+    pub seconds: Timings,
+}
+
+/// Wall-clock seconds of each step of [`build_pyramid`].
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Timings {
+    /// Reading and decoding the elevation and colour layers.
+    pub read: f64,
+    /// Buildings, objects and sun effects (shadow casts) prepared for the whole grid.
+    pub prepare: f64,
+    /// The hierarchy: level-0 bands, reductions, pages encoded and spooled by the tile writer.
+    pub levels: f64,
+    /// The tile writer's final pass (spool to the file in canonical order) and the export.
+    pub finish: f64,
 }
 
 /// Build the tile file `out` for the database `db` and record a `pyramid` stage in its manifest.
@@ -97,10 +112,23 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
         return Err(Error::msg(format!("--shadow-factor {}: must be in (0, 1]", opts.shadow_factor))
             .fix(format!("the default is {}", shade::DEFAULT_SHADOW_FACTOR)));
     }
+    let clock = std::time::Instant::now();
+    let mut lap = {
+        let mut last = 0.0;
+        move || {
+            let now = clock.elapsed().as_secs_f64();
+            let d = now - last;
+            last = now;
+            d
+        }
+    };
+    let mut seconds = Timings::default();
     let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
     info.compression = opts.compression;
-    let terrain = db.read_elevation()?;
-    let colour = db.read_colour()?;
+    // The two layers decode in parallel (each GeoTIFF decodes on one thread).
+    let (terrain, colour) = rayon::join(|| db.read_elevation(), || db.read_colour());
+    let (terrain, colour) = (terrain?, colour?);
+    seconds.read = lap();
 
     let buildings = match db.manifest.layers.contains_key("buildings") {
         true => {
@@ -127,24 +155,27 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
         None => shade::record_none(opts.sun, photo_sun, opts.shadow_factor),
     };
 
+    seconds.prepare = lap();
     let level0 = base::Level0 { terrain: &terrain, colour: &colour, raised: &all, effects: effects.as_ref() };
     let writer = TileWriter::create(out, info.clone())?;
     let collector = opts.export_levels.as_ref().map(|_| export::LevelCollector::new(&info));
     progress.phase(info.page_count() as u64, "pyramid");
     cascade::build_levels(&info, |row0, rows| Ok(level0.band(row0, rows)), &|level, tx, ty, page| {
         if let Some(c) = &collector {
-            c.put(level, tx, ty, &page);
+            c.put(level, tx, ty, page);
         }
-        writer.write_page(level, tx, ty, &page)?;
+        writer.write_page(level, tx, ty, page)?;
         progress.inc(1);
         Ok(())
     })?;
+    seconds.levels = lap();
     writer.finish()?;
     progress.finish();
     let exported = match (collector, &opts.export_levels) {
         (Some(c), Some(dir)) => c.write(dir)?,
         _ => Vec::new(),
     };
+    seconds.finish = lap();
 
     let summary = PyramidSummary {
         tiles: out.to_path_buf(),
@@ -156,13 +187,14 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
         half_valid_cells: level0.half_valid_cells(),
         effects: info.effects.clone(),
         exported,
+        seconds,
     };
     db.record_stage(Stage::now(
         "pyramid",
         serde_json::json!({
             "tiles": out, "factor": opts.factor, "page_size": opts.page_size, "levels": summary.levels,
             "compression": opts.compression.name(), "export_levels": opts.export_levels,
-            "tiles_sha256": db::sha256_file(out)?, "effects": summary.effects,
+            "effects": summary.effects,
             "building_cells": summary.building_cells, "object_cells": summary.object_cells,
             "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
         }),
