@@ -46,7 +46,8 @@ fn rings(elevations: &[f64]) -> Vec<Camera> {
 fn main() {
     let quick = std::env::args().any(|a| a == "quick");
     let sizes: &[u32] = if quick { &[64, 128] } else { &[64, 128, 256] };
-    let setups: Vec<(&str, Vec<Camera>)> = vec![("3 ortho", ortho3()), ("8 pinhole", rings(&[20.0])), ("24 pinhole", rings(&[-15.0, 20.0, 55.0]))];
+    let setups: Vec<(&str, Vec<Camera>)> =
+        vec![("3 ortho", ortho3()), ("8 pinhole", rings(&[20.0])), ("24 pinhole", rings(&[-15.0, 20.0, 55.0]))];
     let opts = CarveOptions::default();
     println!("Images {IMAGE}×{IMAGE}; box [-1, 1]³ m; {} rayon threads.\n", rayon::current_num_threads());
     println!("| solid | views | voxels³ | IoU truth | IoU exact hull | voxels kept | hierarchical ms | dense ms | speedup | equal |");

@@ -209,7 +209,15 @@ fn hard_case_voxel_larger_than_the_object() {
     // A 2 m voxel (wider than the 1.6 m sphere) whose centre (-0.8, -0.8, -0.8) is in every
     // image but outside every silhouette: a clear error, not an empty file.
     let (ok, _, stderr) = dbms(&[
-        "sculpt", "--views", views.to_str().unwrap(), "--voxel", "2", "--bounds", "-1.8,-1.8,-1.8,-1.7,-1.7,-1.7", "-o", dir.path().join("x.dvox").to_str().unwrap(),
+        "sculpt",
+        "--views",
+        views.to_str().unwrap(),
+        "--voxel",
+        "2",
+        "--bounds",
+        "-1.8,-1.8,-1.8,-1.7,-1.7,-1.7",
+        "-o",
+        dir.path().join("x.dvox").to_str().unwrap(),
     ]);
     assert!(!ok && stderr.contains("no voxel survives carving") && stderr.contains("smaller --voxel"), "{stderr}");
     assert!(!dir.path().join("x.dvox").exists());
@@ -232,7 +240,15 @@ fn vox_export_of_an_oversized_object_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
     let (ok, _, stderr) = dbms(&[
-        "sculpt", "--views", views.to_str().unwrap(), "--voxel", "0.007", "--export", "vox", "-o", dir.path().join("o.dvox").to_str().unwrap(),
+        "sculpt",
+        "--views",
+        views.to_str().unwrap(),
+        "--voxel",
+        "0.007",
+        "--export",
+        "vox",
+        "-o",
+        dir.path().join("o.dvox").to_str().unwrap(),
     ]);
     assert!(!ok && stderr.contains("at most 256 per axis") && stderr.contains("--export ply"), "{stderr}");
     // The grid geometry behind it: 2 m / 7 mm = 286 voxels.
@@ -294,13 +310,16 @@ fn views_files_and_object_headers_match_their_schemas() {
 fn object_revolve_cone_and_extrude() {
     let dir = tempfile::tempdir().unwrap();
     let d = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
-    let (ok, out, err) = dbms(&["object", "revolve", "--profile", "5:0,5:8,0:9", "--voxel", "0.5", "-o", &d("tank.dvox"), "--export", "vox"]);
+    let (ok, out, err) =
+        dbms(&["object", "revolve", "--profile", "5:0,5:8,0:9", "--voxel", "0.5", "-o", &d("tank.dvox"), "--export", "vox"]);
     assert!(ok, "{err}");
     assert!(out.contains("anchor (bottom centre) at (0, 0, 0)"), "{out}");
     let (tank, _) = format::read(&dir.path().join("tank.dvox")).unwrap();
     assert_eq!(tank.grid.dims, [21, 21, 18]);
     assert!(dir.path().join("tank.vox").exists());
-    let tree = |seed: &str, name: &str| dbms(&["object", "cone", "--height", "10", "--radius", "2.5", "--seed", seed, "--voxel", "0.25", "-o", &d(name)]);
+    let tree = |seed: &str, name: &str| {
+        dbms(&["object", "cone", "--height", "10", "--radius", "2.5", "--seed", seed, "--voxel", "0.25", "-o", &d(name)])
+    };
     assert!(tree("1", "a.dvox").0 && tree("1", "b.dvox").0 && tree("2", "c.dvox").0);
     let bytes = |n: &str| std::fs::read(dir.path().join(n)).unwrap();
     assert_eq!(bytes("a.dvox"), bytes("b.dvox"), "same seed, same bytes");
@@ -310,7 +329,8 @@ fn object_revolve_cone_and_extrude() {
         r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"h":7.5},"geometry":{"type":"Polygon","coordinates":[[[10,20],[18,20],[18,26],[10,26],[10,20]]]}}]}"#,
     )
     .unwrap();
-    let (ok, _, err) = dbms(&["object", "extrude", "--footprints", &d("f.geojson"), "--height-field", "h", "--voxel", "0.5", "-o", &d("b.dvox")]);
+    let (ok, _, err) =
+        dbms(&["object", "extrude", "--footprints", &d("f.geojson"), "--height-field", "h", "--voxel", "0.5", "-o", &d("b.dvox")]);
     assert!(ok, "{err}");
     let (b, _) = format::read(&dir.path().join("b.dvox")).unwrap();
     assert_eq!(b.len(), 16 * 12 * 15);
@@ -331,7 +351,16 @@ fn database(dir: &Path) -> std::path::PathBuf {
     dbms::io::geotiff::write_rgba8(&ortho, &Raster::filled(g, [1, 2, 3, 255])).unwrap();
     let db = dir.join("db");
     let (ok, _, err) = dbms(&[
-        "ingest", "-q", "--photo-time", "2026-06-21T10:00:00Z", "--dem", dem.to_str().unwrap(), "--ortho", ortho.to_str().unwrap(), "-o", db.to_str().unwrap(),
+        "ingest",
+        "-q",
+        "--photo-time",
+        "2026-06-21T10:00:00Z",
+        "--dem",
+        dem.to_str().unwrap(),
+        "--ortho",
+        ortho.to_str().unwrap(),
+        "-o",
+        db.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
     db

@@ -118,7 +118,12 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 seed,
             };
             let (obj, h) = synth::cone_tree(&p, out.voxel)?;
-            (obj, out, format!("dbms object cone --height {height} --radius {radius} --vary {vary} --seed {seed}"), serde_json::json!({ "tree_height_m": h }))
+            (
+                obj,
+                out,
+                format!("dbms object cone --height {height} --radius {radius} --vary {vary} --seed {seed}"),
+                serde_json::json!({ "tree_height_m": h }),
+            )
         }
         Kind::Extrude { footprints, height_field, colour, roof_colour, out } => {
             let fp = synth::read_footprints(&footprints, &height_field)?;
@@ -133,7 +138,15 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let a = obj.anchor();
     let human = format!(
         "{}: {} voxels in a {}x{}x{} grid of {} m; anchor (bottom centre) at ({}, {}, {})",
-        out.output.display(), obj.len(), d[0], d[1], d[2], out.voxel, a[0], a[1], a[2]
+        out.output.display(),
+        obj.len(),
+        d[0],
+        d[1],
+        d[2],
+        out.voxel,
+        a[0],
+        a[1],
+        a[2]
     );
     let mut json = serde_json::json!({ "output": out.output, "exports": exports, "voxels": obj.len(), "dims": d, "anchor": a });
     if let (Some(j), Some(e)) = (json.as_object_mut(), extra.as_object()) {

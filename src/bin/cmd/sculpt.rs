@@ -53,7 +53,16 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let c = report.colour;
     let mut human = format!(
         "{}: {} voxels in a {}x{}x{} grid of {} m from {} views; {} surface voxels, {} coloured, {} seen by no view",
-        args.output.display(), report.voxels, d[0], d[1], d[2], args.voxel, report.views, c.surface, c.seen, c.unseen
+        args.output.display(),
+        report.voxels,
+        d[0],
+        d[1],
+        d[2],
+        args.voxel,
+        report.views,
+        c.surface,
+        c.seen,
+        c.unseen
     );
     for p in &exports {
         human += &format!("\nexported {}", p.display());

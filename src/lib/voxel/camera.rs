@@ -100,8 +100,9 @@ impl Camera {
         if position.iter().chain(&target).any(|v| !v.is_finite()) {
             return Err(Error::msg("camera position or look_at is not finite"));
         }
-        let forward = unit(sub(target, position))
-            .ok_or_else(|| Error::msg("camera position equals look_at: no viewing direction").fix("give a look_at point away from the position"))?;
+        let forward = unit(sub(target, position)).ok_or_else(|| {
+            Error::msg("camera position equals look_at: no viewing direction").fix("give a look_at point away from the position")
+        })?;
         let r = orientation(forward, up)?;
         Ok(Camera::Pinhole(Pinhole { fx, fy, cx, cy, r, centre: position }))
     }
@@ -110,7 +111,9 @@ impl Camera {
     /// point `centre` at pixel `(cx, cy)`.
     pub fn orthographic(direction: [f64; 3], up: Option<[f64; 3]>, scale: f64, centre: [f64; 3], cx: f64, cy: f64) -> Result<Camera> {
         if !(scale.is_finite() && scale > 0.0) {
-            return Err(Error::msg(format!("orthographic scale {scale} is not a positive number of pixels per metre")).fix("give \"scale\" > 0"));
+            return Err(
+                Error::msg(format!("orthographic scale {scale} is not a positive number of pixels per metre")).fix("give \"scale\" > 0")
+            );
         }
         if centre.iter().chain(&[cx, cy]).any(|v| !v.is_finite()) {
             return Err(Error::msg("orthographic centre, cx or cy is not finite"));
@@ -169,7 +172,11 @@ impl Camera {
             Camera::Pinhole(c) => {
                 let d = sub(c.centre, p);
                 let n = norm(d);
-                if n > 0.0 { ([d[0] / n, d[1] / n, d[2] / n], n) } else { ([0.0, 0.0, 1.0], 0.0) }
+                if n > 0.0 {
+                    ([d[0] / n, d[1] / n, d[2] / n], n)
+                } else {
+                    ([0.0, 0.0, 1.0], 0.0)
+                }
             }
             Camera::Orthographic(c) => (c.forward.map(|v| -v), f64::INFINITY),
         }
@@ -210,7 +217,8 @@ fn check_rotation(r: &[[f64; 3]; 3]) -> Result<()> {
     }
     let det = dot(r[0], cross(r[1], r[2]));
     if det.abs() < 1e-9 {
-        return Err(Error::msg("rotation R is singular (determinant 0): the camera is not invertible").fix("give R as a 3×3 rotation matrix, rows orthonormal"));
+        return Err(Error::msg("rotation R is singular (determinant 0): the camera is not invertible")
+            .fix("give R as a 3×3 rotation matrix, rows orthonormal"));
     }
     let orthonormal = (0..3).all(|i| (0..3).all(|j| (dot(r[i], r[j]) - if i == j { 1.0 } else { 0.0 }).abs() < 1e-6));
     if !orthonormal || det < 0.0 {

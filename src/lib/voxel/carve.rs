@@ -192,7 +192,8 @@ impl Ctx<'_> {
         // The voxel centres of the box span the box between its first and last centres; depth is
         // affine and perspective maps segments to segments, so the corners bound everything.
         let (a, b) = (self.grid.centre(lo[0], lo[1], lo[2]), self.grid.centre(hi[0] - 1, hi[1] - 1, hi[2] - 1));
-        let corners = (0..8).map(|k| [if k & 1 == 0 { a[0] } else { b[0] }, if k & 2 == 0 { a[1] } else { b[1] }, if k & 4 == 0 { a[2] } else { b[2] }]);
+        let corners = (0..8)
+            .map(|k| [if k & 1 == 0 { a[0] } else { b[0] }, if k & 2 == 0 { a[1] } else { b[1] }, if k & 4 == 0 { a[2] } else { b[2] }]);
         // Rounding margin on depths (metres): far above f64 noise at UTM magnitudes.
         const DEPTH_EPS: f64 = 1e-7;
         let mut depth = (f64::INFINITY, f64::NEG_INFINITY);

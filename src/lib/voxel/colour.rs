@@ -104,7 +104,13 @@ fn occluded(grid: &VoxelGrid, occ: &Occupancy, camera: &Camera, c: [f64; 3], v: 
         }
     }
     loop {
-        let a = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] { 0 } else if t_next[1] <= t_next[2] { 1 } else { 2 };
+        let a = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
+            0
+        } else if t_next[1] <= t_next[2] {
+            1
+        } else {
+            2
+        };
         if t_next[a] >= t_end {
             return false; // reached the camera
         }

@@ -122,8 +122,11 @@ pub fn write_vox(path: &Path, obj: &VoxelObject) -> Result<()> {
     crate::io::atomic::write_bytes_atomic(path, &bytes)
 }
 
+/// Maps a voxel colour to its palette index (1..=255).
+type IndexOf<'a> = Box<dyn Fn([u8; 3]) -> u8 + 'a>;
+
 /// Palette entries (entry `k` is colour index `k + 1`) and the index of each colour.
-fn palette(obj: &VoxelObject) -> (Vec<[u8; 3]>, Box<dyn Fn([u8; 3]) -> u8 + '_>) {
+fn palette(obj: &VoxelObject) -> (Vec<[u8; 3]>, IndexOf<'_>) {
     let mut distinct: BTreeMap<[u8; 3], u8> = BTreeMap::new();
     for &c in &obj.colours {
         if distinct.len() > 255 {
@@ -149,9 +152,8 @@ fn palette(obj: &VoxelObject) -> (Vec<[u8; 3]>, Box<dyn Fn([u8; 3]) -> u8 + '_>)
             }
         }
     }
-    let index = move |c: [u8; 3]| {
-        (1 + (level(c[0], LEVELS[0]) * LEVELS[1] + level(c[1], LEVELS[1])) * LEVELS[2] + level(c[2], LEVELS[2])) as u8
-    };
+    let index =
+        move |c: [u8; 3]| (1 + (level(c[0], LEVELS[0]) * LEVELS[1] + level(c[1], LEVELS[1])) * LEVELS[2] + level(c[2], LEVELS[2])) as u8;
     (entries, Box::new(index))
 }
 

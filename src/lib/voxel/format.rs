@@ -124,8 +124,11 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelObject, Header)> {
     let json = bytes.get(12..12 + hlen).ok_or_else(|| bad("file ends inside the header (truncated?)"))?;
     let header: Header = serde_json::from_slice(json).map_err(|e| bad(format!("bad header: {e}")))?;
     if header.format != FORMAT_NAME || header.version != VERSION {
-        return Err(Error::msg(format!("header says {} version {}; this dbms reads {FORMAT_NAME} version {VERSION}", header.format, header.version))
-            .fix("use the dbms version that wrote it"));
+        return Err(Error::msg(format!(
+            "header says {} version {}; this dbms reads {FORMAT_NAME} version {VERSION}",
+            header.format, header.version
+        ))
+        .fix("use the dbms version that wrote it"));
     }
     let grid = VoxelGrid::new(header.origin, header.voxel_size, header.dims)?;
     let packed = &bytes[12 + hlen..];
@@ -178,7 +181,7 @@ mod tests {
             let g = VoxelGrid::new([500_000.25, 5_000_000.5, 101.0], 0.25, [nx, ny, nz]).unwrap();
             let o = VoxelObject::from_fn(g, |_, i| {
                 let h = (i as u64 ^ seed).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-                (h >> 60 < 9).then(|| [(h >> 8) as u8, (h >> 16) as u8, (h >> 24) as u8])
+                (h >> 60 < 9).then_some([(h >> 8) as u8, (h >> 16) as u8, (h >> 24) as u8])
             });
             let bytes = encode(&o, "test");
             prop_assert_eq!(&bytes, &encode(&o, "test"));

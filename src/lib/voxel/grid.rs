@@ -93,21 +93,13 @@ impl VoxelGrid {
     #[inline]
     pub fn centre(&self, x: u32, y: u32, z: u32) -> [f64; 3] {
         let s = self.voxel_size;
-        [
-            self.origin[0] + (x as f64 + 0.5) * s,
-            self.origin[1] + (y as f64 + 0.5) * s,
-            self.origin[2] + (z as f64 + 0.5) * s,
-        ]
+        [self.origin[0] + (x as f64 + 0.5) * s, self.origin[1] + (y as f64 + 0.5) * s, self.origin[2] + (z as f64 + 0.5) * s]
     }
 
     /// World position (metres) of the maximum corner of the grid.
     pub fn max_corner(&self) -> [f64; 3] {
         let s = self.voxel_size;
-        [
-            self.origin[0] + self.dims[0] as f64 * s,
-            self.origin[1] + self.dims[1] as f64 * s,
-            self.origin[2] + self.dims[2] as f64 * s,
-        ]
+        [self.origin[0] + self.dims[0] as f64 * s, self.origin[1] + self.dims[1] as f64 * s, self.origin[2] + self.dims[2] as f64 * s]
     }
 }
 

@@ -77,10 +77,13 @@ impl VoxelObject {
 
     /// Number of surface voxels (solid with an empty 6-neighbour).
     pub fn surface_count(&self) -> usize {
-        self.occupancy.occupied().filter(|&i| {
-            let [x, y, z] = self.grid.coords(i);
-            self.occupancy.is_surface(x, y, z)
-        }).count()
+        self.occupancy
+            .occupied()
+            .filter(|&i| {
+                let [x, y, z] = self.grid.coords(i);
+                self.occupancy.is_surface(x, y, z)
+            })
+            .count()
     }
 
     /// World position (metres) of the anchor: centre of the grid's bottom face.

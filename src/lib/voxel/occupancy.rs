@@ -81,7 +81,11 @@ impl Occupancy {
     pub fn iou(&self, other: &Occupancy) -> f64 {
         let inter = self.count_and(other);
         let union = self.count() + other.count() - inter;
-        if union == 0 { 1.0 } else { inter as f64 / union as f64 }
+        if union == 0 {
+            1.0
+        } else {
+            inter as f64 / union as f64
+        }
     }
 
     /// Storage indices of the occupied voxels, ascending.
@@ -139,9 +143,9 @@ impl<'a> Rank<'a> {
     /// Rank of occupied storage index `i`, or `None` when `i` is empty.
     #[inline]
     pub fn of(&self, i: usize) -> Option<usize> {
-        self.occ.get_index(i).then(|| {
-            self.before[i >> 6] as usize + (self.occ.words[i >> 6] & ((1u64 << (i & 63)) - 1)).count_ones() as usize
-        })
+        self.occ
+            .get_index(i)
+            .then(|| self.before[i >> 6] as usize + (self.occ.words[i >> 6] & ((1u64 << (i & 63)) - 1)).count_ones() as usize)
     }
 }
 

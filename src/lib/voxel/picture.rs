@@ -63,7 +63,11 @@ fn read_tiff(bytes: &[u8]) -> Result<Picture> {
     let samples: Vec<u8> = match dec.read_image().map_err(bad)? {
         DecodingResult::U8(v) => v,
         DecodingResult::U16(v) => v.iter().map(|&s| ((s as u32 * 255 + 32767) / 65535) as u8).collect(),
-        _ => return Err(Error::msg("TIFF samples are not 8- or 16-bit unsigned").fix("convert it: gdal_translate -ot Byte -scale in.tif out.tif")),
+        _ => {
+            return Err(
+                Error::msg("TIFF samples are not 8- or 16-bit unsigned").fix("convert it: gdal_translate -ot Byte -scale in.tif out.tif")
+            )
+        }
     };
     if samples.len() != width as usize * height as usize * channels {
         return Err(Error::msg("TIFF holds fewer samples than its size says (truncated?)"));

@@ -47,14 +47,16 @@ pub fn place(db: &mut Database, object_path: &Path, x: f64, y: f64, z: Option<f6
     let (obj, _): (VoxelObject, _) = format::read(object_path)?;
     if db.grid().cell_at(x, y).is_none() {
         let b = db.grid().bounds();
-        return Err(Error::msg(format!("--at {x},{y} is outside the database extent [{}, {}, {}, {}]", b.min_x, b.min_y, b.max_x, b.max_y))
-            .fix("give a position inside the database"));
+        return Err(Error::msg(format!(
+            "--at {x},{y} is outside the database extent [{}, {}, {}, {}]",
+            b.min_x, b.min_y, b.max_x, b.max_y
+        ))
+        .fix("give a position inside the database"));
     }
     let z = match z {
         Some(z) => z,
-        None => ground_height(&db.read_elevation()?, x, y).ok_or_else(|| {
-            Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)")).fix("give the height as --at X,Y,Z")
-        })?,
+        None => ground_height(&db.read_elevation()?, x, y)
+            .ok_or_else(|| Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)")).fix("give the height as --at X,Y,Z"))?,
     };
     let sha256 = sha256_file(object_path)?;
     let stem = object_path.file_stem().and_then(|s| s.to_str()).unwrap_or("object");

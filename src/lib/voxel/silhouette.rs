@@ -65,7 +65,11 @@ impl Silhouette {
     /// Does the silhouette reach the image border (the object may extend outside the view)?
     pub fn touches_border(&self) -> bool {
         let (w, h) = (self.width, self.height);
-        self.count(0, 0, w, 1) + self.count(0, h.saturating_sub(1), w, h) + self.count(0, 0, 1, h) + self.count(w.saturating_sub(1), 0, w, h) > 0
+        self.count(0, 0, w, 1)
+            + self.count(0, h.saturating_sub(1), w, h)
+            + self.count(0, 0, 1, h)
+            + self.count(w.saturating_sub(1), 0, w, h)
+            > 0
     }
 }
 
@@ -77,7 +81,7 @@ mod tests {
     proptest! {
         #[test]
         fn rectangle_counts_match_brute_force(w in 1u32..20, h in 1u32..20, seed in any::<u64>(), c0 in 0u32..22, r0 in 0u32..22, c1 in 0u32..22, r1 in 0u32..22) {
-            let inside: Vec<bool> = (0..w * h).map(|i| (seed.rotate_left(i % 64) ^ i as u64 * 0x9E37) & 3 == 0).collect();
+            let inside: Vec<bool> = (0..w * h).map(|i| (seed.rotate_left(i % 64) ^ (i as u64 * 0x9E37)) & 3 == 0).collect();
             let s = Silhouette::new(w, h, inside.clone());
             let mut n = 0;
             for r in r0..r1.min(h) {

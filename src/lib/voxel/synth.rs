@@ -39,7 +39,8 @@ pub fn revolve(profile: &[[f64; 2]], voxel: f64, colour: [u8; 3]) -> Result<Voxe
     let zmax = profile.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max);
     let rmax = profile.iter().map(|p| p[0]).fold(0.0, f64::max);
     if !(zmax > zmin && rmax > 0.0) || zmin < 0.0 {
-        return Err(Error::msg("the profile must span some height and radius, with z ≥ 0 (z is up from the ground)").fix("e.g. --profile 6:0,6:8,0:9.5"));
+        return Err(Error::msg("the profile must span some height and radius, with z ≥ 0 (z is up from the ground)")
+            .fix("e.g. --profile 6:0,6:8,0:9.5"));
     }
     let mut ring: Vec<[f64; 2]> = vec![[0.0, profile[0][1]]];
     ring.extend_from_slice(profile);
@@ -155,16 +156,21 @@ pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>
     let mut out = Vec::new();
     for (i, f) in features.iter().enumerate() {
         let bad = |what: &str| Error::file(path, format!("feature {i}: {what}"));
-        let height = f
-            .pointer(&format!("/properties/{height_field}"))
-            .and_then(|h| h.as_f64())
-            .filter(|h| h.is_finite() && *h > 0.0)
-            .ok_or_else(|| bad(&format!("no positive number in property \"{height_field}\"")).fix("give each footprint a height in metres, or name the property with --height-field"))?;
+        let height =
+            f.pointer(&format!("/properties/{height_field}")).and_then(|h| h.as_f64()).filter(|h| h.is_finite() && *h > 0.0).ok_or_else(
+                || {
+                    bad(&format!("no positive number in property \"{height_field}\""))
+                        .fix("give each footprint a height in metres, or name the property with --height-field")
+                },
+            )?;
         let geom = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
         let polys: Vec<&serde_json::Value> = match geom.get("type").and_then(|t| t.as_str()) {
             Some("Polygon") => vec![&geom["coordinates"]],
             Some("MultiPolygon") => geom["coordinates"].as_array().map(|a| a.iter().collect()).unwrap_or_default(),
-            other => return Err(bad(&format!("geometry type {} is not a Polygon or MultiPolygon", other.unwrap_or("(none)"))).fix("give footprints as polygons")),
+            other => {
+                return Err(bad(&format!("geometry type {} is not a Polygon or MultiPolygon", other.unwrap_or("(none)")))
+                    .fix("give footprints as polygons"))
+            }
         };
         for poly in polys {
             let rings: Option<Vec<Vec<[f64; 2]>>> = poly.as_array().map(|rings| {
@@ -174,7 +180,9 @@ pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>
                     .map(|r| r.iter().filter_map(|pt| Some([pt.get(0)?.as_f64()?, pt.get(1)?.as_f64()?])).collect())
                     .collect()
             });
-            let rings = rings.filter(|r| !r.is_empty() && r.iter().all(|ring: &Vec<[f64; 2]>| ring.len() >= 3)).ok_or_else(|| bad("polygon rings need at least 3 [x, y] positions"))?;
+            let rings = rings
+                .filter(|r| !r.is_empty() && r.iter().all(|ring: &Vec<[f64; 2]>| ring.len() >= 3))
+                .ok_or_else(|| bad("polygon rings need at least 3 [x, y] positions"))?;
             out.push(Footprint { rings, height });
         }
     }
@@ -202,7 +210,10 @@ pub fn extrude(footprints: &[Footprint], voxel: f64, wall: [u8; 3], roof: [u8; 3
         .map(|f| {
             let outer = &f.rings[0];
             let fold = |a: usize, init: f64, op: fn(f64, f64) -> f64| outer.iter().map(|p| p[a]).fold(init, op);
-            ([fold(0, f64::INFINITY, f64::min), fold(1, f64::INFINITY, f64::min)], [fold(0, f64::NEG_INFINITY, f64::max), fold(1, f64::NEG_INFINITY, f64::max)])
+            (
+                [fold(0, f64::INFINITY, f64::min), fold(1, f64::INFINITY, f64::min)],
+                [fold(0, f64::NEG_INFINITY, f64::max), fold(1, f64::NEG_INFINITY, f64::max)],
+            )
         })
         .collect();
     // Roof height of each (x, y) column centre, row-major over (y, x).
@@ -250,7 +261,16 @@ mod tests {
 
     #[test]
     fn trees_are_seeded_and_vary() {
-        let p = TreeParams { height: 12.0, radius: 3.0, trunk_fraction: 0.25, trunk_radius: 0.1, vary: 0.2, crown: [40, 100, 40], trunk: [90, 60, 30], seed: 7 };
+        let p = TreeParams {
+            height: 12.0,
+            radius: 3.0,
+            trunk_fraction: 0.25,
+            trunk_radius: 0.1,
+            vary: 0.2,
+            crown: [40, 100, 40],
+            trunk: [90, 60, 30],
+            seed: 7,
+        };
         let (a, ha) = cone_tree(&p, 0.25).unwrap();
         let (b, hb) = cone_tree(&p, 0.25).unwrap();
         assert_eq!((a.clone(), ha), (b, hb), "same seed, same tree");
@@ -273,12 +293,16 @@ mod tests {
     fn extruded_footprints_with_a_hole_and_roofs() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("b.geojson");
-        std::fs::write(&p, r#"{"type":"FeatureCollection","features":[
+        std::fs::write(
+            &p,
+            r#"{"type":"FeatureCollection","features":[
             {"type":"Feature","properties":{"height":6},"geometry":{"type":"Polygon","coordinates":[
                 [[500000,5000000],[500010,5000000],[500010,5000010],[500000,5000010],[500000,5000000]],
                 [[500004,5000004],[500006,5000004],[500006,5000006],[500004,5000006],[500004,5000004]]]}},
             {"type":"Feature","properties":{"height":3},"geometry":{"type":"MultiPolygon","coordinates":[[
-                [[500020,5000000],[500024,5000000],[500024,5000004],[500020,5000004],[500020,5000000]]]]}}]}"#).unwrap();
+                [[500020,5000000],[500024,5000000],[500024,5000004],[500020,5000004],[500020,5000000]]]]}}]}"#,
+        )
+        .unwrap();
         let fp = read_footprints(&p, "height").unwrap();
         assert_eq!(fp.len(), 2);
         let o = extrude(&fp, 0.5, [1, 1, 1], [9, 9, 9]).unwrap();

@@ -120,8 +120,10 @@ impl CameraSpec {
                 match (r, t, position, look_at) {
                     (Some(r), Some(t), None, None) if up.is_none() => Camera::pinhole(fx, fy, cx, cy, r, t),
                     (None, None, Some(p), Some(l)) => Camera::look_at(fx, fy, cx, cy, p, l, up),
-                    _ => Err(Error::msg("a pinhole camera needs either \"R\" and \"t\", or \"position\" and \"look_at\" (with optional \"up\")")
-                        .fix("give one of the two forms")),
+                    _ => Err(Error::msg(
+                        "a pinhole camera needs either \"R\" and \"t\", or \"position\" and \"look_at\" (with optional \"up\")",
+                    )
+                    .fix("give one of the two forms")),
                 }
             }
             CameraSpec::Orthographic { direction, up, scale, centre, cx, cy } => {
@@ -140,7 +142,9 @@ impl ViewsFile {
         } else {
             serde_json::from_str::<ViewsFile>(&text)
         };
-        let file = parsed.map_err(|e| Error::file(path, format!("not a valid views file: {e}")).fix("see docs/sculpt.md and schemas/views.schema.json"))?;
+        let file = parsed.map_err(|e| {
+            Error::file(path, format!("not a valid views file: {e}")).fix("see docs/sculpt.md and schemas/views.schema.json")
+        })?;
         if file.views.is_empty() {
             return Err(Error::file(path, "the file lists no views").fix("give at least one view"));
         }
@@ -174,9 +178,13 @@ pub fn load(path: &Path, file: &ViewsFile) -> Result<Vec<LoadedView>> {
                     let mask_path = dir.join(m);
                     let mask = Picture::read(&mask_path).map_err(|e| in_view(e, &mask_path))?;
                     if (mask.width, mask.height) != (image.width, image.height) {
-                        return Err(Error::file(&mask_path, format!(
-                            "view {i}: mask is {}×{} pixels but the image is {}×{}", mask.width, mask.height, image.width, image.height
-                        ))
+                        return Err(Error::file(
+                            &mask_path,
+                            format!(
+                                "view {i}: mask is {}×{} pixels but the image is {}×{}",
+                                mask.width, mask.height, image.width, image.height
+                            ),
+                        )
                         .fix("give a mask of the image's size"));
                     }
                     let on = |p: &[u8; 4]| p[3] >= 128 && (p[0] as u32 + p[1] as u32 + p[2] as u32) >= 3 * 128;
@@ -186,14 +194,16 @@ pub fn load(path: &Path, file: &ViewsFile) -> Result<Vec<LoadedView>> {
                     let on = |p: &[u8; 4]| p[3] >= 128 && (0..3).any(|c| p[c].abs_diff(k.colour[c]) > k.tolerance);
                     (image.pixels.iter().map(on).collect(), image_path.clone())
                 }
-                _ => {
-                    return Err(Error::file(path, format!("view {i}: give exactly one of \"mask\" and \"key\"")).fix("see docs/sculpt.md"))
-                }
+                _ => return Err(Error::file(path, format!("view {i}: give exactly one of \"mask\" and \"key\"")).fix("see docs/sculpt.md")),
             };
             let silhouette = Silhouette::new(image.width, image.height, inside);
             if silhouette.area() == 0 {
                 return Err(Error::file(&silhouette_path, format!("view {i}: the silhouette is empty, so it would carve away everything"))
-                    .fix(if spec.key.is_some() { "check the key colour and raise the tolerance" } else { "check the mask (white = object)" }));
+                    .fix(if spec.key.is_some() {
+                        "check the key colour and raise the tolerance"
+                    } else {
+                        "check the mask (white = object)"
+                    }));
             }
             Ok(LoadedView { view: View { camera, silhouette }, image, silhouette_path })
         })
