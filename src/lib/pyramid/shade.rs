@@ -311,7 +311,7 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::Grid;
-    use crate::pyramid::raised::{rasterise_prisms, Prism};
+    use crate::pyramid::raised::{rasterise_prisms, Prism, RaisedCell};
 
     fn terrain(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Elevation {
         let g = Grid::north_up(0.0, h as f64, 1.0, w, h, Crs::unknown());
@@ -394,6 +394,31 @@ mod tests {
         let (east, west) = (fx.factor_at(11, 10), fx.factor_at(8, 10));
         assert!(east > 1.0 && west < 1.0, "east {east} west {west}");
         assert_eq!(fx.record()["wall_cells"], json!(12));
+    }
+
+    #[test]
+    fn photo_sun_with_a_placed_object_darkens_only_the_objects_new_shadow() {
+        let (t, b) = building_scene();
+        // A 2 × 2 cell, 8 m object south-west of the building, not seen by the photo.
+        let cells = [(3, 15), (4, 15), (3, 16), (4, 16)]
+            .map(|(c, r)| RaisedCell { index: t.grid.index(c, r), top_z: 8.0, colour: Some([50, 60, 70, 255]), partial: false });
+        let o = Raised::new(cells.to_vec(), &t);
+        let mut both = b.range(0, usize::MAX).to_vec();
+        both.extend(o.range(0, usize::MAX));
+        let all = Raised::new(both, &t);
+        let s = sun(45.0, 90.0);
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &o, &all).unwrap().unwrap();
+        assert_eq!(fx.record()["applied"], json!(["object_shadows", "wall_shading", "object_shading"]));
+        // West of the object: its new shadow (8 m at 45°) → × F. West of the building: the
+        // photo's own shadow, unchanged. Open ground: unchanged.
+        assert!((fx.factor_at(1, 15) - 0.5).abs() < 1e-12);
+        assert_eq!(fx.factor_at(6, 10), 1.0);
+        assert_eq!(fx.factor_at(15, 3), 1.0);
+        // The object's cells are shaded as walls (I_photo = 1). (4, 15) shows an east face
+        // (n·s / s_z = cot 45° = 1 → I = 1) and a north face (n·s = 0 → I = F): mean 0.75;
+        // (3, 15) shows west and north faces, both turned away: F.
+        assert!((fx.factor_at(4, 15) - 0.75).abs() < 1e-9, "{}", fx.factor_at(4, 15));
+        assert!((fx.factor_at(3, 15) - 0.5).abs() < 1e-9);
     }
 
     #[test]
