@@ -196,6 +196,25 @@ fn colour_tiffs_rgb_rgba_grey_planar_and_16_bit() {
 }
 
 #[test]
+fn jpeg_compressed_ycbcr_tiff_is_rgb_like_gdal() {
+    // The decoder keeps JPEG's YCbCr; we convert. GDAL's libjpeg upsamples chroma differently,
+    // so levels may differ by a few (5 at most on this image, mean under 0.5).
+    let s = read("rgb8_jpeg_ycbcr.tif");
+    assert_utm(&s);
+    let col = s.to_colour().unwrap();
+    let gdal = std::fs::read(data("rgb8_jpeg_ycbcr.gdal.rgb")).unwrap();
+    let mut total = 0usize;
+    for (i, px) in col.data.iter().enumerate() {
+        for k in 0..3 {
+            let d = (px[k] as i32 - gdal[3 * i + k] as i32).abs();
+            assert!(d <= 6, "pixel {i} band {k}: {} vs GDAL {}", px[k], gdal[3 * i + k]);
+            total += d as usize;
+        }
+    }
+    assert!(total < col.data.len() * 3, "mean difference from GDAL must stay below one level: {total}");
+}
+
+#[test]
 fn ascii_grid_with_prj() {
     let s = read("grid.asc");
     assert_utm(&s);
@@ -244,7 +263,10 @@ fn bad(name: &str, problem: &str) {
 #[test]
 fn bad_inputs_are_one_line_errors_naming_the_file() {
     bad("truncated.tif", "corrupt or truncated TIFF");
-    if cfg!(not(feature = "gdal")) {
+    if cfg!(feature = "gdal") {
+        bad("not_a_raster.tif", "not a raster GDAL can open");
+        bad("empty.tif", "not a raster GDAL can open");
+    } else {
         bad("not_a_raster.tif", "not a TIFF, ASCII grid, PNG or JPEG file");
         bad("empty.tif", "empty file");
     }
@@ -323,4 +345,118 @@ fn gdal_reads_our_geotiffs() {
     let info = gdalinfo(&p).unwrap();
     assert_eq!(info["bands"][0]["type"], "Byte");
     assert_eq!(info["bands"][0]["noDataValue"], 255.0);
+}
+
+/// Feature `gdal`: formats only GDAL reads, and reprojection onto a target grid.
+#[cfg(feature = "gdal")]
+mod with_gdal {
+    use super::*;
+    use dbms::io::gdal;
+    use ::gdal::spatial_ref::{AxisMappingStrategy, CoordTransform, SpatialRef};
+
+    #[test]
+    fn dted_reads_through_gdal() {
+        let s = read("n32_w098.dt0");
+        assert_eq!(s.format, "GDAL:DTED");
+        assert_eq!((s.grid.width, s.grid.height, s.grid.crs.epsg), (121, 121, Some(4326)));
+        assert!(s.grid.crs.geographic && s.pixel_is_point);
+        // gdalinfo -json: [-98.0041666666666629, 0.0083333333333333, 0, 33.00416666666667, 0, -0.0083333333333333].
+        let t = s.grid.transform;
+        assert!((t.origin_x + 98.0041666666666629).abs() < 1e-12 && (t.origin_y - 33.00416666666667).abs() < 1e-12, "{t:?}");
+        assert!((t.cell_x - 1.0 / 120.0).abs() < 1e-12 && (t.cell_y + 1.0 / 120.0).abs() < 1e-12, "{t:?}");
+        let Samples::I16(v) = &s.samples else { panic!("expected Int16") };
+        // gdallocationinfo n32_w098.dt0 5 7 → 101 = 100 + 3·5 − 2·7.
+        assert_eq!(v[7 * 121 + 5], 101);
+        assert!((0..121usize).all(|r| (0..121usize).all(|c| v[r * 121 + c] as i32 == 100 + 3 * c as i32 - 2 * r as i32)));
+    }
+
+    #[test]
+    fn vrt_reads_through_gdal_like_the_tiff_it_wraps() {
+        let vrt = read("int16.vrt");
+        let tif = read("int16_strip_none_nodata.tif");
+        assert_eq!(vrt.format, "GDAL:VRT");
+        assert_eq!((vrt.grid.transform, vrt.grid.crs.epsg), (tif.grid.transform, Some(32614)));
+        assert_eq!((vrt.samples, vrt.nodata), (tif.samples, tif.nodata));
+    }
+
+    #[test]
+    fn gdal_read_agrees_with_our_geotiff_reader() {
+        for name in ["float32_tiled_deflate_pred3_nan.tif", "rgba8.tif", "geographic_4326.tif", "pixel_is_point.tif"] {
+            let ours = read(name);
+            let theirs = gdal::read(&data(name)).unwrap();
+            assert_eq!(theirs.grid.transform, ours.grid.transform, "{name}");
+            assert_eq!(theirs.grid.crs.epsg, ours.grid.crs.epsg, "{name}");
+            assert_eq!((theirs.bands, theirs.alpha_band, theirs.pixel_is_point), (ours.bands, ours.alpha_band, ours.pixel_is_point), "{name}");
+            assert_eq!(format!("{:?}", theirs.samples), format!("{:?}", ours.samples), "{name}"); // NaN-safe
+        }
+    }
+
+    #[test]
+    fn warp_onto_the_same_grid_is_identity() {
+        let src = read("int16_strip_none_nodata.tif");
+        let w = gdal::warp_to_grid(&data("int16_strip_none_nodata.tif"), &src.grid, "nearest").unwrap();
+        let (a, b) = (w.to_elevation().unwrap(), src.to_elevation().unwrap());
+        assert_eq!(a.grid, b.grid);
+        assert_eq!(format!("{:?}", a.data), format!("{:?}", b.data), "values and nodata cells must match");
+        let rgba = read("rgba8.tif");
+        let w = gdal::warp_to_grid(&data("rgba8.tif"), &rgba.grid, "nearest").unwrap();
+        assert_eq!((w.bands, w.alpha_band), (4, Some(3)));
+        assert_eq!(w.to_colour().unwrap(), rgba.to_colour().unwrap());
+    }
+
+    #[test]
+    fn bilinear_half_cell_shift_interpolates_and_outside_is_nodata() {
+        // e is linear in (c, r), so bilinear resampling at a half-cell offset is exact: e(c + ½, r + ½).
+        let src = read("uint16_tiled_lzw.tif");
+        let mut g = src.grid.clone();
+        g.transform.origin_x += 15.0;
+        g.transform.origin_y -= 15.0;
+        let w = gdal::warp_to_grid(&data("float64_lzw.tif"), &g, "bilinear").unwrap();
+        let el = w.to_elevation().unwrap();
+        for r in 0..H - 1 {
+            for c in 0..W - 1 {
+                let want = (1000.0 + 37.0 * (c as f64 + 0.5) - 53.0 * (r as f64 + 0.5)) / 3.0;
+                assert!((el.data[r * W + c] as f64 - want).abs() < 1e-3, "({c}, {r}): {} vs {want}", el.data[r * W + c]);
+            }
+        }
+        // The last column's centre lies half a cell past the source's last centre, inside its edge cell:
+        // GDAL extrapolates there; one more cell east would be outside.
+        g.transform.origin_x += 30.0 * W as f64;
+        let outside = gdal::warp_to_grid(&data("float64_lzw.tif"), &g, "bilinear").unwrap();
+        assert!(outside.to_elevation().is_err(), "a grid wholly outside the source has no valid cell");
+    }
+
+    #[test]
+    fn warp_utm_to_geographic_samples_the_right_cells() {
+        // A geographic grid inside the UTM fixture; nearest resampling must pick, for each cell
+        // centre, the UTM cell that contains it (checked with GDAL's own coordinate transform).
+        let grid = Grid::north_up(-98.9995, 45.1530, 2.0e-4, 20, 12, Crs::epsg(4326));
+        let w = gdal::warp_to_grid(&data("uint16_tiled_lzw.tif"), &grid, "nearest").unwrap();
+        let el = w.to_elevation().unwrap();
+        let mut wgs = SpatialRef::from_epsg(4326).unwrap();
+        wgs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let mut utm = SpatialRef::from_epsg(32614).unwrap();
+        utm.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let to_utm = CoordTransform::new(&wgs, &utm).unwrap();
+        let mut checked = 0;
+        for r in 0..grid.height {
+            for c in 0..grid.width {
+                let (lon, lat) = grid.cell_centre(c, r);
+                let (mut x, mut y, mut z) = ([lon], [lat], [0.0]);
+                to_utm.transform_coords(&mut x, &mut y, &mut z).unwrap();
+                let (px, py) = UTM.world_to_pixel(x[0], y[0]);
+                let v = el.data[r * grid.width + c];
+                let (fx, fy) = (px.fract(), py.fract());
+                if px < 0.0 || py < 0.0 || px >= W as f64 || py >= H as f64 {
+                    continue;
+                }
+                if !(0.01..0.99).contains(&fx) || !(0.01..0.99).contains(&fy) {
+                    continue; // too close to a cell edge to be sure which cell "nearest" picks
+                }
+                assert_eq!(v, e(px as usize, py as usize) as f32, "cell ({c}, {r}) at UTM pixel ({px:.3}, {py:.3})");
+                checked += 1;
+            }
+        }
+        assert!(checked > 100, "only {checked} cells fell inside the source");
+    }
 }

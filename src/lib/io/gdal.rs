@@ -91,6 +91,12 @@ pub fn warp_to_grid(path: &Path, grid: &Grid, resampling: &str) -> Result<Source
         band.set_color_interpretation(ColorInterpretation::AlphaBand).map_err(gdal_err)?;
     } else {
         args.extend(["-dstnodata", "nan"]);
+        // gdalwarp leaves the destination untouched when it does not overlap the source at all.
+        for i in 1..=dst.raster_count() {
+            let mut band = dst.rasterband(i).map_err(gdal_err)?;
+            band.set_no_data_value(Some(f64::NAN)).map_err(gdal_err)?;
+            band.fill(f64::NAN, None).map_err(gdal_err)?;
+        }
     }
     run_gdalwarp(path, &src, &dst, &args)?;
 
