@@ -36,7 +36,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         _ => unreachable!("clap requires --time or both sun angles"),
     };
     let elevation_path = db.layer_path(db::ELEVATION)?;
-    let terrain = dbms::io::read_raster(&elevation_path)?.to_elevation().map_err(|e| e.in_file(&elevation_path))?;
+    let terrain = db.read_elevation()?;
     // Raised buildings stand in the sun's way only when shadow-height has written them.
     let (heights, building_cells) = if db.manifest.layers.contains_key("buildings") {
         let prisms = read_buildings(&db.layer_path("buildings")?)?;

@@ -6,10 +6,11 @@ use crate::raster::{Elevation, Raster};
 use rayon::prelude::*;
 
 /// Cast shadows by marching each valid cell's ray toward the sun cell by cell (Amanatides–Woo),
-/// exactly as the module's model states: shadowed when the ray enters a valid column below its
-/// top. A ray through a cell corner (within 1e-9 relative) steps diagonally, touching neither
-/// side cell. Stops a ray once it is above the highest cell. Cost O(n · shadow length in
-/// cells): a check for [`super::cast_shadows`], not a production path. Same errors.
+/// exactly as the module's model states: shadowed when, at the point nearest a crossed valid
+/// cell's centre, the ray is below that cell's height. A ray through a cell corner (within 1e-9
+/// relative) steps diagonally, touching neither side cell. Stops a ray once it is above the
+/// highest cell. Cost O(n · shadow length in cells): a check for [`super::cast_shadows`], not a
+/// production path. Same errors.
 pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8>> {
     let grid = &height.grid;
     check_grid(&height.data, grid)?;
@@ -19,6 +20,9 @@ pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8
     // Cells per metre toward the sun, along columns and rows.
     let (dc, dr) = (east / grid.transform.cell_x, north / grid.transform.cell_y);
     let (w, h) = (grid.width as isize, grid.height as isize);
+    let (cell_x, cell_y) = (grid.transform.cell_x, grid.transform.cell_y);
+    // A crossed cell's centre is at most half a diagonal behind the ray's entry point.
+    let half_diagonal = 0.5 * cell_x.hypot(cell_y);
     let mut data = vec![NODATA; grid.len()];
     data.par_chunks_mut(grid.width.max(1)).enumerate().for_each(|(row, out)| {
         for (col, v) in out.iter_mut().enumerate() {
@@ -34,11 +38,12 @@ pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8
                     if c < 0 || r < 0 || c >= w || r >= h {
                         break;
                     }
-                    let ray_z = z0 + t * tan_e;
-                    if ray_z > top {
+                    if z0 + (t - half_diagonal) * tan_e > top {
                         break;
                     }
-                    if ray_z < *height.get(c as usize, r as usize) as f64 {
+                    // Metres along the ray to the point nearest the cell's centre.
+                    let d = (c - col as isize) as f64 * cell_x * east + (r - row as isize) as f64 * cell_y * north;
+                    if z0 + d * tan_e < *height.get(c as usize, r as usize) as f64 {
                         shadowed = true;
                         break;
                     }
