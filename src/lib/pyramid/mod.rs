@@ -144,11 +144,13 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
         object_cells.extend(raised::rasterise_object(&terrain.grid, &placed_voxels(&obj, placed), &terrain));
     }
     let objects = Raised::new(object_cells.clone(), &terrain);
-    let mut all_cells = buildings.range(0, usize::MAX).to_vec();
+    let mut all_cells = buildings.cells().to_vec();
     all_cells.extend(object_cells);
     let all = Raised::new(all_cells, &terrain);
 
-    let photo_sun = photo_sun(db)?;
+    // The photo's sun matters only against a requested one (a night-time photo_time must not
+    // stop a build without a sun).
+    let photo_sun = if opts.sun.is_some() { photo_sun(db)? } else { None };
     let effects = shade::prepare(opts.sun, photo_sun, opts.shadow_factor, &terrain, &buildings, &objects, &all)?;
     info.effects = match &effects {
         Some(fx) => fx.record(),
@@ -183,7 +185,7 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
         pages: info.page_count(),
         building_cells: buildings.len(),
         object_cells: objects.len(),
-        partial_cells: all.range(0, usize::MAX).iter().filter(|c| c.partial).count(),
+        partial_cells: all.cells().iter().filter(|c| c.partial).count(),
         half_valid_cells: level0.half_valid_cells(),
         effects: info.effects.clone(),
         exported,

@@ -72,6 +72,11 @@ impl Raised {
         self.cells.is_empty()
     }
 
+    /// Every raised cell, sorted by index.
+    pub fn cells(&self) -> &[RaisedCell] {
+        &self.cells
+    }
+
     /// The raised cells with index in `start..end`, sorted.
     pub fn range(&self, start: usize, end: usize) -> &[RaisedCell] {
         let a = self.cells.partition_point(|c| c.index < start);

@@ -89,10 +89,10 @@ pub fn prepare(
     let mut class = Vec::new();
     if !all.is_empty() {
         class = vec![TERRAIN; terrain.data.len()];
-        for c in buildings.range(0, usize::MAX) {
+        for c in buildings.cells() {
             class[c.index] = BUILDING;
         }
-        for c in objects.range(0, usize::MAX) {
+        for c in objects.cells() {
             class[c.index] = OBJECT;
         }
     }
@@ -185,8 +185,9 @@ impl Effects {
         if self.class.is_empty() {
             return 0;
         }
+        use rayon::prelude::*;
         let g = &self.new_heights.grid;
-        (0..g.len()).filter(|&i| self.class[i] != TERRAIN && !self.faces(i % g.width, i / g.width).is_empty()).count()
+        (0..g.len()).into_par_iter().filter(|&i| self.class[i] != TERRAIN && !self.faces(i % g.width, i / g.width).is_empty()).count()
     }
 
     /// Multiply the colours of level-0 rows `row0..` (a band of `colour.len() / width` rows) by
@@ -403,8 +404,8 @@ mod tests {
         let cells = [(3, 15), (4, 15), (3, 16), (4, 16)]
             .map(|(c, r)| RaisedCell { index: t.grid.index(c, r), top_z: 8.0, colour: Some([50, 60, 70, 255]), partial: false });
         let o = Raised::new(cells.to_vec(), &t);
-        let mut both = b.range(0, usize::MAX).to_vec();
-        both.extend(o.range(0, usize::MAX));
+        let mut both = b.cells().to_vec();
+        both.extend(o.cells());
         let all = Raised::new(both, &t);
         let s = sun(45.0, 90.0);
         let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &o, &all).unwrap().unwrap();
