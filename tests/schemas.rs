@@ -1,0 +1,61 @@
+//! Every JSON file dbms writes validates against its schema in `schemas/`, and every schema
+//! there is itself a valid JSON Schema.
+
+use dbms::crs::Crs;
+use dbms::grid::Grid;
+use dbms::io::geotiff;
+use dbms::raster::Raster;
+use std::path::Path;
+use std::process::Command;
+
+fn schema(name: &str) -> jsonschema::Validator {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas").join(name);
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{name}: {e}"));
+    jsonschema::validator_for(&value).unwrap_or_else(|e| panic!("{name} is not a valid schema: {e}"))
+}
+
+fn assert_valid(v: &jsonschema::Validator, doc: &serde_json::Value, what: &str) {
+    let errors: Vec<String> = v.iter_errors(doc).map(|e| format!("{} at {}", e, e.instance_path())).collect();
+    assert!(errors.is_empty(), "{what} does not match its schema:\n{}", errors.join("\n"));
+}
+
+#[test]
+fn every_schema_compiles() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas");
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let name = entry.unwrap().file_name().into_string().unwrap();
+        if name.ends_with(".json") {
+            schema(&name);
+            n += 1;
+        }
+    }
+    assert!(n >= 1);
+}
+
+#[test]
+fn ingest_manifest_matches_its_schema() {
+    let t = tempfile::tempdir().unwrap();
+    let g = Grid::north_up(500_000.0, 5_300_000.0, 1.0, 20, 10, Crs::epsg(32632));
+    let (d, o) = (t.path().join("dem.tif"), t.path().join("ortho.tif"));
+    geotiff::write_f32(&d, &Raster::filled(g.clone(), 3.0f32)).unwrap();
+    geotiff::write_rgba8(&o, &Raster::filled(g, [1, 2, 3, 255])).unwrap();
+    let db = t.path().join("db");
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(["ingest", "-q", "--photo-time", "2026-06-21T10:00:00Z", "--dem"])
+        .arg(&d)
+        .arg("--ortho")
+        .arg(&o)
+        .arg("-o")
+        .arg(&db)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let manifest: serde_json::Value = serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    assert_valid(&schema("manifest.schema.json"), &manifest, "manifest.json");
+    // And a broken manifest is caught: the schema is not vacuous.
+    let mut bad = manifest.clone();
+    bad["layers"]["elevation"]["sha256"] = serde_json::json!("not-a-hash");
+    assert!(!schema("manifest.schema.json").is_valid(&bad));
+}
