@@ -37,6 +37,8 @@ enum Command {
     Sculpt(cmd::sculpt::Args),
     /// Generate the sample scene: terrain, orthophoto with shadows, building footprints, truth.
     Sample(cmd::sample::Args),
+    /// Building heights from their shadows in the photo, refined over the terrain (--apply: into the database).
+    ShadowHeight(cmd::shadow_height::Args),
     /// Write the cast-shadow mask of a database for a sun (time or angles).
     Shadows(cmd::shadows::Args),
     /// Sun elevation, azimuth and zenith for a place (or a database's centre) and time (NREL SPA).
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
         Command::Render(a) => cmd::render::run(a, &ctx),
         Command::Sculpt(a) => cmd::sculpt::run(a, &ctx),
         Command::Sample(a) => cmd::sample::run(a, &ctx),
+        Command::ShadowHeight(a) => cmd::shadow_height::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),
         Command::Sun(a) => cmd::sun::run(a, &ctx),
         Command::Tiles(a) => cmd::tiles::run(a, &ctx),

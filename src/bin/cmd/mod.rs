@@ -9,6 +9,7 @@ pub mod pyramid;
 pub mod render;
 pub mod sample;
 pub mod sculpt;
+pub mod shadow_height;
 pub mod shadows;
 pub mod sun;
 pub mod tiles;

@@ -159,6 +159,44 @@ pub fn measure(inputs: &Inputs, footprints: &[Footprint], sun: &Sun, opts: &Opti
     Ok(footprints.par_iter().zip(&own_cells).enumerate().map(|(k, (f, cells))| shared.one(k as u32 + 1, f, cells)).collect())
 }
 
+/// Read a shadow mask: a one-band 8-bit raster on exactly `grid` (same size and geotransform),
+/// 0 = lit, 255 or the declared nodata = nodata, anything else = shadow (`dbms shadows` writes
+/// such masks). The result is on `grid`.
+pub fn read_mask(path: &std::path::Path, grid: &Grid) -> Result<Raster<u8>> {
+    let src = crate::io::read_raster(path)?;
+    let crate::io::Samples::U8(v) = &src.samples else {
+        return Err(Error::file(path, "a shadow mask must be 8-bit").fix("write it as Byte (gdal_translate -ot Byte)"));
+    };
+    if src.bands != 1 {
+        return Err(Error::file(path, format!("a shadow mask has one band, this has {}", src.bands)).fix("keep only the mask band (gdal_translate -b 1)"));
+    }
+    if src.grid.width != grid.width || src.grid.height != grid.height || src.grid.transform != grid.transform {
+        return Err(Error::file(path, format!("the mask's grid ({} × {}) is not the database grid ({} × {})", src.grid.width, src.grid.height, grid.width, grid.height))
+            .fix("make it on the database grid, e.g. with `dbms shadows` or gdalwarp -te/-tr of the database"));
+    }
+    let nodata = src.nodata.filter(|n| (0.0..=255.0).contains(n) && n.fract() == 0.0).map(|n| n as u8);
+    Ok(Raster::new(grid.clone(), v.iter().map(|&m| if Some(m) == nodata { 255 } else { m }).collect()))
+}
+
+/// Which cells of `local` lie in the band (half a cell either side) of an *inlier* scan line:
+/// a valid line whose length is within 30 % + 2 cells of the median `len`. Lines that met other
+/// buildings, left the grid, or ran on into a neighbour's shadow do not lead the refinement.
+fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f64) -> Vec<bool> {
+    let tol = 0.3 * len + 2.0 * cell;
+    let mut ts: Vec<f64> = s.line_t.iter().zip(&s.lengths).filter(|(_, &l)| (l - len).abs() <= tol).map(|(&t, _)| t).collect();
+    ts.sort_by(f64::total_cmp);
+    let w = local.grid.width;
+    (0..local.class.len())
+        .map(|i| {
+            let (x, y) = local.grid.cell_centre(i % w, i / w);
+            let t = (x - s.origin.0) * n.0 + (y - s.origin.1) * n.1;
+            let k = ts.partition_point(|&v| v < t);
+            let near = |j: usize| ts.get(j).is_some_and(|&v| (v - t).abs() <= cell / 2.0);
+            near(k) || (k > 0 && near(k - 1))
+        })
+        .collect()
+}
+
 /// What every footprint's measurement reads.
 struct Shared<'a> {
     inputs: &'a Inputs<'a>,
@@ -213,7 +251,8 @@ impl Shared<'_> {
         let z_ray = scan::median(&s.tip_roofs).map_or(z0, |r| r - ground_z);
         let z_hi = (2.0 * z0).max(1.5 * z_ray).max(z0 + 4.0 * cell * tan_e).min(self.opts.max_height_m.max(z0 + cell * tan_e));
         let sub = local.crop(local::window_for(self.grid, fp.bbox(), u, z_hi / tan_e + cell, 3), self.grid);
-        let r = refine::refine(&sub, self.sun, ground_z, z_hi, cell * tan_e / 4.0).map_err(|e| e.to_string())?;
+        let keep = inlier_bands(&sub, &s, len, (-u.1, u.0), cell);
+        let r = refine::refine(&sub, &keep, self.sun, ground_z, z_hi, cell * tan_e / 4.0).map_err(|e| e.to_string())?;
         m.shadow_length_m = Some(len);
         m.initial_height_m = Some(z0);
         m.height_m = Some(r.height_m);

@@ -31,12 +31,15 @@ pub struct Refined {
 
 /// Search heights in `[0, z_hi]` metres above `ground_z` (absolute metres) for the footprint's
 /// [`Class::Own`] cells in `local`. `fine_step` is the smallest height step worth resolving,
-/// metres (a quarter of a cell's worth of shadow length is a good choice).
-pub fn refine(local: &Local, sun: &Sun, ground_z: f64, z_hi: f64, fine_step: f64) -> Result<Refined> {
+/// metres (a quarter of a cell's worth of shadow length is a good choice). Only cells with
+/// `keep[i]` can be in the corridor (the caller drops the bands of scan lines that met other
+/// buildings or disagreed with the median length).
+pub fn refine(local: &Local, keep: &[bool], sun: &Sun, ground_z: f64, z_hi: f64, fine_step: f64) -> Result<Refined> {
     let corridor: Vec<bool> = cast_at(local, sun, ground_z + z_hi)?
         .iter()
         .zip(&local.class)
-        .map(|(&m, &c)| m == SHADOW && matches!(c, Class::Lit | Class::Shadow))
+        .zip(keep)
+        .map(|((&m, &c), &k)| k && m == SHADOW && matches!(c, Class::Lit | Class::Shadow))
         .collect();
     let score = |z: f64| -> Result<f64> {
         let mask = cast_at(local, sun, ground_z + z)?;
@@ -53,7 +56,12 @@ pub fn refine(local: &Local, sun: &Sun, ground_z: f64, z_hi: f64, fine_step: f64
     let coarse: Vec<f64> = (0..=COARSE).map(|i| z_hi * i as f64 / COARSE as f64).collect();
     let scores = coarse.par_iter().map(|&z| score(z)).collect::<Result<Vec<f64>>>()?;
     let best = first_max(&scores);
-    let (lo, hi) = (coarse[best.saturating_sub(1)], coarse[(best + 1).min(COARSE)]);
+    // The fine grid spans the whole coarse plateau of the best score, one sample beyond each end.
+    let mut last = best;
+    while last < COARSE && scores[last + 1] >= scores[best] {
+        last += 1;
+    }
+    let (lo, hi) = (coarse[best.saturating_sub(1)], coarse[(last + 1).min(COARSE)]);
     let step = fine_step.max((hi - lo) / MAX_FINE as f64);
     let n = ((hi - lo) / step).ceil() as usize;
     let fine: Vec<f64> = (0..=n).map(|i| (lo + i as f64 * step).min(hi)).collect();
@@ -86,8 +94,8 @@ mod tests {
 
     #[test]
     fn recovers_the_height_whose_shadow_was_observed() {
-        // Flat ground at 100 m, 1 m cells, a 6 × 6 m roof; sun from the south at 45°: a 7 m
-        // building casts 7 cells of shadow north of it.
+        // Flat ground at 100 m, 1 m cells, a 6 × 6 m roof; sun from the south at 45°: a 6.5 m
+        // building (the middle of the heights that shadow the same 6 cells) casts 6 cells of shadow.
         let g = Grid::north_up(0.0, 40.0, 1.0, 40, 40, Crs::epsg(32632));
         let w = Window { col: 0, row: 0, width: 40, height: 40 };
         let sun = Sun::new(45.0, 180.0).unwrap();
@@ -101,14 +109,14 @@ mod tests {
             }
         }
         let mut l = Local { win: w, grid: g.window_grid(&w), class, heights: vec![100.0; 1600] };
-        let observed = cast_at(&l, &sun, 107.0).unwrap();
+        let observed = cast_at(&l, &sun, 106.5).unwrap();
         for (c, m) in l.class.iter_mut().zip(&observed) {
             if *c == Class::Lit && *m == SHADOW {
                 *c = Class::Shadow;
             }
         }
-        let r = refine(&l, &sun, 100.0, 20.0, 0.25).unwrap();
-        assert!((r.height_m - 7.0).abs() <= 0.5, "{r:?}");
+        let r = refine(&l, &[true; 1600], &sun, 100.0, 20.0, 0.25).unwrap();
+        assert!((r.height_m - 6.5).abs() <= 0.1, "{r:?}");
         assert_eq!(r.overlap, 1.0);
     }
 

@@ -21,6 +21,11 @@ pub struct Scan {
     /// Per valid line, the roof height the line implies over the real terrain: terrain at the
     /// shadow's tip + length · tan(elevation), metres (NaN where the tip has no terrain height).
     pub tip_roofs: Vec<f64>,
+    /// Per valid line, its offset across the shadow direction from [`Scan::origin`], metres
+    /// (along `n = (−u.north, u.east)`).
+    pub line_t: Vec<f64>,
+    /// The point the offsets are measured from (world, metres): the footprint's bounding-box centre.
+    pub origin: (f64, f64),
     /// Valid lines that crossed at least one shadow cell.
     pub with_shadow: usize,
     /// Lines dropped: shadow left the window or reached nodata / terrain shadow.
@@ -50,7 +55,7 @@ pub fn scan(fp: &Footprint, local: &Local, u: (f64, f64), cell: f64, max_len: f6
     } else {
         vec![(t_min + t_max) / 2.0]
     };
-    let mut out = Scan { lines: ts.len(), ..Scan::default() };
+    let mut out = Scan { lines: ts.len(), origin: o, ..Scan::default() };
     for t in ts {
         // The line's last exit from the polygon: the largest s of its edge crossings.
         let exit = fp
@@ -90,6 +95,7 @@ pub fn scan(fp: &Footprint, local: &Local, u: (f64, f64), cell: f64, max_len: f6
                 Some((_, Class::Shadow)) => seen_shadow = true,
                 Some((i, Class::Lit)) => {
                     out.lengths.push(x);
+                    out.line_t.push(t);
                     out.tip_roofs.push(local.heights[i] as f64 + x * tan_e);
                     out.with_shadow += seen_shadow as usize;
                     break;

@@ -1,0 +1,108 @@
+//! `dbms shadow-height`: building heights from their shadows in the database's orthophoto.
+
+use super::Ctx;
+use dbms::db::{Database, Stage};
+use dbms::error::Error;
+use dbms::io::atomic::write_bytes_atomic;
+use dbms::shadow::Sun;
+use dbms::shadow_height::{self as sh, output};
+use serde_json::json;
+use std::path::PathBuf;
+
+/// Measure building heights from their shadows (first estimate L·tan(elevation), refined by
+/// casting each footprint's shadow over the real terrain) and write them as GeoJSON.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The database directory (elevation and colour layers from `dbms ingest`).
+    #[arg(long)]
+    db: PathBuf,
+    /// Building footprints: GeoJSON Polygon / MultiPolygon features in the database CRS.
+    #[arg(long)]
+    footprints: PathBuf,
+    /// UTC time of the photo (RFC 3339): the sun over the database centre [default: the
+    /// photo time recorded by `dbms ingest --photo-time`].
+    #[arg(long, conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
+    time: Option<String>,
+    /// Sun elevation above the horizon, degrees (0, 90].
+    #[arg(long, requires = "sun_azimuth", allow_negative_numbers = true)]
+    sun_elevation: Option<f64>,
+    /// Sun azimuth, degrees clockwise from north, toward the sun.
+    #[arg(long, requires = "sun_elevation", allow_negative_numbers = true)]
+    sun_azimuth: Option<f64>,
+    /// Observed shadow mask on the database grid (byte GeoTIFF: 0 lit, 255 nodata, else
+    /// shadow) instead of detecting shadows in the colour.
+    #[arg(long)]
+    shadow_mask: Option<PathBuf>,
+    /// Tallest building sought, metres.
+    #[arg(long, default_value_t = sh::Options::default().max_height_m)]
+    max_height: f64,
+    /// Also write the measured buildings into the database as its `buildings` layer
+    /// (flat-roofed prisms for `dbms pyramid` and `dbms shadows`).
+    #[arg(long)]
+    apply: bool,
+    /// Output heights GeoJSON.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let mut db = Database::open(&args.db)?;
+    let sun = match (&args.time, args.sun_elevation, args.sun_azimuth) {
+        (Some(t), _, _) => dbms::pyramid::sun_at(&db, t)?,
+        (None, Some(e), Some(a)) => Sun::new(e, a)?,
+        _ => dbms::pyramid::photo_sun(&db)?.ok_or_else(|| {
+            Error::file(&args.db, "no sun given and the database records no photo time")
+                .fix("give --time or --sun-elevation and --sun-azimuth")
+        })?,
+    };
+    let features = sh::read_footprints(&args.footprints)?;
+    let terrain = db.read_elevation()?;
+    let colour = db.read_colour()?;
+    let mask = args.shadow_mask.as_deref().map(|p| sh::read_mask(p, db.grid())).transpose()?;
+    let valid: Vec<sh::Footprint> = features.iter().filter_map(|f| f.footprint.clone().ok()).collect();
+    let inputs = sh::Inputs { terrain: &terrain, colour: &colour, mask: mask.as_ref() };
+    let opts = sh::Options { max_height_m: args.max_height };
+    let mut measured = sh::measure(&inputs, &valid, &sun, &opts)?.into_iter();
+    let results: Vec<Result<sh::Measurement, String>> =
+        features.iter().map(|f| f.footprint.as_ref().map_err(|e| e.clone()).and_then(|_| measured.next().expect("one result per valid footprint"))).collect();
+    for (k, r) in results.iter().enumerate() {
+        if let Err(e) = r {
+            eprintln!("dbms: warning: {}: feature {k}: {e}; skipped, the others go on", args.footprints.display());
+        }
+    }
+
+    let doc = output::heights_geojson(&features, &results, &sun, db.grid().crs.epsg);
+    write_bytes_atomic(&args.output, output::to_text(&doc).as_bytes())?;
+    let count = |f: &dyn Fn(&sh::Measurement) -> bool| results.iter().filter(|r| r.as_ref().is_ok_and(f)).count();
+    let heights = count(&|m| m.height_m.is_some());
+    let flagged = count(&|m| !m.flags.names().is_empty());
+    let failed = results.iter().filter(|r| r.is_err()).count();
+    if args.apply {
+        write_bytes_atomic(&db.dir.join("buildings.geojson"), output::to_text(&output::buildings_layer(&doc)).as_bytes())?;
+        db.set_layer("buildings", "buildings", "buildings.geojson", None)?;
+        db.record_stage(Stage::now(
+            "shadow-height",
+            json!({
+                "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.time },
+                "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
+            }),
+        ));
+        db.save()?;
+    }
+    ctx.report(
+        format!(
+            "{}: {} footprints, {heights} heights measured, {flagged} flagged, {failed} bad; sun elevation {:.3}°, azimuth {:.3}°{}",
+            args.output.display(),
+            results.len(),
+            sun.elevation_deg,
+            sun.azimuth_deg,
+            if args.apply { format!("; {heights} buildings written to {}", db.dir.join("buildings.geojson").display()) } else { String::new() }
+        ),
+        json!({
+            "output": args.output,
+            "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.time },
+            "features": results.len(), "measured": heights, "flagged": flagged, "failed": failed, "applied": args.apply,
+        }),
+    );
+    Ok(())
+}
