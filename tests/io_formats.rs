@@ -460,3 +460,81 @@ mod with_gdal {
         assert!(checked > 100, "only {checked} cells fell inside the source");
     }
 }
+
+/// Invariants over random rasters: writers and readers are exact inverses.
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Deterministic pseudo-random values from a seed (splitmix64).
+    fn stream(seed: u64) -> impl Iterator<Item = u64> {
+        let mut s = seed;
+        std::iter::repeat_with(move || {
+            s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = s;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        })
+    }
+
+    fn crs(k: u8) -> Crs {
+        [Crs::epsg(32614), Crs::epsg(4326), Crs::unknown()][k as usize % 3].clone()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+        /// Any f32 bit pattern (NaN written as -9999, infinities kept) on any grid, across tile edges.
+        #[test]
+        fn f32_geotiff_round_trips_any_bits(w in 1usize..300, h in 1usize..300, seed: u64, x0 in -1e7f64..1e7, y0 in -1e7f64..1e7, cell in 0.01f64..1000.0, k: u8) {
+            let grid = Grid::north_up(x0, y0, cell, w, h, crs(k));
+            let data: Vec<f32> = stream(seed).take(w * h).map(|b| f32::from_bits(b as u32)).map(|v| if v == geotiff::F32_NODATA { 0.0 } else { v }).collect();
+            let dir = tempfile::tempdir().unwrap();
+            let p = dir.path().join("p.tif");
+            geotiff::write_f32(&p, &Raster::new(grid.clone(), data.clone())).unwrap();
+            let s = read_raster(&p).unwrap();
+            prop_assert_eq!(&s.grid, &grid);
+            let Samples::F32(back) = &s.samples else { panic!("expected Float32") };
+            for (a, b) in back.iter().zip(&data) {
+                let want = if b.is_nan() { geotiff::F32_NODATA } else { *b };
+                prop_assert_eq!(a.to_bits(), want.to_bits());
+            }
+        }
+
+        #[test]
+        fn rgba_geotiff_round_trips(w in 1usize..300, h in 1usize..300, seed: u64) {
+            let grid = Grid::north_up(0.0, 0.0, 1.0, w, h, Crs::epsg(32614));
+            let data: Colour = Raster::new(grid, stream(seed).take(w * h).map(|b| {
+                let [r, g, bl, a, ..] = b.to_le_bytes();
+                if a < 64 { [0, 0, 0, 0] } else { [r, g, bl, 255] }
+            }).collect());
+            let dir = tempfile::tempdir().unwrap();
+            let p = dir.path().join("c.tif");
+            geotiff::write_rgba8(&p, &data).unwrap();
+            prop_assert_eq!(read_raster(&p).unwrap().to_colour().unwrap(), data);
+        }
+
+        /// Values written as Rust prints them (shortest round-trip decimal), wrapped anyhow, any header case.
+        #[test]
+        fn ascii_grid_reads_exactly_what_is_written(w in 1usize..40, h in 1usize..40, seed: u64, wrap in 1usize..50, integers: bool, upper: bool, centre: bool) {
+            let values: Vec<f64> = stream(seed).take(w * h).map(|b| if integers { (b as i32 / 1000) as f64 } else { (b as i64 as f64) * 1e-15 }).collect();
+            let key = |k: &str| if upper { k.to_uppercase() } else { k.to_string() };
+            let (xk, yk) = if centre { ("xllcenter", "yllcenter") } else { ("xllcorner", "yllcorner") };
+            let mut text = format!("{} {w}\n{} {h}\n{} 500000.5\n{} 4999000.25\n{} 0.5\n", key("ncols"), key("nrows"), key(xk), key(yk), key("cellsize"));
+            for chunk in values.chunks(wrap) {
+                let line: Vec<String> = chunk.iter().map(|v| if integers { format!("{}", *v as i32) } else { format!("{v:?}") }).collect();
+                text.push_str(&line.join(" "));
+                text.push('\n');
+            }
+            let dir = tempfile::tempdir().unwrap();
+            let p = dir.path().join("g.asc");
+            std::fs::write(&p, text).unwrap();
+            let s = read_raster(&p).unwrap();
+            let half = if centre { 0.25 } else { 0.0 };
+            prop_assert_eq!(s.grid.transform, GeoTransform { origin_x: 500000.5 - half, origin_y: 4999000.25 - half + 0.5 * h as f64, cell_x: 0.5, cell_y: -0.5 });
+            let got: Vec<f64> = (0..w * h).map(|i| s.sample(i, 0)).collect();
+            prop_assert_eq!(got, values);
+        }
+    }
+}

@@ -478,6 +478,16 @@ fn write_tiled<F>(path: &Path, grid: &Grid, spec: &Spec, row_bytes: F) -> Result
 where
     F: Fn(usize, std::ops::Range<usize>, &mut Vec<u8>) + Sync,
 {
+    let tiles = grid.width.div_ceil(TILE) as u64 * grid.height.div_ceil(TILE) as u64;
+    let big = tiles * (TILE * TILE * spec.pixel_bytes()) as u64 > BIGTIFF_ABOVE;
+    write_tiff(path, grid, spec, big, row_bytes)
+}
+
+/// [`write_tiled`] as classic TIFF or, when `big`, BigTIFF.
+fn write_tiff<F>(path: &Path, grid: &Grid, spec: &Spec, big: bool, row_bytes: F) -> Result<()>
+where
+    F: Fn(usize, std::ops::Range<usize>, &mut Vec<u8>) + Sync,
+{
     let (w, h) = (grid.width, grid.height);
     if w == 0 || h == 0 {
         return Err(Error::file(path, "cannot write an empty raster"));
@@ -487,7 +497,6 @@ where
         return Err(Error::file(path, format!("{w} × {h} cells is too large for a TIFF")));
     }
     let tile_len = TILE * TILE * spec.pixel_bytes();
-    let big = (across * down) as u64 * tile_len as u64 > BIGTIFF_ABOVE;
     let tile = |tx: usize, ty: usize| -> Vec<u8> {
         let row_len = TILE * spec.pixel_bytes();
         let (mut raw, mut scratch) = (Vec::with_capacity(tile_len), Vec::with_capacity(row_len));
@@ -708,6 +717,20 @@ mod tests {
         let again = dir.path().join("e2.tif");
         write_f32(&again, &r).unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&again).unwrap(), "output must be deterministic");
+    }
+
+    #[test]
+    fn bigtiff_layout_reads_back() {
+        // Real BigTIFFs need > 3.75 GiB of samples; the layout is the same for a small image.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("big.tif");
+        let g = Grid::north_up(0.0, 600.0, 1.0, 300, 270, Crs::epsg(32614));
+        let data: Vec<u8> = (0..g.len()).map(|i| (i * 7 % 251) as u8).collect();
+        let spec = Spec { samples: 1, bytes: 1, float: false, rgb: false, alpha: false, nodata: Some("255".into()) };
+        write_tiff(&p, &g, &spec, true, |row, cols, out| out.extend_from_slice(&data[row * 300 + cols.start..row * 300 + cols.end])).unwrap();
+        assert_eq!(&std::fs::read(&p).unwrap()[..4], b"II\x2b\x00");
+        let s = read(&p).unwrap();
+        assert_eq!((s.grid, s.samples, s.nodata), (g, Samples::U8(data), Some(255.0)));
     }
 
     #[test]
