@@ -4,11 +4,14 @@
 //! Prints a Markdown table: IoU against the true solid and against the exact (pixel-free)
 //! visual hull, voxel count, hierarchical and dense carve times and the speedup, and checks that
 //! the hierarchical carver's output equals the dense carver's bit for bit (exits non-zero if not).
+//! A second table times the colour pass (visibility by ray casting through the carved volume).
 //! Run: `cargo bench --bench sculpt` (add `-- quick` for 64³ and 128³ only).
 
 use dbms::voxel::camera::Camera;
 use dbms::voxel::carve::{carve, carve_dense, CarveOptions, View};
+use dbms::voxel::colour::colour;
 use dbms::voxel::grid::VoxelGrid;
+use dbms::voxel::picture::Picture;
 use dbms::voxel::solids::{benchmark_solids, exact_hull, render, voxelize, BENCHMARK_NAMES};
 use std::time::Instant;
 
@@ -84,6 +87,29 @@ fn main() {
                     dense_ms / hier_ms,
                     if equal { "yes" } else { "NO" }
                 );
+            }
+        }
+    }
+    println!("\n| solid | views | voxels³ | surface voxels | seen | unseen | colour ms |");
+    println!("|---|---|---|---|---|---|---|");
+    for (solid, name) in benchmark_solids().iter().zip(BENCHMARK_NAMES).filter(|(_, n)| ["sphere", "L-block"].contains(n)) {
+        for (setup, cams) in setups.iter().skip(1) {
+            let views: Vec<View> = cams.iter().map(|c| View { camera: c.clone(), silhouette: render(solid, c, IMAGE, IMAGE) }).collect();
+            // Each view paints the object in its own colour.
+            let images: Vec<Picture> = (0..views.len())
+                .map(|i| Picture {
+                    width: IMAGE,
+                    height: IMAGE,
+                    pixels: vec![[(i * 10) as u8, 255 - (i * 10) as u8, 128, 255]; (IMAGE * IMAGE) as usize],
+                })
+                .collect();
+            for &n in sizes.iter().skip(1) {
+                let grid = VoxelGrid::covering([-1.0; 3], [1.0; 3], 2.0 / n as f64).unwrap();
+                let occ = carve(&grid, &views, &opts).unwrap();
+                let t = Instant::now();
+                let (_, stats) = colour(grid, occ, &views, &images, [128; 3]);
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                println!("| {name} | {setup} | {n} | {} | {} | {} | {ms:.0} |", stats.surface, stats.seen, stats.unseen);
             }
         }
     }

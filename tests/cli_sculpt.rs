@@ -293,6 +293,10 @@ fn views_files_and_object_headers_match_their_schemas() {
     let doc: Value = serde_json::from_str(&std::fs::read_to_string(&views).unwrap()).unwrap();
     assert!(views_schema.is_valid(&doc), "{:?}", views_schema.iter_errors(&doc).map(|e| e.to_string()).collect::<Vec<_>>());
     assert!(views_schema.is_valid(&doc["views"]), "a bare list of views is valid too");
+    let mut with_schema = doc.clone();
+    with_schema["$schema"] = json!("https://dbms.invalid/schemas/views.schema.json");
+    assert!(views_schema.is_valid(&with_schema));
+    std::fs::write(&views, with_schema.to_string()).unwrap();
     let mut bad = doc.clone();
     bad["views"][0]["mask"] = json!("m.png"); // mask and key together
     assert!(!views_schema.is_valid(&bad));

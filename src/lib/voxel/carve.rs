@@ -285,6 +285,28 @@ mod tests {
     }
 
     #[test]
+    fn utm_sized_coordinates_carve_the_same_as_near_the_origin() {
+        // The same scene 500 km east, 5000 km north: the carvers still agree and still find the sphere.
+        let c = [500_123.25, 5_000_456.75, 312.5];
+        let solid = Solid::Sphere { centre: c, radius: 0.8 };
+        let cams: Vec<Camera> = ring(8, 4.0, 25.0, 96)
+            .into_iter()
+            .map(|cam| {
+                let Camera::Pinhole(p) = cam else { unreachable!() };
+                let pos = [0, 1, 2].map(|a| p.centre[a] + c[a]);
+                Camera::look_at(p.fx, p.fy, p.cx, p.cy, pos, c, None).unwrap()
+            })
+            .collect();
+        let views = views_of(&solid, cams, 96);
+        let g = VoxelGrid::covering([c[0] - 1.0, c[1] - 1.0, c[2] - 1.0], [c[0] + 1.0, c[1] + 1.0, c[2] + 1.0], 2.0 / 40.0).unwrap();
+        let h = carve(&g, &views, &CarveOptions::default()).unwrap();
+        assert_eq!(h, carve_dense(&g, &views, &CarveOptions::default()).unwrap());
+        let near_origin =
+            carve(&unit_grid(40), &views_of(&solids::benchmark_solids()[0], ring(8, 4.0, 25.0, 96), 96), &CarveOptions::default()).unwrap();
+        assert!(h.iou(&near_origin) > 0.99, "iou {}", h.iou(&near_origin));
+    }
+
+    #[test]
     fn empty_silhouette_is_an_error() {
         let cam = Camera::orthographic([0.0, 0.0, -1.0], None, 10.0, [0.0; 3], 8.0, 8.0).unwrap();
         let views = vec![View { camera: cam, silhouette: Silhouette::new(16, 16, vec![false; 256]) }];

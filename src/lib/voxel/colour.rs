@@ -3,10 +3,10 @@
 //! # Rule
 //! A surface voxel takes the rounded mean RGB of the pixels it lands in (pixel `(⌊u⌋, ⌊v⌋)` of
 //! its centre) over the views that **see** it: its centre is in front of the camera, inside the
-//! image and the silhouette, and the ray from its centre to the camera (3-D DDA through the
-//! voxel grid) meets no other solid voxel before the camera or the grid's edge. A voxel seen by
-//! no view, and every interior voxel, gets the `fill` colour, so a hidden voxel never takes the
-//! colour of the voxel that hides it.
+//! image and the silhouette, and from the centre of one of its exposed faces that faces the
+//! camera the ray to the camera (3-D DDA through the voxel grid) meets no solid voxel before the
+//! camera or the grid's edge. A voxel seen by no view, and every interior voxel, gets the `fill`
+//! colour, so a hidden voxel never takes the colour of the voxel that hides it.
 
 use super::camera::Camera;
 use super::carve::View;
@@ -27,7 +27,8 @@ pub struct ColourStats {
     pub unseen: usize,
 }
 
-/// Colour `occupancy` from `views` and their `images` (same order, same sizes); `fill` is the
+/// Colour `occupancy` from `views` and their `images` (same order; a pixel counts only where both
+/// the image and the silhouette have it); `fill` is the
 /// colour of interior and unseen voxels. Parallel over y-slabs, deterministic.
 pub fn colour(grid: VoxelGrid, occupancy: Occupancy, views: &[View], images: &[Picture], fill: [u8; 3]) -> (VoxelObject, ColourStats) {
     assert_eq!(views.len(), images.len(), "one image per view");
@@ -74,33 +75,62 @@ pub fn colour(grid: VoxelGrid, occupancy: Occupancy, views: &[View], images: &[P
 fn seen_pixel(grid: &VoxelGrid, occ: &Occupancy, view: &View, img: &Picture, v: [u32; 3]) -> Option<[u8; 4]> {
     let c = grid.centre(v[0], v[1], v[2]);
     let [u, w] = view.camera.project(c)?;
-    if !(u >= 0.0 && w >= 0.0 && u < img.width as f64 && w < img.height as f64) {
+    let s = &view.silhouette;
+    let (width, height) = (img.width.min(s.width()) as f64, img.height.min(s.height()) as f64);
+    if !(u >= 0.0 && w >= 0.0 && u < width && w < height) {
         return None;
     }
     let (col, row) = (u as u32, w as u32);
-    if !view.silhouette.contains(col, row) || occluded(grid, occ, &view.camera, c, v) {
+    if !s.contains(col, row) || !visible(grid, occ, &view.camera, c, v) {
         return None;
     }
     Some(img.get(col, row))
 }
 
-/// Does a solid voxel other than `v` lie between `v`'s centre `c` and the camera?
-/// Amanatides–Woo traversal in voxel units; ties step the lowest axis first (deterministic).
-fn occluded(grid: &VoxelGrid, occ: &Occupancy, camera: &Camera, c: [f64; 3], v: [u32; 3]) -> bool {
-    let (dir, dist) = camera.towards(c);
-    let t_end = dist / grid.voxel_size;
-    let mut cell = v.map(|i| i as i64);
+/// Can `camera` see voxel `v` (centre `c`)? Light leaves a voxel through an exposed face (one
+/// whose neighbour is empty or outside the grid) that faces the camera; the voxel is seen when
+/// the ray from the centre of such a face towards the camera crosses no solid voxel before it
+/// reaches the camera or leaves the grid. Starting on the face, not at the centre, keeps the
+/// staircase neighbours of a slanted surface from hiding it at grazing angles.
+fn visible(grid: &VoxelGrid, occ: &Occupancy, camera: &Camera, c: [f64; 3], v: [u32; 3]) -> bool {
+    let (dir, _) = camera.towards(c);
+    let s = grid.voxel_size;
+    (0..6).any(|f| {
+        let (a, sign) = (f / 2, if f % 2 == 0 { -1i64 } else { 1 });
+        if dir[a] * sign as f64 <= 0.0 {
+            return false; // this face looks away from the camera
+        }
+        let mut nb = v.map(|i| i as i64);
+        nb[a] += sign;
+        if occ.get(nb[0], nb[1], nb[2]) {
+            return false; // not exposed
+        }
+        if nb[a] < 0 || nb[a] >= grid.dims[a] as i64 {
+            return true; // the face is on the grid's edge: nothing beyond can hide it
+        }
+        let mut face = c;
+        face[a] += sign as f64 * s / 2.0;
+        let (d, dist) = camera.towards(face);
+        // Start position in voxel units: on the face, inside the empty neighbour.
+        let mut start = v.map(|i| i as f64 + 0.5);
+        start[a] += sign as f64 * 0.5;
+        !occluded(grid, occ, nb, start, d, dist / s)
+    })
+}
+
+/// Does the ray `start + t·dir` (voxel units, `dir` unit), starting in empty voxel `cell`, meet a
+/// solid voxel for `t < t_end`? Amanatides–Woo traversal; ties step the lowest axis first.
+fn occluded(grid: &VoxelGrid, occ: &Occupancy, mut cell: [i64; 3], start: [f64; 3], dir: [f64; 3], t_end: f64) -> bool {
     let dims = grid.dims.map(|d| d as i64);
-    let mut t_next = [0.0f64; 3];
+    let mut t_next = [f64::INFINITY; 3];
     let mut t_step = [0.0f64; 3];
     let mut step = [0i64; 3];
     for a in 0..3 {
         if dir[a] != 0.0 {
             step[a] = if dir[a] > 0.0 { 1 } else { -1 };
             t_step[a] = 1.0 / dir[a].abs();
-            t_next[a] = 0.5 * t_step[a]; // from the centre to the next face
-        } else {
-            t_next[a] = f64::INFINITY;
+            let boundary = if dir[a] > 0.0 { (cell[a] + 1) as f64 } else { cell[a] as f64 };
+            t_next[a] = ((boundary - start[a]) / dir[a]).max(0.0);
         }
     }
     loop {
@@ -154,6 +184,21 @@ mod tests {
         assert_eq!(at(7), [0, 0, 255], "east face seen by the blue view");
         assert_eq!(stats.surface, obj.len(), "4 voxels thick: every voxel touches the grid edge or air");
         assert_eq!(stats.seen + stats.unseen, stats.surface);
+    }
+
+    #[test]
+    fn a_top_view_sees_exactly_the_top_of_every_column_of_a_ball() {
+        // Face-based visibility: the staircase of a curved surface does not hide its own voxels.
+        let g = VoxelGrid::covering([-1.0; 3], [1.0; 3], 2.0 / 32.0).unwrap();
+        let occ = Occupancy::from_fn(&g, |p| p[0] * p[0] + p[1] * p[1] + p[2] * p[2] <= 0.81);
+        let top = Camera::orthographic([0.0, 0.0, -1.0], None, 20.0, [0.0; 3], 25.0, 25.0).unwrap();
+        let views = vec![View { camera: top, silhouette: Silhouette::new(50, 50, vec![true; 2500]) }];
+        let columns = (0..32u32)
+            .flat_map(|y| (0..32u32).map(move |x| (x, y)))
+            .filter(|&(x, y)| (0..32).any(|z| occ.get(x as i64, y as i64, z)))
+            .count();
+        let (_, stats) = colour(g, occ, &views, &[flat([1, 2, 3, 255], 50, 50)], [0; 3]);
+        assert_eq!(stats.seen, columns);
     }
 
     #[test]

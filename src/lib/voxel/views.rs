@@ -28,6 +28,9 @@ pub struct ViewsFile {
     /// `[minx, miny, minz, maxx, maxy, maxz]`, world metres; `--bounds` overrides it.
     #[serde(default)]
     pub bounds: Option<[f64; 6]>,
+    /// The schema the file declares (for editors); not used.
+    #[serde(default, rename = "$schema")]
+    pub schema: Option<String>,
 }
 
 /// One view as written in the file.
@@ -138,7 +141,7 @@ impl ViewsFile {
     pub fn read(path: &Path) -> Result<ViewsFile> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let parsed = if text.trim_start().starts_with('[') {
-            serde_json::from_str::<Vec<ViewSpec>>(&text).map(|views| ViewsFile { views, bounds: None })
+            serde_json::from_str::<Vec<ViewSpec>>(&text).map(|views| ViewsFile { views, bounds: None, schema: None })
         } else {
             serde_json::from_str::<ViewsFile>(&text)
         };
