@@ -36,6 +36,10 @@ use std::collections::BTreeSet;
 use std::path::Path;
 use std::time::Instant;
 
+/// Farthest an eye may be from the grid origin, in level-0 cells (keeps every cell index and
+/// boundary time exact in f64 / i64; a farther eye is a CRS mistake).
+pub const MAX_EYE_CELLS: f64 = (1u64 << 40) as f64;
+
 /// With `repeat`, rays that hit nothing stop after this many database diagonals of range.
 pub const REPEAT_RANGE_DIAGONALS: f64 = 8.0;
 
@@ -185,6 +189,10 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     let scene = Scene::of(reader)?;
     let [ex, ey, ez] = camera.eye;
     let (u0, v0) = scene.local(ex, ey);
+    if u0.abs().max(v0.abs()) > MAX_EYE_CELLS {
+        return Err(Error::msg(format!("--eye {ex},{ey},{ez}: the eye is over {MAX_EYE_CELLS:e} cells from the database"))
+            .fix("give X,Y in the tile set's CRS (see `dbms tiles`)"));
+    }
     check_eye_above_terrain(reader, opts.repeat, u0, v0, camera)?;
 
     let top = scene.top(opts.repeat);

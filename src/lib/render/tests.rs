@@ -91,6 +91,18 @@ fn ray_exactly_parallel_to_the_y_axis_hits_the_north_wall() {
 }
 
 #[test]
+fn a_rising_ray_that_enters_a_column_below_its_top_hits_the_wall() {
+    // (a 50 m tower elsewhere keeps the database's top above the column's)
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |c, r| if (c, r) == (5, 5) { (50.0, GREY) } else { column(c, r) });
+    // Half a metre west of the 20 m column, 19.2 m up, looking east 45° up: the ray meets the
+    // wall at 19.7 m and would leave the cell over the top at 20.7 m.
+    for t in [Traversal::Hierarchical, Traversal::Level0] {
+        let f = render_view(&r, &camera([39.5, 33.5, 19.2], 0.0, 45.0, 90.0, 5, 5), &no_lod(t)).unwrap();
+        assert!((f.range[centre(&f)] as f64 - 0.5 * 2f64.sqrt()).abs() < 1e-6, "{t:?}: {}", f.range[centre(&f)]);
+    }
+}
+
+#[test]
 fn eye_exactly_on_a_cell_corner() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
     // Straight down from the corner shared by columns 39..=40 and rows 29..=30: the corner
@@ -123,6 +135,13 @@ fn eye_below_the_terrain_is_an_error() {
     // exactly on the edge of the column counts too
     let e = render_view(&r, &camera([41.0, 33.5, 20.0], 0.0, 0.0, 0.0, 4, 4), &ViewOptions::default()).unwrap_err();
     assert!(e.to_string().contains("--eye 41,33.5,20"), "{e}");
+}
+
+#[test]
+fn an_eye_in_the_wrong_crs_is_an_error_not_a_hang() {
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
+    let e = render_view(&r, &camera([1e300, -4.0, 10.0], 0.0, 0.0, 270.0, 4, 4), &ViewOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("cells from the database"), "{e}");
 }
 
 #[test]
