@@ -164,26 +164,38 @@ impl SourceRaster {
     }
 
     fn elevation_values<T: SampleValue>(&self, v: &[T]) -> Result<Vec<f32>> {
-        let (bands, nodata, width) = (self.bands, self.nodata, self.grid.width.max(1));
-        (0..self.grid.len())
-            .into_par_iter()
-            .map(|i| {
-                let s = v[i * bands];
-                let x: f64 = s.into();
-                if !x.is_finite() || nodata.is_some_and(|nd| s.is_nodata(nd)) {
-                    return Ok(f32::NAN);
-                }
-                let limit = T::EXACT_F32_LIMIT.unwrap_or(f32::MAX as f64);
-                if x.abs() > limit {
-                    return Err(Error::file(
-                        &self.path,
-                        format!("value {x} at column {}, row {} is out of range for an f32 elevation", i % width, i / width),
-                    )
-                    .fix("declare it as nodata or convert the file (gdal_translate -ot Float32 -scale)"));
-                }
-                Ok(x as f32)
-            })
-            .collect()
+        let (bands, nodata) = (self.bands, self.nodata);
+        let limit = T::EXACT_F32_LIMIT.unwrap_or(f32::MAX as f64);
+        // NaN for nodata; `None` for a value f32 cannot hold (found again below, first one reported).
+        let convert = |i: usize| -> Option<f32> {
+            let s = v[i * bands];
+            let x: f64 = s.into();
+            if !x.is_finite() || nodata.is_some_and(|nd| s.is_nodata(nd)) {
+                Some(f32::NAN)
+            } else {
+                (x.abs() <= limit).then_some(x as f32)
+            }
+        };
+        let bad = std::sync::atomic::AtomicBool::new(false);
+        let mut out = vec![0f32; self.grid.len()];
+        out.par_chunks_mut(CHUNK).enumerate().for_each(|(k, chunk)| {
+            for (j, o) in chunk.iter_mut().enumerate() {
+                *o = convert(k * CHUNK + j).unwrap_or_else(|| {
+                    bad.store(true, std::sync::atomic::Ordering::Relaxed);
+                    f32::NAN
+                });
+            }
+        });
+        if bad.into_inner() {
+            let i = (0..out.len()).into_par_iter().position_first(|i| convert(i).is_none()).unwrap_or(0);
+            let width = self.grid.width.max(1);
+            return Err(Error::file(
+                &self.path,
+                format!("value {} at column {}, row {} is out of range for an f32 elevation", v[i * bands].into(), i % width, i / width),
+            )
+            .fix("declare it as nodata or convert the file (gdal_translate -ot Float32 -scale)"));
+        }
+        Ok(out)
     }
 
     /// As RGBA8 colour: 1 band = grey (r=g=b), 2 bands = grey+alpha, 3 = RGB, 4 = RGBA (or
@@ -250,6 +262,9 @@ impl SourceRaster {
             .collect()
     }
 }
+
+/// Cells per parallel work item in the conversions.
+const CHUNK: usize = 1 << 15;
 
 /// The kinds of file [`read_raster`] recognises by content.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
