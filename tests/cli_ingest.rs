@@ -82,7 +82,7 @@ fn ingest_builds_a_database_and_info_describes_it() {
 #[test]
 fn same_inputs_give_byte_identical_databases() {
     let t = tempfile::tempdir().unwrap();
-    let (d, o) = write_inputs(t.path(), Crs::epsg(32632), Crs::epsg(32632));
+    write_inputs(t.path(), Crs::epsg(32632), Crs::epsg(32632)); // as dem.tif and ortho.tif, used by relative name
     let (a, b) = (t.path().join("a"), t.path().join("b"));
     // Relative output names so the recorded command lines are identical too.
     for db in [&a, &b] {
