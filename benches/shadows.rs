@@ -39,7 +39,13 @@ fn main() {
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let (t1, _) = one.install(|| best_of(3, || cast_shadows(&terrain, 30.0, 127.0).unwrap()));
     let (tn, _) = best_of(3, || cast_shadows(&terrain, 30.0, 127.0).unwrap());
-    println!("\nThreads (30°, 127°): 1 thread {:.1} ms, {} threads {:.1} ms: {:.2}× faster.\n", t1 * 1e3, rayon::current_num_threads(), tn * 1e3, t1 / tn);
+    println!(
+        "\nThreads (30°, 127°): 1 thread {:.1} ms, {} threads {:.1} ms: {:.2}× faster.\n",
+        t1 * 1e3,
+        rayon::current_num_threads(),
+        tn * 1e3,
+        t1 / tn
+    );
 
     let crop = window(&terrain, &Window { col: 0, row: 0, width: size.min(1024), height: size.min(1024) });
     println!("## Sweep against the exact reference march ({0} × {0} crop)\n", crop.width());
@@ -49,7 +55,13 @@ fn main() {
         let sun = Sun::new(el, az).unwrap();
         let (fast_s, fast) = best_of(3, || cast_shadows(&crop, el, az).unwrap());
         let (ref_s, exact) = best_of(1, || cast_shadows_reference(&crop, &sun).unwrap());
-        println!("| {el}°, {az}° | {:.2} ms | {:.1} ms | {:.0}× | {:.3} % |", fast_s * 1e3, ref_s * 1e3, ref_s / fast_s, agreement(&fast, &exact));
+        println!(
+            "| {el}°, {az}° | {:.2} ms | {:.1} ms | {:.0}× | {:.3} % |",
+            fast_s * 1e3,
+            ref_s * 1e3,
+            ref_s / fast_s,
+            agreement(&fast, &exact)
+        );
     }
     sunmask_comparison();
 }
@@ -87,13 +99,17 @@ fn best_of<T>(n: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 }
 
 fn window(e: &Elevation, w: &Window) -> Elevation {
-    let data = (w.row..w.row + w.height).flat_map(|r| (w.col..w.col + w.width).map(move |c| (c, r))).map(|(c, r)| *e.get(c, r)).collect();
+    let data = (w.row..w.row + w.height)
+        .flat_map(|r| (w.col..w.col + w.width).map(move |c| (c, r)))
+        .map(|(c, r)| *e.get(c, r))
+        .collect();
     Elevation::new(e.grid.window_grid(w), data)
 }
 
 /// Percentage of cells valid in both masks that agree.
 fn agreement(a: &Raster<u8>, b: &Raster<u8>) -> f64 {
-    let both: Vec<(u8, u8)> = a.data.iter().zip(&b.data).filter(|(x, y)| **x != NODATA && **y != NODATA).map(|(x, y)| (*x, *y)).collect();
+    let both: Vec<(u8, u8)> =
+        a.data.iter().zip(&b.data).filter(|(x, y)| **x != NODATA && **y != NODATA).map(|(x, y)| (*x, *y)).collect();
     100.0 * both.iter().filter(|(x, y)| x == y).count() as f64 / both.len().max(1) as f64
 }
 
@@ -111,13 +127,18 @@ fn sunmask_comparison() {
     let w: Vec<usize> = std::env::var("DBMS_SUNMASK_WINDOW")
         .map(|s| s.split(',').map(|v| v.trim().parse().unwrap()).collect())
         .unwrap_or_else(|_| vec![dem.width().saturating_sub(256) / 2, dem.height().saturating_sub(256) / 2, 256]);
-    let win = Window { col: w[0], row: w[1], width: w[2].min(dem.width() - w[0]), height: w[2].min(dem.height() - w[1]) };
+    let win =
+        Window { col: w[0], row: w[1], width: w[2].min(dem.width() - w[0]), height: w[2].min(dem.height() - w[1]) };
     let crop = window(&dem, &win);
     let tmp = tempfile::tempdir().unwrap();
     let crop_path = tmp.path().join("crop.tif");
     dbms::io::geotiff::write_f32(&crop_path, &crop).unwrap();
     let (cx, _) = crop.grid.cell_size();
-    println!("\n## Against GRASS r.sunmask: {dem_path}, window {win:?} ({} m cells, {} nodata)\n", cx, crop.nodata_count());
+    println!(
+        "\n## Against GRASS r.sunmask: {dem_path}, window {win:?} ({} m cells, {} nodata)\n",
+        cx,
+        crop.nodata_count()
+    );
     println!("| sun | r.sunmask shadow | ours shadow | agreement (sweep) | agreement (reference) | r.sunmask vs its rule re-implemented | r.sunmask time | µs per cell (GRASS) | ours |");
     println!("|---|---|---|---|---|---|---|---|---|");
     for (el, az) in [(2.0, 270.0), (3.0, 0.0), (3.0, 135.0), (4.0, 45.0), (5.0, 200.0)] {
@@ -128,10 +149,21 @@ fn sunmask_comparison() {
             out.display()
         );
         let t = Instant::now();
-        let status = Command::new("grass").arg("--tmp-location").arg(&crop_path).arg("--exec").arg("sh").arg("-c").arg(&script).output().unwrap();
+        let status = Command::new("grass")
+            .arg("--tmp-location")
+            .arg(&crop_path)
+            .arg("--exec")
+            .arg("sh")
+            .arg("-c")
+            .arg(&script)
+            .output()
+            .unwrap();
         let grass_s = t.elapsed().as_secs_f64();
         if !status.status.success() {
-            println!("| {el}°, {az}° | r.sunmask failed: {} |", String::from_utf8_lossy(&status.stderr).lines().last().unwrap_or(""));
+            println!(
+                "| {el}°, {az}° | r.sunmask failed: {} |",
+                String::from_utf8_lossy(&status.stderr).lines().last().unwrap_or("")
+            );
             continue;
         }
         // r.sunmask writes 1 in shadow and null elsewhere: null over valid height is lit.
@@ -139,7 +171,7 @@ fn sunmask_comparison() {
         let theirs: Vec<u8> = (0..crop.data.len())
             .map(|i| match (crop.data[i].is_nan(), src.sample(i, 0)) {
                 (true, _) => NODATA,
-                (false, v) if v == 1.0 => SHADOW,
+                (false, 1.0) => SHADOW,
                 _ => 0,
             })
             .collect();

@@ -44,7 +44,17 @@ fn mask_matches_the_library_and_declares_nodata() {
     let dir = tempfile::tempdir().unwrap();
     let e = database(dir.path(), false);
     let out = dir.path().join("mask.tif");
-    let o = dbms(&["shadows", "--db", dir.path().to_str().unwrap(), "--sun-elevation", "45", "--sun-azimuth", "0", "-o", out.to_str().unwrap()]);
+    let o = dbms(&[
+        "shadows",
+        "--db",
+        dir.path().to_str().unwrap(),
+        "--sun-elevation",
+        "45",
+        "--sun-azimuth",
+        "0",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let (mask, nodata, grid) = read_mask(&out);
     assert_eq!(nodata, Some(255.0));
@@ -73,7 +83,9 @@ fn time_gives_the_sun_over_the_centre_and_json_reports_it() {
     assert_eq!(v["cells"]["nodata"], 1);
     // Same inputs, same bytes.
     let first = std::fs::read(&out).unwrap();
-    assert!(dbms(&["shadows", "--db", db, "--time", "2026-06-21T11:00:00Z", "-o", out.to_str().unwrap()]).status.success());
+    assert!(dbms(&["shadows", "--db", db, "--time", "2026-06-21T11:00:00Z", "-o", out.to_str().unwrap()])
+        .status
+        .success());
     assert_eq!(first, std::fs::read(&out).unwrap());
 }
 
@@ -82,7 +94,18 @@ fn buildings_layer_casts_shadows_too() {
     let dir = tempfile::tempdir().unwrap();
     database(dir.path(), true);
     let out = dir.path().join("mask.tif");
-    let o = dbms(&["--json", "shadows", "--db", dir.path().to_str().unwrap(), "--sun-elevation", "45", "--sun-azimuth", "0", "-o", out.to_str().unwrap()]);
+    let o = dbms(&[
+        "--json",
+        "shadows",
+        "--db",
+        dir.path().to_str().unwrap(),
+        "--sun-elevation",
+        "45",
+        "--sun-azimuth",
+        "0",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["building_cells"], 25);
@@ -102,7 +125,10 @@ fn bad_input_is_one_line_error_and_no_output() {
     let cases: [(&[&str], &str); 4] = [
         (&["shadows", "--db", db, "--sun-elevation", "-2", "--sun-azimuth", "90", "-o", o], "night"),
         (&["shadows", "--db", db, "--time", "2026-06-21T23:00:00Z", "-o", o], "night"),
-        (&["shadows", "--db", "/nonexistent/db", "--sun-elevation", "30", "--sun-azimuth", "90", "-o", o], "no such database"),
+        (
+            &["shadows", "--db", "/nonexistent/db", "--sun-elevation", "30", "--sun-azimuth", "90", "-o", o],
+            "no such database",
+        ),
         (&["shadows", "--db", db, "--time", "yesterday", "-o", o], "RFC 3339"),
     ];
     for (args, needle) in cases {
@@ -112,6 +138,20 @@ fn bad_input_is_one_line_error_and_no_output() {
     }
     // Half a sun, or both forms at once, is a usage error.
     assert!(!dbms(&["shadows", "--db", db, "--sun-elevation", "30", "-o", o]).status.success());
-    assert!(!dbms(&["shadows", "--db", db, "--time", "2026-06-21T11:00:00Z", "--sun-elevation", "30", "--sun-azimuth", "1", "-o", o]).status.success());
+    assert!(!dbms(&[
+        "shadows",
+        "--db",
+        db,
+        "--time",
+        "2026-06-21T11:00:00Z",
+        "--sun-elevation",
+        "30",
+        "--sun-azimuth",
+        "1",
+        "-o",
+        o
+    ])
+    .status
+    .success());
     assert!(!out.exists());
 }

@@ -29,7 +29,11 @@ impl Road {
     /// Signed distance (metres) across the road from its centre line to local point `(x, y)`,
     /// and the distance along it.
     pub fn local(&self, x: f64, y: f64) -> (f64, f64) {
-        if self.north_south { (x - self.centre, y) } else { (y - self.centre, x) }
+        if self.north_south {
+            (x - self.centre, y)
+        } else {
+            (y - self.centre, x)
+        }
     }
 }
 
@@ -94,20 +98,43 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
         if k == 0 {
             let (w, d) = (rng.stepped(14.0, room, SNAP), rng.stepped(14.0, room, SNAP));
             let (wn, dn) = (rng.stepped(6.0, w - 6.0, SNAP), rng.stepped(6.0, d - 6.0, SNAP));
-            let ring = vec![(x0, y0), (x0 + w, y0), (x0 + w, y0 + d - dn), (x0 + w - wn, y0 + d - dn), (x0 + w - wn, y0 + d), (x0, y0 + d)];
+            let ring = vec![
+                (x0, y0),
+                (x0 + w, y0),
+                (x0 + w, y0 + d - dn),
+                (x0 + w - wn, y0 + d - dn),
+                (x0 + w - wn, y0 + d),
+                (x0, y0 + d),
+            ];
             plans.push(Plan { ring, shape: Shape::LShape, height_m: height(&mut rng), roof: roof(&mut rng) });
         } else if k % 4 == 2 {
             let (w1, w2) = (rng.stepped(7.0, 12.0, SNAP), rng.stepped(7.0, 12.0, SNAP));
             let (d1, d2) = (rng.stepped(8.0, 16.0, SNAP), rng.stepped(8.0, 16.0, SNAP));
             let h1 = height(&mut rng);
             // The neighbour differs by at least 3 m, so the shared wall casts a shadow step.
-            let h2 = if h1 > 14.0 { h1 - rng.stepped(3.0, h1 - 3.0, 0.5) } else { h1 + rng.stepped(3.0, 25.0 - h1, 0.5) };
-            plans.push(Plan { ring: rectangle(x0, y0, w1, d1), shape: Shape::Adjacent, height_m: h1, roof: roof(&mut rng) });
-            plans.push(Plan { ring: rectangle(x0 + w1, y0, w2, d2), shape: Shape::Adjacent, height_m: h2, roof: roof(&mut rng) });
+            let h2 =
+                if h1 > 14.0 { h1 - rng.stepped(3.0, h1 - 3.0, 0.5) } else { h1 + rng.stepped(3.0, 25.0 - h1, 0.5) };
+            plans.push(Plan {
+                ring: rectangle(x0, y0, w1, d1),
+                shape: Shape::Adjacent,
+                height_m: h1,
+                roof: roof(&mut rng),
+            });
+            plans.push(Plan {
+                ring: rectangle(x0 + w1, y0, w2, d2),
+                shape: Shape::Adjacent,
+                height_m: h2,
+                roof: roof(&mut rng),
+            });
         } else {
             let (w, d) = (rng.stepped(8.0, 20.0, SNAP), rng.stepped(8.0, 16.0, SNAP));
             let (dx, dy) = (rng.stepped(0.0, room - w, SNAP), rng.stepped(0.0, room - d, SNAP));
-            plans.push(Plan { ring: rectangle(x0 + dx, y0 + dy, w, d), shape: Shape::Rectangle, height_m: height(&mut rng), roof: roof(&mut rng) });
+            plans.push(Plan {
+                ring: rectangle(x0 + dx, y0 + dy, w, d),
+                shape: Shape::Rectangle,
+                height_m: height(&mut rng),
+                roof: roof(&mut rng),
+            });
         }
     }
     plans
@@ -123,10 +150,13 @@ mod tests {
     use super::*;
 
     fn area(ring: &[(f64, f64)]) -> f64 {
-        (0..ring.len()).map(|i| {
-            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-            a.0 * b.1 - b.0 * a.1
-        }).sum::<f64>() / 2.0
+        (0..ring.len())
+            .map(|i| {
+                let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+                a.0 * b.1 - b.0 * a.1
+            })
+            .sum::<f64>()
+            / 2.0
     }
 
     #[test]

@@ -142,17 +142,33 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
 
     let plans = layout::buildings(mix(options.seed ^ 0xb1d), extent);
     let prisms: Vec<Prism> = plans.iter().map(|p| Prism { rings: vec![world_ring(&p.ring)], roof_z: 0.0 }).collect();
-    let buildings: Vec<Building> = plans.iter().zip(&prisms).enumerate().map(|(i, (plan, prism))| {
-        let under: Vec<f64> = rasterise_prisms(&dem_grid, std::slice::from_ref(prism)).iter().map(|c| {
-            let (col, row) = (c.index % n, c.index / n);
-            let (x, y) = dem_grid.cell_centre(col, row);
-            ground(x - MIN_X, y - MIN_Y)
-        }).collect();
-        let (lo, hi) = under.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
-        let mut footprint: Vec<[f64; 2]> = prism.rings[0].iter().map(|&(x, y)| [x, y]).collect();
-        footprint.push(footprint[0]);
-        Building { id: i as u32 + 1, shape: plan.shape, footprint, height_m: plan.height_m, roof_z: hi + plan.height_m, ground_min_z: lo, ground_max_z: hi }
-    }).collect();
+    let buildings: Vec<Building> = plans
+        .iter()
+        .zip(&prisms)
+        .enumerate()
+        .map(|(i, (plan, prism))| {
+            let under: Vec<f64> = rasterise_prisms(&dem_grid, std::slice::from_ref(prism))
+                .iter()
+                .map(|c| {
+                    let (col, row) = (c.index % n, c.index / n);
+                    let (x, y) = dem_grid.cell_centre(col, row);
+                    ground(x - MIN_X, y - MIN_Y)
+                })
+                .collect();
+            let (lo, hi) = under.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
+            let mut footprint: Vec<[f64; 2]> = prism.rings[0].iter().map(|&(x, y)| [x, y]).collect();
+            footprint.push(footprint[0]);
+            Building {
+                id: i as u32 + 1,
+                shape: plan.shape,
+                footprint,
+                height_m: plan.height_m,
+                roof_z: hi + plan.height_m,
+                ground_min_z: lo,
+                ground_max_z: hi,
+            }
+        })
+        .collect();
 
     let (ortho, shadow_fraction) = render_ortho(options.seed, extent, &crs, &sun, &ground, &plans, &buildings);
     Ok(Scene { options, dem, ortho, buildings, sun, centre_lat_lon: (lat, lon), max_slope_percent, shadow_fraction })
@@ -273,19 +289,22 @@ fn sample_grid<T: Send>(grid: &Grid, f: impl Fn(f64, f64) -> T + Sync) -> Vec<T>
 fn max_slope(dem: &Elevation) -> f64 {
     let (cx, cy) = dem.grid.cell_size();
     let (w, h) = (dem.width(), dem.height());
-    (0..h).into_par_iter().map(|r| {
-        let mut m: f64 = 0.0;
-        for c in 0..w {
-            let z = *dem.get(c, r) as f64;
-            if c + 1 < w {
-                m = m.max((*dem.get(c + 1, r) as f64 - z).abs() / cx);
+    (0..h)
+        .into_par_iter()
+        .map(|r| {
+            let mut m: f64 = 0.0;
+            for c in 0..w {
+                let z = *dem.get(c, r) as f64;
+                if c + 1 < w {
+                    m = m.max((*dem.get(c + 1, r) as f64 - z).abs() / cx);
+                }
+                if r + 1 < h {
+                    m = m.max((*dem.get(c, r + 1) as f64 - z).abs() / cy);
+                }
             }
-            if r + 1 < h {
-                m = m.max((*dem.get(c, r + 1) as f64 - z).abs() / cy);
-            }
-        }
-        m
-    }).reduce(|| 0.0, f64::max)
+            m
+        })
+        .reduce(|| 0.0, f64::max)
 }
 
 /// The orthophoto and the fraction of it in cast shadow.
@@ -309,20 +328,27 @@ fn render_ortho(
         }
     }
     let terrain = sample_grid(&grid, |x, y| ground(x, y) as f32);
-    let surface: Vec<f32> = terrain.iter().zip(&owner).map(|(&z, &o)| if o == 0 { z } else { buildings[o as usize - 1].roof_z as f32 }).collect();
+    let surface: Vec<f32> = terrain
+        .iter()
+        .zip(&owner)
+        .map(|(&z, &o)| if o == 0 { z } else { buildings[o as usize - 1].roof_z as f32 })
+        .collect();
     let shadow = cast_shadows_slice(&surface, &grid, sun).expect("the sample grid is metric and matches its data");
     let roads = layout::roads(extent);
     let texture_seed = mix(seed ^ 0x0c01);
     let lit = sample_grid(&grid, |x, y| ground_colour(texture_seed, &roads, x, y));
-    let data: Vec<[u8; 4]> = (0..grid.len()).into_par_iter().map(|i| {
-        let rgb = match owner[i] {
-            0 => lit[i],
-            o => roof_colour(texture_seed, plans[o as usize - 1].roof, i),
-        };
-        let k = if shadow[i] == SHADOW { SHADOW_FACTOR } else { 1.0 };
-        let c = |v: u8| (v as f64 * k).round() as u8;
-        [c(rgb[0]), c(rgb[1]), c(rgb[2]), 255]
-    }).collect();
+    let data: Vec<[u8; 4]> = (0..grid.len())
+        .into_par_iter()
+        .map(|i| {
+            let rgb = match owner[i] {
+                0 => lit[i],
+                o => roof_colour(texture_seed, plans[o as usize - 1].roof, i),
+            };
+            let k = if shadow[i] == SHADOW { SHADOW_FACTOR } else { 1.0 };
+            let c = |v: u8| (v as f64 * k).round() as u8;
+            [c(rgb[0]), c(rgb[1]), c(rgb[2]), 255]
+        })
+        .collect();
     let shadowed = shadow.iter().filter(|&&s| s == SHADOW).count();
     (Raster::new(grid, data), shadowed as f64 / shadow.len() as f64)
 }

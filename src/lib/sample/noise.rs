@@ -13,7 +13,9 @@ pub fn mix(mut x: u64) -> u64 {
 /// Hash of a lattice point and a seed, uniform in [−1, 1].
 #[inline]
 fn lattice(seed: u64, ix: i64, iy: i64) -> f64 {
-    let h = mix(seed ^ mix((ix as u64).wrapping_mul(0xA24B_AED4_963E_E407) ^ (iy as u64).wrapping_mul(0x9FB2_1C65_1E98_DF25)));
+    let h =
+        mix(seed
+            ^ mix((ix as u64).wrapping_mul(0xA24B_AED4_963E_E407) ^ (iy as u64).wrapping_mul(0x9FB2_1C65_1E98_DF25)));
     (h >> 11) as f64 / (1u64 << 52) as f64 - 1.0
 }
 
@@ -37,7 +39,9 @@ pub fn octaves(seed: u64, x: f64, y: f64, bands: &[(f64, f64)]) -> f64 {
     bands
         .iter()
         .enumerate()
-        .map(|(i, &(wavelength, amplitude))| amplitude * value_noise(mix(seed ^ i as u64), x / wavelength, y / wavelength))
+        .map(|(i, &(wavelength, amplitude))| {
+            amplitude * value_noise(mix(seed ^ i as u64), x / wavelength, y / wavelength)
+        })
         .sum()
 }
 

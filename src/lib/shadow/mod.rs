@@ -60,8 +60,10 @@ impl Sun {
     /// at or below the horizon (night: everything would be shadow) or above 90°.
     pub fn new(elevation_deg: f64, azimuth_deg: f64) -> Result<Sun> {
         if !elevation_deg.is_finite() || !azimuth_deg.is_finite() {
-            return Err(Error::msg(format!("sun elevation {elevation_deg}° / azimuth {azimuth_deg}° is not a finite direction"))
-                .fix("give numbers in degrees"));
+            return Err(Error::msg(format!(
+                "sun elevation {elevation_deg}° / azimuth {azimuth_deg}° is not a finite direction"
+            ))
+            .fix("give numbers in degrees"));
         }
         if elevation_deg <= 0.0 {
             return Err(Error::msg(format!(
@@ -70,7 +72,9 @@ impl Sun {
             .fix("choose a daytime --time or a --sun-elevation above 0"));
         }
         if elevation_deg > 90.0 {
-            return Err(Error::msg(format!("sun elevation {elevation_deg}° is above 90°")).fix("give an elevation in (0, 90]"));
+            return Err(
+                Error::msg(format!("sun elevation {elevation_deg}° is above 90°")).fix("give an elevation in (0, 90]")
+            );
         }
         Ok(Sun { elevation_deg, azimuth_deg: azimuth_deg.rem_euclid(360.0) })
     }
@@ -197,7 +201,11 @@ impl Frame {
     /// Grid-order values into frame order.
     fn gather<T: Copy + Send + Sync>(&self, grid_data: &[T]) -> Vec<T> {
         let mut out = Vec::with_capacity(grid_data.len());
-        out.par_extend((0..self.height).into_par_iter().flat_map_iter(|i| (0..self.width).map(move |j| grid_data[self.grid_index(j, i)])));
+        out.par_extend(
+            (0..self.height)
+                .into_par_iter()
+                .flat_map_iter(|i| (0..self.width).map(move |j| grid_data[self.grid_index(j, i)])),
+        );
         out
     }
 
@@ -333,7 +341,8 @@ mod tests {
     /// with about 1 % nodata holes.
     fn rugged(w: usize, h: usize, seed: u64) -> Elevation {
         let hash = |c: usize, r: usize| {
-            let mut x = (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F) ^ seed;
+            let mut x =
+                (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F) ^ seed;
             x ^= x >> 29;
             x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
             x ^= x >> 32;
@@ -371,18 +380,26 @@ mod tests {
                 // Cells on the sun side of the wall line (through the centre, perpendicular to the sun) are 10 m.
                 let e = raster(n, n, |c, r| {
                     let (x, y) = (c as f64 - wall as f64, wall as f64 - r as f64);
-                    if x * east + y * north > 0.0 { 10.0 } else { 0.0 }
+                    if x * east + y * north > 0.0 {
+                        10.0
+                    } else {
+                        0.0
+                    }
                 });
                 let m = cast_shadows(&e, el, az).unwrap();
                 // Walk from the centre cell away from the sun: shadow length in whole steps.
                 let step = if az % 90.0 == 0.0 { 1.0 } else { std::f64::consts::SQRT_2 };
-                let (dc, dr) = ((-east).signum() as isize * (east != 0.0) as isize, (north.signum() as isize) * (north != 0.0) as isize);
+                let (dc, dr) = (
+                    (-east).signum() as isize * (east != 0.0) as isize,
+                    (north.signum() as isize) * (north != 0.0) as isize,
+                );
                 // Start on the last wall cell before the centre; count the shadowed cells after it.
                 let (mut c, mut r, mut k) = (wall as isize - dc, wall as isize - dr, 0);
                 loop {
                     c += dc;
                     r += dr;
-                    if c < 0 || r < 0 || c >= n as isize || r >= n as isize || *m.get(c as usize, r as usize) != SHADOW {
+                    if c < 0 || r < 0 || c >= n as isize || r >= n as isize || *m.get(c as usize, r as usize) != SHADOW
+                    {
                         break;
                     }
                     k += 1;
@@ -493,7 +510,10 @@ mod tests {
         let e = rugged(60, 50, 11);
         let w = crate::grid::Window { col: 7, row: 5, width: 31, height: 19 };
         let sub = e.grid.window_grid(&w);
-        let crop: Vec<f32> = (w.row..w.row + w.height).flat_map(|r| (w.col..w.col + w.width).map(move |c| (c, r))).map(|(c, r)| *e.get(c, r)).collect();
+        let crop: Vec<f32> = (w.row..w.row + w.height)
+            .flat_map(|r| (w.col..w.col + w.width).map(move |c| (c, r)))
+            .map(|(c, r)| *e.get(c, r))
+            .collect();
         let sun = Sun::new(20.0, 123.0).unwrap();
         let slice = cast_shadows_slice(&crop, &sub, &sun).unwrap();
         assert_eq!(slice, cast_shadows(&Elevation::new(sub, crop), 20.0, 123.0).unwrap().data);
