@@ -195,7 +195,7 @@ fn placed_voxel_objects_are_merged_with_partial_cells_for_overhangs() {
     let grid = VoxelGrid::new([0.0, 0.0, 0.0], 1.0, [4, 1, 3]).unwrap();
     let obj = VoxelObject::from_fn(grid, |p, _| {
         let (x, z) = (p[0], p[2]);
-        (z > 2.0 || x < 1.0 || x > 3.0).then_some([200, 10, 10])
+        (z > 2.0 || !(1.0..=3.0).contains(&x)).then_some([200, 10, 10])
     });
     format::write(&db.dir.join("arch.dvox"), &obj, "test arch").unwrap();
     let sha256 = dbms::db::sha256_file(&db.dir.join("arch.dvox")).unwrap();

@@ -198,7 +198,7 @@ mod tests {
                                     z = base.max_z[i];
                                 }
                                 if base.colour[i][3] != 0 {
-                                    for ch in 0..3 { sum[ch] += base.colour[i][ch] as u64; }
+                                    for (s, &v) in sum.iter_mut().zip(&base.colour[i][..3]) { *s += v as u64; }
                                     n += 1;
                                 }
                                 filled |= base.state[i] != 0;
