@@ -181,7 +181,7 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     if let Some(v) = opts.visibility.filter(|v| !(*v > 0.0 && v.is_finite())) {
         return Err(Error::msg(format!("--haze {v}: visibility must be a positive number of metres")).fix("e.g. --haze 5000"));
     }
-    if let Some(r) = opts.max_range.filter(|r| !(*r > 0.0)) {
+    if let Some(r) = opts.max_range.filter(|r| r.is_nan() || *r <= 0.0) {
         return Err(Error::msg(format!("--max-range {r}: must be a positive number of metres")));
     }
     let start = Instant::now();

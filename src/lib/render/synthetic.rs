@@ -44,7 +44,7 @@ where
                 });
             Ok(band)
         },
-        &|level, tx, ty, page| writer.write_page(level, tx, ty, &page),
+        &|level, tx, ty, page| writer.write_page(level, tx, ty, page),
     )?;
     writer.finish()
 }
