@@ -12,13 +12,16 @@
 
 use super::local::{Class, Local};
 use crate::error::Result;
-use crate::shadow::{cast_shadows_slice, Sun, SHADOW};
+use crate::raster::Raster;
+use crate::shadow::{cast_shadows_reference, cast_shadows_slice, Sun, SHADOW};
 use rayon::prelude::*;
 
 /// Coarse samples over `[0, z_hi]`.
 const COARSE: usize = 24;
 /// At most this many fine samples.
 const MAX_FINE: usize = 96;
+/// Shadows up to this many cells long (at the highest trial) are cast with exact rays.
+const EXACT_MAX_CELLS: f64 = 64.0;
 
 /// The refined height above `ground_z` (metres) and its IoU with the observed shadow.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,14 +38,19 @@ pub struct Refined {
 /// `keep[i]` can be in the corridor (the caller drops the bands of scan lines that met other
 /// buildings or disagreed with the median length).
 pub fn refine(local: &Local, keep: &[bool], sun: &Sun, ground_z: f64, z_hi: f64, fine_step: f64) -> Result<Refined> {
-    let corridor: Vec<bool> = cast_at(local, sun, ground_z + z_hi)?
+    // Short shadows (few cells: a high sun) are cast with exact rays: there one cell of the
+    // sweep's digital-line approximation is metres of height. Long ones use the O(n) sweep.
+    let (cx, cy) = local.grid.cell_size();
+    let exact = z_hi / (sun.elevation_deg.to_radians().tan() * cx.max(cy)) <= EXACT_MAX_CELLS;
+    let cast_at = |roof_z: f64| cast_at(local, sun, roof_z, exact);
+    let corridor: Vec<bool> = cast_at(ground_z + z_hi)?
         .iter()
         .zip(&local.class)
         .zip(keep)
         .map(|((&m, &c), &k)| k && m == SHADOW && matches!(c, Class::Lit | Class::Shadow))
         .collect();
     let score = |z: f64| -> Result<f64> {
-        let mask = cast_at(local, sun, ground_z + z)?;
+        let mask = cast_at(ground_z + z)?;
         let (mut inter, mut union) = (0usize, 0usize);
         for i in 0..mask.len() {
             if corridor[i] {
@@ -75,11 +83,16 @@ pub fn refine(local: &Local, keep: &[bool], sun: &Sun, ground_z: f64, z_hi: f64,
     Ok(Refined { height_m: (fine[b] + fine[e]) / 2.0, overlap: top })
 }
 
-/// The caster's mask of `local`'s terrain with the footprint's own cells raised to `roof_z`.
-fn cast_at(local: &Local, sun: &Sun, roof_z: f64) -> Result<Vec<u8>> {
+/// The caster's mask of `local`'s terrain with the footprint's own cells raised to `roof_z`:
+/// the exact ray-marching reference or the sweep.
+fn cast_at(local: &Local, sun: &Sun, roof_z: f64, exact: bool) -> Result<Vec<u8>> {
     let heights: Vec<f32> =
         local.heights.iter().zip(&local.class).map(|(&h, &c)| if c == Class::Own { roof_z as f32 } else { h }).collect();
-    cast_shadows_slice(&heights, &local.grid, sun)
+    if exact {
+        Ok(cast_shadows_reference(&Raster::new(local.grid.clone(), heights), sun)?.data)
+    } else {
+        cast_shadows_slice(&heights, &local.grid, sun)
+    }
 }
 
 fn first_max(v: &[f64]) -> usize {
@@ -109,7 +122,7 @@ mod tests {
             }
         }
         let mut l = Local { win: w, grid: g.window_grid(&w), class, heights: vec![100.0; 1600] };
-        let observed = cast_at(&l, &sun, 106.5).unwrap();
+        let observed = cast_at(&l, &sun, 106.5, true).unwrap();
         for (c, m) in l.class.iter_mut().zip(&observed) {
             if *c == Class::Lit && *m == SHADOW {
                 *c = Class::Shadow;
