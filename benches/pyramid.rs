@@ -32,19 +32,36 @@ fn main() {
         child(Path::new(&args[i + 1]), Path::new(&args[i + 2]));
         return;
     }
-    let size: usize = std::env::var("DBMS_BENCH_SIZE").ok().and_then(|s| s.parse().ok()).unwrap_or(8192);
+    let size: usize = std::env::var("DBMS_BENCH_SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(8192);
     let tmp = tempfile::tempdir().expect("temp dir");
-    let work = std::env::var("DBMS_BENCH_DIR").map(PathBuf::from).unwrap_or_else(|_| tmp.path().to_path_buf());
+    let work = std::env::var("DBMS_BENCH_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| tmp.path().to_path_buf());
     std::fs::create_dir_all(&work).expect("work dir");
     let db_dir = work.join("db");
     let t = Instant::now();
     make_database(&db_dir, size);
-    eprintln!("generated {size}×{size} database in {:.1} s", t.elapsed().as_secs_f64());
+    eprintln!(
+        "generated {size}×{size} database in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
 
     let tiles = work.join("bench.dbt");
     let (ours_s, ours_kb, steps) = run_ours(&db_dir, &tiles);
-    let mut rows = vec![("dbms pyramid (all levels: max Z, colour, state; tile file)".to_string(), ours_s, Some(ours_kb))];
-    let names = ["read + decode the two layer GeoTIFFs", "prepare (no sun: nothing)", "levels: bands, reductions, pages encoded + spooled", "tile writer's final pass (spool → file)"];
+    let mut rows = vec![(
+        "dbms pyramid (all levels: max Z, colour, state; tile file)".to_string(),
+        ours_s,
+        Some(ours_kb),
+    )];
+    let names = [
+        "read + decode the two layer GeoTIFFs",
+        "prepare (no sun: nothing)",
+        "levels: bands, reductions, pages encoded + spooled",
+        "tile writer's final pass (spool → file)",
+    ];
     for (name, s) in names.iter().zip(&steps) {
         rows.push((format!("  of which: {name}"), *s, None));
     }
@@ -59,13 +76,28 @@ fn main() {
             let _ = std::fs::remove_file(&out);
             let (s, kb) = timed(
                 Command::new("gdalwarp")
-                    .args(["-q", "-multi", "-wo", "NUM_THREADS=ALL_CPUS", "-r", "max", "-tr"])
+                    .args([
+                        "-q",
+                        "-multi",
+                        "-wo",
+                        "NUM_THREADS=ALL_CPUS",
+                        "-r",
+                        "max",
+                        "-tr",
+                    ])
                     .arg(c.to_string())
                     .arg(c.to_string())
                     .arg(&prev)
                     .arg(&out),
             );
-            rows.push((format!("gdalwarp -r max -tr {c} {c} (level {k} from level {})", k - 1), s, kb));
+            rows.push((
+                format!(
+                    "gdalwarp -r max -tr {c} {c} (level {k} from level {})",
+                    k - 1
+                ),
+                s,
+                kb,
+            ));
             gdal_total += s;
             gdal_peak = gdal_peak.max(kb.unwrap_or(0));
             prev = out;
@@ -73,15 +105,32 @@ fn main() {
         let colour = work.join("gdal_colour.tif");
         std::fs::copy(db_dir.join("colour.tif"), &colour).expect("copy colour");
         let (s, kb) = timed(
-            Command::new("gdaladdo").args(["-q", "-r", "average", "--config", "GDAL_NUM_THREADS", "ALL_CPUS"]).arg(&colour).args(["4", "16", "64"]),
+            Command::new("gdaladdo")
+                .args([
+                    "-q",
+                    "-r",
+                    "average",
+                    "--config",
+                    "GDAL_NUM_THREADS",
+                    "ALL_CPUS",
+                ])
+                .arg(&colour)
+                .args(["4", "16", "64"]),
         );
         rows.push(("gdaladdo -r average 4 16 64 (colour)".to_string(), s, kb));
         gdal_total += s;
         gdal_peak = gdal_peak.max(kb.unwrap_or(0));
-        rows.push(("GDAL total (max-Z levels + colour overviews)".to_string(), gdal_total, Some(gdal_peak)));
+        rows.push((
+            "GDAL total (max-Z levels + colour overviews)".to_string(),
+            gdal_total,
+            Some(gdal_peak),
+        ));
         let identical = compare_max_z(&tiles, &work);
         print_table(size, &rows);
-        println!("\nours / GDAL speed-up: {:.2}×; max-Z identical to GDAL's on levels 1–3: {identical}", gdal_total / ours_s);
+        println!(
+            "\nours / GDAL speed-up: {:.2}×; max-Z identical to GDAL's on levels 1–3: {identical}",
+            gdal_total / ours_s
+        );
     } else {
         print_table(size, &rows);
         println!("\nskipped GDAL comparison: gdalwarp / gdaladdo not found on PATH");
@@ -92,21 +141,42 @@ fn main() {
 fn child(db_dir: &Path, tiles: &Path) {
     let mut db = Database::open(db_dir).expect("open bench database");
     let t = Instant::now();
-    let summary = build_pyramid(&mut db, tiles, &PyramidOptions::default(), &Progress::hidden()).expect("pyramid");
+    let summary = build_pyramid(
+        &mut db,
+        tiles,
+        &PyramidOptions::default(),
+        &Progress::hidden(),
+    )
+    .expect("pyramid");
     let secs = t.elapsed().as_secs_f64();
     let s = summary.seconds;
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let hwm = status.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)).unwrap_or("0");
-    println!("{secs} {hwm} {} {} {} {}", s.read, s.prepare, s.levels, s.finish);
+    let hwm = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .unwrap_or("0");
+    println!(
+        "{secs} {hwm} {} {} {} {}",
+        s.read, s.prepare, s.levels, s.finish
+    );
 }
 
 fn run_ours(db_dir: &Path, tiles: &Path) -> (f64, u64, Vec<f64>) {
     let exe = std::env::current_exe().expect("bench executable");
-    let o = Command::new(exe).arg("--child").arg(db_dir).arg(tiles).output().expect("run child");
+    let o = Command::new(exe)
+        .arg("--child")
+        .arg(db_dir)
+        .arg(tiles)
+        .output()
+        .expect("run child");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     let mut it = text.split_whitespace();
-    let secs: f64 = it.next().and_then(|s| s.parse().ok()).expect("child seconds");
+    let secs: f64 = it
+        .next()
+        .and_then(|s| s.parse().ok())
+        .expect("child seconds");
     let kb: u64 = it.next().and_then(|s| s.parse().ok()).expect("child VmHWM");
     let steps = it.map(|s| s.parse().expect("child step seconds")).collect();
     (secs, kb, steps)
@@ -118,20 +188,39 @@ fn timed(cmd: &mut Command) -> (f64, Option<u64>) {
     let t = Instant::now();
     let o = if have_time {
         let mut wrapped = Command::new("/usr/bin/time");
-        wrapped.args(["-f", "%M"]).arg(cmd.get_program()).args(cmd.get_args());
+        wrapped
+            .args(["-f", "%M"])
+            .arg(cmd.get_program())
+            .args(cmd.get_args());
         wrapped.output()
     } else {
         cmd.output()
     }
     .expect("run command");
     let secs = t.elapsed().as_secs_f64();
-    assert!(o.status.success(), "{:?}: {}", cmd, String::from_utf8_lossy(&o.stderr));
-    let kb = have_time.then(|| String::from_utf8_lossy(&o.stderr).lines().last().and_then(|l| l.trim().parse().ok())).flatten();
+    assert!(
+        o.status.success(),
+        "{:?}: {}",
+        cmd,
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let kb = have_time
+        .then(|| {
+            String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .last()
+                .and_then(|l| l.trim().parse().ok())
+        })
+        .flatten();
     (secs, kb)
 }
 
 fn which(tool: &str) -> bool {
-    Command::new(tool).arg("--version").output().map(|o| o.status.success()).unwrap_or(false)
+    Command::new(tool)
+        .arg("--version")
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false)
 }
 
 /// A rolling terrain (metres) with a few nodata holes, and a textured colour.
@@ -141,11 +230,15 @@ fn make_database(dir: &Path, n: usize) {
         .into_par_iter()
         .map(|i| {
             let (x, y) = ((i % n) as f64, (i / n) as f64);
-            let hole = ((x - 0.3 * n as f64).powi(2) + (y - 0.6 * n as f64).powi(2)).sqrt() < n as f64 / 40.0;
+            let hole = ((x - 0.3 * n as f64).powi(2) + (y - 0.6 * n as f64).powi(2)).sqrt()
+                < n as f64 / 40.0;
             if hole {
                 return f32::NAN;
             }
-            let h = 300.0 + 40.0 * (x / 700.0).sin() * (y / 900.0).cos() + 8.0 * (x / 97.0 + y / 131.0).sin() + hash(i) as f64 * 0.5;
+            let h = 300.0
+                + 40.0 * (x / 700.0).sin() * (y / 900.0).cos()
+                + 8.0 * (x / 97.0 + y / 131.0).sin()
+                + hash(i) as f64 * 0.5;
             h as f32
         })
         .collect();
@@ -153,15 +246,24 @@ fn make_database(dir: &Path, n: usize) {
         .into_par_iter()
         .map(|i| {
             let v = hash(i as u64 as usize ^ 0x5bd1e995);
-            [(90.0 + 60.0 * v) as u8, (110.0 + 50.0 * v) as u8, (70.0 + 40.0 * v) as u8, 255]
+            [
+                (90.0 + 60.0 * v) as u8,
+                (110.0 + 50.0 * v) as u8,
+                (70.0 + 40.0 * v) as u8,
+                255,
+            ]
         })
         .collect();
     std::fs::create_dir_all(dir).expect("db dir");
     let mut db = Database::create(dir, grid.clone(), vec![]).expect("create");
-    dbms::io::geotiff::write_f32(&dir.join("elevation.tif"), &Elevation::new(grid.clone(), z)).expect("write elevation");
-    dbms::io::geotiff::write_rgba8(&dir.join("colour.tif"), &Colour::new(grid, c)).expect("write colour");
-    db.set_layer("elevation", "elevation", "elevation.tif", None).expect("layer");
-    db.set_layer("colour", "colour", "colour.tif", None).expect("layer");
+    dbms::io::geotiff::write_f32(&dir.join("elevation.tif"), &Elevation::new(grid.clone(), z))
+        .expect("write elevation");
+    dbms::io::geotiff::write_rgba8(&dir.join("colour.tif"), &Colour::new(grid, c))
+        .expect("write colour");
+    db.set_layer("elevation", "elevation", "elevation.tif", None)
+        .expect("layer");
+    db.set_layer("colour", "colour", "colour.tif", None)
+        .expect("layer");
     db.record_stage(Stage::now("ingest", serde_json::json!({})));
     db.save().expect("save");
 }
@@ -180,32 +282,50 @@ fn compare_max_z(tiles: &Path, work: &Path) -> bool {
     let r = TileReader::open(tiles, 4096).expect("open tiles");
     let mut all = true;
     for k in 1..r.info().levels.len().min(4) {
-        let g = dbms::io::read_raster(&work.join(format!("gdal_level{k}_maxz.tif"))).expect("read GDAL level").to_elevation().expect("as elevation");
+        let g = dbms::io::read_raster(&work.join(format!("gdal_level{k}_maxz.tif")))
+            .expect("read GDAL level")
+            .to_elevation()
+            .expect("as elevation");
         let l = &r.info().levels[k];
         if (g.grid.width, g.grid.height) != (l.width, l.height) {
-            println!("level {k}: GDAL made {}×{}, we made {}×{}", g.grid.width, g.grid.height, l.width, l.height);
+            println!(
+                "level {k}: GDAL made {}×{}, we made {}×{}",
+                g.grid.width, g.grid.height, l.width, l.height
+            );
             all = false;
             continue;
         }
         let differ = (0..l.width * l.height)
             .filter(|&i| {
-                let ours = r.cell(k, i % l.width, i / l.width).expect("cell").expect("in range").max_z;
+                let ours = r
+                    .cell(k, i % l.width, i / l.width)
+                    .expect("cell")
+                    .expect("in range")
+                    .max_z;
                 let theirs = g.data[i];
                 !(ours.to_bits() == theirs.to_bits() || (ours.is_nan() && theirs.is_nan()))
             })
             .count();
-        println!("level {k}: {differ} of {} max-Z cells differ from GDAL", l.width * l.height);
+        println!(
+            "level {k}: {differ} of {} max-Z cells differ from GDAL",
+            l.width * l.height
+        );
         all &= differ == 0;
     }
     all
 }
 
 fn print_table(size: usize, rows: &[(String, f64, Option<u64>)]) {
-    println!("\n{size}×{size} cells, {} threads\n", rayon::current_num_threads());
+    println!(
+        "\n{size}×{size} cells, {} threads\n",
+        rayon::current_num_threads()
+    );
     println!("| step | wall time (s) | peak memory (MB) |");
     println!("|---|---:|---:|");
     for (what, s, kb) in rows {
-        let mb = kb.map(|k| format!("{:.0}", k as f64 / 1024.0)).unwrap_or_else(|| "n/a".to_string());
+        let mb = kb
+            .map(|k| format!("{:.0}", k as f64 / 1024.0))
+            .unwrap_or_else(|| "n/a".to_string());
         println!("| {what} | {s:.2} | {mb} |");
     }
 }

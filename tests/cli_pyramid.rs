@@ -29,14 +29,26 @@ fn make_db(dir: &Path, photo_time: Option<&str>) -> Database {
         })
         .collect();
     let colour: Vec<[u8; 4]> = (0..W * H)
-        .map(|i| if i == 5 { [0, 0, 0, 0] } else { [100 + (i % 7) as u8, 120, 90 + (i % 13) as u8, 255] })
+        .map(|i| {
+            if i == 5 {
+                [0, 0, 0, 0]
+            } else {
+                [100 + (i % 7) as u8, 120, 90 + (i % 13) as u8, 255]
+            }
+        })
         .collect();
     let db_dir = dir.join("db");
     let mut db = Database::create(&db_dir, grid.clone(), vec![]).unwrap();
-    dbms::io::geotiff::write_f32(&db_dir.join("elevation.tif"), &Elevation::new(grid.clone(), z)).unwrap();
+    dbms::io::geotiff::write_f32(
+        &db_dir.join("elevation.tif"),
+        &Elevation::new(grid.clone(), z),
+    )
+    .unwrap();
     dbms::io::geotiff::write_rgba8(&db_dir.join("colour.tif"), &Colour::new(grid, colour)).unwrap();
-    db.set_layer("elevation", "elevation", "elevation.tif", None).unwrap();
-    db.set_layer("colour", "colour", "colour.tif", None).unwrap();
+    db.set_layer("elevation", "elevation", "elevation.tif", None)
+        .unwrap();
+    db.set_layer("colour", "colour", "colour.tif", None)
+        .unwrap();
     db.record_stage(Stage::now("ingest", json!({ "photo_time": photo_time })));
     db.save().unwrap();
     db
@@ -45,20 +57,39 @@ fn make_db(dir: &Path, photo_time: Option<&str>) -> Database {
 /// A 10 × 10 m flat-roofed building 20 m tall on the slope, as shadow-height --apply records it.
 fn add_building(db: &mut Database) {
     let (x0, y0) = (500_100.0, 5_300_000.0 - 60.0);
-    let ring = json!([[x0, y0], [x0 + 10.0, y0], [x0 + 10.0, y0 + 10.0], [x0, y0 + 10.0], [x0, y0]]);
+    let ring = json!([
+        [x0, y0],
+        [x0 + 10.0, y0],
+        [x0 + 10.0, y0 + 10.0],
+        [x0, y0 + 10.0],
+        [x0, y0]
+    ]);
     let doc = json!({"type": "FeatureCollection", "features": [
         {"type": "Feature", "properties": {"id": 1, "roof_z": 225.0}, "geometry": {"type": "Polygon", "coordinates": [ring]}}]});
     std::fs::write(db.dir.join("buildings.geojson"), doc.to_string()).unwrap();
-    db.set_layer("buildings", "buildings", "buildings.geojson", None).unwrap();
+    db.set_layer("buildings", "buildings", "buildings.geojson", None)
+        .unwrap();
     db.save().unwrap();
 }
 
 fn dbms(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn pyramid(db: &Path, out: &Path, extra: &[&str]) -> Value {
-    let mut args = vec!["--json", "pyramid", "--db", db.to_str().unwrap(), "-o", out.to_str().unwrap(), "--page", "32"];
+    let mut args = vec![
+        "--json",
+        "pyramid",
+        "--db",
+        db.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--page",
+        "32",
+    ];
     args.extend_from_slice(extra);
     let o = dbms(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -72,12 +103,23 @@ fn check_effects_schema(effects: &Value) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/pyramid-effects.schema.json");
     let schema: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let v = jsonschema::validator_for(&schema).unwrap();
-    let errors: Vec<String> = v.iter_errors(effects).map(|e| format!("{e} at {}", e.instance_path())).collect();
-    assert!(errors.is_empty(), "effects record does not match its schema: {errors:?}\n{effects}");
+    let errors: Vec<String> = v
+        .iter_errors(effects)
+        .map(|e| format!("{e} at {}", e.instance_path()))
+        .collect();
+    assert!(
+        errors.is_empty(),
+        "effects record does not match its schema: {errors:?}\n{effects}"
+    );
 }
 
 fn applied(summary: &Value) -> Vec<String> {
-    summary["effects"]["applied"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect()
+    summary["effects"]["applied"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect()
 }
 
 #[test]
@@ -108,15 +150,27 @@ fn builds_every_level_with_exact_maxima_and_records_the_stage() {
                     }
                 }
                 let got = r.cell(level, col, row).unwrap().unwrap();
-                assert_eq!(got.max_z.to_bits(), want.to_bits(), "level {level} ({col}, {row})");
+                assert_eq!(
+                    got.max_z.to_bits(),
+                    want.to_bits(),
+                    "level {level} ({col}, {row})"
+                );
             }
         }
     }
     // The hole is nodata at level 0 and does not leak into level 1.
     let hole = r.cell(0, 72, 51).unwrap().unwrap();
     assert!(hole.max_z.is_nan() && hole.colour[3] == 0 && hole.state == 0);
-    assert_eq!(r.cell(1, 18, 12).unwrap().unwrap().state, STATE_PARTIAL, "block mixing the hole and terrain");
-    assert_eq!(r.cell(1, 1, 0).unwrap().unwrap().state, STATE_PARTIAL, "block holding the colourless cell (5, 0)");
+    assert_eq!(
+        r.cell(1, 18, 12).unwrap().unwrap().state,
+        STATE_PARTIAL,
+        "block mixing the hole and terrain"
+    );
+    assert_eq!(
+        r.cell(1, 1, 0).unwrap().unwrap().state,
+        STATE_PARTIAL,
+        "block holding the colourless cell (5, 0)"
+    );
     assert_eq!(r.cell(1, 2, 2).unwrap().unwrap().state, STATE_OPAQUE);
     let m = Database::open(&db.dir).unwrap();
     let stage = m.manifest.stages.last().unwrap();
@@ -150,17 +204,34 @@ fn a_sun_casts_the_cliffs_shadow_and_shades_by_the_factor() {
     let db = make_db(dir.path(), None);
     let out = dir.path().join("t.dbt");
     // Sun in the west at 45°: the cliff at column 40 shades 6 to 12 columns east of it.
-    let s = pyramid(&db.dir, &out, &["--sun-elevation", "45", "--sun-azimuth", "270", "--shadow-factor", "0.5"]);
+    let s = pyramid(
+        &db.dir,
+        &out,
+        &[
+            "--sun-elevation",
+            "45",
+            "--sun-azimuth",
+            "270",
+            "--shadow-factor",
+            "0.5",
+        ],
+    );
     assert_eq!(applied(&s), vec!["cast_shadows", "terrain_lambert"]);
     // The drop is 12 m in row 0 and 6.5 m in the last row (the slope rises southward).
     let shadow = s["effects"]["shadow_cells"].as_u64().unwrap();
     assert!((6 * H as u64..13 * H as u64).contains(&shadow), "{shadow}");
     let r = TileReader::open(&out, 64).unwrap();
     let c = Database::open(&db.dir).unwrap().read_colour().unwrap();
-    let (shadowed, lit) = (r.cell(0, 45, 20).unwrap().unwrap(), r.cell(0, 120, 20).unwrap().unwrap());
+    let (shadowed, lit) = (
+        r.cell(0, 45, 20).unwrap().unwrap(),
+        r.cell(0, 120, 20).unwrap().unwrap(),
+    );
     let photo = *c.get(45, 20);
     assert_eq!(shadowed.colour[1], (photo[1] as f64 * 0.5).round() as u8);
-    assert!(lit.colour[1] >= c.get(120, 20)[1] - 1, "gentle slope, nearly unchanged");
+    assert!(
+        lit.colour[1] >= c.get(120, 20)[1] - 1,
+        "gentle slope, nearly unchanged"
+    );
 }
 
 #[test]
@@ -171,7 +242,10 @@ fn the_photos_own_sun_shades_only_what_the_photo_did_not_see() {
     let out = dir.path().join("t.dbt");
     let s = pyramid(&db.dir, &out, &["--time", t]);
     assert!(applied(&s).is_empty(), "{s}");
-    assert!(s["effects"]["reason"].as_str().unwrap().contains("photo's own sun"));
+    assert!(s["effects"]["reason"]
+        .as_str()
+        .unwrap()
+        .contains("photo's own sun"));
     add_building(&mut db);
     let s = pyramid(&db.dir, &out, &["--time", t]);
     assert_eq!(applied(&s), vec!["wall_shading"]);
@@ -183,7 +257,11 @@ fn the_photos_own_sun_shades_only_what_the_photo_did_not_see() {
     // A different time: the photo's shadows are compensated and new ones cast.
     let s = pyramid(&db.dir, &out, &["--time", "2026-06-21T16:00:00Z"]);
     let a = applied(&s);
-    assert!(a.contains(&"photo_shadow_compensation".to_string()) && a.contains(&"cast_shadows".to_string()), "{a:?}");
+    assert!(
+        a.contains(&"photo_shadow_compensation".to_string())
+            && a.contains(&"cast_shadows".to_string()),
+        "{a:?}"
+    );
 }
 
 #[test]
@@ -200,17 +278,31 @@ fn placed_voxel_objects_are_merged_with_partial_cells_for_overhangs() {
     format::write(&db.dir.join("arch.dvox"), &obj, "test arch").unwrap();
     let sha256 = dbms::db::sha256_file(&db.dir.join("arch.dvox")).unwrap();
     // Anchor (bottom-face centre) at world (500 120.0, 5 299 980.5, ground 201.0).
-    db.manifest.objects.push(PlacedObject { file: "arch.dvox".into(), sha256, x: 500_120.0, y: 5_299_980.5, z: 201.0, heading_deg: 0.0 });
+    db.manifest.objects.push(PlacedObject {
+        file: "arch.dvox".into(),
+        sha256,
+        x: 500_120.0,
+        y: 5_299_980.5,
+        z: 201.0,
+        heading_deg: 0.0,
+    });
     db.save().unwrap();
     let out = dir.path().join("t.dbt");
     let s = pyramid(&db.dir, &out, &[]);
     assert_eq!(s["object_cells"], json!(4));
-    assert_eq!(s["partial_cells"], json!(2), "the two cells under the lintel");
+    assert_eq!(
+        s["partial_cells"],
+        json!(2),
+        "the two cells under the lintel"
+    );
     let r = TileReader::open(&out, 64).unwrap();
     // Voxel x 0..1 → world 500 118..500 119 → column 118; row 19 holds y 5 299 980.5.
     let leg = r.cell(0, 118, 19).unwrap().unwrap();
     let under = r.cell(0, 119, 19).unwrap().unwrap();
-    assert_eq!((leg.state, leg.max_z, leg.colour), (STATE_OPAQUE, 204.0, [200, 10, 10, 255]));
+    assert_eq!(
+        (leg.state, leg.max_z, leg.colour),
+        (STATE_OPAQUE, 204.0, [200, 10, 10, 255])
+    );
     assert_eq!((under.state, under.max_z), (STATE_PARTIAL, 204.0));
 }
 
@@ -220,12 +312,29 @@ fn export_levels_are_georeferenced_geotiffs() {
     let db = make_db(dir.path(), None);
     let out = dir.path().join("t.dbt");
     let exp = dir.path().join("levels");
-    let s = pyramid(&db.dir, &out, &["--factor", "2", "--levels", "3", "--export-levels", exp.to_str().unwrap()]);
+    let s = pyramid(
+        &db.dir,
+        &out,
+        &[
+            "--factor",
+            "2",
+            "--levels",
+            "3",
+            "--export-levels",
+            exp.to_str().unwrap(),
+        ],
+    );
     assert_eq!(s["exported"].as_array().unwrap().len(), 6);
     let r = TileReader::open(&out, 64).unwrap();
     for level in 0..3 {
-        let z = dbms::io::read_raster(&exp.join(format!("level{level}_maxz.tif"))).unwrap().to_elevation().unwrap();
-        let c = dbms::io::read_raster(&exp.join(format!("level{level}_colour.tif"))).unwrap().to_colour().unwrap();
+        let z = dbms::io::read_raster(&exp.join(format!("level{level}_maxz.tif")))
+            .unwrap()
+            .to_elevation()
+            .unwrap();
+        let c = dbms::io::read_raster(&exp.join(format!("level{level}_colour.tif")))
+            .unwrap()
+            .to_colour()
+            .unwrap();
         let cell = 2f64.powi(level);
         assert_eq!(z.grid.transform.origin_x, 500_000.0);
         assert_eq!(z.grid.transform.origin_y, 5_300_000.0);
@@ -237,10 +346,17 @@ fn export_levels_are_georeferenced_geotiffs() {
             assert_eq!(*c.get(col, row), t.colour);
         }
     }
-    match Command::new("gdalinfo").arg("-json").arg(exp.join("level2_maxz.tif")).output() {
+    match Command::new("gdalinfo")
+        .arg("-json")
+        .arg(exp.join("level2_maxz.tif"))
+        .output()
+    {
         Ok(o) if o.status.success() => {
             let info: Value = serde_json::from_slice(&o.stdout).unwrap();
-            assert_eq!(info["geoTransform"], json!([500000.0, 4.0, 0.0, 5300000.0, 0.0, -4.0]));
+            assert_eq!(
+                info["geoTransform"],
+                json!([500000.0, 4.0, 0.0, 5300000.0, 0.0, -4.0])
+            );
             assert_eq!(info["size"], json!([38, 28]));
         }
         _ => eprintln!("skipped: gdalinfo not found"),
@@ -252,7 +368,14 @@ fn same_inputs_give_byte_identical_tiles() {
     let dir = tempfile::tempdir().unwrap();
     let db = make_db(dir.path(), None);
     let (a, b) = (dir.path().join("a.dbt"), dir.path().join("b.dbt"));
-    let sun = ["--sun-elevation", "30", "--sun-azimuth", "135", "--compression", "lz4"];
+    let sun = [
+        "--sun-elevation",
+        "30",
+        "--sun-azimuth",
+        "135",
+        "--compression",
+        "lz4",
+    ];
     pyramid(&db.dir, &a, &sun);
     pyramid(&db.dir, &b, &sun);
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
@@ -264,7 +387,13 @@ fn bad_input_is_one_line_naming_the_problem() {
     let db = make_db(dir.path(), None);
     let out: PathBuf = dir.path().join("t.dbt");
     let run = |extra: &[&str]| {
-        let mut args = vec!["pyramid", "--db", db.dir.to_str().unwrap(), "-o", out.to_str().unwrap()];
+        let mut args = vec![
+            "pyramid",
+            "--db",
+            db.dir.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
         args.extend_from_slice(extra);
         let o = dbms(&args);
         assert!(!o.status.success());
@@ -278,6 +407,12 @@ fn bad_input_is_one_line_naming_the_problem() {
     assert!(run(&["--sun-elevation", "-5", "--sun-azimuth", "90"]).contains("below the horizon"));
     assert!(run(&["--time", "noon"]).contains("RFC 3339"));
     assert!(!out.exists(), "no partial tile file after an error");
-    let o = dbms(&["pyramid", "--db", dir.path().join("none").to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = dbms(&[
+        "pyramid",
+        "--db",
+        dir.path().join("none").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("no such database directory"));
 }

@@ -69,14 +69,40 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
 
     let mut human = String::new();
     let sizes: Vec<String> = s.levels.iter().map(|(w, h)| format!("{w}×{h}")).collect();
-    let _ = write!(human, "{}: {} levels ({}), {} pages", s.tiles.display(), s.levels.len(), sizes.join(", "), s.pages);
-    let applied: Vec<&str> = s.effects["applied"].as_array().map(|a| a.iter().filter_map(|v| v.as_str()).collect()).unwrap_or_default();
-    let _ = write!(human, "\neffects: {}", if applied.is_empty() { "none".to_string() } else { applied.join(", ") });
+    let _ = write!(
+        human,
+        "{}: {} levels ({}), {} pages",
+        s.tiles.display(),
+        s.levels.len(),
+        sizes.join(", "),
+        s.pages
+    );
+    let applied: Vec<&str> = s.effects["applied"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|v| v.as_str()).collect())
+        .unwrap_or_default();
+    let _ = write!(
+        human,
+        "\neffects: {}",
+        if applied.is_empty() {
+            "none".to_string()
+        } else {
+            applied.join(", ")
+        }
+    );
     if s.building_cells + s.object_cells > 0 {
-        let _ = write!(human, "\nraised: {} building cells, {} object cells ({} partial)", s.building_cells, s.object_cells, s.partial_cells);
+        let _ = write!(
+            human,
+            "\nraised: {} building cells, {} object cells ({} partial)",
+            s.building_cells, s.object_cells, s.partial_cells
+        );
     }
     if s.half_valid_cells > 0 {
-        let _ = write!(human, "\nnodata: {} cells had only one of elevation and colour", s.half_valid_cells);
+        let _ = write!(
+            human,
+            "\nnodata: {} cells had only one of elevation and colour",
+            s.half_valid_cells
+        );
     }
     if !s.exported.is_empty() {
         let _ = write!(human, "\nexported {} GeoTIFFs", s.exported.len());

@@ -49,7 +49,11 @@ impl Level0<'_> {
                         Some(rc) => {
                             zs[col] = rc.top_z;
                             cs[col] = rc.colour.unwrap_or(c);
-                            ss[col] = if rc.partial { STATE_PARTIAL } else { STATE_OPAQUE };
+                            ss[col] = if rc.partial {
+                                STATE_PARTIAL
+                            } else {
+                                STATE_OPAQUE
+                            };
                         }
                         None => {
                             zs[col] = z;
@@ -67,7 +71,12 @@ impl Level0<'_> {
 
     /// Cells dropped because only one of elevation and colour is valid there.
     pub fn half_valid_cells(&self) -> usize {
-        self.terrain.data.par_iter().zip(&self.colour.data).filter(|(z, c)| z.is_nan() != (c[3] == 0)).count()
+        self.terrain
+            .data
+            .par_iter()
+            .zip(&self.colour.data)
+            .filter(|(z, c)| z.is_nan() != (c[3] == 0))
+            .count()
     }
 }
 
@@ -83,23 +92,66 @@ mod tests {
     fn cells_valid_only_where_height_and_colour_both_are() {
         let g = Grid::north_up(0.0, 2.0, 1.0, 3, 2, Crs::unknown());
         let t = Elevation::new(g.clone(), vec![1.0, f32::NAN, 3.0, 4.0, 5.0, 6.0]);
-        let c = Colour::new(g, vec![[9, 9, 9, 255], [9, 9, 9, 255], [0, 0, 0, 0], [1, 2, 3, 255], [1, 2, 3, 255], [1, 2, 3, 255]]);
+        let c = Colour::new(
+            g,
+            vec![
+                [9, 9, 9, 255],
+                [9, 9, 9, 255],
+                [0, 0, 0, 0],
+                [1, 2, 3, 255],
+                [1, 2, 3, 255],
+                [1, 2, 3, 255],
+            ],
+        );
         let raised = Raised::new(
             vec![
-                RaisedCell { index: 4, top_z: 15.0, colour: None, partial: false },
-                RaisedCell { index: 5, top_z: 16.0, colour: Some([7, 7, 7, 255]), partial: true },
+                RaisedCell {
+                    index: 4,
+                    top_z: 15.0,
+                    colour: None,
+                    partial: false,
+                },
+                RaisedCell {
+                    index: 5,
+                    top_z: 16.0,
+                    colour: Some([7, 7, 7, 255]),
+                    partial: true,
+                },
             ],
             &t,
         );
-        let l0 = Level0 { terrain: &t, colour: &c, raised: &raised, effects: None };
+        let l0 = Level0 {
+            terrain: &t,
+            colour: &c,
+            raised: &raised,
+            effects: None,
+        };
         assert_eq!(l0.half_valid_cells(), 2);
         let b = l0.band(0, 2);
-        assert_eq!(b.state, vec![STATE_OPAQUE, STATE_EMPTY, STATE_EMPTY, STATE_OPAQUE, STATE_OPAQUE, STATE_PARTIAL]);
+        assert_eq!(
+            b.state,
+            vec![
+                STATE_OPAQUE,
+                STATE_EMPTY,
+                STATE_EMPTY,
+                STATE_OPAQUE,
+                STATE_OPAQUE,
+                STATE_PARTIAL
+            ]
+        );
         assert!(b.max_z[1].is_nan() && b.max_z[2].is_nan());
         assert_eq!(b.colour[2], [0; 4]);
         assert_eq!(&b.max_z[3..], &[4.0, 15.0, 16.0]);
-        assert_eq!(b.colour[4], [1, 2, 3, 255], "a building keeps the photo's roof colour");
-        assert_eq!(b.colour[5], [7, 7, 7, 255], "an object brings its own colour");
+        assert_eq!(
+            b.colour[4],
+            [1, 2, 3, 255],
+            "a building keeps the photo's roof colour"
+        );
+        assert_eq!(
+            b.colour[5],
+            [7, 7, 7, 255],
+            "an object brings its own colour"
+        );
         let second = l0.band(1, 1);
         assert_eq!(second.max_z, vec![4.0, 15.0, 16.0]);
     }

@@ -29,8 +29,16 @@ where
         return Err(Error::msg(format!("--page {p}: with more than one level the page size must be a multiple of the factor {f}"))
             .fix("use a power of two such as 256"));
     }
-    let mut pending: Vec<Pending> =
-        info.levels.iter().skip(1).map(|l| Pending { rows: CoarseRows::new(l.width), received: 0, next_ty: 0 }).collect();
+    let mut pending: Vec<Pending> = info
+        .levels
+        .iter()
+        .skip(1)
+        .map(|l| Pending {
+            rows: CoarseRows::new(l.width),
+            received: 0,
+            next_ty: 0,
+        })
+        .collect();
     let top = &info.levels[0];
     for ty in 0..top.pages_y {
         let row0 = ty * p;
@@ -62,7 +70,13 @@ struct Pending {
 }
 
 /// Add rows to level `k`; emit and reduce onward whenever a page-row is complete.
-fn push<E>(info: &TileSetInfo, pending: &mut [Pending], k: usize, rows: CoarseRows, emit: &E) -> Result<()>
+fn push<E>(
+    info: &TileSetInfo,
+    pending: &mut [Pending],
+    k: usize,
+    rows: CoarseRows,
+    emit: &E,
+) -> Result<()>
 where
     E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
 {
@@ -84,7 +98,13 @@ where
 }
 
 /// Cut one page-row of `level` into pages (nodata padding at the edges) and emit them, in parallel.
-fn emit_page_row<R, E>(info: &TileSetInfo, level: usize, ty: usize, rows: &R, emit: &E) -> Result<()>
+fn emit_page_row<R, E>(
+    info: &TileSetInfo,
+    level: usize,
+    ty: usize,
+    rows: &R,
+    emit: &E,
+) -> Result<()>
 where
     R: LevelRows,
     E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
@@ -93,26 +113,28 @@ where
     let w = rows.width();
     // One page buffer per worker, refilled for each page: no allocation (and no fresh-memory
     // page faults) per page.
-    (0..info.levels[level].pages_x).into_par_iter().try_for_each_init(
-        || Page::nodata(p),
-        |page, tx| {
-            let cols = p.min(w - tx * p);
-            for r in 0..p {
-                let o = r * p;
-                let valid = if r < rows.rows() { cols } else { 0 };
-                for c in 0..valid {
-                    let i = r * w + tx * p + c;
-                    page.max_z[o + c] = rows.max_z(i);
-                    page.colour[o + c] = rows.colour(i);
-                    page.state[o + c] = rows.state(i);
+    (0..info.levels[level].pages_x)
+        .into_par_iter()
+        .try_for_each_init(
+            || Page::nodata(p),
+            |page, tx| {
+                let cols = p.min(w - tx * p);
+                for r in 0..p {
+                    let o = r * p;
+                    let valid = if r < rows.rows() { cols } else { 0 };
+                    for c in 0..valid {
+                        let i = r * w + tx * p + c;
+                        page.max_z[o + c] = rows.max_z(i);
+                        page.colour[o + c] = rows.colour(i);
+                        page.state[o + c] = rows.state(i);
+                    }
+                    page.max_z[o + valid..o + p].fill(f32::NAN);
+                    page.colour[o + valid..o + p].fill([0; 4]);
+                    page.state[o + valid..o + p].fill(STATE_EMPTY);
                 }
-                page.max_z[o + valid..o + p].fill(f32::NAN);
-                page.colour[o + valid..o + p].fill([0; 4]);
-                page.state[o + valid..o + p].fill(STATE_EMPTY);
-            }
-            emit(level, tx, ty, page)
-        },
-    )
+                emit(level, tx, ty, page)
+            },
+        )
 }
 
 #[cfg(test)]
@@ -128,14 +150,20 @@ mod tests {
         let grid = Grid::north_up(0.0, 7.0, 1.0, 10, 7, Crs::unknown());
         let info = TileSetInfo::new(grid, 4, 2, None).unwrap();
         let seen = Mutex::new(Vec::new());
-        build_levels(&info, |_, rows| Ok(BaseRows::nodata(10, rows)), &|l, tx, ty, _| {
-            seen.lock().unwrap().push((l, tx, ty));
-            Ok(())
-        })
+        build_levels(
+            &info,
+            |_, rows| Ok(BaseRows::nodata(10, rows)),
+            &|l, tx, ty, _| {
+                seen.lock().unwrap().push((l, tx, ty));
+                Ok(())
+            },
+        )
         .unwrap();
         let mut seen = seen.into_inner().unwrap();
         seen.sort();
-        let want: Vec<_> = (0..info.page_count()).map(|i| info.page_at(i).unwrap()).collect();
+        let want: Vec<_> = (0..info.page_count())
+            .map(|i| info.page_at(i).unwrap())
+            .collect();
         let mut want = want;
         want.sort();
         assert_eq!(seen, want);
@@ -145,17 +173,38 @@ mod tests {
     fn cut(base: &BaseRows, row0: usize, rows: usize) -> BaseRows {
         let w = base.width;
         let r = row0 * w..(row0 + rows) * w;
-        BaseRows { width: w, max_z: base.max_z[r.clone()].to_vec(), colour: base.colour[r.clone()].to_vec(), state: base.state[r].to_vec() }
+        BaseRows {
+            width: w,
+            max_z: base.max_z[r.clone()].to_vec(),
+            colour: base.colour[r.clone()].to_vec(),
+            state: base.state[r].to_vec(),
+        }
     }
 
-    fn build(base: &BaseRows, height: usize, page: usize, factor: usize) -> (TileSetInfo, Vec<crate::pyramid::export::LevelRasters>) {
-        let grid = Grid::north_up(500_000.0, 5_000_000.0, 0.5, base.width, height, Crs::epsg(32632));
+    fn build(
+        base: &BaseRows,
+        height: usize,
+        page: usize,
+        factor: usize,
+    ) -> (TileSetInfo, Vec<crate::pyramid::export::LevelRasters>) {
+        let grid = Grid::north_up(
+            500_000.0,
+            5_000_000.0,
+            0.5,
+            base.width,
+            height,
+            Crs::epsg(32632),
+        );
         let info = TileSetInfo::new(grid, page, factor, None).unwrap();
         let collector = crate::pyramid::export::LevelCollector::new(&info);
-        build_levels(&info, |row0, rows| Ok(cut(base, row0, rows)), &|l, tx, ty, p| {
-            collector.put(l, tx, ty, p);
-            Ok(())
-        })
+        build_levels(
+            &info,
+            |row0, rows| Ok(cut(base, row0, rows)),
+            &|l, tx, ty, p| {
+                collector.put(l, tx, ty, p);
+                Ok(())
+            },
+        )
         .unwrap();
         (info, collector.into_levels())
     }
@@ -227,7 +276,12 @@ mod tests {
     fn page_size_not_a_multiple_of_the_factor_is_an_error() {
         let grid = Grid::north_up(0.0, 7.0, 1.0, 10, 7, Crs::unknown());
         let info = TileSetInfo::new(grid, 6, 4, None).unwrap();
-        let e = build_levels(&info, |_, rows| Ok(BaseRows::nodata(10, rows)), &|_, _, _, _| Ok(())).unwrap_err();
+        let e = build_levels(
+            &info,
+            |_, rows| Ok(BaseRows::nodata(10, rows)),
+            &|_, _, _, _| Ok(()),
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("multiple of the factor"), "{e}");
     }
 }

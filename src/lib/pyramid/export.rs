@@ -42,14 +42,19 @@ impl LevelCollector {
                 })
             })
             .collect();
-        LevelCollector { info: info.clone(), levels }
+        LevelCollector {
+            info: info.clone(),
+            levels,
+        }
     }
 
     /// Copy page `(level, tx, ty)` into its level.
     pub fn put(&self, level: usize, tx: usize, ty: usize, page: &Page) {
         let p = self.info.page_size;
         let (cols, rows) = self.info.page_extent(level, tx, ty);
-        let mut l = self.levels[level].lock().expect("no panics while holding the lock");
+        let mut l = self.levels[level]
+            .lock()
+            .expect("no panics while holding the lock");
         let w = l.max_z.grid.width;
         for r in 0..rows {
             let (src, dst) = (r * p, (ty * p + r) * w + tx * p);
@@ -61,16 +66,23 @@ impl LevelCollector {
 
     /// The collected levels, finest first.
     pub fn into_levels(self) -> Vec<LevelRasters> {
-        self.levels.into_iter().map(|m| m.into_inner().expect("no panics while holding the lock")).collect()
+        self.levels
+            .into_iter()
+            .map(|m| m.into_inner().expect("no panics while holding the lock"))
+            .collect()
     }
 
     /// Write `level<N>_maxz.tif` (float32, nodata −9999) and `level<N>_colour.tif` (RGBA8, alpha
     /// = mask) for every level into `dir` (created if missing). Returns the files written.
     pub fn write(self, dir: &Path) -> Result<Vec<PathBuf>> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e).fix("choose a writable --export-levels directory"))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| Error::io(dir, e).fix("choose a writable --export-levels directory"))?;
         let mut files = Vec::new();
         for (k, l) in self.into_levels().into_iter().enumerate() {
-            let (z, c) = (dir.join(format!("level{k}_maxz.tif")), dir.join(format!("level{k}_colour.tif")));
+            let (z, c) = (
+                dir.join(format!("level{k}_maxz.tif")),
+                dir.join(format!("level{k}_colour.tif")),
+            );
             geotiff::write_f32(&z, &l.max_z)?;
             geotiff::write_rgba8(&c, &l.colour)?;
             files.extend([z, c]);

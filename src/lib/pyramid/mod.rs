@@ -107,10 +107,18 @@ pub struct Timings {
 }
 
 /// Build the tile file `out` for the database `db` and record a `pyramid` stage in its manifest.
-pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progress: &Progress) -> Result<PyramidSummary> {
+pub fn build_pyramid(
+    db: &mut Database,
+    out: &Path,
+    opts: &PyramidOptions,
+    progress: &Progress,
+) -> Result<PyramidSummary> {
     if !(opts.shadow_factor > 0.0 && opts.shadow_factor <= 1.0) {
-        return Err(Error::msg(format!("--shadow-factor {}: must be in (0, 1]", opts.shadow_factor))
-            .fix(format!("the default is {}", shade::DEFAULT_SHADOW_FACTOR)));
+        return Err(Error::msg(format!(
+            "--shadow-factor {}: must be in (0, 1]",
+            opts.shadow_factor
+        ))
+        .fix(format!("the default is {}", shade::DEFAULT_SHADOW_FACTOR)));
     }
     let clock = std::time::Instant::now();
     let mut lap = {
@@ -141,7 +149,11 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
     for placed in &db.manifest.objects {
         let path = db.dir.join(&placed.file);
         let (obj, _) = crate::voxel::format::read(&path)?;
-        object_cells.extend(raised::rasterise_object(&terrain.grid, &placed_voxels(&obj, placed), &terrain));
+        object_cells.extend(raised::rasterise_object(
+            &terrain.grid,
+            &placed_voxels(&obj, placed),
+            &terrain,
+        ));
     }
     let objects = Raised::new(object_cells.clone(), &terrain);
     let mut all_cells = buildings.cells().to_vec();
@@ -150,26 +162,50 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
 
     // The photo's sun matters only against a requested one (a night-time photo_time must not
     // stop a build without a sun).
-    let photo_sun = if opts.sun.is_some() { photo_sun(db)? } else { None };
-    let effects = shade::prepare(opts.sun, photo_sun, opts.shadow_factor, &terrain, &buildings, &objects, &all)?;
+    let photo_sun = if opts.sun.is_some() {
+        photo_sun(db)?
+    } else {
+        None
+    };
+    let effects = shade::prepare(
+        opts.sun,
+        photo_sun,
+        opts.shadow_factor,
+        &terrain,
+        &buildings,
+        &objects,
+        &all,
+    )?;
     info.effects = match &effects {
         Some(fx) => fx.record(),
         None => shade::record_none(opts.sun, photo_sun, opts.shadow_factor),
     };
 
     seconds.prepare = lap();
-    let level0 = base::Level0 { terrain: &terrain, colour: &colour, raised: &all, effects: effects.as_ref() };
+    let level0 = base::Level0 {
+        terrain: &terrain,
+        colour: &colour,
+        raised: &all,
+        effects: effects.as_ref(),
+    };
     let writer = TileWriter::create(out, info.clone())?;
-    let collector = opts.export_levels.as_ref().map(|_| export::LevelCollector::new(&info));
+    let collector = opts
+        .export_levels
+        .as_ref()
+        .map(|_| export::LevelCollector::new(&info));
     progress.phase(info.page_count() as u64, "pyramid");
-    cascade::build_levels(&info, |row0, rows| Ok(level0.band(row0, rows)), &|level, tx, ty, page| {
-        if let Some(c) = &collector {
-            c.put(level, tx, ty, page);
-        }
-        writer.write_page(level, tx, ty, page)?;
-        progress.inc(1);
-        Ok(())
-    })?;
+    cascade::build_levels(
+        &info,
+        |row0, rows| Ok(level0.band(row0, rows)),
+        &|level, tx, ty, page| {
+            if let Some(c) = &collector {
+                c.put(level, tx, ty, page);
+            }
+            writer.write_page(level, tx, ty, page)?;
+            progress.inc(1);
+            Ok(())
+        },
+    )?;
     seconds.levels = lap();
     writer.finish()?;
     progress.finish();
@@ -208,8 +244,16 @@ pub fn build_pyramid(db: &mut Database, out: &Path, opts: &PyramidOptions, progr
 /// The orthophoto's own sun: from the last ingest stage's `photo_time` and the grid centre.
 /// `None` when the database does not record the photo's time.
 pub fn photo_sun(db: &Database) -> Result<Option<Sun>> {
-    let time = db.manifest.stages.iter().rev().find(|s| s.name == "ingest").and_then(|s| s.params.get("photo_time"));
-    let Some(time) = time.and_then(|t| t.as_str()) else { return Ok(None) };
+    let time = db
+        .manifest
+        .stages
+        .iter()
+        .rev()
+        .find(|s| s.name == "ingest")
+        .and_then(|s| s.params.get("photo_time"));
+    let Some(time) = time.and_then(|t| t.as_str()) else {
+        return Ok(None);
+    };
     let sun = sun_at(db, time).map_err(|e| e.in_file(db.dir.join(db::MANIFEST_FILE)))?;
     Ok(Some(sun))
 }
@@ -218,12 +262,23 @@ pub fn photo_sun(db: &Database) -> Result<Option<Sun>> {
 pub fn sun_at(db: &Database, time: &str) -> Result<Sun> {
     let utc = crate::sun::parse_time(time)?;
     let (latitude_deg, longitude_deg) = db.centre_lat_lon().ok_or_else(|| {
-        Error::file(&db.dir, format!("cannot place the grid centre on the globe ({})", db.grid().crs.name()))
-            .fix("give --sun-elevation and --sun-azimuth instead of a time")
+        Error::file(
+            &db.dir,
+            format!(
+                "cannot place the grid centre on the globe ({})",
+                db.grid().crs.name()
+            ),
+        )
+        .fix("give --sun-elevation and --sun-azimuth instead of a time")
     })?;
-    let obs = crate::sun::Observer { latitude_deg, longitude_deg, height_m: 0.0 };
+    let obs = crate::sun::Observer {
+        latitude_deg,
+        longitude_deg,
+        height_m: 0.0,
+    };
     let pos = crate::sun::sun_position(&obs, utc, &crate::sun::SunOptions::default())?;
-    Sun::new(pos.elevation_deg, pos.azimuth_deg).map_err(|e| Error::msg(format!("at {time}: {}", e.problem)).fix(e.fix.unwrap_or_default()))
+    Sun::new(pos.elevation_deg, pos.azimuth_deg)
+        .map_err(|e| Error::msg(format!("at {time}: {}", e.problem)).fix(e.fix.unwrap_or_default()))
 }
 
 /// A placed object's voxels relative to its anchor (the centre of its grid's bottom face, which
@@ -237,5 +292,10 @@ fn placed_voxels(obj: &VoxelObject, placed: &PlacedObject) -> PlacedVoxels {
             ([c[0] - a[0], c[1] - a[1], c[2] - a[2]], rgb)
         })
         .collect();
-    PlacedVoxels { origin: [placed.x, placed.y, placed.z], heading_deg: placed.heading_deg, voxel_size: obj.grid.voxel_size, voxels }
+    PlacedVoxels {
+        origin: [placed.x, placed.y, placed.z],
+        heading_deg: placed.heading_deg,
+        voxel_size: obj.grid.voxel_size,
+        voxels,
+    }
 }

@@ -112,26 +112,46 @@ pub struct Prism {
 /// in the database CRS, each with a numeric `roof_z` property (absolute metres).
 pub fn read_buildings(path: &Path) -> Result<Vec<Prism>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let doc: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix("re-run `dbms shadow-height --apply`"))?;
-    let features = doc.get("features").and_then(|f| f.as_array()).ok_or_else(|| {
-        Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix("re-run `dbms shadow-height --apply`")
+    let doc: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        Error::file(path, format!("not valid JSON ({e})"))
+            .fix("re-run `dbms shadow-height --apply`")
     })?;
+    let features = doc
+        .get("features")
+        .and_then(|f| f.as_array())
+        .ok_or_else(|| {
+            Error::file(path, "not a GeoJSON FeatureCollection (no features array)")
+                .fix("re-run `dbms shadow-height --apply`")
+        })?;
     let mut prisms = Vec::new();
     for (i, f) in features.iter().enumerate() {
         let bad = |what: &str| {
-            Error::file(path, format!("feature {i}: {what}")).fix("each building needs a Polygon or MultiPolygon and a numeric roof_z")
+            Error::file(path, format!("feature {i}: {what}"))
+                .fix("each building needs a Polygon or MultiPolygon and a numeric roof_z")
         };
-        let roof_z = f.pointer("/properties/roof_z").and_then(|v| v.as_f64()).ok_or_else(|| bad("no numeric roof_z property"))?;
+        let roof_z = f
+            .pointer("/properties/roof_z")
+            .and_then(|v| v.as_f64())
+            .ok_or_else(|| bad("no numeric roof_z property"))?;
         if !roof_z.is_finite() {
             return Err(bad("roof_z is not finite"));
         }
         let geom = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
-        let coords = geom.get("coordinates").ok_or_else(|| bad("geometry has no coordinates"))?;
+        let coords = geom
+            .get("coordinates")
+            .ok_or_else(|| bad("geometry has no coordinates"))?;
         let polygons: Vec<&serde_json::Value> = match geom.get("type").and_then(|t| t.as_str()) {
             Some("Polygon") => vec![coords],
-            Some("MultiPolygon") => coords.as_array().ok_or_else(|| bad("bad MultiPolygon coordinates"))?.iter().collect(),
-            other => return Err(bad(&format!("geometry type {other:?} is not Polygon or MultiPolygon"))),
+            Some("MultiPolygon") => coords
+                .as_array()
+                .ok_or_else(|| bad("bad MultiPolygon coordinates"))?
+                .iter()
+                .collect(),
+            other => {
+                return Err(bad(&format!(
+                    "geometry type {other:?} is not Polygon or MultiPolygon"
+                )))
+            }
         };
         for poly in polygons {
             let rings = parse_rings(poly).ok_or_else(|| bad("bad polygon coordinates"))?;
@@ -168,8 +188,13 @@ pub fn rasterise_prisms(grid: &Grid, prisms: &[Prism]) -> Vec<RaisedCell> {
             let t = &grid.transform;
             // Only the rows the prism's y extent can reach.
             let ys = prism.rings.iter().flatten().map(|p| p.1);
-            let (y_lo, y_hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| (a.min(y), b.max(y)));
-            let (p0, p1) = (grid.transform.world_to_pixel(0.0, y_lo).1, grid.transform.world_to_pixel(0.0, y_hi).1);
+            let (y_lo, y_hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+                (a.min(y), b.max(y))
+            });
+            let (p0, p1) = (
+                grid.transform.world_to_pixel(0.0, y_lo).1,
+                grid.transform.world_to_pixel(0.0, y_hi).1,
+            );
             let first = (p0.min(p1).floor().max(0.0) as usize).min(grid.height);
             let last = (p0.max(p1).ceil().max(0.0) as usize).min(grid.height);
             for row in first..last {
@@ -188,9 +213,16 @@ pub fn rasterise_prisms(grid: &Grid, prisms: &[Prism]) -> Vec<RaisedCell> {
                 for pair in xs.chunks_exact(2) {
                     // Columns whose centre x is in [pair[0], pair[1]).
                     let c0 = ((pair[0] - t.origin_x) / t.cell_x - 0.5).ceil().max(0.0) as usize;
-                    let c1 = ((pair[1] - t.origin_x) / t.cell_x - 0.5).ceil().clamp(0.0, grid.width as f64) as usize;
+                    let c1 = ((pair[1] - t.origin_x) / t.cell_x - 0.5)
+                        .ceil()
+                        .clamp(0.0, grid.width as f64) as usize;
                     for col in c0..c1.max(c0) {
-                        out.push(RaisedCell { index: grid.index(col, row), top_z: prism.roof_z as f32, colour: None, partial: false });
+                        out.push(RaisedCell {
+                            index: grid.index(col, row),
+                            top_z: prism.roof_z as f32,
+                            colour: None,
+                            partial: false,
+                        });
                     }
                 }
             }
@@ -237,7 +269,9 @@ pub fn rasterise_object(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) ->
             let (px0, py0) = grid.transform.world_to_pixel(wx - r, wy + r);
             let (px1, py1) = grid.transform.world_to_pixel(wx + r, wy - r);
             let lo = |a: f64, b: f64| (a.min(b) - 0.5).ceil().max(0.0) as usize;
-            let hi = |a: f64, b: f64, n: usize| ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
+            let hi = |a: f64, b: f64, n: usize| {
+                ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize
+            };
             for row in lo(py0, py1)..hi(py0, py1, grid.height) {
                 for col in lo(px0, px1)..hi(px0, px1, grid.width) {
                     let (x, y) = grid.cell_centre(col, row);
@@ -271,9 +305,17 @@ pub fn rasterise_object(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) ->
             }
             let floating = col[0].1 > ground + half;
             // Top colour: the highest voxel's (ties: the last in the sort, deterministic).
-            let top = col.iter().max_by(|a, b| a.2.total_cmp(&b.2)).expect("non-empty chunk");
+            let top = col
+                .iter()
+                .max_by(|a, b| a.2.total_cmp(&b.2))
+                .expect("non-empty chunk");
             let [r, g, b] = top.3;
-            Some(RaisedCell { index, top_z: reach as f32, colour: Some([r, g, b, 255]), partial: gap || floating })
+            Some(RaisedCell {
+                index,
+                top_z: reach as f32,
+                colour: Some([r, g, b, 255]),
+                partial: gap || floating,
+            })
         })
         .collect()
 }
@@ -295,7 +337,10 @@ mod tests {
     fn prism_covers_the_cells_whose_centres_are_inside_and_holes_stay_terrain() {
         let t = flat(10, 10, 100.0);
         // 2..8 × 2..8 with a hole 4..6 × 4..6: 36 − 4 = 32 cells.
-        let p = Prism { rings: vec![square(2.0, 2.0, 8.0, 8.0), square(4.0, 4.0, 6.0, 6.0)], roof_z: 110.0 };
+        let p = Prism {
+            rings: vec![square(2.0, 2.0, 8.0, 8.0), square(4.0, 4.0, 6.0, 6.0)],
+            roof_z: 110.0,
+        };
         let raised = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
         assert_eq!(raised.len(), 32);
         // Cell (2, 2) has centre (2.5, 7.5): inside. Cell (4, 4) centre (4.5, 5.5): in the hole.
@@ -310,9 +355,15 @@ mod tests {
     fn buried_roofs_and_nodata_terrain_are_not_raised() {
         let mut t = flat(4, 4, 100.0);
         t.data[5] = f32::NAN;
-        let low = Prism { rings: vec![square(0.0, 0.0, 4.0, 4.0)], roof_z: 99.0 };
+        let low = Prism {
+            rings: vec![square(0.0, 0.0, 4.0, 4.0)],
+            roof_z: 99.0,
+        };
         assert!(Raised::new(rasterise_prisms(&t.grid, &[low]), &t).is_empty());
-        let high = Prism { rings: vec![square(0.0, 0.0, 4.0, 4.0)], roof_z: 101.0 };
+        let high = Prism {
+            rings: vec![square(0.0, 0.0, 4.0, 4.0)],
+            roof_z: 101.0,
+        };
         let r = Raised::new(rasterise_prisms(&t.grid, &[high]), &t);
         assert_eq!(r.len(), 15);
         assert!(r.get(5).is_none());
@@ -321,8 +372,14 @@ mod tests {
     #[test]
     fn overlapping_sources_keep_the_highest_top() {
         let t = flat(4, 4, 0.0);
-        let a = Prism { rings: vec![square(0.0, 0.0, 3.0, 3.0)], roof_z: 5.0 };
-        let b = Prism { rings: vec![square(1.0, 1.0, 4.0, 4.0)], roof_z: 9.0 };
+        let a = Prism {
+            rings: vec![square(0.0, 0.0, 3.0, 3.0)],
+            roof_z: 5.0,
+        };
+        let b = Prism {
+            rings: vec![square(1.0, 1.0, 4.0, 4.0)],
+            roof_z: 9.0,
+        };
         let r = Raised::new(rasterise_prisms(&t.grid, &[a, b]), &t);
         assert_eq!(r.get(t.grid.index(0, 3)).unwrap().top_z, 5.0);
         assert_eq!(r.get(t.grid.index(1, 2)).unwrap().top_z, 9.0);
@@ -342,22 +399,35 @@ mod tests {
         assert_eq!(b[2].rings[0][0], (5.0, 5.0));
         std::fs::write(&p, r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[]}}]}"#).unwrap();
         let e = read_buildings(&p).unwrap_err().to_string();
-        assert!(e.contains("b.geojson") && e.contains("feature 0") && e.contains("roof_z"), "{e}");
+        assert!(
+            e.contains("b.geojson") && e.contains("feature 0") && e.contains("roof_z"),
+            "{e}"
+        );
     }
 
     fn object(voxels: Vec<([f64; 3], [u8; 3])>, heading_deg: f64) -> PlacedVoxels {
-        PlacedVoxels { origin: [5.0, 5.0, 100.0], heading_deg, voxel_size: 1.0, voxels }
+        PlacedVoxels {
+            origin: [5.0, 5.0, 100.0],
+            heading_deg,
+            voxel_size: 1.0,
+            voxels,
+        }
     }
 
     #[test]
     fn solid_voxel_column_is_opaque_and_takes_the_top_voxel_colour() {
         let t = flat(10, 10, 100.0);
         // A 1×1×3 column centred on cell (5, 4) (centre x 5.5, y 5.5 → origin + (0.5, 0.5)).
-        let vox = (0..3).map(|k| ([0.5, 0.5, 0.5 + k as f64], [k as u8, 0, 0])).collect();
+        let vox = (0..3)
+            .map(|k| ([0.5, 0.5, 0.5 + k as f64], [k as u8, 0, 0]))
+            .collect();
         let r = Raised::new(rasterise_object(&t.grid, &object(vox, 0.0), &t), &t);
         assert_eq!(r.len(), 1);
         let c = r.get(t.grid.index(5, 4)).unwrap();
-        assert_eq!((c.top_z, c.partial, c.colour), (103.0, false, Some([2, 0, 0, 255])));
+        assert_eq!(
+            (c.top_z, c.partial, c.colour),
+            (103.0, false, Some([2, 0, 0, 255]))
+        );
     }
 
     #[test]
@@ -392,10 +462,18 @@ mod tests {
     #[test]
     fn big_voxels_cover_several_cells() {
         let t = flat(10, 10, 100.0);
-        let obj = PlacedVoxels { origin: [5.0, 5.0, 100.0], heading_deg: 0.0, voxel_size: 3.0, voxels: vec![([0.0, 0.0, 1.5], [1, 2, 3])] };
+        let obj = PlacedVoxels {
+            origin: [5.0, 5.0, 100.0],
+            heading_deg: 0.0,
+            voxel_size: 3.0,
+            voxels: vec![([0.0, 0.0, 1.5], [1, 2, 3])],
+        };
         let r = Raised::new(rasterise_object(&t.grid, &obj, &t), &t);
         // Footprint 3.5..6.5: centres 3.5 (edge, inside), 4.5, 5.5, 6.5 (edge) → 4 × 4 cells.
         assert_eq!(r.len(), 16);
-        assert!(r.range(0, 100).iter().all(|c| c.top_z == 103.0 && !c.partial));
+        assert!(r
+            .range(0, 100)
+            .iter()
+            .all(|c| c.top_z == 103.0 && !c.partial));
     }
 }

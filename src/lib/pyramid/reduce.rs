@@ -46,7 +46,12 @@ impl BaseRows {
     /// `rows` rows of `width` nodata cells.
     pub fn nodata(width: usize, rows: usize) -> BaseRows {
         let n = width * rows;
-        BaseRows { width, max_z: vec![f32::NAN; n], colour: vec![[0; 4]; n], state: vec![STATE_EMPTY; n] }
+        BaseRows {
+            width,
+            max_z: vec![f32::NAN; n],
+            colour: vec![[0; 4]; n],
+            state: vec![STATE_EMPTY; n],
+        }
     }
 }
 
@@ -98,7 +103,10 @@ pub struct CoarseRows {
 impl CoarseRows {
     /// An empty band of `width`-cell rows.
     pub fn new(width: usize) -> CoarseRows {
-        CoarseRows { width, ..CoarseRows::default() }
+        CoarseRows {
+            width,
+            ..CoarseRows::default()
+        }
     }
 
     /// Append the rows of `other` (same width) below these.
@@ -216,7 +224,12 @@ mod tests {
     use super::*;
 
     fn base(width: usize, z: &[f32], colour: &[[u8; 4]], state: &[u8]) -> BaseRows {
-        BaseRows { width, max_z: z.to_vec(), colour: colour.to_vec(), state: state.to_vec() }
+        BaseRows {
+            width,
+            max_z: z.to_vec(),
+            colour: colour.to_vec(),
+            state: state.to_vec(),
+        }
     }
 
     #[test]
@@ -225,7 +238,12 @@ mod tests {
         let c = [10, 20, 30, 255];
         let x = [0, 0, 0, 0];
         // 3×2 fine cells, factor 2: coarse cells cover columns {0,1} and {2}.
-        let b = base(3, &[n, 5.0, n, -1.0, n, n], &[x, c, x, c, x, x], &[0, 2, 0, 2, 0, 0]);
+        let b = base(
+            3,
+            &[n, 5.0, n, -1.0, n, n],
+            &[x, c, x, c, x, x],
+            &[0, 2, 0, 2, 0, 0],
+        );
         let r = reduce(&b, 2);
         assert_eq!((r.width, r.rows()), (2, 1));
         assert_eq!(r.max_z[0], 5.0);
@@ -251,7 +269,13 @@ mod tests {
         assert_eq!(average([1, 2, 3], 2), [1, 1, 2, 255]); // 0.5 → 1, 1.0 → 1, 1.5 → 2
         assert_eq!(average([0; 3], 0), [0; 4]);
         // Level 2 from level 1: a child covering 3 valid cells weighs 3 times one covering 1.
-        let fine = CoarseRows { width: 2, max_z: vec![1.0, 2.0], sum: vec![[300, 0, 0], [0, 0, 0]], count: vec![3, 1], state: vec![2, 2] };
+        let fine = CoarseRows {
+            width: 2,
+            max_z: vec![1.0, 2.0],
+            sum: vec![[300, 0, 0], [0, 0, 0]],
+            count: vec![3, 1],
+            state: vec![2, 2],
+        };
         let r = reduce(&fine, 4);
         assert_eq!(r.colour(0), [75, 0, 0, 255]);
         assert_eq!(r.max_z, vec![2.0]);

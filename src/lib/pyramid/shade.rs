@@ -84,8 +84,13 @@ pub fn prepare(
         // The photo holds every shadow and all shading for this sun: nothing to do.
         return Ok(None);
     }
-    let new_heights = if all.is_empty() { terrain.clone() } else { all.heights(terrain) };
-    let photo_heights = (!objects.is_empty() && photo_sun.is_some()).then(|| buildings.heights(terrain));
+    let new_heights = if all.is_empty() {
+        terrain.clone()
+    } else {
+        all.heights(terrain)
+    };
+    let photo_heights =
+        (!objects.is_empty() && photo_sun.is_some()).then(|| buildings.heights(terrain));
     let mut class = Vec::new();
     if !all.is_empty() {
         class = vec![TERRAIN; terrain.data.len()];
@@ -96,7 +101,11 @@ pub fn prepare(
             class[c.index] = OBJECT;
         }
     }
-    let new_shadow = Some(cast_shadows(&new_heights, sun.elevation_deg, sun.azimuth_deg)?);
+    let new_shadow = Some(cast_shadows(
+        &new_heights,
+        sun.elevation_deg,
+        sun.azimuth_deg,
+    )?);
     // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
     let photo_shadow = match photo_sun {
         Some(p) if !same_sun || photo_heights.is_some() => {
@@ -138,7 +147,11 @@ pub fn prepare(
 
 /// The effects record for the tile header and the manifest when no sun was given or nothing
 /// was needed: which sun, and an empty list of applied effects.
-pub fn record_none(sun: Option<Sun>, photo_sun: Option<Sun>, shadow_factor: f64) -> serde_json::Value {
+pub fn record_none(
+    sun: Option<Sun>,
+    photo_sun: Option<Sun>,
+    shadow_factor: f64,
+) -> serde_json::Value {
     let reason = match (sun, photo_sun) {
         (None, _) => "no sun given",
         _ => "the photo's own sun and nothing the photo did not see",
@@ -169,7 +182,10 @@ fn enu(s: &Sun) -> [f64; 3] {
 impl Effects {
     /// What was applied, for the tile header and the manifest.
     pub fn record(&self) -> serde_json::Value {
-        let count = |m: &Option<Raster<u8>>| m.as_ref().map(|m| m.data.iter().filter(|&&v| v == SHADOW).count());
+        let count = |m: &Option<Raster<u8>>| {
+            m.as_ref()
+                .map(|m| m.data.iter().filter(|&&v| v == SHADOW).count())
+        };
         json!({
             "sun": sun_json(self.sun),
             "photo_sun": self.photo.map(|p| sun_json(p.0)),
@@ -187,7 +203,12 @@ impl Effects {
         }
         use rayon::prelude::*;
         let g = &self.new_heights.grid;
-        (0..g.len()).into_par_iter().filter(|&i| self.class[i] != TERRAIN && !self.faces(i % g.width, i / g.width).is_empty()).count()
+        (0..g.len())
+            .into_par_iter()
+            .filter(|&i| {
+                self.class[i] != TERRAIN && !self.faces(i % g.width, i / g.width).is_empty()
+            })
+            .count()
     }
 
     /// Multiply the colours of level-0 rows `row0..` (a band of `colour.len() / width` rows) by
@@ -215,16 +236,31 @@ impl Effects {
         let g = &self.new_heights.grid;
         let i = g.index(col, row);
         let class = self.class.get(i).copied().unwrap_or(TERRAIN);
-        let shadow_new = self.new_shadow.as_ref().is_some_and(|m| m.data[i] == SHADOW);
+        let shadow_new = self
+            .new_shadow
+            .as_ref()
+            .is_some_and(|m| m.data[i] == SHADOW);
         let shadow_photo = match &self.photo_shadow {
             Some(m) => m.data[i] == SHADOW,
             None => self.same_sun && shadow_new,
         };
-        let faces = if class == TERRAIN { Vec::new() } else { self.faces(col, row) };
+        let faces = if class == TERRAIN {
+            Vec::new()
+        } else {
+            self.faces(col, row)
+        };
         let i_new = if !faces.is_empty() {
-            faces.iter().map(|n| self.illum(n, &self.s, shadow_new)).sum::<f64>() / faces.len() as f64
+            faces
+                .iter()
+                .map(|n| self.illum(n, &self.s, shadow_new))
+                .sum::<f64>()
+                / faces.len() as f64
         } else if self.lambert || class == OBJECT {
-            self.illum(&self.normal(&self.new_heights, col, row), &self.s, shadow_new)
+            self.illum(
+                &self.normal(&self.new_heights, col, row),
+                &self.s,
+                shadow_new,
+            )
         } else {
             self.illum(&[0.0, 0.0, 1.0], &self.s, shadow_new)
         };
@@ -234,7 +270,11 @@ impl Effects {
                 let n = if !faces.is_empty() || !self.lambert {
                     [0.0, 0.0, 1.0]
                 } else {
-                    self.normal(self.photo_heights.as_ref().unwrap_or(&self.new_heights), col, row)
+                    self.normal(
+                        self.photo_heights.as_ref().unwrap_or(&self.new_heights),
+                        col,
+                        row,
+                    )
                 };
                 self.illum(&n, &sp, shadow_photo)
             }
@@ -277,9 +317,17 @@ impl Effects {
             (None, Some(b)) => (b - z) / d,
             (None, None) => 0.0,
         };
-        let dzdx = slope(self.neighbour(h, class, c - 1, r), self.neighbour(h, class, c + 1, r), dx);
+        let dzdx = slope(
+            self.neighbour(h, class, c - 1, r),
+            self.neighbour(h, class, c + 1, r),
+            dx,
+        );
         // Rows run southward: north of the cell is row − 1.
-        let dzdy = slope(self.neighbour(h, class, c, r + 1), self.neighbour(h, class, c, r - 1), dy);
+        let dzdy = slope(
+            self.neighbour(h, class, c, r + 1),
+            self.neighbour(h, class, c, r - 1),
+            dy,
+        );
         let len = (dzdx * dzdx + dzdy * dzdy + 1.0).sqrt();
         [-dzdx / len, -dzdy / len, 1.0 / len]
     }
@@ -292,18 +340,23 @@ impl Effects {
         let z = h.data[g.index(col, row)] as f64;
         let step = g.cell_size().0.min(g.cell_size().1);
         let (c, r) = (col as isize, row as isize);
-        [(1, 0, [1.0, 0.0, 0.0]), (-1, 0, [-1.0, 0.0, 0.0]), (0, -1, [0.0, 1.0, 0.0]), (0, 1, [0.0, -1.0, 0.0])]
-            .into_iter()
-            .filter(|&(dc, dr, _)| {
-                let (nc, nr) = (c + dc, r + dr);
-                if nc < 0 || nr < 0 || nc >= g.width as isize || nr >= g.height as isize {
-                    return false;
-                }
-                let nz = h.data[g.index(nc as usize, nr as usize)];
-                !nz.is_nan() && z - nz as f64 >= step
-            })
-            .map(|(_, _, n)| n)
-            .collect()
+        [
+            (1, 0, [1.0, 0.0, 0.0]),
+            (-1, 0, [-1.0, 0.0, 0.0]),
+            (0, -1, [0.0, 1.0, 0.0]),
+            (0, 1, [0.0, -1.0, 0.0]),
+        ]
+        .into_iter()
+        .filter(|&(dc, dr, _)| {
+            let (nc, nr) = (c + dc, r + dr);
+            if nc < 0 || nr < 0 || nc >= g.width as isize || nr >= g.height as isize {
+                return false;
+            }
+            let nz = h.data[g.index(nc as usize, nr as usize)];
+            !nz.is_nan() && z - nz as f64 >= step
+        })
+        .map(|(_, _, n)| n)
+        .collect()
     }
 }
 
@@ -331,7 +384,9 @@ mod tests {
     #[test]
     fn no_sun_prepares_nothing() {
         let t = terrain(8, 8, |c, _| c as f32);
-        assert!(prepare(None, None, 0.5, &t, &none(), &none(), &none()).unwrap().is_none());
+        assert!(prepare(None, None, 0.5, &t, &none(), &none(), &none())
+            .unwrap()
+            .is_none());
         let r = record_none(None, None, 0.5);
         assert_eq!(r["applied"], json!([]));
         assert!(r["sun"].is_null());
@@ -340,7 +395,17 @@ mod tests {
     #[test]
     fn flat_ground_without_photo_sun_is_unchanged() {
         let t = terrain(8, 8, |_, _| 10.0);
-        let fx = prepare(Some(sun(30.0, 135.0)), None, 0.5, &t, &none(), &none(), &none()).unwrap().unwrap();
+        let fx = prepare(
+            Some(sun(30.0, 135.0)),
+            None,
+            0.5,
+            &t,
+            &none(),
+            &none(),
+            &none(),
+        )
+        .unwrap()
+        .unwrap();
         let mut c = vec![[100, 150, 200, 255]; 64];
         fx.shade_band(0, &mut c);
         assert!(c.iter().all(|p| *p == [100, 150, 200, 255]));
@@ -351,7 +416,17 @@ mod tests {
     fn slopes_facing_the_sun_brighten_and_facing_away_darken() {
         // Ridge along north-south at column 5: west side rises eastward, east side falls.
         let t = terrain(11, 5, |c, _| 10.0 - (c as f32 - 5.0).abs() * 0.3);
-        let fx = prepare(Some(sun(40.0, 90.0)), None, 0.4, &t, &none(), &none(), &none()).unwrap().unwrap();
+        let fx = prepare(
+            Some(sun(40.0, 90.0)),
+            None,
+            0.4,
+            &t,
+            &none(),
+            &none(),
+            &none(),
+        )
+        .unwrap()
+        .unwrap();
         assert!(fx.factor_at(8, 2) > 1.0, "east slope faces the eastern sun");
         assert!(fx.factor_at(2, 2) < 1.0, "west slope faces away");
         // n·s on the east slope: normal (0.3, 0, 1)/|.|, s = (cos40, 0, sin40).
@@ -365,7 +440,17 @@ mod tests {
     fn cliff_shadow_darkens_by_the_shadow_factor() {
         // A 10 m cliff face at column 3 (west high), sun in the west at 45°: 10 cells of shadow.
         let t = terrain(30, 3, |c, _| if c <= 3 { 10.0 } else { 0.0 });
-        let fx = prepare(Some(sun(45.0, 270.0)), None, 0.5, &t, &none(), &none(), &none()).unwrap().unwrap();
+        let fx = prepare(
+            Some(sun(45.0, 270.0)),
+            None,
+            0.5,
+            &t,
+            &none(),
+            &none(),
+            &none(),
+        )
+        .unwrap()
+        .unwrap();
         let mut c = vec![[200, 100, 50, 255]; 90];
         fx.shade_band(0, &mut c);
         assert_eq!(c[31 + 5], [100, 50, 25, 255], "in the cliff's shadow");
@@ -374,7 +459,10 @@ mod tests {
 
     fn building_scene() -> (Elevation, Raised) {
         let t = terrain(20, 20, |_, _| 0.0);
-        let p = Prism { rings: vec![vec![(8.0, 8.0), (12.0, 8.0), (12.0, 12.0), (8.0, 12.0)]], roof_z: 6.0 };
+        let p = Prism {
+            rings: vec![vec![(8.0, 8.0), (12.0, 8.0), (12.0, 12.0), (8.0, 12.0)]],
+            roof_z: 6.0,
+        };
         let b = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
         (t, b)
     }
@@ -384,8 +472,14 @@ mod tests {
         let (t, b) = building_scene();
         let s = sun(35.0, 90.0);
         // Nothing raised: nothing at all to do.
-        assert!(prepare(Some(s), Some(s), 0.5, &t, &none(), &none(), &none()).unwrap().is_none());
-        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &none(), &b).unwrap().unwrap();
+        assert!(
+            prepare(Some(s), Some(s), 0.5, &t, &none(), &none(), &none())
+                .unwrap()
+                .is_none()
+        );
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &none(), &b)
+            .unwrap()
+            .unwrap();
         assert_eq!(fx.record()["applied"], json!(["wall_shading"]));
         // Ground in the building's shadow (west of it) and plain ground: unchanged.
         assert_eq!(fx.factor_at(6, 10), 1.0);
@@ -401,15 +495,24 @@ mod tests {
     fn photo_sun_with_a_placed_object_darkens_only_the_objects_new_shadow() {
         let (t, b) = building_scene();
         // A 2 × 2 cell, 8 m object south-west of the building, not seen by the photo.
-        let cells = [(3, 15), (4, 15), (3, 16), (4, 16)]
-            .map(|(c, r)| RaisedCell { index: t.grid.index(c, r), top_z: 8.0, colour: Some([50, 60, 70, 255]), partial: false });
+        let cells = [(3, 15), (4, 15), (3, 16), (4, 16)].map(|(c, r)| RaisedCell {
+            index: t.grid.index(c, r),
+            top_z: 8.0,
+            colour: Some([50, 60, 70, 255]),
+            partial: false,
+        });
         let o = Raised::new(cells.to_vec(), &t);
         let mut both = b.cells().to_vec();
         both.extend(o.cells());
         let all = Raised::new(both, &t);
         let s = sun(45.0, 90.0);
-        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &o, &all).unwrap().unwrap();
-        assert_eq!(fx.record()["applied"], json!(["object_shadows", "wall_shading", "object_shading"]));
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &o, &all)
+            .unwrap()
+            .unwrap();
+        assert_eq!(
+            fx.record()["applied"],
+            json!(["object_shadows", "wall_shading", "object_shading"])
+        );
         // West of the object: its new shadow (8 m at 45°) → × F. West of the building: the
         // photo's own shadow, unchanged. Open ground: unchanged.
         assert!((fx.factor_at(1, 15) - 0.5).abs() < 1e-12);
@@ -418,7 +521,11 @@ mod tests {
         // The object's cells are shaded as walls (I_photo = 1). (4, 15) shows an east face
         // (n·s / s_z = cot 45° = 1 → I = 1) and a north face (n·s = 0 → I = F): mean 0.75;
         // (3, 15) shows west and north faces, both turned away: F.
-        assert!((fx.factor_at(4, 15) - 0.75).abs() < 1e-9, "{}", fx.factor_at(4, 15));
+        assert!(
+            (fx.factor_at(4, 15) - 0.75).abs() < 1e-9,
+            "{}",
+            fx.factor_at(4, 15)
+        );
         assert!((fx.factor_at(3, 15) - 0.5).abs() < 1e-9);
     }
 
@@ -426,9 +533,17 @@ mod tests {
     fn a_different_sun_compensates_the_photos_shadows_and_casts_new_ones() {
         let (t, b) = building_scene();
         let (photo, now) = (sun(35.0, 90.0), sun(35.0, 270.0));
-        let fx = prepare(Some(now), Some(photo), 0.5, &t, &b, &none(), &b).unwrap().unwrap();
+        let fx = prepare(Some(now), Some(photo), 0.5, &t, &b, &none(), &b)
+            .unwrap()
+            .unwrap();
         let applied = fx.record()["applied"].clone();
-        assert!(applied.as_array().unwrap().contains(&json!("photo_shadow_compensation")), "{applied}");
+        assert!(
+            applied
+                .as_array()
+                .unwrap()
+                .contains(&json!("photo_shadow_compensation")),
+            "{applied}"
+        );
         // West of the building: shadowed in the photo (eastern sun), lit now → × 1/F.
         assert!((fx.factor_at(6, 10) - 2.0).abs() < 1e-12);
         // East of it: lit in the photo, shadowed now → × F.
