@@ -199,27 +199,17 @@ impl Frame {
     }
 
     /// Grid-order values into frame order.
-    fn gather<T: Copy + Send + Sync>(&self, grid_data: &[T]) -> Vec<T> {
-        let mut out = Vec::with_capacity(grid_data.len());
-        out.par_extend(
-            (0..self.height)
-                .into_par_iter()
-                .flat_map_iter(|i| (0..self.width).map(move |j| grid_data[self.grid_index(j, i)])),
-        );
-        out
+    fn gather<T: Copy + Default + Send + Sync>(&self, grid_data: &[T]) -> Vec<T> {
+        remap(grid_data, self.width, self.height, self.transposed, |j, i| self.grid_index(j, i))
     }
 
     /// Frame-order values back into grid order.
     fn scatter<T: Copy + Default + Send + Sync>(&self, frame_data: &[T]) -> Vec<T> {
-        let mut out = vec![T::default(); frame_data.len()];
-        let (w, _) = self.grid_size;
-        out.par_chunks_mut(w.max(1)).enumerate().for_each(|(row, out_row)| {
-            for (col, v) in out_row.iter_mut().enumerate() {
-                let (j, i) = self.frame_coords(col, row);
-                *v = frame_data[i * self.width + j];
-            }
-        });
-        out
+        let (w, h) = self.grid_size;
+        remap(frame_data, w, h, self.transposed, |col, row| {
+            let (j, i) = self.frame_coords(col, row);
+            i * self.width + j
+        })
     }
 
     /// Frame `(column, row)` of grid cell `(col, row)`: the inverse of [`grid_index`](Self::grid_index).
@@ -230,6 +220,38 @@ impl Frame {
         let j = if self.flip_col { self.width - 1 - j } else { j };
         (j, i)
     }
+}
+
+/// A `width × height` row-major copy of `src` with `dst[y · width + x] = src[source(x, y)]`, in
+/// parallel bands of rows. With `transposed` the source runs along destination columns, so each
+/// band is filled column by column: reads stay contiguous and writes go to a band's few rows.
+fn remap<T: Copy + Default + Send + Sync>(
+    src: &[T],
+    width: usize,
+    height: usize,
+    transposed: bool,
+    source: impl Fn(usize, usize) -> usize + Sync,
+) -> Vec<T> {
+    const BAND: usize = 64;
+    let mut dst = vec![T::default(); width * height];
+    dst.par_chunks_mut(width * BAND).enumerate().for_each(|(b, band)| {
+        let y0 = b * BAND;
+        let rows = band.len() / width;
+        if transposed {
+            for x in 0..width {
+                for y in 0..rows {
+                    band[y * width + x] = src[source(x, y0 + y)];
+                }
+            }
+        } else {
+            for (y, row) in band.chunks_exact_mut(width).enumerate() {
+                for (x, v) in row.iter_mut().enumerate() {
+                    *v = src[source(x, y0 + y)];
+                }
+            }
+        }
+    });
+    dst
 }
 
 /// The digital lines of a frame: line `l` has its cell of frame row `i` in column
