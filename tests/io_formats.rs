@@ -362,7 +362,7 @@ mod with_gdal {
         assert!(s.grid.crs.geographic && s.pixel_is_point);
         // gdalinfo -json: [-98.0041666666666629, 0.0083333333333333, 0, 33.00416666666667, 0, -0.0083333333333333].
         let t = s.grid.transform;
-        assert!((t.origin_x + 98.0041666666666629).abs() < 1e-12 && (t.origin_y - 33.00416666666667).abs() < 1e-12, "{t:?}");
+        assert!((t.origin_x + 98.004_166_666_666_66).abs() < 1e-12 && (t.origin_y - 33.00416666666667).abs() < 1e-12, "{t:?}");
         assert!((t.cell_x - 1.0 / 120.0).abs() < 1e-12 && (t.cell_y + 1.0 / 120.0).abs() < 1e-12, "{t:?}");
         let Samples::I16(v) = &s.samples else { panic!("expected Int16") };
         // gdallocationinfo n32_w098.dt0 5 7 → 101 = 100 + 3·5 − 2·7.

@@ -119,13 +119,13 @@ fn run_gdalwarp(path: &Path, src: &Dataset, dst: &Dataset, args: &[&str]) -> Res
     // we would have to close, because a destination dataset is given.
     let ok = unsafe {
         CPLErrorReset();
-        let options = GDALWarpAppOptionsNew(argv.as_ptr() as *mut *mut c_char, std::ptr::null_mut());
+        let options = GDALWarpAppOptionsNew(argv.as_ptr(), std::ptr::null_mut());
         if options.is_null() {
             return Err(Error::msg(format!("gdalwarp rejected options {args:?}: {}", last_gdal_error())));
         }
-        let mut src_handle = src.c_dataset() as *mut c_void;
+        let mut src_handle = src.c_dataset();
         let mut usage_error: c_int = 0;
-        let out = GDALWarp(std::ptr::null(), dst.c_dataset() as *mut c_void, 1, &mut src_handle, options, &mut usage_error);
+        let out = GDALWarp(std::ptr::null(), dst.c_dataset(), 1, &mut src_handle, options, &mut usage_error);
         GDALWarpAppOptionsFree(options);
         !out.is_null()
     };

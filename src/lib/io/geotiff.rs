@@ -375,7 +375,7 @@ impl GeoTags {
             for (at, _) in xml.match_indices(&needle) {
                 let rest = &xml[at + needle.len()..];
                 let value = rest.split('<').next().unwrap_or("").trim();
-                if value.parse::<f64>().map_or(true, |v| v != identity) {
+                if value.parse::<f64>() != Ok(identity) {
                     return Err(Error::file(path, format!("band {role} {value} is set (values are not in their final units)"))
                         .fix("apply it: gdal_translate -unscale -ot Float32 in.tif out.tif"));
                 }

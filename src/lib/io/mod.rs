@@ -84,6 +84,7 @@ impl Samples {
 
     /// Sample `i` as f64 (exact for every type but nothing is rounded: f32 widens exactly).
     #[inline]
+    #[allow(clippy::useless_conversion)] // the Float64 arm converts f64 to itself
     pub fn get(&self, i: usize) -> f64 {
         with_samples!(self, v => v[i].into())
     }
@@ -237,10 +238,7 @@ impl SourceRaster {
         .fix("select the bands: gdal_translate -b 1 -b 2 -b 3 in.tif out.tif"))
     }
 
-    fn colour_values<T: SampleValue>(&self, v: &[T], colour: usize, alpha: Option<usize>, to8: impl Fn(T) -> u8 + Sync) -> Vec<[u8; 4]>
-    where
-        T: Into<f64>,
-    {
+    fn colour_values<T: SampleValue>(&self, v: &[T], colour: usize, alpha: Option<usize>, to8: impl Fn(T) -> u8 + Sync) -> Vec<[u8; 4]> {
         let (bands, nodata) = (self.bands, self.nodata);
         (0..self.grid.len())
             .into_par_iter()
