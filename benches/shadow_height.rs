@@ -21,7 +21,10 @@ const TRIALS: usize = 4;
 struct Rng(u64);
 impl Rng {
     fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
     fn range(&mut self, lo: f64, hi: f64) -> f64 {
@@ -42,7 +45,11 @@ struct Stats {
 
 fn main() {
     let quick = std::env::args().any(|a| a == "quick");
-    let cells: &[f64] = if quick { &[0.5] } else { &[0.25, 0.5, 1.0, 2.0] };
+    let cells: &[f64] = if quick {
+        &[0.5]
+    } else {
+        &[0.25, 0.5, 1.0, 2.0]
+    };
     println!("| layout | ground | sun elev | cell m | n | first RMSE m | first worst m | refined RMSE m | refined worst m | refined RMSE / cell | no height | ms / building |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut worst_isolated: f64 = 0.0;
@@ -75,7 +82,10 @@ fn main() {
 }
 
 fn case(layout: &str, ground: &str, elev: f64, cell: f64) -> Stats {
-    let mut rng = Rng(((elev * 1000.0) as u64) ^ ((cell * 100.0) as u64) << 20 ^ (ground.len() as u64) << 40 ^ layout.len() as u64);
+    let mut rng = Rng(((elev * 1000.0) as u64)
+        ^ ((cell * 100.0) as u64) << 20
+        ^ (ground.len() as u64) << 40
+        ^ layout.len() as u64);
     let tan_e = elev.to_radians().tan();
     let mut st = Stats::default();
     for _ in 0..TRIALS {
@@ -98,7 +108,12 @@ fn case(layout: &str, ground: &str, elev: f64, cell: f64) -> Stats {
         // Centre the building on the sun side so its shadow fits.
         let centre = (c - u.0 * h * per_m / 2.0, c - u.1 * h * per_m / 2.0);
         let rot = rng.range(0.0, 90.0);
-        let mut buildings = vec![SynthBuilding { centre, size: (a, b), rotation_deg: rot, height_m: h }];
+        let mut buildings = vec![SynthBuilding {
+            centre,
+            size: (a, b),
+            rotation_deg: rot,
+            height_m: h,
+        }];
         if layout == "adjacent" {
             // Beside it, across the shadow direction, 2 m apart.
             let n = (-u.1, u.0);
@@ -110,14 +125,29 @@ fn case(layout: &str, ground: &str, elev: f64, cell: f64) -> Stats {
                 height_m: rng.range(6.0, 25.0).min(120.0 / per_m),
             });
         }
-        let spec = SynthSpec { cell, size: (size, size), slope: (grade * u.0, grade * u.1), sun, buildings, supersample: 2 };
+        let spec = SynthSpec {
+            cell,
+            size: (size, size),
+            slope: (grade * u.0, grade * u.1),
+            sun,
+            buildings,
+            supersample: 2,
+        };
         let scene = synth_scene(&spec);
-        let inputs = Inputs { terrain: &scene.terrain, colour: &scene.colour, mask: None };
+        let inputs = Inputs {
+            terrain: &scene.terrain,
+            colour: &scene.colour,
+            mask: None,
+        };
         let t = Instant::now();
         let out = measure(&inputs, &scene.footprints, &sun, &Options::default()).unwrap();
         st.secs += t.elapsed().as_secs_f64();
         for (m, truth) in out.iter().zip(&scene.height_m) {
-            match m.as_ref().ok().and_then(|m| Some((m.initial_height_m?, m.height_m?))) {
+            match m
+                .as_ref()
+                .ok()
+                .and_then(|m| Some((m.initial_height_m?, m.height_m?)))
+            {
                 Some((z0, z)) => {
                     st.n += 1;
                     st.sq0 += (z0 - truth).powi(2);

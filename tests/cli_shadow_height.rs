@@ -9,12 +9,20 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn dbms(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).current_dir(dir).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
 }
 
 fn ok(args: &[&str], dir: &Path) -> Output {
     let out = dbms(args, dir);
-    assert!(out.status.success(), "dbms {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "dbms {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out
 }
 
@@ -23,8 +31,14 @@ fn assert_schema(doc: &Value) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/heights.schema.json");
     let schema = read_json(&path);
     let v = jsonschema::validator_for(&schema).expect("heights.schema.json compiles");
-    let errors: Vec<String> = v.iter_errors(doc).map(|e| format!("{e} at {}", e.instance_path())).collect();
-    assert!(errors.is_empty(), "not valid against heights.schema.json: {errors:?}");
+    let errors: Vec<String> = v
+        .iter_errors(doc)
+        .map(|e| format!("{e} at {}", e.instance_path()))
+        .collect();
+    assert!(
+        errors.is_empty(),
+        "not valid against heights.schema.json: {errors:?}"
+    );
 }
 
 fn read_json(p: &Path) -> Value {
@@ -40,8 +54,18 @@ fn generated_db(dir: &Path) -> Vec<f64> {
         slope: (0.05, 0.0),
         sun: Sun::new(40.0, 135.0).unwrap(),
         buildings: vec![
-            SynthBuilding { centre: (30.0, 50.0), size: (12.0, 9.0), rotation_deg: 10.0, height_m: 12.0 },
-            SynthBuilding { centre: (55.0, 30.0), size: (8.0, 8.0), rotation_deg: 0.0, height_m: 7.0 },
+            SynthBuilding {
+                centre: (30.0, 50.0),
+                size: (12.0, 9.0),
+                rotation_deg: 10.0,
+                height_m: 12.0,
+            },
+            SynthBuilding {
+                centre: (55.0, 30.0),
+                size: (8.0, 8.0),
+                rotation_deg: 0.0,
+                height_m: 7.0,
+            },
         ],
         supersample: 3,
     };
@@ -59,10 +83,27 @@ fn generated_db(dir: &Path) -> Vec<f64> {
         })
         .collect();
     let (x, y) = (500_010.0, 5_300_010.0);
-    features.push(json!({"type": "Feature", "properties": {"name": "bowtie"}, "geometry": {"type": "Polygon",
-        "coordinates": [[[x, y], [x + 5.0, y + 5.0], [x + 5.0, y], [x, y + 5.0], [x, y]]]}}));
-    std::fs::write(dir.join("fp.geojson"), json!({"type": "FeatureCollection", "features": features}).to_string()).unwrap();
-    ok(&["ingest", "--dem", "dem.tif", "--ortho", "ortho.tif", "-o", "db"], dir);
+    features.push(
+        json!({"type": "Feature", "properties": {"name": "bowtie"}, "geometry": {"type": "Polygon",
+        "coordinates": [[[x, y], [x + 5.0, y + 5.0], [x + 5.0, y], [x, y + 5.0], [x, y]]]}}),
+    );
+    std::fs::write(
+        dir.join("fp.geojson"),
+        json!({"type": "FeatureCollection", "features": features}).to_string(),
+    )
+    .unwrap();
+    ok(
+        &[
+            "ingest",
+            "--dem",
+            "dem.tif",
+            "--ortho",
+            "ortho.tif",
+            "-o",
+            "db",
+        ],
+        dir,
+    );
     scene.height_m
 }
 
@@ -70,7 +111,19 @@ fn generated_db(dir: &Path) -> Vec<f64> {
 fn measures_generated_buildings_keeps_properties_and_reports_the_bad_one() {
     let t = tempfile::tempdir().unwrap();
     let truth = generated_db(t.path());
-    let args = ["shadow-height", "--db", "db", "--footprints", "fp.geojson", "--sun-elevation", "40", "--sun-azimuth", "135", "-o", "h.geojson"];
+    let args = [
+        "shadow-height",
+        "--db",
+        "db",
+        "--footprints",
+        "fp.geojson",
+        "--sun-elevation",
+        "40",
+        "--sun-azimuth",
+        "135",
+        "-o",
+        "h.geojson",
+    ];
     let out = ok(&args, t.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("feature 2: self-intersecting"), "{stderr}");
@@ -84,11 +137,16 @@ fn measures_generated_buildings_keeps_properties_and_reports_the_bad_one() {
         assert!((got - want).abs() <= 0.5, "{got} vs {want}: {p}");
         assert!(p["name"].as_str().unwrap().starts_with('b'));
         assert!(p["overlap"].as_f64().unwrap() > 0.8);
-        assert!((p["roof_z"].as_f64().unwrap() - p["ground_z"].as_f64().unwrap() - got).abs() < 1e-9);
+        assert!(
+            (p["roof_z"].as_f64().unwrap() - p["ground_z"].as_f64().unwrap() - got).abs() < 1e-9
+        );
         assert_eq!(p["flags"], json!([]));
     }
     assert_eq!(fs[2]["properties"]["height_m"], Value::Null);
-    assert!(fs[2]["properties"]["error"].as_str().unwrap().contains("self-intersecting"));
+    assert!(fs[2]["properties"]["error"]
+        .as_str()
+        .unwrap()
+        .contains("self-intersecting"));
     // Same inputs, same bytes.
     let first = std::fs::read(t.path().join("h.geojson")).unwrap();
     ok(&args, t.path());
@@ -100,21 +158,65 @@ fn apply_writes_the_buildings_layer_that_shadows_and_pyramid_read() {
     let t = tempfile::tempdir().unwrap();
     generated_db(t.path());
     let out = ok(
-        &["--json", "shadow-height", "--db", "db", "--footprints", "fp.geojson", "--sun-elevation", "40", "--sun-azimuth", "135", "-o", "h.geojson", "--apply"],
+        &[
+            "--json",
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "fp.geojson",
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "135",
+            "-o",
+            "h.geojson",
+            "--apply",
+        ],
         t.path(),
     );
     let summary: Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!((summary["measured"].as_u64(), summary["failed"].as_u64(), summary["applied"].as_bool()), (Some(2), Some(1), Some(true)));
+    assert_eq!(
+        (
+            summary["measured"].as_u64(),
+            summary["failed"].as_u64(),
+            summary["applied"].as_bool()
+        ),
+        (Some(2), Some(1), Some(true))
+    );
     let manifest = read_json(&t.path().join("db/manifest.json"));
     assert_eq!(manifest["layers"]["buildings"]["file"], "buildings.geojson");
-    assert!(manifest["stages"].as_array().unwrap().iter().any(|s| s["name"] == "shadow-height"));
+    assert!(manifest["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|s| s["name"] == "shadow-height"));
     let layer = read_json(&t.path().join("db/buildings.geojson"));
     assert_schema(&layer);
-    assert_eq!(layer["features"].as_array().unwrap().len(), 2, "only measured buildings go in");
-    let prisms = dbms::pyramid::raised::read_buildings(&t.path().join("db/buildings.geojson")).unwrap();
+    assert_eq!(
+        layer["features"].as_array().unwrap().len(),
+        2,
+        "only measured buildings go in"
+    );
+    let prisms =
+        dbms::pyramid::raised::read_buildings(&t.path().join("db/buildings.geojson")).unwrap();
     assert_eq!(prisms.len(), 2);
     // The raised buildings now cast shadows in `dbms shadows`.
-    let out = ok(&["--json", "shadows", "--db", "db", "--sun-elevation", "40", "--sun-azimuth", "135", "-o", "s.tif"], t.path());
+    let out = ok(
+        &[
+            "--json",
+            "shadows",
+            "--db",
+            "db",
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "135",
+            "-o",
+            "s.tif",
+        ],
+        t.path(),
+    );
     let s: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(s["building_cells"].as_u64().unwrap() > 500, "{s}");
 }
@@ -123,20 +225,99 @@ fn apply_writes_the_buildings_layer_that_shadows_and_pyramid_read() {
 fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
     let t = tempfile::tempdir().unwrap();
     generated_db(t.path());
-    let out = dbms(&["shadow-height", "--db", "db", "--footprints", "fp.geojson", "--sun-elevation", "-3", "--sun-azimuth", "135", "-o", "h.geojson"], t.path());
+    let out = dbms(
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "fp.geojson",
+            "--sun-elevation",
+            "-3",
+            "--sun-azimuth",
+            "135",
+            "-o",
+            "h.geojson",
+        ],
+        t.path(),
+    );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("below the horizon") && err.lines().count() == 1, "{err}");
+    assert!(
+        !out.status.success() && err.contains("below the horizon") && err.lines().count() == 1,
+        "{err}"
+    );
     assert!(!t.path().join("h.geojson").exists());
     // Night at the database's place: an error too.
-    let out = dbms(&["shadow-height", "--db", "db", "--footprints", "fp.geojson", "--time", "2026-06-21T23:00:00Z", "-o", "h.geojson"], t.path());
-    assert!(!out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let out = dbms(&["shadow-height", "--db", "db", "--footprints", "fp.geojson", "-o", "h.geojson"], t.path());
+    let out = dbms(
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "fp.geojson",
+            "--time",
+            "2026-06-21T23:00:00Z",
+            "-o",
+            "h.geojson",
+        ],
+        t.path(),
+    );
+    assert!(
+        !out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = dbms(
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "fp.geojson",
+            "-o",
+            "h.geojson",
+        ],
+        t.path(),
+    );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("records no photo time") && err.contains("--time"), "{err}");
-    let out = dbms(&["shadow-height", "--db", "db", "--footprints", "nope.geojson", "--sun-elevation", "40", "--sun-azimuth", "0", "-o", "h.geojson"], t.path());
+    assert!(
+        !out.status.success() && err.contains("records no photo time") && err.contains("--time"),
+        "{err}"
+    );
+    let out = dbms(
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "nope.geojson",
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "0",
+            "-o",
+            "h.geojson",
+        ],
+        t.path(),
+    );
     assert!(String::from_utf8_lossy(&out.stderr).contains("nope.geojson: no such file"));
     std::fs::write(t.path().join("bad.geojson"), "{\"type\": \"Feature\"}").unwrap();
-    let out = dbms(&["shadow-height", "--db", "db", "--footprints", "bad.geojson", "--sun-elevation", "40", "--sun-azimuth", "0", "-o", "h.geojson"], t.path());
+    let out = dbms(
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "bad.geojson",
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "0",
+            "-o",
+            "h.geojson",
+        ],
+        t.path(),
+    );
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a GeoJSON FeatureCollection"));
 }
 
@@ -145,13 +326,35 @@ fn shadow_mask_on_another_grid_is_refused() {
     let t = tempfile::tempdir().unwrap();
     generated_db(t.path());
     let g = dbms::grid::Grid::north_up(0.0, 10.0, 1.0, 10, 10, dbms::crs::Crs::epsg(32632));
-    geotiff::write_u8(&t.path().join("m.tif"), &dbms::raster::Raster::filled(g, 0u8), Some(255)).unwrap();
+    geotiff::write_u8(
+        &t.path().join("m.tif"),
+        &dbms::raster::Raster::filled(g, 0u8),
+        Some(255),
+    )
+    .unwrap();
     let out = dbms(
-        &["shadow-height", "--db", "db", "--footprints", "fp.geojson", "--sun-elevation", "40", "--sun-azimuth", "135", "--shadow-mask", "m.tif", "-o", "h.geojson"],
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "fp.geojson",
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "135",
+            "--shadow-mask",
+            "m.tif",
+            "-o",
+            "h.geojson",
+        ],
         t.path(),
     );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("m.tif") && err.contains("not the database grid"), "{err}");
+    assert!(
+        !out.status.success() && err.contains("m.tif") && err.contains("not the database grid"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -161,14 +364,57 @@ fn the_sample_scene_buildings_come_back_within_a_cell() {
     let s = t.path().join("s");
     let truth = read_json(&s.join("truth.json"));
     let time = truth["sun"]["time"].as_str().unwrap().to_string();
-    ok(&["ingest", "--dem", "dem.tif", "--ortho", "ortho.tif", "--photo-time", &time, "-o", "db"], &s);
+    ok(
+        &[
+            "ingest",
+            "--dem",
+            "dem.tif",
+            "--ortho",
+            "ortho.tif",
+            "--photo-time",
+            &time,
+            "-o",
+            "db",
+        ],
+        &s,
+    );
     // No sun given: the photo time recorded by ingest.
-    ok(&["shadow-height", "--db", "db", "--footprints", "buildings.geojson", "-o", "heights.geojson"], &s);
+    ok(
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "buildings.geojson",
+            "-o",
+            "heights.geojson",
+        ],
+        &s,
+    );
     let cell = dbms::sample::ORTHO_CELL_M;
     let h = read_json(&s.join("heights.geojson"));
-    let got: Vec<f64> = h["features"].as_array().unwrap().iter().map(|f| f["properties"]["height_m"].as_f64().unwrap()).collect();
-    let want: Vec<f64> = truth["buildings"].as_array().unwrap().iter().map(|b| b["height_m"].as_f64().unwrap()).collect();
+    let got: Vec<f64> = h["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["properties"]["height_m"].as_f64().unwrap())
+        .collect();
+    let want: Vec<f64> = truth["buildings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["height_m"].as_f64().unwrap())
+        .collect();
     assert_eq!(got.len(), want.len());
-    let rmse = (got.iter().zip(&want).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / got.len() as f64).sqrt();
-    assert!(rmse <= cell, "sample RMSE {rmse:.3} m > one cell ({cell} m): {got:?} vs {want:?}");
+    let rmse = (got
+        .iter()
+        .zip(&want)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        / got.len() as f64)
+        .sqrt();
+    assert!(
+        rmse <= cell,
+        "sample RMSE {rmse:.3} m > one cell ({cell} m): {got:?} vs {want:?}"
+    );
 }

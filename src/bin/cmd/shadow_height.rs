@@ -51,34 +51,65 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         (Some(t), _, _) => dbms::pyramid::sun_at(&db, t)?,
         (None, Some(e), Some(a)) => Sun::new(e, a)?,
         _ => dbms::pyramid::photo_sun(&db)?.ok_or_else(|| {
-            Error::file(&args.db, "no sun given and the database records no photo time")
-                .fix("give --time or --sun-elevation and --sun-azimuth")
+            Error::file(
+                &args.db,
+                "no sun given and the database records no photo time",
+            )
+            .fix("give --time or --sun-elevation and --sun-azimuth")
         })?,
     };
     let features = sh::read_footprints(&args.footprints)?;
     let terrain = db.read_elevation()?;
     let colour = db.read_colour()?;
-    let mask = args.shadow_mask.as_deref().map(|p| sh::read_mask(p, db.grid())).transpose()?;
-    let valid: Vec<sh::Footprint> = features.iter().filter_map(|f| f.footprint.clone().ok()).collect();
-    let inputs = sh::Inputs { terrain: &terrain, colour: &colour, mask: mask.as_ref() };
-    let opts = sh::Options { max_height_m: args.max_height };
+    let mask = args
+        .shadow_mask
+        .as_deref()
+        .map(|p| sh::read_mask(p, db.grid()))
+        .transpose()?;
+    let valid: Vec<sh::Footprint> = features
+        .iter()
+        .filter_map(|f| f.footprint.clone().ok())
+        .collect();
+    let inputs = sh::Inputs {
+        terrain: &terrain,
+        colour: &colour,
+        mask: mask.as_ref(),
+    };
+    let opts = sh::Options {
+        max_height_m: args.max_height,
+    };
     let mut measured = sh::measure(&inputs, &valid, &sun, &opts)?.into_iter();
-    let results: Vec<Result<sh::Measurement, String>> =
-        features.iter().map(|f| f.footprint.as_ref().map_err(|e| e.clone()).and_then(|_| measured.next().expect("one result per valid footprint"))).collect();
+    let results: Vec<Result<sh::Measurement, String>> = features
+        .iter()
+        .map(|f| {
+            f.footprint
+                .as_ref()
+                .map_err(|e| e.clone())
+                .and_then(|_| measured.next().expect("one result per valid footprint"))
+        })
+        .collect();
     for (k, r) in results.iter().enumerate() {
         if let Err(e) = r {
-            eprintln!("dbms: warning: {}: feature {k}: {e}; skipped, the others go on", args.footprints.display());
+            eprintln!(
+                "dbms: warning: {}: feature {k}: {e}; skipped, the others go on",
+                args.footprints.display()
+            );
         }
     }
 
     let doc = output::heights_geojson(&features, &results, &sun, db.grid().crs.epsg);
     write_bytes_atomic(&args.output, output::to_text(&doc).as_bytes())?;
-    let count = |f: &dyn Fn(&sh::Measurement) -> bool| results.iter().filter(|r| r.as_ref().is_ok_and(f)).count();
+    let count = |f: &dyn Fn(&sh::Measurement) -> bool| {
+        results.iter().filter(|r| r.as_ref().is_ok_and(f)).count()
+    };
     let heights = count(&|m| m.height_m.is_some());
     let flagged = count(&|m| !m.flags.names().is_empty());
     let failed = results.iter().filter(|r| r.is_err()).count();
     if args.apply {
-        write_bytes_atomic(&db.dir.join("buildings.geojson"), output::to_text(&output::buildings_layer(&doc)).as_bytes())?;
+        write_bytes_atomic(
+            &db.dir.join("buildings.geojson"),
+            output::to_text(&output::buildings_layer(&doc)).as_bytes(),
+        )?;
         db.set_layer("buildings", "buildings", "buildings.geojson", None)?;
         db.record_stage(Stage::now(
             "shadow-height",

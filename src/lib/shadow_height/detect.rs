@@ -16,7 +16,11 @@ pub const MIN_DARK_FRACTION: f64 = 0.002;
 pub fn shadow_index(rgb: [u8; 4]) -> f64 {
     let (r, g, b) = (rgb[0] as f64, rgb[1] as f64, rgb[2] as f64);
     let y = 0.299 * r + 0.587 * g + 0.114 * b;
-    let blue_excess = if r + g + b > 0.0 { (b / (r + g + b) - 1.0 / 3.0).max(0.0) } else { 0.0 };
+    let blue_excess = if r + g + b > 0.0 {
+        (b / (r + g + b) - 1.0 / 3.0).max(0.0)
+    } else {
+        0.0
+    };
     y * (1.0 - blue_excess)
 }
 
@@ -33,7 +37,11 @@ pub fn otsu_threshold(indices: impl Iterator<Item = f64>) -> Option<f64> {
     if n < 16 {
         return None;
     }
-    let total: f64 = hist.iter().enumerate().map(|(i, &c)| i as f64 * c as f64).sum();
+    let total: f64 = hist
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| i as f64 * c as f64)
+        .sum();
     let (mut w0, mut sum0) = (0.0, 0.0);
     let mut best: Option<(f64, usize, f64, f64)> = None; // (between-class variance, split, mean0, mean1)
     for (t, &c) in hist.iter().enumerate().take(255) {
@@ -69,7 +77,13 @@ mod tests {
 
     #[test]
     fn otsu_splits_two_clear_classes_and_refuses_one() {
-        let two = (0..1000).map(|i| if i % 10 == 0 { 40.0 + (i % 7) as f64 } else { 150.0 + (i % 13) as f64 });
+        let two = (0..1000).map(|i| {
+            if i % 10 == 0 {
+                40.0 + (i % 7) as f64
+            } else {
+                150.0 + (i % 13) as f64
+            }
+        });
         let t = otsu_threshold(two).unwrap();
         assert!(t > 46.0 && t < 150.0, "{t}");
         // One texture class only (no shadow): the two halves of its histogram are too close.

@@ -34,17 +34,29 @@ pub struct InputFeature {
 /// Read a GeoJSON FeatureCollection of Polygon / MultiPolygon footprints.
 pub fn read_footprints(path: &Path) -> Result<Vec<InputFeature>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let doc: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix("give a GeoJSON FeatureCollection of footprint polygons"))?;
-    let features = doc.get("features").and_then(|f| f.as_array()).ok_or_else(|| {
-        Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix("give a GeoJSON FeatureCollection of footprint polygons")
+    let doc: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        Error::file(path, format!("not valid JSON ({e})"))
+            .fix("give a GeoJSON FeatureCollection of footprint polygons")
     })?;
+    let features = doc
+        .get("features")
+        .and_then(|f| f.as_array())
+        .ok_or_else(|| {
+            Error::file(path, "not a GeoJSON FeatureCollection (no features array)")
+                .fix("give a GeoJSON FeatureCollection of footprint polygons")
+        })?;
     Ok(features
         .iter()
         .map(|f| {
-            let geometry = f.get("geometry").cloned().unwrap_or(serde_json::Value::Null);
+            let geometry = f
+                .get("geometry")
+                .cloned()
+                .unwrap_or(serde_json::Value::Null);
             InputFeature {
-                properties: f.get("properties").cloned().unwrap_or(serde_json::Value::Null),
+                properties: f
+                    .get("properties")
+                    .cloned()
+                    .unwrap_or(serde_json::Value::Null),
                 footprint: footprint_of(&geometry),
                 geometry,
             }
@@ -54,15 +66,28 @@ pub fn read_footprints(path: &Path) -> Result<Vec<InputFeature>> {
 
 /// The footprint of a GeoJSON geometry, or why it is unusable.
 pub fn footprint_of(geometry: &serde_json::Value) -> std::result::Result<Footprint, String> {
-    let coords = geometry.get("coordinates").ok_or("geometry has no coordinates")?;
+    let coords = geometry
+        .get("coordinates")
+        .ok_or("geometry has no coordinates")?;
     let polygons: Vec<&serde_json::Value> = match geometry.get("type").and_then(|t| t.as_str()) {
         Some("Polygon") => vec![coords],
-        Some("MultiPolygon") => coords.as_array().ok_or("bad MultiPolygon coordinates")?.iter().collect(),
-        other => return Err(format!("geometry type {other:?} is not Polygon or MultiPolygon")),
+        Some("MultiPolygon") => coords
+            .as_array()
+            .ok_or("bad MultiPolygon coordinates")?
+            .iter()
+            .collect(),
+        other => {
+            return Err(format!(
+                "geometry type {other:?} is not Polygon or MultiPolygon"
+            ))
+        }
     };
     let mut parts = Vec::new();
     for poly in polygons {
-        parts.push(parse_polygon(poly).ok_or("bad polygon coordinates (need [[[x, y], ...], ...] of finite numbers)")?);
+        parts.push(
+            parse_polygon(poly)
+                .ok_or("bad polygon coordinates (need [[[x, y], ...], ...] of finite numbers)")?,
+        );
     }
     Footprint::new(parts)
 }
@@ -95,7 +120,10 @@ impl Footprint {
             for (k, ring) in poly.into_iter().enumerate() {
                 let ring = distinct_vertices(ring);
                 if ring.len() < 3 {
-                    return Err(format!("a ring has {} distinct points, fewer than 3", ring.len()));
+                    return Err(format!(
+                        "a ring has {} distinct points, fewer than 3",
+                        ring.len()
+                    ));
                 }
                 if collinear(&ring) {
                     return Err("zero area (all points of a ring on one line)".into());
@@ -106,7 +134,9 @@ impl Footprint {
             }
         }
         if let Some((i, j)) = first_crossing(&rings) {
-            return Err(format!("self-intersecting (edges {i} and {j} touch or cross)"));
+            return Err(format!(
+                "self-intersecting (edges {i} and {j} touch or cross)"
+            ));
         }
         if area.is_nan() || area <= 0.0 {
             return Err("zero area (the holes cover the outer ring)".into());
@@ -116,14 +146,22 @@ impl Footprint {
 
     /// Bounding box `(min_x, min_y, max_x, max_y)`.
     pub fn bbox(&self) -> (f64, f64, f64, f64) {
-        self.rings.iter().flatten().fold((f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY), |b, &(x, y)| {
-            (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y))
-        })
+        self.rings.iter().flatten().fold(
+            (
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ),
+            |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
+        )
     }
 
     /// Every edge `(a, b)` of every ring.
     pub fn edges(&self) -> impl Iterator<Item = ((f64, f64), (f64, f64))> + '_ {
-        self.rings.iter().flat_map(|r| (0..r.len()).map(move |k| (r[k], r[(k + 1) % r.len()])))
+        self.rings
+            .iter()
+            .flat_map(|r| (0..r.len()).map(move |k| (r[k], r[(k + 1) % r.len()])))
     }
 }
 
@@ -156,19 +194,36 @@ fn signed_area(ring: &[(f64, f64)]) -> f64 {
 
 /// Closed segments `ab` and `cd` share a point.
 fn segments_touch(a: (f64, f64), b: (f64, f64), c: (f64, f64), d: (f64, f64)) -> bool {
-    let (d1, d2, d3, d4) = (cross(c, d, a), cross(c, d, b), cross(a, b, c), cross(a, b, d));
-    let on = |p: (f64, f64), q: (f64, f64), r: (f64, f64)| r.0 >= p.0.min(q.0) && r.0 <= p.0.max(q.0) && r.1 >= p.1.min(q.1) && r.1 <= p.1.max(q.1);
-    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0)) && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0)) {
+    let (d1, d2, d3, d4) = (
+        cross(c, d, a),
+        cross(c, d, b),
+        cross(a, b, c),
+        cross(a, b, d),
+    );
+    let on = |p: (f64, f64), q: (f64, f64), r: (f64, f64)| {
+        r.0 >= p.0.min(q.0) && r.0 <= p.0.max(q.0) && r.1 >= p.1.min(q.1) && r.1 <= p.1.max(q.1)
+    };
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
         return true;
     }
-    (d1 == 0.0 && on(c, d, a)) || (d2 == 0.0 && on(c, d, b)) || (d3 == 0.0 && on(a, b, c)) || (d4 == 0.0 && on(a, b, d))
+    (d1 == 0.0 && on(c, d, a))
+        || (d2 == 0.0 && on(c, d, b))
+        || (d3 == 0.0 && on(a, b, c))
+        || (d4 == 0.0 && on(a, b, d))
 }
 
 /// The first pair of edges (global edge numbers) that touch other than at a shared ring vertex.
 fn first_crossing(rings: &[Vec<(f64, f64)>]) -> Option<(usize, usize)> {
     // (ring, index in ring, a, b) for every edge.
-    let edges: Vec<(usize, usize, (f64, f64), (f64, f64))> =
-        rings.iter().enumerate().flat_map(|(r, ring)| (0..ring.len()).map(move |k| (r, k, ring[k], ring[(k + 1) % ring.len()]))).collect();
+    let edges: Vec<(usize, usize, (f64, f64), (f64, f64))> = rings
+        .iter()
+        .enumerate()
+        .flat_map(|(r, ring)| {
+            (0..ring.len()).map(move |k| (r, k, ring[k], ring[(k + 1) % ring.len()]))
+        })
+        .collect();
     for i in 0..edges.len() {
         for j in i + 1..edges.len() {
             let (ri, ki, a, b) = edges[i];
@@ -179,7 +234,10 @@ fn first_crossing(rings: &[Vec<(f64, f64)>]) -> Option<(usize, usize)> {
                 if adjacent {
                     // Neighbours share one vertex; they are bad only if they fold back over each other.
                     let (shared, p, q) = if kj == ki + 1 { (b, a, d) } else { (a, b, c) };
-                    if cross(shared, p, q) == 0.0 && (p.0 - shared.0) * (q.0 - shared.0) + (p.1 - shared.1) * (q.1 - shared.1) > 0.0 {
+                    if cross(shared, p, q) == 0.0
+                        && (p.0 - shared.0) * (q.0 - shared.0) + (p.1 - shared.1) * (q.1 - shared.1)
+                            > 0.0
+                    {
                         return Some((i, j));
                     }
                     continue;
@@ -204,7 +262,11 @@ mod tests {
 
     #[test]
     fn square_with_hole_has_outer_minus_hole_area() {
-        let f = poly(json!([[[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]], [[2, 2], [2, 4], [4, 4], [4, 2], [2, 2]]])).unwrap();
+        let f = poly(json!([
+            [[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]],
+            [[2, 2], [2, 4], [4, 4], [4, 2], [2, 2]]
+        ]))
+        .unwrap();
         assert_eq!(f.area, 96.0);
         assert_eq!(f.rings.len(), 2);
         assert_eq!(f.rings[0].len(), 4);
@@ -212,7 +274,16 @@ mod tests {
 
     #[test]
     fn concave_l_shape_is_valid() {
-        let f = poly(json!([[[0, 0], [10, 0], [10, 4], [4, 4], [4, 10], [0, 10], [0, 0]]])).unwrap();
+        let f = poly(json!([[
+            [0, 0],
+            [10, 0],
+            [10, 4],
+            [4, 4],
+            [4, 10],
+            [0, 10],
+            [0, 0]
+        ]]))
+        .unwrap();
         assert_eq!(f.area, 64.0);
     }
 
@@ -226,8 +297,14 @@ mod tests {
         assert!(bowtie.contains("self-intersecting"), "{bowtie}");
         let spike = poly(json!([[[0, 0], [4, 0], [4, 4], [4, 8], [4, 2], [0, 4]]])).unwrap_err();
         assert!(spike.contains("self-intersecting"), "{spike}");
-        assert!(footprint_of(&json!({"type": "Point", "coordinates": [0, 0]})).unwrap_err().contains("not Polygon"));
-        assert!(poly(json!([[[0, "a"], [1, 0], [1, 1]]])).unwrap_err().contains("bad polygon"));
+        assert!(
+            footprint_of(&json!({"type": "Point", "coordinates": [0, 0]}))
+                .unwrap_err()
+                .contains("not Polygon")
+        );
+        assert!(poly(json!([[[0, "a"], [1, 0], [1, 1]]]))
+            .unwrap_err()
+            .contains("bad polygon"));
     }
 
     #[test]

@@ -47,13 +47,24 @@ impl Local {
             class.extend_from_slice(&self.class[start..start + w.width]);
             heights.extend_from_slice(&self.heights[start..start + w.width]);
         }
-        Local { win: w, grid: db_grid.window_grid(&w), class, heights }
+        Local {
+            win: w,
+            grid: db_grid.window_grid(&w),
+            class,
+            heights,
+        }
     }
 }
 
 /// The window of `grid` covering the world box `bbox` (min x, min y, max x, max y), the same box
 /// moved `len_m` metres along the unit vector `u` (east, north), and `margin` cells around.
-pub fn window_for(grid: &Grid, bbox: (f64, f64, f64, f64), u: (f64, f64), len_m: f64, margin: usize) -> Window {
+pub fn window_for(
+    grid: &Grid,
+    bbox: (f64, f64, f64, f64),
+    u: (f64, f64),
+    len_m: f64,
+    margin: usize,
+) -> Window {
     let t = &grid.transform;
     let (ax, ay) = t.world_to_pixel(bbox.0, bbox.1);
     let (bx, by) = t.world_to_pixel(bbox.2, bbox.3);
@@ -65,7 +76,12 @@ pub fn window_for(grid: &Grid, bbox: (f64, f64, f64, f64), u: (f64, f64), len_m:
     let hi_x = (x1.max(x1 + sx) + m).ceil().clamp(0.0, grid.width as f64) as usize;
     let lo_y = (y0.min(y0 + sy) - m).floor().clamp(0.0, grid.height as f64) as usize;
     let hi_y = (y1.max(y1 + sy) + m).ceil().clamp(0.0, grid.height as f64) as usize;
-    Window { col: lo_x, row: lo_y, width: hi_x.max(lo_x) - lo_x, height: hi_y.max(lo_y) - lo_y }
+    Window {
+        col: lo_x,
+        row: lo_y,
+        width: hi_x.max(lo_x) - lo_x,
+        height: hi_y.max(lo_y) - lo_y,
+    }
 }
 
 #[cfg(test)]
@@ -78,11 +94,32 @@ mod tests {
         let g = Grid::north_up(0.0, 100.0, 1.0, 100, 100, Crs::epsg(32632));
         // A 10 m box at x 40..50, y 40..50, shadow 20 m to the north.
         let w = window_for(&g, (40.0, 40.0, 50.0, 50.0), (0.0, 1.0), 20.0, 2);
-        assert_eq!(w, Window { col: 38, row: 28, width: 14, height: 34 });
+        assert_eq!(
+            w,
+            Window {
+                col: 38,
+                row: 28,
+                width: 14,
+                height: 34
+            }
+        );
         let far = window_for(&g, (40.0, 40.0, 50.0, 50.0), (1.0, 0.0), 1e6, 2);
         assert_eq!((far.col, far.col + far.width), (38, 100));
-        let l = Local { win: w, grid: g.window_grid(&w), class: vec![Class::Lit; 14 * 34], heights: vec![0.0; 14 * 34] };
-        let c = l.crop(Window { col: 40, row: 30, width: 3, height: 2 }, &g);
+        let l = Local {
+            win: w,
+            grid: g.window_grid(&w),
+            class: vec![Class::Lit; 14 * 34],
+            heights: vec![0.0; 14 * 34],
+        };
+        let c = l.crop(
+            Window {
+                col: 40,
+                row: 30,
+                width: 3,
+                height: 2,
+            },
+            &g,
+        );
         assert_eq!(c.class.len(), 6);
         assert_eq!(c.grid.transform.origin_x, 40.0);
     }

@@ -55,7 +55,9 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Options {
-        Options { max_height_m: 150.0 }
+        Options {
+            max_height_m: 150.0,
+        }
     }
 }
 
@@ -91,7 +93,10 @@ impl Flags {
     pub fn names(&self) -> Vec<&'static str> {
         [
             (self.no_shadow, "no_shadow"),
-            (self.shadow_cut_by_edge_or_nodata, "shadow_cut_by_edge_or_nodata"),
+            (
+                self.shadow_cut_by_edge_or_nodata,
+                "shadow_cut_by_edge_or_nodata",
+            ),
             (self.shadow_on_other_building, "shadow_on_other_building"),
             (self.low_sun, "low_sun"),
             (self.high_sun, "high_sun"),
@@ -131,23 +136,45 @@ pub struct Measurement {
 
 /// Measure every footprint. The outer error is for the whole run (grids that differ, a grid in
 /// degrees); the inner one is a one-line reason a footprint could not be measured.
-pub fn measure(inputs: &Inputs, footprints: &[Footprint], sun: &Sun, opts: &Options) -> Result<Vec<std::result::Result<Measurement, String>>> {
+pub fn measure(
+    inputs: &Inputs,
+    footprints: &[Footprint],
+    sun: &Sun,
+    opts: &Options,
+) -> Result<Vec<std::result::Result<Measurement, String>>> {
     let grid = &inputs.terrain.grid;
     if inputs.colour.grid != *grid {
-        return Err(Error::msg("the colour and elevation layers are on different grids").fix("re-run `dbms ingest`"));
+        return Err(
+            Error::msg("the colour and elevation layers are on different grids")
+                .fix("re-run `dbms ingest`"),
+        );
     }
     if inputs.mask.is_some_and(|m| m.grid != *grid) {
         return Err(Error::msg("the shadow mask is not on the database grid")
             .fix("make it on the database grid (same size, origin and cell size as the database layers)"));
     }
     if !(opts.max_height_m.is_finite() && opts.max_height_m > 0.0) {
-        return Err(Error::msg(format!("--max-height {} is not a positive number of metres", opts.max_height_m)));
+        return Err(Error::msg(format!(
+            "--max-height {} is not a positive number of metres",
+            opts.max_height_m
+        )));
     }
     // Shadows of the bare terrain: where a building's shadow cannot be told from the hill's.
     let terrain_shadow = cast_shadows(inputs.terrain, sun.elevation_deg, sun.azimuth_deg)?;
     let own_cells: Vec<Vec<usize>> = footprints
         .par_iter()
-        .map(|f| rasterise_prisms(grid, &[Prism { rings: f.rings.clone(), roof_z: 0.0 }]).into_iter().map(|c| c.index).collect())
+        .map(|f| {
+            rasterise_prisms(
+                grid,
+                &[Prism {
+                    rings: f.rings.clone(),
+                    roof_z: 0.0,
+                }],
+            )
+            .into_iter()
+            .map(|c| c.index)
+            .collect()
+        })
         .collect();
     let mut owner = vec![0u32; grid.len()];
     for (k, cells) in own_cells.iter().enumerate() {
@@ -155,8 +182,20 @@ pub fn measure(inputs: &Inputs, footprints: &[Footprint], sun: &Sun, opts: &Opti
             owner[i] = k as u32 + 1;
         }
     }
-    let shared = Shared { inputs, grid, owner: &owner, terrain_shadow: &terrain_shadow.data, sun, opts };
-    Ok(footprints.par_iter().zip(&own_cells).enumerate().map(|(k, (f, cells))| shared.one(k as u32 + 1, f, cells)).collect())
+    let shared = Shared {
+        inputs,
+        grid,
+        owner: &owner,
+        terrain_shadow: &terrain_shadow.data,
+        sun,
+        opts,
+    };
+    Ok(footprints
+        .par_iter()
+        .zip(&own_cells)
+        .enumerate()
+        .map(|(k, (f, cells))| shared.one(k as u32 + 1, f, cells))
+        .collect())
 }
 
 /// Read a shadow mask: a one-band 8-bit raster on exactly `grid` (same size and geotransform),
@@ -165,17 +204,33 @@ pub fn measure(inputs: &Inputs, footprints: &[Footprint], sun: &Sun, opts: &Opti
 pub fn read_mask(path: &std::path::Path, grid: &Grid) -> Result<Raster<u8>> {
     let src = crate::io::read_raster(path)?;
     let crate::io::Samples::U8(v) = &src.samples else {
-        return Err(Error::file(path, "a shadow mask must be 8-bit").fix("write it as Byte (gdal_translate -ot Byte)"));
+        return Err(Error::file(path, "a shadow mask must be 8-bit")
+            .fix("write it as Byte (gdal_translate -ot Byte)"));
     };
     if src.bands != 1 {
-        return Err(Error::file(path, format!("a shadow mask has one band, this has {}", src.bands)).fix("keep only the mask band (gdal_translate -b 1)"));
+        return Err(Error::file(
+            path,
+            format!("a shadow mask has one band, this has {}", src.bands),
+        )
+        .fix("keep only the mask band (gdal_translate -b 1)"));
     }
-    if src.grid.width != grid.width || src.grid.height != grid.height || src.grid.transform != grid.transform {
+    if src.grid.width != grid.width
+        || src.grid.height != grid.height
+        || src.grid.transform != grid.transform
+    {
         return Err(Error::file(path, format!("the mask's grid ({} × {}) is not the database grid ({} × {})", src.grid.width, src.grid.height, grid.width, grid.height))
             .fix("make it on the database grid, e.g. with `dbms shadows` or gdalwarp -te/-tr of the database"));
     }
-    let nodata = src.nodata.filter(|n| (0.0..=255.0).contains(n) && n.fract() == 0.0).map(|n| n as u8);
-    Ok(Raster::new(grid.clone(), v.iter().map(|&m| if Some(m) == nodata { 255 } else { m }).collect()))
+    let nodata = src
+        .nodata
+        .filter(|n| (0.0..=255.0).contains(n) && n.fract() == 0.0)
+        .map(|n| n as u8);
+    Ok(Raster::new(
+        grid.clone(),
+        v.iter()
+            .map(|&m| if Some(m) == nodata { 255 } else { m })
+            .collect(),
+    ))
 }
 
 /// Which cells of `local` lie in the band (half a cell either side) of an *inlier* scan line:
@@ -183,7 +238,13 @@ pub fn read_mask(path: &std::path::Path, grid: &Grid) -> Result<Raster<u8>> {
 /// buildings, left the grid, or ran on into a neighbour's shadow do not lead the refinement.
 fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f64) -> Vec<bool> {
     let tol = 0.3 * len + 2.0 * cell;
-    let mut ts: Vec<f64> = s.line_t.iter().zip(&s.lengths).filter(|(_, &l)| (l - len).abs() <= tol).map(|(&t, _)| t).collect();
+    let mut ts: Vec<f64> = s
+        .line_t
+        .iter()
+        .zip(&s.lengths)
+        .filter(|(_, &l)| (l - len).abs() <= tol)
+        .map(|(&t, _)| t)
+        .collect();
     ts.sort_by(f64::total_cmp);
     let w = local.grid.width;
     (0..local.class.len())
@@ -208,11 +269,23 @@ struct Shared<'a> {
 }
 
 impl Shared<'_> {
-    fn one(&self, id: u32, fp: &Footprint, cells: &[usize]) -> std::result::Result<Measurement, String> {
+    fn one(
+        &self,
+        id: u32,
+        fp: &Footprint,
+        cells: &[usize],
+    ) -> std::result::Result<Measurement, String> {
         if cells.is_empty() {
-            return Err("covers no cell centre of the database grid (outside it, or smaller than a cell)".into());
+            return Err(
+                "covers no cell centre of the database grid (outside it, or smaller than a cell)"
+                    .into(),
+            );
         }
-        let ground_z = cells.iter().map(|&i| self.inputs.terrain.data[i] as f64).filter(|z| z.is_finite()).fold(f64::NAN, f64::max);
+        let ground_z = cells
+            .iter()
+            .map(|&i| self.inputs.terrain.data[i] as f64)
+            .filter(|z| z.is_finite())
+            .fold(f64::NAN, f64::max);
         if ground_z.is_nan() {
             return Err("stands on nodata elevation only".into());
         }
@@ -236,7 +309,11 @@ impl Shared<'_> {
             lines_total: 0,
             lines_used: 0,
             threshold,
-            flags: Flags { low_sun: e < LOW_SUN_DEG, high_sun: e > HIGH_SUN_DEG, ..Flags::default() },
+            flags: Flags {
+                low_sun: e < LOW_SUN_DEG,
+                high_sun: e > HIGH_SUN_DEG,
+                ..Flags::default()
+            },
         };
         let s = scan::scan(fp, &local, u, cell, max_len, tan_e);
         m.lines_total = s.lines;
@@ -249,10 +326,17 @@ impl Shared<'_> {
         };
         let z0 = len * tan_e;
         let z_ray = scan::median(&s.tip_roofs).map_or(z0, |r| r - ground_z);
-        let z_hi = (2.0 * z0).max(1.5 * z_ray).max(z0 + 4.0 * cell * tan_e).min(self.opts.max_height_m.max(z0 + cell * tan_e));
-        let sub = local.crop(local::window_for(self.grid, fp.bbox(), u, z_hi / tan_e + cell, 3), self.grid);
+        let z_hi = (2.0 * z0)
+            .max(1.5 * z_ray)
+            .max(z0 + 4.0 * cell * tan_e)
+            .min(self.opts.max_height_m.max(z0 + cell * tan_e));
+        let sub = local.crop(
+            local::window_for(self.grid, fp.bbox(), u, z_hi / tan_e + cell, 3),
+            self.grid,
+        );
         let keep = inlier_bands(&sub, &s, len, (-u.1, u.0), cell);
-        let r = refine::refine(&sub, &keep, self.sun, ground_z, z_hi, cell * tan_e / 4.0).map_err(|e| e.to_string())?;
+        let r = refine::refine(&sub, &keep, self.sun, ground_z, z_hi, cell * tan_e / 4.0)
+            .map_err(|e| e.to_string())?;
         m.shadow_length_m = Some(len);
         m.initial_height_m = Some(z0);
         m.height_m = Some(r.height_m);
@@ -273,7 +357,9 @@ impl Shared<'_> {
                 match self.owner[i] {
                     o if o == id => Some(Class::Own),
                     0 => {
-                        let nodata = self.inputs.colour.data[i][3] == 0 || heights[k].is_nan() || self.terrain_shadow[i] == SHADOW;
+                        let nodata = self.inputs.colour.data[i][3] == 0
+                            || heights[k].is_nan()
+                            || self.terrain_shadow[i] == SHADOW;
                         let masked = self.inputs.mask.is_some_and(|m| m.data[i] == 255);
                         (nodata || masked).then_some(Class::Unusable)
                     }
@@ -282,18 +368,42 @@ impl Shared<'_> {
             })
             .collect();
         // Open ground: from the mask, or below the local threshold of the shadow index.
-        let (is_shadow, threshold): (Box<dyn Fn(usize) -> bool>, Option<f64>) = match self.inputs.mask {
-            Some(mask) => (Box::new(move |i| mask.data[i] != 0), None),
-            None => {
-                let open = (0..n).filter(|&k| base[k].is_none()).map(|k| detect::shadow_index(self.inputs.colour.data[index(k)]));
-                match detect::otsu_threshold(open) {
-                    Some(t) => (Box::new(move |i| detect::shadow_index(self.inputs.colour.data[i]) < t), Some(t)),
-                    None => (Box::new(|_| false), None),
+        let (is_shadow, threshold): (Box<dyn Fn(usize) -> bool>, Option<f64>) =
+            match self.inputs.mask {
+                Some(mask) => (Box::new(move |i| mask.data[i] != 0), None),
+                None => {
+                    let open = (0..n)
+                        .filter(|&k| base[k].is_none())
+                        .map(|k| detect::shadow_index(self.inputs.colour.data[index(k)]));
+                    match detect::otsu_threshold(open) {
+                        Some(t) => (
+                            Box::new(move |i| detect::shadow_index(self.inputs.colour.data[i]) < t),
+                            Some(t),
+                        ),
+                        None => (Box::new(|_| false), None),
+                    }
                 }
-            }
-        };
-        let class = (0..n).map(|k| base[k].unwrap_or_else(|| if is_shadow(index(k)) { Class::Shadow } else { Class::Lit })).collect();
-        (Local { win, grid: self.grid.window_grid(&win), class, heights }, threshold)
+            };
+        let class = (0..n)
+            .map(|k| {
+                base[k].unwrap_or_else(|| {
+                    if is_shadow(index(k)) {
+                        Class::Shadow
+                    } else {
+                        Class::Lit
+                    }
+                })
+            })
+            .collect();
+        (
+            Local {
+                win,
+                grid: self.grid.window_grid(&win),
+                class,
+                heights,
+            },
+            threshold,
+        )
     }
 }
 
@@ -303,17 +413,33 @@ mod tests {
     use super::*;
 
     fn building(x: f64, y: f64, h: f64) -> SynthBuilding {
-        SynthBuilding { centre: (x, y), size: (12.0, 9.0), rotation_deg: 17.0, height_m: h }
+        SynthBuilding {
+            centre: (x, y),
+            size: (12.0, 9.0),
+            rotation_deg: 17.0,
+            height_m: h,
+        }
     }
 
     fn spec(e: f64, az: f64, slope: (f64, f64), buildings: Vec<SynthBuilding>) -> SynthSpec {
-        SynthSpec { cell: 0.5, size: (200, 200), slope, sun: Sun::new(e, az).unwrap(), buildings, supersample: 3 }
+        SynthSpec {
+            cell: 0.5,
+            size: (200, 200),
+            slope,
+            sun: Sun::new(e, az).unwrap(),
+            buildings,
+            supersample: 3,
+        }
     }
 
     /// Measure a generated scene; per building the measurement (or its error) and the truth.
     fn run(s: &SynthSpec) -> Vec<(std::result::Result<Measurement, String>, f64)> {
         let scene = synth_scene(s);
-        let inputs = Inputs { terrain: &scene.terrain, colour: &scene.colour, mask: None };
+        let inputs = Inputs {
+            terrain: &scene.terrain,
+            colour: &scene.colour,
+            mask: None,
+        };
         let out = measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap();
         out.into_iter().zip(scene.height_m).collect()
     }
@@ -324,7 +450,10 @@ mod tests {
             .map(|(m, truth)| {
                 let m = m.unwrap();
                 let h = m.height_m.unwrap_or_else(|| panic!("no height: {m:?}"));
-                assert!((h - truth).abs() <= tol, "height {h:.3} vs truth {truth} (±{tol}): {m:?}");
+                assert!(
+                    (h - truth).abs() <= tol,
+                    "height {h:.3} vs truth {truth} (±{tol}): {m:?}"
+                );
                 m
             })
             .collect()
@@ -332,7 +461,10 @@ mod tests {
 
     #[test]
     fn isolated_building_on_flat_ground_within_a_cell() {
-        let m = assert_within(&spec(40.0, 135.0, (0.0, 0.0), vec![building(40.0, 60.0, 12.0)]), 0.5);
+        let m = assert_within(
+            &spec(40.0, 135.0, (0.0, 0.0), vec![building(40.0, 60.0, 12.0)]),
+            0.5,
+        );
         assert!(m[0].overlap.unwrap() > 0.8, "{m:?}");
         assert!(m[0].flags.names().is_empty(), "{m:?}");
         assert!((m[0].initial_height_m.unwrap() - 12.0).abs() < 1.0);
@@ -340,16 +472,30 @@ mod tests {
 
     #[test]
     fn hard_case_sun_at_89_9_degrees_finds_no_shadow() {
-        let r = run(&spec(89.9, 180.0, (0.0, 0.0), vec![building(50.0, 50.0, 12.0)]));
+        let r = run(&spec(
+            89.9,
+            180.0,
+            (0.0, 0.0),
+            vec![building(50.0, 50.0, 12.0)],
+        ));
         let m = r[0].0.as_ref().unwrap();
         assert_eq!(m.flags.names(), ["no_shadow", "high_sun"]);
         assert_eq!((m.height_m, m.roof_z, m.overlap), (None, None, None));
-        assert!(m.uncertainty_m > 100.0, "one cell of shadow is {} m of height", m.uncertainty_m);
+        assert!(
+            m.uncertainty_m > 100.0,
+            "one cell of shadow is {} m of height",
+            m.uncertainty_m
+        );
     }
 
     #[test]
     fn hard_case_sun_at_0_5_degrees_runs_off_the_grid() {
-        let r = run(&spec(0.5, 180.0, (0.0, 0.0), vec![building(50.0, 20.0, 12.0)]));
+        let r = run(&spec(
+            0.5,
+            180.0,
+            (0.0, 0.0),
+            vec![building(50.0, 20.0, 12.0)],
+        ));
         let m = r[0].0.as_ref().unwrap();
         assert_eq!(m.flags.names(), ["shadow_cut_by_edge_or_nodata", "low_sun"]);
         assert_eq!(m.height_m, None);
@@ -359,7 +505,10 @@ mod tests {
     #[test]
     fn hard_case_azimuth_along_a_grid_axis_and_at_45_degrees() {
         for az in [0.0, 90.0, 180.0, 270.0, 45.0, 225.0] {
-            let b = SynthBuilding { rotation_deg: 0.0, ..building(50.0, 50.0, 10.0) };
+            let b = SynthBuilding {
+                rotation_deg: 0.0,
+                ..building(50.0, 50.0, 10.0)
+            };
             assert_within(&spec(35.0, az, (0.0, 0.0), vec![b]), 0.5);
         }
     }
@@ -369,18 +518,34 @@ mod tests {
         // Sun in the south. Ground rising to the north: the shadow climbs and is short; falling
         // to the north: it runs downhill and is long. The formula is far off; the refinement is not.
         for (slope, formula_low) in [(0.2, true), (-0.2, false)] {
-            let m = assert_within(&spec(30.0, 180.0, (0.0, slope), vec![building(50.0, 40.0, 12.0)]), 0.5);
+            let m = assert_within(
+                &spec(30.0, 180.0, (0.0, slope), vec![building(50.0, 40.0, 12.0)]),
+                0.5,
+            );
             let z0 = m[0].initial_height_m.unwrap();
             assert_eq!(z0 < 12.0, formula_low, "formula {z0}");
-            assert!((z0 - 12.0).abs() > 2.0, "formula {z0} should be off by more than 2 m on a 20 % slope");
+            assert!(
+                (z0 - 12.0).abs() > 2.0,
+                "formula {z0} should be off by more than 2 m on a 20 % slope"
+            );
         }
     }
 
     #[test]
     fn hard_case_shadow_falling_on_a_neighbour() {
         // The neighbour stands in the north-west half of the first building's shadow.
-        let a = SynthBuilding { centre: (40.0, 30.0), size: (12.0, 8.0), rotation_deg: 0.0, height_m: 10.0 };
-        let b = SynthBuilding { centre: (34.0, 44.0), size: (10.0, 8.0), rotation_deg: 0.0, height_m: 6.0 };
+        let a = SynthBuilding {
+            centre: (40.0, 30.0),
+            size: (12.0, 8.0),
+            rotation_deg: 0.0,
+            height_m: 10.0,
+        };
+        let b = SynthBuilding {
+            centre: (34.0, 44.0),
+            size: (10.0, 8.0),
+            rotation_deg: 0.0,
+            height_m: 6.0,
+        };
         let r = run(&spec(40.0, 180.0, (0.0, 0.0), vec![a, b]));
         let m = r[0].0.as_ref().unwrap();
         assert!(m.flags.shadow_on_other_building, "{m:?}");
@@ -394,14 +559,25 @@ mod tests {
     #[test]
     fn hard_case_footprint_touching_the_grid_edge() {
         // South edge of the footprint on the grid's south edge; the sun in the south.
-        let b = SynthBuilding { centre: (50.0, 5.0), size: (12.0, 10.0), rotation_deg: 0.0, height_m: 9.0 };
+        let b = SynthBuilding {
+            centre: (50.0, 5.0),
+            size: (12.0, 10.0),
+            rotation_deg: 0.0,
+            height_m: 9.0,
+        };
         let m = assert_within(&spec(40.0, 180.0, (0.0, 0.0), vec![b]), 0.5);
         assert!(m[0].flags.names().is_empty(), "{m:?}");
         // Its shadow leaving the grid on the north edge is flagged and not measured.
-        let n = SynthBuilding { centre: (50.0, 95.0), ..b };
+        let n = SynthBuilding {
+            centre: (50.0, 95.0),
+            ..b
+        };
         let r = run(&spec(40.0, 180.0, (0.0, 0.0), vec![n]));
         let m = r[0].0.as_ref().unwrap();
-        assert!(m.flags.shadow_cut_by_edge_or_nodata && m.height_m.is_none(), "{m:?}");
+        assert!(
+            m.flags.shadow_cut_by_edge_or_nodata && m.height_m.is_none(),
+            "{m:?}"
+        );
     }
 
     #[test]
@@ -410,10 +586,17 @@ mod tests {
         let scene = synth_scene(&s);
         let far = Footprint::new(vec![vec![vec![(0.0, 0.0), (10.0, 0.0), (10.0, 10.0)]]]).unwrap();
         let fps = vec![scene.footprints[0].clone(), far];
-        let inputs = Inputs { terrain: &scene.terrain, colour: &scene.colour, mask: None };
+        let inputs = Inputs {
+            terrain: &scene.terrain,
+            colour: &scene.colour,
+            mask: None,
+        };
         let out = measure(&inputs, &fps, &s.sun, &Options::default()).unwrap();
         assert!((out[0].as_ref().unwrap().height_m.unwrap() - 8.0).abs() <= 0.5);
-        assert!(out[1].as_ref().unwrap_err().contains("covers no cell centre"));
+        assert!(out[1]
+            .as_ref()
+            .unwrap_err()
+            .contains("covers no cell centre"));
     }
 
     #[test]
@@ -423,15 +606,38 @@ mod tests {
         // A blank photo: detection finds nothing; the mask (the caster's shadow) is what counts.
         let blank = Raster::filled(scene.terrain.grid.clone(), [120u8, 120, 120, 255]);
         let mut raised = scene.terrain.clone();
-        for c in rasterise_prisms(&raised.grid, &[Prism { rings: scene.footprints[0].rings.clone(), roof_z: scene.roof_z[0] }]) {
+        for c in rasterise_prisms(
+            &raised.grid,
+            &[Prism {
+                rings: scene.footprints[0].rings.clone(),
+                roof_z: scene.roof_z[0],
+            }],
+        ) {
             raised.data[c.index] = c.top_z;
         }
         let mask = cast_shadows(&raised, 40.0, 150.0).unwrap();
-        let with = Inputs { terrain: &scene.terrain, colour: &blank, mask: Some(&mask) };
-        let m = measure(&with, &scene.footprints, &s.sun, &Options::default()).unwrap().remove(0).unwrap();
-        assert!((m.height_m.unwrap() - 8.0).abs() <= 0.5 && m.threshold.is_none(), "{m:?}");
-        let without = Inputs { terrain: &scene.terrain, colour: &blank, mask: None };
-        let m = measure(&without, &scene.footprints, &s.sun, &Options::default()).unwrap().remove(0).unwrap();
+        let with = Inputs {
+            terrain: &scene.terrain,
+            colour: &blank,
+            mask: Some(&mask),
+        };
+        let m = measure(&with, &scene.footprints, &s.sun, &Options::default())
+            .unwrap()
+            .remove(0)
+            .unwrap();
+        assert!(
+            (m.height_m.unwrap() - 8.0).abs() <= 0.5 && m.threshold.is_none(),
+            "{m:?}"
+        );
+        let without = Inputs {
+            terrain: &scene.terrain,
+            colour: &blank,
+            mask: None,
+        };
+        let m = measure(&without, &scene.footprints, &s.sun, &Options::default())
+            .unwrap()
+            .remove(0)
+            .unwrap();
         assert!(m.flags.no_shadow && m.height_m.is_none(), "{m:?}");
     }
 
@@ -439,8 +645,15 @@ mod tests {
     fn mismatched_grids_are_an_error_for_the_run() {
         let s = spec(40.0, 180.0, (0.0, 0.0), vec![building(50.0, 50.0, 8.0)]);
         let scene = synth_scene(&s);
-        let other = Raster::filled(Grid::north_up(0.0, 10.0, 1.0, 10, 10, scene.terrain.grid.crs.clone()), 0u8);
-        let inputs = Inputs { terrain: &scene.terrain, colour: &scene.colour, mask: Some(&other) };
+        let other = Raster::filled(
+            Grid::north_up(0.0, 10.0, 1.0, 10, 10, scene.terrain.grid.crs.clone()),
+            0u8,
+        );
+        let inputs = Inputs {
+            terrain: &scene.terrain,
+            colour: &scene.colour,
+            mask: Some(&other),
+        };
         let e = measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap_err();
         assert!(e.to_string().contains("not on the database grid"), "{e}");
     }

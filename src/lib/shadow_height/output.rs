@@ -11,7 +11,12 @@ use serde_json::{json, Map, Value};
 
 /// The output FeatureCollection. `results[k]` belongs to `features[k]`: a measurement, or why
 /// the feature could not be measured (bad footprint or outside the grid).
-pub fn heights_geojson(features: &[InputFeature], results: &[std::result::Result<Measurement, String>], sun: &Sun, epsg: Option<u32>) -> Value {
+pub fn heights_geojson(
+    features: &[InputFeature],
+    results: &[std::result::Result<Measurement, String>],
+    sun: &Sun,
+    epsg: Option<u32>,
+) -> Value {
     let out: Vec<Value> = features
         .iter()
         .zip(results)
@@ -26,7 +31,10 @@ pub fn heights_geojson(features: &[InputFeature], results: &[std::result::Result
                     p.insert("uncertainty_m".into(), json!(m.uncertainty_m));
                     p.insert("ground_z".into(), json!(m.ground_z));
                     p.insert("shadow_length_m".into(), json!(m.shadow_length_m));
-                    p.insert("scan_lines".into(), json!({ "total": m.lines_total, "used": m.lines_used }));
+                    p.insert(
+                        "scan_lines".into(),
+                        json!({ "total": m.lines_total, "used": m.lines_used }),
+                    );
                     p.insert("shadow_threshold".into(), json!(m.threshold));
                     p.insert("flags".into(), json!(m.flags.names()));
                 }

@@ -37,7 +37,14 @@ pub struct Refined {
 /// metres (a quarter of a cell's worth of shadow length is a good choice). Only cells with
 /// `keep[i]` can be in the corridor (the caller drops the bands of scan lines that met other
 /// buildings or disagreed with the median length).
-pub fn refine(local: &Local, keep: &[bool], sun: &Sun, ground_z: f64, z_hi: f64, fine_step: f64) -> Result<Refined> {
+pub fn refine(
+    local: &Local,
+    keep: &[bool],
+    sun: &Sun,
+    ground_z: f64,
+    z_hi: f64,
+    fine_step: f64,
+) -> Result<Refined> {
     // Short shadows (few cells: a high sun) are cast with exact rays: there one cell of the
     // sweep's digital-line approximation is metres of height. Long ones use the O(n) sweep.
     let (cx, cy) = local.grid.cell_size();
@@ -59,35 +66,57 @@ pub fn refine(local: &Local, keep: &[bool], sun: &Sun, ground_z: f64, z_hi: f64,
                 union += (s || o) as usize;
             }
         }
-        Ok(if union == 0 { 0.0 } else { inter as f64 / union as f64 })
+        Ok(if union == 0 {
+            0.0
+        } else {
+            inter as f64 / union as f64
+        })
     };
-    let coarse: Vec<f64> = (0..=COARSE).map(|i| z_hi * i as f64 / COARSE as f64).collect();
-    let scores = coarse.par_iter().map(|&z| score(z)).collect::<Result<Vec<f64>>>()?;
+    let coarse: Vec<f64> = (0..=COARSE)
+        .map(|i| z_hi * i as f64 / COARSE as f64)
+        .collect();
+    let scores = coarse
+        .par_iter()
+        .map(|&z| score(z))
+        .collect::<Result<Vec<f64>>>()?;
     let best = first_max(&scores);
     // The fine grid spans the whole coarse plateau of the best score, one sample beyond each end.
     let mut last = best;
     while last < COARSE && scores[last + 1] >= scores[best] {
         last += 1;
     }
-    let (lo, hi) = (coarse[best.saturating_sub(1)], coarse[(last + 1).min(COARSE)]);
+    let (lo, hi) = (
+        coarse[best.saturating_sub(1)],
+        coarse[(last + 1).min(COARSE)],
+    );
     let step = fine_step.max((hi - lo) / MAX_FINE as f64);
     let n = ((hi - lo) / step).ceil() as usize;
     let fine: Vec<f64> = (0..=n).map(|i| (lo + i as f64 * step).min(hi)).collect();
-    let fine_scores = fine.par_iter().map(|&z| score(z)).collect::<Result<Vec<f64>>>()?;
+    let fine_scores = fine
+        .par_iter()
+        .map(|&z| score(z))
+        .collect::<Result<Vec<f64>>>()?;
     let b = first_max(&fine_scores);
     let top = fine_scores[b];
     let mut e = b;
     while e + 1 < fine.len() && fine_scores[e + 1] >= top {
         e += 1;
     }
-    Ok(Refined { height_m: (fine[b] + fine[e]) / 2.0, overlap: top })
+    Ok(Refined {
+        height_m: (fine[b] + fine[e]) / 2.0,
+        overlap: top,
+    })
 }
 
 /// The caster's mask of `local`'s terrain with the footprint's own cells raised to `roof_z`:
 /// the exact ray-marching reference or the sweep.
 fn cast_at(local: &Local, sun: &Sun, roof_z: f64, exact: bool) -> Result<Vec<u8>> {
-    let heights: Vec<f32> =
-        local.heights.iter().zip(&local.class).map(|(&h, &c)| if c == Class::Own { roof_z as f32 } else { h }).collect();
+    let heights: Vec<f32> = local
+        .heights
+        .iter()
+        .zip(&local.class)
+        .map(|(&h, &c)| if c == Class::Own { roof_z as f32 } else { h })
+        .collect();
     if exact {
         Ok(cast_shadows_reference(&Raster::new(local.grid.clone(), heights), sun)?.data)
     } else {
@@ -110,7 +139,12 @@ mod tests {
         // Flat ground at 100 m, 1 m cells, a 6 × 6 m roof; sun from the south at 45°: a 6.5 m
         // building (the middle of the heights that shadow the same 6 cells) casts 6 cells of shadow.
         let g = Grid::north_up(0.0, 40.0, 1.0, 40, 40, Crs::epsg(32632));
-        let w = Window { col: 0, row: 0, width: 40, height: 40 };
+        let w = Window {
+            col: 0,
+            row: 0,
+            width: 40,
+            height: 40,
+        };
         let sun = Sun::new(45.0, 180.0).unwrap();
         let mut class = vec![Class::Lit; 1600];
         for r in 0..40usize {
@@ -121,7 +155,12 @@ mod tests {
                 }
             }
         }
-        let mut l = Local { win: w, grid: g.window_grid(&w), class, heights: vec![100.0; 1600] };
+        let mut l = Local {
+            win: w,
+            grid: g.window_grid(&w),
+            class,
+            heights: vec![100.0; 1600],
+        };
         let observed = cast_at(&l, &sun, 106.5, true).unwrap();
         for (c, m) in l.class.iter_mut().zip(&observed) {
             if *c == Class::Lit && *m == SHADOW {

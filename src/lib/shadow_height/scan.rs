@@ -36,7 +36,14 @@ pub struct Scan {
 
 /// Scan the footprint's shadow in `local`. `u` is the unit shadow direction (east, north),
 /// `cell` the cell size and `max_len` the longest shadow sought, metres; `tan_e` = tan(elevation).
-pub fn scan(fp: &Footprint, local: &Local, u: (f64, f64), cell: f64, max_len: f64, tan_e: f64) -> Scan {
+pub fn scan(
+    fp: &Footprint,
+    local: &Local,
+    u: (f64, f64),
+    cell: f64,
+    max_len: f64,
+    tan_e: f64,
+) -> Scan {
     let n = (-u.1, u.0);
     let b = fp.bbox();
     let o = ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0);
@@ -44,10 +51,14 @@ pub fn scan(fp: &Footprint, local: &Local, u: (f64, f64), cell: f64, max_len: f6
         let d = (p.0 - o.0, p.1 - o.1);
         (d.0 * u.0 + d.1 * u.1, d.0 * n.0 + d.1 * n.1)
     };
-    let (t_min, t_max) = fp.rings.iter().flatten().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), &p| {
-        let t = proj(p).1;
-        (a.min(t), z.max(t))
-    });
+    let (t_min, t_max) =
+        fp.rings
+            .iter()
+            .flatten()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), &p| {
+                let t = proj(p).1;
+                (a.min(t), z.max(t))
+            });
     let spacing = cell / 2.0;
     let ts: Vec<f64> = if t_max - t_min > 2.0 * cell + spacing {
         let k = ((t_max - t_min - 2.0 * cell) / spacing).floor() as usize;
@@ -55,7 +66,11 @@ pub fn scan(fp: &Footprint, local: &Local, u: (f64, f64), cell: f64, max_len: f6
     } else {
         vec![(t_min + t_max) / 2.0]
     };
-    let mut out = Scan { lines: ts.len(), origin: o, ..Scan::default() };
+    let mut out = Scan {
+        lines: ts.len(),
+        origin: o,
+        ..Scan::default()
+    };
     for t in ts {
         // The line's last exit from the polygon: the largest s of its edge crossings.
         let exit = fp
@@ -148,7 +163,8 @@ impl CellWalk {
     /// Entry distance of the current cell and the cell; then advance.
     fn next_cell(&mut self) -> (f64, Option<(usize, usize)>) {
         let (c, r) = self.cell;
-        let here = (c >= 0 && r >= 0 && c < self.size.0 && r < self.size.1).then_some((c as usize, r as usize));
+        let here = (c >= 0 && r >= 0 && c < self.size.0 && r < self.size.1)
+            .then_some((c as usize, r as usize));
         let t = self.t;
         if self.t_max.0 < self.t_max.1 {
             self.t = self.t_max.0;
@@ -171,7 +187,11 @@ pub fn median(values: &[f64]) -> Option<f64> {
     }
     v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 { v[m] } else { (v[m - 1] + v[m]) / 2.0 })
+    Some(if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        (v[m - 1] + v[m]) / 2.0
+    })
 }
 
 #[cfg(test)]
@@ -184,7 +204,12 @@ mod tests {
     /// long to the north, and `class` at the cells just past the shadow.
     fn local(len: usize, past: Class) -> (Local, Footprint) {
         let g = Grid::north_up(0.0, 40.0, 1.0, 40, 40, Crs::epsg(32632));
-        let w = Window { col: 0, row: 0, width: 40, height: 40 };
+        let w = Window {
+            col: 0,
+            row: 0,
+            width: 40,
+            height: 40,
+        };
         let mut class = vec![Class::Lit; 1600];
         for r in 0..40usize {
             for c in 0..40usize {
@@ -200,8 +225,22 @@ mod tests {
                 }
             }
         }
-        let fp = Footprint::new(vec![vec![vec![(10.0, 10.0), (20.0, 10.0), (20.0, 20.0), (10.0, 20.0)]]]).unwrap();
-        (Local { win: w, grid: g.window_grid(&w), class, heights: vec![5.0; 1600] }, fp)
+        let fp = Footprint::new(vec![vec![vec![
+            (10.0, 10.0),
+            (20.0, 10.0),
+            (20.0, 20.0),
+            (10.0, 20.0),
+        ]]])
+        .unwrap();
+        (
+            Local {
+                win: w,
+                grid: g.window_grid(&w),
+                class,
+                heights: vec![5.0; 1600],
+            },
+            fp,
+        )
     }
 
     #[test]

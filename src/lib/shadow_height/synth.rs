@@ -44,7 +44,12 @@ impl SynthBuilding {
         let (hx, hy) = (self.size.0 / 2.0, self.size.1 / 2.0);
         [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)]
             .iter()
-            .map(|&(x, y)| (ORIGIN_X + self.centre.0 + x * c - y * s, ORIGIN_Y + self.centre.1 + x * s + y * c))
+            .map(|&(x, y)| {
+                (
+                    ORIGIN_X + self.centre.0 + x * c - y * s,
+                    ORIGIN_Y + self.centre.1 + x * s + y * c,
+                )
+            })
             .collect()
     }
 }
@@ -87,16 +92,29 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
     let crs = Crs::epsg(32632);
     let top = ORIGIN_Y + h as f64 * spec.cell;
     let grid = Grid::north_up(ORIGIN_X, top, spec.cell, w, h, crs.clone());
-    let ground = |x: f64, y: f64| BASE_Z + spec.slope.0 * (x - ORIGIN_X) + spec.slope.1 * (y - ORIGIN_Y);
+    let ground =
+        |x: f64, y: f64| BASE_Z + spec.slope.0 * (x - ORIGIN_X) + spec.slope.1 * (y - ORIGIN_Y);
     let terrain = Raster::new(grid.clone(), cells(&grid, |x, y| ground(x, y) as f32));
     let rings: Vec<Vec<(f64, f64)>> = spec.buildings.iter().map(|b| b.ring()).collect();
-    let footprints: Vec<Footprint> = rings.iter().map(|r| Footprint::new(vec![vec![r.clone()]]).expect("valid generated footprint")).collect();
+    let footprints: Vec<Footprint> = rings
+        .iter()
+        .map(|r| Footprint::new(vec![vec![r.clone()]]).expect("valid generated footprint"))
+        .collect();
     let roof_z: Vec<f64> = rings
         .iter()
         .zip(&spec.buildings)
         .map(|(r, b)| {
-            let under = rasterise_prisms(&grid, &[Prism { rings: vec![r.clone()], roof_z: 0.0 }]);
-            let g = under.iter().map(|c| terrain.data[c.index] as f64).fold(f64::NEG_INFINITY, f64::max);
+            let under = rasterise_prisms(
+                &grid,
+                &[Prism {
+                    rings: vec![r.clone()],
+                    roof_z: 0.0,
+                }],
+            );
+            let g = under
+                .iter()
+                .map(|c| terrain.data[c.index] as f64)
+                .fold(f64::NEG_INFINITY, f64::max);
             g + b.height_m
         })
         .collect();
@@ -106,7 +124,13 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
     let mut surface = cells(&fine, |x, y| ground(x, y) as f32);
     let mut roof = vec![false; fine.len()];
     for (r, z) in rings.iter().zip(&roof_z) {
-        for c in rasterise_prisms(&fine, &[Prism { rings: vec![r.clone()], roof_z: *z }]) {
+        for c in rasterise_prisms(
+            &fine,
+            &[Prism {
+                rings: vec![r.clone()],
+                roof_z: *z,
+            }],
+        ) {
             surface[c.index] = *z as f32;
             roof[c.index] = true;
         }
@@ -115,8 +139,16 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
     let fine_rgb: Vec<[f64; 3]> = (0..fine.len())
         .into_par_iter()
         .map(|i| {
-            let base = if roof[i] { [170.0, 95.0, 80.0] } else { grass(i as u64) };
-            let f = if shadow[i] == SHADOW { SHADOW_FACTOR } else { 1.0 };
+            let base = if roof[i] {
+                [170.0, 95.0, 80.0]
+            } else {
+                grass(i as u64)
+            };
+            let f = if shadow[i] == SHADOW {
+                SHADOW_FACTOR
+            } else {
+                1.0
+            };
             [base[0] * f, base[1] * f, base[2] * f]
         })
         .collect();
@@ -132,11 +164,22 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
                 }
             }
             let n = (k * k) as f64;
-            [(sum[0] / n).round() as u8, (sum[1] / n).round() as u8, (sum[2] / n).round() as u8, 255]
+            [
+                (sum[0] / n).round() as u8,
+                (sum[1] / n).round() as u8,
+                (sum[2] / n).round() as u8,
+                255,
+            ]
         })
         .collect();
     let height_m = spec.buildings.iter().map(|b| b.height_m).collect();
-    SynthScene { terrain, colour: Raster::new(grid, colour), footprints, height_m, roof_z }
+    SynthScene {
+        terrain,
+        colour: Raster::new(grid, colour),
+        footprints,
+        height_m,
+        roof_z,
+    }
 }
 
 /// Grass-like texture: a hashed ±15 % brightness variation per fine cell.
