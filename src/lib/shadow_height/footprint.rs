@@ -217,7 +217,8 @@ fn segments_touch(a: (f64, f64), b: (f64, f64), c: (f64, f64), d: (f64, f64)) ->
 /// The first pair of edges (global edge numbers) that touch other than at a shared ring vertex.
 fn first_crossing(rings: &[Vec<(f64, f64)>]) -> Option<(usize, usize)> {
     // (ring, index in ring, a, b) for every edge.
-    let edges: Vec<(usize, usize, (f64, f64), (f64, f64))> = rings
+    type Edge = (usize, usize, (f64, f64), (f64, f64));
+    let edges: Vec<Edge> = rings
         .iter()
         .enumerate()
         .flat_map(|(r, ring)| {
