@@ -181,13 +181,16 @@ fn bad_inputs_fail_cleanly_with_one_line() {
     let far = dir.join("far.tif");
     geotiff::write_f32(&far, &Raster::filled(Grid::north_up(X0 + 1e4, Y0, 1.0, 40, 30, Crs::epsg(32632)), 1.0f32)).unwrap();
     assert_clean_failure(&ingest(&far, &o, &[]), "does not overlap");
-    // Mismatched CRS names both and says how to reproject.
-    let sub = dir.join("crs");
-    std::fs::create_dir(&sub).unwrap();
-    let (d33, o32) = write_inputs(&sub, Crs::epsg(32633), Crs::epsg(32632));
-    let e = ingest(&d33, &o32, &[]);
-    assert_clean_failure(&e, "EPSG:32632");
-    assert!(stderr(&e).contains("EPSG:32633") && stderr(&e).contains("gdalwarp"));
+    // Mismatched CRS names both and says how to reproject (a GDAL build reprojects instead).
+    #[cfg(not(feature = "gdal"))]
+    {
+        let sub = dir.join("crs");
+        std::fs::create_dir(&sub).unwrap();
+        let (d33, o32) = write_inputs(&sub, Crs::epsg(32633), Crs::epsg(32632));
+        let e = ingest(&d33, &o32, &[]);
+        assert_clean_failure(&e, "EPSG:32632");
+        assert!(stderr(&e).contains("EPSG:32633") && stderr(&e).contains("gdalwarp"));
+    }
     // Zero and negative cell sizes.
     assert_clean_failure(&ingest(&d, &o, &["--cell", "0"]), "--cell");
     assert_clean_failure(&ingest(&d, &o, &["--cell=-1"]), "--cell");
@@ -226,4 +229,36 @@ fn nan_cells_in_a_dem_are_nodata() {
 fn opening_a_missing_database_explains_itself() {
     let t = tempfile::tempdir().unwrap();
     assert_clean_failure(&dbms(&["info", s(t.path())]), "not a dbms database");
+}
+
+#[cfg(not(feature = "gdal"))]
+#[test]
+fn t_srs_without_gdal_says_how_to_get_it() {
+    let t = tempfile::tempdir().unwrap();
+    let (d, o) = write_inputs(t.path(), Crs::epsg(32632), Crs::epsg(32632));
+    let out = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "--t-srs", "EPSG:32633", "-o", s(&t.path().join("db"))]);
+    assert_clean_failure(&out, "--features gdal");
+}
+
+/// With GDAL, inputs in different CRSs are reprojected onto the database CRS.
+#[cfg(feature = "gdal")]
+#[test]
+fn gdal_build_reprojects_a_geographic_dem_onto_a_utm_photo() {
+    let t = tempfile::tempdir().unwrap();
+    // A photo in UTM 32N around 500 000 / 5 300 000 (about 47.85 N, 9 E) and a geographic DEM covering it.
+    let pg = Grid::north_up(X0, Y0, 1.0, 100, 100, Crs::epsg(32632));
+    let o = t.path().join("ortho.tif");
+    geotiff::write_rgba8(&o, &Raster::filled(pg, [10, 20, 30, 255])).unwrap();
+    let dg = Grid::north_up(8.99, 47.86, 0.0001, 300, 300, Crs::epsg(4326));
+    let d = t.path().join("dem.tif");
+    geotiff::write_f32(&d, &Raster::filled(dg, 321.0f32)).unwrap();
+    let db = t.path().join("db");
+    let out = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "--t-srs", "EPSG:32632", "--cell", "2", "-o", s(&db), "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["grid"]["crs"]["epsg"], 32632);
+    assert_eq!(v["elevation"]["nodata_cells"], 0);
+    assert_eq!(v["elevation"]["range_m"], serde_json::json!([321.0, 321.0]));
+    let colour = dbms::db::Database::open(&db).unwrap().read_colour().unwrap();
+    assert_eq!(*colour.get(10, 10), [10, 20, 30, 255]);
 }

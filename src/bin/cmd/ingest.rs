@@ -32,6 +32,10 @@ pub struct Args {
     /// UTC time the orthophoto was taken (RFC 3339): lets later stages tell its shadows from new ones.
     #[arg(long, value_name = "TIME")]
     photo_time: Option<String>,
+    /// Database CRS when not the DEM's (EPSG:NNNN, WKT or PROJ); inputs in other CRSs are
+    /// reprojected with GDAL. Needs a build with --features gdal.
+    #[arg(long, value_name = "SRS")]
+    t_srs: Option<String>,
     /// Output database directory.
     #[arg(short, long, value_name = "DB")]
     output: PathBuf,
@@ -51,6 +55,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         fill_voids: args.fill_voids,
         max_cells: args.max_cells,
         photo_time: args.photo_time,
+        t_srs: args.t_srs,
     };
     let progress = ctx.progress(6, "ingest");
     let s = ingest::ingest(&opts, &args.output, &progress)?;

@@ -9,9 +9,12 @@
 
 pub mod fill;
 pub mod resample;
+#[cfg(feature = "gdal")]
+pub mod reproject;
 
 use crate::db::{self, Database, InputFile, Stage};
 use crate::error::{Error, Result};
+use crate::crs::Crs;
 use crate::grid::{Bounds, Grid};
 use crate::io::{self, SourceRaster};
 use crate::progress::Progress;
@@ -43,6 +46,8 @@ pub struct IngestOptions {
     /// UTC time the orthophoto was taken (RFC 3339), when known: later stages use its sun to
     /// tell the photo's own shadows from new ones.
     pub photo_time: Option<String>,
+    /// The database CRS (`EPSG:NNNN`, WKT or PROJ), when not the DEM's; needs feature `gdal`.
+    pub t_srs: Option<String>,
 }
 
 /// What ingest produced, for the summary and `--json`.
@@ -82,18 +87,25 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     progress.inc(1);
     let ortho_src = io::read_raster(&opts.ortho)?;
     progress.inc(1);
-    let grid = plan_grid(&dem_src, &ortho_src, opts)?;
+    let target = target_crs(opts, &dem_src, &ortho_src)?;
+    let grid = plan_grid(&dem_src, &ortho_src, opts, &target)?;
 
-    let dem = dem_src.to_elevation()?;
-    let mut elevation = resample::resample_elevation(&dem, &grid, opts.dem_resampling);
-    drop(dem);
+    let mut elevation = if dem_src.grid.crs.same_as(&grid.crs) {
+        resample::resample_elevation(&dem_src.to_elevation()?, &grid, opts.dem_resampling)
+    } else {
+        warp(&opts.dem, &grid, opts.dem_resampling)?.to_elevation()?
+    };
     progress.inc(1);
     let filled = opts.fill_voids.then(|| fill::fill_voids(&mut elevation) as u64);
     if elevation.min_max().is_none() {
         return Err(Error::file(&opts.dem, "no valid elevation falls inside the database grid")
             .fix("check --bounds, or the DEM's nodata value and extent"));
     }
-    let colour = resample::resample_colour(&ortho_src.to_colour()?, &grid);
+    let colour = if ortho_src.grid.crs.same_as(&grid.crs) {
+        resample::resample_colour(&ortho_src.to_colour()?, &grid)
+    } else {
+        warp(&opts.ortho, &grid, Resampling::Average)?.to_colour()?
+    };
     drop(ortho_src);
     progress.inc(1);
 
@@ -113,7 +125,7 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
         serde_json::json!({
             "dem": opts.dem, "ortho": opts.ortho, "cell": opts.cell, "bounds": opts.bounds,
             "dem_resampling": opts.dem_resampling, "fill_voids": opts.fill_voids,
-            "photo_time": opts.photo_time,
+            "photo_time": opts.photo_time, "t_srs": opts.t_srs,
             "dem_format": dem_src.format, "dem_pixel_is_point": dem_src.pixel_is_point,
         }),
     ));
@@ -132,43 +144,79 @@ fn input_file(role: &str, path: &Path) -> Result<InputFile> {
     Ok(InputFile { role: role.to_string(), path: path.display().to_string(), sha256: db::sha256_file(path)? })
 }
 
+/// The database CRS: `--t-srs` (GDAL builds), else the DEM's, else (DEM without CRS) the photo's.
+fn target_crs(opts: &IngestOptions, dem: &SourceRaster, ortho: &SourceRaster) -> Result<Crs> {
+    if let Some(def) = &opts.t_srs {
+        #[cfg(feature = "gdal")]
+        return reproject::crs_from_definition(def);
+        #[cfg(not(feature = "gdal"))]
+        return Err(Error::msg(format!("--t-srs {def} needs reprojection, which this build lacks"))
+            .fix("build dbms with --features gdal, or reproject the inputs with gdalwarp -t_srs"));
+    }
+    Ok(if dem.grid.crs.is_unknown() { ortho.grid.crs.clone() } else { dem.grid.crs.clone() })
+}
+
+/// The extent of an input in the database CRS: its own, or (GDAL builds) carried across CRSs.
+fn extent_in(src: &SourceRaster, target: &Crs, dem_crs: &Crs) -> Result<Bounds> {
+    if src.grid.crs.same_as(target) {
+        return Ok(src.grid.bounds());
+    }
+    #[cfg(feature = "gdal")]
+    {
+        let _ = dem_crs;
+        reproject::transform_bounds(&src.grid.bounds(), &src.grid.crs, target).map_err(|e| e.in_file(&src.path))
+    }
+    #[cfg(not(feature = "gdal"))]
+    Err(Error::file(&src.path, format!("orthophoto CRS {} differs from the DEM's {}", src.grid.crs.name(), dem_crs.name())).fix(format!(
+        "reproject the photo onto the DEM's CRS (gdalwarp -t_srs {} ...), or build dbms with --features gdal",
+        dem_crs.name()
+    )))
+}
+
+/// Warp an input in another CRS onto the database grid with GDAL.
+fn warp(path: &Path, grid: &Grid, method: Resampling) -> Result<SourceRaster> {
+    #[cfg(feature = "gdal")]
+    {
+        let name = serde_json::to_value(method).expect("enum serialises");
+        io::gdal::warp_to_grid(path, grid, name.as_str().unwrap_or("bilinear"))
+    }
+    #[cfg(not(feature = "gdal"))]
+    {
+        let _ = (grid, method);
+        Err(Error::file(path, "is in another CRS and this build cannot reproject").fix("build dbms with --features gdal"))
+    }
+}
+
 /// Decide the database grid from the inputs and options (see the module docs), checking CRSs,
 /// overlap, cell size and `max_cells`.
-pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions) -> Result<Grid> {
-    let (dcrs, ocrs) = (&dem.grid.crs, &ortho.grid.crs);
-    if !dcrs.same_as(ocrs) {
-        return Err(Error::file(
-            &opts.ortho,
-            format!("orthophoto CRS {} differs from the DEM's {}", ocrs.name(), dcrs.name()),
-        )
-        .fix(format!(
-            "reproject the photo onto the DEM's CRS (gdalwarp -t_srs {} ...), or build dbms with --features gdal",
-            dcrs.name()
-        )));
-    }
-    // An unknown CRS on one side takes the other's: they were judged compatible above.
-    let crs = if dcrs.is_unknown() { ocrs.clone() } else { dcrs.clone() };
+pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions, target: &Crs) -> Result<Grid> {
+    let crs = target.clone();
+    let db = extent_in(dem, target, &dem.grid.crs)?;
+    let ob = extent_in(ortho, target, &dem.grid.crs)?;
+    // A photo carried across CRSs has no lattice in the target; its cell there is estimated.
+    let photo_native = ortho.grid.crs.same_as(target);
     if let Some(cell) = opts.cell {
         if !(cell.is_finite() && cell > 0.0) {
             return Err(Error::msg(format!("--cell {cell} is not a positive size")).fix("give the cell size in metres, e.g. --cell 0.5"));
         }
         if crs.geographic {
-            return Err(Error::file(&opts.dem, format!("the DEM is in geographic coordinates (degrees, {}) but --cell is in metres", crs.name()))
+            return Err(Error::file(&opts.dem, format!("the database CRS is geographic (degrees, {}) but --cell is in metres", crs.name()))
                 .fix("reproject the DEM to a projected CRS first (gdalwarp -t_srs EPSG:326NN for UTM), or build dbms with --features gdal"));
         }
     }
-    let (db, ob) = (dem.grid.bounds(), ortho.grid.bounds());
     let overlap = db.intersection(&ob).ok_or_else(|| {
         Error::file(&opts.ortho, format!("orthophoto extent {} does not overlap the DEM's {}", show(&ob), show(&db)))
             .fix("check that both files cover the same area in the same CRS")
     })?;
     let ot = &ortho.grid.transform;
+    let photo_cell = if photo_native { ot.cell_x.abs() } else { ob.width() / ortho.grid.width as f64 };
     let grid = match (opts.bounds, opts.cell) {
         (Some(b), cell) => {
-            let cell = cell.unwrap_or(ot.cell_x.abs());
+            let cell = cell.unwrap_or(photo_cell);
             with_cells(&b, cell, cell, crs)?
         }
         (None, Some(cell)) => with_cells(&overlap, cell, cell, crs)?,
+        (None, None) if !photo_native => with_cells(&overlap, photo_cell, photo_cell, crs)?,
         (None, None) => {
             // Snap the overlap inward to the photo's lattice: the photo is then copied 1:1.
             let (cx, cy) = (ot.cell_x.abs(), ot.cell_y.abs());
