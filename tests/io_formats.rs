@@ -15,7 +15,9 @@ const H: usize = 15;
 const NODATA_CELLS: [(usize, usize); 2] = [(3, 2), (10, 7)];
 
 fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
 }
 
 fn read(name: &str) -> SourceRaster {
@@ -28,18 +30,36 @@ fn e(c: usize, r: usize) -> i32 {
 }
 
 fn rgb(c: usize, r: usize) -> [u8; 3] {
-    [(10 * c + 5) as u8, (15 * r + 3) as u8, ((7 * c + 11 * r) % 256) as u8]
+    [
+        (10 * c + 5) as u8,
+        (15 * r + 3) as u8,
+        ((7 * c + 11 * r) % 256) as u8,
+    ]
 }
 
 fn alpha(c: usize, r: usize) -> u8 {
-    if (c + r) % 5 == 0 { 0 } else { 255 }
+    if (c + r) % 5 == 0 {
+        0
+    } else {
+        255
+    }
 }
 
 /// The georeference gdalinfo reports for the UTM fixtures: [500000, 30, 0, 5000000, 0, -30].
-const UTM: GeoTransform = GeoTransform { origin_x: 500_000.0, origin_y: 5_000_000.0, cell_x: 30.0, cell_y: -30.0 };
+const UTM: GeoTransform = GeoTransform {
+    origin_x: 500_000.0,
+    origin_y: 5_000_000.0,
+    cell_x: 30.0,
+    cell_y: -30.0,
+};
 
 fn assert_utm(s: &SourceRaster) {
-    assert_eq!((s.grid.width, s.grid.height), (W, H), "{}", s.path.display());
+    assert_eq!(
+        (s.grid.width, s.grid.height),
+        (W, H),
+        "{}",
+        s.path.display()
+    );
     assert_eq!(s.grid.transform, UTM, "{}", s.path.display());
     assert_eq!(s.grid.crs.epsg, Some(32614), "{}", s.path.display());
     assert!(!s.grid.crs.geographic);
@@ -53,8 +73,13 @@ fn cells() -> impl Iterator<Item = (usize, usize)> {
 fn int16_stripped_uncompressed_with_nodata_minus_32768() {
     let s = read("int16_strip_none_nodata.tif");
     assert_utm(&s);
-    assert_eq!((s.format, s.bands, s.nodata, s.pixel_is_point), ("GTiff", 1, Some(-32768.0), false));
-    let Samples::I16(v) = &s.samples else { panic!("expected Int16, got {}", s.samples.type_name()) };
+    assert_eq!(
+        (s.format, s.bands, s.nodata, s.pixel_is_point),
+        ("GTiff", 1, Some(-32768.0), false)
+    );
+    let Samples::I16(v) = &s.samples else {
+        panic!("expected Int16, got {}", s.samples.type_name())
+    };
     let el = s.to_elevation().unwrap();
     for (c, r) in cells() {
         let i = r * W + c;
@@ -73,7 +98,9 @@ fn int16_stripped_uncompressed_with_nodata_minus_32768() {
 fn uint16_tiled_lzw() {
     let s = read("uint16_tiled_lzw.tif");
     assert_utm(&s);
-    let Samples::U16(v) = &s.samples else { panic!("expected UInt16") };
+    let Samples::U16(v) = &s.samples else {
+        panic!("expected UInt16")
+    };
     assert!(cells().all(|(c, r)| v[r * W + c] as i32 == e(c, r)));
     assert_eq!(s.nodata, None);
 }
@@ -82,17 +109,25 @@ fn uint16_tiled_lzw() {
 fn int32_deflate_horizontal_predictor() {
     let s = read("int32_deflate_pred2.tif");
     assert_utm(&s);
-    let Samples::I32(v) = &s.samples else { panic!("expected Int32") };
+    let Samples::I32(v) = &s.samples else {
+        panic!("expected Int32")
+    };
     assert!(cells().all(|(c, r)| v[r * W + c] == 1000 * e(c, r)));
     // 1000·e stays below 2^24, so the elevation is exact.
-    assert_eq!(s.to_elevation().unwrap().data[W + 1], (1000 * e(1, 1)) as f32);
+    assert_eq!(
+        s.to_elevation().unwrap().data[W + 1],
+        (1000 * e(1, 1)) as f32
+    );
 }
 
 #[test]
 fn float32_tiled_deflate_floating_point_predictor_with_nan_cells() {
     let s = read("float32_tiled_deflate_pred3_nan.tif");
     assert_utm(&s);
-    assert!(s.nodata.is_some_and(f64::is_nan), "GDAL_NODATA 'nan' reads as NaN");
+    assert!(
+        s.nodata.is_some_and(f64::is_nan),
+        "GDAL_NODATA 'nan' reads as NaN"
+    );
     let el = s.to_elevation().unwrap();
     for (c, r) in cells() {
         let v = el.data[r * W + c];
@@ -108,9 +143,14 @@ fn float32_tiled_deflate_floating_point_predictor_with_nan_cells() {
 fn float64_lzw_keeps_full_precision() {
     let s = read("float64_lzw.tif");
     assert_utm(&s);
-    let Samples::F64(v) = &s.samples else { panic!("expected Float64") };
+    let Samples::F64(v) = &s.samples else {
+        panic!("expected Float64")
+    };
     assert!(cells().all(|(c, r)| v[r * W + c] == e(c, r) as f64 / 3.0));
-    assert_eq!(s.to_elevation().unwrap().data[5], (e(5, 0) as f64 / 3.0) as f32);
+    assert_eq!(
+        s.to_elevation().unwrap().data[5],
+        (e(5, 0) as f64 / 3.0) as f32
+    );
 }
 
 #[test]
@@ -126,8 +166,18 @@ fn pixel_is_point_is_shifted_to_corner_like_gdal() {
 fn model_transformation_south_up() {
     // gdalinfo: [500000, 30, 0, 4999550, 0, 30]: GDAL writes a ModelTransformation for south-up grids.
     let s = read("model_transformation.tif");
-    assert_eq!(s.grid.transform, GeoTransform { origin_x: 500_000.0, origin_y: 4_999_550.0, cell_x: 30.0, cell_y: 30.0 });
-    let Samples::I16(v) = &s.samples else { panic!() };
+    assert_eq!(
+        s.grid.transform,
+        GeoTransform {
+            origin_x: 500_000.0,
+            origin_y: 4_999_550.0,
+            cell_x: 30.0,
+            cell_y: 30.0
+        }
+    );
+    let Samples::I16(v) = &s.samples else {
+        panic!()
+    };
     assert_eq!(v[0] as i32, e(0, 0));
 }
 
@@ -139,7 +189,10 @@ fn geographic_epsg_4326() {
     // gdalinfo -json: [-97.5, 0.001, 0.0, 33.0, 0.0, -0.001] (0.001 to its printed precision).
     let t = s.grid.transform;
     assert_eq!((t.origin_x, t.origin_y), (-97.5, 33.0));
-    assert!((t.cell_x - 0.001).abs() < 1e-15 && (t.cell_y + 0.001).abs() < 1e-15, "{t:?}");
+    assert!(
+        (t.cell_x - 0.001).abs() < 1e-15 && (t.cell_y + 0.001).abs() < 1e-15,
+        "{t:?}"
+    );
     assert_eq!(s.nodata, Some(-32768.0));
     assert_eq!(s.to_elevation().unwrap().nodata_count(), 2);
 }
@@ -148,7 +201,10 @@ fn geographic_epsg_4326() {
 fn user_defined_crs_has_no_epsg_but_a_name() {
     let s = read("user_defined_crs.tif");
     assert_eq!(s.grid.crs.epsg, None);
-    assert!(!s.grid.crs.is_unknown(), "a user-defined CRS must not match every other CRS");
+    assert!(
+        !s.grid.crs.is_unknown(),
+        "a user-defined CRS must not match every other CRS"
+    );
     assert!(!s.grid.crs.same_as(&Crs::epsg(32614)));
     assert!(!s.grid.crs.geographic);
 }
@@ -157,7 +213,9 @@ fn user_defined_crs_has_no_epsg_but_a_name() {
 fn bigtiff() {
     let s = read("bigtiff.tif");
     assert_utm(&s);
-    let Samples::I16(v) = &s.samples else { panic!() };
+    let Samples::I16(v) = &s.samples else {
+        panic!()
+    };
     assert_eq!(v[W * H - 1] as i32, e(W - 1, H - 1));
 }
 
@@ -174,7 +232,11 @@ fn colour_tiffs_rgb_rgba_grey_planar_and_16_bit() {
         let col = s.to_colour().unwrap();
         for (c, r) in cells() {
             let [red, g, b] = rgb(c, r);
-            let want = if with_alpha && alpha(c, r) == 0 { [0, 0, 0, 0] } else { [red, g, b, 255] };
+            let want = if with_alpha && alpha(c, r) == 0 {
+                [0, 0, 0, 0]
+            } else {
+                [red, g, b, 255]
+            };
             assert_eq!(col.data[r * W + c], want, "{} ({c}, {r})", s.path.display());
         }
     };
@@ -187,8 +249,14 @@ fn colour_tiffs_rgb_rgba_grey_planar_and_16_bit() {
     expect(&s, true);
     expect(&read("rgb8_planar.tif"), false);
     let s = read("rgb16.tif");
-    let Samples::U16(v) = &s.samples else { panic!("expected UInt16") };
-    assert_eq!(v[0], 5 * 257, "gdal_translate -scale 0 255 0 65535 maps v to 257·v");
+    let Samples::U16(v) = &s.samples else {
+        panic!("expected UInt16")
+    };
+    assert_eq!(
+        v[0],
+        5 * 257,
+        "gdal_translate -scale 0 255 0 65535 maps v to 257·v"
+    );
     expect(&s, false);
     let grey = read("grey8.tif").to_colour().unwrap();
     let [red, ..] = rgb(4, 2);
@@ -207,11 +275,19 @@ fn jpeg_compressed_ycbcr_tiff_is_rgb_like_gdal() {
     for (i, px) in col.data.iter().enumerate() {
         for k in 0..3 {
             let d = (px[k] as i32 - gdal[3 * i + k] as i32).abs();
-            assert!(d <= 6, "pixel {i} band {k}: {} vs GDAL {}", px[k], gdal[3 * i + k]);
+            assert!(
+                d <= 6,
+                "pixel {i} band {k}: {} vs GDAL {}",
+                px[k],
+                gdal[3 * i + k]
+            );
             total += d as usize;
         }
     }
-    assert!(total < col.data.len() * 3, "mean difference from GDAL must stay below one level: {total}");
+    assert!(
+        total < col.data.len() * 3,
+        "mean difference from GDAL must stay below one level: {total}"
+    );
 }
 
 #[test]
@@ -219,8 +295,16 @@ fn ascii_grid_with_prj() {
     let s = read("grid.asc");
     assert_utm(&s);
     assert_eq!(s.format, "AAIGrid");
-    assert!(s.grid.crs.wkt.as_deref().is_some_and(|w| w.starts_with("PROJCS[\"WGS 84 / UTM zone 14N\"")));
-    assert_eq!(s.samples, Samples::I32(cells().map(|(c, r)| e(c, r)).collect()));
+    assert!(s
+        .grid
+        .crs
+        .wkt
+        .as_deref()
+        .is_some_and(|w| w.starts_with("PROJCS[\"WGS 84 / UTM zone 14N\"")));
+    assert_eq!(
+        s.samples,
+        Samples::I32(cells().map(|(c, r)| e(c, r)).collect())
+    );
 }
 
 #[test]
@@ -231,7 +315,11 @@ fn png_with_world_file_and_prj() {
     let col = s.to_colour().unwrap();
     for (c, r) in cells() {
         let [red, g, b] = rgb(c, r);
-        let want = if alpha(c, r) == 0 { [0, 0, 0, 0] } else { [red, g, b, 255] };
+        let want = if alpha(c, r) == 0 {
+            [0, 0, 0, 0]
+        } else {
+            [red, g, b, 255]
+        };
         assert_eq!(col.data[r * W + c], want);
     }
 }
@@ -243,10 +331,17 @@ fn jpeg_with_world_file_matches_gdal_within_jpeg_tolerance() {
     assert_utm(&s); // ortho.prj is shared by stem with ortho.png
     let col = s.to_colour().unwrap();
     // gdallocationinfo on the same file (ortho_jpg_values.txt); decoders' IDCTs may differ slightly.
-    for (c, r, want) in [(0, 0, [0u8, 5, 0]), (7, 4, [73, 64, 91]), (19, 14, [195, 218, 26])] {
+    for (c, r, want) in [
+        (0, 0, [0u8, 5, 0]),
+        (7, 4, [73, 64, 91]),
+        (19, 14, [195, 218, 26]),
+    ] {
         let got = col.data[r * W + c];
         for k in 0..3 {
-            assert!((got[k] as i32 - want[k] as i32).abs() <= 2, "({c}, {r}): {got:?} vs GDAL {want:?}");
+            assert!(
+                (got[k] as i32 - want[k] as i32).abs() <= 2,
+                "({c}, {r}): {got:?} vs GDAL {want:?}"
+            );
         }
         assert_eq!(got[3], 255);
     }
@@ -257,7 +352,10 @@ fn bad(name: &str, problem: &str) {
     let err = read_raster(&data(name)).expect_err(name).to_string();
     assert!(!err.contains('\n'), "{err}");
     assert!(err.starts_with(&data(name).display().to_string()), "{err}");
-    assert!(err.contains(problem), "{name}: expected '{problem}' in: {err}");
+    assert!(
+        err.contains(problem),
+        "{name}: expected '{problem}' in: {err}"
+    );
 }
 
 #[test]
@@ -267,7 +365,10 @@ fn bad_inputs_are_one_line_errors_naming_the_file() {
         bad("not_a_raster.tif", "not a raster GDAL can open");
         bad("empty.tif", "not a raster GDAL can open");
     } else {
-        bad("not_a_raster.tif", "not a TIFF, ASCII grid, PNG or JPEG file");
+        bad(
+            "not_a_raster.tif",
+            "not a TIFF, ASCII grid, PNG or JPEG file",
+        );
         bad("empty.tif", "empty file");
     }
     bad("rotated.tif", "rotated");
@@ -280,35 +381,77 @@ fn bad_inputs_are_one_line_errors_naming_the_file() {
 fn writers_round_trip_bit_exactly_through_read() {
     let dir = tempfile::tempdir().unwrap();
     let grid = Grid::north_up(500_000.0, 5_000_000.0, 0.5, 37, 23, Crs::epsg(32614));
-    let el = Raster::new(grid.clone(), (0..grid.len()).map(|i| if i % 11 == 0 { f32::NAN } else { (i as f32).sin() * 1e3 }).collect());
+    let el = Raster::new(
+        grid.clone(),
+        (0..grid.len())
+            .map(|i| {
+                if i % 11 == 0 {
+                    f32::NAN
+                } else {
+                    (i as f32).sin() * 1e3
+                }
+            })
+            .collect(),
+    );
     let p = dir.path().join("el.tif");
     geotiff::write_f32(&p, &el).unwrap();
     let back = read_raster(&p).unwrap().to_elevation().unwrap();
     assert_eq!(back.grid, grid);
-    assert!(back.data.iter().zip(&el.data).all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())));
+    assert!(back
+        .data
+        .iter()
+        .zip(&el.data)
+        .all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())));
 
-    let col: Colour = Raster::new(grid.clone(), (0..grid.len()).map(|i| if i % 7 == 0 { [0; 4] } else { [i as u8, (i / 3) as u8, 200, 255] }).collect());
+    let col: Colour = Raster::new(
+        grid.clone(),
+        (0..grid.len())
+            .map(|i| {
+                if i % 7 == 0 {
+                    [0; 4]
+                } else {
+                    [i as u8, (i / 3) as u8, 200, 255]
+                }
+            })
+            .collect(),
+    );
     let p = dir.path().join("col.tif");
     geotiff::write_rgba8(&p, &col).unwrap();
     assert_eq!(read_raster(&p).unwrap().to_colour().unwrap(), col);
 
-    let mask = Raster::new(grid.clone(), (0..grid.len()).map(|i| [0u8, 1, 255][i % 3]).collect());
+    let mask = Raster::new(
+        grid.clone(),
+        (0..grid.len()).map(|i| [0u8, 1, 255][i % 3]).collect(),
+    );
     let p = dir.path().join("mask.tif");
     geotiff::write_u8(&p, &mask, Some(255)).unwrap();
     let s = read_raster(&p).unwrap();
-    assert_eq!((s.samples, s.nodata), (Samples::U8(mask.data.clone()), Some(255.0)));
+    assert_eq!(
+        (s.samples, s.nodata),
+        (Samples::U8(mask.data.clone()), Some(255.0))
+    );
 }
 
 /// GDAL's view of a file we wrote, or `None` (with a message) when gdalinfo is not installed.
 fn gdalinfo(path: &Path) -> Option<serde_json::Value> {
-    let out = match std::process::Command::new("gdalinfo").arg("-json").arg("-stats").arg(path).output() {
+    let out = match std::process::Command::new("gdalinfo")
+        .arg("-json")
+        .arg("-stats")
+        .arg(path)
+        .output()
+    {
         Ok(o) => o,
         Err(_) => {
             println!("skipped: gdalinfo not found");
             return None;
         }
     };
-    assert!(out.status.success(), "gdalinfo rejected {}: {}", path.display(), String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "gdalinfo rejected {}: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
     Some(serde_json::from_slice(&out.stdout).unwrap())
 }
 
@@ -316,12 +459,23 @@ fn gdalinfo(path: &Path) -> Option<serde_json::Value> {
 fn gdal_reads_our_geotiffs() {
     let dir = tempfile::tempdir().unwrap();
     let grid = Grid::north_up(500_000.0, 5_000_000.0, 2.0, 8, 6, Crs::epsg(32614));
-    let el = Raster::new(grid.clone(), (0..grid.len()).map(|i| if i == 5 { f32::NAN } else { i as f32 + 0.5 }).collect());
+    let el = Raster::new(
+        grid.clone(),
+        (0..grid.len())
+            .map(|i| if i == 5 { f32::NAN } else { i as f32 + 0.5 })
+            .collect(),
+    );
     let p = dir.path().join("el.tif");
     geotiff::write_f32(&p, &el).unwrap();
     let Some(info) = gdalinfo(&p) else { return };
-    assert_eq!(info["geoTransform"], serde_json::json!([500000.0, 2.0, 0.0, 5000000.0, 0.0, -2.0]));
-    assert!(info["coordinateSystem"]["wkt"].as_str().unwrap().ends_with("ID[\"EPSG\",32614]]"));
+    assert_eq!(
+        info["geoTransform"],
+        serde_json::json!([500000.0, 2.0, 0.0, 5000000.0, 0.0, -2.0])
+    );
+    assert!(info["coordinateSystem"]["wkt"]
+        .as_str()
+        .unwrap()
+        .ends_with("ID[\"EPSG\",32614]]"));
     let band = &info["bands"][0];
     assert_eq!(band["type"], "Float32");
     assert_eq!(band["noDataValue"], -9999.0);
@@ -330,14 +484,36 @@ fn gdal_reads_our_geotiffs() {
     assert_eq!(info["metadata"][""]["AREA_OR_POINT"], "Area");
 
     let geo = Grid::north_up(-97.5, 33.0, 0.25, 4, 4, Crs::epsg(4326));
-    let col: Colour = Raster::new(geo, (0..16u8).map(|i| if i == 0 { [0; 4] } else { [i, 2 * i, 3 * i, 255] }).collect());
+    let col: Colour = Raster::new(
+        geo,
+        (0..16u8)
+            .map(|i| {
+                if i == 0 {
+                    [0; 4]
+                } else {
+                    [i, 2 * i, 3 * i, 255]
+                }
+            })
+            .collect(),
+    );
     let p = dir.path().join("col.tif");
     geotiff::write_rgba8(&p, &col).unwrap();
     let info = gdalinfo(&p).unwrap();
-    let interp: Vec<_> = info["bands"].as_array().unwrap().iter().map(|b| b["colorInterpretation"].as_str().unwrap().to_string()).collect();
+    let interp: Vec<_> = info["bands"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["colorInterpretation"].as_str().unwrap().to_string())
+        .collect();
     assert_eq!(interp, ["Red", "Green", "Blue", "Alpha"]);
-    assert!(info["coordinateSystem"]["wkt"].as_str().unwrap().ends_with("ID[\"EPSG\",4326]]"));
-    assert_eq!(info["geoTransform"], serde_json::json!([-97.5, 0.25, 0.0, 33.0, 0.0, -0.25]));
+    assert!(info["coordinateSystem"]["wkt"]
+        .as_str()
+        .unwrap()
+        .ends_with("ID[\"EPSG\",4326]]"));
+    assert_eq!(
+        info["geoTransform"],
+        serde_json::json!([-97.5, 0.25, 0.0, 33.0, 0.0, -0.25])
+    );
 
     let mask = Raster::new(grid, (0..48u8).map(|i| i % 2).collect());
     let p = dir.path().join("mask.tif");
@@ -351,23 +527,37 @@ fn gdal_reads_our_geotiffs() {
 #[cfg(feature = "gdal")]
 mod with_gdal {
     use super::*;
-    use dbms::io::gdal;
     use ::gdal::spatial_ref::{AxisMappingStrategy, CoordTransform, SpatialRef};
+    use dbms::io::gdal;
 
     #[test]
     fn dted_reads_through_gdal() {
         let s = read("n32_w098.dt0");
         assert_eq!(s.format, "GDAL:DTED");
-        assert_eq!((s.grid.width, s.grid.height, s.grid.crs.epsg), (121, 121, Some(4326)));
+        assert_eq!(
+            (s.grid.width, s.grid.height, s.grid.crs.epsg),
+            (121, 121, Some(4326))
+        );
         assert!(s.grid.crs.geographic && s.pixel_is_point);
         // gdalinfo -json: [-98.0041666666666629, 0.0083333333333333, 0, 33.00416666666667, 0, -0.0083333333333333].
         let t = s.grid.transform;
-        assert!((t.origin_x + 98.004_166_666_666_66).abs() < 1e-12 && (t.origin_y - 33.00416666666667).abs() < 1e-12, "{t:?}");
-        assert!((t.cell_x - 1.0 / 120.0).abs() < 1e-12 && (t.cell_y + 1.0 / 120.0).abs() < 1e-12, "{t:?}");
-        let Samples::I16(v) = &s.samples else { panic!("expected Int16") };
+        assert!(
+            (t.origin_x + 98.004_166_666_666_66).abs() < 1e-12
+                && (t.origin_y - 33.00416666666667).abs() < 1e-12,
+            "{t:?}"
+        );
+        assert!(
+            (t.cell_x - 1.0 / 120.0).abs() < 1e-12 && (t.cell_y + 1.0 / 120.0).abs() < 1e-12,
+            "{t:?}"
+        );
+        let Samples::I16(v) = &s.samples else {
+            panic!("expected Int16")
+        };
         // gdallocationinfo n32_w098.dt0 5 7 → 101 = 100 + 3·5 − 2·7.
         assert_eq!(v[7 * 121 + 5], 101);
-        assert!((0..121usize).all(|r| (0..121usize).all(|c| v[r * 121 + c] as i32 == 100 + 3 * c as i32 - 2 * r as i32)));
+        assert!((0..121usize)
+            .all(|r| (0..121usize)
+                .all(|c| v[r * 121 + c] as i32 == 100 + 3 * c as i32 - 2 * r as i32)));
     }
 
     #[test]
@@ -375,29 +565,50 @@ mod with_gdal {
         let vrt = read("int16.vrt");
         let tif = read("int16_strip_none_nodata.tif");
         assert_eq!(vrt.format, "GDAL:VRT");
-        assert_eq!((vrt.grid.transform, vrt.grid.crs.epsg), (tif.grid.transform, Some(32614)));
+        assert_eq!(
+            (vrt.grid.transform, vrt.grid.crs.epsg),
+            (tif.grid.transform, Some(32614))
+        );
         assert_eq!((vrt.samples, vrt.nodata), (tif.samples, tif.nodata));
     }
 
     #[test]
     fn gdal_read_agrees_with_our_geotiff_reader() {
-        for name in ["float32_tiled_deflate_pred3_nan.tif", "rgba8.tif", "geographic_4326.tif", "pixel_is_point.tif"] {
+        for name in [
+            "float32_tiled_deflate_pred3_nan.tif",
+            "rgba8.tif",
+            "geographic_4326.tif",
+            "pixel_is_point.tif",
+        ] {
             let ours = read(name);
             let theirs = gdal::read(&data(name)).unwrap();
             assert_eq!(theirs.grid.transform, ours.grid.transform, "{name}");
             assert_eq!(theirs.grid.crs.epsg, ours.grid.crs.epsg, "{name}");
-            assert_eq!((theirs.bands, theirs.alpha_band, theirs.pixel_is_point), (ours.bands, ours.alpha_band, ours.pixel_is_point), "{name}");
-            assert_eq!(format!("{:?}", theirs.samples), format!("{:?}", ours.samples), "{name}"); // NaN-safe
+            assert_eq!(
+                (theirs.bands, theirs.alpha_band, theirs.pixel_is_point),
+                (ours.bands, ours.alpha_band, ours.pixel_is_point),
+                "{name}"
+            );
+            assert_eq!(
+                format!("{:?}", theirs.samples),
+                format!("{:?}", ours.samples),
+                "{name}"
+            ); // NaN-safe
         }
     }
 
     #[test]
     fn warp_onto_the_same_grid_is_identity() {
         let src = read("int16_strip_none_nodata.tif");
-        let w = gdal::warp_to_grid(&data("int16_strip_none_nodata.tif"), &src.grid, "nearest").unwrap();
+        let w =
+            gdal::warp_to_grid(&data("int16_strip_none_nodata.tif"), &src.grid, "nearest").unwrap();
         let (a, b) = (w.to_elevation().unwrap(), src.to_elevation().unwrap());
         assert_eq!(a.grid, b.grid);
-        assert_eq!(format!("{:?}", a.data), format!("{:?}", b.data), "values and nodata cells must match");
+        assert_eq!(
+            format!("{:?}", a.data),
+            format!("{:?}", b.data),
+            "values and nodata cells must match"
+        );
         let rgba = read("rgba8.tif");
         let w = gdal::warp_to_grid(&data("rgba8.tif"), &rgba.grid, "nearest").unwrap();
         assert_eq!((w.bands, w.alpha_band), (4, Some(3)));
@@ -416,14 +627,21 @@ mod with_gdal {
         for r in 0..H - 1 {
             for c in 0..W - 1 {
                 let want = (1000.0 + 37.0 * (c as f64 + 0.5) - 53.0 * (r as f64 + 0.5)) / 3.0;
-                assert!((el.data[r * W + c] as f64 - want).abs() < 1e-3, "({c}, {r}): {} vs {want}", el.data[r * W + c]);
+                assert!(
+                    (el.data[r * W + c] as f64 - want).abs() < 1e-3,
+                    "({c}, {r}): {} vs {want}",
+                    el.data[r * W + c]
+                );
             }
         }
         // The last column's centre lies half a cell past the source's last centre, inside its edge cell:
         // GDAL extrapolates there; one more cell east would be outside.
         g.transform.origin_x += 30.0 * W as f64;
         let outside = gdal::warp_to_grid(&data("float64_lzw.tif"), &g, "bilinear").unwrap();
-        assert!(outside.to_elevation().is_err(), "a grid wholly outside the source has no valid cell");
+        assert!(
+            outside.to_elevation().is_err(),
+            "a grid wholly outside the source has no valid cell"
+        );
     }
 
     #[test]
@@ -453,7 +671,11 @@ mod with_gdal {
                 if !(0.01..0.99).contains(&fx) || !(0.01..0.99).contains(&fy) {
                     continue; // too close to a cell edge to be sure which cell "nearest" picks
                 }
-                assert_eq!(v, e(px as usize, py as usize) as f32, "cell ({c}, {r}) at UTM pixel ({px:.3}, {py:.3})");
+                assert_eq!(
+                    v,
+                    e(px as usize, py as usize) as f32,
+                    "cell ({c}, {r}) at UTM pixel ({px:.3}, {py:.3})"
+                );
                 checked += 1;
             }
         }

@@ -15,9 +15,9 @@ use crate::grid::{GeoTransform, Grid};
 use crate::raster::{Colour, Raster};
 use rayon::prelude::*;
 use std::io::{BufReader, Seek, Write};
-use tiff::encoder::compression::{CompressionAlgorithm, Deflate, DeflateLevel};
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::encoder::compression::{CompressionAlgorithm, Deflate, DeflateLevel};
 use tiff::tags::{ExtraSamples, Tag};
 use tiff::{TiffError, TiffResult};
 
@@ -63,14 +63,24 @@ pub const F32_NODATA: f32 = -9999.0;
 fn corrupt(path: &Path, e: TiffError) -> Error {
     match e {
         TiffError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
-            Error::file(path, "corrupt or truncated TIFF: file ends early").fix("re-create or re-download the file")
+            Error::file(path, "corrupt or truncated TIFF: file ends early")
+                .fix("re-create or re-download the file")
         }
         TiffError::LimitsExceeded => Error::file(path, "image too large to read into memory")
             .fix("cut it into tiles with gdal_retile.py or gdal_translate -srcwin"),
-        TiffError::UnsupportedError(u) => Error::file(path, format!("unsupported TIFF layout: {u}"))
-            .fix("convert it: gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=1 in.tif out.tif"),
-        other => Error::file(path, format!("corrupt or truncated TIFF: {}", other.to_string().replace('\n', " ")))
-            .fix("re-create the file, or check it with gdalinfo"),
+        TiffError::UnsupportedError(u) => {
+            Error::file(path, format!("unsupported TIFF layout: {u}")).fix(
+                "convert it: gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=1 in.tif out.tif",
+            )
+        }
+        other => Error::file(
+            path,
+            format!(
+                "corrupt or truncated TIFF: {}",
+                other.to_string().replace('\n', " ")
+            ),
+        )
+        .fix("re-create the file, or check it with gdalinfo"),
     }
 }
 
@@ -86,10 +96,14 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         l.ifd_value_size = 64 << 20;
         l
     };
-    let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| corrupt(path, e))?.with_limits(limits);
+    let mut dec = Decoder::new(BufReader::new(file))
+        .map_err(|e| corrupt(path, e))?
+        .with_limits(limits);
     let err = |e| corrupt(path, e);
     let (width, height) = dec.dimensions().map_err(err)?;
-    let photometric: Option<u16> = dec.find_tag_unsigned(Tag::PhotometricInterpretation).map_err(err)?;
+    let photometric: Option<u16> = dec
+        .find_tag_unsigned(Tag::PhotometricInterpretation)
+        .map_err(err)?;
     let compression: Option<u16> = dec.find_tag_unsigned(Tag::Compression).map_err(err)?;
     let ycbcr = match (photometric, compression) {
         (Some(PHOTOMETRIC_WHITE_IS_ZERO), _) => {
@@ -98,25 +112,38 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
                 .fix("rewrite it: gdal_translate -co PHOTOMETRIC=MINISBLACK in.tif out.tif"));
         }
         (Some(PHOTOMETRIC_PALETTE), _) => {
-            return Err(Error::file(path, "palette (colour-mapped) TIFF").fix("expand it: gdal_translate -expand rgba in.tif out.tif"));
+            return Err(Error::file(path, "palette (colour-mapped) TIFF")
+                .fix("expand it: gdal_translate -expand rgba in.tif out.tif"));
         }
         (Some(PHOTOMETRIC_YCBCR), Some(COMPRESSION_JPEG)) => true,
         (Some(PHOTOMETRIC_YCBCR), _) => {
-            return Err(Error::file(path, "YCbCr colour without JPEG compression is not supported")
-                .fix("rewrite it: gdal_translate -co PHOTOMETRIC=RGB in.tif out.tif"));
+            return Err(Error::file(
+                path,
+                "YCbCr colour without JPEG compression is not supported",
+            )
+            .fix("rewrite it: gdal_translate -co PHOTOMETRIC=RGB in.tif out.tif"));
         }
         _ => false,
     };
     let color = dec.colortype().map_err(err)?;
     if !matches!(color.bit_depth(), 8 | 16 | 32 | 64) {
-        return Err(Error::file(path, format!("{}-bit samples are not supported", color.bit_depth()))
-            .fix("convert it: gdal_translate -ot Byte in.tif out.tif"));
+        return Err(Error::file(
+            path,
+            format!("{}-bit samples are not supported", color.bit_depth()),
+        )
+        .fix("convert it: gdal_translate -ot Byte in.tif out.tif"));
     }
     let bands = color.num_samples() as usize;
-    let extra: Vec<u16> = dec.find_tag_unsigned_vec(Tag::ExtraSamples).map_err(err)?.unwrap_or_default();
+    let extra: Vec<u16> = dec
+        .find_tag_unsigned_vec(Tag::ExtraSamples)
+        .map_err(err)?
+        .unwrap_or_default();
     let alpha_band = extra
         .iter()
-        .position(|&e| e == ExtraSamples::AssociatedAlpha.to_u16() || e == ExtraSamples::UnassociatedAlpha.to_u16())
+        .position(|&e| {
+            e == ExtraSamples::AssociatedAlpha.to_u16()
+                || e == ExtraSamples::UnassociatedAlpha.to_u16()
+        })
         .map(|i| bands - extra.len() + i);
     let tags = GeoTags::read(&mut dec).map_err(err)?;
 
@@ -125,8 +152,14 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
     let pixels = width as usize * height as usize;
     let mut samples = samples_from(path, buf)?;
     if samples.len() != pixels * bands {
-        return Err(Error::file(path, format!("decoded {} samples, expected {width} × {height} × {bands}", samples.len()))
-            .fix("convert it: gdal_translate -co INTERLEAVE=PIXEL in.tif out.tif"));
+        return Err(Error::file(
+            path,
+            format!(
+                "decoded {} samples, expected {width} × {height} × {bands}",
+                samples.len()
+            ),
+        )
+        .fix("convert it: gdal_translate -co INTERLEAVE=PIXEL in.tif out.tif"));
     }
     if layout.planes > 1 {
         samples = interleave(samples, bands);
@@ -135,7 +168,12 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         // The decoder leaves JPEG's YCbCr as stored; GDAL (libjpeg) returns RGB.
         match &mut samples {
             Samples::U8(v) if bands >= 3 => v.par_chunks_mut(bands).for_each(ycbcr_to_rgb),
-            _ => return Err(Error::file(path, "YCbCr TIFF that is not 8-bit with 3 colour bands").fix("rewrite it: gdal_translate -co PHOTOMETRIC=RGB in.tif out.tif")),
+            _ => {
+                return Err(
+                    Error::file(path, "YCbCr TIFF that is not 8-bit with 3 colour bands")
+                        .fix("rewrite it: gdal_translate -co PHOTOMETRIC=RGB in.tif out.tif"),
+                )
+            }
         }
     }
 
@@ -148,10 +186,19 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         })?,
     };
     tags.check_no_scale_offset(path)?;
-    let crs = if crs.is_unknown() { super::read_prj(path)? } else { crs };
+    let crs = if crs.is_unknown() {
+        super::read_prj(path)?
+    } else {
+        crs
+    };
     Ok(SourceRaster {
         path: path.to_path_buf(),
-        grid: Grid { width: width as usize, height: height as usize, transform, crs },
+        grid: Grid {
+            width: width as usize,
+            height: height as usize,
+            transform,
+            crs,
+        },
         bands,
         samples,
         nodata: tags.nodata(path)?,
@@ -183,8 +230,10 @@ fn samples_from(path: &Path, buf: DecodingResult) -> Result<Samples> {
         DecodingResult::I8(v) => Samples::I16(v.into_iter().map(i16::from).collect()),
         DecodingResult::F16(v) => Samples::F32(v.into_iter().map(|x| x.to_f32()).collect()),
         DecodingResult::U64(_) | DecodingResult::I64(_) => {
-            return Err(Error::file(path, "64-bit integer samples are not supported")
-                .fix("convert it: gdal_translate -ot Float64 in.tif out.tif"))
+            return Err(
+                Error::file(path, "64-bit integer samples are not supported")
+                    .fix("convert it: gdal_translate -ot Float64 in.tif out.tif"),
+            )
         }
     })
 }
@@ -193,7 +242,10 @@ fn samples_from(path: &Path, buf: DecodingResult) -> Result<Samples> {
 fn interleave(samples: Samples, bands: usize) -> Samples {
     fn go<T: Copy + Send + Sync>(v: Vec<T>, bands: usize) -> Vec<T> {
         let n = v.len() / bands;
-        (0..v.len()).into_par_iter().map(|i| v[(i % bands) * n + i / bands]).collect()
+        (0..v.len())
+            .into_par_iter()
+            .map(|i| v[(i % bands) * n + i / bands])
+            .collect()
     }
     match samples {
         Samples::U8(v) => Samples::U8(go(v, bands)),
@@ -229,8 +281,14 @@ enum KeyValue {
 
 impl GeoTags {
     fn read<R: std::io::Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<GeoTags> {
-        let f64s = |dec: &mut Decoder<R>, t| dec.find_tag(t).and_then(|v| v.map(|v| v.into_f64_vec()).transpose());
-        let text = |dec: &mut Decoder<R>, t| dec.find_tag(t).and_then(|v| v.map(|v| v.into_string()).transpose());
+        let f64s = |dec: &mut Decoder<R>, t| {
+            dec.find_tag(t)
+                .and_then(|v| v.map(|v| v.into_f64_vec()).transpose())
+        };
+        let text = |dec: &mut Decoder<R>, t| {
+            dec.find_tag(t)
+                .and_then(|v| v.map(|v| v.into_string()).transpose())
+        };
         Ok(GeoTags {
             pixel_scale: f64s(dec, Tag::ModelPixelScaleTag)?,
             tiepoints: f64s(dec, Tag::ModelTiepointTag)?,
@@ -245,13 +303,20 @@ impl GeoTags {
 
     /// The GeoKeys as (id, value), in file order. Malformed directories are an error.
     fn keys(&self, path: &Path) -> Result<Vec<(u16, KeyValue)>> {
-        let Some(dir) = &self.geokeys else { return Ok(Vec::new()) };
-        let bad = |what: &str| Error::file(path, format!("corrupt GeoKeyDirectory: {what}")).fix("re-create the georeference with gdal_translate -a_srs");
+        let Some(dir) = &self.geokeys else {
+            return Ok(Vec::new());
+        };
+        let bad = |what: &str| {
+            Error::file(path, format!("corrupt GeoKeyDirectory: {what}"))
+                .fix("re-create the georeference with gdal_translate -a_srs")
+        };
         if dir.len() < 4 {
             return Err(bad("too short"));
         }
         let n = dir[3] as usize;
-        let entries = dir.get(4..4 + 4 * n).ok_or_else(|| bad("fewer keys than it declares"))?;
+        let entries = dir
+            .get(4..4 + 4 * n)
+            .ok_or_else(|| bad("fewer keys than it declares"))?;
         entries
             .chunks_exact(4)
             .map(|e| {
@@ -259,13 +324,23 @@ impl GeoTags {
                 let value = match loc {
                     0 => KeyValue::Short(off as u16),
                     34736 => KeyValue::Doubles(
-                        self.doubles.as_ref().and_then(|d| d.get(off..off + count)).ok_or_else(|| bad("double out of range"))?.to_vec(),
+                        self.doubles
+                            .as_ref()
+                            .and_then(|d| d.get(off..off + count))
+                            .ok_or_else(|| bad("double out of range"))?
+                            .to_vec(),
                     ),
                     34737 => {
-                        let s = self.ascii.as_deref().and_then(|a| a.get(off..off + count)).ok_or_else(|| bad("text out of range"))?;
+                        let s = self
+                            .ascii
+                            .as_deref()
+                            .and_then(|a| a.get(off..off + count))
+                            .ok_or_else(|| bad("text out of range"))?;
                         KeyValue::Ascii(s.trim_end_matches(['|', '\0']).to_string())
                     }
-                    34735 => KeyValue::Short(*dir.get(off).ok_or_else(|| bad("short out of range"))?),
+                    34735 => {
+                        KeyValue::Short(*dir.get(off).ok_or_else(|| bad("short out of range"))?)
+                    }
                     _ => return Err(bad("unknown value location")),
                 };
                 Ok((id, value))
@@ -281,10 +356,28 @@ impl GeoTags {
     /// names it (so it compares unequal to every EPSG CRS instead of matching anything).
     fn crs(&self, path: &Path) -> Result<(Crs, bool)> {
         let keys = self.keys(path)?;
-        let short = |id| keys.iter().find(|(k, _)| *k == id).and_then(|(_, v)| if let KeyValue::Short(s) = v { Some(*s) } else { None });
-        let text = |id| keys.iter().find(|(k, _)| *k == id).and_then(|(_, v)| if let KeyValue::Ascii(s) = v { Some(s.clone()) } else { None });
+        let short = |id| {
+            keys.iter().find(|(k, _)| *k == id).and_then(|(_, v)| {
+                if let KeyValue::Short(s) = v {
+                    Some(*s)
+                } else {
+                    None
+                }
+            })
+        };
+        let text = |id| {
+            keys.iter().find(|(k, _)| *k == id).and_then(|(_, v)| {
+                if let KeyValue::Ascii(s) = v {
+                    Some(s.clone())
+                } else {
+                    None
+                }
+            })
+        };
         let point = short(key::GT_RASTER_TYPE) == Some(key::RASTER_PIXEL_IS_POINT);
-        if let Some(wkt) = text(key::GT_CITATION).and_then(|c| c.strip_prefix(ESRI_PE_STRING).map(str::to_string)) {
+        if let Some(wkt) =
+            text(key::GT_CITATION).and_then(|c| c.strip_prefix(ESRI_PE_STRING).map(str::to_string))
+        {
             if let Some(crs) = crs_from_wkt(&wkt) {
                 return Ok((crs, point));
             }
@@ -298,19 +391,34 @@ impl GeoTags {
         });
         let (code, citation_keys, is_geo) = match model {
             Some(key::MODEL_PROJECTED) => (projected, [key::PCS_CITATION, key::GT_CITATION], false),
-            Some(key::MODEL_GEOGRAPHIC) => (geographic, [key::GEOG_CITATION, key::GT_CITATION], true),
+            Some(key::MODEL_GEOGRAPHIC) => {
+                (geographic, [key::GEOG_CITATION, key::GT_CITATION], true)
+            }
             Some(other) => {
-                return Err(Error::file(path, format!("unsupported GeoTIFF model type {other} (geocentric?)"))
-                    .fix("reproject it: gdalwarp -t_srs EPSG:CODE in.tif out.tif"))
+                return Err(Error::file(
+                    path,
+                    format!("unsupported GeoTIFF model type {other} (geocentric?)"),
+                )
+                .fix("reproject it: gdalwarp -t_srs EPSG:CODE in.tif out.tif"))
             }
             None => return Ok((Crs::unknown(), point)),
         };
         let crs = match code {
-            Some(c) if c != key::USER_DEFINED && c != 0 => Crs { geographic: is_geo, ..Crs::epsg(c as u32) },
+            Some(c) if c != key::USER_DEFINED && c != 0 => Crs {
+                geographic: is_geo,
+                ..Crs::epsg(c as u32)
+            },
             _ => {
-                let name = citation_keys.iter().find_map(|&k| text(k)).unwrap_or_else(|| "user-defined".to_string());
+                let name = citation_keys
+                    .iter()
+                    .find_map(|&k| text(k))
+                    .unwrap_or_else(|| "user-defined".to_string());
                 let name = name.replace('"', "'");
-                Crs { epsg: None, wkt: Some(format!("LOCAL_CS[\"{name}\"]")), geographic: is_geo }
+                Crs {
+                    epsg: None,
+                    wkt: Some(format!("LOCAL_CS[\"{name}\"]")),
+                    geographic: is_geo,
+                }
             }
         };
         Ok((crs, point))
@@ -321,13 +429,27 @@ impl GeoTags {
         let t = match (&self.transformation, &self.tiepoints, &self.pixel_scale) {
             (Some(m), _, _) => {
                 if m.len() < 8 {
-                    return Err(Error::file(path, "ModelTransformation has fewer than 16 values").fix("re-create the georeference with gdal_translate"));
+                    return Err(
+                        Error::file(path, "ModelTransformation has fewer than 16 values")
+                            .fix("re-create the georeference with gdal_translate"),
+                    );
                 }
                 if m[1] != 0.0 || m[4] != 0.0 {
-                    return Err(Error::file(path, format!("rotated or sheared georeference (ModelTransformation terms {}, {})", m[1], m[4]))
-                        .fix("make it north-up first: gdalwarp in.tif out.tif"));
+                    return Err(Error::file(
+                        path,
+                        format!(
+                            "rotated or sheared georeference (ModelTransformation terms {}, {})",
+                            m[1], m[4]
+                        ),
+                    )
+                    .fix("make it north-up first: gdalwarp in.tif out.tif"));
                 }
-                GeoTransform { origin_x: m[3], origin_y: m[7], cell_x: m[0], cell_y: m[5] }
+                GeoTransform {
+                    origin_x: m[3],
+                    origin_y: m[7],
+                    cell_x: m[0],
+                    cell_y: m[5],
+                }
             }
             (None, Some(tp), Some(sc)) if tp.len() == 6 && sc.len() >= 2 => GeoTransform {
                 origin_x: tp[3] - tp[0] * sc[0],
@@ -336,19 +458,44 @@ impl GeoTags {
                 cell_y: -sc[1],
             },
             (None, Some(tp), _) if tp.len() >= 6 => {
-                return Err(Error::file(path, format!("georeferenced by {} ground control points, not a grid", tp.len() / 6))
-                    .fix("warp it onto a north-up grid first: gdalwarp in.tif out.tif"))
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "georeferenced by {} ground control points, not a grid",
+                        tp.len() / 6
+                    ),
+                )
+                .fix("warp it onto a north-up grid first: gdalwarp in.tif out.tif"))
             }
             _ => return Ok(None),
         };
-        let GeoTransform { origin_x, origin_y, cell_x, cell_y } = t;
-        if ![origin_x, origin_y, cell_x, cell_y].iter().all(|v| v.is_finite()) || cell_x <= 0.0 || cell_y == 0.0 {
-            return Err(Error::file(path, format!("bad georeference (origin {origin_x}, {origin_y}; cell {cell_x} × {cell_y})"))
-                .fix("assign one: gdal_translate -a_ullr ULX ULY LRX LRY in.tif out.tif"));
+        let GeoTransform {
+            origin_x,
+            origin_y,
+            cell_x,
+            cell_y,
+        } = t;
+        if ![origin_x, origin_y, cell_x, cell_y]
+            .iter()
+            .all(|v| v.is_finite())
+            || cell_x <= 0.0
+            || cell_y == 0.0
+        {
+            return Err(Error::file(
+                path,
+                format!(
+                    "bad georeference (origin {origin_x}, {origin_y}; cell {cell_x} × {cell_y})"
+                ),
+            )
+            .fix("assign one: gdal_translate -a_ullr ULX ULY LRX LRY in.tif out.tif"));
         }
         Ok(Some(if pixel_is_point {
             // The tiepoint is a pixel centre: the corner is half a cell up and left (GDAL does the same).
-            GeoTransform { origin_x: origin_x - 0.5 * cell_x, origin_y: origin_y - 0.5 * cell_y, ..t }
+            GeoTransform {
+                origin_x: origin_x - 0.5 * cell_x,
+                origin_y: origin_y - 0.5 * cell_y,
+                ..t
+            }
         } else {
             t
         }))
@@ -356,28 +503,36 @@ impl GeoTags {
 
     /// The GDAL_NODATA value: a number, `nan`, `inf` or `-inf`.
     fn nodata(&self, path: &Path) -> Result<Option<f64>> {
-        let Some(s) = &self.nodata else { return Ok(None) };
+        let Some(s) = &self.nodata else {
+            return Ok(None);
+        };
         let s = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
         if s.is_empty() {
             return Ok(None);
         }
         s.parse::<f64>().map(Some).map_err(|_| {
-            Error::file(path, format!("GDAL_NODATA tag '{s}' is not a number")).fix("set it: gdal_edit.py -a_nodata VALUE in.tif")
+            Error::file(path, format!("GDAL_NODATA tag '{s}' is not a number"))
+                .fix("set it: gdal_edit.py -a_nodata VALUE in.tif")
         })
     }
 
     /// GDAL stores band scale/offset in its metadata XML; values would need `v·scale + offset`,
     /// which we do not apply, so refuse rather than return unscaled numbers.
     fn check_no_scale_offset(&self, path: &Path) -> Result<()> {
-        let Some(xml) = &self.metadata else { return Ok(()) };
+        let Some(xml) = &self.metadata else {
+            return Ok(());
+        };
         for (role, identity) in [("scale", 1.0), ("offset", 0.0)] {
             let needle = format!("role=\"{role}\">");
             for (at, _) in xml.match_indices(&needle) {
                 let rest = &xml[at + needle.len()..];
                 let value = rest.split('<').next().unwrap_or("").trim();
                 if value.parse::<f64>() != Ok(identity) {
-                    return Err(Error::file(path, format!("band {role} {value} is set (values are not in their final units)"))
-                        .fix("apply it: gdal_translate -unscale -ot Float32 in.tif out.tif"));
+                    return Err(Error::file(
+                        path,
+                        format!("band {role} {value} is set (values are not in their final units)"),
+                    )
+                    .fix("apply it: gdal_translate -unscale -ot Float32 in.tif out.tif"));
                 }
             }
         }
@@ -391,10 +546,24 @@ impl GeoTags {
 pub fn write_f32(path: &Path, r: &Raster<f32>) -> Result<()> {
     if let Some(i) = r.data.par_iter().position_first(|&v| v == F32_NODATA) {
         let w = r.width().max(1);
-        return Err(Error::file(path, format!("cell ({}, {}) holds {F32_NODATA}, the nodata value of our GeoTIFFs", i % w, i / w))
-            .fix("offset the heights or mark that cell as nodata"));
+        return Err(Error::file(
+            path,
+            format!(
+                "cell ({}, {}) holds {F32_NODATA}, the nodata value of our GeoTIFFs",
+                i % w,
+                i / w
+            ),
+        )
+        .fix("offset the heights or mark that cell as nodata"));
     }
-    let spec = Spec { samples: 1, bytes: 4, float: true, rgb: false, alpha: false, nodata: Some("-9999".into()) };
+    let spec = Spec {
+        samples: 1,
+        bytes: 4,
+        float: true,
+        rgb: false,
+        alpha: false,
+        nodata: Some("-9999".into()),
+    };
     write_tiled(path, &r.grid, &spec, |row, cols, out| {
         for &v in &r.data[row * r.width() + cols.start..row * r.width() + cols.end] {
             out.extend_from_slice(&if v.is_nan() { F32_NODATA } else { v }.to_le_bytes());
@@ -405,16 +574,32 @@ pub fn write_f32(path: &Path, r: &Raster<f32>) -> Result<()> {
 /// Write an RGBA8 GeoTIFF (ExtraSamples = unassociated alpha, so GDAL/QGIS treat band 4 as the
 /// mask); same georeference as [`write_f32`]. Tiled, Deflate with horizontal predictor.
 pub fn write_rgba8(path: &Path, r: &Colour) -> Result<()> {
-    let spec = Spec { samples: 4, bytes: 1, float: false, rgb: true, alpha: true, nodata: None };
+    let spec = Spec {
+        samples: 4,
+        bytes: 1,
+        float: false,
+        rgb: true,
+        alpha: true,
+        nodata: None,
+    };
     write_tiled(path, &r.grid, &spec, |row, cols, out| {
-        out.extend_from_slice(r.data[row * r.width() + cols.start..row * r.width() + cols.end].as_flattened())
+        out.extend_from_slice(
+            r.data[row * r.width() + cols.start..row * r.width() + cols.end].as_flattened(),
+        )
     })
 }
 
 /// Write a single-band 8-bit GeoTIFF with an optional nodata value (used for masks: 1 = shadow,
 /// 0 = lit, 255 nodata). Tiled, Deflate with horizontal predictor.
 pub fn write_u8(path: &Path, r: &Raster<u8>, nodata: Option<u8>) -> Result<()> {
-    let spec = Spec { samples: 1, bytes: 1, float: false, rgb: false, alpha: false, nodata: nodata.map(|v| v.to_string()) };
+    let spec = Spec {
+        samples: 1,
+        bytes: 1,
+        float: false,
+        rgb: false,
+        alpha: false,
+        nodata: nodata.map(|v| v.to_string()),
+    };
     write_tiled(path, &r.grid, &spec, |row, cols, out| {
         out.extend_from_slice(&r.data[row * r.width() + cols.start..row * r.width() + cols.end])
     })
@@ -494,7 +679,10 @@ where
     }
     let (across, down) = (w.div_ceil(TILE), h.div_ceil(TILE));
     if u32::try_from(w).is_err() || u32::try_from(h).is_err() {
-        return Err(Error::file(path, format!("{w} × {h} cells is too large for a TIFF")));
+        return Err(Error::file(
+            path,
+            format!("{w} × {h} cells is too large for a TIFF"),
+        ));
     }
     let tile_len = TILE * TILE * spec.pixel_bytes();
     let tile = |tx: usize, ty: usize| -> Vec<u8> {
@@ -515,10 +703,17 @@ where
     };
     super::atomic::write_atomic(path, |out| {
         let io = |e| Error::io(path, e);
-        let header: &[u8] = if big { b"II\x2b\x00\x08\x00\x00\x00\0\0\0\0\0\0\0\0" } else { b"II\x2a\x00\0\0\0\0" };
+        let header: &[u8] = if big {
+            b"II\x2b\x00\x08\x00\x00\x00\0\0\0\0\0\0\0\0"
+        } else {
+            b"II\x2a\x00\0\0\0\0"
+        };
         out.write_all(header).map_err(io)?;
         let mut pos = header.len() as u64;
-        let (mut offsets, mut counts) = (Vec::with_capacity(across * down), Vec::with_capacity(across * down));
+        let (mut offsets, mut counts) = (
+            Vec::with_capacity(across * down),
+            Vec::with_capacity(across * down),
+        );
         for ty in 0..down {
             let tiles: Vec<Vec<u8>> = (0..across).into_par_iter().map(|tx| tile(tx, ty)).collect();
             for t in tiles {
@@ -534,10 +729,14 @@ where
         }
         let ifd = ifd_bytes(&ifd_entries(grid, spec, offsets, counts, big), pos, big);
         if !big && pos + ifd.len() as u64 > u32::MAX as u64 {
-            return Err(Error::file(path, "compressed data exceeds the 4 GiB of a classic TIFF").fix("write a smaller raster (tile it)"));
+            return Err(
+                Error::file(path, "compressed data exceeds the 4 GiB of a classic TIFF")
+                    .fix("write a smaller raster (tile it)"),
+            );
         }
         out.write_all(&ifd).map_err(io)?;
-        out.seek(std::io::SeekFrom::Start(if big { 8 } else { 4 })).map_err(io)?;
+        out.seek(std::io::SeekFrom::Start(if big { 8 } else { 4 }))
+            .map_err(io)?;
         if big {
             out.write_all(&pos.to_le_bytes()).map_err(io)?;
         } else {
@@ -560,10 +759,26 @@ impl Field {
     /// TIFF type code, count and little-endian bytes.
     fn encode(&self) -> (u16, u64, Vec<u8>) {
         match self {
-            Field::Short(v) => (3, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
-            Field::Long(v) => (4, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
-            Field::Long8(v) => (16, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
-            Field::Double(v) => (12, v.len() as u64, v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            Field::Short(v) => (
+                3,
+                v.len() as u64,
+                v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
+            Field::Long(v) => (
+                4,
+                v.len() as u64,
+                v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
+            Field::Long8(v) => (
+                16,
+                v.len() as u64,
+                v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
+            Field::Double(v) => (
+                12,
+                v.len() as u64,
+                v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            ),
             Field::Ascii(s) => {
                 let mut b = s.as_bytes().to_vec();
                 b.push(0);
@@ -574,10 +789,22 @@ impl Field {
 }
 
 /// The tags of an image we write, sorted by tag number as TIFF requires.
-fn ifd_entries(grid: &Grid, spec: &Spec, offsets: Vec<u64>, counts: Vec<u64>, big: bool) -> Vec<(u16, Field)> {
+fn ifd_entries(
+    grid: &Grid,
+    spec: &Spec,
+    offsets: Vec<u64>,
+    counts: Vec<u64>,
+    big: bool,
+) -> Vec<(u16, Field)> {
     let n = spec.samples as usize;
     let long = |v: u64| Field::Long(vec![v as u32]);
-    let chunks = |v: Vec<u64>| if big { Field::Long8(v) } else { Field::Long(v.into_iter().map(|x| x as u32).collect()) };
+    let chunks = |v: Vec<u64>| {
+        if big {
+            Field::Long8(v)
+        } else {
+            Field::Long(v.into_iter().map(|x| x as u32).collect())
+        }
+    };
     let t = &grid.transform;
     let mut e = vec![
         (256, long(grid.width as u64)),
@@ -595,13 +822,22 @@ fn ifd_entries(grid: &Grid, spec: &Spec, offsets: Vec<u64>, counts: Vec<u64>, bi
         (339, Field::Short(vec![if spec.float { 3 } else { 1 }; n])),
     ];
     if spec.alpha {
-        e.push((338, Field::Short(vec![ExtraSamples::UnassociatedAlpha.to_u16()])));
+        e.push((
+            338,
+            Field::Short(vec![ExtraSamples::UnassociatedAlpha.to_u16()]),
+        ));
     }
     if t.cell_y < 0.0 {
         e.push((33550, Field::Double(vec![t.cell_x, -t.cell_y, 0.0])));
-        e.push((33922, Field::Double(vec![0.0, 0.0, 0.0, t.origin_x, t.origin_y, 0.0])));
+        e.push((
+            33922,
+            Field::Double(vec![0.0, 0.0, 0.0, t.origin_x, t.origin_y, 0.0]),
+        ));
     } else {
-        let m = vec![t.cell_x, 0.0, 0.0, t.origin_x, 0.0, t.cell_y, 0.0, t.origin_y, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        let m = vec![
+            t.cell_x, 0.0, 0.0, t.origin_x, 0.0, t.cell_y, 0.0, t.origin_y, 0.0, 0.0, 0.0, 0.0,
+            0.0, 0.0, 0.0, 1.0,
+        ];
         e.push((34264, Field::Double(m)));
     }
     let (keys, ascii) = geokeys(&grid.crs);
@@ -663,7 +899,10 @@ fn ifd_bytes(entries: &[(u16, Field)], at: u64, big: bool) -> Vec<u8> {
 fn geokeys(crs: &Crs) -> (Vec<u16>, Option<String>) {
     let mut entries: Vec<[u16; 4]> = vec![[key::GT_RASTER_TYPE, 0, 1, key::RASTER_PIXEL_IS_AREA]];
     let mut ascii = None;
-    let wkt = crs.wkt.as_deref().filter(|w| w.is_ascii() && !w.contains('|'));
+    let wkt = crs
+        .wkt
+        .as_deref()
+        .filter(|w| w.is_ascii() && !w.contains('|'));
     let code = match (crs.epsg, wkt) {
         (Some(c), _) if c < key::USER_DEFINED as u32 => Some(c as u16),
         (_, Some(w)) => {
@@ -704,7 +943,23 @@ mod tests {
     fn f32_round_trip_is_bit_exact_with_nan_as_nodata() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("e.tif");
-        let data = vec![1.0, f32::NAN, -3.5, 1e-7, 8848.86, 0.0, -0.0, f32::MIN_POSITIVE, 12.0, 1e30, 2.0, 3.0, 4.0, 5.0, f32::NAN];
+        let data = vec![
+            1.0,
+            f32::NAN,
+            -3.5,
+            1e-7,
+            8848.86,
+            0.0,
+            -0.0,
+            f32::MIN_POSITIVE,
+            12.0,
+            1e30,
+            2.0,
+            3.0,
+            4.0,
+            5.0,
+            f32::NAN,
+        ];
         let r = Raster::new(grid(Crs::epsg(32614)), data.clone());
         write_f32(&p, &r).unwrap();
         let s = read(&p).unwrap();
@@ -712,11 +967,18 @@ mod tests {
         assert_eq!(s.nodata, Some(-9999.0));
         let e = s.to_elevation().unwrap();
         for (a, b) in e.data.iter().zip(&data) {
-            assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{a} vs {b}");
+            assert!(
+                a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                "{a} vs {b}"
+            );
         }
         let again = dir.path().join("e2.tif");
         write_f32(&again, &r).unwrap();
-        assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&again).unwrap(), "output must be deterministic");
+        assert_eq!(
+            std::fs::read(&p).unwrap(),
+            std::fs::read(&again).unwrap(),
+            "output must be deterministic"
+        );
     }
 
     #[test]
@@ -726,11 +988,24 @@ mod tests {
         let p = dir.path().join("big.tif");
         let g = Grid::north_up(0.0, 600.0, 1.0, 300, 270, Crs::epsg(32614));
         let data: Vec<u8> = (0..g.len()).map(|i| (i * 7 % 251) as u8).collect();
-        let spec = Spec { samples: 1, bytes: 1, float: false, rgb: false, alpha: false, nodata: Some("255".into()) };
-        write_tiff(&p, &g, &spec, true, |row, cols, out| out.extend_from_slice(&data[row * 300 + cols.start..row * 300 + cols.end])).unwrap();
+        let spec = Spec {
+            samples: 1,
+            bytes: 1,
+            float: false,
+            rgb: false,
+            alpha: false,
+            nodata: Some("255".into()),
+        };
+        write_tiff(&p, &g, &spec, true, |row, cols, out| {
+            out.extend_from_slice(&data[row * 300 + cols.start..row * 300 + cols.end])
+        })
+        .unwrap();
         assert_eq!(&std::fs::read(&p).unwrap()[..4], b"II\x2b\x00");
         let s = read(&p).unwrap();
-        assert_eq!((s.grid, s.samples, s.nodata), (g, Samples::U8(data), Some(255.0)));
+        assert_eq!(
+            (s.grid, s.samples, s.nodata),
+            (g, Samples::U8(data), Some(255.0))
+        );
     }
 
     #[test]
@@ -744,7 +1019,18 @@ mod tests {
     fn rgba_and_u8_round_trip() {
         let dir = tempfile::tempdir().unwrap();
         let g = grid(Crs::epsg(4326));
-        let c = Raster::new(g.clone(), (0..15u8).map(|i| if i == 3 { NODATA_COLOUR } else { [i, 2 * i, 255 - i, 255] }).collect());
+        let c = Raster::new(
+            g.clone(),
+            (0..15u8)
+                .map(|i| {
+                    if i == 3 {
+                        NODATA_COLOUR
+                    } else {
+                        [i, 2 * i, 255 - i, 255]
+                    }
+                })
+                .collect(),
+        );
         let p = dir.path().join("c.tif");
         write_rgba8(&p, &c).unwrap();
         let s = read(&p).unwrap();
@@ -764,8 +1050,13 @@ mod tests {
     #[test]
     fn wkt_only_crs_round_trips_through_citation() {
         let dir = tempfile::tempdir().unwrap();
-        let wkt = r#"PROJCS["Local_Grid",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984"]],UNIT["Meter",1.0]]"#;
-        let crs = Crs { epsg: None, wkt: Some(wkt.to_string()), geographic: false };
+        let wkt =
+            r#"PROJCS["Local_Grid",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984"]],UNIT["Meter",1.0]]"#;
+        let crs = Crs {
+            epsg: None,
+            wkt: Some(wkt.to_string()),
+            geographic: false,
+        };
         let r = Raster::new(grid(crs.clone()), vec![1.0; 15]);
         let p = dir.path().join("w.tif");
         write_f32(&p, &r).unwrap();
@@ -774,29 +1065,67 @@ mod tests {
 
     #[test]
     fn tiepoint_scale_and_pixel_is_point() {
-        let tags = GeoTags { tiepoints: Some(vec![2.0, 1.0, 0.0, 100.0, 200.0, 0.0]), pixel_scale: Some(vec![10.0, 5.0, 0.0]), ..Default::default() };
+        let tags = GeoTags {
+            tiepoints: Some(vec![2.0, 1.0, 0.0, 100.0, 200.0, 0.0]),
+            pixel_scale: Some(vec![10.0, 5.0, 0.0]),
+            ..Default::default()
+        };
         let t = tags.transform(Path::new("x"), false).unwrap().unwrap();
-        assert_eq!(t, GeoTransform { origin_x: 80.0, origin_y: 205.0, cell_x: 10.0, cell_y: -5.0 });
+        assert_eq!(
+            t,
+            GeoTransform {
+                origin_x: 80.0,
+                origin_y: 205.0,
+                cell_x: 10.0,
+                cell_y: -5.0
+            }
+        );
         let t = tags.transform(Path::new("x"), true).unwrap().unwrap();
-        assert_eq!(t, GeoTransform { origin_x: 75.0, origin_y: 207.5, cell_x: 10.0, cell_y: -5.0 });
+        assert_eq!(
+            t,
+            GeoTransform {
+                origin_x: 75.0,
+                origin_y: 207.5,
+                cell_x: 10.0,
+                cell_y: -5.0
+            }
+        );
     }
 
     #[test]
     fn rotation_and_gcps_are_errors() {
         let mut m = vec![0.0; 16];
         (m[0], m[1], m[3], m[4], m[5], m[7]) = (1.0, 0.2, 0.0, 0.0, -1.0, 0.0);
-        let tags = GeoTags { transformation: Some(m), ..Default::default() };
-        let e = tags.transform(Path::new("r.tif"), false).unwrap_err().to_string();
+        let tags = GeoTags {
+            transformation: Some(m),
+            ..Default::default()
+        };
+        let e = tags
+            .transform(Path::new("r.tif"), false)
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("r.tif: rotated"), "{e}");
-        let tags = GeoTags { tiepoints: Some(vec![0.0; 18]), ..Default::default() };
-        let e = tags.transform(Path::new("g.tif"), false).unwrap_err().to_string();
+        let tags = GeoTags {
+            tiepoints: Some(vec![0.0; 18]),
+            ..Default::default()
+        };
+        let e = tags
+            .transform(Path::new("g.tif"), false)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("3 ground control points"), "{e}");
     }
 
     #[test]
     fn geokeys_user_defined_citation() {
-        let keys = [1u16, 1, 0, 3, 1024, 0, 1, 1, 1026, 34737, 8, 0, 3072, 0, 1, 32767];
-        let tags = GeoTags { geokeys: Some(keys.to_vec()), ascii: Some("My Grid|".into()), ..Default::default() };
+        let keys = [
+            1u16, 1, 0, 3, 1024, 0, 1, 1, 1026, 34737, 8, 0, 3072, 0, 1, 32767,
+        ];
+        let tags = GeoTags {
+            geokeys: Some(keys.to_vec()),
+            ascii: Some("My Grid|".into()),
+            ..Default::default()
+        };
         let (crs, point) = tags.crs(Path::new("x")).unwrap();
         assert!(!point);
         assert_eq!(crs.epsg, None);
@@ -806,11 +1135,18 @@ mod tests {
 
     #[test]
     fn scale_offset_metadata_is_refused() {
-        let xml = r#"<GDALMetadata><Item name="SCALE" sample="0" role="scale">0.1</Item></GDALMetadata>"#;
-        let tags = GeoTags { metadata: Some(xml.into()), ..Default::default() };
+        let xml =
+            r#"<GDALMetadata><Item name="SCALE" sample="0" role="scale">0.1</Item></GDALMetadata>"#;
+        let tags = GeoTags {
+            metadata: Some(xml.into()),
+            ..Default::default()
+        };
         assert!(tags.check_no_scale_offset(Path::new("x")).is_err());
         let xml = r#"<GDALMetadata><Item name="OFFSET" sample="0" role="offset">0</Item><Item name="SCALE" sample="0" role="scale">1</Item></GDALMetadata>"#;
-        let tags = GeoTags { metadata: Some(xml.into()), ..Default::default() };
+        let tags = GeoTags {
+            metadata: Some(xml.into()),
+            ..Default::default()
+        };
         assert!(tags.check_no_scale_offset(Path::new("x")).is_ok());
     }
 }

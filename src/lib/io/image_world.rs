@@ -24,7 +24,10 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
     let format = match reader.format() {
         Some(image::ImageFormat::Png) => "PNG",
         Some(image::ImageFormat::Jpeg) => "JPEG",
-        _ => return Err(Error::file(path, "not a PNG or JPEG image").fix("give a PNG or JPEG with a world file")),
+        _ => {
+            return Err(Error::file(path, "not a PNG or JPEG image")
+                .fix("give a PNG or JPEG with a world file"))
+        }
     };
     let mut reader = reader;
     let mut limits = image::Limits::default();
@@ -44,7 +47,12 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
     let crs = read_prj(path)?;
     Ok(SourceRaster {
         path: path.to_path_buf(),
-        grid: Grid { width, height, transform, crs },
+        grid: Grid {
+            width,
+            height,
+            transform,
+            crs,
+        },
         bands,
         samples,
         nodata: None,
@@ -66,8 +74,10 @@ fn samples_of(path: &Path, img: DynamicImage) -> Result<(Samples, usize, Option<
         DynamicImage::ImageRgb16(i) => (Samples::U16(i.into_raw()), 3, None),
         DynamicImage::ImageRgba16(i) => (Samples::U16(i.into_raw()), 4, Some(3)),
         other => {
-            return Err(Error::file(path, format!("unsupported pixel type {:?}", other.color()))
-                .fix("convert it to 8-bit RGB or RGBA"))
+            return Err(
+                Error::file(path, format!("unsupported pixel type {:?}", other.color()))
+                    .fix("convert it to 8-bit RGB or RGBA"),
+            )
         }
     })
 }
@@ -76,12 +86,18 @@ fn samples_of(path: &Path, img: DynamicImage) -> Result<(Samples, usize, Option<
 /// `.tfw`), `<ext>w` (`.pngw`, `.jpgw`, `.tifw`), the common ones for PNG/JPEG/TIFF, and `.wld`.
 fn world_file_candidates(path: &Path) -> Vec<String> {
     let mut exts = Vec::new();
-    if let Some(ext) = path.extension().and_then(|e| e.to_str()).filter(|e| e.len() >= 2) {
+    if let Some(ext) = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .filter(|e| e.len() >= 2)
+    {
         let (first, last) = (&ext[..1], &ext[ext.len() - 1..]);
         exts.push(format!("{first}{last}w"));
         exts.push(format!("{ext}w"));
     }
-    for e in ["pgw", "pngw", "jgw", "jpgw", "jpegw", "tfw", "tifw", "tiffw", "wld"] {
+    for e in [
+        "pgw", "pngw", "jgw", "jpgw", "jpegw", "tfw", "tifw", "tiffw", "wld",
+    ] {
         if !exts.iter().any(|x| x.eq_ignore_ascii_case(e)) {
             exts.push(e.to_string());
         }
@@ -102,34 +118,51 @@ pub fn read_world_file(path: &Path) -> Result<Option<GeoTransform>> {
         return Ok(None);
     };
     let text = std::fs::read_to_string(&wf).map_err(|e| Error::io(&wf, e))?;
-    parse_world_file(&text).map(Some).map_err(|e| e.in_file(&wf))
+    parse_world_file(&text)
+        .map(Some)
+        .map_err(|e| e.in_file(&wf))
 }
 
 /// Parse the six lines `A D B E C F` of a world file into a corner-convention transform.
 pub fn parse_world_file(text: &str) -> Result<GeoTransform> {
     let mut v = [0.0f64; 6];
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
     for slot in v.iter_mut() {
-        let (n, line) = lines
-            .next()
-            .ok_or_else(|| Error::msg("world file has fewer than six lines").fix("give A, D, B, E, C, F one per line"))?;
+        let (n, line) = lines.next().ok_or_else(|| {
+            Error::msg("world file has fewer than six lines")
+                .fix("give A, D, B, E, C, F one per line")
+        })?;
         *slot = line
             .trim()
             .parse::<f64>()
             .ok()
             .filter(|x| x.is_finite())
-            .ok_or_else(|| Error::msg(format!("line {}: '{}' is not a number", n + 1, line.trim())))?;
+            .ok_or_else(|| {
+                Error::msg(format!("line {}: '{}' is not a number", n + 1, line.trim()))
+            })?;
     }
     let [a, d, b, e, c, f] = v;
     if d != 0.0 || b != 0.0 {
-        return Err(Error::msg(format!("world file is rotated or sheared (D = {d}, B = {b})"))
-            .fix("make the image north-up first: gdalwarp in.png out.tif"));
+        return Err(Error::msg(format!(
+            "world file is rotated or sheared (D = {d}, B = {b})"
+        ))
+        .fix("make the image north-up first: gdalwarp in.png out.tif"));
     }
     if a <= 0.0 || e == 0.0 {
-        return Err(Error::msg(format!("world file has a bad cell size (A = {a}, E = {e})"))
-            .fix("A must be the positive cell width and E the (usually negative) cell height"));
+        return Err(
+            Error::msg(format!("world file has a bad cell size (A = {a}, E = {e})"))
+                .fix("A must be the positive cell width and E the (usually negative) cell height"),
+        );
     }
-    Ok(GeoTransform { origin_x: c - 0.5 * a, origin_y: f - 0.5 * e, cell_x: a, cell_y: e })
+    Ok(GeoTransform {
+        origin_x: c - 0.5 * a,
+        origin_y: f - 0.5 * e,
+        cell_x: a,
+        cell_y: e,
+    })
 }
 
 #[cfg(test)]
@@ -139,14 +172,26 @@ mod tests {
     #[test]
     fn world_file_centre_becomes_corner() {
         let t = parse_world_file("2.0\n0\n0\n-2.0\n500001.0\n4999999.0\n").unwrap();
-        assert_eq!(t, GeoTransform { origin_x: 500_000.0, origin_y: 5_000_000.0, cell_x: 2.0, cell_y: -2.0 });
+        assert_eq!(
+            t,
+            GeoTransform {
+                origin_x: 500_000.0,
+                origin_y: 5_000_000.0,
+                cell_x: 2.0,
+                cell_y: -2.0
+            }
+        );
     }
 
     #[test]
     fn world_file_errors_name_the_problem() {
-        let e = parse_world_file("1\n0.1\n0\n-1\n0\n0\n").unwrap_err().to_string();
+        let e = parse_world_file("1\n0.1\n0\n-1\n0\n0\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("rotated"), "{e}");
-        let e = parse_world_file("1\n0\n0\n-1\nx\n0\n").unwrap_err().to_string();
+        let e = parse_world_file("1\n0\n0\n-1\nx\n0\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 5") && e.contains("'x'"), "{e}");
         assert!(parse_world_file("1\n0\n0\n-1\n").is_err());
         assert!(parse_world_file("0\n0\n0\n-1\n0\n0\n").is_err());

@@ -179,20 +179,30 @@ impl SourceRaster {
         };
         let bad = std::sync::atomic::AtomicBool::new(false);
         let mut out = vec![0f32; self.grid.len()];
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(k, chunk)| {
-            for (j, o) in chunk.iter_mut().enumerate() {
-                *o = convert(k * CHUNK + j).unwrap_or_else(|| {
-                    bad.store(true, std::sync::atomic::Ordering::Relaxed);
-                    f32::NAN
-                });
-            }
-        });
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(k, chunk)| {
+                for (j, o) in chunk.iter_mut().enumerate() {
+                    *o = convert(k * CHUNK + j).unwrap_or_else(|| {
+                        bad.store(true, std::sync::atomic::Ordering::Relaxed);
+                        f32::NAN
+                    });
+                }
+            });
         if bad.into_inner() {
-            let i = (0..out.len()).into_par_iter().position_first(|i| convert(i).is_none()).unwrap_or(0);
+            let i = (0..out.len())
+                .into_par_iter()
+                .position_first(|i| convert(i).is_none())
+                .unwrap_or(0);
             let width = self.grid.width.max(1);
             return Err(Error::file(
                 &self.path,
-                format!("value {} at column {}, row {} is out of range for an f32 elevation", v[i * bands].into(), i % width, i / width),
+                format!(
+                    "value {} at column {}, row {} is out of range for an f32 elevation",
+                    v[i * bands].into(),
+                    i % width,
+                    i / width
+                ),
             )
             .fix("declare it as nodata or convert the file (gdal_translate -ot Float32 -scale)"));
         }
@@ -208,11 +218,16 @@ impl SourceRaster {
         let (colour_bands, alpha) = self.colour_layout()?;
         let data = match &self.samples {
             Samples::U8(v) => self.colour_values(v, colour_bands, alpha, |s| s),
-            Samples::U16(v) => self.colour_values(v, colour_bands, alpha, |s| ((s as u32 * 255 + 32767) / 65535) as u8),
+            Samples::U16(v) => self.colour_values(v, colour_bands, alpha, |s| {
+                ((s as u32 * 255 + 32767) / 65535) as u8
+            }),
             other => {
                 return Err(Error::file(
                     &self.path,
-                    format!("{} samples cannot be used as colour (8- or 16-bit unsigned only)", other.type_name()),
+                    format!(
+                        "{} samples cannot be used as colour (8- or 16-bit unsigned only)",
+                        other.type_name()
+                    ),
                 )
                 .fix("convert it: gdal_translate -ot Byte -scale in.tif out.tif"))
             }
@@ -222,7 +237,9 @@ impl SourceRaster {
 
     /// How many leading bands are colour (1 = grey or 3 = RGB) and which band is alpha (the last).
     fn colour_layout(&self) -> Result<(usize, Option<usize>)> {
-        let alpha = self.alpha_band.or(matches!(self.bands, 2 | 4).then(|| self.bands - 1));
+        let alpha = self
+            .alpha_band
+            .or(matches!(self.bands, 2 | 4).then(|| self.bands - 1));
         let colour = match alpha {
             Some(a) if a + 1 == self.bands => a,
             Some(_) => 0,
@@ -233,12 +250,21 @@ impl SourceRaster {
         }
         Err(Error::file(
             &self.path,
-            format!("{} bands cannot be used as colour (expected grey, grey+alpha, RGB or RGBA)", self.bands),
+            format!(
+                "{} bands cannot be used as colour (expected grey, grey+alpha, RGB or RGBA)",
+                self.bands
+            ),
         )
         .fix("select the bands: gdal_translate -b 1 -b 2 -b 3 in.tif out.tif"))
     }
 
-    fn colour_values<T: SampleValue>(&self, v: &[T], colour: usize, alpha: Option<usize>, to8: impl Fn(T) -> u8 + Sync) -> Vec<[u8; 4]> {
+    fn colour_values<T: SampleValue>(
+        &self,
+        v: &[T],
+        colour: usize,
+        alpha: Option<usize>,
+        to8: impl Fn(T) -> u8 + Sync,
+    ) -> Vec<[u8; 4]> {
         let (bands, nodata) = (self.bands, self.nodata);
         (0..self.grid.len())
             .into_par_iter()
@@ -312,7 +338,11 @@ fn read_other(path: &Path, _len: usize) -> Result<SourceRaster> {
 
 #[cfg(not(feature = "gdal"))]
 fn read_other(path: &Path, len: usize) -> Result<SourceRaster> {
-    let problem = if len == 0 { "empty file" } else { "not a TIFF, ASCII grid, PNG or JPEG file" };
+    let problem = if len == 0 {
+        "empty file"
+    } else {
+        "not a TIFF, ASCII grid, PNG or JPEG file"
+    };
     Err(Error::file(path, problem)
         .fix("give a GeoTIFF, Esri ASCII grid or PNG/JPEG with a world file, or build with --features gdal"))
 }
@@ -355,17 +385,40 @@ pub(crate) fn read_prj(raster: &Path) -> Result<Crs> {
 
 /// A CRS from OGC/Esri WKT (WKT1 or WKT2), or `None` if the text is not WKT.
 pub(crate) fn crs_from_wkt(wkt: &str) -> Option<Crs> {
-    let kind: String = wkt.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+    let kind: String = wkt
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
     let kind = kind.to_ascii_uppercase();
-    const PROJECTED: &[&str] = &["PROJCS", "PROJCRS", "PROJECTEDCRS", "COMPD_CS", "COMPOUNDCRS"];
-    const GEOGRAPHIC: &[&str] = &["GEOGCS", "GEOGCRS", "GEOGRAPHICCRS", "GEODCRS", "GEODETICCRS", "GEOCCS", "BOUNDCRS"];
-    if !(PROJECTED.contains(&kind.as_str()) || GEOGRAPHIC.contains(&kind.as_str())) || !wkt[kind.len()..].trim_start().starts_with('[') {
+    const PROJECTED: &[&str] = &[
+        "PROJCS",
+        "PROJCRS",
+        "PROJECTEDCRS",
+        "COMPD_CS",
+        "COMPOUNDCRS",
+    ];
+    const GEOGRAPHIC: &[&str] = &[
+        "GEOGCS",
+        "GEOGCRS",
+        "GEOGRAPHICCRS",
+        "GEODCRS",
+        "GEODETICCRS",
+        "GEOCCS",
+        "BOUNDCRS",
+    ];
+    if !(PROJECTED.contains(&kind.as_str()) || GEOGRAPHIC.contains(&kind.as_str()))
+        || !wkt[kind.len()..].trim_start().starts_with('[')
+    {
         return None;
     }
     let epsg = final_epsg(wkt);
     let geographic = matches!(kind.as_str(), "GEOGCS" | "GEOGCRS" | "GEOGRAPHICCRS")
         || (matches!(kind.as_str(), "GEODCRS" | "GEODETICCRS") && !wkt.contains("CARTESIAN"));
-    Some(Crs { epsg, wkt: Some(wkt.to_string()), geographic })
+    Some(Crs {
+        epsg,
+        wkt: Some(wkt.to_string()),
+        geographic,
+    })
 }
 
 /// The EPSG code of a WKT's outermost object: an `AUTHORITY["EPSG","n"]` (WKT1) or `ID["EPSG",n]`
@@ -378,7 +431,9 @@ fn final_epsg(wkt: &str) -> Option<u32> {
     if !(keyword.ends_with("AUTHORITY") || keyword.ends_with("ID")) {
         return None;
     }
-    let mut parts = body[start + 1..].split(',').map(|s| s.trim().trim_matches('"'));
+    let mut parts = body[start + 1..]
+        .split(',')
+        .map(|s| s.trim().trim_matches('"'));
     if !parts.next()?.eq_ignore_ascii_case("EPSG") {
         return None;
     }
@@ -405,7 +460,11 @@ mod tests {
 
     #[test]
     fn elevation_maps_nodata_nan_and_inf_to_nan() {
-        let r = raster(1, Samples::F32(vec![1.5, -9999.0, f32::NAN, f32::INFINITY, -7.25]), Some(-9999.0));
+        let r = raster(
+            1,
+            Samples::F32(vec![1.5, -9999.0, f32::NAN, f32::INFINITY, -7.25]),
+            Some(-9999.0),
+        );
         let e = r.to_elevation().unwrap();
         assert_eq!(e.data[0], 1.5);
         assert!(e.data[1].is_nan() && e.data[2].is_nan() && e.data[3].is_nan());
@@ -444,33 +503,55 @@ mod tests {
         let r = raster(1, Samples::I32(vec![16_777_217, 1]), None);
         assert!(r.to_elevation().is_err());
         let r = raster(1, Samples::I32(vec![16_777_216, -16_777_216]), None);
-        assert_eq!(r.to_elevation().unwrap().data, vec![16_777_216.0, -16_777_216.0]);
+        assert_eq!(
+            r.to_elevation().unwrap().data,
+            vec![16_777_216.0, -16_777_216.0]
+        );
     }
 
     #[test]
     fn colour_grey_rgb_rgba_and_16_bit() {
-        let grey = raster(1, Samples::U8(vec![7, 200]), None).to_colour().unwrap();
+        let grey = raster(1, Samples::U8(vec![7, 200]), None)
+            .to_colour()
+            .unwrap();
         assert_eq!(grey.data, vec![[7, 7, 7, 255], [200, 200, 200, 255]]);
-        let ga = raster(2, Samples::U8(vec![7, 0, 9, 128]), None).to_colour().unwrap();
+        let ga = raster(2, Samples::U8(vec![7, 0, 9, 128]), None)
+            .to_colour()
+            .unwrap();
         assert_eq!(ga.data, vec![[0, 0, 0, 0], [9, 9, 9, 255]]);
-        let rgba = raster(4, Samples::U8(vec![1, 2, 3, 255, 4, 5, 6, 0]), None).to_colour().unwrap();
+        let rgba = raster(4, Samples::U8(vec![1, 2, 3, 255, 4, 5, 6, 0]), None)
+            .to_colour()
+            .unwrap();
         assert_eq!(rgba.data, vec![[1, 2, 3, 255], [0, 0, 0, 0]]);
-        let rgb16 = raster(3, Samples::U16(vec![0, 65535, 128, 32767, 32768, 257]), None).to_colour().unwrap();
+        let rgb16 = raster(
+            3,
+            Samples::U16(vec![0, 65535, 128, 32767, 32768, 257]),
+            None,
+        )
+        .to_colour()
+        .unwrap();
         // 128·255/65535 = 0.498 → 0; 32767·255/65535 = 127.498 → 127; 32768 → 127.502 → 128.
         assert_eq!(rgb16.data, vec![[0, 255, 0, 255], [127, 128, 1, 255]]);
     }
 
     #[test]
     fn colour_nodata_needs_all_colour_bands() {
-        let r = raster(3, Samples::U8(vec![0, 0, 0, 0, 5, 0]), Some(0.0)).to_colour().unwrap();
+        let r = raster(3, Samples::U8(vec![0, 0, 0, 0, 5, 0]), Some(0.0))
+            .to_colour()
+            .unwrap();
         assert_eq!(r.data, vec![[0, 0, 0, 0], [0, 5, 0, 255]]);
     }
 
     #[test]
     fn colour_rejects_floats_and_odd_band_counts() {
-        let e = raster(1, Samples::F32(vec![0.5]), None).to_colour().unwrap_err().to_string();
+        let e = raster(1, Samples::F32(vec![0.5]), None)
+            .to_colour()
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("Float32") && e.contains("gdal_translate"), "{e}");
-        assert!(raster(5, Samples::U8(vec![0; 5]), None).to_colour().is_err());
+        assert!(raster(5, Samples::U8(vec![0; 5]), None)
+            .to_colour()
+            .is_err());
         let mut r = raster(4, Samples::U8(vec![1, 2, 3, 4]), None);
         r.alpha_band = Some(1);
         assert!(r.to_colour().is_err(), "alpha must follow the colour bands");
@@ -494,7 +575,11 @@ mod tests {
         let c = crs_from_wkt(utm).unwrap();
         assert_eq!((c.epsg, c.geographic), (Some(32614), false));
         let esri = r#"PROJCS["WGS_1984_UTM_Zone_14N",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984"]],UNIT["Meter",1.0]]"#;
-        assert_eq!(crs_from_wkt(esri).unwrap().epsg, None, "a component's AUTHORITY is not the CRS's");
+        assert_eq!(
+            crs_from_wkt(esri).unwrap().epsg,
+            None,
+            "a component's AUTHORITY is not the CRS's"
+        );
         let geo = r#"GEOGCS["WGS 84",DATUM["WGS_1984"],AUTHORITY["EPSG","4326"]]"#;
         let c = crs_from_wkt(geo).unwrap();
         assert_eq!((c.epsg, c.geographic), (Some(4326), true));
