@@ -97,7 +97,8 @@ pub struct PlacedObject {
     pub file: String,
     /// SHA-256 of the object file.
     pub sha256: String,
-    /// World position of the object's local origin (CRS units; z in metres, absolute).
+    /// World position of the object's anchor, the centre of the bottom face of its voxel grid
+    /// (`VoxelObject::anchor`): CRS units; z in metres, absolute.
     pub x: f64,
     /// See `x`.
     pub y: f64,

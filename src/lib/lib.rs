@@ -10,9 +10,10 @@
 //! Stages, each a module:
 //! * [`ingest`]: DEM + orthophoto onto one database grid ([`db`] holds the result).
 //! * [`sun`]: solar position; [`shadow`]: cast-shadow masks over a height field.
+//! * [`shadow_height`]: building heights from their shadows, refined over the terrain.
 //! * [`sample`]: the generated sample scene.
 //! * [`voxel`]: sculpted and synthetic voxel objects.
-//! * [`pyramid`] and [`tiles`]: the render database.
+//! * [`pyramid`] and [`tiles`]: the render database; [`render`]: the ray-casting preview.
 
 pub mod crs;
 pub mod db;
