@@ -14,7 +14,9 @@ pub mod shadows;
 pub mod sun;
 pub mod tiles;
 
+use dbms::db::Database;
 use dbms::progress::Progress;
+use dbms::shadow::Sun;
 use std::fmt::Display;
 
 /// What every subcommand needs from the global options.
@@ -45,5 +47,31 @@ impl Ctx {
     /// A progress bar on stderr (drawn only on a terminal, never with `--quiet` or `--json`).
     pub fn progress(&self, total: u64, what: &str) -> Progress {
         Progress::new(total, what, !self.quiet && !self.json)
+    }
+}
+
+/// The sun, as the stages that shade or cast shadows take it: a UTC time (the sun over the
+/// database centre, NREL SPA) or both angles. Each command decides what giving neither means.
+#[derive(clap::Args)]
+pub struct SunArgs {
+    /// UTC time (RFC 3339, e.g. 2026-06-21T10:00:00Z): the sun over the database centre.
+    #[arg(long, conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
+    pub time: Option<String>,
+    /// Sun elevation above the horizon, degrees (0, 90].
+    #[arg(long, requires = "sun_azimuth", allow_negative_numbers = true)]
+    pub sun_elevation: Option<f64>,
+    /// Sun azimuth, degrees clockwise from north, toward the sun.
+    #[arg(long, requires = "sun_elevation", allow_negative_numbers = true)]
+    pub sun_azimuth: Option<f64>,
+}
+
+impl SunArgs {
+    /// The sun the options give for `db`, or `None` when neither a time nor angles were given.
+    pub fn resolve(&self, db: &Database) -> dbms::Result<Option<Sun>> {
+        match (&self.time, self.sun_elevation, self.sun_azimuth) {
+            (Some(t), _, _) => Ok(Some(dbms::pyramid::sun_at(db, t)?)),
+            (None, Some(e), Some(a)) => Ok(Some(Sun::new(e, a)?)),
+            _ => Ok(None),
+        }
     }
 }

@@ -3,7 +3,6 @@
 use super::Ctx;
 use dbms::db::Database;
 use dbms::pyramid::{build_pyramid, PyramidOptions, DEFAULT_FACTOR, DEFAULT_PAGE};
-use dbms::shadow::Sun;
 use dbms::tiles::Compression;
 use serde_json::json;
 use std::fmt::Write as _;
@@ -25,15 +24,8 @@ pub struct Args {
     /// Page edge in cells (a multiple of the factor).
     #[arg(long, default_value_t = DEFAULT_PAGE)]
     page: usize,
-    /// UTC time (RFC 3339, e.g. 2026-06-21T10:00:00Z): shade for the sun over the database centre.
-    #[arg(long, conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
-    time: Option<String>,
-    /// Sun elevation above the horizon, degrees (0, 90].
-    #[arg(long, requires = "sun_azimuth", allow_negative_numbers = true)]
-    sun_elevation: Option<f64>,
-    /// Sun azimuth, degrees clockwise from north, toward the sun.
-    #[arg(long, requires = "sun_elevation", allow_negative_numbers = true)]
-    sun_azimuth: Option<f64>,
+    #[command(flatten)]
+    sun: super::SunArgs,
     /// Fraction of full-sun brightness left in shadow (the patent's F), in (0, 1].
     #[arg(long, default_value_t = dbms::pyramid::shade::DEFAULT_SHADOW_FACTOR)]
     shadow_factor: f64,
@@ -50,11 +42,8 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let mut db = Database::open(&args.db)?;
-    let sun = match (&args.time, args.sun_elevation, args.sun_azimuth) {
-        (Some(t), _, _) => Some(dbms::pyramid::sun_at(&db, t)?),
-        (None, Some(e), Some(a)) => Some(Sun::new(e, a)?),
-        _ => None,
-    };
+    // No sun given: no shadow or shading work at all.
+    let sun = args.sun.resolve(&db)?;
     let opts = PyramidOptions {
         factor: args.factor,
         levels: args.levels,

@@ -4,7 +4,6 @@ use super::Ctx;
 use dbms::db::{Database, Stage};
 use dbms::error::Error;
 use dbms::io::atomic::write_bytes_atomic;
-use dbms::shadow::Sun;
 use dbms::shadow_height::{self as sh, output};
 use serde_json::json;
 use std::path::PathBuf;
@@ -19,16 +18,8 @@ pub struct Args {
     /// Building footprints: GeoJSON Polygon / MultiPolygon features in the database CRS.
     #[arg(long)]
     footprints: PathBuf,
-    /// UTC time of the photo (RFC 3339): the sun over the database centre [default: the
-    /// photo time recorded by `dbms ingest --photo-time`].
-    #[arg(long, conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
-    time: Option<String>,
-    /// Sun elevation above the horizon, degrees (0, 90].
-    #[arg(long, requires = "sun_azimuth", allow_negative_numbers = true)]
-    sun_elevation: Option<f64>,
-    /// Sun azimuth, degrees clockwise from north, toward the sun.
-    #[arg(long, requires = "sun_elevation", allow_negative_numbers = true)]
-    sun_azimuth: Option<f64>,
+    #[command(flatten)]
+    sun: super::SunArgs,
     /// Observed shadow mask on the database grid (byte GeoTIFF: 0 lit, 255 nodata, else
     /// shadow) instead of detecting shadows in the colour.
     #[arg(long)]
@@ -47,10 +38,10 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let mut db = Database::open(&args.db)?;
-    let sun = match (&args.time, args.sun_elevation, args.sun_azimuth) {
-        (Some(t), _, _) => dbms::pyramid::sun_at(&db, t)?,
-        (None, Some(e), Some(a)) => Sun::new(e, a)?,
-        _ => dbms::pyramid::photo_sun(&db)?.ok_or_else(|| {
+    // Default: the photo's own sun, from the time ingest recorded.
+    let sun = match args.sun.resolve(&db)? {
+        Some(sun) => sun,
+        None => dbms::pyramid::photo_sun(&db)?.ok_or_else(|| {
             Error::file(
                 &args.db,
                 "no sun given and the database records no photo time",
@@ -114,7 +105,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         db.record_stage(Stage::now(
             "shadow-height",
             json!({
-                "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.time },
+                "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
                 "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
             }),
         ));
@@ -131,7 +122,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         ),
         json!({
             "output": args.output,
-            "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.time },
+            "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
             "features": results.len(), "measured": heights, "flagged": flagged, "failed": failed, "applied": args.apply,
         }),
     );

@@ -3,7 +3,7 @@
 use super::Ctx;
 use dbms::db::{self, Database};
 use dbms::pyramid::raised::{rasterise_prisms, read_buildings, Raised};
-use dbms::shadow::{cast_shadows, Sun, LIT, NODATA, SHADOW};
+use dbms::shadow::{cast_shadows, LIT, NODATA, SHADOW};
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -14,15 +14,8 @@ pub struct Args {
     /// The database directory.
     #[arg(long)]
     db: PathBuf,
-    /// UTC time (RFC 3339, e.g. 2026-06-21T10:00:00Z): the sun over the database centre.
-    #[arg(long, required_unless_present_all = ["sun_elevation", "sun_azimuth"], conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
-    time: Option<String>,
-    /// Sun elevation above the horizon, degrees (0, 90].
-    #[arg(long, requires = "sun_azimuth", allow_negative_numbers = true)]
-    sun_elevation: Option<f64>,
-    /// Sun azimuth, degrees clockwise from north, toward the sun.
-    #[arg(long, requires = "sun_elevation", allow_negative_numbers = true)]
-    sun_azimuth: Option<f64>,
+    #[command(flatten)]
+    sun: super::SunArgs,
     /// Output mask GeoTIFF.
     #[arg(short, long)]
     output: PathBuf,
@@ -30,11 +23,9 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let db = Database::open(&args.db)?;
-    let sun = match (&args.time, args.sun_elevation, args.sun_azimuth) {
-        (Some(t), _, _) => dbms::pyramid::sun_at(&db, t)?,
-        (None, Some(e), Some(a)) => Sun::new(e, a)?,
-        _ => unreachable!("clap requires --time or both sun angles"),
-    };
+    let sun = args.sun.resolve(&db)?.ok_or_else(|| {
+        dbms::Error::msg("a shadow mask needs a sun").fix("give --time, or --sun-elevation and --sun-azimuth")
+    })?;
     let elevation_path = db.layer_path(db::ELEVATION)?;
     let terrain = db.read_elevation()?;
     // Raised buildings stand in the sun's way only when shadow-height has written them.
@@ -62,7 +53,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         ),
         json!({
             "output": args.output,
-            "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.time },
+            "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
             "cells": { "shadow": shadow, "lit": lit, "nodata": nodata },
             "shadow_fraction": shadow as f64 / valid,
             "building_cells": building_cells,
