@@ -18,6 +18,7 @@
 pub mod crs;
 pub mod db;
 pub mod error;
+pub mod geojson;
 pub mod grid;
 pub mod ingest;
 pub mod io;

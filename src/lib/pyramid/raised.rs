@@ -111,18 +111,7 @@ pub struct Prism {
 /// Read the `buildings` layer: a GeoJSON FeatureCollection of Polygon / MultiPolygon features
 /// in the database CRS, each with a numeric `roof_z` property (absolute metres).
 pub fn read_buildings(path: &Path) -> Result<Vec<Prism>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let doc: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
-        Error::file(path, format!("not valid JSON ({e})"))
-            .fix("re-run `dbms shadow-height --apply`")
-    })?;
-    let features = doc
-        .get("features")
-        .and_then(|f| f.as_array())
-        .ok_or_else(|| {
-            Error::file(path, "not a GeoJSON FeatureCollection (no features array)")
-                .fix("re-run `dbms shadow-height --apply`")
-        })?;
+    let features = crate::geojson::read_features(path, "re-run `dbms shadow-height --apply`")?;
     let mut prisms = Vec::new();
     for (i, f) in features.iter().enumerate() {
         let bad = |what: &str| {
@@ -136,45 +125,12 @@ pub fn read_buildings(path: &Path) -> Result<Vec<Prism>> {
         if !roof_z.is_finite() {
             return Err(bad("roof_z is not finite"));
         }
-        let geom = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
-        let coords = geom
-            .get("coordinates")
-            .ok_or_else(|| bad("geometry has no coordinates"))?;
-        let polygons: Vec<&serde_json::Value> = match geom.get("type").and_then(|t| t.as_str()) {
-            Some("Polygon") => vec![coords],
-            Some("MultiPolygon") => coords
-                .as_array()
-                .ok_or_else(|| bad("bad MultiPolygon coordinates"))?
-                .iter()
-                .collect(),
-            other => {
-                return Err(bad(&format!(
-                    "geometry type {other:?} is not Polygon or MultiPolygon"
-                )))
-            }
-        };
-        for poly in polygons {
-            let rings = parse_rings(poly).ok_or_else(|| bad("bad polygon coordinates"))?;
+        let geometry = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
+        for rings in crate::geojson::polygons(geometry).map_err(|e| bad(&e))? {
             prisms.push(Prism { rings, roof_z });
         }
     }
     Ok(prisms)
-}
-
-fn parse_rings(poly: &serde_json::Value) -> Option<Vec<Vec<(f64, f64)>>> {
-    poly.as_array()?
-        .iter()
-        .map(|ring| {
-            ring.as_array()?
-                .iter()
-                .map(|p| {
-                    let p = p.as_array()?;
-                    let (x, y) = (p.first()?.as_f64()?, p.get(1)?.as_f64()?);
-                    (x.is_finite() && y.is_finite()).then_some((x, y))
-                })
-                .collect()
-        })
-        .collect()
 }
 
 /// The cells of `grid` whose centres are inside each prism, raised to its roof (opaque, photo

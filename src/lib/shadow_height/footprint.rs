@@ -8,7 +8,8 @@
 //! A whole-file problem (not JSON, not a FeatureCollection) is an [`Error`]; a bad feature is a
 //! per-feature message, so one bad footprint does not stop the others.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::geojson;
 use std::path::Path;
 
 /// A validated footprint: polygon rings in the database CRS (metres).
@@ -33,30 +34,13 @@ pub struct InputFeature {
 
 /// Read a GeoJSON FeatureCollection of Polygon / MultiPolygon footprints.
 pub fn read_footprints(path: &Path) -> Result<Vec<InputFeature>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let doc: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
-        Error::file(path, format!("not valid JSON ({e})"))
-            .fix("give a GeoJSON FeatureCollection of footprint polygons")
-    })?;
-    let features = doc
-        .get("features")
-        .and_then(|f| f.as_array())
-        .ok_or_else(|| {
-            Error::file(path, "not a GeoJSON FeatureCollection (no features array)")
-                .fix("give a GeoJSON FeatureCollection of footprint polygons")
-        })?;
+    let features = geojson::read_features(path, "give a GeoJSON FeatureCollection of footprint polygons")?;
     Ok(features
         .iter()
         .map(|f| {
-            let geometry = f
-                .get("geometry")
-                .cloned()
-                .unwrap_or(serde_json::Value::Null);
+            let geometry = f.get("geometry").cloned().unwrap_or(serde_json::Value::Null);
             InputFeature {
-                properties: f
-                    .get("properties")
-                    .cloned()
-                    .unwrap_or(serde_json::Value::Null),
+                properties: f.get("properties").cloned().unwrap_or(serde_json::Value::Null),
                 footprint: footprint_of(&geometry),
                 geometry,
             }
@@ -66,46 +50,7 @@ pub fn read_footprints(path: &Path) -> Result<Vec<InputFeature>> {
 
 /// The footprint of a GeoJSON geometry, or why it is unusable.
 pub fn footprint_of(geometry: &serde_json::Value) -> std::result::Result<Footprint, String> {
-    let coords = geometry
-        .get("coordinates")
-        .ok_or("geometry has no coordinates")?;
-    let polygons: Vec<&serde_json::Value> = match geometry.get("type").and_then(|t| t.as_str()) {
-        Some("Polygon") => vec![coords],
-        Some("MultiPolygon") => coords
-            .as_array()
-            .ok_or("bad MultiPolygon coordinates")?
-            .iter()
-            .collect(),
-        other => {
-            return Err(format!(
-                "geometry type {other:?} is not Polygon or MultiPolygon"
-            ))
-        }
-    };
-    let mut parts = Vec::new();
-    for poly in polygons {
-        parts.push(
-            parse_polygon(poly)
-                .ok_or("bad polygon coordinates (need [[[x, y], ...], ...] of finite numbers)")?,
-        );
-    }
-    Footprint::new(parts)
-}
-
-fn parse_polygon(poly: &serde_json::Value) -> Option<Vec<Vec<(f64, f64)>>> {
-    poly.as_array()?
-        .iter()
-        .map(|ring| {
-            ring.as_array()?
-                .iter()
-                .map(|p| {
-                    let p = p.as_array()?;
-                    let (x, y) = (p.first()?.as_f64()?, p.get(1)?.as_f64()?);
-                    (x.is_finite() && y.is_finite()).then_some((x, y))
-                })
-                .collect()
-        })
-        .collect()
+    Footprint::new(geojson::polygons(geometry)?)
 }
 
 impl Footprint {

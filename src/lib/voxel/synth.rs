@@ -147,12 +147,7 @@ pub struct Footprint {
 /// Read the footprints of a GeoJSON FeatureCollection (Polygon and MultiPolygon features) with
 /// their height from property `height_field` (a number, metres).
 pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| Error::file(path, format!("not JSON: {e}")).fix("give a GeoJSON FeatureCollection"))?;
-    let features = v.get("features").and_then(|f| f.as_array()).ok_or_else(|| {
-        Error::file(path, "not a GeoJSON FeatureCollection (no \"features\" list)").fix("give a GeoJSON FeatureCollection of Polygons")
-    })?;
+    let features = crate::geojson::read_features(path, "give a GeoJSON FeatureCollection of Polygons")?;
     let mut out = Vec::new();
     for (i, f) in features.iter().enumerate() {
         let bad = |what: &str| Error::file(path, format!("feature {i}: {what}"));
@@ -163,26 +158,12 @@ pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>
                         .fix("give each footprint a height in metres, or name the property with --height-field")
                 },
             )?;
-        let geom = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
-        let polys: Vec<&serde_json::Value> = match geom.get("type").and_then(|t| t.as_str()) {
-            Some("Polygon") => vec![&geom["coordinates"]],
-            Some("MultiPolygon") => geom["coordinates"].as_array().map(|a| a.iter().collect()).unwrap_or_default(),
-            other => {
-                return Err(bad(&format!("geometry type {} is not a Polygon or MultiPolygon", other.unwrap_or("(none)")))
-                    .fix("give footprints as polygons"))
+        let geometry = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
+        for poly in crate::geojson::polygons(geometry).map_err(|e| bad(&e).fix("give footprints as polygons"))? {
+            if poly.is_empty() || poly.iter().any(|ring| ring.len() < 3) {
+                return Err(bad("polygon rings need at least 3 [x, y] positions"));
             }
-        };
-        for poly in polys {
-            let rings: Option<Vec<Vec<[f64; 2]>>> = poly.as_array().map(|rings| {
-                rings
-                    .iter()
-                    .filter_map(|r| r.as_array())
-                    .map(|r| r.iter().filter_map(|pt| Some([pt.get(0)?.as_f64()?, pt.get(1)?.as_f64()?])).collect())
-                    .collect()
-            });
-            let rings = rings
-                .filter(|r| !r.is_empty() && r.iter().all(|ring: &Vec<[f64; 2]>| ring.len() >= 3))
-                .ok_or_else(|| bad("polygon rings need at least 3 [x, y] positions"))?;
+            let rings = poly.into_iter().map(|r| r.into_iter().map(|(x, y)| [x, y]).collect()).collect();
             out.push(Footprint { rings, height });
         }
     }
