@@ -379,14 +379,17 @@ impl Frame {
         write_bytes_atomic(path, &self.png()?)
     }
 
-    /// Write the range image as a one-channel (`Z`) f32 OpenEXR file, atomically: metres per
-    /// pixel, `+inf` where the ray saw the sky.
+    /// Write the range image as a one-channel (`Z`) f32 OpenEXR file (ZIP-compressed scan
+    /// lines, increasing order), atomically: metres per pixel, `+inf` where the ray saw the sky.
     pub fn write_range_exr(&self, path: &Path) -> Result<()> {
         use exr::prelude::*;
         let channel = AnyChannel::new("Z", FlatSamples::F32(self.range.clone()));
-        let image = Image::from_channels((self.width, self.height), AnyChannels::sort(SmallVec::from_vec(vec![channel])));
+        // Scan lines in increasing order, compressed on one thread: blocks land in a fixed order,
+        // so the file is byte-identical run to run (the default tiles go in completion order).
+        let channels = AnyChannels::sort(SmallVec::from_vec(vec![channel]));
+        let layer = Layer::new((self.width, self.height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
         let mut buf = std::io::Cursor::new(Vec::new());
-        image.write().to_buffered(&mut buf).map_err(|e| crate::Error::file(path, format!("encoding the EXR failed: {e}")))?;
+        Image::from_layer(layer).write().non_parallel().to_buffered(&mut buf).map_err(|e| crate::Error::file(path, format!("encoding the EXR failed: {e}")))?;
         write_bytes_atomic(path, &buf.into_inner())
     }
 }

@@ -277,6 +277,8 @@ fn frames_are_deterministic_and_encode() {
     assert_eq!(a.png().unwrap(), b.png().unwrap());
     let dir = tempfile::tempdir().unwrap();
     a.write_range_exr(&dir.path().join("r.exr")).unwrap();
+    b.write_range_exr(&dir.path().join("r2.exr")).unwrap();
+    assert!(std::fs::read(dir.path().join("r.exr")).unwrap() == std::fs::read(dir.path().join("r2.exr")).unwrap());
     let img = exr::prelude::read_first_flat_layer_from_file(dir.path().join("r.exr")).unwrap();
     let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else { panic!("f32") };
     assert_eq!(bits(z), bits(&a.range));
