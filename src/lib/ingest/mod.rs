@@ -78,9 +78,9 @@ pub struct LayerSummary {
 
 /// Read both inputs, register them onto one grid and write the database to `out`.
 pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<IngestSummary> {
+    // Checked now with the parser later stages use on the recorded value, so they cannot disagree.
     if let Some(t) = &opts.photo_time {
-        chrono::DateTime::parse_from_rfc3339(t)
-            .map_err(|e| Error::msg(format!("--photo-time {t:?} is not an RFC 3339 time ({e})")).fix("e.g. 2026-06-21T10:30:00Z"))?;
+        crate::sun::parse_time(t).map_err(|e| Error { problem: format!("--photo-time: {}", e.problem), ..e })?;
     }
     progress.phase(6, "ingest");
     let dem_src = io::read_raster(&opts.dem)?;
@@ -97,10 +97,10 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     };
     progress.inc(1);
     let filled = opts.fill_voids.then(|| fill::fill_voids(&mut elevation) as u64);
-    if elevation.min_max().is_none() {
-        return Err(Error::file(&opts.dem, "no valid elevation falls inside the database grid")
-            .fix("check --bounds, or the DEM's nodata value and extent"));
-    }
+    let range_m = elevation.min_max().ok_or_else(|| {
+        Error::file(&opts.dem, "no valid elevation falls inside the database grid")
+            .fix("check --bounds, or the DEM's nodata value and extent")
+    })?;
     let colour = if ortho_src.grid.crs.same_as(&grid.crs) {
         resample::resample_colour(&ortho_src.to_colour()?, &grid)
     } else {
@@ -135,7 +135,7 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     Ok(IngestSummary {
         database: out.to_path_buf(),
         grid,
-        elevation: LayerSummary { nodata_cells: elevation_nodata, filled_cells: filled, range_m: elevation.min_max() },
+        elevation: LayerSummary { nodata_cells: elevation_nodata, filled_cells: filled, range_m: Some(range_m) },
         colour: LayerSummary { nodata_cells: colour_nodata, filled_cells: None, range_m: None },
     })
 }
