@@ -377,6 +377,18 @@ mod tests {
         assert!((q.zenith_deg - 1.0).abs() < 0.1 && (q.azimuth_deg - 180.0).abs() < 10.0, "{q:?}");
     }
 
+    /// CI found this instant: at the subsolar point the sine of the elevation rounded to
+    /// 1 + 2.2e-16 and `asin` gave NaN. The elevation must be 90°, not NaN.
+    #[test]
+    fn sun_exactly_overhead_is_not_nan() {
+        let t = Utc.timestamp_opt(946_728_000 - 908_093_361, 0).unwrap();
+        let geo = spa::spa(&spa_input(&obs(0.0, 0.0), t, &geometric()).unwrap());
+        let lon = spa::wrap_deg(geo.alpha - geo.nu + 180.0) - 180.0;
+        let p = sun_position(&obs(geo.delta, lon), t, &geometric()).unwrap();
+        assert!(p.elevation_deg.is_finite() && p.zenith_deg < 1e-4, "{p:?}");
+        assert!((0.0..360.0).contains(&p.azimuth_deg), "{p:?}");
+    }
+
     proptest! {
         /// At the subsolar point (geodetic latitude = declination, longitude = right ascension −
         /// sidereal time) the sun is at the zenith, whatever the instant.

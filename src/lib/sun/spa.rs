@@ -108,7 +108,8 @@ pub(super) fn spa(inp: &Input) -> Output {
     let alpha = wrap_deg(
         (lam.sin() * eps.cos() - bet.tan() * eps.sin()).atan2(lam.cos()).to_degrees(),
     );
-    let delta = (bet.sin() * eps.cos() + bet.cos() * eps.sin() * lam.sin()).asin().to_degrees();
+    // Clamped: rounding can carry the sine of an overhead sun a few ulps past 1 (asin → NaN).
+    let delta = (bet.sin() * eps.cos() + bet.cos() * eps.sin() * lam.sin()).clamp(-1.0, 1.0).asin().to_degrees();
 
     // 3.11 Observer local hour angle.
     let hour_angle = wrap_deg(nu + inp.longitude_deg - alpha);
@@ -128,7 +129,9 @@ pub(super) fn spa(inp: &Input) -> Output {
     let h_prime = h - delta_alpha;
 
     // 3.14 Topocentric elevation, refraction, zenith and azimuth.
+    // Clamped for the same reason: at the subsolar point the sum rounds to 1 + 2e-16.
     let e0 = (phi.sin() * delta_prime.sin() + phi.cos() * delta_prime.cos() * h_prime.cos())
+        .clamp(-1.0, 1.0)
         .asin()
         .to_degrees();
     let e = e0 + inp.refraction.map_or(0.0, |(p, t)| refraction_deg(e0, p, t));
