@@ -59,3 +59,19 @@ fn ingest_manifest_matches_its_schema() {
     bad["layers"]["elevation"]["sha256"] = serde_json::json!("not-a-hash");
     assert!(!schema("manifest.schema.json").is_valid(&bad));
 }
+
+/// `dbms sample` writes `truth.json` and `scene.json` that match their schemas.
+#[test]
+fn sample_truth_and_scene_match_their_schemas() {
+    let t = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(["--quiet", "sample", "--size", "160", "--seed", "2", "-o"])
+        .arg(t.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for (file, name) in [("truth.json", "sample-truth.schema.json"), ("scene.json", "sample-scene.schema.json")] {
+        let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(t.path().join(file)).unwrap()).unwrap();
+        assert_valid(&schema(name), &doc, file);
+    }
+}
