@@ -262,3 +262,26 @@ fn gdal_build_reprojects_a_geographic_dem_onto_a_utm_photo() {
     let colour = dbms::db::Database::open(&db).unwrap().read_colour().unwrap();
     assert_eq!(*colour.get(10, 10), [10, 20, 30, 255]);
 }
+
+/// With GDAL, a photo in another CRS follows the same rule as a native one: refined bilinearly
+/// (a 1 m stripe pattern onto 0.25 m cells gets intermediate shades), not by `average`, which
+/// would copy the nearest photo cell.
+#[cfg(feature = "gdal")]
+#[test]
+fn gdal_build_refines_a_reprojected_photo_bilinearly() {
+    let t = tempfile::tempdir().unwrap();
+    let dem = t.path().join("dem.tif");
+    geotiff::write_f32(&dem, &Raster::filled(Grid::north_up(X0, Y0, 1.0, 40, 40, Crs::epsg(32632)), 50.0f32)).unwrap();
+    // ETRS89 / UTM 32N: the same lattice to well under a millimetre, but another CRS.
+    let pg = Grid::north_up(X0, Y0, 1.0, 40, 40, Crs::epsg(25832));
+    let photo = Raster::new(pg.clone(), (0..pg.len()).map(|i| if i % 2 == 0 { [0, 0, 0, 255] } else { [200, 200, 200, 255] }).collect());
+    let o = t.path().join("ortho.tif");
+    geotiff::write_rgba8(&o, &photo).unwrap();
+    let db = t.path().join("db");
+    let bounds = format!("{},{},{},{}", X0 + 5.0, Y0 - 35.0, X0 + 35.0, Y0 - 5.0);
+    let out = dbms(&["--quiet", "ingest", "--dem", s(&dem), "--ortho", s(&o), "--cell", "0.25", "--bounds", &bounds, "-o", s(&db)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let colour = dbms::db::Database::open(&db).unwrap().read_colour().unwrap();
+    let between = colour.data.iter().filter(|p| p[3] != 0 && p[0] > 30 && p[0] < 170).count();
+    assert!(between * 4 > colour.data.len(), "{between} of {} cells between the stripes' shades", colour.data.len());
+}

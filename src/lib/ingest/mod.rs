@@ -104,7 +104,12 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     let colour = if ortho_src.grid.crs.same_as(&grid.crs) {
         resample::resample_colour(&ortho_src.to_colour()?, &grid)
     } else {
-        warp(&opts.ortho, &grid, Resampling::Average)?.to_colour()?
+        // The photo's lattice has no exact size in the target CRS: its extent over its columns
+        // and rows there decides coarsening against refining, as for a native photo.
+        let ob = extent_in(&ortho_src, &grid.crs, &dem_src.grid.crs)?;
+        let (px, py) = (ob.width() / ortho_src.grid.width as f64, ob.height() / ortho_src.grid.height as f64);
+        let method = resample::colour_method(grid.transform.cell_x.abs() / px, grid.transform.cell_y.abs() / py);
+        warp(&opts.ortho, &grid, method)?.to_colour()?
     };
     drop(ortho_src);
     progress.inc(1);

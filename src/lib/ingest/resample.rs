@@ -216,13 +216,23 @@ pub fn resample_elevation(src: &Elevation, dst: &Grid, method: Resampling) -> El
     Raster::new(dst.clone(), out)
 }
 
+/// How the orthophoto is resampled, from the ratio of target to source cell size along x and y
+/// (> 1 when coarsening): `Average` when the target is as coarse as the source or coarser on both
+/// axes, `Bilinear` when it is finer. The one rule for native and reprojected photos.
+pub fn colour_method(scale_x: f64, scale_y: f64) -> Resampling {
+    if scale_x >= 1.0 - 1e-9 && scale_y >= 1.0 - 1e-9 {
+        Resampling::Average
+    } else {
+        Resampling::Bilinear
+    }
+}
+
 /// Resample colour onto `dst` (same CRS): area-weighted average where the target is as coarse
 /// as the source or coarser, bilinear where it is finer. Alpha 0 is nodata in and out; channel
 /// means round to nearest.
 pub fn resample_colour(src: &Colour, dst: &Grid) -> Colour {
     let (st, dt) = (&src.grid.transform, &dst.transform);
-    let coarsening = (dt.cell_x / st.cell_x).abs() >= 1.0 - 1e-9 && (dt.cell_y / st.cell_y).abs() >= 1.0 - 1e-9;
-    let method = if coarsening { Resampling::Average } else { Resampling::Bilinear };
+    let method = colour_method((dt.cell_x / st.cell_x).abs(), (dt.cell_y / st.cell_y).abs());
     let plan = Plan::new(method, &src.grid, dst);
     let sample = |p: &[u8; 4]| (p[3] != 0).then(|| [p[0] as f64, p[1] as f64, p[2] as f64]);
     let mut out = vec![[0u8; 4]; dst.len()];
