@@ -788,3 +788,63 @@ fn unwritable_output_and_missing_input_are_one_line_errors() {
         format!("dbms: error: {}: no such file or directory; check the path", missing.display())
     );
 }
+
+#[test]
+fn uncompressed_pages_without_bricks_go_straight_to_their_place_in_any_order() {
+    use rayon::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let fx = Fixture::new(70, 45, 16, 2, Compression::None, 5);
+    let plain = |l, x, y| Page {
+        bricks: None,
+        ..fx.page(l, x, y)
+    };
+    let (a, b) = (tmp_file(&dir, "a.dbt"), tmp_file(&dir, "b.dbt"));
+    let w = TileWriter::create(&a, fx.info.clone()).unwrap();
+    for &(l, x, y) in &fx.pages() {
+        w.write_page(l, x, y, &plain(l, x, y)).unwrap();
+    }
+    w.finish().unwrap();
+    let w = TileWriter::create(&b, fx.info.clone()).unwrap();
+    let mut order = fx.pages();
+    order.reverse();
+    order
+        .par_iter()
+        .for_each(|&(l, x, y)| w.write_page(l, x, y, &plain(l, x, y)).unwrap());
+    w.finish().unwrap();
+    let bytes = std::fs::read(&a).unwrap();
+    assert_eq!(bytes, std::fs::read(&b).unwrap(), "order or threads changed the bytes");
+    let r = TileReader::open(&a, 4).unwrap();
+    for &(l, x, y) in &fx.pages() {
+        let (got, want) = (r.page(l, x, y).unwrap(), plain(l, x, y));
+        let bits = |p: &Page| p.max_z.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&got), bits(&want), "max_z of page ({l}, {x}, {y})");
+        assert_eq!((&got.colour, &got.state, &got.bricks), (&want.colour, &want.state, &None));
+    }
+    // Pages are consecutive in storage order, each at the next aligned offset, and the file
+    // ends where the last one does: nothing of the writer's scratch is left in the file.
+    let raw = 9 * 16 * 16;
+    let mut entries: Vec<IndexEntry> = r.entries().to_vec();
+    entries.sort_by_key(|e| e.offset);
+    for pair in entries.windows(2) {
+        assert_eq!(pair[1].offset, (pair[0].offset + raw).next_multiple_of(PAGE_ALIGN));
+    }
+    assert_eq!(entries.last().unwrap().offset + raw, bytes.len() as u64);
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names.len(), 2, "temporary files left behind: {names:?}");
+}
+
+#[test]
+fn an_unfinished_writer_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    for compression in [Compression::None, Compression::Lz4] {
+        let fx = Fixture::new(20, 20, 8, 4, compression, 3);
+        let path = tmp_file(&dir, "t.dbt");
+        let w = TileWriter::create(&path, fx.info.clone()).unwrap();
+        for &(l, x, y) in &fx.pages()[..3] {
+            w.write_page(l, x, y, &fx.page(l, x, y)).unwrap();
+        }
+        drop(w);
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert!(left.is_empty(), "{compression:?}: left behind: {left:?}");
+    }
+}

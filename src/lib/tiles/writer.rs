@@ -2,40 +2,69 @@
 //!
 //! Invariant: the output depends only on the [`TileSetInfo`] and the set of pages, never on the
 //! order or thread they arrived from. Memory stays bounded: each page is encoded by the calling
-//! thread and appended to a spool file beside the output at once; the writer keeps only a
-//! 24-byte record per page. [`TileWriter::finish`] streams the spool into the final layout
-//! through a temporary file renamed into place, so a failed run never leaves a partial file.
+//! thread and written to a temporary file beside the output at once; the writer keeps only a
+//! small record per page. Uncompressed pages without bricks all have the same length, so their
+//! canonical offsets are known before the first page arrives: such a page goes straight to its
+//! final place, and when every page did, [`TileWriter::finish`] only adds the preamble, header
+//! and index in front and renames the file into place. Otherwise (lz4, bricks) pages are
+//! appended as they come and `finish` copies them into canonical order through a second
+//! temporary file. Either way a failed or killed run leaves no partial output: the temporary
+//! files are removed on drop.
 
-use super::info::TileSetInfo;
+use super::info::{Compression, TileSetInfo};
 use super::layout::{
     align_up, storage_order, IndexEntry, Preamble, ENTRY_LEN, PREAMBLE_LEN, VERSION,
 };
 use super::page::{self, Layout, Page};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
+use std::fs::File;
 use std::io::Write;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// Writes one tile file. `write_page` takes `&self`, so pages can be produced and written from
-/// many threads (e.g. inside a rayon loop); encoding and compression run on the calling thread.
+/// many threads (e.g. inside a rayon loop); encoding, compression and the positioned write of
+/// the page's bytes run on the calling thread, outside any lock.
 pub struct TileWriter {
     path: PathBuf,
     info: TileSetInfo,
     layout: Layout,
-    spool: Mutex<Spool>,
+    header: Vec<u8>,
+    /// Canonical offset of every page (by index position) if all pages are `fixed_len` bytes
+    /// uncompressed without bricks; `None` with lz4, where lengths are known only once encoded.
+    plan: Option<Vec<u64>>,
+    target: Target,
+    slots: Mutex<Slots>,
 }
 
-struct Spool {
-    file: tempfile::NamedTempFile,
+/// Where pages are written.
+enum Target {
+    /// The output's temporary file (planned layout): renamed into place by `finish`.
+    Direct(tempfile::NamedTempFile),
+    /// An unnamed spool file (lz4): nothing to clean up even if the process is killed.
+    Spool(File),
+}
+
+impl Target {
+    fn file(&self) -> &File {
+        match self {
+            Target::Direct(t) => t.as_file(),
+            Target::Spool(f) => f,
+        }
+    }
+}
+
+struct Slots {
+    /// Append cursor: pages that are not at their planned place go here, past the plan's end.
     len: u64,
-    /// One slot per index position: where the page's stored bytes sit in the spool.
-    pages: Vec<Option<Spooled>>,
+    /// One slot per index position: where the page's stored bytes sit in the target file.
+    pages: Vec<Option<Stored>>,
 }
 
 #[derive(Clone, Copy)]
-struct Spooled {
+struct Stored {
     at: u64,
     stored_len: u32,
     raw_len: u32,
@@ -43,9 +72,27 @@ struct Spooled {
     flags: u32,
 }
 
+/// Where the index starts and ends for a header of `header_len` bytes and `pages` pages.
+fn index_span(header_len: usize, pages: usize) -> (u64, u64) {
+    let index_offset = align_up(PREAMBLE_LEN as u64 + header_len as u64, 8);
+    (index_offset, index_offset + (pages * ENTRY_LEN) as u64)
+}
+
+/// Canonical offsets (by index position) of pages of the given stored lengths, and the file's end.
+fn place(info: &TileSetInfo, index_end: u64, stored_len: impl Fn(usize) -> u64) -> (Vec<u64>, u64) {
+    let mut offsets = vec![0; info.page_count()];
+    let mut end = index_end;
+    for pos in storage_order(info) {
+        let offset = align_up(end, info.alignment);
+        offsets[pos] = offset;
+        end = offset + stored_len(pos);
+    }
+    (offsets, end)
+}
+
 impl TileWriter {
     /// Start writing the tile set `info` to `path`. Nothing appears at `path` until
-    /// [`finish`](Self::finish); the spool is a hidden temporary file in the same directory.
+    /// [`finish`](Self::finish); pages go to a hidden temporary file in the same directory.
     pub fn create(path: &Path, info: TileSetInfo) -> Result<TileWriter> {
         info.validate().map_err(|e| e.in_file(path))?;
         if info.layers != super::info::standard_layers() {
@@ -58,23 +105,37 @@ impl TileWriter {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
-        let file = tempfile::Builder::new()
-            .prefix(".dbms-spool-")
-            .suffix(".tmp")
-            .tempfile_in(dir)
-            .map_err(|e| {
-                Error::io(dir, e).fix("check that the output directory exists and is writable")
-            })?;
+        let cannot =
+            |e| Error::io(dir, e).fix("check that the output directory exists and is writable");
+        let layout = Layout::of(&info);
+        let header = serde_json::to_vec_pretty(&info).expect("header serialises");
+        let (_, index_end) = index_span(header.len(), info.page_count());
+        let (plan, target, len) = match info.compression {
+            Compression::None => {
+                let fixed = layout.fixed_len as u64;
+                let (plan, end) = place(&info, index_end, |_| fixed);
+                let tmp = tempfile::Builder::new()
+                    .prefix(".dbms-")
+                    .suffix(".tmp")
+                    .tempfile_in(dir)
+                    .map_err(cannot)?;
+                (Some(plan), Target::Direct(tmp), end)
+            }
+            Compression::Lz4 => (
+                None,
+                Target::Spool(tempfile::tempfile_in(dir).map_err(cannot)?),
+                0,
+            ),
+        };
         let pages = vec![None; info.page_count()];
         Ok(TileWriter {
             path: path.to_path_buf(),
-            layout: Layout::of(&info),
+            layout,
+            header,
+            plan,
+            target,
             info,
-            spool: Mutex::new(Spool {
-                file,
-                len: 0,
-                pages,
-            }),
+            slots: Mutex::new(Slots { len, pages }),
         })
     }
 
@@ -96,37 +157,46 @@ impl TileWriter {
         page::check(&self.info, level, tx, ty, page).map_err(|e| e.in_file(&self.path))?;
         let enc = page::encode(&self.layout, page, self.info.compression)
             .map_err(|e| e.in_file(&self.path))?;
-        let mut spool = self.spool.lock().unwrap_or_else(|p| p.into_inner());
-        if spool.pages[pos].is_some() {
-            return Err(Error::file(
-                &self.path,
-                format!("page (level {level}, {tx}, {ty}) was written twice"),
-            ));
-        }
-        let at = spool.len;
-        spool
-            .file
-            .as_file()
-            .write_all_at(&enc.stored, at)
-            .map_err(|e| Error::io(spool.file.path(), e))?;
-        spool.len += enc.stored.len() as u64;
         let stored_len = enc.stored.len() as u32; // ≤ raw_len (lz4 kept only when smaller)
-        spool.pages[pos] = Some(Spooled {
-            at,
-            stored_len,
-            raw_len: enc.raw_len,
-            crc: enc.crc,
-            flags: enc.flags,
-        });
-        Ok(())
+        let at = {
+            let mut slots = self.slots.lock().unwrap_or_else(|p| p.into_inner());
+            if slots.pages[pos].is_some() {
+                return Err(Error::file(
+                    &self.path,
+                    format!("page (level {level}, {tx}, {ty}) was written twice"),
+                ));
+            }
+            let at = match &self.plan {
+                Some(plan) if enc.stored.len() == self.layout.fixed_len => plan[pos],
+                _ => {
+                    let at = slots.len;
+                    slots.len += enc.stored.len() as u64;
+                    at
+                }
+            };
+            slots.pages[pos] = Some(Stored {
+                at,
+                stored_len,
+                raw_len: enc.raw_len,
+                crc: enc.crc,
+                flags: enc.flags,
+            });
+            at
+        };
+        self.target
+            .file()
+            .write_all_at(&enc.stored, at)
+            .map_err(|e| {
+                Error::io(&self.path, e).fix("check the free space in the output's directory")
+            })
     }
 
-    /// Check every page was written, then write the file in canonical order and rename it
+    /// Check every page was written, then finish the file in canonical order and rename it
     /// into place. Errors name the first missing page.
     pub fn finish(self) -> Result<()> {
-        let spool = self.spool.into_inner().unwrap_or_else(|p| p.into_inner());
-        let missing = spool.pages.iter().filter(|p| p.is_none()).count();
-        if let Some(first) = spool.pages.iter().position(Option::is_none) {
+        let slots = self.slots.into_inner().unwrap_or_else(|p| p.into_inner());
+        let missing = slots.pages.iter().filter(|p| p.is_none()).count();
+        if let Some(first) = slots.pages.iter().position(Option::is_none) {
             let (level, tx, ty) = self.info.page_at(first).expect("position within the index");
             return Err(Error::file(
                 &self.path,
@@ -134,82 +204,78 @@ impl TileWriter {
             )
             .fix("write every page of every level before finishing"));
         }
-        let pages: Vec<Spooled> = spool
+        let pages: Vec<Stored> = slots
             .pages
             .into_iter()
             .map(|p| p.expect("checked above"))
             .collect();
 
-        let header = serde_json::to_vec_pretty(&self.info).expect("header serialises");
-        let header_offset = PREAMBLE_LEN as u64;
-        let index_offset = align_up(header_offset + header.len() as u64, 8);
-        let index_end = index_offset + (pages.len() * ENTRY_LEN) as u64;
-        let align = self.info.alignment;
-        let order = storage_order(&self.info);
-        let mut entries = vec![
-            IndexEntry {
-                offset: 0,
-                stored_len: 0,
-                raw_len: 0,
-                crc: 0,
-                flags: 0
-            };
-            pages.len()
-        ];
-        let mut end = index_end;
-        for &pos in &order {
-            let p = pages[pos];
-            let offset = align_up(end, align);
-            entries[pos] = IndexEntry {
+        let header = &self.header;
+        let (index_offset, index_end) = index_span(header.len(), pages.len());
+        let (offsets, end) = place(&self.info, index_end, |pos| pages[pos].stored_len as u64);
+        let entries: Vec<IndexEntry> = pages
+            .iter()
+            .zip(&offsets)
+            .map(|(p, &offset)| IndexEntry {
                 offset,
                 stored_len: p.stored_len,
                 raw_len: p.raw_len,
                 crc: p.crc,
                 flags: p.flags,
-            };
-            end = offset + p.stored_len as u64;
-        }
+            })
+            .collect();
         let index: Vec<u8> = entries.iter().flat_map(|e| e.encode()).collect();
         let preamble = Preamble {
             version: VERSION,
-            header_offset,
+            header_offset: PREAMBLE_LEN as u64,
             header_len: header.len() as u64,
             index_offset,
             page_count: pages.len() as u64,
             file_len: end,
-            header_crc: crc32fast::hash(&header),
+            header_crc: crc32fast::hash(header),
             index_crc: crc32fast::hash(&index),
         };
+        let mut front = preamble.encode().to_vec();
+        front.extend_from_slice(header);
+        front.resize(index_offset as usize, 0);
+        front.extend_from_slice(&index);
 
         let path = &self.path;
-        let spool_path = spool.file.path().to_path_buf();
-        write_atomic(path, |w| {
-            let io = |e| Error::io(path, e);
-            let mut at = 0u64;
-            let put = |w: &mut dyn Write, bytes: &[u8], at: &mut u64| -> Result<()> {
-                w.write_all(bytes).map_err(io)?;
-                *at += bytes.len() as u64;
+        let in_place = pages.iter().zip(&offsets).all(|(p, &o)| p.at == o);
+        match self.target {
+            Target::Direct(tmp) if in_place => {
+                // Every page is already where it belongs: add the front, and rename.
+                let io = |e| Error::io(path, e);
+                let f = tmp.as_file();
+                f.write_all_at(&front, 0).map_err(io)?;
+                f.set_len(end).map_err(io)?;
+                // tempfile creates 0600; outputs are ordinary files other users and tools may read.
+                use std::os::unix::fs::PermissionsExt;
+                f.set_permissions(std::fs::Permissions::from_mode(0o644))
+                    .map_err(io)?;
+                f.sync_all().map_err(io)?;
+                tmp.persist(path).map_err(|e| io(e.error))?;
                 Ok(())
-            };
-            let zeros = vec![0u8; align as usize];
-            put(w, &preamble.encode(), &mut at)?;
-            put(w, &header, &mut at)?;
-            put(w, &zeros[..(index_offset - at) as usize], &mut at)?;
-            put(w, &index, &mut at)?;
-            let mut buf = Vec::new();
-            for &pos in &order {
-                let (e, p) = (entries[pos], pages[pos]);
-                put(w, &zeros[..(e.offset - at) as usize], &mut at)?;
-                buf.resize(p.stored_len as usize, 0);
-                spool
-                    .file
-                    .as_file()
-                    .read_exact_at(&mut buf, p.at)
-                    .map_err(|e| Error::io(&spool_path, e))?;
-                put(w, &buf, &mut at)?;
             }
-            debug_assert_eq!(at, end);
-            Ok(())
-        })
+            target => write_atomic(path, |w| {
+                let io = |e| Error::io(path, e);
+                w.write_all(&front).map_err(io)?;
+                let (mut at, mut buf) = (index_end, Vec::new());
+                for pos in storage_order(&self.info) {
+                    let p = pages[pos];
+                    let pad = offsets[pos] - at;
+                    buf.clear();
+                    buf.resize(pad as usize + p.stored_len as usize, 0);
+                    target
+                        .file()
+                        .read_exact_at(&mut buf[pad as usize..], p.at)
+                        .map_err(io)?;
+                    w.write_all(&buf).map_err(io)?;
+                    at = offsets[pos] + p.stored_len as u64;
+                }
+                debug_assert_eq!(at, end);
+                Ok(())
+            }),
+        }
     }
 }
