@@ -135,8 +135,11 @@ pub fn standard_layers() -> Vec<LayerInfo> {
     ]
 }
 
-/// What the optional per-page `bricks` blob holds until the voxel module defines it.
-pub const BRICKS_OPAQUE: &str = "opaque bytes, defined by the voxel module";
+/// Format of the per-page `bricks` blob: level-0 partial cells' solid z-runs, as
+/// [`crate::voxel::columns`] encodes them (spec: `docs/tile-format.md`, "Bricks"). A reader that
+/// meets another string must not interpret the blobs. (The name is historical: the tiles module
+/// re-exports it under this name.)
+pub const BRICKS_OPAQUE: &str = "dbms voxel columns 1";
 
 /// Everything a tile file's header says: the description of the whole tile set.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

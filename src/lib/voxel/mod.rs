@@ -6,6 +6,7 @@
 pub mod camera;
 pub mod carve;
 pub mod colour;
+pub mod columns;
 pub mod export;
 pub mod format;
 pub mod grid;
