@@ -2,7 +2,9 @@
 //! trial height over the DEM, cast its shadow with the shared caster, compare with the observed
 //! shadow, and keep the height whose shadow overlaps the observed one best.
 //!
-//! Invariant: the score of a trial height is the IoU of synthetic and observed shadow over the
+//! Invariant: the observed shadow is the corridor's shadow cells connected to the footprint
+//! (shadow beyond lit ground belongs to something else); the score of a trial height is the
+//! IoU of synthetic and that observed shadow over the
 //! usable open-ground cells (class [`Class::Lit`] / [`Class::Shadow`]) of the *corridor*, the
 //! synthetic shadow at the highest trial height (a prism's shadow only grows with its height, so
 //! the corridor holds every trial's shadow). The search is a coarse grid over `[0, z_hi]`, then a
@@ -56,12 +58,13 @@ pub fn refine(
         .zip(keep)
         .map(|((&m, &c), &k)| k && m == SHADOW && matches!(c, Class::Lit | Class::Shadow))
         .collect();
+    let observed = attached_shadow(local, &corridor);
     let score = |z: f64| -> Result<f64> {
         let mask = cast_at(ground_z + z)?;
         let (mut inter, mut union) = (0usize, 0usize);
         for i in 0..mask.len() {
             if corridor[i] {
-                let (s, o) = (mask[i] == SHADOW, local.class[i] == Class::Shadow);
+                let (s, o) = (mask[i] == SHADOW, observed[i]);
                 inter += (s && o) as usize;
                 union += (s || o) as usize;
             }
@@ -106,6 +109,38 @@ pub fn refine(
         height_m: (fine[b] + fine[e]) / 2.0,
         overlap: top,
     })
+}
+
+/// The observed shadow this footprint casts: the corridor's [`Class::Shadow`] cells connected
+/// (8-neighbours, through corridor shadow cells) to the footprint's own cells. Shadow further
+/// along the corridor beyond lit ground is someone else's (a neighbour's, a tree's) and would
+/// pull the search toward a height whose shadow reaches it.
+fn attached_shadow(local: &Local, corridor: &[bool]) -> Vec<bool> {
+    let (w, h) = (local.grid.width, local.grid.height);
+    let neighbours = |i: usize| {
+        let (c, r) = ((i % w) as i64, (i / w) as i64);
+        (-1i64..=1)
+            .flat_map(move |dr| (-1i64..=1).map(move |dc| (c + dc, r + dr)))
+            .filter(move |&(x, y)| x >= 0 && y >= 0 && x < w as i64 && y < h as i64)
+            .map(move |(x, y)| y as usize * w + x as usize)
+    };
+    let open = |i: usize| corridor[i] && local.class[i] == Class::Shadow;
+    let mut seen = vec![false; corridor.len()];
+    let mut stack: Vec<usize> = (0..corridor.len())
+        .filter(|&i| open(i) && neighbours(i).any(|j| local.class[j] == Class::Own))
+        .collect();
+    for &i in &stack {
+        seen[i] = true;
+    }
+    while let Some(i) = stack.pop() {
+        for j in neighbours(i) {
+            if !seen[j] && open(j) {
+                seen[j] = true;
+                stack.push(j);
+            }
+        }
+    }
+    seen
 }
 
 /// The caster's mask of `local`'s terrain with the footprint's own cells raised to `roof_z`:
