@@ -20,7 +20,9 @@
 //!   step; a cell is shadowed when `z < H`. For azimuths along the grid axes and the diagonals of
 //!   square cells the digital line *is* the ray and the sweep equals the reference; elsewhere a
 //!   line stays within one cell of the ray, so only cells near shadow edges can differ (measured
-//!   agreement in docs/shadows.md). Bands of lines run in parallel (rayon).
+//!   agreement in docs/shadows.md). [`RowSweep`] runs it one grid row at a time in
+//!   O(width + height) memory, so a caller can stream a grid larger than memory through it;
+//!   [`cast_shadows_slice`] is that loop over a slice held in memory.
 //! * [`cast_shadows_reference`]: marches every cell's ray exactly, cell by cell
 //!   (Amanatides–Woo traversal; a ray through a cell corner steps diagonally and touches neither
 //!   side cell). O(n · shadow length); used by tests and benchmarks to check the sweep.
@@ -31,13 +33,14 @@
 //! whole grid would be in night shadow, which is almost always a wrong `--time`.
 
 mod reference;
+mod sweep;
 
 pub use reference::cast_shadows_reference;
+pub use sweep::RowSweep;
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::raster::{Elevation, Raster};
-use rayon::prelude::*;
 
 /// Mask value of a lit cell.
 pub const LIT: u8 = 0;
@@ -113,14 +116,13 @@ pub fn cast_shadows_slice(heights: &[f32], grid: &Grid, sun: &Sun) -> Result<Vec
     if grid.is_empty() {
         return Ok(Vec::new());
     }
-    if sun.elevation_deg >= 90.0 {
-        // Overhead sun: rays go straight up and no column can block them.
-        return Ok(heights.iter().map(|z| if z.is_nan() { NODATA } else { LIT }).collect());
+    let w = grid.width;
+    let mut mask = vec![NODATA; heights.len()];
+    let mut sweep = RowSweep::new(grid, sun);
+    while let Some(r) = sweep.next_row() {
+        sweep.push(&heights[r * w..(r + 1) * w], &mut mask[r * w..(r + 1) * w]);
     }
-    let frame = Frame::new(grid, sun);
-    let z = frame.gather(heights);
-    let mask = sweep(&z, frame.width, frame.height, frame.drift, frame.step_m * sun.elevation_deg.to_radians().tan());
-    Ok(frame.scatter(&mask))
+    Ok(mask)
 }
 
 /// The checks every cast shares: data matches the grid, cells are positive metres.
@@ -142,196 +144,6 @@ fn check_grid(heights: &[f32], grid: &Grid) -> Result<()> {
         return Err(Error::msg(format!("cell size {cx} × {cy} is not positive")).fix("fix the grid's geotransform"));
     }
     Ok(())
-}
-
-/// The sweep frame: the grid flipped and/or transposed so that the sun lies toward frame row 0
-/// and, moving one row toward the sun, the column moves by `−drift` with `0 ≤ drift ≤ 1`.
-#[derive(Clone, Copy)]
-struct Frame {
-    /// Grid size (columns, rows).
-    grid_size: (usize, usize),
-    /// Frame columns and rows.
-    width: usize,
-    height: usize,
-    /// Frame rows are grid columns.
-    transposed: bool,
-    /// Frame row / column index runs against the grid's.
-    flip_row: bool,
-    flip_col: bool,
-    /// Frame columns per frame row, toward the sun, in [0, 1].
-    drift: f64,
-    /// Horizontal metres along the sun direction per frame row.
-    step_m: f64,
-}
-
-impl Frame {
-    fn new(grid: &Grid, sun: &Sun) -> Frame {
-        let (east, north) = sun.direction();
-        // Grid cells per metre toward the sun.
-        let dc = east / grid.transform.cell_x;
-        let dr = north / grid.transform.cell_y;
-        let transposed = dc.abs() > dr.abs();
-        let (major, minor) = if transposed { (dc, dr) } else { (dr, dc) };
-        let mut drift = (minor / major).abs();
-        if drift > 1.0 - 1e-12 {
-            drift = 1.0; // the diagonal of square cells, exactly
-        }
-        let (w, h) = (grid.width, grid.height);
-        Frame {
-            grid_size: (w, h),
-            width: if transposed { h } else { w },
-            height: if transposed { w } else { h },
-            transposed,
-            flip_row: major > 0.0,
-            flip_col: minor > 0.0,
-            drift,
-            step_m: 1.0 / major.abs(),
-        }
-    }
-
-    /// Grid index of frame cell `(j, i)` (column, row).
-    #[inline]
-    fn grid_index(&self, j: usize, i: usize) -> usize {
-        let i = if self.flip_row { self.height - 1 - i } else { i };
-        let j = if self.flip_col { self.width - 1 - j } else { j };
-        let (col, row) = if self.transposed { (i, j) } else { (j, i) };
-        row * self.grid_size.0 + col
-    }
-
-    /// Grid-order values into frame order.
-    fn gather<T: Copy + Default + Send + Sync>(&self, grid_data: &[T]) -> Vec<T> {
-        remap(grid_data, self.width, self.height, self.transposed, |j, i| self.grid_index(j, i))
-    }
-
-    /// Frame-order values back into grid order.
-    fn scatter<T: Copy + Default + Send + Sync>(&self, frame_data: &[T]) -> Vec<T> {
-        let (w, h) = self.grid_size;
-        remap(frame_data, w, h, self.transposed, |col, row| {
-            let (j, i) = self.frame_coords(col, row);
-            i * self.width + j
-        })
-    }
-
-    /// Frame `(column, row)` of grid cell `(col, row)`: the inverse of [`grid_index`](Self::grid_index).
-    #[inline]
-    fn frame_coords(&self, col: usize, row: usize) -> (usize, usize) {
-        let (j, i) = if self.transposed { (row, col) } else { (col, row) };
-        let i = if self.flip_row { self.height - 1 - i } else { i };
-        let j = if self.flip_col { self.width - 1 - j } else { j };
-        (j, i)
-    }
-}
-
-/// A `width × height` row-major copy of `src` with `dst[y · width + x] = src[source(x, y)]`, in
-/// parallel bands of rows. With `transposed` the source runs along destination columns, so each
-/// band is filled column by column: reads stay contiguous and writes go to a band's few rows.
-fn remap<T: Copy + Default + Send + Sync>(
-    src: &[T],
-    width: usize,
-    height: usize,
-    transposed: bool,
-    source: impl Fn(usize, usize) -> usize + Sync,
-) -> Vec<T> {
-    const BAND: usize = 64;
-    let mut dst = vec![T::default(); width * height];
-    dst.par_chunks_mut(width * BAND).enumerate().for_each(|(b, band)| {
-        let y0 = b * BAND;
-        let rows = band.len() / width;
-        if transposed {
-            for x in 0..width {
-                for y in 0..rows {
-                    band[y * width + x] = src[source(x, y0 + y)];
-                }
-            }
-        } else {
-            for (y, row) in band.chunks_exact_mut(width).enumerate() {
-                for (x, v) in row.iter_mut().enumerate() {
-                    *v = src[source(x, y0 + y)];
-                }
-            }
-        }
-    });
-    dst
-}
-
-/// The digital lines of a frame: line `l` has its cell of frame row `i` in column
-/// `l + offset(i) − offset(height − 1)`; every frame cell lies on exactly one line.
-struct Lines {
-    width: usize,
-    drift: f64,
-    max_offset: usize,
-    count: usize,
-}
-
-impl Lines {
-    fn new(width: usize, height: usize, drift: f64) -> Lines {
-        let max_offset = offset(height.saturating_sub(1), drift);
-        Lines { width, drift, max_offset, count: width + max_offset }
-    }
-
-    /// For the band of lines `l0 .. l0 + n` in frame row `i`: the frame column of line `l0`, and
-    /// the range of band positions `k` whose column `first + k` is inside the frame.
-    #[inline]
-    fn band_row(&self, i: usize, l0: usize, n: usize) -> (isize, std::ops::Range<usize>) {
-        let first = (l0 + offset(i, self.drift)) as isize - self.max_offset as isize;
-        let lo = (-first).clamp(0, n as isize) as usize;
-        let hi = (self.width as isize - first).clamp(lo as isize, n as isize) as usize;
-        (first, lo..hi)
-    }
-}
-
-/// Column offset of a line in frame row `i`: the minor-axis drift rounded to the nearest cell.
-#[inline]
-fn offset(i: usize, drift: f64) -> usize {
-    (i as f64 * drift).round() as usize
-}
-
-/// The shadow mask of frame heights `z` (`width × height`, row-major, sun toward row 0, see
-/// [`Frame`]); `rise` is the ray's rise in metres per frame row.
-fn sweep(z: &[f32], width: usize, height: usize, drift: f64, rise: f64) -> Vec<u8> {
-    let lines = Lines::new(width, height, drift);
-    let band = (lines.count / (4 * rayon::current_num_threads())).clamp(32, 1024);
-    let bands: Vec<Vec<u8>> = (0..lines.count.div_ceil(band))
-        .into_par_iter()
-        .map(|b| {
-            let l0 = b * band;
-            let n = band.min(lines.count - l0);
-            // Shadow horizon of the next cell of each line, metres.
-            let mut horizon = vec![f64::NEG_INFINITY; n];
-            let mut out = vec![NODATA; n * height];
-            for i in 0..height {
-                let (first, ks) = lines.band_row(i, l0, n);
-                let row = &z[i * width..(i + 1) * width];
-                let out_row = &mut out[i * n..(i + 1) * n];
-                for k in ks {
-                    let zc = row[(first + k as isize) as usize];
-                    let h = horizon[k];
-                    if zc.is_nan() {
-                        horizon[k] = h - rise;
-                    } else {
-                        let zc = zc as f64;
-                        out_row[k] = if zc < h { SHADOW } else { LIT };
-                        horizon[k] = zc.max(h) - rise;
-                    }
-                }
-            }
-            out
-        })
-        .collect();
-    let mut mask = vec![NODATA; width * height];
-    mask.par_chunks_mut(width).enumerate().for_each(|(i, mask_row)| {
-        for (b, buf) in bands.iter().enumerate() {
-            let l0 = b * band;
-            let n = buf.len() / height;
-            let (first, ks) = lines.band_row(i, l0, n);
-            if ks.is_empty() {
-                continue;
-            }
-            let cols = (first + ks.start as isize) as usize..(first + ks.end as isize) as usize;
-            mask_row[cols].copy_from_slice(&buf[i * n + ks.start..i * n + ks.end]);
-        }
-    });
-    mask
 }
 
 #[cfg(test)]
@@ -378,6 +190,24 @@ mod tests {
                 20.0 * ((c as f32 * 0.21).sin() + (r as f32 * 0.17).cos()) + 0.5 * v
             }
         })
+    }
+
+    /// Rows go to the sweep each exactly once, from the sun's side when the sun is nearer
+    /// north or south.
+    #[test]
+    fn row_sweep_takes_every_row_once_from_the_sun_side() {
+        let g = grid(7, 5, 1.0, 1.0);
+        for (az, first) in [(0.0, 0), (20.0, 0), (180.0, 4), (200.0, 4), (90.0, 0), (270.0, 0), (80.0, 0), (100.0, 4)] {
+            let mut sweep = RowSweep::new(&g, &Sun::new(30.0, az).unwrap());
+            let mut order = Vec::new();
+            while let Some(r) = sweep.next_row() {
+                order.push(r);
+                sweep.push(&[1.0; 7], &mut [0; 7]);
+            }
+            assert_eq!(order[0], first, "az {az}");
+            order.sort();
+            assert_eq!(order, (0..5).collect::<Vec<_>>(), "az {az}");
+        }
     }
 
     #[test]
