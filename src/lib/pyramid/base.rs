@@ -4,13 +4,18 @@
 //! (a surface with no colour, or a colour with no surface, cannot be drawn); otherwise it is
 //! nodata in all three layers (NaN, alpha 0, state empty). A valid cell is an opaque column
 //! (state 2) from the ground to its terrain height, or to its [`RaisedCell`](super::raised::RaisedCell)
-//! top with that cell's state and colour. Effects then multiply the colour (see [`super::shade`]).
+//! top with that cell's state and colour. A partial cell (state 1) also gets its voxel column
+//! ([`crate::voxel::columns`]): its runs, a run with no colour of its own (terrain, roof) taking
+//! the photo's. Effects then multiply the colour by the cell's factor (see [`super::shade`]), and
+//! every run of the cell's column by the same factor, so the top run's colour is the layer's.
 
+use super::cascade::Band;
 use super::raised::Raised;
 use super::reduce::BaseRows;
 use super::shade::Effects;
 use crate::raster::{Colour, Elevation};
 use crate::tiles::{STATE_OPAQUE, STATE_PARTIAL};
+use crate::voxel::columns::Run;
 use rayon::prelude::*;
 
 /// Everything level 0 is made of. Bands are cut from it on demand.
@@ -26,8 +31,8 @@ pub struct Level0<'a> {
 }
 
 impl Level0<'_> {
-    /// Level-0 rows `row0 .. row0 + rows`.
-    pub fn band(&self, row0: usize, rows: usize) -> BaseRows {
+    /// Level-0 rows `row0 .. row0 + rows` and the columns of their partial cells.
+    pub fn band(&self, row0: usize, rows: usize) -> Band {
         let w = self.terrain.grid.width;
         let mut out = BaseRows::nodata(w, rows);
         out.max_z
@@ -66,7 +71,41 @@ impl Level0<'_> {
         if let Some(fx) = self.effects {
             fx.shade_band(row0, &mut out.colour);
         }
-        out
+        let columns = self.columns(row0, &out);
+        Band { rows: out, columns }
+    }
+
+    /// The voxel columns of the partial cells of band `rows` (starting at grid row `row0`).
+    fn columns(&self, row0: usize, rows: &BaseRows) -> Vec<(usize, Vec<Run>)> {
+        let w = rows.width;
+        let start = row0 * w;
+        let cells = self.raised.range(start, start + rows.state.len());
+        cells
+            .par_iter()
+            .filter(|rc| rows.state[rc.index - start] == STATE_PARTIAL)
+            .map(|rc| {
+                let photo = self.colour.data[rc.index];
+                let factor = self
+                    .effects
+                    .map_or(1.0, |fx| fx.factor_at(rc.index % w, rc.index / w));
+                let runs = self
+                    .raised
+                    .runs(rc.index)
+                    .expect("a partial raised cell has runs");
+                let runs = runs
+                    .iter()
+                    .map(|r| {
+                        let [red, green, blue, _] = r.colour.unwrap_or(photo);
+                        Run {
+                            bottom: r.bottom,
+                            top: r.top,
+                            colour: lit([red, green, blue, 255], factor),
+                        }
+                    })
+                    .collect();
+                (rc.index - start, runs)
+            })
+            .collect()
     }
 
     /// Cells dropped because only one of elevation and colour is valid there.
@@ -80,12 +119,22 @@ impl Level0<'_> {
     }
 }
 
+/// `colour` lit by an effects factor, rounded as [`Effects::shade_band`] rounds the layer.
+fn lit(mut colour: [u8; 4], factor: f64) -> [u8; 4] {
+    if factor != 1.0 {
+        for ch in &mut colour[..3] {
+            *ch = (*ch as f64 * factor).round().min(255.0) as u8;
+        }
+    }
+    colour
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::Grid;
-    use crate::pyramid::raised::RaisedCell;
+    use crate::pyramid::raised::{PlacedVoxels, RaisedCell};
     use crate::tiles::STATE_EMPTY;
 
     #[test]
@@ -103,23 +152,23 @@ mod tests {
                 [1, 2, 3, 255],
             ],
         );
-        let raised = Raised::new(
-            vec![
-                RaisedCell {
-                    index: 4,
-                    top_z: 15.0,
-                    colour: None,
-                    partial: false,
-                },
-                RaisedCell {
-                    index: 5,
-                    top_z: 16.0,
-                    colour: Some([7, 7, 7, 255]),
-                    partial: true,
-                },
-            ],
+        let building = Raised::new(
+            vec![RaisedCell {
+                index: 4,
+                top_z: 15.0,
+                colour: None,
+                partial: false,
+            }],
             &t,
         );
+        // A voxel floating 15..16 m over cell 5 (centre (2.5, 0.5), terrain 6 m).
+        let lintel = PlacedVoxels {
+            origin: [2.5, 0.5, 0.0],
+            heading_deg: 0.0,
+            voxel_size: 1.0,
+            voxels: vec![([0.0, 0.0, 15.5], [7, 7, 7])],
+        };
+        let raised = building.union(&Raised::objects(&t.grid, &[lintel], &t), &t);
         let l0 = Level0 {
             terrain: &t,
             colour: &c,
@@ -127,7 +176,8 @@ mod tests {
             effects: None,
         };
         assert_eq!(l0.half_valid_cells(), 2);
-        let b = l0.band(0, 2);
+        let band = l0.band(0, 2);
+        let b = &band.rows;
         assert_eq!(
             b.state,
             vec![
@@ -152,7 +202,24 @@ mod tests {
             [7, 7, 7, 255],
             "an object brings its own colour"
         );
+        // The partial cell's column: the ground with the photo's colour, the voxel with its own.
+        let ground = Run {
+            bottom: f32::NEG_INFINITY,
+            top: 6.0,
+            colour: [1, 2, 3, 255],
+        };
+        let voxel = Run {
+            bottom: 15.0,
+            top: 16.0,
+            colour: [7, 7, 7, 255],
+        };
+        assert_eq!(band.columns, vec![(5, vec![ground, voxel])]);
         let second = l0.band(1, 1);
-        assert_eq!(second.max_z, vec![4.0, 15.0, 16.0]);
+        assert_eq!(second.rows.max_z, vec![4.0, 15.0, 16.0]);
+        assert_eq!(
+            second.columns,
+            vec![(2, vec![ground, voxel])],
+            "band-local index"
+        );
     }
 }

@@ -12,16 +12,40 @@
 use super::reduce::{reduce, BaseRows, CoarseRows, LevelRows};
 use crate::error::{Error, Result};
 use crate::tiles::{Page, TileSetInfo, STATE_EMPTY};
+use crate::voxel::columns::{PageColumns, Run};
 use rayon::prelude::*;
+
+/// A level-0 band: its rows and the voxel columns of its partial cells, which go into the
+/// level-0 pages' `bricks` blobs (coarse levels keep only max Z, colour and state).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Band {
+    /// The cells.
+    pub rows: BaseRows,
+    /// `(band-local row-major index, runs)` of every partial cell, index ascending.
+    pub columns: Vec<(usize, Vec<Run>)>,
+}
+
+impl From<BaseRows> for Band {
+    /// A band without voxel columns (every cell a height-field column).
+    fn from(rows: BaseRows) -> Band {
+        Band {
+            rows,
+            columns: Vec::new(),
+        }
+    }
+}
 
 /// Build every level of `info` and hand each page to `emit(level, tx, ty, page)` (called from
 /// many threads, each page exactly once, in no particular order).
 ///
 /// `band(row0, rows)` must return level-0 rows `row0 .. row0 + rows` of the grid
-/// (`info.grid.width` cells each); it is called for consecutive page-rows, top to bottom.
-pub fn build_levels<B, E>(info: &TileSetInfo, mut band: B, emit: &E) -> Result<()>
+/// (`info.grid.width` cells each), as a [`Band`] or plain [`BaseRows`]; it is called for
+/// consecutive page-rows, top to bottom. A level-0 page with partial cells gets their columns
+/// as its `bricks` blob ([`PageColumns`]); other pages get none.
+pub fn build_levels<B, T, E>(info: &TileSetInfo, mut band: B, emit: &E) -> Result<()>
 where
-    B: FnMut(usize, usize) -> Result<BaseRows>,
+    B: FnMut(usize, usize) -> Result<T>,
+    T: Into<Band>,
     E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
 {
     let (p, f) = (info.page_size, info.factor);
@@ -43,7 +67,10 @@ where
     for ty in 0..top.pages_y {
         let row0 = ty * p;
         let rows = p.min(top.height - row0);
-        let base = band(row0, rows)?;
+        let Band {
+            rows: base,
+            columns,
+        } = band(row0, rows)?.into();
         if base.width != top.width || base.rows() != rows {
             return Err(Error::msg(format!(
                 "internal: level-0 band at row {row0} is {}×{} cells, expected {}×{rows}",
@@ -52,7 +79,7 @@ where
                 top.width
             )));
         }
-        emit_page_row(info, 0, ty, &base, emit)?;
+        emit_page_row(info, 0, ty, &base, Some(&columns), emit)?;
         if info.levels.len() > 1 {
             push(info, &mut pending, 1, reduce(&base, f), emit)?;
         }
@@ -90,19 +117,21 @@ where
     let full = std::mem::replace(&mut slot.rows, CoarseRows::new(level.width));
     let ty = slot.next_ty;
     slot.next_ty += 1;
-    emit_page_row(info, k, ty, &full, emit)?;
+    emit_page_row(info, k, ty, &full, None, emit)?;
     if k + 1 < info.levels.len() {
         push(info, pending, k + 1, reduce(&full, info.factor), emit)?;
     }
     Ok(())
 }
 
-/// Cut one page-row of `level` into pages (nodata padding at the edges) and emit them, in parallel.
+/// Cut one page-row of `level` into pages (nodata padding at the edges), each with the bricks of
+/// its `columns` (band-local indices) if it has any, and emit them, in parallel.
 fn emit_page_row<R, E>(
     info: &TileSetInfo,
     level: usize,
     ty: usize,
     rows: &R,
+    columns: Option<&[(usize, Vec<Run>)]>,
     emit: &E,
 ) -> Result<()>
 where
@@ -132,9 +161,31 @@ where
                     page.colour[o + valid..o + p].fill([0; 4]);
                     page.state[o + valid..o + p].fill(STATE_EMPTY);
                 }
+                page.bricks = page_bricks(columns.unwrap_or(&[]), w, tx * p..tx * p + cols, p)
+                    .map_err(|e| {
+                        Error::msg(format!(
+                            "internal: page (level {level}, {tx}, {ty}) bricks: {e}"
+                        ))
+                    })?;
                 emit(level, tx, ty, page)
             },
         )
+}
+
+/// The bricks blob of the page holding band columns `cols` (band `w` cells wide, pages `p`
+/// cells): its cells' columns re-indexed within the page; `None` when it has none.
+fn page_bricks(
+    columns: &[(usize, Vec<Run>)],
+    w: usize,
+    cols: std::ops::Range<usize>,
+    p: usize,
+) -> std::result::Result<Option<Vec<u8>>, String> {
+    let mut page = PageColumns::default();
+    // Band order (row-major) restricted to the page's columns is the page's row-major order.
+    for (i, runs) in columns.iter().filter(|(i, _)| cols.contains(&(i % w))) {
+        page.push((i / w) * p + i % w - cols.start, runs)?;
+    }
+    Ok((!page.is_empty()).then(|| page.encode()))
 }
 
 #[cfg(test)]

@@ -145,20 +145,13 @@ pub fn build_pyramid(
         }
         false => Raised::default(),
     };
-    let mut object_cells = Vec::new();
+    let mut placed_objects = Vec::new();
     for placed in &db.manifest.objects {
-        let path = db.dir.join(&placed.file);
-        let (obj, _) = crate::voxel::format::read(&path)?;
-        object_cells.extend(raised::rasterise_object(
-            &terrain.grid,
-            &placed_voxels(&obj, placed),
-            &terrain,
-        ));
+        let (obj, _) = crate::voxel::format::read(&db.dir.join(&placed.file))?;
+        placed_objects.push(placed_voxels(&obj, placed));
     }
-    let objects = Raised::new(object_cells.clone(), &terrain);
-    let mut all_cells = buildings.cells().to_vec();
-    all_cells.extend(object_cells);
-    let all = Raised::new(all_cells, &terrain);
+    let objects = Raised::objects(&terrain.grid, &placed_objects, &terrain);
+    let all = buildings.union(&objects, &terrain);
 
     // The photo's sun matters only against a requested one (a night-time photo_time must not
     // stop a build without a sun).

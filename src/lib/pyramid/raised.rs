@@ -2,20 +2,28 @@
 //!
 //! Invariant: a [`Raised`] set holds at most one [`RaisedCell`] per grid cell, sorted by cell
 //! index, and only cells whose top is above valid terrain (a building or object over a DEM hole
-//! stays a hole: nodata never becomes data). Merging into level 0 is then a per-cell rule:
-//! `max_z = top_z`, the state opaque unless the cell has voxel overhangs or holes (partial), and
-//! the colour of an object cell is its top voxel's (the orthophoto never saw objects placed
-//! afterwards), while a building cell keeps the photo's roof colour.
+//! stays a hole: nodata never becomes data). Each cell's column is a list of solid runs (case 3
+//! of the Hughes patent: the height field plus voxels above it): the **ground run** from `−inf`
+//! up to the terrain or to the top of whatever stands on it without a gap, then any floating
+//! runs, sorted, apart, merged where they touch. A cell is **partial** exactly when it has a
+//! floating run (a hole or an overhang), and then [`Raised::runs`] holds its runs; otherwise it
+//! is an opaque column from the ground to `top_z`. Merging into level 0 is then a per-cell
+//! rule: `max_z = top_z` (the last run's top), the state partial or opaque, and the colour of an
+//! object cell is its top voxel's (the orthophoto never saw objects placed afterwards), while a
+//! building cell keeps the photo's roof colour.
 //!
 //! * Buildings are flat-roofed prisms (GeoJSON polygons with an absolute `roof_z` in metres, the
 //!   `buildings` layer that `dbms shadow-height --apply` writes): a cell is inside when its
 //!   **centre** is inside the polygon (even-odd rule, so holes work), like `gdal_rasterize`.
+//!   A building cell is one piece from the ground to the roof.
 //! * A voxel object marks every cell whose centre lies inside one of its voxels' footprints (the
 //!   voxel's square rotated by the heading), and always the cell holding the voxel's centre, so
-//!   voxels smaller than a cell are not lost. Per cell the column's voxel z-intervals are merged:
-//!   `top_z` is the highest voxel top; the cell is **partial** when the column has a gap between
-//!   voxels, or its lowest voxel starts more than half a voxel above the ground (an overhang);
-//!   otherwise it is an opaque column from the ground up.
+//!   voxels smaller than a cell are not lost. Each voxel is a piece `[bottom, top]` in every
+//!   cell it marks; a voxel starting within half a voxel of the ground stands on it (joins the
+//!   ground run), one starting higher floats (an overhang). Voxels and runs wholly at or below
+//!   the ground are buried and dropped.
+//! * Sources combine by [`Raised::union`]: the union of their pieces per cell, so a lintel over
+//!   a taller roof disappears into it and a lintel above a roof leaves a gap.
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
@@ -23,7 +31,7 @@ use crate::raster::Elevation;
 use rayon::prelude::*;
 use std::path::Path;
 
-/// One level-0 cell with something standing on it.
+/// One level-0 cell with something standing on it: the summary of its column.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RaisedCell {
     /// Row-major cell index in the database grid.
@@ -32,34 +40,171 @@ pub struct RaisedCell {
     pub top_z: f32,
     /// Colour of the top surface when it is not the photo's (objects); `None` keeps the photo's.
     pub colour: Option<[u8; 4]>,
-    /// True when the column has holes or overhangs (state partial; the bricks hold the detail).
+    /// True when the column has holes or overhangs (state partial; [`Raised::runs`] has its
+    /// runs). Output only: [`Raised::new`] takes its cells as solid columns and ignores it.
     pub partial: bool,
 }
 
-/// The raised cells of a database grid, sorted by index, one per cell.
+/// One solid run of a column as the merge knows it, absolute metres; the first run of a column
+/// is the ground (bottom `−inf`). It becomes the tile format's
+/// [`Run`](crate::voxel::columns::Run) once the photo's colour is known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RaisedRun {
+    /// Bottom, metres; `−inf` = from the ground.
+    pub bottom: f32,
+    /// Top, metres.
+    pub top: f32,
+    /// Colour of the run's highest piece; `None` = the orthophoto's colour (terrain, roofs).
+    pub colour: Option<[u8; 4]>,
+}
+
+/// A solid piece a source puts in a cell, `bottom ..= top` metres (bottom `−inf`: from the
+/// ground), before merging.
+#[derive(Debug, Clone, Copy)]
+struct Piece {
+    index: usize,
+    bottom: f32,
+    top: f32,
+    colour: Option<[u8; 4]>,
+}
+
+/// The raised cells of a database grid, sorted by index, one per cell, and the runs of the
+/// partial ones.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Raised {
     cells: Vec<RaisedCell>,
+    /// `(index, runs)` of exactly the partial cells, sorted by index; the runs obey
+    /// [`crate::voxel::columns::check_runs`] (ground run first, then apart and ascending).
+    columns: Vec<(usize, Vec<RaisedRun>)>,
 }
 
 impl Raised {
-    /// Combine cells from any sources: per cell the highest top wins (with its colour), and the
-    /// cell is partial when any source says so. Cells not above valid terrain are dropped.
-    pub fn new(mut cells: Vec<RaisedCell>, terrain: &Elevation) -> Raised {
-        cells.retain(|c| {
-            let t = terrain.data[c.index];
-            !t.is_nan() && c.top_z > t
-        });
-        cells.par_sort_by(|a, b| a.index.cmp(&b.index).then(b.top_z.total_cmp(&a.top_z)));
-        let mut out: Vec<RaisedCell> = Vec::with_capacity(cells.len());
-        for c in cells {
-            match out.last_mut() {
-                // Sorted highest first within an index: the first is the top; later ones only add partiality.
-                Some(last) if last.index == c.index => last.partial |= c.partial,
-                _ => out.push(c),
+    /// Cells from any sources, each a solid column from the ground to its `top_z`: per cell the
+    /// highest top wins (with its colour). Cells not above valid terrain are dropped.
+    pub fn new(cells: Vec<RaisedCell>, terrain: &Elevation) -> Raised {
+        let pieces = cells
+            .into_iter()
+            .map(|c| Piece {
+                index: c.index,
+                bottom: f32::NEG_INFINITY,
+                top: c.top_z,
+                colour: c.colour,
+            })
+            .collect();
+        Raised::merge(pieces, terrain)
+    }
+
+    /// The placed voxel objects rasterised (see the module doc for footprints and the ground
+    /// tolerance) and merged per cell into runs.
+    pub fn objects(grid: &Grid, objects: &[PlacedVoxels], terrain: &Elevation) -> Raised {
+        let pieces = objects
+            .iter()
+            .flat_map(|o| object_pieces(grid, o, terrain))
+            .collect();
+        Raised::merge(pieces, terrain)
+    }
+
+    /// Everything of `self` and `other` in one set: per cell the union of their solid runs.
+    pub fn union(&self, other: &Raised, terrain: &Elevation) -> Raised {
+        let mut pieces = self.pieces();
+        pieces.extend(other.pieces());
+        Raised::merge(pieces, terrain)
+    }
+
+    /// The solid pieces this set is made of (a ground run only as high as the terrain is
+    /// dropped again by merging: the merge adds it back).
+    fn pieces(&self) -> Vec<Piece> {
+        let mut out = Vec::with_capacity(self.cells.len());
+        let mut cols = self.columns.iter().peekable();
+        for c in &self.cells {
+            match cols.next_if(|(i, _)| *i == c.index) {
+                Some((index, runs)) => out.extend(runs.iter().map(|r| Piece {
+                    index: *index,
+                    bottom: r.bottom,
+                    top: r.top,
+                    colour: r.colour,
+                })),
+                None => out.push(Piece {
+                    index: c.index,
+                    bottom: f32::NEG_INFINITY,
+                    top: c.top_z,
+                    colour: c.colour,
+                }),
             }
         }
-        Raised { cells: out }
+        out
+    }
+
+    /// Merge pieces per cell into runs: pieces over a nodata cell or not above its ground are
+    /// dropped, a piece reaching down to the ground joins the ground run, overlapping or
+    /// touching pieces join (a run's colour is its highest piece's; ties: the last in the sort
+    /// by bottom, top, colour). Heights are compared as the `f32` they are stored as, so runs
+    /// that touch in storage are always merged.
+    fn merge(mut pieces: Vec<Piece>, terrain: &Elevation) -> Raised {
+        pieces.retain(|p| {
+            let g = terrain.data[p.index];
+            !g.is_nan() && p.top > g
+        });
+        for p in &mut pieces {
+            if p.bottom <= terrain.data[p.index] {
+                p.bottom = f32::NEG_INFINITY;
+            }
+        }
+        pieces.par_sort_by(|a, b| {
+            (a.index.cmp(&b.index))
+                .then(a.bottom.total_cmp(&b.bottom))
+                .then(a.top.total_cmp(&b.top))
+                .then(a.colour.cmp(&b.colour))
+        });
+        let merged: Vec<(RaisedCell, Option<Vec<RaisedRun>>)> = pieces
+            .par_chunk_by(|a, b| a.index == b.index)
+            .map(|col| {
+                let index = col[0].index;
+                let ground = RaisedRun {
+                    bottom: f32::NEG_INFINITY,
+                    top: terrain.data[index],
+                    colour: None,
+                };
+                let mut runs = vec![ground];
+                for p in col {
+                    let last = runs.last_mut().expect("the ground run");
+                    if p.bottom <= last.top {
+                        if p.top >= last.top {
+                            (last.top, last.colour) = (p.top, p.colour);
+                        }
+                    } else {
+                        runs.push(RaisedRun {
+                            bottom: p.bottom,
+                            top: p.top,
+                            colour: p.colour,
+                        });
+                    }
+                }
+                let top = *runs.last().expect("the ground run");
+                let partial = runs.len() > 1;
+                let cell = RaisedCell {
+                    index,
+                    top_z: top.top,
+                    colour: top.colour,
+                    partial,
+                };
+                (cell, partial.then_some(runs))
+            })
+            .collect();
+        let mut out = Raised::default();
+        for (cell, runs) in merged {
+            if let Some(runs) = runs {
+                out.columns.push((cell.index, runs));
+            }
+            out.cells.push(cell);
+        }
+        out
+    }
+
+    /// The runs of partial cell `index`, ground first; `None` for a solid column or no cell.
+    pub fn runs(&self, index: usize) -> Option<&[RaisedRun]> {
+        let k = self.columns.binary_search_by_key(&index, |c| c.0).ok()?;
+        Some(&self.columns[k].1)
     }
 
     /// Number of raised cells.
@@ -202,18 +347,17 @@ pub struct PlacedVoxels {
     pub voxels: Vec<([f64; 3], [u8; 3])>,
 }
 
-/// The cells an object stands on (see the module doc for the footprint and partial rules).
-pub fn rasterise_object(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) -> Vec<RaisedCell> {
+/// The pieces an object puts in the cells it stands on (see the module doc for the footprint):
+/// one per voxel and cell, its bottom dropped to the ground when within half a voxel of it.
+fn object_pieces(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) -> Vec<Piece> {
     let h = obj.heading_deg.to_radians();
     let (s, c) = h.sin_cos();
     // Local u → world (cos h, −sin h); local v → world (sin h, cos h).
     let to_world = |u: f64, v: f64| (obj.origin[0] + u * c + v * s, obj.origin[1] - u * s + v * c);
     let half = obj.voxel_size / 2.0;
-    // (cell index, bottom, top, colour) for every voxel and cell it marks.
-    let mut marks: Vec<(usize, f64, f64, [u8; 3])> = obj
-        .voxels
+    obj.voxels
         .par_iter()
-        .flat_map_iter(|&([u, v, w], rgb)| {
+        .flat_map_iter(|&([u, v, w], [r, g, b])| {
             let (bottom, top) = (obj.origin[2] + w - half, obj.origin[2] + w + half);
             let mut cells: Vec<usize> = Vec::new();
             let (wx, wy) = to_world(u, v);
@@ -221,9 +365,9 @@ pub fn rasterise_object(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) ->
                 cells.push(grid.index(col, row));
             }
             // Cells whose centre lies in the rotated footprint: scan its bounding box.
-            let r = half * std::f64::consts::SQRT_2;
-            let (px0, py0) = grid.transform.world_to_pixel(wx - r, wy + r);
-            let (px1, py1) = grid.transform.world_to_pixel(wx + r, wy - r);
+            let rad = half * std::f64::consts::SQRT_2;
+            let (px0, py0) = grid.transform.world_to_pixel(wx - rad, wy + rad);
+            let (px1, py1) = grid.transform.world_to_pixel(wx + rad, wy - rad);
             let lo = |a: f64, b: f64| (a.min(b) - 0.5).ceil().max(0.0) as usize;
             let hi = |a: f64, b: f64, n: usize| {
                 ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize
@@ -241,36 +385,19 @@ pub fn rasterise_object(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) ->
             }
             cells.sort_unstable();
             cells.dedup();
-            cells.into_iter().map(move |i| (i, bottom, top, rgb))
-        })
-        .collect();
-    marks.par_sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.3.cmp(&b.3)));
-    marks
-        .chunk_by(|a, b| a.0 == b.0)
-        .filter_map(|col| {
-            let index = col[0].0;
-            let ground = terrain.data[index] as f64;
-            if ground.is_nan() {
-                return None;
-            }
-            // Intervals sorted by bottom: merge, noting any gap.
-            let (mut reach, mut gap) = (col[0].2, false);
-            for m in &col[1..] {
-                gap |= m.1 > reach + 1e-9;
-                reach = reach.max(m.2);
-            }
-            let floating = col[0].1 > ground + half;
-            // Top colour: the highest voxel's (ties: the last in the sort, deterministic).
-            let top = col
-                .iter()
-                .max_by(|a, b| a.2.total_cmp(&b.2))
-                .expect("non-empty chunk");
-            let [r, g, b] = top.3;
-            Some(RaisedCell {
-                index,
-                top_z: reach as f32,
-                colour: Some([r, g, b, 255]),
-                partial: gap || floating,
+            cells.into_iter().map(move |index| {
+                let ground = terrain.data[index] as f64;
+                let grounded = bottom <= ground + half;
+                Piece {
+                    index,
+                    bottom: if grounded {
+                        f32::NEG_INFINITY
+                    } else {
+                        bottom as f32
+                    },
+                    top: top as f32,
+                    colour: Some([r, g, b, 255]),
+                }
             })
         })
         .collect()
@@ -377,7 +504,7 @@ mod tests {
         let vox = (0..3)
             .map(|k| ([0.5, 0.5, 0.5 + k as f64], [k as u8, 0, 0]))
             .collect();
-        let r = Raised::new(rasterise_object(&t.grid, &object(vox, 0.0), &t), &t);
+        let r = Raised::objects(&t.grid, &[object(vox, 0.0)], &t);
         assert_eq!(r.len(), 1);
         let c = r.get(t.grid.index(5, 4)).unwrap();
         assert_eq!(
@@ -392,13 +519,120 @@ mod tests {
         // An arch: two legs (u = 0.5 and 2.5) and a lintel at w = 2.5 spanning u = 0.5..2.5.
         let mut vox = vec![([0.5, 0.5, 0.5], [1, 1, 1]), ([2.5, 0.5, 0.5], [1, 1, 1])];
         vox.extend((0..3).map(|u| ([0.5 + u as f64, 0.5, 2.5], [9, 9, 9])));
-        let r = Raised::new(rasterise_object(&t.grid, &object(vox, 0.0), &t), &t);
+        let r = Raised::objects(&t.grid, &[object(vox, 0.0)], &t);
         assert_eq!(r.len(), 3);
         let leg = r.get(t.grid.index(5, 4)).unwrap();
         let gap = r.get(t.grid.index(6, 4)).unwrap();
         assert!(leg.partial, "leg column has a hole between w 1 and 2");
         assert!(gap.partial, "the lintel floats over the ground");
         assert_eq!((leg.top_z, gap.top_z), (103.0, 103.0));
+        // The runs are exactly the voxels: the leg stands on the ground up to 101, the lintel
+        // 102..103 floats; under the gap only the terrain (photo colour) is below the lintel.
+        let run = |bottom: f32, top: f32, colour: Option<[u8; 4]>| RaisedRun {
+            bottom,
+            top,
+            colour,
+        };
+        let ninf = f32::NEG_INFINITY;
+        assert_eq!(
+            r.runs(t.grid.index(5, 4)).unwrap(),
+            &[
+                run(ninf, 101.0, Some([1, 1, 1, 255])),
+                run(102.0, 103.0, Some([9, 9, 9, 255]))
+            ]
+        );
+        assert_eq!(
+            r.runs(t.grid.index(6, 4)).unwrap(),
+            &[
+                run(ninf, 100.0, None),
+                run(102.0, 103.0, Some([9, 9, 9, 255]))
+            ]
+        );
+        assert!(r.runs(t.grid.index(4, 4)).is_none());
+        for (i, runs) in r.columns.iter() {
+            let as_runs: Vec<_> = runs
+                .iter()
+                .map(|x| crate::voxel::columns::Run {
+                    bottom: x.bottom,
+                    top: x.top,
+                    colour: x.colour.unwrap_or([0, 0, 0, 255]),
+                })
+                .collect();
+            crate::voxel::columns::check_runs(&as_runs).unwrap_or_else(|e| panic!("cell {i}: {e}"));
+        }
+    }
+
+    #[test]
+    fn stacked_voxels_merge_into_one_run_and_buried_ones_vanish() {
+        let t = flat(10, 10, 100.0);
+        // Cell (5, 4): voxels at w 2.5, 3.5 (touching: one run 102..104), 5.5 (apart), and
+        // one at w −1.5 wholly underground.
+        let vox = [2.5, 3.5, 5.5, -1.5]
+            .map(|w| ([0.5, 0.5, w], [w as u8, 0, 0]))
+            .to_vec();
+        let r = Raised::objects(&t.grid, &[object(vox, 0.0)], &t);
+        let runs = r.runs(t.grid.index(5, 4)).unwrap();
+        let spans: Vec<_> = runs.iter().map(|x| (x.bottom, x.top)).collect();
+        assert_eq!(
+            spans,
+            vec![(f32::NEG_INFINITY, 100.0), (102.0, 104.0), (105.0, 106.0)]
+        );
+        assert_eq!(
+            runs[1].colour,
+            Some([3, 0, 0, 255]),
+            "a run takes its highest voxel's colour"
+        );
+    }
+
+    #[test]
+    fn union_with_a_building_fills_or_keeps_the_gap() {
+        let t = flat(10, 10, 100.0);
+        // A lintel 102..103 over cells (5..8, 4); a roof at (5, 4) up to 102.5 swallows the gap,
+        // one at (7, 4) up to 101 leaves it (above the roof).
+        let lintel = (0..3)
+            .map(|u| ([0.5 + u as f64, 0.5, 2.5], [9, 9, 9]))
+            .collect();
+        let objects = Raised::objects(&t.grid, &[object(lintel, 0.0)], &t);
+        let roofs = Raised::new(
+            vec![
+                RaisedCell {
+                    index: t.grid.index(5, 4),
+                    top_z: 102.5,
+                    colour: None,
+                    partial: false,
+                },
+                RaisedCell {
+                    index: t.grid.index(7, 4),
+                    top_z: 101.0,
+                    colour: None,
+                    partial: false,
+                },
+            ],
+            &t,
+        );
+        let all = roofs.union(&objects, &t);
+        assert_eq!(all.len(), 3);
+        let a = all.get(t.grid.index(5, 4)).unwrap();
+        assert_eq!(
+            (a.partial, a.top_z, a.colour),
+            (false, 103.0, Some([9, 9, 9, 255]))
+        );
+        let spans: Vec<_> = all
+            .runs(t.grid.index(7, 4))
+            .unwrap()
+            .iter()
+            .map(|x| (x.bottom, x.top, x.colour))
+            .collect();
+        assert_eq!(
+            spans,
+            vec![
+                (f32::NEG_INFINITY, 101.0, None),
+                (102.0, 103.0, Some([9, 9, 9, 255]))
+            ]
+        );
+        assert_eq!(all.runs(t.grid.index(6, 4)).unwrap().len(), 2);
+        // Union is idempotent: merging a set with itself changes nothing.
+        assert_eq!(all.union(&all, &t), all);
     }
 
     #[test]
@@ -406,7 +640,7 @@ mod tests {
         let t = flat(10, 10, 100.0);
         // A voxel 2 m along +v: heading 90° puts it 2 m east of the origin.
         let vox = vec![([0.0, 2.0, 0.5], [5, 5, 5])];
-        let r = Raised::new(rasterise_object(&t.grid, &object(vox, 90.0), &t), &t);
+        let r = Raised::objects(&t.grid, &[object(vox, 90.0)], &t);
         let (col, row) = t.grid.cell_at(7.0 + 1e-9, 5.0 + 1e-9).unwrap();
         assert!(r.get(t.grid.index(col, row)).is_some(), "{:?}", r);
         assert!(r.range(0, 100).iter().all(|c| {
@@ -424,7 +658,7 @@ mod tests {
             voxel_size: 3.0,
             voxels: vec![([0.0, 0.0, 1.5], [1, 2, 3])],
         };
-        let r = Raised::new(rasterise_object(&t.grid, &obj, &t), &t);
+        let r = Raised::objects(&t.grid, &[obj], &t);
         // Footprint 3.5..6.5: centres 3.5 (edge, inside), 4.5, 5.5, 6.5 (edge) → 4 × 4 cells.
         assert_eq!(r.len(), 16);
         assert!(r

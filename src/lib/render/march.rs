@@ -1,9 +1,14 @@
 //! Stepping one ray through the max-Z hierarchy (the patent's stepping loop).
 //!
-//! Every column is solid from −∞ up to its cell's `max_z` (NaN = no column). A ray hits a
-//! level-0 cell when its lowest height while crossing the cell, `min(z(t_in), z(t_out))`, is at
-//! or below the cell's `max_z`: on a wall if it enters the cell already below the top, else on
-//! the top where `z(t) = max_z`.
+//! A level-0 column is solid from −∞ up to its cell's `max_z` (NaN = no column), except a
+//! partial cell (`state` 1), whose column is the solid runs of its voxel column
+//! ([`crate::voxel::columns`]): the ground run from −∞, then floating runs with gaps between. A
+//! ray hits a run when its heights while crossing the cell, `z(t_in) .. z(t_out)`, overlap the
+//! run's: on the wall it enters through if it enters within the run's heights, else on the
+//! run's top (falling) or its underside (rising) where `z(t)` reaches it. The first run met
+//! wins; a ray that meets none passes under the overhang or through the hole, on to the ground
+//! in the same cell or the next cells. A partial cell's `max_z` is its last run's top, so the
+//! `may_hit` bound below holds for every cell.
 //!
 //! Hierarchical traversal starts at the coarsest level. A coarse cell whose `max_z` is below the
 //! ray over the whole crossing is skipped in one step; otherwise the ray descends a level at the
@@ -19,6 +24,8 @@
 use super::ray::Ray;
 use super::sampler::Sampler;
 use crate::error::Result;
+use crate::tiles::STATE_PARTIAL;
+use crate::voxel::columns::Run;
 
 /// How rays step through the levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -38,6 +45,8 @@ pub enum Face {
     WallU,
     /// A wall facing along the row axis (north or south).
     WallV,
+    /// The underside of a floating voxel run (a ray rising under an overhang).
+    Bottom,
 }
 
 /// Where a ray stopped.
@@ -83,9 +92,12 @@ fn may_hit(ray: &Ray, t: f64, t_far: f64, max_z: f32) -> bool {
     !max_z.is_nan() && ray.z(t).min(ray.z(t_far)) <= max_z as f64
 }
 
-/// The hit of level-0 cell `(c, r)`, if the ray hits its column within `span`: pure in the cell.
+/// The hit of level-0 cell `(c, r)` within `span`, if the ray hits its column: a solid column
+/// up to `max_z`, or for a partial cell the solid `runs` of its voxel column (ground run from
+/// `−inf` first). Returns the range, the face and the index of the run hit (0 for a solid
+/// column). A pure function of the cell.
 #[inline]
-fn level0_hit(ray: &Ray, span: Span, c: i64, r: i64, max_z: f32) -> Option<(f64, Face)> {
+fn level0_hit(ray: &Ray, span: Span, c: i64, r: i64, max_z: f32, runs: Option<&[Run]>) -> Option<(f64, Face, usize)> {
     let (eu, ev) = (ray.u.entry(c), ray.v.entry(r));
     let (t_in, face) = if eu >= ev && eu >= span.t0 {
         (eu, Face::WallU)
@@ -98,12 +110,33 @@ fn level0_hit(ray: &Ray, span: Span, c: i64, r: i64, max_z: f32) -> Option<(f64,
     if !may_hit(ray, t_in, t_out, max_z) {
         return None;
     }
-    let mz = max_z as f64;
-    if ray.z(t_in) <= mz {
-        Some((t_in, face))
+    match runs {
+        None => run_hit(ray, t_in, face, t_out, f64::NEG_INFINITY, max_z as f64).map(|(t, f)| (t, f, 0)),
+        // z is monotone along the ray, so the earliest entry over the runs is the first run met.
+        Some(runs) => runs
+            .iter()
+            .enumerate()
+            .filter_map(|(k, run)| run_hit(ray, t_in, face, t_out, run.bottom as f64, run.top as f64).map(|(t, f)| (t, f, k)))
+            .min_by(|a, b| a.0.total_cmp(&b.0)),
+    }
+}
+
+/// Where the ray, crossing a cell over `[t_in, t_out]` (entering through `face`), first meets
+/// the solid run `bottom ..= top` metres: on the entry face when it enters inside the run's
+/// heights, else on the run's top (falling) or bottom (rising) if it reaches it in the cell.
+#[inline]
+fn run_hit(ray: &Ray, t_in: f64, face: Face, t_out: f64, bottom: f64, top: f64) -> Option<(f64, Face)> {
+    let (z_in, z_out) = (ray.z(t_in), ray.z(t_out));
+    if z_in.min(z_out) > top || z_in.max(z_out) < bottom {
+        return None;
+    }
+    let at = |z: f64| ray.time_at_height(z).unwrap_or(t_in).max(t_in).min(t_out);
+    if z_in > top {
+        Some((at(top), Face::Top))
+    } else if z_in < bottom {
+        Some((at(bottom), Face::Bottom))
     } else {
-        let t = ray.time_at_height(mz).unwrap_or(t_in).max(t_in).min(t_out);
-        Some((t, Face::Top))
+        Some((t_in, face))
     }
 }
 
@@ -129,8 +162,10 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
         let exit_u = ray.u.exit(cc, s);
         let t_exit = exit_u.min(ray.v.exit(rr, s));
         if l == 0 {
-            if let Some((t_hit, f)) = level0_hit(ray, span, c, r, cell.max_z) {
-                let hit = Hit { t: t_hit, colour: cell.colour, face: f, level: 0 };
+            let runs = if cell.state == STATE_PARTIAL { Some(sampler.column(c, r)?) } else { None };
+            if let Some((t_hit, f, k)) = level0_hit(ray, span, c, r, cell.max_z, runs) {
+                let colour = runs.map_or(cell.colour, |runs| runs[k].colour);
+                let hit = Hit { t: t_hit, colour, face: f, level: 0 };
                 return Ok((Some(coarse_colour(hit, c, r, sampler, plan)?), steps));
             }
         } else if may_hit(ray, t, t_exit.min(span.t1), cell.max_z) {

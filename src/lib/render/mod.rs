@@ -11,8 +11,9 @@
 //!
 //! Invariants: pages come only through [`TileReader`] (bounded cache, counted reads); the same
 //! tile set and camera give the same pixels whatever the thread count; without range thresholds
-//! the hierarchical and level-0 traversals give bit-identical frames. Voxel bricks of partial
-//! cells (`state` 1) have no defined payload yet: such cells render as their `max_z` column.
+//! the hierarchical and level-0 traversals give bit-identical frames. A partial cell (`state` 1)
+//! is hit on the solid runs of its voxel column (the page's bricks), so rays pass under
+//! overhangs and through holes; the range is the distance to the run's face.
 //! Conventions and figures: `docs/render.md`.
 
 pub mod camera;
@@ -27,7 +28,7 @@ pub use march::{Face, Hit, Plan, Span, Traversal};
 
 use crate::error::{Error, Result};
 use crate::io::atomic::write_bytes_atomic;
-use crate::tiles::{ReaderStats, TileReader};
+use crate::tiles::{ReaderStats, TileReader, STATE_PARTIAL};
 use rayon::prelude::*;
 use ray::{Axis, Ray};
 use sampler::Sampler;
@@ -231,7 +232,9 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     Ok(assemble(camera.width, camera.height, rows, reader, before, start))
 }
 
-/// Error if the eye is on or below the top of any level-0 column whose closed cell contains it.
+/// Error if the eye is inside the solid part of any level-0 column whose closed cell contains
+/// it: at or below the top of a height-field column, or within a run of a voxel column (the
+/// gap under an arch is open air).
 fn check_eye_above_terrain(reader: &TileReader, repeat: bool, u: f64, v: f64, camera: &Camera) -> Result<()> {
     let near = |x: f64| {
         let k = x.floor() as i64;
@@ -240,15 +243,22 @@ fn check_eye_above_terrain(reader: &TileReader, repeat: bool, u: f64, v: f64, ca
     let mut sampler = Sampler::new(reader, repeat);
     for c in near(u) {
         for r in near(v) {
-            if let Some(cell) = sampler.cell(0, c, r)? {
-                if !cell.max_z.is_nan() && camera.eye[2] <= cell.max_z as f64 {
-                    let [x, y, z] = camera.eye;
+            let Some(cell) = sampler.cell(0, c, r)? else { continue };
+            let [x, y, z] = camera.eye;
+            if cell.state == STATE_PARTIAL {
+                if let Some(run) = sampler.column(c, r)?.iter().find(|run| z >= run.bottom as f64 && z <= run.top as f64) {
                     return Err(Error::msg(format!(
-                        "--eye {x},{y},{z}: the eye is at or below the terrain, whose top there is {:.2} m",
-                        cell.max_z
+                        "--eye {x},{y},{z}: the eye is inside a voxel column, solid there from {:.2} m to {:.2} m",
+                        run.bottom, run.top
                     ))
-                    .fix("raise Z above the ground or move the eye"));
+                    .fix("move the eye into the open air (above, or in a gap under an overhang)"));
                 }
+            } else if !cell.max_z.is_nan() && z <= cell.max_z as f64 {
+                return Err(Error::msg(format!(
+                    "--eye {x},{y},{z}: the eye is at or below the terrain, whose top there is {:.2} m",
+                    cell.max_z
+                ))
+                .fix("raise Z above the ground or move the eye"));
             }
         }
     }

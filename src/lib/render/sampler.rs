@@ -4,9 +4,13 @@
 //! memo only avoids asking the shared cache again while a ray stays inside one page. Outside a
 //! level's `width × height` a lookup is `None`, unless the database repeats (`wrap`), in which
 //! case indices wrap modulo the level's size (only used for levels that tile the plane exactly).
+//! The voxel columns of a level-0 page are decoded from its `bricks` blob the first time a ray
+//! needs one, checked against the page's layers ([`PageColumns::check_layers`]), and kept while
+//! the memo holds the page.
 
-use crate::error::Result;
-use crate::tiles::{Cell, Page, TileReader};
+use crate::error::{Error, Result};
+use crate::tiles::{Cell, Page, TileReader, BRICKS_OPAQUE};
+use crate::voxel::columns::{PageColumns, Run};
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
@@ -17,6 +21,8 @@ pub struct Sampler<'a> {
     sizes: Vec<(i64, i64)>,
     wrap: bool,
     memo: Vec<Option<(usize, usize, Arc<Page>)>>,
+    /// Decoded columns of the level-0 page `(tx, ty)`.
+    columns: Option<(usize, usize, PageColumns)>,
     /// Pages this sampler asked the reader for, `(level, tx, ty)`.
     pub touched: BTreeSet<(usize, usize, usize)>,
 }
@@ -31,6 +37,7 @@ impl<'a> Sampler<'a> {
             sizes: info.levels.iter().map(|l| (l.width as i64, l.height as i64)).collect(),
             wrap,
             memo: vec![None; info.levels.len()],
+            columns: None,
             touched: BTreeSet::new(),
         }
     }
@@ -58,5 +65,42 @@ impl<'a> Sampler<'a> {
             }
         };
         Ok(Some(page.cell(p, col % p, row % p)))
+    }
+
+    /// The solid runs of level-0 cell `(col, row)`, which must be a partial cell (`state` 1)
+    /// inside the level: its voxel column from the page's bricks. A page whose bricks are
+    /// missing, malformed or inconsistent with its layers is an error naming the page.
+    pub fn column(&mut self, col: i64, row: i64) -> Result<&[Run]> {
+        let (w, h) = self.sizes[0];
+        let (col, row) = (col.rem_euclid(w) as usize, row.rem_euclid(h) as usize);
+        let p = self.page_size;
+        let (tx, ty) = (col / p, row / p);
+        let cached = matches!(&self.columns, Some((x, y, _)) if (*x, *y) == (tx, ty));
+        if !cached {
+            let page = self.reader.page(0, tx, ty)?;
+            self.touched.insert((0, tx, ty));
+            let decoded = self.decode(&page, tx, ty)?;
+            self.columns = Some((tx, ty, decoded));
+        }
+        let (.., columns) = self.columns.as_ref().expect("just decoded");
+        let cell = (row % p) * p + col % p;
+        columns.runs(cell).ok_or_else(|| {
+            Error::file(self.reader.path(), format!("page (level 0, {tx}, {ty}): cell {cell} has no voxel column"))
+        })
+    }
+
+    fn decode(&self, page: &Page, tx: usize, ty: usize) -> Result<PageColumns> {
+        let bad = |problem: String| {
+            Error::file(self.reader.path(), format!("page (level 0, {tx}, {ty}) bricks: {problem}"))
+                .fix("the tile file is corrupt or was written by another dbms; rebuild it with dbms pyramid")
+        };
+        let format = &self.reader.info().bricks;
+        if format != BRICKS_OPAQUE {
+            return Err(bad(format!("the header's bricks format is {format:?}, this dbms reads {BRICKS_OPAQUE:?}")));
+        }
+        let blob = page.bricks.as_deref().unwrap_or(&[0u8; 4][..]); // no blob: no columns
+        let columns = PageColumns::decode(blob, self.page_size * self.page_size).map_err(&bad)?;
+        columns.check_layers(&page.state, &page.max_z).map_err(bad)?;
+        Ok(columns)
     }
 }

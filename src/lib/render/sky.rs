@@ -26,6 +26,7 @@ pub fn face_factor(face: Face) -> f64 {
         Face::Top => 1.0,
         Face::WallU => 0.8,
         Face::WallV => 0.65,
+        Face::Bottom => 0.5,
     }
 }
 

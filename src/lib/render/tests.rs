@@ -4,6 +4,7 @@ use super::*;
 use crate::crs::Crs;
 use crate::grid::Grid;
 use crate::tiles::Compression;
+use crate::voxel::columns::Run;
 use proptest::prelude::*;
 use std::sync::OnceLock;
 
@@ -307,4 +308,150 @@ fn geographic_tile_sets_are_refused() {
     let r = TileReader::open(&path, 4).unwrap();
     let e = render_top(&r, 8, 8, false).unwrap_err();
     assert!(e.to_string().contains("geographic"), "{e}");
+}
+
+// ---- Voxel columns: holes and overhangs --------------------------------------------------
+
+const RED: [u8; 4] = [200, 30, 30, 255];
+const BLUE: [u8; 4] = [30, 30, 200, 255];
+
+fn ground(z: f32, colour: [u8; 4]) -> Run {
+    Run { bottom: f32::NEG_INFINITY, top: z, colour }
+}
+
+/// Ground at 0 m; a 10 m back wall along row 5 (y 58..59); with `arch`, an arch over rows
+/// 28..=36 (y 27..37): legs 4 m high at columns 30 and 34, a lintel 3..4 m over columns 31..=33.
+fn arch_scene(arch: bool) -> (tempfile::TempDir, TileReader) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("arch.dbt");
+    let grid = Grid::north_up(0.0, 64.0, 1.0, 64, 64, Crs::epsg(32614));
+    synthetic::write_columns(&path, grid, 16, 4, |c, r| match (c, r) {
+        (_, 5) => vec![ground(10.0, BLUE)],
+        (30 | 34, 28..=36) if arch => vec![ground(4.0, RED)],
+        (31..=33, 28..=36) if arch => vec![ground(0.0, GREY), Run { bottom: 3.0, top: 4.0, colour: RED }],
+        _ => vec![ground(0.0, GREY)],
+    })
+    .unwrap();
+    let reader = TileReader::open(&path, 64).unwrap();
+    (dir, reader)
+}
+
+/// The centre pixel's range and colour for both traversals (asserting they agree).
+fn centre_hit(r: &TileReader, cam: &Camera) -> (f32, [u8; 3]) {
+    let h = render_view(r, cam, &no_lod(Traversal::Hierarchical)).unwrap();
+    let l = render_view(r, cam, &no_lod(Traversal::Level0)).unwrap();
+    assert_eq!((h.rgb.clone(), bits(&h.range)), (l.rgb, bits(&l.range)));
+    (h.range[centre(&h)], h.rgb[centre(&h)])
+}
+
+#[test]
+fn a_ray_through_an_arch_opening_hits_what_is_behind_it() {
+    let (_a, with) = arch_scene(true);
+    let (_b, without) = arch_scene(false);
+    // Looking north 1.5 m up along x = 32.5: under the lintel (3 m), on to the wall at y = 58.
+    let cam = camera([32.5, 10.25, 1.5], 0.0, 0.0, 0.0, 5, 5);
+    let (range, rgb) = centre_hit(&with, &cam);
+    assert_eq!(range, 47.75);
+    assert_eq!(rgb, sky::shade(BLUE, Face::WallV, 47.75, None));
+    assert_eq!(range.to_bits(), centre_hit(&without, &cam).0.to_bits(), "the same range as with no arch");
+    // 3.5 m up: the lintel's south face at y = 27.
+    let (range, rgb) = centre_hit(&with, &camera([32.5, 10.25, 3.5], 0.0, 0.0, 0.0, 5, 5));
+    assert_eq!((range, rgb), (16.75, sky::shade(RED, Face::WallV, 16.75, None)));
+    // 4.5 m up: over the arch, on to the wall again.
+    assert_eq!(centre_hit(&with, &camera([32.5, 10.25, 4.5], 0.0, 0.0, 0.0, 5, 5)).0, 47.75);
+    // Through the leg's column (x = 30.5) nothing passes.
+    assert_eq!(centre_hit(&with, &camera([30.5, 10.25, 1.5], 0.0, 0.0, 0.0, 5, 5)).0, 16.75);
+}
+
+#[test]
+fn a_ray_under_an_overhang_hits_the_ground_below_it() {
+    let (_a, with) = arch_scene(true);
+    let (_b, without) = arch_scene(false);
+    // From 2 m up at y = 10.25, down toward the ground at y = 31 (under the lintel, y 27..37):
+    // at the lintel's face (y = 27) the ray is 0.39 m up, below its bottom.
+    let pitch = -(2.0f64 / 20.75).atan().to_degrees();
+    let cam = camera([32.5, 10.25, 2.0], 0.0, pitch, 0.0, 5, 5);
+    let (range, rgb) = centre_hit(&with, &cam);
+    assert!((range as f64 - 20.75f64.hypot(2.0)).abs() < 1e-4, "{range}");
+    assert_eq!(rgb, sky::shade(GREY, Face::Top, range as f64, None));
+    assert_eq!(range.to_bits(), centre_hit(&without, &cam).0.to_bits());
+}
+
+#[test]
+fn a_rising_ray_under_an_overhang_hits_its_underside_and_the_eye_may_stand_there() {
+    let (_a, with) = arch_scene(true);
+    // Under the lintel, 1 m up, looking north 45° up: the lintel's bottom (3 m) 2 m ahead.
+    let (range, rgb) = centre_hit(&with, &camera([32.5, 31.5, 1.0], 0.0, 45.0, 0.0, 5, 5));
+    assert!((range as f64 - 2.0 * 2f64.sqrt()).abs() < 1e-5, "{range}");
+    assert_eq!(rgb, sky::shade(RED, Face::Bottom, range as f64, None));
+    // Inside the lintel is inside solid matter.
+    let e = render_view(&with, &camera([32.5, 31.5, 3.5], 0.0, 0.0, 0.0, 4, 4), &ViewOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("inside a voxel column, solid there from 3.00 m to 4.00 m"), "{e}");
+}
+
+#[test]
+fn a_page_with_partial_cells_but_no_bricks_is_an_error_naming_the_page() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.dbt");
+    let grid = Grid::north_up(0.0, 16.0, 1.0, 16, 16, Crs::epsg(32614));
+    let info = crate::tiles::TileSetInfo::new(grid, 16, 4, None).unwrap();
+    let writer = crate::tiles::TileWriter::create(&path, info).unwrap();
+    let mut page = crate::tiles::Page::nodata(16);
+    page.max_z.fill(1.0);
+    page.colour.fill(GREY);
+    page.state.fill(crate::tiles::STATE_OPAQUE);
+    page.state[8 * 16 + 8] = crate::tiles::STATE_PARTIAL;
+    writer.write_page(0, 0, 0, &page).unwrap();
+    writer.finish().unwrap();
+    let r = TileReader::open(&path, 4).unwrap();
+    let e = render_view(&r, &camera([8.5, 7.5, 5.0], 0.0, -90.0, 0.0, 3, 3), &ViewOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("page (level 0, 0, 0) bricks: cell 136 has state 1 (partial) but no column"), "{e}");
+}
+
+/// [`rough`] with floating runs over some cells (arches, overhangs) and a second one over a few.
+fn rough_columns(c: usize, r: usize) -> Vec<Run> {
+    let (z, colour) = rough(c, r);
+    if z.is_nan() {
+        return Vec::new();
+    }
+    let h = (c as u64 * 31 + r as u64 * 17) % 11;
+    let mut runs = vec![ground(z, colour)];
+    if h < 3 {
+        runs.push(Run { bottom: z + 1.5 + h as f32, top: z + 3.0 + h as f32, colour: RED });
+    }
+    if h == 0 {
+        runs.push(Run { bottom: z + 5.0, top: z + 5.5, colour: BLUE });
+    }
+    runs
+}
+
+fn rough_column_tiles() -> &'static (tempfile::TempDir, TileReader) {
+    static T: OnceLock<(tempfile::TempDir, TileReader)> = OnceLock::new();
+    T.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.dbt");
+        synthetic::write_columns(&path, Grid::north_up(0.0, 150.0, 1.0, 200, 150, Crs::epsg(32614)), 16, 2, rough_columns).unwrap();
+        let reader = TileReader::open(&path, 64).unwrap();
+        (dir, reader)
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// With voxel columns in a quarter of the cells, low eyes (some between the runs) and
+    /// rising rays, the two traversals still agree bit for bit.
+    #[test]
+    fn hierarchy_and_level0_agree_through_holes_and_overhangs(
+        x in -20.0f64..220.0, y in -20.0f64..170.0, z in 2.0f64..50.0,
+        roll in -30.0f64..30.0, pitch in -60.0f64..30.0, yaw in 0.0f64..360.0, repeat in any::<bool>()
+    ) {
+        let (_d, r) = rough_column_tiles();
+        let cam = camera([x, y, z], roll, pitch, yaw, 24, 18);
+        let opts = |t| ViewOptions { repeat, ..no_lod(t) };
+        let h = render_view(r, &cam, &opts(Traversal::Hierarchical));
+        prop_assume!(h.is_ok(), "eye inside solid matter");
+        let (h, l) = (h.unwrap(), render_view(r, &cam, &opts(Traversal::Level0)).unwrap());
+        prop_assert_eq!(&h.rgb, &l.rgb);
+        prop_assert_eq!(bits(&h.range), bits(&l.range));
+    }
 }
