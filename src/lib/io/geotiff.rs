@@ -86,7 +86,9 @@ fn corrupt(path: &Path, e: TiffError) -> Error {
 
 /// Read a GeoTIFF (or a plain TIFF with a `.tfw` world file): int8/16/32, uint8/16/32,
 /// float16/32/64; stripped or tiled; chunky or planar; any compression and predictor the `tiff`
-/// crate decodes (none, LZW, Deflate, PackBits, JPEG; predictors 2 and 3).
+/// crate decodes (none, LZW, Deflate, PackBits, JPEG; predictors 2 and 3). Uncompressed, LZW and
+/// Deflate images of 8- to 64-bit samples decode their strips or tiles in parallel
+/// ([`super::chunks`]); the rest go through the `tiff` crate on one thread.
 pub fn read(path: &Path) -> Result<SourceRaster> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let limits = {
@@ -96,6 +98,7 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         l.ifd_value_size = 64 << 20;
         l
     };
+    let chunk_file = file.try_clone().map_err(|e| Error::io(path, e))?;
     let mut dec = Decoder::new(BufReader::new(file))
         .map_err(|e| corrupt(path, e))?
         .with_limits(limits);
@@ -147,8 +150,17 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         .map(|i| bands - extra.len() + i);
     let tags = GeoTags::read(&mut dec).map_err(err)?;
 
-    let mut buf = DecodingResult::U8(Vec::new());
-    let layout = dec.read_image_to_buffer(&mut buf).map_err(err)?;
+    let (buf, planes) = match super::chunks::plan(&mut dec).map_err(err)? {
+        Some(plan) if plan.decoded_bytes() > MAX_DECODED_BYTES as u64 => {
+            return Err(corrupt(path, TiffError::LimitsExceeded))
+        }
+        Some(plan) => (super::chunks::decode(path, &chunk_file, &plan)?, plan.planes()),
+        None => {
+            let mut buf = DecodingResult::U8(Vec::new());
+            let layout = dec.read_image_to_buffer(&mut buf).map_err(err)?;
+            (buf, layout.planes)
+        }
+    };
     let pixels = width as usize * height as usize;
     let mut samples = samples_from(path, buf)?;
     if samples.len() != pixels * bands {
@@ -161,7 +173,7 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         )
         .fix("convert it: gdal_translate -co INTERLEAVE=PIXEL in.tif out.tif"));
     }
-    if layout.planes > 1 {
+    if planes > 1 {
         samples = interleave(samples, bands);
     }
     if ycbcr {

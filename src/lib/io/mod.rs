@@ -11,6 +11,7 @@
 
 pub mod ascii_grid;
 pub mod atomic;
+mod chunks;
 #[cfg(feature = "gdal")]
 pub mod gdal;
 pub mod geotiff;

@@ -1,0 +1,643 @@
+//! Parallel decoding of a TIFF image's strips or tiles ("chunks").
+//!
+//! Invariant: for every layout [`plan`] accepts, [`decode`] returns exactly the samples the
+//! `tiff` crate's serial `read_image_to_buffer` returns (same variant, same values, same plane
+//! order); layouts it does not accept (other compressions, float16, sub-byte samples, mixed
+//! sample formats) return `None` from [`plan`] and are left to the `tiff` crate. Each chunk's
+//! compressed bytes are read by offset and byte count (positioned reads, no shared cursor),
+//! inflated (Deflate by `zune-inflate`, adler-32 checked; LZW by `weezl`) and un-predicted on a
+//! rayon thread, then copied into the image.
+
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+use std::fs::File;
+use std::io::{Read, Seek};
+use std::os::unix::fs::FileExt;
+use std::path::Path;
+use tiff::decoder::{Decoder, DecodingResult};
+use tiff::tags::{ByteOrder, Tag};
+use tiff::TiffResult;
+
+/// How the chunks of an image are stored, as far as [`decode`] needs it.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Plan {
+    width: usize,
+    height: usize,
+    /// Samples per pixel.
+    samples: usize,
+    /// Bytes per sample: 1, 2, 4 or 8.
+    bytes: usize,
+    /// SampleFormat: 1 unsigned, 2 signed, 3 IEEE float.
+    format: u16,
+    /// PlanarConfiguration 2: one set of chunks per sample.
+    planar: bool,
+    big_endian: bool,
+    codec: Codec,
+    /// Predictor: 1 none, 2 horizontal, 3 floating point.
+    predictor: u16,
+    /// Chunk width and height, pixels (a strip is as wide as the image).
+    chunk_w: usize,
+    chunk_h: usize,
+    offsets: Vec<u64>,
+    counts: Vec<u64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Codec {
+    None,
+    Lzw,
+    Deflate,
+}
+
+/// The chunk plan of the decoder's current image, or `None` for a layout [`decode`] leaves to the
+/// `tiff` crate.
+pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Plan>> {
+    let (width, height) = dec.dimensions()?;
+    let (width, height) = (width as usize, height as usize);
+    let samples: usize = dec.find_tag_unsigned(Tag::SamplesPerPixel)?.unwrap_or(1);
+    let bits: Vec<u16> = dec
+        .find_tag_unsigned_vec(Tag::BitsPerSample)?
+        .unwrap_or_else(|| vec![1]);
+    let formats: Vec<u16> = dec
+        .find_tag_unsigned_vec(Tag::SampleFormat)?
+        .unwrap_or_else(|| vec![1]);
+    let codec = match dec.find_tag_unsigned::<u16>(Tag::Compression)?.unwrap_or(1) {
+        1 => Codec::None,
+        5 => Codec::Lzw,
+        8 | 32946 => Codec::Deflate,
+        _ => return Ok(None),
+    };
+    let predictor: u16 = dec.find_tag_unsigned(Tag::Predictor)?.unwrap_or(1);
+    let planar = dec
+        .find_tag_unsigned::<u16>(Tag::PlanarConfiguration)?
+        .unwrap_or(1)
+        == 2;
+    let (Some(&b), Some(&format)) = (bits.first(), formats.first()) else {
+        return Ok(None);
+    };
+    let bytes = b as usize / 8;
+    let supported = samples >= 1
+        && matches!(b, 8 | 16 | 32 | 64)
+        && bits.iter().all(|&x| x == b)
+        && formats.iter().all(|&f| f == format)
+        && match format {
+            1 | 2 => matches!(predictor, 1 | 2),
+            3 => b >= 32 && matches!(predictor, 1 | 2 | 3),
+            _ => false,
+        };
+    if !supported || width == 0 || height == 0 {
+        return Ok(None);
+    }
+    let tiled = dec.find_tag(Tag::TileWidth)?.is_some();
+    let (chunk_w, chunk_h, offsets, counts) = if tiled {
+        let tw: usize = dec.find_tag_unsigned(Tag::TileWidth)?.unwrap_or(0);
+        let th: usize = dec.find_tag_unsigned(Tag::TileLength)?.unwrap_or(0);
+        let offsets = dec.find_tag_unsigned_vec(Tag::TileOffsets)?;
+        let counts = dec.find_tag_unsigned_vec(Tag::TileByteCounts)?;
+        (tw, th, offsets, counts)
+    } else {
+        let rows: u64 = dec
+            .find_tag_unsigned(Tag::RowsPerStrip)?
+            .unwrap_or(u32::MAX as u64);
+        let offsets = dec.find_tag_unsigned_vec(Tag::StripOffsets)?;
+        let counts = dec.find_tag_unsigned_vec(Tag::StripByteCounts)?;
+        (width, rows.min(height as u64) as usize, offsets, counts)
+    };
+    let (Some(offsets), Some(counts)) = (offsets, counts) else {
+        return Ok(None);
+    };
+    if chunk_w == 0 || chunk_h == 0 {
+        return Ok(None);
+    }
+    Ok(Some(Plan {
+        width,
+        height,
+        samples,
+        bytes,
+        format,
+        planar,
+        big_endian: dec.byte_order() == ByteOrder::BigEndian,
+        codec,
+        predictor,
+        chunk_w,
+        chunk_h,
+        offsets,
+        counts,
+    }))
+}
+
+impl Plan {
+    /// Planes of chunks: one per sample if planar, else one.
+    pub(crate) fn planes(&self) -> usize {
+        if self.planar {
+            self.samples
+        } else {
+            1
+        }
+    }
+
+    /// Bytes of the decoded image.
+    pub(crate) fn decoded_bytes(&self) -> u64 {
+        (self.width * self.height) as u64 * (self.samples * self.bytes) as u64
+    }
+
+    /// Samples of a pixel within one chunk.
+    fn chunk_samples(&self) -> usize {
+        if self.planar {
+            1
+        } else {
+            self.samples
+        }
+    }
+
+    fn across(&self) -> usize {
+        self.width.div_ceil(self.chunk_w)
+    }
+
+    fn down(&self) -> usize {
+        self.height.div_ceil(self.chunk_h)
+    }
+}
+
+/// Decode every chunk of `plan` from `file` in parallel: the samples in the `tiff` crate's
+/// layout (pixel-interleaved, or plane after plane when planar).
+pub(crate) fn decode(path: &Path, file: &File, plan: &Plan) -> Result<DecodingResult> {
+    let chunks = plan.planes() * plan.across() * plan.down();
+    if plan.offsets.len() < chunks || plan.counts.len() < chunks {
+        return Err(Error::file(
+            path,
+            format!(
+                "corrupt or truncated TIFF: {} chunk offsets and {} byte counts for {chunks} chunks",
+                plan.offsets.len(),
+                plan.counts.len()
+            ),
+        )
+        .fix("re-create the file, or check it with gdalinfo"));
+    }
+    let len = plan.width * plan.height * plan.samples;
+    Ok(match (plan.format, plan.bytes) {
+        (1, 1) => DecodingResult::U8(words::<u8>(path, file, plan, len)?),
+        (2, 1) => DecodingResult::I8(
+            words::<u8>(path, file, plan, len)?
+                .into_iter()
+                .map(|w| w as i8)
+                .collect(),
+        ),
+        (1, 2) => DecodingResult::U16(words::<u16>(path, file, plan, len)?),
+        (2, 2) => DecodingResult::I16(
+            words::<u16>(path, file, plan, len)?
+                .into_iter()
+                .map(|w| w as i16)
+                .collect(),
+        ),
+        (1, 4) => DecodingResult::U32(words::<u32>(path, file, plan, len)?),
+        (2, 4) => DecodingResult::I32(
+            words::<u32>(path, file, plan, len)?
+                .into_iter()
+                .map(|w| w as i32)
+                .collect(),
+        ),
+        (3, 4) => DecodingResult::F32(
+            words::<u32>(path, file, plan, len)?
+                .into_iter()
+                .map(f32::from_bits)
+                .collect(),
+        ),
+        (1, 8) => DecodingResult::U64(words::<u64>(path, file, plan, len)?),
+        (2, 8) => DecodingResult::I64(
+            words::<u64>(path, file, plan, len)?
+                .into_iter()
+                .map(|w| w as i64)
+                .collect(),
+        ),
+        (3, 8) => DecodingResult::F64(
+            words::<u64>(path, file, plan, len)?
+                .into_iter()
+                .map(f64::from_bits)
+                .collect(),
+        ),
+        _ => unreachable!("plan() accepts only these sample types"),
+    })
+}
+
+/// An unsigned sample word: samples are decoded as their bits, then reinterpreted (in place).
+trait Word: Copy + Default + Send + Sync {
+    const BYTES: usize;
+    fn from_bytes(b: &[u8], big_endian: bool) -> Self;
+    fn wrapping_add(self, other: Self) -> Self;
+    /// Words from byte planes, most significant plane first: `out[i]`'s bytes are
+    /// `planes[i]`, `planes[n + i]`, … for `n = out.len()`.
+    fn from_planes(planes: &[u8], out: &mut [Self]);
+}
+
+/// Undo horizontal differencing in place: each value plus the one `stride` before it, running
+/// along the row (one independent running sum per sample of a pixel).
+fn undifference<W: Word>(row: &mut [W], stride: usize) {
+    let mut acc = [W::default(); 16];
+    if stride <= acc.len() {
+        let acc = &mut acc[..stride];
+        for px in row.chunks_exact_mut(stride) {
+            for (a, v) in acc.iter_mut().zip(px) {
+                *a = a.wrapping_add(*v);
+                *v = *a;
+            }
+        }
+    } else {
+        for i in stride..row.len() {
+            row[i] = row[i].wrapping_add(row[i - stride]);
+        }
+    }
+}
+
+macro_rules! word {
+    ($t:ty) => {
+        impl Word for $t {
+            const BYTES: usize = std::mem::size_of::<$t>();
+            #[inline]
+            fn from_bytes(b: &[u8], big_endian: bool) -> $t {
+                let a = b.try_into().expect("word-sized slice");
+                if big_endian {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }
+            }
+            #[inline]
+            fn wrapping_add(self, other: $t) -> $t {
+                <$t>::wrapping_add(self, other)
+            }
+            fn from_planes(planes: &[u8], out: &mut [$t]) {
+                const N: usize = std::mem::size_of::<$t>();
+                let n = out.len();
+                let planes: [&[u8]; N] = std::array::from_fn(|k| &planes[k * n..(k + 1) * n]);
+                for (i, w) in out.iter_mut().enumerate() {
+                    *w = <$t>::from_be_bytes(std::array::from_fn(|k| planes[k][i]));
+                }
+            }
+        }
+    };
+}
+word!(u8);
+word!(u16);
+word!(u32);
+word!(u64);
+
+/// All samples as words, in the `tiff` crate's layout. One task per band of chunk rows (and
+/// plane), the chunks of a band decoded in parallel too, so a single-strip image still spreads.
+fn words<W: Word>(path: &Path, file: &File, plan: &Plan, len: usize) -> Result<Vec<W>> {
+    let mut out = vec![W::default(); len];
+    let spp = plan.chunk_samples();
+    let band_len = plan.chunk_h * plan.width * spp;
+    let plane_len = plan.height * plan.width * spp;
+    let (across, down) = (plan.across(), plan.down());
+    out.par_chunks_mut(plane_len)
+        .enumerate()
+        .flat_map(|(plane, buf)| {
+            buf.par_chunks_mut(band_len)
+                .enumerate()
+                .map(move |(cy, band)| (plane, cy, band))
+        })
+        .try_for_each(|(plane, cy, band)| {
+            let rows = band.len() / (plan.width * spp);
+            let decoded: Vec<Vec<W>> = (0..across)
+                .into_par_iter()
+                .map(|cx| chunk(path, file, plan, (plane * down + cy) * across + cx, rows))
+                .collect::<Result<_>>()?;
+            for (cx, c) in decoded.iter().enumerate() {
+                let x0 = cx * plan.chunk_w;
+                let n = (plan.chunk_w.min(plan.width - x0)) * spp;
+                for r in 0..rows {
+                    band[(r * plan.width + x0) * spp..][..n]
+                        .copy_from_slice(&c[r * plan.chunk_w * spp..][..n]);
+                }
+            }
+            Ok(())
+        })?;
+    Ok(out)
+}
+
+/// The first `rows` rows of chunk `index` as words, un-predicted (rows of `chunk_w` pixels).
+fn chunk<W: Word>(
+    path: &Path,
+    file: &File,
+    plan: &Plan,
+    index: usize,
+    rows: usize,
+) -> Result<Vec<W>> {
+    let corrupt = |what: String| {
+        Error::file(
+            path,
+            format!("corrupt or truncated TIFF: chunk {index}: {what}"),
+        )
+        .fix("re-create the file, or check it with gdalinfo")
+    };
+    let spp = plan.chunk_samples();
+    let row_words = plan.chunk_w * spp;
+    // Tiles are stored whole and the last strip may be too: only the first `rows` rows matter.
+    let want = rows * row_words * W::BYTES;
+    let whole = plan.chunk_h * row_words * W::BYTES;
+    let count =
+        usize::try_from(plan.counts[index]).map_err(|_| corrupt("byte count too large".into()))?;
+    let mut stored = vec![0u8; count];
+    file.read_exact_at(&mut stored, plan.offsets[index])
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => {
+                Error::file(path, "corrupt or truncated TIFF: file ends early")
+                    .fix("re-create or re-download the file")
+            }
+            _ => Error::io(path, e),
+        })?;
+    let mut raw = match plan.codec {
+        Codec::None => stored,
+        Codec::Deflate => {
+            let opts = zune_inflate::DeflateOptions::default()
+                .set_limit(2 * whole + 4096)
+                .set_size_hint(want);
+            zune_inflate::DeflateDecoder::new_with_options(&stored, opts)
+                .decode_zlib()
+                .map_err(|e| corrupt(format!("Deflate data: {e:?}")))?
+        }
+        Codec::Lzw => weezl::decode::Decoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8)
+            .decode(&stored)
+            .map_err(|e| corrupt(format!("LZW data: {e}")))?,
+    };
+    if raw.len() < want {
+        return Err(corrupt(format!(
+            "{} bytes decoded, expected {want}",
+            raw.len()
+        )));
+    }
+    raw.truncate(want);
+    let mut words = vec![W::default(); rows * row_words];
+    match plan.predictor {
+        3 => {
+            // Floating-point predictor: bytes differenced along the row, then byte planes,
+            // most significant first, whatever the file's byte order.
+            for (row, out) in raw
+                .chunks_exact_mut(row_words * W::BYTES)
+                .zip(words.chunks_exact_mut(row_words))
+            {
+                undifference(row, spp);
+                W::from_planes(row, out);
+            }
+        }
+        p => {
+            for (w, b) in words.iter_mut().zip(raw.chunks_exact(W::BYTES)) {
+                *w = W::from_bytes(b, plan.big_endian);
+            }
+            if p == 2 {
+                for row in words.chunks_exact_mut(row_words) {
+                    undifference(row, spp);
+                }
+            }
+        }
+    }
+    Ok(words)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tiff::encoder::compression::{CompressionAlgorithm, Deflate, DeflateLevel};
+    use tiff::encoder::{colortype, Compression, Predictor, TiffEncoder};
+
+    /// The parallel path's samples and the `tiff` crate's serial ones, for the file at `path`;
+    /// `None` when the parallel path leaves the layout to the `tiff` crate.
+    fn both(path: &Path) -> Option<(DecodingResult, DecodingResult)> {
+        let file = File::open(path).unwrap();
+        let mut dec = Decoder::new(std::io::BufReader::new(file.try_clone().unwrap())).unwrap();
+        let plan = plan(&mut dec).unwrap()?;
+        let parallel = decode(path, &file, &plan).unwrap();
+        let mut serial = DecodingResult::U8(Vec::new());
+        dec.read_image_to_buffer(&mut serial).unwrap();
+        Some((parallel, serial))
+    }
+
+    /// Same variant and the same bits (NaN payloads included).
+    fn assert_same(name: &str, a: &DecodingResult, b: &DecodingResult) {
+        let bits = |r: &DecodingResult| -> Vec<u64> {
+            match r {
+                DecodingResult::U8(v) => v.iter().map(|&x| x as u64).collect(),
+                DecodingResult::I8(v) => v.iter().map(|&x| x as u8 as u64).collect(),
+                DecodingResult::U16(v) => v.iter().map(|&x| x as u64).collect(),
+                DecodingResult::I16(v) => v.iter().map(|&x| x as u16 as u64).collect(),
+                DecodingResult::U32(v) => v.iter().map(|&x| x as u64).collect(),
+                DecodingResult::I32(v) => v.iter().map(|&x| x as u32 as u64).collect(),
+                DecodingResult::F32(v) => v.iter().map(|x| x.to_bits() as u64).collect(),
+                DecodingResult::U64(v) => v.clone(),
+                DecodingResult::I64(v) => v.iter().map(|&x| x as u64).collect(),
+                DecodingResult::F64(v) => v.iter().map(|x| x.to_bits()).collect(),
+                DecodingResult::F16(v) => v.iter().map(|x| x.to_bits() as u64).collect(),
+            }
+        };
+        assert_eq!(
+            std::mem::discriminant(a),
+            std::mem::discriminant(b),
+            "{name}: sample type"
+        );
+        let (a, b) = (bits(a), bits(b));
+        assert_eq!(a.len(), b.len(), "{name}: sample count");
+        if let Some(i) = (0..a.len()).find(|&i| a[i] != b[i]) {
+            panic!("{name}: sample {i} is {:#x}, serial {:#x}", a[i], b[i]);
+        }
+    }
+
+    #[test]
+    fn every_fixture_decodes_to_the_serial_bytes() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+        let mut names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "tif"))
+            .collect();
+        names.sort();
+        let mut compared = Vec::new();
+        for p in &names {
+            // Fixtures that are meant to fail (truncated, empty, not a TIFF) fail in both paths.
+            let Ok(Ok(mut dec)) = File::open(p).map(|f| Decoder::new(std::io::BufReader::new(f)))
+            else {
+                continue;
+            };
+            let mut serial = DecodingResult::U8(Vec::new());
+            if dec.read_image_to_buffer(&mut serial).is_err() {
+                continue;
+            }
+            if let Some((a, b)) = both(p) {
+                assert_same(&p.display().to_string(), &a, &b);
+                compared.push(p.file_name().unwrap().to_string_lossy().into_owned());
+            }
+        }
+        for must in [
+            "float32_tiled_deflate_pred3_nan.tif",
+            "float64_lzw.tif",
+            "int16_strip_none_nodata.tif",
+            "int32_deflate_pred2.tif",
+            "uint16_tiled_lzw.tif",
+            "rgb8_planar.tif",
+            "rgba8.tif",
+            "bigtiff.tif",
+        ] {
+            assert!(
+                compared.iter().any(|c| c == must),
+                "{must} not compared: {compared:?}"
+            );
+        }
+    }
+
+    /// Strips written by the `tiff` crate: several strips, the last one short, each
+    /// compression and predictor it writes.
+    #[test]
+    fn stripped_images_with_predictors_match_the_serial_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (37u32, 29u32);
+        let n = (w * h) as usize;
+        let f32s: Vec<f32> = (0..n)
+            .map(|i| (i as f32 * 0.37).sin() * 1e3 - 5.0)
+            .collect();
+        let i16s: Vec<i16> = (0..n)
+            .map(|i| (i as i32 * 733 % 65_536 - 32_768) as i16)
+            .collect();
+        let rgb: Vec<u8> = (0..3 * n).map(|i| (i * 31 % 251) as u8).collect();
+        let comps = || {
+            [
+                Compression::Uncompressed,
+                Compression::Lzw,
+                Compression::Deflate(DeflateLevel::Fast),
+            ]
+        };
+        let mut k = 0;
+        let mut check = |predictor: Predictor,
+                         comp: Compression,
+                         what: &str,
+                         write: &dyn Fn(&mut TiffEncoder<File>)| {
+            let p = dir.path().join(format!("s{k}.tif"));
+            k += 1;
+            let mut enc = TiffEncoder::new(File::create(&p).unwrap())
+                .unwrap()
+                .with_predictor(predictor)
+                .with_compression(comp);
+            write(&mut enc);
+            drop(enc);
+            let (a, b) = both(&p).expect("the parallel path takes it");
+            assert_same(&format!("{what} {predictor:?} {k}"), &a, &b);
+        };
+        // (The tiff crate writes no floating-point predictor: tests/data and our tiled writer
+        // cover it.)
+        for predictor in [Predictor::None, Predictor::Horizontal] {
+            for comp in comps() {
+                if predictor == Predictor::None {
+                    check(predictor, comp, "f32", &|enc| {
+                        let mut img = enc.new_image::<colortype::Gray32Float>(w, h).unwrap();
+                        img.rows_per_strip(4).unwrap();
+                        img.write_data(&f32s).unwrap();
+                    });
+                }
+                check(predictor, comp, "i16", &|enc| {
+                    let mut img = enc.new_image::<colortype::GrayI16>(w, h).unwrap();
+                    img.rows_per_strip(4).unwrap();
+                    img.write_data(&i16s).unwrap();
+                });
+                check(predictor, comp, "rgb8", &|enc| {
+                    let mut img = enc.new_image::<colortype::RGB8>(w, h).unwrap();
+                    img.rows_per_strip(3).unwrap();
+                    img.write_data(&rgb).unwrap();
+                });
+            }
+        }
+    }
+
+    /// A big-endian file (the `tiff` crate writes only little-endian): 16-bit samples,
+    /// horizontal predictor, Deflate, three strips, the last one short.
+    #[test]
+    fn big_endian_strips_with_horizontal_predictor_match_the_serial_path() {
+        let (w, h, rps) = (5u32, 7u32, 3u32);
+        let values: Vec<u16> = (0..w * h).map(|i| (i * 4099 % 65_521) as u16).collect();
+        let mut strips = Vec::new();
+        for rows in values.chunks((w * rps) as usize) {
+            let mut bytes = Vec::new();
+            for row in rows.chunks(w as usize) {
+                let mut prev = 0u16;
+                for &v in row {
+                    bytes.extend_from_slice(&v.wrapping_sub(prev).to_be_bytes());
+                    prev = v;
+                }
+            }
+            let mut packed = Vec::new();
+            Deflate::default().write_to(&mut packed, &bytes).unwrap();
+            strips.push(packed);
+        }
+        // Header, then the strips, then the IFD and its out-of-line arrays.
+        let mut file = b"MM\0\x2a\0\0\0\0".to_vec();
+        let (mut offsets, mut counts) = (Vec::new(), Vec::new());
+        for s in &strips {
+            offsets.push(file.len() as u32);
+            counts.push(s.len() as u32);
+            file.extend_from_slice(s);
+        }
+        let ifd_at = file.len() as u32;
+        file[4..8].copy_from_slice(&ifd_at.to_be_bytes());
+        let entries: [(u16, u16, u32, u32); 11] = [
+            (256, 4, 1, w),
+            (257, 4, 1, h),
+            (258, 3, 1, 16 << 16),
+            (259, 3, 1, 8 << 16),
+            (262, 3, 1, 1 << 16),
+            (273, 4, 3, ifd_at + 2 + 11 * 12 + 4),
+            (277, 3, 1, 1 << 16),
+            (278, 4, 1, rps),
+            (279, 4, 3, ifd_at + 2 + 11 * 12 + 4 + 12),
+            (317, 3, 1, 2 << 16),
+            (339, 3, 1, 1 << 16),
+        ];
+        file.extend_from_slice(&(entries.len() as u16).to_be_bytes());
+        for (tag, ty, count, value) in entries {
+            file.extend_from_slice(&tag.to_be_bytes());
+            file.extend_from_slice(&ty.to_be_bytes());
+            file.extend_from_slice(&count.to_be_bytes());
+            file.extend_from_slice(&value.to_be_bytes());
+        }
+        file.extend_from_slice(&[0; 4]);
+        for v in offsets.iter().chain(&counts) {
+            file.extend_from_slice(&v.to_be_bytes());
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("be.tif");
+        std::fs::write(&p, &file).unwrap();
+        let (a, b) = both(&p).expect("parallel path");
+        assert_same("big-endian", &a, &b);
+        assert!(
+            matches!(&a, DecodingResult::U16(v) if *v == values),
+            "values as written"
+        );
+    }
+
+    /// Our own tiled writer with partial edge tiles (both predictors), several tile rows.
+    #[test]
+    fn tiled_images_with_partial_edge_tiles_match_the_serial_path() {
+        use crate::crs::Crs;
+        use crate::grid::Grid;
+        use crate::raster::Raster;
+        let dir = tempfile::tempdir().unwrap();
+        let g = Grid::north_up(0.0, 0.0, 1.0, 300, 530, Crs::epsg(32614));
+        let z: Vec<f32> = (0..g.len())
+            .map(|i| {
+                if i % 97 == 0 {
+                    f32::NAN
+                } else {
+                    (i as f32).sqrt()
+                }
+            })
+            .collect();
+        let p = dir.path().join("z.tif");
+        super::super::geotiff::write_f32(&p, &Raster::new(g.clone(), z)).unwrap();
+        let (a, b) = both(&p).expect("parallel path");
+        assert_same("f32 tiles", &a, &b);
+        let c: Vec<[u8; 4]> = (0..g.len())
+            .map(|i| [(i % 251) as u8, (i / 7) as u8, 9, 255])
+            .collect();
+        let p = dir.path().join("c.tif");
+        super::super::geotiff::write_rgba8(&p, &Raster::new(g, c)).unwrap();
+        let (a, b) = both(&p).expect("parallel path");
+        assert_same("rgba tiles", &a, &b);
+    }
+}
