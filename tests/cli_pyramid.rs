@@ -416,3 +416,104 @@ fn bad_input_is_one_line_naming_the_problem() {
     ]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("no such database directory"));
 }
+
+/// The arch of `placed_voxel_objects_are_merged_with_partial_cells_for_overhangs` in a database,
+/// or none; returns the database.
+fn arch_db(dir: &Path, with_arch: bool) -> Database {
+    use dbms::voxel::{format, grid::VoxelGrid, object::VoxelObject};
+    let mut db = make_db(dir, None);
+    if with_arch {
+        let grid = VoxelGrid::new([0.0, 0.0, 0.0], 1.0, [4, 1, 3]).unwrap();
+        let obj = VoxelObject::from_fn(grid, |p, _| {
+            let (x, z) = (p[0], p[2]);
+            (z > 2.0 || !(1.0..=3.0).contains(&x)).then_some([200, 10, 10])
+        });
+        format::write(&db.dir.join("arch.dvox"), &obj, "test arch").unwrap();
+        let sha256 = dbms::db::sha256_file(&db.dir.join("arch.dvox")).unwrap();
+        db.manifest.objects.push(PlacedObject {
+            file: "arch.dvox".into(),
+            sha256,
+            x: 500_120.0,
+            y: 5_299_980.5,
+            z: 201.0,
+            heading_deg: 0.0,
+        });
+        db.save().unwrap();
+    }
+    db
+}
+
+#[test]
+fn partial_cells_carry_their_voxel_runs_in_the_level0_bricks() {
+    use dbms::voxel::columns::{PageColumns, Run};
+    let dir = tempfile::tempdir().unwrap();
+    let db = arch_db(dir.path(), true);
+    let (a, b) = (dir.path().join("a.dbt"), dir.path().join("b.dbt"));
+    pyramid(&db.dir, &a, &[]);
+    pyramid(&db.dir, &b, &["--compression", "lz4"]);
+    let r = TileReader::open(&a, 64).unwrap();
+    assert_eq!(r.info().bricks, dbms::tiles::BRICKS_OPAQUE);
+    // Columns 119 and 120 of row 19 are under the lintel: page (3, 0) with --page 32.
+    let page = r.page(0, 3, 0).unwrap();
+    let cols = PageColumns::decode(page.bricks.as_deref().unwrap(), 32 * 32).unwrap();
+    cols.check_layers(&page.state, &page.max_z).unwrap();
+    assert_eq!(cols.len(), 2);
+    for col in [119, 120] {
+        let i = 19 * W + col;
+        let photo = [100 + (i % 7) as u8, 120, 90 + (i % 13) as u8, 255];
+        let runs = cols.runs(19 * 32 + col % 32).unwrap();
+        let terrain = 200.0 + 19.0 * 0.05f32;
+        assert_eq!(
+            runs,
+            &[
+                Run { bottom: f32::NEG_INFINITY, top: terrain, colour: photo },
+                Run { bottom: 203.0, top: 204.0, colour: [200, 10, 10, 255] }
+            ],
+            "column {col}: the ground (photo colour), a gap, the lintel voxel"
+        );
+    }
+    assert!(cols.runs(19 * 32 + 118 % 32).is_none(), "a leg is a plain column");
+    // Pages without partial cells carry no bricks; lz4 stores the same blob.
+    assert!(r.page(0, 0, 0).unwrap().bricks.is_none());
+    let rb = TileReader::open(&b, 64).unwrap();
+    assert_eq!(rb.page(0, 3, 0).unwrap().bricks, page.bricks);
+    // Same inputs, same bytes.
+    let c = dir.path().join("c.dbt");
+    pyramid(&db.dir, &c, &[]);
+    assert!(std::fs::read(&a).unwrap() == std::fs::read(&c).unwrap());
+}
+
+#[test]
+fn a_pyramid_arch_renders_open_under_its_lintel() {
+    let dir = tempfile::tempdir().unwrap();
+    let (with, without) = (dir.path().join("with"), dir.path().join("without"));
+    std::fs::create_dir_all(&with).unwrap();
+    std::fs::create_dir_all(&without).unwrap();
+    let (dw, dn) = (arch_db(&with, true), arch_db(&without, false));
+    let (tw, tn) = (dir.path().join("w.dbt"), dir.path().join("n.dbt"));
+    pyramid(&dw.dir, &tw, &[]);
+    pyramid(&dn.dir, &tn, &[]);
+    let range = |tiles: &Path, eye: &str, attitude: &str| -> f32 {
+        let (png, exr) = (dir.path().join("v.png"), dir.path().join("v.exr"));
+        let o = dbms(&[
+            "render", "--tiles", tiles.to_str().unwrap(), "--eye", eye, "--attitude", attitude,
+            "--size", "5x5", "--no-lod", "-o", png.to_str().unwrap(), "--range-out", exr.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
+        let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else {
+            panic!("f32 samples")
+        };
+        z[12]
+    };
+    // From 10.25 m south of the arch (row 19, y 5 299 980..981), 202.5 m up, looking north and
+    // down at the ground under the lintel (y 5 299 980.5, 200.95 m): the same range with and
+    // without the arch. 1 m higher the ray meets the lintel's south face instead.
+    let pitch = -(1.55f64 / 10.25).atan().to_degrees();
+    let att = format!("0,{pitch},0");
+    let eye = "500119.5,5299970.25,202.5";
+    let open = range(&tw, eye, &att);
+    assert!((open as f64 - 10.25f64.hypot(1.55)).abs() < 1e-3, "{open}");
+    assert_eq!(open.to_bits(), range(&tn, eye, &att).to_bits());
+    assert_eq!(range(&tw, "500119.5,5299970.25,203.5", "0,0,0"), 9.75);
+}

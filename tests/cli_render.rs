@@ -154,3 +154,48 @@ fn bad_options_name_the_option() {
     let o = dbms(&["render", "--tiles", "/nonexistent.dbt", "--top", "-o", "x.png"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent.dbt"));
 }
+
+/// The centre pixel's range from a 5 × 5 render's range EXR (the centre ray is exactly on the
+/// view axis).
+fn centre_range(tiles: &Path, dir: &Path, eye: &str, attitude: &str, traversal: &str) -> f32 {
+    let (png, exr) = (dir.join("c.png"), dir.join("c.exr"));
+    let args = ["--eye", eye, "--attitude", attitude, "--size", "5x5", "--no-lod", "--traversal", traversal, "--range-out", exr.to_str().unwrap()];
+    render(tiles, &png, &args);
+    let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
+    let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else { panic!("f32 samples") };
+    z[12]
+}
+
+#[test]
+fn rays_pass_through_an_arch_and_its_range_is_on_the_face_hit() {
+    use dbms::render::synthetic::write_columns;
+    use dbms::voxel::columns::Run;
+    let dir = tempfile::tempdir().unwrap();
+    // Ground at 50 m, UTM-sized origin, 1 m cells; a 10 m wall along row 4; an arch over rows
+    // 20..=24 (y 4 582 075..4 582 080): legs to 56 m at columns 20 and 24, a lintel 54..56 m
+    // over columns 21..=23.
+    let ground = |z: f32| Run { bottom: f32::NEG_INFINITY, top: z, colour: [90, 140, 60, 255] };
+    let tiles = dir.path().join("arch.dbt");
+    let grid = Grid::north_up(431_000.0, 4_582_100.0, 1.0, 48, 48, Crs::epsg(32633));
+    write_columns(&tiles, grid, 16, 4, |c, r| match (c, r) {
+        (_, 4) => vec![ground(60.0)],
+        (20 | 24, 20..=24) => vec![ground(56.0)],
+        (21..=23, 20..=24) => vec![ground(50.0), Run { bottom: 54.0, top: 56.0, colour: [180, 40, 40, 255] }],
+        _ => vec![ground(50.0)],
+    })
+    .unwrap();
+    for t in ["hierarchical", "level0"] {
+        // Looking north from y = 4 582 060.25: through the opening (52 m) to the wall's south
+        // face at y = 4 582 095; on the lintel's south face at y = 4 582 075 (55 m); on the leg.
+        assert_eq!(centre_range(&tiles, dir.path(), "431022.5,4582060.25,52", "0,0,0", t), 34.75, "{t}");
+        assert_eq!(centre_range(&tiles, dir.path(), "431022.5,4582060.25,55", "0,0,0", t), 14.75, "{t}");
+        assert_eq!(centre_range(&tiles, dir.path(), "431020.5,4582060.25,52", "0,0,0", t), 14.75, "{t}");
+        // Standing under the lintel and looking straight up: its underside 4 m above.
+        assert_eq!(centre_range(&tiles, dir.path(), "431022.5,4582077.5,50.5", "0,90,0", t), 3.5, "{t}");
+    }
+    // An eye inside the lintel is a one-line error.
+    let out = dir.path().join("v.png");
+    let o = dbms(&["render", "--tiles", tiles.to_str().unwrap(), "--eye", "431022.5,4582077.5,55", "-o", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("inside a voxel column") && err.lines().count() == 1, "{err}");
+}
