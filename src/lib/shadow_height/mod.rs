@@ -11,9 +11,9 @@
 //! 2. **Measure.** [`scan::scan`]: parallel lines from the sun-far edges; the median valid
 //!    length `L` (metres).
 //! 3. **First estimate.** `Z0 = L · tan(elevation)`: the formula, exact on flat ground.
-//! 4. **Refine.** [`refine::refine`]: the footprint raised to trial heights over the real DEM,
-//!    its shadow cast with [`crate::shadow::cast_shadows_slice`] and compared with the observed
-//!    one; the best IoU wins.
+//! 4. **Refine.** [`refine::refine`]: the footprint polygon raised over the real DEM, its
+//!    shadow cast with exact rays from every open cell and compared with the observed one (the
+//!    shadow attached to the footprint); the height of best IoU wins, every height scored.
 //!
 //! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
 //! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is
@@ -75,7 +75,8 @@ pub struct Inputs<'a> {
 /// The hard cases met while measuring one footprint.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Flags {
-    /// No scan line found any shadow (sun too high, or no shadow contrast around the footprint).
+    /// No scan line found any shadow (sun too high, or no shadow contrast around the footprint),
+    /// or none of it is attached to the footprint where the refinement compares.
     pub no_shadow: bool,
     /// Some scan lines were dropped: the shadow left the grid (or the search window) or reached
     /// nodata or terrain-shadowed cells.
@@ -335,10 +336,14 @@ impl Shared<'_> {
             self.grid,
         );
         let keep = inlier_bands(&sub, &s, len, (-u.1, u.0), cell);
-        let r = refine::refine(&sub, &keep, self.sun, ground_z, z_hi, cell * tan_e / 4.0)
-            .map_err(|e| e.to_string())?;
         m.shadow_length_m = Some(len);
         m.initial_height_m = Some(z0);
+        // Shadow seen by the lines but none of it attached to the footprint in the corridor:
+        // nothing to refine against, and no height is better than an unchecked one.
+        let Some(r) = refine::refine(&sub, fp, &keep, u, tan_e, ground_z, z_hi) else {
+            m.flags.no_shadow = true;
+            return Ok(m);
+        };
         m.height_m = Some(r.height_m);
         m.roof_z = Some(ground_z + r.height_m);
         m.overlap = Some(r.overlap);

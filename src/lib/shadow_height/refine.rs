@@ -1,29 +1,23 @@
 //! Refinement over the real terrain (the Hughes patent's loop): extrude the footprint to a
-//! trial height over the DEM, cast its shadow with the shared caster, compare with the observed
-//! shadow, and keep the height whose shadow overlaps the observed one best.
+//! trial height over the DEM, cast its shadow, compare with the observed shadow, and keep the
+//! height whose shadow overlaps the observed one best.
 //!
-//! Invariant: the observed shadow is the corridor's shadow cells connected to the footprint
-//! (shadow beyond lit ground belongs to something else); the score of a trial height is the
-//! IoU of synthetic and that observed shadow over the
-//! usable open-ground cells (class [`Class::Lit`] / [`Class::Shadow`]) of the *corridor*, the
-//! synthetic shadow at the highest trial height (a prism's shadow only grows with its height, so
-//! the corridor holds every trial's shadow). The search is a coarse grid over `[0, z_hi]`, then a
-//! fine grid around the coarse best; the answer is the middle of the run of fine heights that
-//! share the best score (the score is piecewise constant: the middle of the plateau is the
-//! unbiased choice).
+//! Invariant: the synthetic shadow is cast with exact rays from every usable open-ground cell
+//! centre toward the sun over the real terrain, against the footprint *polygon* (not its
+//! raster): a ray from a cell centre at terrain height `z` first meets the footprint's walls
+//! `t` metres away, so the cell is in the shadow of a roof at `ground_z + Z` exactly when
+//! `Z > z + t·tan(elevation) − ground_z`, that cell's *threshold*. (Cells the bare terrain
+//! shadows are unusable, so nothing else blocks the ray.) A prism's shadow only grows with its
+//! height; the *corridor* is the kept cells with a threshold up to `z_hi`. The observed shadow is
+//! the corridor's shadow cells connected to the footprint (shadow beyond lit ground belongs to
+//! something else). The score of `Z` is the IoU of synthetic and observed shadow over the
+//! corridor; it changes only at thresholds, so every height in `[0, z_hi]` is scored by one
+//! sweep over the sorted thresholds, and the answer is the middle of the best interval (the
+//! unbiased choice). Exact polygons make the answer finer than a cell of shadow length, which
+//! matters most where a cell of shadow is metres of height (high sun, coarse cells).
 
+use super::footprint::Footprint;
 use super::local::{Class, Local};
-use crate::error::Result;
-use crate::raster::Raster;
-use crate::shadow::{cast_shadows_reference, cast_shadows_slice, Sun, SHADOW};
-use rayon::prelude::*;
-
-/// Coarse samples over `[0, z_hi]`.
-const COARSE: usize = 24;
-/// At most this many fine samples.
-const MAX_FINE: usize = 96;
-/// Shadows up to this many cells long (at the highest trial) are cast with exact rays.
-const EXACT_MAX_CELLS: f64 = 64.0;
 
 /// The refined height above `ground_z` (metres) and its IoU with the observed shadow.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,81 +28,89 @@ pub struct Refined {
     pub overlap: f64,
 }
 
-/// Search heights in `[0, z_hi]` metres above `ground_z` (absolute metres) for the footprint's
-/// [`Class::Own`] cells in `local`. `fine_step` is the smallest height step worth resolving,
-/// metres (a quarter of a cell's worth of shadow length is a good choice). Only cells with
-/// `keep[i]` can be in the corridor (the caller drops the bands of scan lines that met other
-/// buildings or disagreed with the median length).
+/// Search heights in `(0, z_hi]` metres above `ground_z` (absolute metres) for footprint `fp`,
+/// whose cells are [`Class::Own`] in `local`. `u` is the unit shadow direction (east, north),
+/// `tan_e` the tangent of the sun elevation. Only cells with `keep[i]` can be in the corridor
+/// (the caller drops the bands of scan lines that met other buildings or disagreed with the
+/// median length). `None` when the corridor holds no observed shadow.
 pub fn refine(
     local: &Local,
+    fp: &Footprint,
     keep: &[bool],
-    sun: &Sun,
+    u: (f64, f64),
+    tan_e: f64,
     ground_z: f64,
     z_hi: f64,
-    fine_step: f64,
-) -> Result<Refined> {
-    // Short shadows (few cells: a high sun) are cast with exact rays: there one cell of the
-    // sweep's digital-line approximation is metres of height. Long ones use the O(n) sweep.
-    let (cx, cy) = local.grid.cell_size();
-    let exact = z_hi / (sun.elevation_deg.to_radians().tan() * cx.max(cy)) <= EXACT_MAX_CELLS;
-    let cast_at = |roof_z: f64| cast_at(local, sun, roof_z, exact);
-    let corridor: Vec<bool> = cast_at(ground_z + z_hi)?
-        .iter()
-        .zip(&local.class)
-        .zip(keep)
-        .map(|((&m, &c), &k)| k && m == SHADOW && matches!(c, Class::Lit | Class::Shadow))
-        .collect();
-    let observed = attached_shadow(local, &corridor);
-    let score = |z: f64| -> Result<f64> {
-        let mask = cast_at(ground_z + z)?;
-        let (mut inter, mut union) = (0usize, 0usize);
-        for i in 0..mask.len() {
-            if corridor[i] {
-                let (s, o) = (mask[i] == SHADOW, observed[i]);
-                inter += (s && o) as usize;
-                union += (s || o) as usize;
+) -> Option<Refined> {
+    let w = local.grid.width;
+    let toward_sun = (-u.0, -u.1);
+    let threshold: Vec<f64> = (0..local.class.len())
+        .map(|i| {
+            if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
+                return f64::NAN;
             }
-        }
-        Ok(if union == 0 {
-            0.0
-        } else {
-            inter as f64 / union as f64
+            let p = local.grid.cell_centre(i % w, i / w);
+            first_wall(fp, p, toward_sun)
+                .map_or(f64::NAN, |t| local.heights[i] as f64 + t * tan_e - ground_z)
         })
-    };
-    let coarse: Vec<f64> = (0..=COARSE)
-        .map(|i| z_hi * i as f64 / COARSE as f64)
         .collect();
-    let scores = coarse
-        .par_iter()
-        .map(|&z| score(z))
-        .collect::<Result<Vec<f64>>>()?;
-    let best = first_max(&scores);
-    // The fine grid spans the whole coarse plateau of the best score, one sample beyond each end.
-    let mut last = best;
-    while last < COARSE && scores[last + 1] >= scores[best] {
-        last += 1;
+    let corridor: Vec<bool> = threshold.iter().map(|&h| h <= z_hi).collect();
+    let observed = attached_shadow(local, &corridor);
+    let mut cells: Vec<(f64, bool)> = (0..corridor.len())
+        .filter(|&i| corridor[i])
+        .map(|i| (threshold[i].max(0.0), observed[i]))
+        .collect();
+    cells.sort_by(|a, b| a.0.total_cmp(&b.0));
+    best_interval(&cells, z_hi)
+}
+
+/// The best IoU over `Z` in `(0, z_hi]` for cells `(threshold, observed)` sorted by threshold,
+/// a cell being in the synthetic shadow when `Z > threshold`: the middle of the first interval
+/// reaching it.
+fn best_interval(cells: &[(f64, bool)], z_hi: f64) -> Option<Refined> {
+    let n_obs = cells.iter().filter(|c| c.1).count();
+    if n_obs == 0 {
+        return None;
     }
-    let (lo, hi) = (
-        coarse[best.saturating_sub(1)],
-        coarse[(last + 1).min(COARSE)],
-    );
-    let step = fine_step.max((hi - lo) / MAX_FINE as f64);
-    let n = ((hi - lo) / step).ceil() as usize;
-    let fine: Vec<f64> = (0..=n).map(|i| (lo + i as f64 * step).min(hi)).collect();
-    let fine_scores = fine
-        .par_iter()
-        .map(|&z| score(z))
-        .collect::<Result<Vec<f64>>>()?;
-    let b = first_max(&fine_scores);
-    let top = fine_scores[b];
-    let mut e = b;
-    while e + 1 < fine.len() && fine_scores[e + 1] >= top {
-        e += 1;
+    let (mut inter, mut extra) = (0usize, 0usize);
+    let mut best: Option<(f64, usize)> = None; // (IoU, index of the interval's first cell past it)
+    for k in 0..cells.len() {
+        inter += cells[k].1 as usize;
+        extra += !cells[k].1 as usize;
+        // Only between distinct thresholds: Z just above cells[k].0 and up to the next one.
+        if k + 1 < cells.len() && cells[k + 1].0 == cells[k].0 {
+            continue;
+        }
+        let iou = inter as f64 / (n_obs + extra) as f64;
+        if best.is_none_or(|b| iou > b.0) {
+            best = Some((iou, k + 1));
+        }
     }
-    Ok(Refined {
-        height_m: (fine[b] + fine[e]) / 2.0,
-        overlap: top,
+    let (overlap, next) = best?;
+    let lo = cells[next - 1].0;
+    let hi = cells.get(next).map_or(z_hi, |c| c.0).max(lo);
+    Some(Refined {
+        height_m: (lo + hi) / 2.0,
+        overlap,
     })
+}
+
+/// Distance (metres) from `p` along the unit vector `d` to the first edge of the footprint,
+/// `None` when the ray misses it.
+fn first_wall(fp: &Footprint, p: (f64, f64), d: (f64, f64)) -> Option<f64> {
+    let cross = |a: (f64, f64), b: (f64, f64)| a.0 * b.1 - a.1 * b.0;
+    fp.edges()
+        .filter_map(|(a, b)| {
+            let e = (b.0 - a.0, b.1 - a.1);
+            let den = cross(d, e);
+            if den == 0.0 {
+                return None;
+            }
+            let ap = (a.0 - p.0, a.1 - p.1);
+            let (t, s) = (cross(ap, e) / den, cross(ap, d) / den);
+            (t >= 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
+        })
+        .min_by(f64::total_cmp)
 }
 
 /// The observed shadow this footprint casts: the corridor's [`Class::Shadow`] cells connected
@@ -143,36 +145,18 @@ fn attached_shadow(local: &Local, corridor: &[bool]) -> Vec<bool> {
     seen
 }
 
-/// The caster's mask of `local`'s terrain with the footprint's own cells raised to `roof_z`:
-/// the exact ray-marching reference or the sweep.
-fn cast_at(local: &Local, sun: &Sun, roof_z: f64, exact: bool) -> Result<Vec<u8>> {
-    let heights: Vec<f32> = local
-        .heights
-        .iter()
-        .zip(&local.class)
-        .map(|(&h, &c)| if c == Class::Own { roof_z as f32 } else { h })
-        .collect();
-    if exact {
-        Ok(cast_shadows_reference(&Raster::new(local.grid.clone(), heights), sun)?.data)
-    } else {
-        cast_shadows_slice(&heights, &local.grid, sun)
-    }
-}
-
-fn first_max(v: &[f64]) -> usize {
-    (0..v.len()).fold(0, |b, i| if v[i] > v[b] { i } else { b })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::{Grid, Window};
+    use crate::raster::Raster;
+    use crate::shadow::{cast_shadows_reference, Sun, SHADOW};
 
-    #[test]
-    fn recovers_the_height_whose_shadow_was_observed() {
-        // Flat ground at 100 m, 1 m cells, a 6 × 6 m roof; sun from the south at 45°: a 6.5 m
-        // building (the middle of the heights that shadow the same 6 cells) casts 6 cells of shadow.
+    /// 40 × 40 m of 1 m cells on flat ground at 100 m with a 6 × 6 m footprint at x, y 10..16,
+    /// its shadow observed as a photo would show it for a roof at `roof_z` and `sun`: cast by the
+    /// shared caster on a grid 8 × 8 finer, a cell in shadow when most of it is.
+    fn scene(sun: &Sun, roof_z: f32) -> (Local, Footprint) {
         let g = Grid::north_up(0.0, 40.0, 1.0, 40, 40, Crs::epsg(32632));
         let w = Window {
             col: 0,
@@ -180,36 +164,102 @@ mod tests {
             width: 40,
             height: 40,
         };
-        let sun = Sun::new(45.0, 180.0).unwrap();
-        let mut class = vec![Class::Lit; 1600];
-        for r in 0..40usize {
-            for c in 0..40usize {
-                let (x, y) = g.cell_centre(c, r);
-                if (10.0..16.0).contains(&x) && (10.0..16.0).contains(&y) {
-                    class[r * 40 + c] = Class::Own;
+        let fp = Footprint::new(vec![vec![vec![
+            (10.0, 10.0),
+            (16.0, 10.0),
+            (16.0, 16.0),
+            (10.0, 16.0),
+        ]]])
+        .unwrap();
+        let inside = |(x, y): (f64, f64)| (10.0..16.0).contains(&x) && (10.0..16.0).contains(&y);
+        let fine = Grid::north_up(0.0, 40.0, 0.125, 320, 320, Crs::epsg(32632));
+        let raised: Vec<f32> = (0..fine.len())
+            .map(|i| match inside(fine.cell_centre(i % 320, i / 320)) {
+                true => roof_z,
+                false => 100.0,
+            })
+            .collect();
+        let cast = cast_shadows_reference(&Raster::new(fine, raised), sun).unwrap();
+        let class = (0..1600)
+            .map(|i| {
+                let (c, r) = (i % 40, i / 40);
+                let dark = (0..64)
+                    .filter(|k| cast.data[(r * 8 + k / 8) * 320 + c * 8 + k % 8] == SHADOW)
+                    .count();
+                match (inside(g.cell_centre(c, r)), dark > 32) {
+                    (true, _) => Class::Own,
+                    (false, true) => Class::Shadow,
+                    (false, false) => Class::Lit,
                 }
-            }
-        }
-        let mut l = Local {
+            })
+            .collect();
+        let local = Local {
             win: w,
             grid: g.window_grid(&w),
             class,
             heights: vec![100.0; 1600],
         };
-        let observed = cast_at(&l, &sun, 106.5, true).unwrap();
-        for (c, m) in l.class.iter_mut().zip(&observed) {
-            if *c == Class::Lit && *m == SHADOW {
-                *c = Class::Shadow;
-            }
-        }
-        let r = refine(&l, &[true; 1600], &sun, 100.0, 20.0, 0.25).unwrap();
-        assert!((r.height_m - 6.5).abs() <= 0.1, "{r:?}");
+        (local, fp)
+    }
+
+    #[test]
+    fn recovers_the_height_whose_shadow_the_shared_caster_cast() {
+        // Sun from the south at 45°: a 6.5 m roof's shadow covers most of the 6 cells north of
+        // the wall; every height in (5.5, 6.5] shadows those cell centres: the answer is 6 ± 0.5.
+        let sun = Sun::new(45.0, 180.0).unwrap();
+        let (l, fp) = scene(&sun, 106.5);
+        let r = refine(&l, &fp, &[true; 1600], (0.0, 1.0), 1.0, 100.0, 20.0).unwrap();
+        assert!((r.height_m - 6.0).abs() <= 0.5, "{r:?}");
         assert_eq!(r.overlap, 1.0);
     }
 
     #[test]
-    fn first_max_takes_the_earliest_of_equal_maxima() {
-        assert_eq!(first_max(&[0.1, 0.5, 0.5, 0.2]), 1);
-        assert_eq!(first_max(&[0.0]), 0);
+    fn hard_case_oblique_sun_resolves_less_than_a_cell_of_shadow() {
+        // Sun from the south-south-east at 60°: cells along the wall see it at many distances,
+        // so the best interval is much narrower than one cell of shadow (1.73 m of height).
+        let sun = Sun::new(60.0, 160.0).unwrap();
+        let (dx, dy) = sun.direction();
+        let tan_e = 60f64.to_radians().tan();
+        let (l, fp) = scene(&sun, 109.0);
+        let r = refine(&l, &fp, &[true; 1600], (-dx, -dy), tan_e, 100.0, 30.0).unwrap();
+        assert!((r.height_m - 9.0).abs() <= 0.5, "{r:?}");
+    }
+
+    #[test]
+    fn no_observed_shadow_is_no_refinement() {
+        let sun = Sun::new(45.0, 180.0).unwrap();
+        let (mut l, fp) = scene(&sun, 106.5);
+        l.class
+            .iter_mut()
+            .filter(|c| **c == Class::Shadow)
+            .for_each(|c| *c = Class::Lit);
+        assert_eq!(
+            refine(&l, &fp, &[true; 1600], (0.0, 1.0), 1.0, 100.0, 20.0),
+            None
+        );
+    }
+
+    #[test]
+    fn best_interval_takes_the_middle_of_the_first_best_and_ignores_ties_inside_it() {
+        // Thresholds 1 (observed), 2 (observed), 2 (not), 3 (not): IoU 0.5 above 1, 2/3 above 2
+        // (both cells at 2 at once), 0.5 above 3.
+        let c = [(1.0, true), (2.0, true), (2.0, false), (3.0, false)];
+        let r = best_interval(&c, 10.0).unwrap();
+        assert_eq!((r.height_m, r.overlap), (2.5, 2.0 / 3.0));
+        // The best interval running to the top ends at z_hi.
+        assert_eq!(best_interval(&[(1.0, true)], 3.0).unwrap().height_m, 2.0);
+    }
+
+    #[test]
+    fn first_wall_is_the_nearest_edge_along_the_ray() {
+        let fp = Footprint::new(vec![vec![vec![
+            (0.0, 0.0),
+            (4.0, 0.0),
+            (4.0, 4.0),
+            (0.0, 4.0),
+        ]]])
+        .unwrap();
+        assert_eq!(first_wall(&fp, (2.0, 7.0), (0.0, -1.0)), Some(3.0));
+        assert_eq!(first_wall(&fp, (9.0, 7.0), (0.0, -1.0)), None);
     }
 }

@@ -2,8 +2,10 @@
 //!
 //! Invariant: a scene is a pure function of its [`SynthSpec`]. The terrain is a plane; the
 //! orthophoto is rendered `supersample²` times finer than the database grid and box-averaged
-//! down, so shadow and roof edges give mixed cells as in a real photo (the shadows are cast on
-//! the fine grid, not with the coarse model the refinement uses). Truth heights follow the
+//! down, so shadow and roof edges give mixed cells as in a real photo. Shadows are exact for
+//! prisms on a plane: a fine cell centre is shadowed when its ray toward the sun enters a
+//! building's rectangle below the roof (walls on the polygon, as in a photo; a raster caster
+//! would put them at cell centres, half a fine cell off). Truth heights follow the
 //! module's convention: roof above the highest coarse cell centre of terrain under the footprint.
 
 use super::footprint::Footprint;
@@ -11,7 +13,7 @@ use crate::crs::Crs;
 use crate::grid::Grid;
 use crate::pyramid::raised::{rasterise_prisms, Prism};
 use crate::raster::{Colour, Elevation, Raster};
-use crate::shadow::{cast_shadows_slice, Sun, SHADOW};
+use crate::shadow::Sun;
 use rayon::prelude::*;
 
 /// West edge of generated scenes (a UTM-sized easting, to exercise f64 coordinates), metres.
@@ -38,6 +40,33 @@ pub struct SynthBuilding {
 }
 
 impl SynthBuilding {
+    /// Distance (metres, ≥ 0) from world point `p` along the unit horizontal vector `d` to
+    /// where the ray first is inside the footprint rectangle (0 when `p` is inside), `None` when
+    /// it misses: slab clipping in the rectangle's own frame.
+    pub fn ray_entry(&self, p: (f64, f64), d: (f64, f64)) -> Option<f64> {
+        let (s, c) = self.rotation_deg.to_radians().sin_cos();
+        let q = (
+            p.0 - ORIGIN_X - self.centre.0,
+            p.1 - ORIGIN_Y - self.centre.1,
+        );
+        // Into the rectangle's frame: rotate by −rotation.
+        let local = |v: (f64, f64)| (v.0 * c + v.1 * s, -v.0 * s + v.1 * c);
+        let (q, d) = (local(q), local(d));
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for (o, v, half) in [(q.0, d.0, self.size.0 / 2.0), (q.1, d.1, self.size.1 / 2.0)] {
+            if v == 0.0 {
+                if o.abs() > half {
+                    return None;
+                }
+                continue;
+            }
+            let (a, b) = ((-half - o) / v, (half - o) / v);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        (t0 <= t1).then_some(t0)
+    }
+
     /// The footprint's corner ring in scene CRS metres, counter-clockwise.
     pub fn ring(&self) -> Vec<(f64, f64)> {
         let (s, c) = self.rotation_deg.to_radians().sin_cos();
@@ -121,21 +150,29 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
 
     let k = spec.supersample.max(1);
     let fine = Grid::north_up(ORIGIN_X, top, spec.cell / k as f64, w * k, h * k, crs);
-    let mut surface = cells(&fine, |x, y| ground(x, y) as f32);
     let mut roof = vec![false; fine.len()];
-    for (r, z) in rings.iter().zip(&roof_z) {
+    for r in &rings {
         for c in rasterise_prisms(
             &fine,
             &[Prism {
                 rings: vec![r.clone()],
-                roof_z: *z,
+                roof_z: 0.0,
             }],
         ) {
-            surface[c.index] = *z as f32;
             roof[c.index] = true;
         }
     }
-    let shadow = cast_shadows_slice(&surface, &fine, &spec.sun).expect("generated grid is metric");
+    let tan_e = spec.sun.elevation_deg.to_radians().tan();
+    let toward_sun = spec.sun.direction();
+    // The plane shadows itself everywhere when it rises toward the sun faster than the rays.
+    let plane_dark = spec.slope.0 * toward_sun.0 + spec.slope.1 * toward_sun.1 > tan_e;
+    let shadow: Vec<bool> = cells(&fine, |x, y| {
+        plane_dark
+            || spec.buildings.iter().zip(&roof_z).any(|(b, &z)| {
+                b.ray_entry((x, y), toward_sun)
+                    .is_some_and(|t| ground(x, y) + t * tan_e < z)
+            })
+    });
     let fine_rgb: Vec<[f64; 3]> = (0..fine.len())
         .into_par_iter()
         .map(|i| {
@@ -144,7 +181,7 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
             } else {
                 grass(i as u64)
             };
-            let f = if shadow[i] == SHADOW {
+            let f = if shadow[i] && !roof[i] {
                 SHADOW_FACTOR
             } else {
                 1.0
@@ -200,4 +237,27 @@ fn cells<T: Send>(grid: &Grid, f: impl Fn(f64, f64) -> T + Sync) -> Vec<T> {
             f(x, y)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ray_entry_clips_the_rotated_rectangle() {
+        let b = SynthBuilding {
+            centre: (10.0, 10.0),
+            size: (4.0, 2.0),
+            rotation_deg: 90.0, // 2 m wide east-west, 4 m north-south
+            height_m: 5.0,
+        };
+        let at = |x: f64, y: f64| (ORIGIN_X + x, ORIGIN_Y + y);
+        let e = b.ray_entry(at(10.0, 20.0), (0.0, -1.0)).unwrap();
+        assert!((e - 8.0).abs() < 1e-9, "{e}");
+        let e = b.ray_entry(at(0.0, 10.0), (1.0, 0.0)).unwrap();
+        assert!((e - 9.0).abs() < 1e-9, "{e}");
+        assert_eq!(b.ray_entry(at(10.0, 10.5), (1.0, 0.0)), Some(0.0));
+        assert_eq!(b.ray_entry(at(12.0, 20.0), (0.0, -1.0)), None);
+        assert_eq!(b.ray_entry(at(10.0, 20.0), (0.0, 1.0)), None);
+    }
 }
