@@ -666,4 +666,43 @@ mod tests {
             .iter()
             .all(|c| c.top_z == 103.0 && !c.partial));
     }
+
+    proptest::proptest! {
+        /// Random voxel stacks in one cell, with or without a roof: at every height the runs
+        /// are solid exactly where a voxel, the roof or the ground is, and they obey the
+        /// tile format's rules.
+        #[test]
+        fn runs_are_solid_exactly_where_the_voxels_are(
+            slots in proptest::collection::btree_set(0u32..12, 1..8),
+            roof in proptest::option::of(0u32..10),
+        ) {
+            let t = flat(10, 10, 100.0);
+            let vox = slots.iter().map(|&k| ([0.5, 0.5, k as f64 + 0.5], [k as u8, 0, 0])).collect();
+            let objects = Raised::objects(&t.grid, &[object(vox, 0.0)], &t);
+            let i = t.grid.index(5, 4);
+            let roofs = roof.map(|h| RaisedCell { index: i, top_z: 100.0 + h as f32 + 0.5, colour: None, partial: false });
+            let all = Raised::new(roofs.into_iter().collect(), &t).union(&objects, &t);
+            let cell = *all.get(i).unwrap();
+            let runs: Vec<RaisedRun> = match all.runs(i) {
+                Some(r) => r.to_vec(),
+                None => vec![RaisedRun { bottom: f32::NEG_INFINITY, top: cell.top_z, colour: cell.colour }],
+            };
+            proptest::prop_assert_eq!(cell.partial, runs.len() > 1);
+            proptest::prop_assert_eq!(cell.top_z, runs.last().unwrap().top);
+            let as_runs: Vec<_> = runs
+                .iter()
+                .map(|x| crate::voxel::columns::Run { bottom: x.bottom, top: x.top, colour: x.colour.unwrap_or([0, 0, 0, 255]) })
+                .collect();
+            proptest::prop_assert!(crate::voxel::columns::check_runs(&as_runs).is_ok());
+            for j in 0..60 {
+                let z = 99.0 + j as f64 * 0.25 + 0.125;
+                let by_runs = runs.iter().any(|r| z >= r.bottom as f64 && z <= r.top as f64);
+                let k = (z - 100.0).floor();
+                let truth = z <= 100.0
+                    || (k >= 0.0 && slots.contains(&(k as u32)))
+                    || roof.is_some_and(|h| z <= 100.5 + h as f64);
+                proptest::prop_assert_eq!(by_runs, truth, "z {}", z);
+            }
+        }
+    }
 }
