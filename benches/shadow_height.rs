@@ -4,7 +4,8 @@
 //! fall uphill) and facing away (downhill); sun elevation 15°..75°; cells 0.25..2 m; one
 //! isolated building, or one with a neighbour 2 m beside it. Buildings are rotated rectangles,
 //! 10–20 m sides, 6–25 m high (lower on the downhill slope at a low sun, where the shadow would
-//! run for hundreds of metres), random azimuth; the photo is rendered 2 × 2 finer and averaged.
+//! run for hundreds of metres), random azimuth; the photo (exact prism shadows) is rendered
+//! 2 × 2 finer and averaged.
 //! Prints one table row per case: RMSE and worst error of the first estimate (`L·tan e`) and
 //! of the refined height, in metres and in cells, and the time per building.
 //!
