@@ -233,18 +233,25 @@ trait Word: Copy + Default + Send + Sync {
 /// Undo horizontal differencing in place: each value plus the one `stride` before it, running
 /// along the row (one independent running sum per sample of a pixel).
 fn undifference<W: Word>(row: &mut [W], stride: usize) {
-    let mut acc = [W::default(); 16];
-    if stride <= acc.len() {
-        let acc = &mut acc[..stride];
-        for px in row.chunks_exact_mut(stride) {
-            for (a, v) in acc.iter_mut().zip(px) {
-                *a = a.wrapping_add(*v);
-                *v = *a;
+    /// The running sums of a pixel of `N` samples, with `N` known to the compiler.
+    fn lanes<W: Word, const N: usize>(row: &mut [W]) {
+        let mut acc = [W::default(); N];
+        for px in row.chunks_exact_mut(N) {
+            for k in 0..N {
+                acc[k] = acc[k].wrapping_add(px[k]);
+                px[k] = acc[k];
             }
         }
-    } else {
-        for i in stride..row.len() {
-            row[i] = row[i].wrapping_add(row[i - stride]);
+    }
+    match stride {
+        1 => lanes::<W, 1>(row),
+        2 => lanes::<W, 2>(row),
+        3 => lanes::<W, 3>(row),
+        4 => lanes::<W, 4>(row),
+        _ => {
+            for i in stride..row.len() {
+                row[i] = row[i].wrapping_add(row[i - stride]);
+            }
         }
     }
 }
@@ -439,6 +446,20 @@ mod tests {
         assert_eq!(a.len(), b.len(), "{name}: sample count");
         if let Some(i) = (0..a.len()).find(|&i| a[i] != b[i]) {
             panic!("{name}: sample {i} is {:#x}, serial {:#x}", a[i], b[i]);
+        }
+    }
+
+    #[test]
+    fn undifference_is_the_running_sum_per_sample_for_every_stride() {
+        for stride in 1..=7 {
+            let row: Vec<u16> = (0..7 * 12).map(|i| (i * 40_503 % 65_521) as u16).collect();
+            let mut want = row.clone();
+            for i in stride..want.len() {
+                want[i] = want[i].wrapping_add(want[i - stride]);
+            }
+            let mut got = row;
+            undifference(&mut got, stride);
+            assert_eq!(got, want, "stride {stride}");
         }
     }
 
