@@ -14,6 +14,7 @@ use dbms::crs::Crs;
 use dbms::grid::{Grid, Window};
 use dbms::raster::{Elevation, Raster};
 use dbms::shadow::{cast_shadows, cast_shadows_reference, Sun, NODATA, SHADOW};
+use rayon::prelude::*;
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
@@ -139,8 +140,8 @@ fn sunmask_comparison() {
         cx,
         crop.nodata_count()
     );
-    println!("| sun | r.sunmask shadow | ours shadow | agreement (sweep) | agreement (reference) | r.sunmask vs its rule re-implemented | r.sunmask time | µs per cell (GRASS) | ours |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| sun | r.sunmask shadow | ours shadow | agreement (sweep) | agreement (reference) | r.sunmask vs its rule re-implemented | bilinear-surface march: shadow, vs ours, vs r.sunmask | r.sunmask time | µs per cell (GRASS) | ours |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for (el, az) in [(2.0, 270.0), (3.0, 0.0), (3.0, 135.0), (4.0, 45.0), (5.0, 200.0)] {
         let out = tmp.path().join(format!("sunmask_{el}_{az}.tif"));
         let script = format!(
@@ -179,18 +180,68 @@ fn sunmask_comparison() {
         let (ours_s, ours) = best_of(3, || cast_shadows(&crop, el, az).unwrap());
         let exact = cast_shadows_reference(&crop, &Sun::new(el, az).unwrap()).unwrap();
         let count = |m: &Raster<u8>| m.data.iter().filter(|&&v| v == SHADOW).count();
+        let surface = bilinear_surface_march(&crop, el, az);
         println!(
-            "| {el}°, {az}° | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.1} s | {:.0} | {:.3} µs per cell |",
+            "| {el}°, {az}° | {} | {} | {:.2} % | {:.2} % | {:.2} % | {}, {:.2} %, {:.2} % | {:.1} s | {:.0} | {:.3} µs per cell |",
             count(&theirs),
             count(&ours),
             agreement(&ours, &theirs),
             agreement(&exact, &theirs),
             agreement(&sunmask_rule(&crop, el, az), &theirs),
+            count(&surface),
+            agreement(&surface, &ours),
+            agreement(&surface, &theirs),
             grass_s,
             grass_s * 1e6 / crop.data.len() as f64,
             ours_s * 1e6 / crop.data.len() as f64
         );
     }
+}
+
+/// A third opinion, independent of both rules: the terrain as the continuous bilinear surface
+/// through the cell centres, and each valid cell's ray toward the sun marched in steps of 1/20
+/// of a cell; a cell is shadowed when the ray passes below the surface anywhere in the grid.
+/// Slow (O(n · shadow length · 20)); a benchmark check, not a production model.
+fn bilinear_surface_march(e: &Elevation, el: f64, az: f64) -> Raster<u8> {
+    let (w, h) = (e.width(), e.height());
+    let (cx, cy) = e.grid.cell_size();
+    let (tan_e, a) = (el.to_radians().tan(), az.to_radians());
+    let (dc, dr) = (a.sin() / cx, -a.cos() / cy); // cells per metre toward the sun
+    let (lo, top) = e.min_max().unwrap();
+    let at = |c: usize, r: usize| *e.get(c.min(w - 1), r.min(h - 1)) as f64;
+    let surface = |x: f64, y: f64| -> f64 {
+        // (x, y) in cells from the grid corner; centres at +0.5. Clamped at the edges.
+        let (x, y) = ((x - 0.5).clamp(0.0, (w - 1) as f64), (y - 0.5).clamp(0.0, (h - 1) as f64));
+        let (c, r) = (x.floor() as usize, y.floor() as usize);
+        let (fx, fy) = (x - c as f64, y - r as f64);
+        let row = |r| at(c, r) * (1.0 - fx) + at(c + 1, r) * fx;
+        row(r) * (1.0 - fy) + row(r + 1) * fy
+    };
+    let step_m = 0.05 * cx.min(cy);
+    let reach_m = (top - lo) as f64 / tan_e + cx.max(cy);
+    let data = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let z = e.data[i] as f64;
+            if z.is_nan() {
+                return NODATA;
+            }
+            let (x0, y0) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+            let mut d = step_m;
+            while d < reach_m {
+                let (x, y) = (x0 + d * dc, y0 + d * dr);
+                if x < 0.0 || y < 0.0 || x > w as f64 || y > h as f64 {
+                    break;
+                }
+                if surface(x, y) > z + d * tan_e {
+                    return SHADOW;
+                }
+                d += step_m;
+            }
+            0
+        })
+        .collect();
+    Raster::new(e.grid.clone(), data)
 }
 
 /// r.sunmask's rule (GRASS 8 `raster/r.sunmask/main.c`), re-implemented to show where we differ:
