@@ -31,7 +31,7 @@ use crate::io::atomic::write_bytes_atomic;
 use crate::tiles::{ReaderStats, TileReader, STATE_PARTIAL};
 use rayon::prelude::*;
 use ray::{Axis, Ray};
-use sampler::Sampler;
+use sampler::{ColumnCache, Sampler};
 use serde::Serialize;
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -207,10 +207,11 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     };
     let max_range = opts.max_range.unwrap_or(if opts.repeat { REPEAT_RANGE_DIAGONALS * scene.diagonal_m() } else { f64::INFINITY });
     let basis = camera.basis();
+    let column_cache = ColumnCache::default();
     let rows: Vec<Row> = (0..camera.height)
         .into_par_iter()
         .map(|j| {
-            let mut sampler = Sampler::new(reader, opts.repeat);
+            let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
             let mut row = Row::new(camera.width);
             for i in 0..camera.width {
                 let d = basis.direction(i, j);
@@ -240,7 +241,8 @@ fn check_eye_above_terrain(reader: &TileReader, repeat: bool, u: f64, v: f64, ca
         let k = x.floor() as i64;
         if x == x.floor() { vec![k - 1, k] } else { vec![k] }
     };
-    let mut sampler = Sampler::new(reader, repeat);
+    let column_cache = ColumnCache::default();
+    let mut sampler = Sampler::new(reader, repeat, &column_cache);
     for c in near(u) {
         for r in near(v) {
             let Some(cell) = sampler.cell(0, c, r)? else { continue };
@@ -347,7 +349,8 @@ pub fn render_top(reader: &TileReader, width: usize, height: usize, lod: bool) -
     let rows: Vec<Row> = (0..height)
         .into_par_iter()
         .map(|j| {
-            let mut sampler = Sampler::new(reader, false);
+            let no_columns = ColumnCache::default(); // the top view never looks inside a column
+            let mut sampler = Sampler::new(reader, false, &no_columns);
             let mut row = Row::new(width);
             let r = (((j as f64 + 0.5) * sy).floor() as i64).div_euclid(s);
             for i in 0..width {

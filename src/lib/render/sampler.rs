@@ -4,15 +4,27 @@
 //! memo only avoids asking the shared cache again while a ray stays inside one page. Outside a
 //! level's `width × height` a lookup is `None`, unless the database repeats (`wrap`), in which
 //! case indices wrap modulo the level's size (only used for levels that tile the plane exactly).
-//! The voxel columns of a level-0 page are decoded from its `bricks` blob the first time a ray
-//! needs one, checked against the page's layers ([`PageColumns::check_layers`]), and kept while
-//! the memo holds the page.
+//! The voxel columns of a level-0 page are decoded from its `bricks` blob the first time any ray
+//! of the frame needs one, checked against the page's layers ([`PageColumns::check_layers`]),
+//! and shared by the frame's samplers through a [`ColumnCache`].
 
 use crate::error::{Error, Result};
 use crate::tiles::{Cell, Page, TileReader, BRICKS_OPAQUE};
 use crate::voxel::columns::{PageColumns, Run};
-use std::collections::BTreeSet;
-use std::sync::Arc;
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::{Arc, Mutex};
+
+/// Level-0 pages whose decoded columns a [`ColumnCache`] keeps; when full it is emptied and
+/// refills (decoded columns are about as large as their blob, tens of kB a page).
+pub const COLUMN_PAGES: usize = 256;
+
+/// Decoded voxel columns of level-0 pages, `(tx, ty)` → columns, shared by one frame's samplers
+/// so each page's bricks are decoded about once per frame. Values are pure functions of the
+/// tile file, so sharing cannot change a pixel.
+#[derive(Debug, Default)]
+pub struct ColumnCache {
+    pages: Mutex<BTreeMap<(usize, usize), Arc<PageColumns>>>,
+}
 
 /// Per-thread cell access to a tile set.
 pub struct Sampler<'a> {
@@ -21,15 +33,17 @@ pub struct Sampler<'a> {
     sizes: Vec<(i64, i64)>,
     wrap: bool,
     memo: Vec<Option<(usize, usize, Arc<Page>)>>,
-    /// Decoded columns of the level-0 page `(tx, ty)`.
-    columns: Option<(usize, usize, PageColumns)>,
+    /// The frame's decoded columns, and the level-0 page `(tx, ty)` this sampler last used.
+    column_cache: &'a ColumnCache,
+    columns: Option<(usize, usize, Arc<PageColumns>)>,
     /// Pages this sampler asked the reader for, `(level, tx, ty)`.
     pub touched: BTreeSet<(usize, usize, usize)>,
 }
 
 impl<'a> Sampler<'a> {
-    /// A sampler over `reader`; `wrap` makes the database repeat.
-    pub fn new(reader: &'a TileReader, wrap: bool) -> Sampler<'a> {
+    /// A sampler over `reader`; `wrap` makes the database repeat; voxel columns come through
+    /// `column_cache`.
+    pub fn new(reader: &'a TileReader, wrap: bool, column_cache: &'a ColumnCache) -> Sampler<'a> {
         let info = reader.info();
         Sampler {
             reader,
@@ -37,6 +51,7 @@ impl<'a> Sampler<'a> {
             sizes: info.levels.iter().map(|l| (l.width as i64, l.height as i64)).collect(),
             wrap,
             memo: vec![None; info.levels.len()],
+            column_cache,
             columns: None,
             touched: BTreeSet::new(),
         }
@@ -77,9 +92,22 @@ impl<'a> Sampler<'a> {
         let (tx, ty) = (col / p, row / p);
         let cached = matches!(&self.columns, Some((x, y, _)) if (*x, *y) == (tx, ty));
         if !cached {
-            let page = self.reader.page(0, tx, ty)?;
-            self.touched.insert((0, tx, ty));
-            let decoded = self.decode(&page, tx, ty)?;
+            let shared = self.column_cache.pages.lock().expect("column cache lock").get(&(tx, ty)).cloned();
+            let decoded = match shared {
+                Some(c) => c,
+                None => {
+                    // Decoded outside the lock: two workers may both decode a page, harmlessly.
+                    let page = self.reader.page(0, tx, ty)?;
+                    self.touched.insert((0, tx, ty));
+                    let c = Arc::new(self.decode(&page, tx, ty)?);
+                    let mut pages = self.column_cache.pages.lock().expect("column cache lock");
+                    if pages.len() >= COLUMN_PAGES {
+                        pages.clear();
+                    }
+                    pages.insert((tx, ty), c.clone());
+                    c
+                }
+            };
             self.columns = Some((tx, ty, decoded));
         }
         let (.., columns) = self.columns.as_ref().expect("just decoded");
