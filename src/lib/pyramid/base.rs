@@ -222,4 +222,65 @@ mod tests {
             "band-local index"
         );
     }
+
+    #[test]
+    fn sun_effects_light_every_run_like_the_colour_layer() {
+        // A 12 × 12 grid; a lintel floating 4..5 m over cells (3..=8, 6), a 6 m building block
+        // east of it; a low sun from the east puts parts of the lintel in shadow.
+        let g = Grid::north_up(0.0, 12.0, 1.0, 12, 12, Crs::unknown());
+        let t = Elevation::filled(g.clone(), 0.0);
+        let c = Colour::filled(g, [100, 150, 200, 255]);
+        let lintel = PlacedVoxels {
+            origin: [3.5, 5.5, 0.0],
+            heading_deg: 0.0,
+            voxel_size: 1.0,
+            voxels: (0..6)
+                .map(|u| ([u as f64, 0.0, 4.5], [80, 40, 20]))
+                .collect(),
+        };
+        let objects = Raised::objects(&t.grid, &[lintel], &t);
+        let block = Raised::new(
+            (0..12)
+                .map(|r| RaisedCell {
+                    index: t.grid.index(10, r),
+                    top_z: 6.0,
+                    colour: None,
+                    partial: false,
+                })
+                .collect(),
+            &t,
+        );
+        let all = block.union(&objects, &t);
+        let sun = crate::shadow::Sun::new(20.0, 90.0).unwrap();
+        let fx = crate::pyramid::shade::prepare(Some(sun), None, 0.5, &t, &block, &objects, &all)
+            .unwrap()
+            .unwrap();
+        let l0 = Level0 {
+            terrain: &t,
+            colour: &c,
+            raised: &all,
+            effects: Some(&fx),
+        };
+        let band = l0.band(0, 12);
+        assert_eq!(band.columns.len(), 6);
+        let mut lit_differently = 0;
+        for (i, runs) in &band.columns {
+            let k = fx.factor_at(i % 12, i / 12);
+            assert_eq!(
+                runs.last().unwrap().colour,
+                band.rows.colour[*i],
+                "cell {i}: the top run is the layer's colour"
+            );
+            assert_eq!(
+                runs[0].colour,
+                lit([100, 150, 200, 255], k),
+                "cell {i}: the ground under the gap, the photo's colour lit"
+            );
+            lit_differently += (k != 1.0) as usize;
+        }
+        assert!(
+            lit_differently > 0,
+            "the test must see a factor other than 1"
+        );
+    }
 }
