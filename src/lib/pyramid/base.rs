@@ -27,7 +27,7 @@ pub struct Level0<'a> {
     /// Buildings and objects standing on the terrain.
     pub raised: &'a Raised,
     /// Sun effects, when a sun was given and the scene calls for any.
-    pub effects: Option<&'a Effects>,
+    pub effects: Option<&'a Effects<'a>>,
 }
 
 impl Level0<'_> {

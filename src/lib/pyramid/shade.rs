@@ -23,11 +23,18 @@
 //! or object cell with a 4-neighbour lower by at least one cell size; the renderer sees the wall
 //! as that column's side, so its colour becomes the roof's colour times the mean illumination of
 //! its exposed vertical faces (face normals horizontal, toward the lower neighbours).
+//!
+//! # Memory
+//! Nothing the size of the grid is copied: the surfaces are the terrain with the raised cells
+//! laid over it, read where needed (a band of rows with a one-row apron for [`Effects::shade_band`],
+//! single cells for [`Effects::factor_at`]), and the cast shadows are kept as one bit per cell,
+//! cast row by row with [`RowSweep`].
 
 use super::raised::Raised;
 use crate::error::Result;
-use crate::raster::{Elevation, Raster};
-use crate::shadow::{cast_shadows, Sun, SHADOW};
+use crate::raster::Elevation;
+use crate::shadow::{RowSweep, Sun, SHADOW};
+use rayon::prelude::*;
 use serde_json::json;
 
 /// Default shadow factor `F`: a shadowed surface gets this fraction of the light of a sunlit
@@ -47,36 +54,41 @@ const TERRAIN: u8 = 0;
 const BUILDING: u8 = 1;
 const OBJECT: u8 = 2;
 
-/// The prepared effects for one sun over one database: shadow masks and what to apply.
-pub struct Effects {
+/// The prepared effects for one sun over one database: shadow masks and what to apply, over the
+/// terrain and raised cells they were prepared from.
+pub struct Effects<'a> {
     sun: Sun,
     s: [f64; 3],
     photo: Option<(Sun, [f64; 3])>,
     same_sun: bool,
     factor: f64,
-    /// Heights over the merged surface (terrain + buildings + objects).
-    new_heights: Elevation,
-    /// Heights the photo saw (terrain + buildings), when they differ from `new_heights`.
-    photo_heights: Option<Elevation>,
-    /// Class per cell (TERRAIN, BUILDING, OBJECT); empty when nothing is raised.
-    class: Vec<u8>,
-    new_shadow: Option<Raster<u8>>,
-    photo_shadow: Option<Raster<u8>>,
+    /// Terrain heights, metres; NaN = nodata.
+    terrain: &'a Elevation,
+    /// Buildings: raised in both surfaces.
+    buildings: &'a Raised,
+    /// Placed objects: raised in the new surface only (the photo never saw them).
+    objects: &'a Raised,
+    /// Both: the new surface is the terrain with these laid over it.
+    all: &'a Raised,
+    /// The photo's surface (terrain + buildings) differs from the new one and is shaded apart.
+    photo_apart: bool,
+    new_shadow: Option<ShadowBits>,
+    photo_shadow: Option<ShadowBits>,
     lambert: bool,
     applied: Vec<&'static str>,
 }
 
 /// Does a sun need effects at all? `sun: None` → nothing (no work).
 /// `photo_sun` is the orthophoto's own sun when the database records it.
-pub fn prepare(
+pub fn prepare<'a>(
     sun: Option<Sun>,
     photo_sun: Option<Sun>,
     shadow_factor: f64,
-    terrain: &Elevation,
-    buildings: &Raised,
-    objects: &Raised,
-    all: &Raised,
-) -> Result<Option<Effects>> {
+    terrain: &'a Elevation,
+    buildings: &'a Raised,
+    objects: &'a Raised,
+    all: &'a Raised,
+) -> Result<Option<Effects<'a>>> {
     let Some(sun) = sun else { return Ok(None) };
     let same_sun = photo_sun.is_some_and(|p| same(&p, &sun));
     let nothing_unseen = buildings.is_empty() && objects.is_empty();
@@ -84,36 +96,18 @@ pub fn prepare(
         // The photo holds every shadow and all shading for this sun: nothing to do.
         return Ok(None);
     }
-    let new_heights = if all.is_empty() {
-        terrain.clone()
-    } else {
-        all.heights(terrain)
-    };
-    let photo_heights =
-        (!objects.is_empty() && photo_sun.is_some()).then(|| buildings.heights(terrain));
-    let mut class = Vec::new();
-    if !all.is_empty() {
-        class = vec![TERRAIN; terrain.data.len()];
-        for c in buildings.cells() {
-            class[c.index] = BUILDING;
-        }
-        for c in objects.cells() {
-            class[c.index] = OBJECT;
-        }
-    }
-    let new_shadow = Some(cast_shadows(
-        &new_heights,
-        sun.elevation_deg,
-        sun.azimuth_deg,
-    )?);
+    let photo_apart = !objects.is_empty() && photo_sun.is_some();
     // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
-    let photo_shadow = match photo_sun {
-        Some(p) if !same_sun || photo_heights.is_some() => {
-            let h = photo_heights.as_ref().unwrap_or(&new_heights);
-            Some(cast_shadows(h, p.elevation_deg, p.azimuth_deg)?)
-        }
-        _ => None,
-    };
+    let photo_cast = photo_sun.filter(|_| !same_sun || photo_apart);
+    let (new_shadow, photo_shadow) = rayon::join(
+        || ShadowBits::cast(terrain, all, &sun),
+        || {
+            photo_cast
+                .map(|p| ShadowBits::cast(terrain, if photo_apart { buildings } else { all }, &p))
+                .transpose()
+        },
+    );
+    let (new_shadow, photo_shadow) = (Some(new_shadow?), photo_shadow?);
     let mut applied = Vec::new();
     if !same_sun {
         applied.extend(["cast_shadows", "terrain_lambert"]);
@@ -135,9 +129,11 @@ pub fn prepare(
         photo: photo_sun.map(|p| (p, enu(&p))),
         same_sun,
         factor: shadow_factor,
-        new_heights,
-        photo_heights,
-        class,
+        terrain,
+        buildings,
+        objects,
+        all,
+        photo_apart,
         new_shadow,
         photo_shadow,
         lambert: !same_sun,
@@ -179,49 +175,147 @@ fn enu(s: &Sun) -> [f64; 3] {
     [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()]
 }
 
-impl Effects {
+/// A cast-shadow mask, one bit per cell, row-major: set = in cast shadow.
+struct ShadowBits {
+    bits: Vec<u64>,
+}
+
+impl ShadowBits {
+    /// Cast `sun` over the terrain with `raised` laid over it, row by row: no copy of the grid.
+    fn cast(terrain: &Elevation, raised: &Raised, sun: &Sun) -> Result<ShadowBits> {
+        let w = terrain.grid.width;
+        let mut bits = vec![0u64; terrain.data.len().div_ceil(64)];
+        let mut sweep = RowSweep::new(&terrain.grid, sun)?;
+        let (mut heights, mut mask) = (vec![0f32; w], vec![0u8; w]);
+        while let Some(r) = sweep.next_row() {
+            let start = r * w;
+            heights.copy_from_slice(&terrain.data[start..start + w]);
+            for c in raised.range(start, start + w) {
+                heights[c.index - start] = c.top_z;
+            }
+            sweep.push(&heights, &mut mask);
+            for (k, _) in mask.iter().enumerate().filter(|(_, &m)| m == SHADOW) {
+                let i = start + k;
+                bits[i / 64] |= 1 << (i % 64);
+            }
+        }
+        Ok(ShadowBits { bits })
+    }
+
+    fn get(&self, i: usize) -> bool {
+        self.bits[i / 64] >> (i % 64) & 1 == 1
+    }
+
+    fn count(&self) -> usize {
+        self.bits.iter().map(|b| b.count_ones() as usize).sum()
+    }
+}
+
+/// What shading a cell reads around it, by `(col, row)` of the grid: heights of the new
+/// surface and of the surface the photo saw (metres, NaN = nodata), and the cell's class.
+trait Surface {
+    fn new_height(&self, col: usize, row: usize) -> f32;
+    fn photo_height(&self, col: usize, row: usize) -> f32;
+    fn class(&self, col: usize, row: usize) -> u8;
+}
+
+/// The surfaces read cell by cell from the terrain and the raised sets (a binary search per
+/// raised lookup): for a few cells at a time.
+struct Lookup<'e, 'a>(&'e Effects<'a>);
+
+impl Surface for Lookup<'_, '_> {
+    fn new_height(&self, col: usize, row: usize) -> f32 {
+        let i = self.0.terrain.grid.index(col, row);
+        self.0.all.get(i).map_or(self.0.terrain.data[i], |c| c.top_z)
+    }
+
+    fn photo_height(&self, col: usize, row: usize) -> f32 {
+        if !self.0.photo_apart {
+            return self.new_height(col, row);
+        }
+        let i = self.0.terrain.grid.index(col, row);
+        self.0.buildings.get(i).map_or(self.0.terrain.data[i], |c| c.top_z)
+    }
+
+    fn class(&self, col: usize, row: usize) -> u8 {
+        let i = self.0.terrain.grid.index(col, row);
+        if self.0.objects.get(i).is_some() {
+            OBJECT
+        } else if self.0.buildings.get(i).is_some() {
+            BUILDING
+        } else {
+            TERRAIN
+        }
+    }
+}
+
+/// The surfaces over a band of rows `first..first + rows` (the band shaded plus a one-row apron
+/// each side, clipped to the grid), laid out once: for shading whole rows.
+struct Band {
+    first: usize,
+    width: usize,
+    new: Vec<f32>,
+    /// `None` when the photo saw the new surface.
+    photo: Option<Vec<f32>>,
+    class: Vec<u8>,
+}
+
+impl Band {
+    fn at(&self, col: usize, row: usize) -> usize {
+        (row - self.first) * self.width + col
+    }
+}
+
+impl Surface for Band {
+    fn new_height(&self, col: usize, row: usize) -> f32 {
+        self.new[self.at(col, row)]
+    }
+
+    fn photo_height(&self, col: usize, row: usize) -> f32 {
+        self.photo.as_ref().unwrap_or(&self.new)[self.at(col, row)]
+    }
+
+    fn class(&self, col: usize, row: usize) -> u8 {
+        self.class[self.at(col, row)]
+    }
+}
+
+impl Effects<'_> {
     /// What was applied, for the tile header and the manifest.
     pub fn record(&self) -> serde_json::Value {
-        let count = |m: &Option<Raster<u8>>| {
-            m.as_ref()
-                .map(|m| m.data.iter().filter(|&&v| v == SHADOW).count())
-        };
         json!({
             "sun": sun_json(self.sun),
             "photo_sun": self.photo.map(|p| sun_json(p.0)),
             "shadow_factor": self.factor,
             "applied": self.applied,
-            "shadow_cells": count(&self.new_shadow),
-            "photo_shadow_cells": count(&self.photo_shadow),
+            "shadow_cells": self.new_shadow.as_ref().map(ShadowBits::count),
+            "photo_shadow_cells": self.photo_shadow.as_ref().map(ShadowBits::count),
             "wall_cells": self.wall_cells(),
         })
     }
 
+    /// Raised cells with at least one exposed vertical face.
     fn wall_cells(&self) -> usize {
-        if self.class.is_empty() {
-            return 0;
-        }
-        use rayon::prelude::*;
-        let g = &self.new_heights.grid;
-        (0..g.len())
-            .into_par_iter()
-            .filter(|&i| {
-                self.class[i] != TERRAIN && !self.faces(i % g.width, i / g.width).is_empty()
-            })
+        let w = self.terrain.grid.width;
+        let surface = Lookup(self);
+        self.all
+            .cells()
+            .par_iter()
+            .filter(|c| !self.faces(&surface, c.index % w, c.index / w).is_empty())
             .count()
     }
 
     /// Multiply the colours of level-0 rows `row0..` (a band of `colour.len() / width` rows) by
     /// each cell's `I_new / I_photo`. Nodata cells are left alone.
     pub fn shade_band(&self, row0: usize, colour: &mut [[u8; 4]]) {
-        use rayon::prelude::*;
-        let w = self.new_heights.grid.width;
+        let w = self.terrain.grid.width;
+        let band = self.band(row0, colour.len() / w);
         colour.par_chunks_mut(w).enumerate().for_each(|(r, line)| {
             for (col, c) in line.iter_mut().enumerate() {
                 if c[3] == 0 {
                     continue;
                 }
-                let k = self.factor_at(col, row0 + r);
+                let k = self.factor(&band, col, row0 + r);
                 if k != 1.0 {
                     for ch in &mut c[..3] {
                         *ch = (*ch as f64 * k).round().min(255.0) as u8;
@@ -233,21 +327,50 @@ impl Effects {
 
     /// `I_new / I_photo` of cell `(col, row)`.
     pub fn factor_at(&self, col: usize, row: usize) -> f64 {
-        let g = &self.new_heights.grid;
-        let i = g.index(col, row);
-        let class = self.class.get(i).copied().unwrap_or(TERRAIN);
-        let shadow_new = self
-            .new_shadow
-            .as_ref()
-            .is_some_and(|m| m.data[i] == SHADOW);
+        self.factor(&Lookup(self), col, row)
+    }
+
+    /// The surfaces over rows `row0 .. row0 + rows` and a one-row apron.
+    fn band(&self, row0: usize, rows: usize) -> Band {
+        let g = &self.terrain.grid;
+        let (w, first) = (g.width, row0.saturating_sub(1));
+        let end = (row0 + rows + 1).min(g.height);
+        let (start, stop) = (first * w, end * w);
+        let lay = |raised: &Raised| {
+            let mut h = self.terrain.data[start..stop].to_vec();
+            for c in raised.range(start, stop) {
+                h[c.index - start] = c.top_z;
+            }
+            h
+        };
+        let mut class = vec![TERRAIN; stop - start];
+        for (set, value) in [(self.buildings, BUILDING), (self.objects, OBJECT)] {
+            for c in set.range(start, stop) {
+                class[c.index - start] = value;
+            }
+        }
+        Band {
+            first,
+            width: w,
+            new: lay(self.all),
+            photo: self.photo_apart.then(|| lay(self.buildings)),
+            class,
+        }
+    }
+
+    /// `I_new / I_photo` of cell `(col, row)` over `surface`.
+    fn factor(&self, surface: &impl Surface, col: usize, row: usize) -> f64 {
+        let i = self.terrain.grid.index(col, row);
+        let class = surface.class(col, row);
+        let shadow_new = self.new_shadow.as_ref().is_some_and(|m| m.get(i));
         let shadow_photo = match &self.photo_shadow {
-            Some(m) => m.data[i] == SHADOW,
+            Some(m) => m.get(i),
             None => self.same_sun && shadow_new,
         };
         let faces = if class == TERRAIN {
             Vec::new()
         } else {
-            self.faces(col, row)
+            self.faces(surface, col, row)
         };
         let i_new = if !faces.is_empty() {
             faces
@@ -256,11 +379,7 @@ impl Effects {
                 .sum::<f64>()
                 / faces.len() as f64
         } else if self.lambert || class == OBJECT {
-            self.illum(
-                &self.normal(&self.new_heights, col, row),
-                &self.s,
-                shadow_new,
-            )
+            self.illum(&self.normal(surface, false, col, row), &self.s, shadow_new)
         } else {
             self.illum(&[0.0, 0.0, 1.0], &self.s, shadow_new)
         };
@@ -270,11 +389,7 @@ impl Effects {
                 let n = if !faces.is_empty() || !self.lambert {
                     [0.0, 0.0, 1.0]
                 } else {
-                    self.normal(
-                        self.photo_heights.as_ref().unwrap_or(&self.new_heights),
-                        col,
-                        row,
-                    )
+                    self.normal(surface, true, col, row)
                 };
                 self.illum(&n, &sp, shadow_photo)
             }
@@ -292,23 +407,31 @@ impl Effects {
         self.factor + (1.0 - self.factor) * (ns.max(0.0) / s[2]).min(G_MAX)
     }
 
-    /// Height at `(col, row)` when it is a usable neighbour of a cell of class `class`.
-    fn neighbour(&self, h: &Elevation, class: u8, col: isize, row: isize) -> Option<f64> {
-        let g = &h.grid;
+    /// Height at `(col, row)` of the new (or, with `photo`, the photo's) surface when it is a
+    /// usable neighbour of a cell of class `class`.
+    fn neighbour(
+        &self,
+        surface: &impl Surface,
+        photo: bool,
+        class: u8,
+        col: isize,
+        row: isize,
+    ) -> Option<f64> {
+        let g = &self.terrain.grid;
         if col < 0 || row < 0 || col >= g.width as isize || row >= g.height as isize {
             return None;
         }
-        let i = g.index(col as usize, row as usize);
-        let z = h.data[i];
-        (!z.is_nan() && self.class.get(i).copied().unwrap_or(TERRAIN) == class).then_some(z as f64)
+        let (c, r) = (col as usize, row as usize);
+        let z = if photo { surface.photo_height(c, r) } else { surface.new_height(c, r) };
+        (!z.is_nan() && surface.class(c, r) == class).then_some(z as f64)
     }
 
-    /// Unit normal (east, north, up) by central differences within the cell's class.
-    fn normal(&self, h: &Elevation, col: usize, row: usize) -> [f64; 3] {
-        let g = &h.grid;
-        let i = g.index(col, row);
-        let z = h.data[i] as f64;
-        let class = self.class.get(i).copied().unwrap_or(TERRAIN);
+    /// Unit normal (east, north, up) of the new (or the photo's) surface by central differences
+    /// within the cell's class.
+    fn normal(&self, surface: &impl Surface, photo: bool, col: usize, row: usize) -> [f64; 3] {
+        let g = &self.terrain.grid;
+        let z = if photo { surface.photo_height(col, row) } else { surface.new_height(col, row) } as f64;
+        let class = surface.class(col, row);
         let (c, r) = (col as isize, row as isize);
         let (dx, dy) = g.cell_size();
         let slope = |a: Option<f64>, b: Option<f64>, d: f64| match (a, b) {
@@ -317,27 +440,19 @@ impl Effects {
             (None, Some(b)) => (b - z) / d,
             (None, None) => 0.0,
         };
-        let dzdx = slope(
-            self.neighbour(h, class, c - 1, r),
-            self.neighbour(h, class, c + 1, r),
-            dx,
-        );
+        let at = |dc: isize, dr: isize| self.neighbour(surface, photo, class, c + dc, r + dr);
+        let dzdx = slope(at(-1, 0), at(1, 0), dx);
         // Rows run southward: north of the cell is row − 1.
-        let dzdy = slope(
-            self.neighbour(h, class, c, r + 1),
-            self.neighbour(h, class, c, r - 1),
-            dy,
-        );
+        let dzdy = slope(at(0, 1), at(0, -1), dy);
         let len = (dzdx * dzdx + dzdy * dzdy + 1.0).sqrt();
         [-dzdx / len, -dzdy / len, 1.0 / len]
     }
 
     /// Horizontal normals of the exposed vertical faces of a raised cell: toward each
-    /// 4-neighbour lower by at least one cell size (valid neighbours only).
-    fn faces(&self, col: usize, row: usize) -> Vec<[f64; 3]> {
-        let h = &self.new_heights;
-        let g = &h.grid;
-        let z = h.data[g.index(col, row)] as f64;
+    /// 4-neighbour of the new surface lower by at least one cell size (valid neighbours only).
+    fn faces(&self, surface: &impl Surface, col: usize, row: usize) -> Vec<[f64; 3]> {
+        let g = &self.terrain.grid;
+        let z = surface.new_height(col, row) as f64;
         let step = g.cell_size().0.min(g.cell_size().1);
         let (c, r) = (col as isize, row as isize);
         [
@@ -352,7 +467,7 @@ impl Effects {
             if nc < 0 || nr < 0 || nc >= g.width as isize || nr >= g.height as isize {
                 return false;
             }
-            let nz = h.data[g.index(nc as usize, nr as usize)];
+            let nz = surface.new_height(nc as usize, nr as usize);
             !nz.is_nan() && z - nz as f64 >= step
         })
         .map(|(_, _, n)| n)
@@ -377,14 +492,16 @@ mod tests {
         Sun::new(e, a).unwrap()
     }
 
-    fn none() -> Raised {
-        Raised::default()
+    /// Nothing raised (effects borrow what they are prepared from, so it must outlive them).
+    fn none() -> &'static Raised {
+        static NONE: std::sync::OnceLock<Raised> = std::sync::OnceLock::new();
+        NONE.get_or_init(Raised::default)
     }
 
     #[test]
     fn no_sun_prepares_nothing() {
         let t = terrain(8, 8, |c, _| c as f32);
-        assert!(prepare(None, None, 0.5, &t, &none(), &none(), &none())
+        assert!(prepare(None, None, 0.5, &t, none(), none(), none())
             .unwrap()
             .is_none());
         let r = record_none(None, None, 0.5);
@@ -400,9 +517,9 @@ mod tests {
             None,
             0.5,
             &t,
-            &none(),
-            &none(),
-            &none(),
+            none(),
+            none(),
+            none(),
         )
         .unwrap()
         .unwrap();
@@ -421,9 +538,9 @@ mod tests {
             None,
             0.4,
             &t,
-            &none(),
-            &none(),
-            &none(),
+            none(),
+            none(),
+            none(),
         )
         .unwrap()
         .unwrap();
@@ -445,9 +562,9 @@ mod tests {
             None,
             0.5,
             &t,
-            &none(),
-            &none(),
-            &none(),
+            none(),
+            none(),
+            none(),
         )
         .unwrap()
         .unwrap();
@@ -473,11 +590,11 @@ mod tests {
         let s = sun(35.0, 90.0);
         // Nothing raised: nothing at all to do.
         assert!(
-            prepare(Some(s), Some(s), 0.5, &t, &none(), &none(), &none())
+            prepare(Some(s), Some(s), 0.5, &t, none(), none(), none())
                 .unwrap()
                 .is_none()
         );
-        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &none(), &b)
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, none(), &b)
             .unwrap()
             .unwrap();
         assert_eq!(fx.record()["applied"], json!(["wall_shading"]));
@@ -533,7 +650,7 @@ mod tests {
     fn a_different_sun_compensates_the_photos_shadows_and_casts_new_ones() {
         let (t, b) = building_scene();
         let (photo, now) = (sun(35.0, 90.0), sun(35.0, 270.0));
-        let fx = prepare(Some(now), Some(photo), 0.5, &t, &b, &none(), &b)
+        let fx = prepare(Some(now), Some(photo), 0.5, &t, &b, none(), &b)
             .unwrap()
             .unwrap();
         let applied = fx.record()["applied"].clone();

@@ -118,7 +118,7 @@ pub fn cast_shadows_slice(heights: &[f32], grid: &Grid, sun: &Sun) -> Result<Vec
     }
     let w = grid.width;
     let mut mask = vec![NODATA; heights.len()];
-    let mut sweep = RowSweep::new(grid, sun);
+    let mut sweep = RowSweep::new(grid, sun)?;
     while let Some(r) = sweep.next_row() {
         sweep.push(&heights[r * w..(r + 1) * w], &mut mask[r * w..(r + 1) * w]);
     }
@@ -135,6 +135,11 @@ fn check_grid(heights: &[f32], grid: &Grid) -> Result<()> {
             grid.height
         )));
     }
+    check_cells(grid)
+}
+
+/// Shadows are cast in metres: the grid's cells must be positive sizes in a projected CRS.
+fn check_cells(grid: &Grid) -> Result<()> {
     if grid.crs.geographic {
         return Err(Error::msg(format!("cannot cast shadows on a grid in degrees ({})", grid.crs.name()))
             .fix("reproject the elevation to a projected CRS in metres (e.g. UTM) first"));
@@ -198,7 +203,7 @@ mod tests {
     fn row_sweep_takes_every_row_once_from_the_sun_side() {
         let g = grid(7, 5, 1.0, 1.0);
         for (az, first) in [(0.0, 0), (20.0, 0), (180.0, 4), (200.0, 4), (90.0, 0), (270.0, 0), (80.0, 0), (100.0, 4)] {
-            let mut sweep = RowSweep::new(&g, &Sun::new(30.0, az).unwrap());
+            let mut sweep = RowSweep::new(&g, &Sun::new(30.0, az).unwrap()).unwrap();
             let mut order = Vec::new();
             while let Some(r) = sweep.next_row() {
                 order.push(r);

@@ -22,6 +22,7 @@
 //! whatever the order of arithmetic across lines.
 
 use super::{Sun, LIT, NODATA, SHADOW};
+use crate::error::Result;
 use crate::grid::Grid;
 use rayon::prelude::*;
 
@@ -58,9 +59,10 @@ pub struct RowSweep {
 }
 
 impl RowSweep {
-    /// A sweep for `sun` over `grid` (only its size and cell size are used; the caller has
-    /// checked that cells are positive metres).
-    pub fn new(grid: &Grid, sun: &Sun) -> RowSweep {
+    /// A sweep for `sun` over `grid` (only its size, cell size and CRS are used). Errors when
+    /// the cells are not positive sizes in metres (a geographic grid).
+    pub fn new(grid: &Grid, sun: &Sun) -> Result<RowSweep> {
+        super::check_cells(grid)?;
         let (width, height) = (grid.width, grid.height);
         let overhead = sun.elevation_deg >= 90.0;
         let (east, north) = sun.direction();
@@ -77,7 +79,7 @@ impl RowSweep {
         let offsets: Vec<usize> = (0..frame_h).map(|i| offset(i, drift)).collect();
         let max_offset = offsets.last().copied().unwrap_or(0);
         let step_m = 1.0 / major.abs();
-        RowSweep {
+        Ok(RowSweep {
             width,
             height,
             transposed,
@@ -90,7 +92,7 @@ impl RowSweep {
             horizon: if overhead { Vec::new() } else { vec![f64::NEG_INFINITY; frame_w + max_offset] },
             pushed: 0,
             chunk: CHUNK,
-        }
+        })
     }
 
     /// The grid row to [`push`](Self::push) next; `None` once every row has been pushed.
@@ -188,7 +190,7 @@ mod tests {
 
     fn sweep_all(heights: &[f32], grid: &Grid, sun: &Sun, chunk: usize) -> Vec<u8> {
         let w = grid.width;
-        let mut sweep = RowSweep::new(grid, sun);
+        let mut sweep = RowSweep::new(grid, sun).unwrap();
         sweep.chunk = chunk;
         let mut mask = vec![0; heights.len()];
         while let Some(r) = sweep.next_row() {
