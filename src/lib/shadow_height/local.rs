@@ -34,6 +34,9 @@ pub struct Local {
     pub class: Vec<Class>,
     /// Terrain heights per window cell, metres.
     pub heights: Vec<f32>,
+    /// Shadow index per window cell ([`super::detect::shadow_index`], lower = darker; from a
+    /// given mask 0 where it says shadow and 255 where lit): how much of a cell is shadow.
+    pub index: Vec<f32>,
 }
 
 impl Local {
@@ -42,16 +45,19 @@ impl Local {
         let (dc, dr) = (w.col - self.win.col, w.row - self.win.row);
         let mut class = Vec::with_capacity(w.width * w.height);
         let mut heights = Vec::with_capacity(w.width * w.height);
+        let mut index = Vec::with_capacity(w.width * w.height);
         for r in 0..w.height {
             let start = (r + dr) * self.win.width + dc;
             class.extend_from_slice(&self.class[start..start + w.width]);
             heights.extend_from_slice(&self.heights[start..start + w.width]);
+            index.extend_from_slice(&self.index[start..start + w.width]);
         }
         Local {
             win: w,
             grid: db_grid.window_grid(&w),
             class,
             heights,
+            index,
         }
     }
 }
@@ -110,6 +116,7 @@ mod tests {
             grid: g.window_grid(&w),
             class: vec![Class::Lit; 14 * 34],
             heights: vec![0.0; 14 * 34],
+            index: (0..14 * 34).map(|i| i as f32).collect(),
         };
         let c = l.crop(
             Window {
@@ -121,6 +128,7 @@ mod tests {
             &g,
         );
         assert_eq!(c.class.len(), 6);
+        assert_eq!(c.index[..2], [(2 * 14 + 2) as f32, (2 * 14 + 3) as f32]);
         assert_eq!(c.grid.transform.origin_x, 40.0);
     }
 }

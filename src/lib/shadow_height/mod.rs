@@ -389,6 +389,13 @@ impl Shared<'_> {
                     }
                 }
             };
+        let shade: Vec<f32> = (0..n)
+            .map(|k| match self.inputs.mask {
+                Some(mask) if mask.data[index(k)] != 0 => 0.0,
+                Some(_) => 255.0,
+                None => detect::shadow_index(self.inputs.colour.data[index(k)]) as f32,
+            })
+            .collect();
         let class = (0..n)
             .map(|k| {
                 base[k].unwrap_or_else(|| {
@@ -406,6 +413,7 @@ impl Shared<'_> {
                 grid: self.grid.window_grid(&win),
                 class,
                 heights,
+                index: shade,
             },
             threshold,
         )

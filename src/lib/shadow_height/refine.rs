@@ -28,6 +28,9 @@ pub struct Refined {
     pub overlap: f64,
 }
 
+/// Sub-points per cell side: the synthetic shadow covers a cell in sixteenths.
+const SUB: usize = 4;
+
 /// Search heights in `(0, z_hi]` metres above `ground_z` (absolute metres) for footprint `fp`,
 /// whose cells are [`Class::Own`] in `local`. `u` is the unit shadow direction (east, north),
 /// `tan_e` the tangent of the sun elevation. Only cells with `keep[i]` can be in the corridor
@@ -44,55 +47,135 @@ pub fn refine(
 ) -> Option<Refined> {
     let w = local.grid.width;
     let toward_sun = (-u.0, -u.1);
-    let threshold: Vec<f64> = (0..local.class.len())
+    let t = &local.grid.transform;
+    // Per open kept cell, the thresholds of its SUB × SUB sub-points (NaN: never shadowed).
+    let sub: Vec<Option<[f64; SUB * SUB]>> = (0..local.class.len())
         .map(|i| {
             if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
-                return f64::NAN;
+                return None;
             }
-            let p = local.grid.cell_centre(i % w, i / w);
-            first_wall(fp, p, toward_sun)
-                .map_or(f64::NAN, |t| local.heights[i] as f64 + t * tan_e - ground_z)
+            let (c, r) = ((i % w) as f64, (i / w) as f64);
+            let mut th = [f64::NAN; SUB * SUB];
+            for (k, v) in th.iter_mut().enumerate() {
+                let (fx, fy) = (
+                    ((k % SUB) as f64 + 0.5) / SUB as f64,
+                    ((k / SUB) as f64 + 0.5) / SUB as f64,
+                );
+                let p = t.pixel_to_world(c + fx, r + fy);
+                if let Some(d) = first_wall(fp, p, toward_sun) {
+                    *v = (terrain_at(local, c + fx, r + fy) + d * tan_e - ground_z).max(0.0);
+                }
+            }
+            th.iter().any(|&v| v <= z_hi).then_some(th)
         })
         .collect();
-    let corridor: Vec<bool> = threshold.iter().map(|&h| h <= z_hi).collect();
-    let observed = attached_shadow(local, &corridor);
-    let mut cells: Vec<(f64, bool)> = (0..corridor.len())
-        .filter(|&i| corridor[i])
-        .map(|i| (threshold[i].max(0.0), observed[i]))
+    let corridor: Vec<bool> = sub.iter().map(Option::is_some).collect();
+    let attached = attached_shadow(local, &corridor);
+    let observed = observed_fraction(local, &corridor, &attached);
+    let mut events: Vec<(f64, usize)> = sub
+        .iter()
+        .enumerate()
+        .filter_map(|(i, th)| th.map(|th| (i, th)))
+        .flat_map(|(i, th)| th.into_iter().filter(|&v| v <= z_hi).map(move |v| (v, i)))
         .collect();
-    cells.sort_by(|a, b| a.0.total_cmp(&b.0));
-    best_interval(&cells, z_hi)
+    events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    best_interval(&events, &observed, z_hi)
 }
 
-/// The best IoU over `Z` in `(0, z_hi]` for cells `(threshold, observed)` sorted by threshold,
-/// a cell being in the synthetic shadow when `Z > threshold`: the middle of the first interval
-/// reaching it.
-fn best_interval(cells: &[(f64, bool)], z_hi: f64) -> Option<Refined> {
-    let n_obs = cells.iter().filter(|c| c.1).count();
-    if n_obs == 0 {
+/// The best score over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`
+/// sorted by `Z` (a sub-point is in the synthetic shadow when `Z` is above it), `observed[i]`
+/// the observed shadow fraction of cell `i`. The score is the IoU of fractions,
+/// `Σ min(s, o) / Σ max(s, o)` with `s` the cell's synthetic fraction; the answer is the middle
+/// of the first interval reaching the best.
+fn best_interval(events: &[(f64, usize)], observed: &[f64], z_hi: f64) -> Option<Refined> {
+    let step = 1.0 / (SUB * SUB) as f64;
+    let (mut num, mut den): (f64, f64) = (0.0, observed.iter().sum());
+    if den == 0.0 {
         return None;
     }
-    let (mut inter, mut extra) = (0usize, 0usize);
-    let mut best: Option<(f64, usize)> = None; // (IoU, index of the interval's first cell past it)
-    for k in 0..cells.len() {
-        inter += cells[k].1 as usize;
-        extra += !cells[k].1 as usize;
-        // Only between distinct thresholds: Z just above cells[k].0 and up to the next one.
-        if k + 1 < cells.len() && cells[k + 1].0 == cells[k].0 {
+    let mut covered = vec![0u8; observed.len()];
+    let mut best: Option<(f64, usize)> = None; // (score, index of the interval's next event)
+    for (k, &(_, i)) in events.iter().enumerate() {
+        let (o, before) = (observed[i], covered[i] as f64 * step);
+        let after = before + step;
+        num += after.min(o) - before.min(o);
+        den += after.max(o) - before.max(o);
+        covered[i] += 1;
+        if events.get(k + 1).is_some_and(|e| e.0 == events[k].0) {
             continue;
         }
-        let iou = inter as f64 / (n_obs + extra) as f64;
-        if best.is_none_or(|b| iou > b.0) {
-            best = Some((iou, k + 1));
+        let score = num / den;
+        if best.is_none_or(|b| score > b.0 + 1e-12) {
+            best = Some((score, k + 1));
         }
     }
     let (overlap, next) = best?;
-    let lo = cells[next - 1].0;
-    let hi = cells.get(next).map_or(z_hi, |c| c.0).max(lo);
+    let lo = events[next - 1].0;
+    let hi = events.get(next).map_or(z_hi, |e| e.0).max(lo);
     Some(Refined {
         height_m: (lo + hi) / 2.0,
-        overlap,
+        overlap: overlap.clamp(0.0, 1.0),
     })
+}
+
+/// Terrain height (metres) at pixel coordinates `(px, py)` of `local`: bilinear between the
+/// cell centres around it, the nearest centre where a neighbour is outside or nodata.
+fn terrain_at(local: &Local, px: f64, py: f64) -> f64 {
+    let (w, h) = (local.grid.width as i64, local.grid.height as i64);
+    let at = |c: i64, r: i64| -> f64 {
+        if c < 0 || r < 0 || c >= w || r >= h {
+            f64::NAN
+        } else {
+            local.heights[(r * w + c) as usize] as f64
+        }
+    };
+    let (x, y) = (px - 0.5, py - 0.5);
+    let (c0, r0) = (x.floor() as i64, y.floor() as i64);
+    let (fx, fy) = (x - c0 as f64, y - r0 as f64);
+    let z = (1.0 - fy) * ((1.0 - fx) * at(c0, r0) + fx * at(c0 + 1, r0))
+        + fy * ((1.0 - fx) * at(c0, r0 + 1) + fx * at(c0 + 1, r0 + 1));
+    if z.is_finite() {
+        z
+    } else {
+        at(px.floor() as i64, py.floor() as i64)
+    }
+}
+
+/// How much of each corridor cell the photo shows in this footprint's shadow, in [0, 1]: the
+/// attached shadow cells and the cells touching them (the shadow's mixed edge) read their shadow
+/// index between the local lit level (median of the other corridor lit cells) and shadow level
+/// (median of the attached cells); every other cell is 0. Without both levels, the attached
+/// cells are 1.
+fn observed_fraction(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec<f64> {
+    let w = local.grid.width;
+    let h = local.grid.height;
+    let edge: Vec<bool> = (0..corridor.len())
+        .map(|i| {
+            let (c, r) = (i % w, i / w);
+            corridor[i]
+                && !attached[i]
+                && (r.saturating_sub(1)..=(r + 1).min(h - 1)).any(|rr| {
+                    (c.saturating_sub(1)..=(c + 1).min(w - 1)).any(|cc| attached[rr * w + cc])
+                })
+        })
+        .collect();
+    let level = |pick: &dyn Fn(usize) -> bool| {
+        let v: Vec<f64> = (0..corridor.len())
+            .filter(|&i| pick(i))
+            .map(|i| local.index[i] as f64)
+            .collect();
+        super::scan::median(&v)
+    };
+    let shadow = level(&|i| attached[i]);
+    let lit = level(&|i| corridor[i] && !attached[i] && !edge[i] && local.class[i] == Class::Lit);
+    (0..corridor.len())
+        .map(|i| match (shadow, lit) {
+            (Some(s), Some(l)) if l > s && (attached[i] || edge[i]) => {
+                ((l - local.index[i] as f64) / (l - s)).clamp(0.0, 1.0)
+            }
+            _ => attached[i] as u8 as f64,
+        })
+        .collect()
 }
 
 /// Distance (metres) from `p` along the unit vector `d` to the first edge of the footprint,
@@ -180,24 +263,34 @@ mod tests {
             })
             .collect();
         let cast = cast_shadows_reference(&Raster::new(fine, raised), sun).unwrap();
-        let class = (0..1600)
+        let dark: Vec<usize> = (0..1600)
             .map(|i| {
                 let (c, r) = (i % 40, i / 40);
-                let dark = (0..64)
+                (0..64)
                     .filter(|k| cast.data[(r * 8 + k / 8) * 320 + c * 8 + k % 8] == SHADOW)
-                    .count();
-                match (inside(g.cell_centre(c, r)), dark > 32) {
+                    .count()
+            })
+            .collect();
+        let class = (0..1600)
+            .map(
+                |i| match (inside(g.cell_centre(i % 40, i / 40)), dark[i] > 32) {
                     (true, _) => Class::Own,
                     (false, true) => Class::Shadow,
                     (false, false) => Class::Lit,
-                }
-            })
+                },
+            )
+            .collect();
+        // The photo: lit ground 100, shadow 40, mixed cells in between.
+        let index = dark
+            .iter()
+            .map(|&d| 100.0 - 60.0 * d as f32 / 64.0)
             .collect();
         let local = Local {
             win: w,
             grid: g.window_grid(&w),
             class,
             heights: vec![100.0; 1600],
+            index,
         };
         (local, fp)
     }
@@ -210,7 +303,7 @@ mod tests {
         let (l, fp) = scene(&sun, 106.5);
         let r = refine(&l, &fp, &[true; 1600], (0.0, 1.0), 1.0, 100.0, 20.0).unwrap();
         assert!((r.height_m - 6.0).abs() <= 0.5, "{r:?}");
-        assert_eq!(r.overlap, 1.0);
+        assert!(r.overlap > 0.95, "{r:?}");
     }
 
     #[test]
@@ -240,14 +333,28 @@ mod tests {
     }
 
     #[test]
-    fn best_interval_takes_the_middle_of_the_first_best_and_ignores_ties_inside_it() {
-        // Thresholds 1 (observed), 2 (observed), 2 (not), 3 (not): IoU 0.5 above 1, 2/3 above 2
-        // (both cells at 2 at once), 0.5 above 3.
-        let c = [(1.0, true), (2.0, true), (2.0, false), (3.0, false)];
-        let r = best_interval(&c, 10.0).unwrap();
-        assert_eq!((r.height_m, r.overlap), (2.5, 2.0 / 3.0));
-        // The best interval running to the top ends at z_hi.
-        assert_eq!(best_interval(&[(1.0, true)], 3.0).unwrap().height_m, 2.0);
+    fn best_interval_scores_fractions_and_takes_the_middle_of_the_first_best() {
+        // Cell 0 observed fully in shadow, cell 1 half. Sixteen sub-points each: cell 0's at
+        // 1.0, cell 1's at 2.0 (all at once). Above 1: 1 / 1.5; above 2: 1.5 / 2 = 0.75 (best).
+        let mut ev: Vec<(f64, usize)> = (0..16).map(|_| (1.0, 0)).collect();
+        ev.extend((0..16).map(|_| (2.0, 1)));
+        let r = best_interval(&ev, &[1.0, 0.5], 4.0).unwrap();
+        assert_eq!((r.height_m, r.overlap), (3.0, 0.75));
+        // Half of cell 1's sub-points at 2, half at 3: exactly its observed half above 2.
+        let mut ev: Vec<(f64, usize)> = (0..16).map(|_| (1.0, 0)).collect();
+        ev.extend((0..16).map(|k| (2.0 + (k / 8) as f64, 1)));
+        let r = best_interval(&ev, &[1.0, 0.5], 4.0).unwrap();
+        assert_eq!((r.height_m, r.overlap), (2.5, 1.0));
+        assert_eq!(best_interval(&ev, &[0.0, 0.0], 4.0), None);
+    }
+
+    #[test]
+    fn terrain_between_cell_centres_is_bilinear() {
+        let sun = Sun::new(45.0, 180.0).unwrap();
+        let (mut l, _) = scene(&sun, 106.5);
+        l.heights = (0..1600).map(|i| (i % 40) as f32).collect(); // rises 1 m per column
+        assert!((terrain_at(&l, 10.75, 5.5) - 10.25).abs() < 1e-9);
+        assert_eq!(terrain_at(&l, 0.25, 5.5), 0.0); // west of the first centre: nearest
     }
 
     #[test]

@@ -238,6 +238,7 @@ mod tests {
                 grid: g.window_grid(&w),
                 class,
                 heights: vec![5.0; 1600],
+                index: vec![100.0; 1600],
             },
             fp,
         )
