@@ -452,7 +452,7 @@ fn partial_cells_carry_their_voxel_runs_in_the_level0_bricks() {
     pyramid(&db.dir, &a, &[]);
     pyramid(&db.dir, &b, &["--compression", "lz4"]);
     let r = TileReader::open(&a, 64).unwrap();
-    assert_eq!(r.info().bricks, dbms::tiles::BRICKS_OPAQUE);
+    assert_eq!(r.info().bricks, dbms::tiles::BRICKS_FORMAT);
     // Columns 119 and 120 of row 19 are under the lintel: page (3, 0) with --page 32.
     let page = r.page(0, 3, 0).unwrap();
     let cols = PageColumns::decode(page.bricks.as_deref().unwrap(), 32 * 32).unwrap();

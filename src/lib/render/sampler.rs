@@ -9,7 +9,7 @@
 //! and shared by the frame's samplers through a [`ColumnCache`].
 
 use crate::error::{Error, Result};
-use crate::tiles::{Cell, Page, TileReader, BRICKS_OPAQUE};
+use crate::tiles::{Cell, Page, TileReader, BRICKS_FORMAT};
 use crate::voxel::columns::{PageColumns, Run};
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
@@ -123,8 +123,8 @@ impl<'a> Sampler<'a> {
                 .fix("the tile file is corrupt or was written by another dbms; rebuild it with dbms pyramid")
         };
         let format = &self.reader.info().bricks;
-        if format != BRICKS_OPAQUE {
-            return Err(bad(format!("the header's bricks format is {format:?}, this dbms reads {BRICKS_OPAQUE:?}")));
+        if format != BRICKS_FORMAT {
+            return Err(bad(format!("the header's bricks format is {format:?}, this dbms reads {BRICKS_FORMAT:?}")));
         }
         let blob = page.bricks.as_deref().unwrap_or(&[0u8; 4][..]); // no blob: no columns
         let columns = PageColumns::decode(blob, self.page_size * self.page_size).map_err(&bad)?;

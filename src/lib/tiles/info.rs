@@ -137,9 +137,8 @@ pub fn standard_layers() -> Vec<LayerInfo> {
 
 /// Format of the per-page `bricks` blob: level-0 partial cells' solid z-runs, as
 /// [`crate::voxel::columns`] encodes them (spec: `docs/tile-format.md`, "Bricks"). A reader that
-/// meets another string must not interpret the blobs. (The name is historical: the tiles module
-/// re-exports it under this name.)
-pub const BRICKS_OPAQUE: &str = "dbms voxel columns 1";
+/// meets another string must not interpret the blobs.
+pub const BRICKS_FORMAT: &str = "dbms voxel columns 1";
 
 /// Everything a tile file's header says: the description of the whole tile set.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -156,7 +155,7 @@ pub struct TileSetInfo {
     pub levels: Vec<LevelInfo>,
     /// Per-cell layers, in the order they are stored in a page.
     pub layers: Vec<LayerInfo>,
-    /// Format of the optional per-page `bricks` blob (see [`BRICKS_OPAQUE`]).
+    /// Format of the optional per-page `bricks` blob (see [`BRICKS_FORMAT`]).
     pub bricks: String,
     /// The writer's compression policy (each page's flags say what was done to it).
     pub compression: Compression,
@@ -204,7 +203,7 @@ impl TileSetInfo {
             grid,
             levels,
             layers: standard_layers(),
-            bricks: BRICKS_OPAQUE.to_string(),
+            bricks: BRICKS_FORMAT.to_string(),
             compression: Compression::None,
             page_order: PageOrder::CoarseFirstMorton,
             alignment: PAGE_ALIGN,

@@ -27,7 +27,7 @@ mod reader;
 mod writer;
 
 pub use info::{
-    standard_layers, Compression, LayerInfo, LevelInfo, PageOrder, TileSetInfo, BRICKS_OPAQUE,
+    standard_layers, Compression, LayerInfo, LevelInfo, PageOrder, TileSetInfo, BRICKS_FORMAT,
     MAX_LEVELS, MAX_PAGE_SIZE, PAGE_ALIGN,
 };
 pub use layout::{morton, IndexEntry, ENTRY_LEN, MAGIC, PREAMBLE_LEN, VERSION};

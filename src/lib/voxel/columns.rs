@@ -1,5 +1,5 @@
 //! Voxel columns: the solid runs of a level-0 cell with holes or overhangs (the tile format's
-//! per-page `bricks` blob, header string [`crate::tiles::BRICKS_OPAQUE`], `"dbms voxel columns 1"`).
+//! per-page `bricks` blob, header string [`crate::tiles::BRICKS_FORMAT`], `"dbms voxel columns 1"`).
 //!
 //! This is case 3 of the Hughes patent (a height field `Z(X, Y)` plus voxels above it) stored
 //! as run lengths: every partial cell (`state` 1) of a level-0 page lists its column's solid
