@@ -2,19 +2,21 @@
 //! trial height over the DEM, cast its shadow, compare with the observed shadow, and keep the
 //! height whose shadow overlaps the observed one best.
 //!
-//! Invariant: the synthetic shadow is cast with exact rays from every usable open-ground cell
-//! centre toward the sun over the real terrain, against the footprint *polygon* (not its
-//! raster): a ray from a cell centre at terrain height `z` first meets the footprint's walls
-//! `t` metres away, so the cell is in the shadow of a roof at `ground_z + Z` exactly when
-//! `Z > z + t·tan(elevation) − ground_z`, that cell's *threshold*. (Cells the bare terrain
-//! shadows are unusable, so nothing else blocks the ray.) A prism's shadow only grows with its
-//! height; the *corridor* is the kept cells with a threshold up to `z_hi`. The observed shadow is
-//! the corridor's shadow cells connected to the footprint (shadow beyond lit ground belongs to
-//! something else). The score of `Z` is the IoU of synthetic and observed shadow over the
-//! corridor; it changes only at thresholds, so every height in `[0, z_hi]` is scored by one
-//! sweep over the sorted thresholds, and the answer is the middle of the best interval (the
-//! unbiased choice). Exact polygons make the answer finer than a cell of shadow length, which
-//! matters most where a cell of shadow is metres of height (high sun, coarse cells).
+//! Invariant: the synthetic shadow is cast with exact rays toward the sun over the real terrain,
+//! against the footprint *polygon* (not its raster): a ray from a ground point at terrain height
+//! `z` first meets the footprint's walls `t` metres away, so the point is in the shadow of a roof
+//! at `ground_z + Z` exactly when `Z > z + t·tan(elevation) − ground_z`, the point's *threshold*.
+//! (Cells the bare terrain shadows are unusable, so nothing else blocks the ray.) Each open cell
+//! holds `SUB × SUB` points, so the synthetic shadow covers it in fractions. A prism's shadow only
+//! grows with its height; the *corridor* is the kept cells with a point whose threshold is up to
+//! `z_hi`. The observed shadow is the corridor's shadow cells connected to the footprint (shadow
+//! beyond lit ground belongs to something else) and the cells touching them, each as the
+//! fraction of shadow its brightness says. The score of `Z` is the IoU of the two fractions over
+//! the corridor; it changes only at thresholds, so every height in `(0, z_hi]` is scored by one
+//! sweep over the sorted thresholds, and the answer is the middle of the first best interval
+//! (the unbiased choice). Exact polygons and fractions make the answer finer than a cell of
+//! shadow length, which matters most where a cell of shadow is metres of height (high sun,
+//! coarse cells).
 
 use super::footprint::Footprint;
 use super::local::{Class, Local};
