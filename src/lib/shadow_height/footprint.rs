@@ -34,13 +34,22 @@ pub struct InputFeature {
 
 /// Read a GeoJSON FeatureCollection of Polygon / MultiPolygon footprints.
 pub fn read_footprints(path: &Path) -> Result<Vec<InputFeature>> {
-    let features = geojson::read_features(path, "give a GeoJSON FeatureCollection of footprint polygons")?;
+    let features = geojson::read_features(
+        path,
+        "give a GeoJSON FeatureCollection of footprint polygons",
+    )?;
     Ok(features
         .iter()
         .map(|f| {
-            let geometry = f.get("geometry").cloned().unwrap_or(serde_json::Value::Null);
+            let geometry = f
+                .get("geometry")
+                .cloned()
+                .unwrap_or(serde_json::Value::Null);
             InputFeature {
-                properties: f.get("properties").cloned().unwrap_or(serde_json::Value::Null),
+                properties: f
+                    .get("properties")
+                    .cloned()
+                    .unwrap_or(serde_json::Value::Null),
                 footprint: footprint_of(&geometry),
                 geometry,
             }
