@@ -59,8 +59,8 @@ fn main() {
     let names = [
         "read + decode the two layer GeoTIFFs",
         "prepare (no sun: nothing)",
-        "levels: bands, reductions, pages encoded + spooled",
-        "tile writer's final pass (spool → file)",
+        "levels: bands, reductions, pages encoded + written in place",
+        "tile writer's finish (index, fsync, rename)",
     ];
     for (name, s) in names.iter().zip(&steps) {
         rows.push((format!("  of which: {name}"), *s, None));

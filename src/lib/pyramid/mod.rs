@@ -100,9 +100,10 @@ pub struct Timings {
     pub read: f64,
     /// Buildings, objects and sun effects (shadow casts) prepared for the whole grid.
     pub prepare: f64,
-    /// The hierarchy: level-0 bands, reductions, pages encoded and spooled by the tile writer.
+    /// The hierarchy: level-0 bands, reductions, pages encoded and written by the tile writer.
     pub levels: f64,
-    /// The tile writer's final pass (spool to the file in canonical order) and the export.
+    /// The tile writer's finish (index, fsync and rename; a copy into canonical order only with
+    /// lz4 or bricks) and the export.
     pub finish: f64,
 }
 
@@ -133,7 +134,7 @@ pub fn build_pyramid(
     let mut seconds = Timings::default();
     let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
     info.compression = opts.compression;
-    // The two layers decode in parallel (each GeoTIFF decodes on one thread).
+    // The two layers decode in parallel (and each GeoTIFF's tiles in parallel too).
     let (terrain, colour) = rayon::join(|| db.read_elevation(), || db.read_colour());
     let (terrain, colour) = (terrain?, colour?);
     seconds.read = lap();
