@@ -6,7 +6,9 @@
 //! * [`Colour`]: `[r, g, b, a]` 8-bit; **alpha 0 is nodata**, alpha 255 is valid (no partial
 //!   alpha is produced by dbms).
 
+use crate::error::Result;
 use crate::grid::Grid;
+use std::borrow::Cow;
 
 /// A grid of values, one per cell, row-major (`data[row * width + col]`).
 #[derive(Debug, Clone, PartialEq)]
@@ -68,6 +70,29 @@ impl<T> Raster<T> {
     /// Rows as slices, top (row 0) first.
     pub fn rows(&self) -> std::slice::ChunksExact<'_, T> {
         self.data.chunks_exact(self.grid.width.max(1))
+    }
+}
+
+/// Rows of a layer on demand: a raster held in memory, or a file decoded band by band, so a
+/// stage can stream a grid larger than memory. Shared between threads.
+pub trait RowSource<T: Clone>: Sync {
+    /// The grid the rows lie on.
+    fn grid(&self) -> &Grid;
+
+    /// Rows `row0 .. row0 + rows`, row-major (`rows × width` values). Panics when the rows are
+    /// not inside the grid (a programming error); errors when they cannot be read.
+    fn read_rows(&self, row0: usize, rows: usize) -> Result<Cow<'_, [T]>>;
+}
+
+impl<T: Clone + Sync> RowSource<T> for Raster<T> {
+    fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    fn read_rows(&self, row0: usize, rows: usize) -> Result<Cow<'_, [T]>> {
+        assert!(row0 + rows <= self.grid.height, "rows {row0}..{} outside the grid", row0 + rows);
+        let w = self.grid.width;
+        Ok(Cow::Borrowed(&self.data[row0 * w..(row0 + rows) * w]))
     }
 }
 

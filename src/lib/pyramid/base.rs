@@ -12,53 +12,68 @@
 use super::cascade::Band;
 use super::raised::Raised;
 use super::reduce::BaseRows;
-use super::shade::Effects;
-use crate::raster::{Colour, Elevation};
+use super::shade::{lit, Effects};
+use crate::error::Result;
+use crate::raster::RowSource;
 use crate::tiles::{STATE_OPAQUE, STATE_PARTIAL};
 use crate::voxel::columns::Run;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Everything level 0 is made of. Bands are cut from it on demand.
+/// Everything level 0 is made of. Bands are cut from it on demand, the layers read band by band.
 pub struct Level0<'a> {
     /// Terrain heights, metres; NaN = nodata.
-    pub terrain: &'a Elevation,
+    terrain: &'a dyn RowSource<f32>,
     /// Orthophoto colour; alpha 0 = nodata.
-    pub colour: &'a Colour,
+    colour: &'a dyn RowSource<[u8; 4]>,
     /// Buildings and objects standing on the terrain.
-    pub raised: &'a Raised,
+    raised: &'a Raised,
     /// Sun effects, when a sun was given and the scene calls for any.
-    pub effects: Option<&'a Effects<'a>>,
+    effects: Option<&'a Effects<'a>>,
+    /// Cells of the bands cut so far where only one of elevation and colour is valid.
+    half_valid: AtomicUsize,
 }
 
-impl Level0<'_> {
+impl<'a> Level0<'a> {
+    /// Level 0 of `terrain` and `colour` (on the same grid) with `raised` merged in and
+    /// `effects` applied.
+    pub fn new(
+        terrain: &'a dyn RowSource<f32>,
+        colour: &'a dyn RowSource<[u8; 4]>,
+        raised: &'a Raised,
+        effects: Option<&'a Effects<'a>>,
+    ) -> Level0<'a> {
+        Level0 { terrain, colour, raised, effects, half_valid: AtomicUsize::new(0) }
+    }
+
     /// Level-0 rows `row0 .. row0 + rows` and the columns of their partial cells.
-    pub fn band(&self, row0: usize, rows: usize) -> Band {
-        let w = self.terrain.grid.width;
+    pub fn band(&self, row0: usize, rows: usize) -> Result<Band> {
+        let w = self.terrain.grid().width;
+        let terrain = self.terrain.read_rows(row0, rows)?;
+        let colour = self.colour.read_rows(row0, rows)?;
         let mut out = BaseRows::nodata(w, rows);
-        out.max_z
+        let half_valid: usize = out
+            .max_z
             .par_chunks_mut(w)
             .zip(out.colour.par_chunks_mut(w))
             .zip(out.state.par_chunks_mut(w))
             .enumerate()
-            .for_each(|(r, ((zs, cs), ss))| {
+            .map(|(r, ((zs, cs), ss))| {
                 let start = (row0 + r) * w;
                 let mut raised = self.raised.range(start, start + w).iter().peekable();
+                let mut half_valid = 0;
                 for col in 0..w {
-                    let i = start + col;
-                    let (z, c) = (self.terrain.data[i], self.colour.data[i]);
-                    let lifted = raised.next_if(|rc| rc.index == i);
+                    let (z, c) = (terrain[r * w + col], colour[r * w + col]);
+                    let lifted = raised.next_if(|rc| rc.index == start + col);
                     if z.is_nan() || c[3] == 0 {
+                        half_valid += usize::from(z.is_nan() != (c[3] == 0));
                         continue;
                     }
                     match lifted {
                         Some(rc) => {
                             zs[col] = rc.top_z;
                             cs[col] = rc.colour.unwrap_or(c);
-                            ss[col] = if rc.partial {
-                                STATE_PARTIAL
-                            } else {
-                                STATE_OPAQUE
-                            };
+                            ss[col] = if rc.partial { STATE_PARTIAL } else { STATE_OPAQUE };
                         }
                         None => {
                             zs[col] = z;
@@ -67,72 +82,60 @@ impl Level0<'_> {
                         }
                     }
                 }
-            });
-        if let Some(fx) = self.effects {
-            fx.shade_band(row0, &mut out.colour);
-        }
-        let columns = self.columns(row0, &out);
-        Band { rows: out, columns }
+                half_valid
+            })
+            .sum();
+        self.half_valid.fetch_add(half_valid, Ordering::Relaxed);
+        let factors = match self.effects {
+            Some(fx) => Some(fx.shade_band(row0, &mut out.colour)?),
+            None => None,
+        };
+        let columns = self.columns(row0, &out, &colour, factors.as_deref());
+        Ok(Band { rows: out, columns })
     }
 
-    /// The voxel columns of the partial cells of band `rows` (starting at grid row `row0`).
-    fn columns(&self, row0: usize, rows: &BaseRows) -> Vec<(usize, Vec<Run>)> {
-        let w = rows.width;
-        let start = row0 * w;
+    /// The voxel columns of the partial cells of band `rows` (starting at grid row `row0`), lit
+    /// by the band's effect `factors` when there are any.
+    fn columns(
+        &self,
+        row0: usize,
+        rows: &BaseRows,
+        photo: &[[u8; 4]],
+        factors: Option<&[f64]>,
+    ) -> Vec<(usize, Vec<Run>)> {
+        let start = row0 * rows.width;
         let cells = self.raised.range(start, start + rows.state.len());
         cells
             .par_iter()
             .filter(|rc| rows.state[rc.index - start] == STATE_PARTIAL)
             .map(|rc| {
-                let photo = self.colour.data[rc.index];
-                let factor = self
-                    .effects
-                    .map_or(1.0, |fx| fx.factor_at(rc.index % w, rc.index / w));
-                let runs = self
-                    .raised
-                    .runs(rc.index)
-                    .expect("a partial raised cell has runs");
+                let k = rc.index - start;
+                let factor = factors.map_or(1.0, |f| f[k]);
+                let runs = self.raised.runs(rc.index).expect("a partial raised cell has runs");
                 let runs = runs
                     .iter()
                     .map(|r| {
-                        let [red, green, blue, _] = r.colour.unwrap_or(photo);
-                        Run {
-                            bottom: r.bottom,
-                            top: r.top,
-                            colour: lit([red, green, blue, 255], factor),
-                        }
+                        let [red, green, blue, _] = r.colour.unwrap_or(photo[k]);
+                        Run { bottom: r.bottom, top: r.top, colour: lit([red, green, blue, 255], factor) }
                     })
                     .collect();
-                (rc.index - start, runs)
+                (k, runs)
             })
             .collect()
     }
 
-    /// Cells dropped because only one of elevation and colour is valid there.
+    /// Cells dropped, in the bands cut so far, because only one of elevation and colour is
+    /// valid there.
     pub fn half_valid_cells(&self) -> usize {
-        self.terrain
-            .data
-            .par_iter()
-            .zip(&self.colour.data)
-            .filter(|(z, c)| z.is_nan() != (c[3] == 0))
-            .count()
+        self.half_valid.load(Ordering::Relaxed)
     }
-}
-
-/// `colour` lit by an effects factor, rounded as [`Effects::shade_band`] rounds the layer.
-fn lit(mut colour: [u8; 4], factor: f64) -> [u8; 4] {
-    if factor != 1.0 {
-        for ch in &mut colour[..3] {
-            *ch = (*ch as f64 * factor).round().min(255.0) as u8;
-        }
-    }
-    colour
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::crs::Crs;
+    use crate::raster::{Colour, Elevation};
     use crate::grid::Grid;
     use crate::pyramid::raised::{PlacedVoxels, RaisedCell};
     use crate::tiles::STATE_EMPTY;
@@ -169,14 +172,9 @@ mod tests {
             voxels: vec![([0.0, 0.0, 15.5], [7, 7, 7])],
         };
         let raised = building.union(&Raised::objects(&t.grid, &[lintel], &t), &t);
-        let l0 = Level0 {
-            terrain: &t,
-            colour: &c,
-            raised: &raised,
-            effects: None,
-        };
+        let l0 = Level0::new(&t, &c, &raised, None);
+        let band = l0.band(0, 2).unwrap();
         assert_eq!(l0.half_valid_cells(), 2);
-        let band = l0.band(0, 2);
         let b = &band.rows;
         assert_eq!(
             b.state,
@@ -214,7 +212,7 @@ mod tests {
             colour: [7, 7, 7, 255],
         };
         assert_eq!(band.columns, vec![(5, vec![ground, voxel])]);
-        let second = l0.band(1, 1);
+        let second = l0.band(1, 1).unwrap();
         assert_eq!(second.rows.max_z, vec![4.0, 15.0, 16.0]);
         assert_eq!(
             second.columns,
@@ -255,17 +253,12 @@ mod tests {
         let fx = crate::pyramid::shade::prepare(Some(sun), None, 0.5, &t, &block, &objects, &all)
             .unwrap()
             .unwrap();
-        let l0 = Level0 {
-            terrain: &t,
-            colour: &c,
-            raised: &all,
-            effects: Some(&fx),
-        };
-        let band = l0.band(0, 12);
+        let l0 = Level0::new(&t, &c, &all, Some(&fx));
+        let band = l0.band(0, 12).unwrap();
         assert_eq!(band.columns.len(), 6);
         let mut lit_differently = 0;
         for (i, runs) in &band.columns {
-            let k = fx.factor_at(i % 12, i / 12);
+            let k = fx.factor_at(i % 12, i / 12).unwrap();
             assert_eq!(
                 runs.last().unwrap().colour,
                 band.rows.colour[*i],

@@ -176,12 +176,7 @@ pub fn build_pyramid(
     };
 
     seconds.prepare = lap();
-    let level0 = base::Level0 {
-        terrain: &terrain,
-        colour: &colour,
-        raised: &all,
-        effects: effects.as_ref(),
-    };
+    let level0 = base::Level0::new(&terrain, &colour, &all, effects.as_ref());
     let writer = TileWriter::create(out, info.clone())?;
     let collector = opts
         .export_levels
@@ -190,7 +185,7 @@ pub fn build_pyramid(
     progress.phase(info.page_count() as u64, "pyramid");
     cascade::build_levels(
         &info,
-        |row0, rows| Ok(level0.band(row0, rows)),
+        |row0, rows| level0.band(row0, rows),
         &|level, tx, ty, page| {
             if let Some(c) = &collector {
                 c.put(level, tx, ty, page);
