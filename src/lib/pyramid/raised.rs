@@ -27,9 +27,53 @@
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::raster::Elevation;
+use crate::raster::{Elevation, RowSource};
 use rayon::prelude::*;
 use std::path::Path;
+
+/// The terrain height of a cell by row-major index (metres, NaN = nodata), for the cells
+/// something stands on: a whole raster in memory, or a [`TerrainSample`] of just those cells.
+pub trait TerrainAt: Sync {
+    /// Height of cell `index`. Panics for a cell the source does not hold (a programming error).
+    fn at(&self, index: usize) -> f32;
+}
+
+impl TerrainAt for Elevation {
+    fn at(&self, index: usize) -> f32 {
+        self.data[index]
+    }
+}
+
+/// The terrain heights of selected cells, read band by band from a [`RowSource`]: what raising
+/// needs of a layer too large to hold. Sorted by index, one entry per cell.
+pub struct TerrainSample {
+    cells: Vec<(usize, f32)>,
+}
+
+impl TerrainSample {
+    /// Sample `terrain` at `indices` (any order, repeats allowed), reading only the bands of
+    /// `band_rows` rows that hold one of them.
+    pub fn read(terrain: &dyn RowSource<f32>, mut indices: Vec<usize>, band_rows: usize) -> Result<TerrainSample> {
+        indices.par_sort_unstable();
+        indices.dedup();
+        let (w, h) = (terrain.grid().width, terrain.grid().height);
+        let band_rows = band_rows.max(1);
+        let mut cells = Vec::with_capacity(indices.len());
+        for chunk in indices.chunk_by(|a, b| a / w / band_rows == b / w / band_rows) {
+            let row0 = chunk[0] / w / band_rows * band_rows;
+            let rows = terrain.read_rows(row0, band_rows.min(h - row0))?;
+            cells.extend(chunk.iter().map(|&i| (i, rows[i - row0 * w])));
+        }
+        Ok(TerrainSample { cells })
+    }
+}
+
+impl TerrainAt for TerrainSample {
+    fn at(&self, index: usize) -> f32 {
+        let k = self.cells.binary_search_by_key(&index, |c| c.0).expect("the cell was sampled");
+        self.cells[k].1
+    }
+}
 
 /// One level-0 cell with something standing on it: the summary of its column.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -81,7 +125,7 @@ pub struct Raised {
 impl Raised {
     /// Cells from any sources, each a solid column from the ground to its `top_z`: per cell the
     /// highest top wins (with its colour). Cells not above valid terrain are dropped.
-    pub fn new(cells: Vec<RaisedCell>, terrain: &Elevation) -> Raised {
+    pub fn new(cells: Vec<RaisedCell>, terrain: &impl TerrainAt) -> Raised {
         let pieces = cells
             .into_iter()
             .map(|c| Piece {
@@ -96,7 +140,7 @@ impl Raised {
 
     /// The placed voxel objects rasterised (see the module doc for footprints and the ground
     /// tolerance) and merged per cell into runs.
-    pub fn objects(grid: &Grid, objects: &[PlacedVoxels], terrain: &Elevation) -> Raised {
+    pub fn objects(grid: &Grid, objects: &[PlacedVoxels], terrain: &impl TerrainAt) -> Raised {
         let pieces = objects
             .iter()
             .flat_map(|o| object_pieces(grid, o, terrain))
@@ -105,7 +149,7 @@ impl Raised {
     }
 
     /// Everything of `self` and `other` in one set: per cell the union of their solid runs.
-    pub fn union(&self, other: &Raised, terrain: &Elevation) -> Raised {
+    pub fn union(&self, other: &Raised, terrain: &impl TerrainAt) -> Raised {
         let mut pieces = self.pieces();
         pieces.extend(other.pieces());
         Raised::merge(pieces, terrain)
@@ -140,13 +184,13 @@ impl Raised {
     /// touching pieces join (a run's colour is its highest piece's; ties: the last in the sort
     /// by bottom, top, colour). Heights are compared as the `f32` they are stored as, so runs
     /// that touch in storage are always merged.
-    fn merge(mut pieces: Vec<Piece>, terrain: &Elevation) -> Raised {
+    fn merge(mut pieces: Vec<Piece>, terrain: &impl TerrainAt) -> Raised {
         pieces.retain(|p| {
-            let g = terrain.data[p.index];
+            let g = terrain.at(p.index);
             !g.is_nan() && p.top > g
         });
         for p in &mut pieces {
-            if p.bottom <= terrain.data[p.index] {
+            if p.bottom <= terrain.at(p.index) {
                 p.bottom = f32::NEG_INFINITY;
             }
         }
@@ -162,7 +206,7 @@ impl Raised {
                 let index = col[0].index;
                 let ground = RaisedRun {
                     bottom: f32::NEG_INFINITY,
-                    top: terrain.data[index],
+                    top: terrain.at(index),
                     colour: None,
                 };
                 let mut runs = vec![ground];
@@ -347,60 +391,67 @@ pub struct PlacedVoxels {
     pub voxels: Vec<([f64; 3], [u8; 3])>,
 }
 
-/// The pieces an object puts in the cells it stands on (see the module doc for the footprint):
-/// one per voxel and cell, its bottom dropped to the ground when within half a voxel of it.
-fn object_pieces(grid: &Grid, obj: &PlacedVoxels, terrain: &Elevation) -> Vec<Piece> {
-    let h = obj.heading_deg.to_radians();
-    let (s, c) = h.sin_cos();
-    // Local u → world (cos h, −sin h); local v → world (sin h, cos h).
-    let to_world = |u: f64, v: f64| (obj.origin[0] + u * c + v * s, obj.origin[1] - u * s + v * c);
+/// The cells an object marks (see the module doc for the footprint), sorted: the cells whose
+/// terrain [`Raised::objects`] needs.
+pub fn object_cells(grid: &Grid, obj: &PlacedVoxels) -> Vec<usize> {
+    let mut cells: Vec<usize> = obj.voxels.par_iter().flat_map_iter(|v| voxel_cells(grid, obj, v.0)).collect();
+    cells.par_sort_unstable();
+    cells.dedup();
+    cells
+}
+
+/// The pieces an object puts in the cells it stands on: one per voxel and cell, its bottom
+/// dropped to the ground when within half a voxel of it.
+fn object_pieces(grid: &Grid, obj: &PlacedVoxels, terrain: &impl TerrainAt) -> Vec<Piece> {
     let half = obj.voxel_size / 2.0;
     obj.voxels
         .par_iter()
-        .flat_map_iter(|&([u, v, w], [r, g, b])| {
-            let (bottom, top) = (obj.origin[2] + w - half, obj.origin[2] + w + half);
-            let mut cells: Vec<usize> = Vec::new();
-            let (wx, wy) = to_world(u, v);
-            if let Some((col, row)) = grid.cell_at(wx, wy) {
-                cells.push(grid.index(col, row));
-            }
-            // Cells whose centre lies in the rotated footprint: scan its bounding box.
-            let rad = half * std::f64::consts::SQRT_2;
-            let (px0, py0) = grid.transform.world_to_pixel(wx - rad, wy + rad);
-            let (px1, py1) = grid.transform.world_to_pixel(wx + rad, wy - rad);
-            let lo = |a: f64, b: f64| (a.min(b) - 0.5).ceil().max(0.0) as usize;
-            let hi = |a: f64, b: f64, n: usize| {
-                ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize
-            };
-            for row in lo(py0, py1)..hi(py0, py1, grid.height) {
-                for col in lo(px0, px1)..hi(px0, px1, grid.width) {
-                    let (x, y) = grid.cell_centre(col, row);
-                    let (dx, dy) = (x - wx, y - wy);
-                    // Back into the object's frame: u = dx·cos h − dy·sin h, v = dx·sin h + dy·cos h.
-                    let (lu, lv) = (dx * c - dy * s, dx * s + dy * c);
-                    if lu.abs() <= half && lv.abs() <= half {
-                        cells.push(grid.index(col, row));
-                    }
-                }
-            }
-            cells.sort_unstable();
-            cells.dedup();
-            cells.into_iter().map(move |index| {
-                let ground = terrain.data[index] as f64;
-                let grounded = bottom <= ground + half;
+        .flat_map_iter(|&(local, [r, g, b])| {
+            let (bottom, top) = (obj.origin[2] + local[2] - half, obj.origin[2] + local[2] + half);
+            voxel_cells(grid, obj, local).into_iter().map(move |index| {
+                let grounded = bottom <= terrain.at(index) as f64 + half;
                 Piece {
                     index,
-                    bottom: if grounded {
-                        f32::NEG_INFINITY
-                    } else {
-                        bottom as f32
-                    },
+                    bottom: if grounded { f32::NEG_INFINITY } else { bottom as f32 },
                     top: top as f32,
                     colour: Some([r, g, b, 255]),
                 }
             })
         })
         .collect()
+}
+
+/// The cells one voxel (local centre `[u, v, _]`) marks: the cell holding its centre and every
+/// cell whose centre lies in its footprint rotated by the heading; sorted, no repeats.
+fn voxel_cells(grid: &Grid, obj: &PlacedVoxels, [u, v, _]: [f64; 3]) -> Vec<usize> {
+    let (s, c) = obj.heading_deg.to_radians().sin_cos();
+    let half = obj.voxel_size / 2.0;
+    // Local u → world (cos h, −sin h); local v → world (sin h, cos h).
+    let (wx, wy) = (obj.origin[0] + u * c + v * s, obj.origin[1] - u * s + v * c);
+    let mut cells: Vec<usize> = Vec::new();
+    if let Some((col, row)) = grid.cell_at(wx, wy) {
+        cells.push(grid.index(col, row));
+    }
+    // Cells whose centre lies in the rotated footprint: scan its bounding box.
+    let rad = half * std::f64::consts::SQRT_2;
+    let (px0, py0) = grid.transform.world_to_pixel(wx - rad, wy + rad);
+    let (px1, py1) = grid.transform.world_to_pixel(wx + rad, wy - rad);
+    let lo = |a: f64, b: f64| (a.min(b) - 0.5).ceil().max(0.0) as usize;
+    let hi = |a: f64, b: f64, n: usize| ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
+    for row in lo(py0, py1)..hi(py0, py1, grid.height) {
+        for col in lo(px0, px1)..hi(px0, px1, grid.width) {
+            let (x, y) = grid.cell_centre(col, row);
+            let (dx, dy) = (x - wx, y - wy);
+            // Back into the object's frame: u = dx·cos h − dy·sin h, v = dx·sin h + dy·cos h.
+            let (lu, lv) = (dx * c - dy * s, dx * s + dy * c);
+            if lu.abs() <= half && lv.abs() <= half {
+                cells.push(grid.index(col, row));
+            }
+        }
+    }
+    cells.sort_unstable();
+    cells.dedup();
+    cells
 }
 
 #[cfg(test)]
@@ -665,6 +716,31 @@ mod tests {
             .range(0, 100)
             .iter()
             .all(|c| c.top_z == 103.0 && !c.partial));
+    }
+
+    /// Raising from a sample of just the cells something stands on gives the same set as from
+    /// the whole terrain (what the pyramid does to stream a layer larger than memory).
+    #[test]
+    fn a_terrain_sample_raises_the_same_as_the_whole_terrain() {
+        let g = Grid::north_up(0.0, 30.0, 1.0, 30, 30, Crs::unknown());
+        let t = Elevation::new(g.clone(), (0..900).map(|i| if i % 97 == 0 { f32::NAN } else { 100.0 + (i % 7) as f32 * 0.3 }).collect());
+        let arch = PlacedVoxels {
+            origin: [12.3, 17.8, 100.0],
+            heading_deg: 33.0,
+            voxel_size: 0.7,
+            voxels: (0..40).map(|k| ([(k % 8) as f64 * 0.7 - 2.5, (k / 8) as f64 * 0.7, if k % 3 == 0 { 3.2 } else { 0.35 }], [k as u8, 1, 2])).collect(),
+        };
+        let prism = Prism { rings: vec![square(2.0, 2.0, 9.0, 6.0)], roof_z: 106.0 };
+        let prism_cells = rasterise_prisms(&g, &[prism]);
+        let mut wanted: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
+        wanted.extend(object_cells(&g, &arch));
+        for band_rows in [1, 4, 64] {
+            let sample = TerrainSample::read(&t, wanted.clone(), band_rows).unwrap();
+            let from_sample = Raised::new(prism_cells.clone(), &sample).union(&Raised::objects(&g, &[arch.clone()], &sample), &sample);
+            let from_whole = Raised::new(prism_cells.clone(), &t).union(&Raised::objects(&g, &[arch.clone()], &t), &t);
+            assert_eq!(from_sample, from_whole, "bands of {band_rows} rows");
+            assert!(from_whole.cells().iter().any(|c| c.partial), "the test needs an overhang");
+        }
     }
 
     proptest::proptest! {
