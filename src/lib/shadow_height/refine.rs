@@ -182,7 +182,7 @@ fn observed_fraction(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec
 
 /// Distance (metres) from `p` along the unit vector `d` to the first edge of the footprint,
 /// `None` when the ray misses it.
-fn first_wall(fp: &Footprint, p: (f64, f64), d: (f64, f64)) -> Option<f64> {
+pub(super) fn first_wall(fp: &Footprint, p: (f64, f64), d: (f64, f64)) -> Option<f64> {
     let cross = |a: (f64, f64), b: (f64, f64)| a.0 * b.1 - a.1 * b.0;
     fp.edges()
         .filter_map(|(a, b)| {
