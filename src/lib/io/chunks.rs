@@ -82,7 +82,7 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
         && formats.iter().all(|&f| f == format)
         && match format {
             1 | 2 => matches!(predictor, 1 | 2),
-            3 => b >= 32 && matches!(predictor, 1 | 2 | 3),
+            3 => b >= 32 && (1..=3).contains(&predictor),
             _ => false,
         };
     if !supported || width == 0 || height == 0 {
