@@ -2,7 +2,8 @@
 //! (`dbms shadow-height`; issue 3, the Hughes patent's shadow-height loop).
 //!
 //! # Method (the invariant)
-//! For each valid footprint, independently (in parallel):
+//! For each valid footprint, independently (in parallel), in two passes — the second with the
+//! ground in the other buildings' shadows at their first-pass roofs unusable:
 //! 1. **Observe.** The cells around the footprint (a window reaching [`Options::max_height_m`]
 //!    worth of shadow along the sun azimuth) are classified ([`local::Class`]): own footprint,
 //!    other footprints, unusable (nodata colour or elevation, or shadowed by the bare terrain
