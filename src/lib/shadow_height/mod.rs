@@ -83,7 +83,8 @@ pub struct Flags {
     /// or none of it is attached to the footprint where the refinement compares.
     pub no_shadow: bool,
     /// Some scan lines were dropped: the shadow left the grid (or the search window) or reached
-    /// nodata or terrain-shadowed cells.
+    /// unusable cells — nodata, shadowed by the terrain, or (second pass) in another
+    /// building's shadow.
     pub shadow_cut_by_edge_or_nodata: bool,
     /// Some scan lines were dropped: the shadow reached another footprint.
     pub shadow_on_other_building: bool,
