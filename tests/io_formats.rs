@@ -760,3 +760,71 @@ mod properties {
         }
     }
 }
+
+/// `geotiff::read_rows` gives the rows of `read`, with the rows' sub-grid, for parallel-decoded
+/// layouts (stripped, tiled, planar, LZW, Deflate) and the `tiff` crate's (JPEG) alike.
+#[test]
+fn read_rows_is_the_window_of_read() {
+    use dbms::grid::Window;
+    use dbms::io::geotiff::read_rows;
+    for name in [
+        "int16_strip_none_nodata.tif",
+        "uint16_tiled_lzw.tif",
+        "int32_deflate_pred2.tif",
+        "float32_tiled_deflate_pred3_nan.tif",
+        "float64_lzw.tif",
+        "rgb8_planar.tif",
+        "rgba8.tif",
+        "rgb8_jpeg_ycbcr.tif",
+    ] {
+        let whole = read(name);
+        let (w, h, bands) = (whole.grid.width, whole.grid.height, whole.bands);
+        for rows in [0..h, 1..h - 1, h / 2..h / 2 + 1, h - 1..h] {
+            let part = read_rows(&data(name), rows.clone()).unwrap();
+            let window = Window {
+                col: 0,
+                row: rows.start,
+                width: w,
+                height: rows.len(),
+            };
+            assert_eq!(
+                part.grid,
+                whole.grid.window_grid(&window),
+                "{name} {rows:?}"
+            );
+            let want = match &whole.samples {
+                Samples::U8(v) => {
+                    Samples::U8(v[rows.start * w * bands..rows.end * w * bands].to_vec())
+                }
+                Samples::U16(v) => {
+                    Samples::U16(v[rows.start * w * bands..rows.end * w * bands].to_vec())
+                }
+                Samples::I16(v) => {
+                    Samples::I16(v[rows.start * w * bands..rows.end * w * bands].to_vec())
+                }
+                Samples::I32(v) => {
+                    Samples::I32(v[rows.start * w * bands..rows.end * w * bands].to_vec())
+                }
+                Samples::U32(v) => {
+                    Samples::U32(v[rows.start * w * bands..rows.end * w * bands].to_vec())
+                }
+                Samples::F32(v) => {
+                    Samples::F32(v[rows.start * w * bands..rows.end * w * bands].to_vec())
+                }
+                Samples::F64(v) => {
+                    Samples::F64(v[rows.start * w * bands..rows.end * w * bands].to_vec())
+                }
+            };
+            // NaN cells compare by bits.
+            assert_eq!(
+                format!("{:?}", part.samples),
+                format!("{want:?}"),
+                "{name} {rows:?}"
+            );
+            let meta = |s: &SourceRaster| format!("{:?}", (s.bands, s.nodata, s.alpha_band));
+            assert_eq!(meta(&part), meta(&whole), "{name} {rows:?}");
+        }
+        let err = read_rows(&data(name), h..h + 1).unwrap_err().to_string();
+        assert!(err.contains("outside the image"), "{err}");
+    }
+}

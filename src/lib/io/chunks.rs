@@ -12,6 +12,7 @@ use crate::error::{Error, Result};
 use rayon::prelude::*;
 use std::fs::File;
 use std::io::{Read, Seek};
+use std::ops::Range;
 use std::os::unix::fs::FileExt;
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult};
@@ -159,9 +160,15 @@ impl Plan {
     }
 }
 
-/// Decode every chunk of `plan` from `file` in parallel: the samples in the `tiff` crate's
-/// layout (pixel-interleaved, or plane after plane when planar).
-pub(crate) fn decode(path: &Path, file: &File, plan: &Plan) -> Result<DecodingResult> {
+/// Decode image rows `rows` (within `0..height`) from `file`, reading only the chunks they
+/// overlap, in parallel: the samples in the `tiff` crate's layout (pixel-interleaved, or plane
+/// after plane when planar). `0..height` gives the whole image.
+pub(crate) fn decode(
+    path: &Path,
+    file: &File,
+    plan: &Plan,
+    rows: Range<usize>,
+) -> Result<DecodingResult> {
     let chunks = plan.planes() * plan.across() * plan.down();
     if plan.offsets.len() < chunks || plan.counts.len() < chunks {
         return Err(Error::file(
@@ -174,44 +181,43 @@ pub(crate) fn decode(path: &Path, file: &File, plan: &Plan) -> Result<DecodingRe
         )
         .fix("re-create the file, or check it with gdalinfo"));
     }
-    let len = plan.width * plan.height * plan.samples;
     Ok(match (plan.format, plan.bytes) {
-        (1, 1) => DecodingResult::U8(words::<u8>(path, file, plan, len)?),
+        (1, 1) => DecodingResult::U8(words::<u8>(path, file, plan, rows.clone())?),
         (2, 1) => DecodingResult::I8(
-            words::<u8>(path, file, plan, len)?
+            words::<u8>(path, file, plan, rows.clone())?
                 .into_iter()
                 .map(|w| w as i8)
                 .collect(),
         ),
-        (1, 2) => DecodingResult::U16(words::<u16>(path, file, plan, len)?),
+        (1, 2) => DecodingResult::U16(words::<u16>(path, file, plan, rows.clone())?),
         (2, 2) => DecodingResult::I16(
-            words::<u16>(path, file, plan, len)?
+            words::<u16>(path, file, plan, rows.clone())?
                 .into_iter()
                 .map(|w| w as i16)
                 .collect(),
         ),
-        (1, 4) => DecodingResult::U32(words::<u32>(path, file, plan, len)?),
+        (1, 4) => DecodingResult::U32(words::<u32>(path, file, plan, rows.clone())?),
         (2, 4) => DecodingResult::I32(
-            words::<u32>(path, file, plan, len)?
+            words::<u32>(path, file, plan, rows.clone())?
                 .into_iter()
                 .map(|w| w as i32)
                 .collect(),
         ),
         (3, 4) => DecodingResult::F32(
-            words::<u32>(path, file, plan, len)?
+            words::<u32>(path, file, plan, rows.clone())?
                 .into_iter()
                 .map(f32::from_bits)
                 .collect(),
         ),
-        (1, 8) => DecodingResult::U64(words::<u64>(path, file, plan, len)?),
+        (1, 8) => DecodingResult::U64(words::<u64>(path, file, plan, rows.clone())?),
         (2, 8) => DecodingResult::I64(
-            words::<u64>(path, file, plan, len)?
+            words::<u64>(path, file, plan, rows.clone())?
                 .into_iter()
                 .map(|w| w as i64)
                 .collect(),
         ),
         (3, 8) => DecodingResult::F64(
-            words::<u64>(path, file, plan, len)?
+            words::<u64>(path, file, plan, rows.clone())?
                 .into_iter()
                 .map(f64::from_bits)
                 .collect(),
@@ -289,33 +295,49 @@ word!(u16);
 word!(u32);
 word!(u64);
 
-/// All samples as words, in the `tiff` crate's layout. One task per band of chunk rows (and
-/// plane), the chunks of a band decoded in parallel too, so a single-strip image still spreads.
-fn words<W: Word>(path: &Path, file: &File, plan: &Plan, len: usize) -> Result<Vec<W>> {
-    let mut out = vec![W::default(); len];
+/// Samples of image rows `rows` as words, in the `tiff` crate's layout (pixel-interleaved, or
+/// plane after plane). Only the chunk rows that overlap `rows` are read. One task per chunk row
+/// (and plane), the chunks of a row decoded in parallel too, so a single-strip image still
+/// spreads.
+fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> Result<Vec<W>> {
     let spp = plan.chunk_samples();
-    let band_len = plan.chunk_h * plan.width * spp;
-    let plane_len = plan.height * plan.width * spp;
-    let (across, down) = (plan.across(), plan.down());
-    out.par_chunks_mut(plane_len)
-        .enumerate()
-        .flat_map(|(plane, buf)| {
-            buf.par_chunks_mut(band_len)
-                .enumerate()
-                .map(move |(cy, band)| (plane, cy, band))
-        })
-        .try_for_each(|(plane, cy, band)| {
-            let rows = band.len() / (plan.width * spp);
+    let row_len = plan.width * spp;
+    let mut out = vec![W::default(); rows.len() * row_len * plan.planes()];
+    let (across, down, ch) = (plan.across(), plan.down(), plan.chunk_h);
+    // (plane, chunk row, first row within the chunk, output rows) for every overlapping chunk row.
+    let mut parts = Vec::new();
+    if !rows.is_empty() {
+        for (plane, mut buf) in out.chunks_mut(rows.len() * row_len).enumerate() {
+            for cy in rows.start / ch..=(rows.end - 1) / ch {
+                let (lo, hi) = (rows.start.max(cy * ch), rows.end.min((cy + 1) * ch));
+                let (part, rest) = buf.split_at_mut((hi - lo) * row_len);
+                parts.push((plane, cy, lo - cy * ch, part));
+                buf = rest;
+            }
+        }
+    }
+    parts
+        .into_par_iter()
+        .try_for_each(|(plane, cy, skip, part)| {
+            let n_rows = part.len() / row_len;
             let decoded: Vec<Vec<W>> = (0..across)
                 .into_par_iter()
-                .map(|cx| chunk(path, file, plan, (plane * down + cy) * across + cx, rows))
+                .map(|cx| {
+                    chunk(
+                        path,
+                        file,
+                        plan,
+                        (plane * down + cy) * across + cx,
+                        skip + n_rows,
+                    )
+                })
                 .collect::<Result<_>>()?;
             for (cx, c) in decoded.iter().enumerate() {
                 let x0 = cx * plan.chunk_w;
                 let n = (plan.chunk_w.min(plan.width - x0)) * spp;
-                for r in 0..rows {
-                    band[(r * plan.width + x0) * spp..][..n]
-                        .copy_from_slice(&c[r * plan.chunk_w * spp..][..n]);
+                for r in 0..n_rows {
+                    part[r * row_len + x0 * spp..][..n]
+                        .copy_from_slice(&c[(skip + r) * plan.chunk_w * spp..][..n]);
                 }
             }
             Ok(())
@@ -414,29 +436,54 @@ mod tests {
         let file = File::open(path).unwrap();
         let mut dec = Decoder::new(std::io::BufReader::new(file.try_clone().unwrap())).unwrap();
         let plan = plan(&mut dec).unwrap()?;
-        let parallel = decode(path, &file, &plan).unwrap();
+        let parallel = decode(path, &file, &plan, 0..plan.height).unwrap();
+        assert_windows_match(path, &file, &plan, &parallel);
         let mut serial = DecodingResult::U8(Vec::new());
         dec.read_image_to_buffer(&mut serial).unwrap();
         Some((parallel, serial))
     }
 
+    /// Windows of rows (chunk-aligned or not, one row, all but the edges) decode to the same
+    /// samples as the matching rows of the whole image, plane by plane.
+    fn assert_windows_match(path: &Path, file: &File, plan: &Plan, whole: &DecodingResult) {
+        let h = plan.height;
+        let row_len = plan.width * plan.chunk_samples();
+        let all = bits(whole);
+        for rows in [
+            0..h,
+            1..h.saturating_sub(1).max(1),
+            h / 2..h / 2 + 1,
+            h - 1..h,
+            0..0,
+        ] {
+            let got = bits(&decode(path, file, plan, rows.clone()).unwrap());
+            let want: Vec<u64> = (0..plan.planes())
+                .flat_map(|p| &all[(p * h + rows.start) * row_len..(p * h + rows.end) * row_len])
+                .copied()
+                .collect();
+            assert_eq!(got, want, "{}: rows {rows:?}", path.display());
+        }
+    }
+
+    /// Every sample's bits, widened.
+    fn bits(r: &DecodingResult) -> Vec<u64> {
+        match r {
+            DecodingResult::U8(v) => v.iter().map(|&x| x as u64).collect(),
+            DecodingResult::I8(v) => v.iter().map(|&x| x as u8 as u64).collect(),
+            DecodingResult::U16(v) => v.iter().map(|&x| x as u64).collect(),
+            DecodingResult::I16(v) => v.iter().map(|&x| x as u16 as u64).collect(),
+            DecodingResult::U32(v) => v.iter().map(|&x| x as u64).collect(),
+            DecodingResult::I32(v) => v.iter().map(|&x| x as u32 as u64).collect(),
+            DecodingResult::F32(v) => v.iter().map(|x| x.to_bits() as u64).collect(),
+            DecodingResult::U64(v) => v.clone(),
+            DecodingResult::I64(v) => v.iter().map(|&x| x as u64).collect(),
+            DecodingResult::F64(v) => v.iter().map(|x| x.to_bits()).collect(),
+            DecodingResult::F16(v) => v.iter().map(|x| x.to_bits() as u64).collect(),
+        }
+    }
+
     /// Same variant and the same bits (NaN payloads included).
     fn assert_same(name: &str, a: &DecodingResult, b: &DecodingResult) {
-        let bits = |r: &DecodingResult| -> Vec<u64> {
-            match r {
-                DecodingResult::U8(v) => v.iter().map(|&x| x as u64).collect(),
-                DecodingResult::I8(v) => v.iter().map(|&x| x as u8 as u64).collect(),
-                DecodingResult::U16(v) => v.iter().map(|&x| x as u64).collect(),
-                DecodingResult::I16(v) => v.iter().map(|&x| x as u16 as u64).collect(),
-                DecodingResult::U32(v) => v.iter().map(|&x| x as u64).collect(),
-                DecodingResult::I32(v) => v.iter().map(|&x| x as u32 as u64).collect(),
-                DecodingResult::F32(v) => v.iter().map(|x| x.to_bits() as u64).collect(),
-                DecodingResult::U64(v) => v.clone(),
-                DecodingResult::I64(v) => v.iter().map(|&x| x as u64).collect(),
-                DecodingResult::F64(v) => v.iter().map(|x| x.to_bits()).collect(),
-                DecodingResult::F16(v) => v.iter().map(|x| x.to_bits() as u64).collect(),
-            }
-        };
         assert_eq!(
             std::mem::discriminant(a),
             std::mem::discriminant(b),

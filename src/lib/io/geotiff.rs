@@ -90,6 +90,19 @@ fn corrupt(path: &Path, e: TiffError) -> Error {
 /// Deflate images of 8- to 64-bit samples decode their strips or tiles in parallel
 /// ([`super::chunks`]); the rest go through the `tiff` crate on one thread.
 pub fn read(path: &Path) -> Result<SourceRaster> {
+    read_impl(path, None)
+}
+
+/// Read only image rows `rows` (all columns) of a GeoTIFF, as [`read`] reads the whole: the
+/// result's grid is the rows' sub-grid. Uncompressed, LZW and Deflate images of 8- to 64-bit
+/// samples decode only the strips or tiles those rows overlap, so memory is the window's plus
+/// one chunk row; other layouts decode the whole image and keep the rows. Rows beyond the image
+/// are an error.
+pub fn read_rows(path: &Path, rows: std::ops::Range<usize>) -> Result<SourceRaster> {
+    read_impl(path, Some(rows))
+}
+
+fn read_impl(path: &Path, window: Option<std::ops::Range<usize>>) -> Result<SourceRaster> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let limits = {
         let mut l = Limits::default();
@@ -150,18 +163,30 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
         .map(|i| bands - extra.len() + i);
     let tags = GeoTags::read(&mut dec).map_err(err)?;
 
-    let (buf, planes) = match super::chunks::plan(&mut dec).map_err(err)? {
+    let rows = window.clone().unwrap_or(0..height as usize);
+    if rows.start > rows.end || rows.end > height as usize {
+        return Err(Error::file(
+            path,
+            format!("rows {rows:?} are outside the image's {height} rows"),
+        )
+        .fix("ask for rows within the image"));
+    }
+    let (buf, planes, whole) = match super::chunks::plan(&mut dec).map_err(err)? {
         Some(plan) if plan.decoded_bytes() > MAX_DECODED_BYTES as u64 => {
             return Err(corrupt(path, TiffError::LimitsExceeded))
         }
-        Some(plan) => (super::chunks::decode(path, &chunk_file, &plan)?, plan.planes()),
+        Some(plan) => (
+            super::chunks::decode(path, &chunk_file, &plan, rows.clone())?,
+            plan.planes(),
+            false,
+        ),
         None => {
             let mut buf = DecodingResult::U8(Vec::new());
             let layout = dec.read_image_to_buffer(&mut buf).map_err(err)?;
-            (buf, layout.planes)
+            (buf, layout.planes, true)
         }
     };
-    let pixels = width as usize * height as usize;
+    let pixels = width as usize * if whole { height as usize } else { rows.len() };
     let mut samples = samples_from(path, buf)?;
     if samples.len() != pixels * bands {
         return Err(Error::file(
@@ -175,6 +200,10 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
     }
     if planes > 1 {
         samples = interleave(samples, bands);
+    }
+    if whole && rows.len() != height as usize {
+        let row = width as usize * bands;
+        samples = slice(samples, rows.start * row..rows.end * row);
     }
     if ycbcr {
         // The decoder leaves JPEG's YCbCr as stored; GDAL (libjpeg) returns RGB.
@@ -203,14 +232,24 @@ pub fn read(path: &Path) -> Result<SourceRaster> {
     } else {
         crs
     };
+    let grid = Grid {
+        width: width as usize,
+        height: height as usize,
+        transform,
+        crs,
+    };
+    let grid = match window {
+        Some(rows) => grid.window_grid(&crate::grid::Window {
+            col: 0,
+            row: rows.start,
+            width: width as usize,
+            height: rows.len(),
+        }),
+        None => grid,
+    };
     Ok(SourceRaster {
         path: path.to_path_buf(),
-        grid: Grid {
-            width: width as usize,
-            height: height as usize,
-            transform,
-            crs,
-        },
+        grid,
         bands,
         samples,
         nodata: tags.nodata(path)?,
@@ -248,6 +287,19 @@ fn samples_from(path: &Path, buf: DecodingResult) -> Result<Samples> {
             )
         }
     })
+}
+
+/// The samples at `range` only.
+fn slice(samples: Samples, range: std::ops::Range<usize>) -> Samples {
+    match samples {
+        Samples::U8(v) => Samples::U8(v[range].to_vec()),
+        Samples::U16(v) => Samples::U16(v[range].to_vec()),
+        Samples::I16(v) => Samples::I16(v[range].to_vec()),
+        Samples::U32(v) => Samples::U32(v[range].to_vec()),
+        Samples::I32(v) => Samples::I32(v[range].to_vec()),
+        Samples::F32(v) => Samples::F32(v[range].to_vec()),
+        Samples::F64(v) => Samples::F64(v[range].to_vec()),
+    }
 }
 
 /// Planar (band-sequential) samples to pixel-interleaved.
