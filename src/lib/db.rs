@@ -15,7 +15,8 @@ use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::SourceRaster;
-use crate::raster::{Colour, Elevation, Raster};
+use crate::raster::{Colour, Elevation, Raster, RowSource};
+use std::borrow::Cow;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
@@ -251,6 +252,29 @@ impl Database {
         Ok(layer)
     }
 
+    /// The elevation layer read band by band ([`LayerRows`]): for streaming a grid larger than
+    /// memory. Checked against the grid now; each band converts as [`read_elevation`](Self::read_elevation) does.
+    pub fn elevation_rows(&self) -> Result<LayerRows<f32>> {
+        self.layer_rows(ELEVATION, SourceRaster::to_elevation)
+    }
+
+    /// The colour layer read band by band ([`LayerRows`]), as [`read_colour`](Self::read_colour) converts it.
+    pub fn colour_rows(&self) -> Result<LayerRows<[u8; 4]>> {
+        self.layer_rows(COLOUR, SourceRaster::to_colour)
+    }
+
+    fn layer_rows<T>(&self, name: &str, convert: fn(&SourceRaster) -> Result<Raster<T>>) -> Result<LayerRows<T>> {
+        let rows = LayerRows { path: self.layer_path(name)?, grid: self.grid().clone(), convert };
+        // The first row says whether the file is readable and as wide as the grid; the height
+        // is checked by every band that reaches the end.
+        let probe = crate::io::geotiff::read_rows(&rows.path, 0..1.min(rows.grid.height))?;
+        if probe.grid.width != rows.grid.width {
+            return Err(Error::file(&rows.path, format!("is {} cells wide but the database grid is {}", probe.grid.width, rows.grid.width))
+                .fix("re-create the database with `dbms ingest`"));
+        }
+        Ok(rows)
+    }
+
     /// Record a layer file that is already written inside the directory (hashes it now).
     pub fn set_layer(&mut self, name: &str, kind: &str, file: &str, nodata_cells: Option<u64>) -> Result<()> {
         let sha256 = sha256_file(&self.dir.join(file))?;
@@ -293,6 +317,32 @@ impl Database {
     }
 }
 
+/// A database layer (a GeoTIFF written by `dbms ingest`) read band by band: each
+/// [`read_rows`](RowSource::read_rows) decodes only the strips or tiles of its rows
+/// ([`crate::io::geotiff::read_rows`]) and converts them as reading the whole layer would.
+pub struct LayerRows<T> {
+    path: PathBuf,
+    grid: Grid,
+    convert: fn(&SourceRaster) -> Result<Raster<T>>,
+}
+
+impl<T: Clone + Send + Sync> RowSource<T> for LayerRows<T> {
+    fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    fn read_rows(&self, row0: usize, rows: usize) -> Result<Cow<'_, [T]>> {
+        assert!(row0 + rows <= self.grid.height, "rows {row0}..{} outside the grid", row0 + rows);
+        let band = (self.convert)(&crate::io::geotiff::read_rows(&self.path, row0..row0 + rows)?)
+            .map_err(|e| e.in_file(&self.path))?;
+        if (band.grid.width, band.grid.height) != (self.grid.width, rows) {
+            return Err(Error::file(&self.path, format!("rows {row0}..{} are {}x{} cells, not {}x{rows}", row0 + rows, band.grid.width, band.grid.height, self.grid.width))
+                .fix("re-create the database with `dbms ingest`"));
+        }
+        Ok(Cow::Owned(band.data))
+    }
+}
+
 /// Lower-case hex SHA-256 of a file's bytes, streamed.
 pub fn sha256_file(path: &Path) -> Result<String> {
     let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
@@ -331,6 +381,33 @@ mod tests {
         back.verify().unwrap();
         std::fs::write(dir.path().join("a.bin"), b"abd").unwrap();
         assert!(back.verify().unwrap_err().to_string().contains("checksum"));
+    }
+
+    /// Layers read band by band give exactly the rows of the whole layer, across tile rows and
+    /// at the grid's end; a layer narrower than the grid is refused up front.
+    #[test]
+    fn layer_rows_are_the_rows_of_the_whole_layer() {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = Grid::north_up(500_000.0, 3_620_000.0, 0.5, 300, 600, Crs::epsg(32614));
+        let mut db = Database::create(dir.path(), grid.clone(), vec![]).unwrap();
+        let z: Vec<f32> = (0..grid.len()).map(|i| if i % 101 == 0 { f32::NAN } else { (i % 977) as f32 * 0.25 }).collect();
+        let c: Vec<[u8; 4]> = (0..grid.len()).map(|i| if i % 89 == 0 { [0; 4] } else { [i as u8, (i / 7) as u8, 3, 255] }).collect();
+        crate::io::geotiff::write_f32(&dir.path().join("elevation.tif"), &Raster::new(grid.clone(), z)).unwrap();
+        crate::io::geotiff::write_rgba8(&dir.path().join("colour.tif"), &Raster::new(grid.clone(), c)).unwrap();
+        db.set_layer(ELEVATION, "elevation", "elevation.tif", None).unwrap();
+        db.set_layer(COLOUR, "colour", "colour.tif", None).unwrap();
+        let (whole_z, whole_c) = (db.read_elevation().unwrap(), db.read_colour().unwrap());
+        let (rows_z, rows_c) = (db.elevation_rows().unwrap(), db.colour_rows().unwrap());
+        for (row0, n) in [(0, 1), (0, 256), (200, 100), (255, 2), (590, 10), (599, 1)] {
+            let want = |w: usize| row0 * w..(row0 + n) * w;
+            let got_z = rows_z.read_rows(row0, n).unwrap();
+            assert!(got_z.iter().zip(&whole_z.data[want(300)]).all(|(a, b)| a.to_bits() == b.to_bits()), "rows {row0}+{n}");
+            assert_eq!(&*rows_c.read_rows(row0, n).unwrap(), &whole_c.data[want(300)], "rows {row0}+{n}");
+        }
+        let narrow = Grid::north_up(500_000.0, 3_620_000.0, 0.5, 299, 600, Crs::epsg(32614));
+        crate::io::geotiff::write_f32(&dir.path().join("elevation.tif"), &Raster::filled(narrow, 1.0)).unwrap();
+        let e = db.elevation_rows().err().unwrap().to_string();
+        assert!(e.contains("299 cells wide") && e.contains("dbms ingest"), "{e}");
     }
 
     #[test]

@@ -49,8 +49,9 @@ impl<'a> Level0<'a> {
     /// Level-0 rows `row0 .. row0 + rows` and the columns of their partial cells.
     pub fn band(&self, row0: usize, rows: usize) -> Result<Band> {
         let w = self.terrain.grid().width;
-        let terrain = self.terrain.read_rows(row0, rows)?;
-        let colour = self.colour.read_rows(row0, rows)?;
+        let (terrain, colour) =
+            rayon::join(|| self.terrain.read_rows(row0, rows), || self.colour.read_rows(row0, rows));
+        let (terrain, colour) = (terrain?, colour?);
         let mut out = BaseRows::nodata(w, rows);
         let half_valid: usize = out
             .max_z

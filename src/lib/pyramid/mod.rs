@@ -134,25 +134,29 @@ pub fn build_pyramid(
     let mut seconds = Timings::default();
     let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
     info.compression = opts.compression;
-    // The two layers decode in parallel (and each GeoTIFF's tiles in parallel too).
-    let (terrain, colour) = rayon::join(|| db.read_elevation(), || db.read_colour());
-    let (terrain, colour) = (terrain?, colour?);
+    // The layers are read band by band (each band's tiles decoded in parallel), never whole.
+    let (terrain, colour) = (db.elevation_rows()?, db.colour_rows()?);
+    let grid = db.grid().clone();
     seconds.read = lap();
 
-    let buildings = match db.manifest.layers.contains_key("buildings") {
-        true => {
-            let prisms = raised::read_buildings(&db.layer_path("buildings")?)?;
-            Raised::new(raised::rasterise_prisms(&terrain.grid, &prisms), &terrain)
-        }
-        false => Raised::default(),
+    // What stands on the terrain needs it only under itself: those cells are sampled first.
+    let prism_cells = match db.manifest.layers.contains_key("buildings") {
+        true => raised::rasterise_prisms(&grid, &raised::read_buildings(&db.layer_path("buildings")?)?),
+        false => Vec::new(),
     };
     let mut placed_objects = Vec::new();
     for placed in &db.manifest.objects {
         let (obj, _) = crate::voxel::format::read(&db.dir.join(&placed.file))?;
         placed_objects.push(placed_voxels(&obj, placed));
     }
-    let objects = Raised::objects(&terrain.grid, &placed_objects, &terrain);
-    let all = buildings.union(&objects, &terrain);
+    let mut under: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
+    for obj in &placed_objects {
+        under.extend(raised::object_cells(&grid, obj));
+    }
+    let ground = raised::TerrainSample::read(&terrain, under, opts.page_size)?;
+    let buildings = Raised::new(prism_cells, &ground);
+    let objects = Raised::objects(&grid, &placed_objects, &ground);
+    let all = buildings.union(&objects, &ground);
 
     // The photo's sun matters only against a requested one (a night-time photo_time must not
     // stop a build without a sun).
