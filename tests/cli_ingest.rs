@@ -285,3 +285,28 @@ fn gdal_build_refines_a_reprojected_photo_bilinearly() {
     let between = colour.data.iter().filter(|p| p[3] != 0 && p[0] > 30 && p[0] < 170).count();
     assert!(between * 4 > colour.data.len(), "{between} of {} cells between the stripes' shades", colour.data.len());
 }
+
+/// A DEM whose CRS is in US survey feet (an Esri .prj, as ArcGIS writes for State Plane) is
+/// refused with the unit named and how to reproject: read as metres, every height and distance
+/// would be wrong by 3.28×, silently.
+#[test]
+fn a_dem_in_feet_is_refused_with_the_unit_named() {
+    let t = tempfile::tempdir().unwrap();
+    let dem = t.path().join("dem.asc");
+    let mut text = String::from("ncols 4\nnrows 4\nxllcorner 2000000\nyllcorner 7000000\ncellsize 10\nNODATA_value -9999\n");
+    for _ in 0..4 {
+        text.push_str("500 501 502 503\n");
+    }
+    std::fs::write(&dem, text).unwrap();
+    std::fs::write(
+        t.path().join("dem.prj"),
+        r#"PROJCS["NAD_1983_StatePlane_Texas_Central_FIPS_4203_Feet",GEOGCS["GCS_North_American_1983",DATUM["D_North_American_1983",SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic"],PARAMETER["False_Easting",2296583.333333333],PARAMETER["Central_Meridian",-100.3333333333333],UNIT["Foot_US",0.3048006096012192]]"#,
+    )
+    .unwrap();
+    let photo = t.path().join("ortho.tif");
+    geotiff::write_rgba8(&photo, &Raster::filled(Grid::north_up(2_000_000.0, 7_000_040.0, 5.0, 8, 8, Crs::unknown()), [1, 2, 3, 255])).unwrap();
+    let out = dbms(&["ingest", "--dem", s(&dem), "--ortho", s(&photo), "-o", s(&t.path().join("db"))]);
+    assert_clean_failure(&out, "Foot_US");
+    let e = stderr(&out);
+    assert!(e.contains("dem.asc") && e.contains("gdalwarp -t_srs"), "{e}");
+}

@@ -17,13 +17,21 @@ pub struct Crs {
     pub wkt: Option<String>,
     /// True when coordinates are longitude/latitude in degrees; false for projected (metres).
     pub geographic: bool,
+    /// The projected coordinates' unit when the source declares a length other than the metre
+    /// (a State Plane CRS in US survey feet). Never written: a database CRS is in metres.
+    #[serde(skip)]
+    pub foreign_unit: Option<ForeignUnit>,
+    /// The heights' unit when the source declares a length other than the metre (GeoTIFF
+    /// VerticalUnitsGeoKey, a compound WKT's vertical part). Never written.
+    #[serde(skip)]
+    pub vertical_unit: Option<ForeignUnit>,
 }
 
 impl Crs {
     /// A CRS known by EPSG code. Geographic-ness is inferred for the common codes
     /// (4326, 4269, 4258, 4267, 4019 and the 4000–4999 range of geographic 2-D CRSs).
     pub fn epsg(code: u32) -> Crs {
-        Crs { epsg: Some(code), wkt: None, geographic: (4000..5000).contains(&code) }
+        Crs { epsg: Some(code), geographic: (4000..5000).contains(&code), ..Crs::default() }
     }
 
     /// No CRS information at all (e.g. an ASCII grid without a .prj).
@@ -87,10 +95,134 @@ impl Crs {
         Some(utm_inverse(x, y, zone, south))
     }
 
+    /// Refuse projected coordinates in a unit other than the metre: dbms works in metres, and a
+    /// foot read as a metre is a silently wrong result. `path` names where the CRS came from.
+    pub fn require_metric_coordinates(&self, path: &std::path::Path) -> crate::error::Result<()> {
+        match &self.foreign_unit {
+            Some(u) => Err(crate::error::Error::file(path, format!("{} has coordinates in {} ({} m), not metres", self.name(), u.name, u.metres))
+                .fix("reproject to a metric CRS: gdalwarp -t_srs EPSG:326NN in.tif out.tif (or --t-srs in a --features gdal build)")),
+            None => Ok(()),
+        }
+    }
+
+    /// Refuse heights declared in a unit other than the metre (`path` names the DEM).
+    pub fn require_metric_heights(&self, path: &std::path::Path) -> crate::error::Result<()> {
+        match &self.vertical_unit {
+            Some(u) => Err(crate::error::Error::file(path, format!("heights are in {} ({} m), not metres", u.name, u.metres))
+                .fix(format!("convert them to metres first, e.g. gdal_calc.py -A in.tif --calc=\"A*{}\" --outfile=out.tif, and drop the vertical unit", u.metres))),
+            None => Ok(()),
+        }
+    }
+
     /// The unit of the coordinates, for messages and the manifest: `degree` or `metre`.
     pub fn unit(&self) -> &'static str {
         if self.geographic { "degree" } else { "metre" }
     }
+}
+
+/// A length unit other than the metre in which a CRS gives coordinates or heights.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ForeignUnit {
+    /// The unit's name as the source gives it, e.g. `US survey foot`.
+    pub name: String,
+    /// Its length in metres, e.g. 0.304800609601219.
+    pub metres: f64,
+}
+
+/// The length units in `wkt` that are not the metre, `(horizontal, vertical)`: WKT1
+/// `UNIT["name", factor]` and WKT2 `LENGTHUNIT["name", factor]` with a factor (metres per unit)
+/// other than 1 — a projected CRS in feet, or a compound CRS whose vertical part (inside
+/// `VERT_CS`/`VERTCRS`) is in feet. Angular, scale, time and parametric units are not lengths and
+/// are skipped (WKT1 angular units by name: degree, grad, radian, second, minute), and so are a
+/// WKT2 projection parameter's own units. `None` where every length is in metres.
+pub fn foreign_units_in_wkt(wkt: &str) -> (Option<ForeignUnit>, Option<ForeignUnit>) {
+    let upper = wkt.to_ascii_uppercase();
+    let (mut horizontal, mut vertical) = (None, None);
+    let mut from = 0;
+    while let Some(at) = upper[from..].find("UNIT[") {
+        let start = from + at;
+        from = start + 5;
+        let keyword_start = upper[..start].rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).map_or(0, |i| i + 1);
+        let keyword = &upper[keyword_start..start + 4];
+        if !matches!(keyword, "UNIT" | "LENGTHUNIT") {
+            continue; // ANGLEUNIT, SCALEUNIT, TIMEUNIT, PARAMETRICUNIT
+        }
+        let parents = enclosing(&upper, keyword_start);
+        if parents.first() == Some(&"PARAMETER") {
+            continue; // a WKT2 projection parameter's own unit, not the coordinates'
+        }
+        let is_vertical = parents.iter().any(|k| matches!(*k, "VERT_CS" | "VERTCRS" | "VERTICALCRS"));
+        let body = &wkt[from..];
+        let end = body.find(']').unwrap_or(body.len());
+        let mut parts = body[..end].splitn(3, ',');
+        let name = parts.next().unwrap_or("").trim().trim_matches('"').to_string();
+        let Some(metres) = parts.next().and_then(|f| f.trim().parse::<f64>().ok()) else {
+            continue;
+        };
+        let lower = name.to_ascii_lowercase();
+        let angular = ["degree", "grad", "gon", "radian", "second", "minute"].iter().any(|a| lower.contains(a));
+        if keyword == "UNIT" && angular {
+            continue;
+        }
+        let slot = if is_vertical { &mut vertical } else { &mut horizontal };
+        if (metres - 1.0).abs() > 1e-9 && slot.is_none() {
+            *slot = Some(ForeignUnit { name, metres });
+        }
+    }
+    (horizontal, vertical)
+}
+
+/// The keywords of the WKT objects whose brackets enclose byte `at`, innermost first.
+fn enclosing(wkt: &str, at: usize) -> Vec<&str> {
+    let mut out = Vec::new();
+    let mut depth = 0;
+    for (i, c) in wkt[..at].char_indices().rev() {
+        match c {
+            ']' => depth += 1,
+            '[' if depth == 0 => {
+                let start = wkt[..i].rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).map_or(0, |j| j + 1);
+                out.push(&wkt[start..i]);
+            }
+            '[' => depth -= 1,
+            _ => {}
+        }
+    }
+    out
+}
+
+/// The EPSG name and length in metres of a GeoTIFF linear unit code (ProjLinearUnitsGeoKey,
+/// VerticalUnitsGeoKey; EPSG unit codes 9001–9099): `None` for the metre (9001) and for codes
+/// that are not length units we know.
+pub fn foreign_unit_from_epsg(code: u16) -> Option<ForeignUnit> {
+    let (name, metres) = match code {
+        9002 => ("foot", 0.3048),
+        9003 => ("US survey foot", 1200.0 / 3937.0),
+        9005 => ("Clarke's foot", 0.3047972654),
+        9014 => ("fathom", 1.8288),
+        9030 => ("nautical mile", 1852.0),
+        9036 => ("kilometre", 1000.0),
+        9037 => ("Clarke's yard", 0.9143917962),
+        9040 => ("British yard (Sears 1922)", 36.0 / 39.370147),
+        9041 => ("British foot (Sears 1922)", 12.0 / 39.370147),
+        9042 => ("British chain (Sears 1922)", 792.0 / 39.370147),
+        9050 => ("British yard (Benoit 1895 A)", 0.9143992),
+        9060 => ("British yard (Benoit 1895 B)", 36.0 / 39.370113),
+        9070 => ("British foot (1865)", 0.30480083333),
+        9080 => ("Indian foot", 12.0 / 39.370142),
+        9081 => ("Indian foot (1937)", 0.30479841),
+        9082 => ("Indian foot (1962)", 0.3047996),
+        9083 => ("Indian foot (1975)", 0.3047995),
+        9084 => ("Indian yard", 36.0 / 39.370142),
+        9093 => ("statute mile", 1609.344),
+        9094 => ("Gold Coast foot", 6378300.0 / 20926201.0),
+        9095 => ("British foot (1936)", 0.3048007491),
+        9096 => ("yard", 0.9144),
+        9097 => ("chain", 20.1168),
+        9098 => ("link", 0.201168),
+        9099 => ("British yard (Sears 1922 truncated)", 0.914398),
+        _ => return None,
+    };
+    Some(ForeignUnit { name: name.to_string(), metres })
 }
 
 /// Inverse transverse Mercator for a UTM zone (Krüger series to n³, as in Karney 2011 and the
@@ -137,6 +269,37 @@ mod tests {
         assert!(!Crs::epsg(32614).same_as(&Crs::epsg(32615)));
         assert!(Crs::unknown().same_as(&Crs::epsg(4326)));
         assert_eq!(Crs::epsg(32614).name(), "EPSG:32614");
+    }
+
+    #[test]
+    fn foreign_units_are_found_in_wkt1_and_wkt2_and_metres_and_angles_are_not() {
+        // gdalsrsinfo -o wkt1 EPSG:2277 (abridged): degrees in the GEOGCS, US feet outside.
+        let ft = r#"PROJCS["NAD83 / Texas Central (ftUS)",GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Lambert_Conformal_Conic_2SP"],UNIT["US survey foot",0.304800609601219,AUTHORITY["EPSG","9003"]],AUTHORITY["EPSG","2277"]]"#;
+        let u = foreign_units_in_wkt(ft).0.unwrap();
+        assert_eq!(u.name, "US survey foot");
+        assert!((u.metres - 0.304800609601219).abs() < 1e-15);
+        let utm = r#"PROJCS["WGS 84 / UTM zone 14N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],UNIT["metre",1],AUTHORITY["EPSG","32614"]]"#;
+        assert_eq!(foreign_units_in_wkt(utm), (None, None));
+        // WKT2: angle and scale units are skipped, and so are a parameter's own units; the
+        // axes' LENGTHUNIT decides.
+        let wkt2 = r#"PROJCRS["x",BASEGEOGCRS["NAD83",ANGLEUNIT["degree",0.0174532925199433]],CONVERSION["c",PARAMETER["k",0.9999,SCALEUNIT["unity",1]],PARAMETER["False easting",1968500,LENGTHUNIT["foot",0.3048]]],CS[Cartesian,2],AXIS["x",east,LENGTHUNIT["foot",0.3048]]]"#;
+        assert_eq!(foreign_units_in_wkt(wkt2).0.unwrap().name, "foot");
+        let metric_axes = wkt2.replace(r#"east,LENGTHUNIT["foot",0.3048]"#, r#"east,LENGTHUNIT["metre",1]"#);
+        assert_eq!(foreign_units_in_wkt(&metric_axes), (None, None));
+        let geo = r#"GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],UNIT["degree",0.0174532925199433]]"#;
+        assert_eq!(foreign_units_in_wkt(geo), (None, None));
+        // A compound CRS with metres across and heights in feet.
+        let compound = r#"COMPD_CS["x",PROJCS["UTM",UNIT["metre",1]],VERT_CS["NAVD88 height (ftUS)",VERT_DATUM["NAVD88",2005],UNIT["US survey foot",0.304800609601219]]]"#;
+        let (h, v) = foreign_units_in_wkt(compound);
+        assert_eq!((h, v.unwrap().name.as_str()), (None, "US survey foot"));
+    }
+
+    #[test]
+    fn epsg_unit_codes() {
+        assert_eq!(foreign_unit_from_epsg(9001), None);
+        assert_eq!(foreign_unit_from_epsg(9102), None, "degree is not a length");
+        assert!((foreign_unit_from_epsg(9003).unwrap().metres - 0.304800609601219).abs() < 1e-15);
+        assert_eq!(foreign_unit_from_epsg(9002).unwrap().metres, 0.3048);
     }
 
     #[test]

@@ -88,6 +88,14 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     let ortho_src = io::read_raster(&opts.ortho)?;
     progress.inc(1);
     let target = target_crs(opts, &dem_src, &ortho_src)?;
+    // dbms works in metres: a State Plane grid in feet, or heights in feet, would be read wrong.
+    let target_from = match (&opts.t_srs, dem_src.grid.crs.is_unknown()) {
+        (Some(_), _) => Path::new("--t-srs"),
+        (None, true) => opts.ortho.as_path(),
+        (None, false) => opts.dem.as_path(),
+    };
+    target.require_metric_coordinates(target_from)?;
+    dem_src.grid.crs.require_metric_heights(&opts.dem)?;
     let grid = plan_grid(&dem_src, &ortho_src, opts, &target)?;
 
     let mut elevation = if dem_src.grid.crs.same_as(&grid.crs) {

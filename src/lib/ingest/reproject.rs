@@ -13,7 +13,9 @@ pub fn crs_from_definition(def: &str) -> Result<Crs> {
         .map_err(|e| Error::msg(format!("--t-srs {def:?} is not a CRS GDAL knows ({e})")).fix("e.g. --t-srs EPSG:32614"))?;
     let wkt = srs.to_wkt().map_err(|e| Error::msg(format!("--t-srs {def:?}: {e}")))?;
     let epsg = srs.auth_code().ok().and_then(|c| u32::try_from(c).ok());
-    Ok(Crs { epsg, wkt: Some(wkt), geographic: srs.is_geographic() })
+    let (foreign_unit, vertical_unit) = crate::crs::foreign_units_in_wkt(&wkt);
+    let geographic = srs.is_geographic();
+    Ok(Crs { epsg, wkt: Some(wkt), geographic, foreign_unit: foreign_unit.filter(|_| !geographic), vertical_unit })
 }
 
 fn spatial_ref(crs: &Crs) -> Result<SpatialRef> {

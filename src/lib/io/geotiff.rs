@@ -36,6 +36,8 @@ mod key {
     pub const PROJECTED_CS_TYPE: u16 = 3072;
     pub const PCS_CITATION: u16 = 3073;
     pub const PROJ_LINEAR_UNITS: u16 = 3076;
+    pub const PROJ_LINEAR_UNIT_SIZE: u16 = 3077;
+    pub const VERTICAL_UNITS: u16 = 4099;
     /// Value meaning "user-defined" for any code key.
     pub const USER_DEFINED: u16 = 32767;
     pub const MODEL_PROJECTED: u16 = 1;
@@ -418,7 +420,36 @@ impl GeoTags {
     /// (geographic). A user-defined CRS (code 32767) has no EPSG code: it keeps the WKT carried in
     /// an `ESRI PE String = ` citation if there is one, else a `LOCAL_CS["<citation>"]` WKT that
     /// names it (so it compares unequal to every EPSG CRS instead of matching anything).
+    /// Length units other than the metre (ProjLinearUnitsGeoKey, with ProjLinearUnitSizeGeoKey
+    /// for a user-defined one, and VerticalUnitsGeoKey) are kept in the CRS's `foreign_unit` and
+    /// `vertical_unit` so ingest can refuse them.
     fn crs(&self, path: &Path) -> Result<(Crs, bool)> {
+        let (mut crs, point) = self.crs_without_units(path)?;
+        let keys = self.keys(path)?;
+        let short = |id| keys.iter().find_map(|(k, v)| match v {
+            KeyValue::Short(s) if *k == id => Some(*s),
+            _ => None,
+        });
+        let unit = |code: u16| match code {
+            key::USER_DEFINED => keys.iter().find_map(|(k, v)| match v {
+                KeyValue::Doubles(d) if *k == key::PROJ_LINEAR_UNIT_SIZE && d.len() == 1 && (d[0] - 1.0).abs() > 1e-9 => {
+                    Some(crate::crs::ForeignUnit { name: "a user-defined unit".into(), metres: d[0] })
+                }
+                _ => None,
+            }),
+            code => crate::crs::foreign_unit_from_epsg(code),
+        };
+        if !crs.geographic && crs.foreign_unit.is_none() {
+            crs.foreign_unit = short(key::PROJ_LINEAR_UNITS).and_then(unit);
+        }
+        if let Some(v) = short(key::VERTICAL_UNITS).and_then(crate::crs::foreign_unit_from_epsg) {
+            crs.vertical_unit = Some(v);
+        }
+        Ok((crs, point))
+    }
+
+    /// [`crs`](Self::crs) before units are looked at.
+    fn crs_without_units(&self, path: &Path) -> Result<(Crs, bool)> {
         let keys = self.keys(path)?;
         let short = |id| {
             keys.iter().find(|(k, _)| *k == id).and_then(|(_, v)| {
@@ -482,6 +513,7 @@ impl GeoTags {
                     epsg: None,
                     wkt: Some(format!("LOCAL_CS[\"{name}\"]")),
                     geographic: is_geo,
+                    ..Crs::default()
                 }
             }
         };
@@ -1120,6 +1152,7 @@ mod tests {
             epsg: None,
             wkt: Some(wkt.to_string()),
             geographic: false,
+            ..Crs::default()
         };
         let r = Raster::new(grid(crs.clone()), vec![1.0; 15]);
         let p = dir.path().join("w.tif");
@@ -1195,6 +1228,25 @@ mod tests {
         assert_eq!(crs.epsg, None);
         assert_eq!(crs.name(), "\"My Grid\"");
         assert!(!crs.same_as(&Crs::epsg(32614)));
+    }
+
+    /// GDAL writes ProjLinearUnitsGeoKey 9003 for EPSG:2277 (Texas Central, US survey feet):
+    /// the unit is kept so ingest refuses feet; metres and degrees leave nothing to refuse.
+    #[test]
+    fn geokeys_linear_and_vertical_units() {
+        let tags = |keys: &[u16]| GeoTags { geokeys: Some(keys.to_vec()), ..Default::default() };
+        let feet = tags(&[1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 2277, 3076, 0, 1, 9003]);
+        let (crs, _) = feet.crs(Path::new("x")).unwrap();
+        assert_eq!(crs.epsg, Some(2277));
+        assert_eq!(crs.foreign_unit.as_ref().unwrap().name, "US survey foot");
+        let e = crs.require_metric_coordinates(Path::new("dem.tif")).unwrap_err().to_string();
+        assert!(e.contains("US survey foot") && e.contains("gdalwarp -t_srs"), "{e}");
+        let metres = tags(&[1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32614, 3076, 0, 1, 9001]);
+        let (crs, _) = metres.crs(Path::new("x")).unwrap();
+        assert!(crs.require_metric_coordinates(Path::new("x")).is_ok() && crs.require_metric_heights(Path::new("x")).is_ok());
+        let heights_in_feet = tags(&[1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32614, 4099, 0, 1, 9002]);
+        let (crs, _) = heights_in_feet.crs(Path::new("x")).unwrap();
+        assert_eq!((crs.foreign_unit.is_none(), crs.vertical_unit.unwrap().metres), (true, 0.3048));
     }
 
     #[test]

@@ -415,10 +415,13 @@ pub(crate) fn crs_from_wkt(wkt: &str) -> Option<Crs> {
     let epsg = final_epsg(wkt);
     let geographic = matches!(kind.as_str(), "GEOGCS" | "GEOGCRS" | "GEOGRAPHICCRS")
         || (matches!(kind.as_str(), "GEODCRS" | "GEODETICCRS") && !wkt.contains("CARTESIAN"));
+    let (foreign_unit, vertical_unit) = crate::crs::foreign_units_in_wkt(wkt);
     Some(Crs {
         epsg,
         wkt: Some(wkt.to_string()),
         geographic,
+        foreign_unit: foreign_unit.filter(|_| !geographic),
+        vertical_unit,
     })
 }
 
