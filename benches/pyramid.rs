@@ -57,9 +57,9 @@ fn main() {
         Some(ours_kb),
     )];
     let names = [
-        "read + decode the two layer GeoTIFFs",
+        "open the two layers (decoded band by band inside levels)",
         "prepare (no sun: nothing)",
-        "levels: bands, reductions, pages encoded + written in place",
+        "levels: layers decoded band by band, reductions, pages written in place",
         "tile writer's finish (index, fsync, rename)",
     ];
     for (name, s) in names.iter().zip(&steps) {

@@ -96,11 +96,12 @@ pub struct PyramidSummary {
 /// Wall-clock seconds of each step of [`build_pyramid`].
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct Timings {
-    /// Reading and decoding the elevation and colour layers.
+    /// Opening the elevation and colour layers (they are decoded band by band in `levels`).
     pub read: f64,
     /// Buildings, objects and sun effects (shadow casts) prepared for the whole grid.
     pub prepare: f64,
-    /// The hierarchy: level-0 bands, reductions, pages encoded and written by the tile writer.
+    /// The hierarchy: level-0 bands (the layers decoded band by band), reductions, pages encoded
+    /// and written by the tile writer.
     pub levels: f64,
     /// The tile writer's finish (index, fsync and rename; a copy into canonical order only with
     /// lz4 or bricks) and the export.
