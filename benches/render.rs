@@ -21,9 +21,14 @@ use std::process::Command;
 use std::time::Instant;
 
 fn main() {
-    let size: usize = std::env::var("DBMS_BENCH_SIZE").ok().and_then(|s| s.parse().ok()).unwrap_or(8192);
+    let size: usize = std::env::var("DBMS_BENCH_SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(8192);
     let tmp = tempfile::tempdir().expect("temp dir");
-    let work = std::env::var("DBMS_BENCH_DIR").map(PathBuf::from).unwrap_or_else(|_| tmp.path().to_path_buf());
+    let work = std::env::var("DBMS_BENCH_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| tmp.path().to_path_buf());
     std::fs::create_dir_all(&work).expect("work dir");
     println!("threads: {}", rayon::current_num_threads());
 
@@ -31,9 +36,20 @@ fn main() {
     let generated = work.join(format!("generated-{size}.dbt"));
     if !generated.exists() {
         let t = Instant::now();
-        let grid = Grid::north_up(600_000.0, 5_200_000.0 + size as f64, 1.0, size, size, Crs::epsg(32633));
-        synthetic::write_tiles(&generated, grid, 256, 4, Compression::Lz4, terrain).expect("generate tiles");
-        println!("generated {size}² tile set in {:.1} s", t.elapsed().as_secs_f64());
+        let grid = Grid::north_up(
+            600_000.0,
+            5_200_000.0 + size as f64,
+            1.0,
+            size,
+            size,
+            Crs::epsg(32633),
+        );
+        synthetic::write_tiles(&generated, grid, 256, 4, Compression::Lz4, terrain)
+            .expect("generate tiles");
+        println!(
+            "generated {size}² tile set in {:.1} s",
+            t.elapsed().as_secs_f64()
+        );
     }
 
     println!("\n| tile set | traversal | range thresholds | frames | time per frame (s) | rays/s | cells stepped per ray | pages touched per frame | speed-up vs level 0 |");
@@ -42,10 +58,17 @@ fn main() {
     for (kind, path) in [("sample", &sample), ("generated", &generated)] {
         let reader = TileReader::open(path, 1024).expect("open tiles");
         let g = &reader.info().grid;
-        let name = format!("{kind} ({}×{}, {} m cells)", g.width, g.height, g.transform.cell_x);
+        let name = format!(
+            "{kind} ({}×{}, {} m cells)",
+            g.width, g.height, g.transform.cell_x
+        );
         let path = flight(&reader, 6);
         let run = |traversal, lod, frames: usize| {
-            let opts = ViewOptions { traversal, lod, ..ViewOptions::default() };
+            let opts = ViewOptions {
+                traversal,
+                lod,
+                ..ViewOptions::default()
+            };
             let mut out = Vec::new();
             let t = Instant::now();
             for cam in path.iter().take(frames) {
@@ -61,7 +84,11 @@ fn main() {
         for (a, b) in hier.1.iter().zip(&level0.1) {
             assert!(a.rgb == b.rgb, "hierarchical and level-0 frames differ");
         }
-        for (label, lodf, (secs, frames)) in [("hierarchical", "off", &hier), ("level 0", "off", &level0), ("hierarchical", "on", &lod)] {
+        for (label, lodf, (secs, frames)) in [
+            ("hierarchical", "off", &hier),
+            ("level 0", "off", &level0),
+            ("hierarchical", "on", &lod),
+        ] {
             let rays: u64 = frames.iter().map(|f| f.stats.rays).sum();
             let steps: u64 = frames.iter().map(|f| f.stats.cells_stepped).sum();
             let pages: usize = frames.iter().map(|f| f.stats.pages_touched).sum();
@@ -90,14 +117,33 @@ fn main() {
 /// Rolling hills, a few sharp ridges and city blocks of 8–40 m buildings every 200 m.
 fn terrain(c: usize, r: usize) -> (f32, [u8; 4]) {
     let (x, y) = (c as f32, r as f32);
-    let ground = 40.0 * (x * 0.0021).sin() * (y * 0.0017).cos() + 12.0 * (x * 0.011 + y * 0.007).sin() + 3.0 * (x * 0.05).sin() * (y * 0.043).sin();
+    let ground = 40.0 * (x * 0.0021).sin() * (y * 0.0017).cos()
+        + 12.0 * (x * 0.011 + y * 0.007).sin()
+        + 3.0 * (x * 0.05).sin() * (y * 0.043).sin();
     let (bx, by) = (c % 200, r % 200);
     let h = ((c / 200) * 7919 + (r / 200) * 104_729) % 97;
-    let building = bx > 60 && bx < 140 && by > 60 && by < 140 && (bx / 20 + by / 20) % 2 == 0 && h % 3 == 0;
-    let z = if building { ground + 8.0 + (h % 33) as f32 } else { ground };
+    let building =
+        bx > 60 && bx < 140 && by > 60 && by < 140 && (bx / 20 + by / 20) % 2 == 0 && h % 3 == 0;
+    let z = if building {
+        ground + 8.0 + (h % 33) as f32
+    } else {
+        ground
+    };
     let shade = (128.0 + ground * 2.0) as u8;
-    let colour = if building { [170, 160, 150, 255] } else { [shade / 2, shade, shade / 3, 255] };
-    (z, [colour[0] ^ ((c * 31 + r * 17) % 16) as u8, colour[1], colour[2], 255])
+    let colour = if building {
+        [170, 160, 150, 255]
+    } else {
+        [shade / 2, shade, shade / 3, 255]
+    };
+    (
+        z,
+        [
+            colour[0] ^ ((c * 31 + r * 17) % 16) as u8,
+            colour[1],
+            colour[2],
+            255,
+        ],
+    )
 }
 
 /// The sample scene's tile set, made with the dbms binary if not already in `work`.
@@ -112,11 +158,31 @@ fn sample_tiles(work: &Path) -> PathBuf {
     let ortho = scene.join("ortho.tif");
     for args in [
         vec!["-q", "sample", "-o", scene.to_str().unwrap()],
-        vec!["-q", "ingest", "--dem", dem.to_str().unwrap(), "--ortho", ortho.to_str().unwrap(), "-o", db.to_str().unwrap()],
-        vec!["-q", "pyramid", "--db", db.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        vec![
+            "-q",
+            "ingest",
+            "--dem",
+            dem.to_str().unwrap(),
+            "--ortho",
+            ortho.to_str().unwrap(),
+            "-o",
+            db.to_str().unwrap(),
+        ],
+        vec![
+            "-q",
+            "pyramid",
+            "--db",
+            db.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
     ] {
         let o = Command::new(bin).args(&args).output().expect("run dbms");
-        assert!(o.status.success(), "dbms {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "dbms {args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
     }
     out
 }
@@ -129,10 +195,28 @@ fn flight(reader: &TileReader, n: usize) -> Vec<Camera> {
     (0..n)
         .map(|k| {
             let f = 0.1 + 0.5 * k as f64 / n as f64;
-            let (col, row) = ((g.width as f64 * f) as usize, (g.height as f64 * (0.8 - 0.3 * f)) as usize);
-            let ground = reader.cell(0, col, row).expect("read").map(|c| c.max_z).filter(|z| !z.is_nan()).unwrap_or(0.0);
+            let (col, row) = (
+                (g.width as f64 * f) as usize,
+                (g.height as f64 * (0.8 - 0.3 * f)) as usize,
+            );
+            let ground = reader
+                .cell(0, col, row)
+                .expect("read")
+                .map(|c| c.max_z)
+                .filter(|z| !z.is_nan())
+                .unwrap_or(0.0);
             let (x, y) = t.pixel_to_world(col as f64 + 0.5, row as f64 + 0.5);
-            Camera { eye: [x, y, ground as f64 + 25.0], attitude: Attitude { roll: 0.0, pitch: -4.0, yaw: 30.0 }, hfov: 60.0, width: 640, height: 480 }
+            Camera {
+                eye: [x, y, ground as f64 + 25.0],
+                attitude: Attitude {
+                    roll: 0.0,
+                    pitch: -4.0,
+                    yaw: 30.0,
+                },
+                hfov: 60.0,
+                width: 640,
+                height: 480,
+            }
         })
         .collect()
 }
@@ -142,11 +226,16 @@ fn image_difference(a: &[Frame], b: &[Frame]) -> (f64, f64) {
     let (mut sum, mut changed, mut n) = (0u64, 0u64, 0u64);
     for (fa, fb) in a.iter().zip(b) {
         for (pa, pb) in fa.rgb.iter().zip(&fb.rgb) {
-            let d: u64 = (0..3).map(|k| (pa[k] as i64 - pb[k] as i64).unsigned_abs()).sum();
+            let d: u64 = (0..3)
+                .map(|k| (pa[k] as i64 - pb[k] as i64).unsigned_abs())
+                .sum();
             sum += d;
             changed += (d > 0) as u64;
             n += 1;
         }
     }
-    (sum as f64 / (3 * n) as f64, 100.0 * changed as f64 / n as f64)
+    (
+        sum as f64 / (3 * n) as f64,
+        100.0 * changed as f64 / n as f64,
+    )
 }

@@ -39,7 +39,11 @@ fn rings(elevations: &[f64]) -> Vec<Camera> {
             (0..8).map(move |i| {
                 let az = (i as f64 + k as f64 / 3.0) * std::f64::consts::TAU / 8.0;
                 let e = e.to_radians();
-                let pos = [4.0 * e.cos() * az.cos(), 4.0 * e.cos() * az.sin(), 4.0 * e.sin()];
+                let pos = [
+                    4.0 * e.cos() * az.cos(),
+                    4.0 * e.cos() * az.sin(),
+                    4.0 * e.sin(),
+                ];
                 Camera::look_at(f, f, c, c, pos, [0.0; 3], None).unwrap()
             })
         })
@@ -49,17 +53,30 @@ fn rings(elevations: &[f64]) -> Vec<Camera> {
 fn main() {
     let quick = std::env::args().any(|a| a == "quick");
     let sizes: &[u32] = if quick { &[64, 128] } else { &[64, 128, 256] };
-    let setups: Vec<(&str, Vec<Camera>)> =
-        vec![("3 ortho", ortho3()), ("8 pinhole", rings(&[20.0])), ("24 pinhole", rings(&[-15.0, 20.0, 55.0]))];
+    let setups: Vec<(&str, Vec<Camera>)> = vec![
+        ("3 ortho", ortho3()),
+        ("8 pinhole", rings(&[20.0])),
+        ("24 pinhole", rings(&[-15.0, 20.0, 55.0])),
+    ];
     let opts = CarveOptions::default();
-    println!("Images {IMAGE}×{IMAGE}; box [-1, 1]³ m; {} rayon threads.\n", rayon::current_num_threads());
+    println!(
+        "Images {IMAGE}×{IMAGE}; box [-1, 1]³ m; {} rayon threads.\n",
+        rayon::current_num_threads()
+    );
     println!("| solid | views | voxels³ | IoU truth | IoU exact hull | voxels kept | hierarchical ms | dense ms | speedup | equal |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut all_equal = true;
     for (solid, name) in benchmark_solids().iter().zip(BENCHMARK_NAMES) {
         for (setup, cams) in &setups {
-            let views: Vec<View> = cams.iter().map(|c| View { camera: c.clone(), silhouette: render(solid, c, IMAGE, IMAGE) }).collect();
-            let sized: Vec<(Camera, u32, u32)> = cams.iter().map(|c| (c.clone(), IMAGE, IMAGE)).collect();
+            let views: Vec<View> = cams
+                .iter()
+                .map(|c| View {
+                    camera: c.clone(),
+                    silhouette: render(solid, c, IMAGE, IMAGE),
+                })
+                .collect();
+            let sized: Vec<(Camera, u32, u32)> =
+                cams.iter().map(|c| (c.clone(), IMAGE, IMAGE)).collect();
             for &n in sizes {
                 let grid = VoxelGrid::covering([-1.0; 3], [1.0; 3], 2.0 / n as f64).unwrap();
                 // Best of three for the fast carver, one run of the slow one.
@@ -92,15 +109,28 @@ fn main() {
     }
     println!("\n| solid | views | voxels³ | surface voxels | seen | unseen | colour ms |");
     println!("|---|---|---|---|---|---|---|");
-    for (solid, name) in benchmark_solids().iter().zip(BENCHMARK_NAMES).filter(|(_, n)| ["sphere", "L-block"].contains(n)) {
+    for (solid, name) in benchmark_solids()
+        .iter()
+        .zip(BENCHMARK_NAMES)
+        .filter(|(_, n)| ["sphere", "L-block"].contains(n))
+    {
         for (setup, cams) in setups.iter().skip(1) {
-            let views: Vec<View> = cams.iter().map(|c| View { camera: c.clone(), silhouette: render(solid, c, IMAGE, IMAGE) }).collect();
+            let views: Vec<View> = cams
+                .iter()
+                .map(|c| View {
+                    camera: c.clone(),
+                    silhouette: render(solid, c, IMAGE, IMAGE),
+                })
+                .collect();
             // Each view paints the object in its own colour.
             let images: Vec<Picture> = (0..views.len())
                 .map(|i| Picture {
                     width: IMAGE,
                     height: IMAGE,
-                    pixels: vec![[(i * 10) as u8, 255 - (i * 10) as u8, 128, 255]; (IMAGE * IMAGE) as usize],
+                    pixels: vec![
+                        [(i * 10) as u8, 255 - (i * 10) as u8, 128, 255];
+                        (IMAGE * IMAGE) as usize
+                    ],
                 })
                 .collect();
             for &n in sizes.iter().skip(1) {
@@ -109,7 +139,10 @@ fn main() {
                 let t = Instant::now();
                 let (_, stats) = colour(grid, occ, &views, &images, [128; 3]);
                 let ms = t.elapsed().as_secs_f64() * 1e3;
-                println!("| {name} | {setup} | {n} | {} | {} | {} | {ms:.0} |", stats.surface, stats.seen, stats.unseen);
+                println!(
+                    "| {name} | {setup} | {n} | {} | {} | {} | {ms:.0} |",
+                    stats.surface, stats.seen, stats.unseen
+                );
             }
         }
     }

@@ -20,12 +20,24 @@ use std::process::Command;
 use std::time::Instant;
 
 fn main() {
-    let size: usize = std::env::var("DBMS_BENCH_SIZE").ok().and_then(|s| s.parse().ok()).unwrap_or(4096);
+    let size: usize = std::env::var("DBMS_BENCH_SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(4096);
     let terrain = synthetic(size);
-    println!("## cast_shadows on a generated {size} × {size} grid ({} threads)\n", rayon::current_num_threads());
+    println!(
+        "## cast_shadows on a generated {size} × {size} grid ({} threads)\n",
+        rayon::current_num_threads()
+    );
     println!("| sun elevation, azimuth | best of 3 | ns per cell | Mcells/s | cells in shadow |");
     println!("|---|---|---|---|---|");
-    for (el, az) in [(30.0, 0.0), (30.0, 45.0), (30.0, 127.0), (10.0, 200.0), (5.0, 300.0)] {
+    for (el, az) in [
+        (30.0, 0.0),
+        (30.0, 45.0),
+        (30.0, 127.0),
+        (10.0, 200.0),
+        (5.0, 300.0),
+    ] {
         let (secs, mask) = best_of(3, || cast_shadows(&terrain, el, az).unwrap());
         let shadow = mask.data.iter().filter(|&&v| v == SHADOW).count();
         println!(
@@ -37,7 +49,10 @@ fn main() {
         );
     }
 
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     let (t1, _) = one.install(|| best_of(3, || cast_shadows(&terrain, 30.0, 127.0).unwrap()));
     let (tn, _) = best_of(3, || cast_shadows(&terrain, 30.0, 127.0).unwrap());
     println!(
@@ -48,8 +63,19 @@ fn main() {
         t1 / tn
     );
 
-    let crop = window(&terrain, &Window { col: 0, row: 0, width: size.min(1024), height: size.min(1024) });
-    println!("## Sweep against the exact reference march ({0} × {0} crop)\n", crop.width());
+    let crop = window(
+        &terrain,
+        &Window {
+            col: 0,
+            row: 0,
+            width: size.min(1024),
+            height: size.min(1024),
+        },
+    );
+    println!(
+        "## Sweep against the exact reference march ({0} × {0} crop)\n",
+        crop.width()
+    );
     println!("| sun | sweep | reference | reference / sweep | agreement |");
     println!("|---|---|---|---|---|");
     for (el, az) in [(30.0, 0.0), (30.0, 45.0), (30.0, 127.0), (10.0, 200.0)] {
@@ -73,7 +99,8 @@ fn synthetic(size: usize) -> Elevation {
     let data = (0..size * size)
         .map(|i| {
             let (c, r) = ((i % size) as f64, (i / size) as f64);
-            let hills = 20.0 * (c * 0.061).sin() * (r * 0.047).cos() + 8.0 * (c * 0.013 + r * 0.021).sin();
+            let hills =
+                20.0 * (c * 0.061).sin() * (r * 0.047).cos() + 8.0 * (c * 0.013 + r * 0.021).sin();
             let (bx, by) = ((c / 40.0) as u64, (r / 40.0) as u64);
             let h = (bx * 7919 + by * 104_729) % 23;
             let in_box = (c % 40.0) < 12.0 && (r % 40.0) < 9.0 && h % 3 == 0;
@@ -109,8 +136,13 @@ fn window(e: &Elevation, w: &Window) -> Elevation {
 
 /// Percentage of cells valid in both masks that agree.
 fn agreement(a: &Raster<u8>, b: &Raster<u8>) -> f64 {
-    let both: Vec<(u8, u8)> =
-        a.data.iter().zip(&b.data).filter(|(x, y)| **x != NODATA && **y != NODATA).map(|(x, y)| (*x, *y)).collect();
+    let both: Vec<(u8, u8)> = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .filter(|(x, y)| **x != NODATA && **y != NODATA)
+        .map(|(x, y)| (*x, *y))
+        .collect();
     100.0 * both.iter().filter(|(x, y)| x == y).count() as f64 / both.len().max(1) as f64
 }
 
@@ -121,15 +153,30 @@ fn sunmask_comparison() {
         return;
     };
     if Command::new("grass").arg("--version").output().is_err() {
-        println!("\n(r.sunmask comparison skipped: `grass` is not on PATH; apt-get install grass-core)");
+        println!(
+            "\n(r.sunmask comparison skipped: `grass` is not on PATH; apt-get install grass-core)"
+        );
         return;
     }
-    let dem = dbms::io::read_raster(Path::new(&dem_path)).unwrap().to_elevation().unwrap();
+    let dem = dbms::io::read_raster(Path::new(&dem_path))
+        .unwrap()
+        .to_elevation()
+        .unwrap();
     let w: Vec<usize> = std::env::var("DBMS_SUNMASK_WINDOW")
         .map(|s| s.split(',').map(|v| v.trim().parse().unwrap()).collect())
-        .unwrap_or_else(|_| vec![dem.width().saturating_sub(256) / 2, dem.height().saturating_sub(256) / 2, 256]);
-    let win =
-        Window { col: w[0], row: w[1], width: w[2].min(dem.width() - w[0]), height: w[2].min(dem.height() - w[1]) };
+        .unwrap_or_else(|_| {
+            vec![
+                dem.width().saturating_sub(256) / 2,
+                dem.height().saturating_sub(256) / 2,
+                256,
+            ]
+        });
+    let win = Window {
+        col: w[0],
+        row: w[1],
+        width: w[2].min(dem.width() - w[0]),
+        height: w[2].min(dem.height() - w[1]),
+    };
     let crop = window(&dem, &win);
     let tmp = tempfile::tempdir().unwrap();
     let crop_path = tmp.path().join("crop.tif");
@@ -142,7 +189,13 @@ fn sunmask_comparison() {
     );
     println!("| sun | r.sunmask shadow | ours shadow | agreement (sweep) | agreement (reference) | r.sunmask vs its rule re-implemented | bilinear-surface march: shadow, vs ours, vs r.sunmask | r.sunmask time | µs per cell (GRASS) | ours |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
-    for (el, az) in [(2.0, 270.0), (3.0, 0.0), (3.0, 135.0), (4.0, 45.0), (5.0, 200.0)] {
+    for (el, az) in [
+        (2.0, 270.0),
+        (3.0, 0.0),
+        (3.0, 135.0),
+        (4.0, 45.0),
+        (5.0, 200.0),
+    ] {
         let out = tmp.path().join(format!("sunmask_{el}_{az}.tif"));
         let script = format!(
             "r.in.gdal --quiet input={} output=dem && g.region raster=dem && r.sunmask --quiet elevation=dem output=sh altitude={el} azimuth={az} && r.out.gdal --quiet -c input=sh output={} type=Byte nodata=255",
@@ -163,7 +216,10 @@ fn sunmask_comparison() {
         if !status.status.success() {
             println!(
                 "| {el}°, {az}° | r.sunmask failed: {} |",
-                String::from_utf8_lossy(&status.stderr).lines().last().unwrap_or("")
+                String::from_utf8_lossy(&status.stderr)
+                    .lines()
+                    .last()
+                    .unwrap_or("")
             );
             continue;
         }
@@ -211,7 +267,10 @@ fn bilinear_surface_march(e: &Elevation, el: f64, az: f64) -> Raster<u8> {
     let at = |c: usize, r: usize| *e.get(c.min(w - 1), r.min(h - 1)) as f64;
     let surface = |x: f64, y: f64| -> f64 {
         // (x, y) in cells from the grid corner; centres at +0.5. Clamped at the edges.
-        let (x, y) = ((x - 0.5).clamp(0.0, (w - 1) as f64), (y - 0.5).clamp(0.0, (h - 1) as f64));
+        let (x, y) = (
+            (x - 0.5).clamp(0.0, (w - 1) as f64),
+            (y - 0.5).clamp(0.0, (h - 1) as f64),
+        );
         let (c, r) = (x.floor() as usize, y.floor() as usize);
         let (fx, fy) = (x - c as f64, y - r as f64);
         let row = |r| at(c, r) * (1.0 - fx) + at(c + 1, r) * fx;
@@ -263,11 +322,20 @@ fn sunmask_rule(e: &Elevation, el: f64, az: f64) -> Raster<u8> {
             let (c0, r0) = ((i % e.width()) as f64 + 0.5, (i / e.width()) as f64 + 0.5);
             for k in 1.. {
                 let (c, r) = (c0 + k as f64 * step_c, r0 + k as f64 * step_r);
-                let dist = ((k as f64 * step_c * cx).powi(2) + (k as f64 * step_r * cy).powi(2)).sqrt();
-                if c < 0.0 || r < 0.0 || c > e.width() as f64 || r > e.height() as f64 || dist * tan_e > top - z {
+                let dist =
+                    ((k as f64 * step_c * cx).powi(2) + (k as f64 * step_r * cy).powi(2)).sqrt();
+                if c < 0.0
+                    || r < 0.0
+                    || c > e.width() as f64
+                    || r > e.height() as f64
+                    || dist * tan_e > top - z
+                {
                     break;
                 }
-                let z2 = *e.get((c as usize).min(e.width() - 1), (r as usize).min(e.height() - 1)) as f64;
+                let z2 = *e.get(
+                    (c as usize).min(e.width() - 1),
+                    (r as usize).min(e.height() - 1),
+                ) as f64;
                 if z2 - z > dist * tan_e {
                     return SHADOW;
                 }

@@ -13,7 +13,10 @@ const X0: f64 = 500_000.0;
 const Y0: f64 = 5_300_000.0;
 
 fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().expect("run dbms")
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .expect("run dbms")
 }
 
 fn s(p: &Path) -> &str {
@@ -23,9 +26,19 @@ fn s(p: &Path) -> &str {
 /// A 40 x 30 DEM at 1 m (a tilted plane) and a 80 x 60 photo at 0.5 m over the same area.
 fn write_inputs(dir: &Path, dem_crs: Crs, photo_crs: Crs) -> (PathBuf, PathBuf) {
     let g = Grid::north_up(X0, Y0, 1.0, 40, 30, dem_crs);
-    let dem = Raster::new(g.clone(), (0..g.len()).map(|i| 100.0 + (i % 40) as f32 * 0.5 - (i / 40) as f32 * 0.25).collect());
+    let dem = Raster::new(
+        g.clone(),
+        (0..g.len())
+            .map(|i| 100.0 + (i % 40) as f32 * 0.5 - (i / 40) as f32 * 0.25)
+            .collect(),
+    );
     let pg = Grid::north_up(X0, Y0, 0.5, 80, 60, photo_crs);
-    let photo = Raster::new(pg.clone(), (0..pg.len()).map(|i| [(i % 256) as u8, (i / 80 % 256) as u8, 77, 255]).collect());
+    let photo = Raster::new(
+        pg.clone(),
+        (0..pg.len())
+            .map(|i| [(i % 256) as u8, (i / 80 % 256) as u8, 77, 255])
+            .collect(),
+    );
     let (d, o) = (dir.join("dem.tif"), dir.join("ortho.tif"));
     geotiff::write_f32(&d, &dem).unwrap();
     geotiff::write_rgba8(&o, &photo).unwrap();
@@ -52,7 +65,16 @@ fn ingest_builds_a_database_and_info_describes_it() {
     let t = tempfile::tempdir().unwrap();
     let (d, o) = write_inputs(t.path(), Crs::epsg(32632), Crs::epsg(32632));
     let db = t.path().join("db");
-    let out = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "-o", s(&db), "--json"]);
+    let out = dbms(&[
+        "ingest",
+        "--dem",
+        s(&d),
+        "--ortho",
+        s(&o),
+        "-o",
+        s(&db),
+        "--json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["grid"]["width"], 80);
@@ -62,18 +84,31 @@ fn ingest_builds_a_database_and_info_describes_it() {
         assert!(db.join(f).is_file(), "{f} missing");
     }
     // The photo is copied 1:1 at its own resolution.
-    let colour = dbms::db::Database::open(&db).unwrap().read_colour().unwrap();
+    let colour = dbms::db::Database::open(&db)
+        .unwrap()
+        .read_colour()
+        .unwrap();
     assert_eq!(*colour.get(3, 2), [(2 * 80 + 3) as u8, 2, 77, 255]);
     // The DEM plane is reproduced exactly by bilinear interpolation (inside its centre hull).
-    let elev = dbms::db::Database::open(&db).unwrap().read_elevation().unwrap();
+    let elev = dbms::db::Database::open(&db)
+        .unwrap()
+        .read_elevation()
+        .unwrap();
     let (x, y) = elev.grid.cell_centre(20, 20);
     let expect = 100.0 + (x - X0 - 0.5) * 0.5 - (Y0 - y - 0.5) * 0.25;
     assert!((*elev.get(20, 20) as f64 - expect).abs() < 1e-4);
 
     let info = dbms(&["info", s(&db), "--verify"]);
     let text = String::from_utf8_lossy(&info.stdout);
-    assert!(info.status.success() && text.contains("EPSG:32632") && text.contains("stages: ingest") && text.contains("verified"), "{text}");
-    let info_json: serde_json::Value = serde_json::from_slice(&dbms(&["info", s(&db), "--json"]).stdout).unwrap();
+    assert!(
+        info.status.success()
+            && text.contains("EPSG:32632")
+            && text.contains("stages: ingest")
+            && text.contains("verified"),
+        "{text}"
+    );
+    let info_json: serde_json::Value =
+        serde_json::from_slice(&dbms(&["info", s(&db), "--json"]).stdout).unwrap();
     assert_eq!(info_json["provenance"]["inputs"][0]["role"], "dem");
     assert_eq!(info_json["layers"]["elevation"]["file"], "elevation.tif");
     assert!(info_json["centre"]["latitude_deg"].as_f64().unwrap() > 47.0);
@@ -88,14 +123,27 @@ fn same_inputs_give_byte_identical_databases() {
     for db in [&a, &b] {
         let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
             .current_dir(db.parent().unwrap())
-            .args(["ingest", "--dem", "dem.tif", "--ortho", "ortho.tif", "-o", "out", "-q"])
+            .args([
+                "ingest",
+                "--dem",
+                "dem.tif",
+                "--ortho",
+                "ortho.tif",
+                "-o",
+                "out",
+                "-q",
+            ])
             .output()
             .unwrap();
         assert!(out.status.success(), "{}", stderr(&out));
         std::fs::rename(t.path().join("out"), db).unwrap();
     }
     for f in ["manifest.json", "elevation.tif", "colour.tif"] {
-        assert_eq!(std::fs::read(a.join(f)).unwrap(), std::fs::read(b.join(f)).unwrap(), "{f} differs");
+        assert_eq!(
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+            "{f} differs"
+        );
     }
 }
 
@@ -103,11 +151,31 @@ fn same_inputs_give_byte_identical_databases() {
 fn quiet_prints_nothing_and_human_output_goes_to_stdout() {
     let t = tempfile::tempdir().unwrap();
     let (d, o) = write_inputs(t.path(), Crs::epsg(32632), Crs::epsg(32632));
-    let q = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "-o", s(&t.path().join("q")), "--quiet"]);
+    let q = dbms(&[
+        "ingest",
+        "--dem",
+        s(&d),
+        "--ortho",
+        s(&o),
+        "-o",
+        s(&t.path().join("q")),
+        "--quiet",
+    ]);
     assert!(q.status.success() && q.stdout.is_empty() && q.stderr.is_empty());
-    let h = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "-o", s(&t.path().join("h"))]);
+    let h = dbms(&[
+        "ingest",
+        "--dem",
+        s(&d),
+        "--ortho",
+        s(&o),
+        "-o",
+        s(&t.path().join("h")),
+    ]);
     let text = String::from_utf8_lossy(&h.stdout);
-    assert!(text.contains("80 x 60 cells") && text.contains("nodata"), "{text}");
+    assert!(
+        text.contains("80 x 60 cells") && text.contains("nodata"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -116,12 +184,37 @@ fn utm_coordinates_survive_to_the_centimetre() {
     let (d, o) = write_inputs(t.path(), Crs::epsg(32632), Crs::epsg(32632));
     let db = t.path().join("db");
     let bounds = format!("{},{},{},{}", X0 + 0.01, Y0 - 20.01, X0 + 10.01, Y0 - 0.01);
-    let out = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "--cell", "0.25", "--bounds", &bounds, "-o", s(&db), "-q"]);
+    let out = dbms(&[
+        "ingest",
+        "--dem",
+        s(&d),
+        "--ortho",
+        s(&o),
+        "--cell",
+        "0.25",
+        "--bounds",
+        &bounds,
+        "-o",
+        s(&db),
+        "-q",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
-    let g = dbms::db::Database::open(&db).unwrap().read_elevation().unwrap().grid;
+    let g = dbms::db::Database::open(&db)
+        .unwrap()
+        .read_elevation()
+        .unwrap()
+        .grid;
     // The grid corner written to and read back from GeoTIFF keeps the 1 cm offsets exactly.
-    assert!((g.transform.origin_x - (X0 + 0.01)).abs() < 1e-6, "{}", g.transform.origin_x);
-    assert!((g.transform.origin_y - (Y0 - 0.01)).abs() < 1e-6, "{}", g.transform.origin_y);
+    assert!(
+        (g.transform.origin_x - (X0 + 0.01)).abs() < 1e-6,
+        "{}",
+        g.transform.origin_x
+    );
+    assert!(
+        (g.transform.origin_y - (Y0 - 0.01)).abs() < 1e-6,
+        "{}",
+        g.transform.origin_y
+    );
     assert_eq!((g.width, g.height), (40, 80));
 }
 
@@ -138,15 +231,41 @@ fn fill_voids_fills_an_interior_hole() {
     }
     let d = t.path().join("holes.tif");
     geotiff::write_f32(&d, &dem).unwrap();
-    let plain: serde_json::Value =
-        serde_json::from_slice(&dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "-o", s(&t.path().join("a")), "--json"]).stdout).unwrap();
+    let plain: serde_json::Value = serde_json::from_slice(
+        &dbms(&[
+            "ingest",
+            "--dem",
+            s(&d),
+            "--ortho",
+            s(&o),
+            "-o",
+            s(&t.path().join("a")),
+            "--json",
+        ])
+        .stdout,
+    )
+    .unwrap();
     assert!(plain["elevation"]["nodata_cells"].as_u64().unwrap() > 0);
     let filled: serde_json::Value = serde_json::from_slice(
-        &dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "-o", s(&t.path().join("b")), "--fill-voids", "--json"]).stdout,
+        &dbms(&[
+            "ingest",
+            "--dem",
+            s(&d),
+            "--ortho",
+            s(&o),
+            "-o",
+            s(&t.path().join("b")),
+            "--fill-voids",
+            "--json",
+        ])
+        .stdout,
     )
     .unwrap();
     assert_eq!(filled["elevation"]["nodata_cells"], 0);
-    assert_eq!(filled["elevation"]["range_m"], serde_json::json!([50.0, 50.0]));
+    assert_eq!(
+        filled["elevation"]["range_m"],
+        serde_json::json!([50.0, 50.0])
+    );
 }
 
 #[test]
@@ -162,7 +281,10 @@ fn bad_inputs_fail_cleanly_with_one_line() {
     };
 
     // Missing file.
-    assert_clean_failure(&ingest(&dir.join("nope.tif"), &o, &[]), "nope.tif: no such file");
+    assert_clean_failure(
+        &ingest(&dir.join("nope.tif"), &o, &[]),
+        "nope.tif: no such file",
+    );
     // Not a TIFF.
     let junk = dir.join("junk.tif");
     std::fs::write(&junk, "this is not a raster\n").unwrap();
@@ -179,7 +301,14 @@ fn bad_inputs_fail_cleanly_with_one_line() {
     assert_clean_failure(&ingest(&nod, &o, &[]), "nodata.tif");
     // No overlap.
     let far = dir.join("far.tif");
-    geotiff::write_f32(&far, &Raster::filled(Grid::north_up(X0 + 1e4, Y0, 1.0, 40, 30, Crs::epsg(32632)), 1.0f32)).unwrap();
+    geotiff::write_f32(
+        &far,
+        &Raster::filled(
+            Grid::north_up(X0 + 1e4, Y0, 1.0, 40, 30, Crs::epsg(32632)),
+            1.0f32,
+        ),
+    )
+    .unwrap();
     assert_clean_failure(&ingest(&far, &o, &[]), "does not overlap");
     // Mismatched CRS names both and says how to reproject (a GDAL build reprojects instead).
     #[cfg(not(feature = "gdal"))]
@@ -200,9 +329,23 @@ fn bad_inputs_fail_cleanly_with_one_line() {
     let geo = dir.join("geo");
     std::fs::create_dir(&geo).unwrap();
     let gd = geo.join("dem.tif");
-    geotiff::write_f32(&gd, &Raster::filled(Grid::north_up(9.0, 48.0, 0.001, 20, 20, Crs::epsg(4326)), 1.0f32)).unwrap();
+    geotiff::write_f32(
+        &gd,
+        &Raster::filled(
+            Grid::north_up(9.0, 48.0, 0.001, 20, 20, Crs::epsg(4326)),
+            1.0f32,
+        ),
+    )
+    .unwrap();
     let go = geo.join("ortho.tif");
-    geotiff::write_rgba8(&go, &Raster::filled(Grid::north_up(9.0, 48.0, 0.001, 20, 20, Crs::epsg(4326)), [1, 2, 3, 255])).unwrap();
+    geotiff::write_rgba8(
+        &go,
+        &Raster::filled(
+            Grid::north_up(9.0, 48.0, 0.001, 20, 20, Crs::epsg(4326)),
+            [1, 2, 3, 255],
+        ),
+    )
+    .unwrap();
     assert_clean_failure(&ingest(&gd, &go, &["--cell", "1"]), "geographic");
     // Bad --photo-time.
     assert_clean_failure(&ingest(&d, &o, &["--photo-time", "yesterday"]), "RFC 3339");
@@ -219,8 +362,20 @@ fn nan_cells_in_a_dem_are_nodata() {
     *dem.get_mut(5, 5) = f32::NAN;
     let d = t.path().join("nan.tif");
     geotiff::write_f32(&d, &dem).unwrap();
-    let v: serde_json::Value =
-        serde_json::from_slice(&dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "-o", s(&t.path().join("db")), "--json"]).stdout).unwrap();
+    let v: serde_json::Value = serde_json::from_slice(
+        &dbms(&[
+            "ingest",
+            "--dem",
+            s(&d),
+            "--ortho",
+            s(&o),
+            "-o",
+            s(&t.path().join("db")),
+            "--json",
+        ])
+        .stdout,
+    )
+    .unwrap();
     // One 1 m DEM cell covers 2 x 2 photo-resolution database cells.
     assert_eq!(v["elevation"]["nodata_cells"], 4);
 }
@@ -236,7 +391,17 @@ fn opening_a_missing_database_explains_itself() {
 fn t_srs_without_gdal_says_how_to_get_it() {
     let t = tempfile::tempdir().unwrap();
     let (d, o) = write_inputs(t.path(), Crs::epsg(32632), Crs::epsg(32632));
-    let out = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "--t-srs", "EPSG:32633", "-o", s(&t.path().join("db"))]);
+    let out = dbms(&[
+        "ingest",
+        "--dem",
+        s(&d),
+        "--ortho",
+        s(&o),
+        "--t-srs",
+        "EPSG:32633",
+        "-o",
+        s(&t.path().join("db")),
+    ]);
     assert_clean_failure(&out, "--features gdal");
 }
 
@@ -253,13 +418,29 @@ fn gdal_build_reprojects_a_geographic_dem_onto_a_utm_photo() {
     let d = t.path().join("dem.tif");
     geotiff::write_f32(&d, &Raster::filled(dg, 321.0f32)).unwrap();
     let db = t.path().join("db");
-    let out = dbms(&["ingest", "--dem", s(&d), "--ortho", s(&o), "--t-srs", "EPSG:32632", "--cell", "2", "-o", s(&db), "--json"]);
+    let out = dbms(&[
+        "ingest",
+        "--dem",
+        s(&d),
+        "--ortho",
+        s(&o),
+        "--t-srs",
+        "EPSG:32632",
+        "--cell",
+        "2",
+        "-o",
+        s(&db),
+        "--json",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["grid"]["crs"]["epsg"], 32632);
     assert_eq!(v["elevation"]["nodata_cells"], 0);
     assert_eq!(v["elevation"]["range_m"], serde_json::json!([321.0, 321.0]));
-    let colour = dbms::db::Database::open(&db).unwrap().read_colour().unwrap();
+    let colour = dbms::db::Database::open(&db)
+        .unwrap()
+        .read_colour()
+        .unwrap();
     assert_eq!(*colour.get(10, 10), [10, 20, 30, 255]);
 }
 
@@ -271,19 +452,61 @@ fn gdal_build_reprojects_a_geographic_dem_onto_a_utm_photo() {
 fn gdal_build_refines_a_reprojected_photo_bilinearly() {
     let t = tempfile::tempdir().unwrap();
     let dem = t.path().join("dem.tif");
-    geotiff::write_f32(&dem, &Raster::filled(Grid::north_up(X0, Y0, 1.0, 40, 40, Crs::epsg(32632)), 50.0f32)).unwrap();
+    geotiff::write_f32(
+        &dem,
+        &Raster::filled(
+            Grid::north_up(X0, Y0, 1.0, 40, 40, Crs::epsg(32632)),
+            50.0f32,
+        ),
+    )
+    .unwrap();
     // ETRS89 / UTM 32N: the same lattice to well under a millimetre, but another CRS.
     let pg = Grid::north_up(X0, Y0, 1.0, 40, 40, Crs::epsg(25832));
-    let photo = Raster::new(pg.clone(), (0..pg.len()).map(|i| if i % 2 == 0 { [0, 0, 0, 255] } else { [200, 200, 200, 255] }).collect());
+    let photo = Raster::new(
+        pg.clone(),
+        (0..pg.len())
+            .map(|i| {
+                if i % 2 == 0 {
+                    [0, 0, 0, 255]
+                } else {
+                    [200, 200, 200, 255]
+                }
+            })
+            .collect(),
+    );
     let o = t.path().join("ortho.tif");
     geotiff::write_rgba8(&o, &photo).unwrap();
     let db = t.path().join("db");
     let bounds = format!("{},{},{},{}", X0 + 5.0, Y0 - 35.0, X0 + 35.0, Y0 - 5.0);
-    let out = dbms(&["--quiet", "ingest", "--dem", s(&dem), "--ortho", s(&o), "--cell", "0.25", "--bounds", &bounds, "-o", s(&db)]);
+    let out = dbms(&[
+        "--quiet",
+        "ingest",
+        "--dem",
+        s(&dem),
+        "--ortho",
+        s(&o),
+        "--cell",
+        "0.25",
+        "--bounds",
+        &bounds,
+        "-o",
+        s(&db),
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
-    let colour = dbms::db::Database::open(&db).unwrap().read_colour().unwrap();
-    let between = colour.data.iter().filter(|p| p[3] != 0 && p[0] > 30 && p[0] < 170).count();
-    assert!(between * 4 > colour.data.len(), "{between} of {} cells between the stripes' shades", colour.data.len());
+    let colour = dbms::db::Database::open(&db)
+        .unwrap()
+        .read_colour()
+        .unwrap();
+    let between = colour
+        .data
+        .iter()
+        .filter(|p| p[3] != 0 && p[0] > 30 && p[0] < 170)
+        .count();
+    assert!(
+        between * 4 > colour.data.len(),
+        "{between} of {} cells between the stripes' shades",
+        colour.data.len()
+    );
 }
 
 /// A DEM whose CRS is in US survey feet (an Esri .prj, as ArcGIS writes for State Plane) is
@@ -293,7 +516,9 @@ fn gdal_build_refines_a_reprojected_photo_bilinearly() {
 fn a_dem_in_feet_is_refused_with_the_unit_named() {
     let t = tempfile::tempdir().unwrap();
     let dem = t.path().join("dem.asc");
-    let mut text = String::from("ncols 4\nnrows 4\nxllcorner 2000000\nyllcorner 7000000\ncellsize 10\nNODATA_value -9999\n");
+    let mut text = String::from(
+        "ncols 4\nnrows 4\nxllcorner 2000000\nyllcorner 7000000\ncellsize 10\nNODATA_value -9999\n",
+    );
     for _ in 0..4 {
         text.push_str("500 501 502 503\n");
     }
@@ -304,9 +529,27 @@ fn a_dem_in_feet_is_refused_with_the_unit_named() {
     )
     .unwrap();
     let photo = t.path().join("ortho.tif");
-    geotiff::write_rgba8(&photo, &Raster::filled(Grid::north_up(2_000_000.0, 7_000_040.0, 5.0, 8, 8, Crs::unknown()), [1, 2, 3, 255])).unwrap();
-    let out = dbms(&["ingest", "--dem", s(&dem), "--ortho", s(&photo), "-o", s(&t.path().join("db"))]);
+    geotiff::write_rgba8(
+        &photo,
+        &Raster::filled(
+            Grid::north_up(2_000_000.0, 7_000_040.0, 5.0, 8, 8, Crs::unknown()),
+            [1, 2, 3, 255],
+        ),
+    )
+    .unwrap();
+    let out = dbms(&[
+        "ingest",
+        "--dem",
+        s(&dem),
+        "--ortho",
+        s(&photo),
+        "-o",
+        s(&t.path().join("db")),
+    ]);
     assert_clean_failure(&out, "Foot_US");
     let e = stderr(&out);
-    assert!(e.contains("dem.asc") && e.contains("gdalwarp -t_srs"), "{e}");
+    assert!(
+        e.contains("dem.asc") && e.contains("gdalwarp -t_srs"),
+        "{e}"
+    );
 }

@@ -466,13 +466,24 @@ fn partial_cells_carry_their_voxel_runs_in_the_level0_bricks() {
         assert_eq!(
             runs,
             &[
-                Run { bottom: f32::NEG_INFINITY, top: terrain, colour: photo },
-                Run { bottom: 203.0, top: 204.0, colour: [200, 10, 10, 255] }
+                Run {
+                    bottom: f32::NEG_INFINITY,
+                    top: terrain,
+                    colour: photo
+                },
+                Run {
+                    bottom: 203.0,
+                    top: 204.0,
+                    colour: [200, 10, 10, 255]
+                }
             ],
             "column {col}: the ground (photo colour), a gap, the lintel voxel"
         );
     }
-    assert!(cols.runs(19 * 32 + 118 % 32).is_none(), "a leg is a plain column");
+    assert!(
+        cols.runs(19 * 32 + 118 % 32).is_none(),
+        "a leg is a plain column"
+    );
     // Pages without partial cells carry no bricks; lz4 stores the same blob.
     assert!(r.page(0, 0, 0).unwrap().bricks.is_none());
     let rb = TileReader::open(&b, 64).unwrap();
@@ -496,12 +507,25 @@ fn a_pyramid_arch_renders_open_under_its_lintel() {
     let range = |tiles: &Path, eye: &str, attitude: &str| -> f32 {
         let (png, exr) = (dir.path().join("v.png"), dir.path().join("v.exr"));
         let o = dbms(&[
-            "render", "--tiles", tiles.to_str().unwrap(), "--eye", eye, "--attitude", attitude,
-            "--size", "5x5", "--no-lod", "-o", png.to_str().unwrap(), "--range-out", exr.to_str().unwrap(),
+            "render",
+            "--tiles",
+            tiles.to_str().unwrap(),
+            "--eye",
+            eye,
+            "--attitude",
+            attitude,
+            "--size",
+            "5x5",
+            "--no-lod",
+            "-o",
+            png.to_str().unwrap(),
+            "--range-out",
+            exr.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
-        let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else {
+        let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data
+        else {
             panic!("f32 samples")
         };
         z[12]

@@ -9,7 +9,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn dbms(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 /// Hills with a few tall columns, 2 m cells, UTM-sized origin; nodata in one corner.
@@ -22,21 +25,40 @@ fn hills(dir: &Path) -> PathBuf {
         }
         let z = 100.0 + 12.0 * ((c as f32 * 0.05).sin() + (r as f32 * 0.04).cos());
         let tower = c % 37 == 5 && r % 29 == 7;
-        (if tower { z + 30.0 } else { z }, [(c % 256) as u8, (r % 256) as u8, 90, 255])
+        (
+            if tower { z + 30.0 } else { z },
+            [(c % 256) as u8, (r % 256) as u8, 90, 255],
+        )
     })
     .unwrap();
     path
 }
 
 fn render(tiles: &Path, out: &Path, extra: &[&str]) -> Value {
-    let mut args = vec!["--json", "render", "--tiles", tiles.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let mut args = vec![
+        "--json",
+        "render",
+        "--tiles",
+        tiles.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
     args.extend_from_slice(extra);
     let o = dbms(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     serde_json::from_slice(&o.stdout).unwrap()
 }
 
-const VIEW: [&str; 8] = ["--eye", "431020,4581620,140", "--attitude", "0,-8,60", "--fov", "70", "--size", "96x64"];
+const VIEW: [&str; 8] = [
+    "--eye",
+    "431020,4581620,140",
+    "--attitude",
+    "0,-8,60",
+    "--fov",
+    "70",
+    "--size",
+    "96x64",
+];
 
 #[test]
 fn renders_a_png_and_reports_pages_bytes_and_speed() {
@@ -65,15 +87,33 @@ fn hierarchical_and_level0_traversals_are_pixel_identical_without_lod() {
     let tiles = hills(dir.path());
     let mut outs = Vec::new();
     for t in ["hierarchical", "level0"] {
-        let (png, exr) = (dir.path().join(format!("{t}.png")), dir.path().join(format!("{t}.exr")));
+        let (png, exr) = (
+            dir.path().join(format!("{t}.png")),
+            dir.path().join(format!("{t}.exr")),
+        );
         let mut args = VIEW.to_vec();
-        args.extend(["--traversal", t, "--no-lod", "--range-out", exr.to_str().unwrap()]);
+        args.extend([
+            "--traversal",
+            t,
+            "--no-lod",
+            "--range-out",
+            exr.to_str().unwrap(),
+        ]);
         let s = render(&tiles, &png, &args);
-        outs.push((std::fs::read(png).unwrap(), std::fs::read(exr).unwrap(), s["stats"]["cells_stepped"].as_u64().unwrap()));
+        outs.push((
+            std::fs::read(png).unwrap(),
+            std::fs::read(exr).unwrap(),
+            s["stats"]["cells_stepped"].as_u64().unwrap(),
+        ));
     }
     assert!(outs[0].0 == outs[1].0, "PNGs differ");
     assert!(outs[0].1 == outs[1].1, "range EXRs differ");
-    assert!(outs[0].2 < outs[1].2, "hierarchy steps {} vs level 0 {}", outs[0].2, outs[1].2);
+    assert!(
+        outs[0].2 < outs[1].2,
+        "hierarchy steps {} vs level 0 {}",
+        outs[0].2,
+        outs[1].2
+    );
 }
 
 #[test]
@@ -87,7 +127,9 @@ fn range_exr_holds_metres_and_inf_for_sky() {
     let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
     let ch = &img.layer_data.channel_data.list[0];
     assert_eq!(ch.name.to_string(), "Z");
-    let exr::prelude::FlatSamples::F32(z) = &ch.sample_data else { panic!("f32 samples") };
+    let exr::prelude::FlatSamples::F32(z) = &ch.sample_data else {
+        panic!("f32 samples")
+    };
     assert_eq!(z.len(), 96 * 64);
     assert!(z[0].is_infinite(), "top-left pixel is sky");
     let last = z[z.len() - 48];
@@ -113,10 +155,17 @@ fn top_view_maps_the_whole_database() {
     let tiles = hills(dir.path());
     let out = dir.path().join("map.png");
     let s = render(&tiles, &out, &["--top"]);
-    assert_eq!((s["width"].as_u64(), s["height"].as_u64()), (Some(300), Some(200)));
+    assert_eq!(
+        (s["width"].as_u64(), s["height"].as_u64()),
+        (Some(300), Some(200))
+    );
     let img = image::open(&out).unwrap().to_rgb8();
     assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0], "nodata corner is black");
-    assert_eq!(img.get_pixel(123, 45).0, [123, 45, 90], "cell colour under the pixel");
+    assert_eq!(
+        img.get_pixel(123, 45).0,
+        [123, 45, 90],
+        "cell colour under the pixel"
+    );
     let s = render(&tiles, &out, &["--top", "--size", "75x50"]);
     assert_eq!(s["width"], 75);
 }
@@ -126,10 +175,21 @@ fn eye_below_the_terrain_is_a_one_line_error() {
     let dir = tempfile::tempdir().unwrap();
     let tiles = hills(dir.path());
     let out = dir.path().join("v.png");
-    let o = dbms(&["render", "--tiles", tiles.to_str().unwrap(), "--eye", "431200,4581800,50", "-o", out.to_str().unwrap()]);
+    let o = dbms(&[
+        "render",
+        "--tiles",
+        tiles.to_str().unwrap(),
+        "--eye",
+        "431200,4581800,50",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("below the terrain") && err.lines().count() == 1, "{err}");
+    assert!(
+        err.contains("below the terrain") && err.lines().count() == 1,
+        "{err}"
+    );
     assert!(!out.exists());
 }
 
@@ -140,18 +200,37 @@ fn bad_options_name_the_option() {
     let t = tiles.to_str().unwrap();
     for (args, expect) in [
         (vec!["--eye", "1,2"], "--eye 1,2: expected three"),
-        (vec!["--eye", "431020,4581620,140", "--size", "640"], "--size 640"),
-        (vec!["--eye", "431020,4581620,140", "--attitude", "0,100,0"], "pitch must be in [-90, 90]"),
+        (
+            vec!["--eye", "431020,4581620,140", "--size", "640"],
+            "--size 640",
+        ),
+        (
+            vec!["--eye", "431020,4581620,140", "--attitude", "0,100,0"],
+            "pitch must be in [-90, 90]",
+        ),
         (vec!["--eye", "431020,4581620,140", "--fov", "0"], "--fov 0"),
-        (vec!["--eye", "431020,4581620,140", "--haze", "-5"], "--haze -5"),
+        (
+            vec!["--eye", "431020,4581620,140", "--haze", "-5"],
+            "--haze -5",
+        ),
     ] {
         let mut a = vec!["render", "--tiles", t, "-o", "/nonexistent/x.png"];
         a.extend(args);
         let o = dbms(&a);
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success() && err.contains(expect), "{expect}: {err}");
+        assert!(
+            !o.status.success() && err.contains(expect),
+            "{expect}: {err}"
+        );
     }
-    let o = dbms(&["render", "--tiles", "/nonexistent.dbt", "--top", "-o", "x.png"]);
+    let o = dbms(&[
+        "render",
+        "--tiles",
+        "/nonexistent.dbt",
+        "--top",
+        "-o",
+        "x.png",
+    ]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent.dbt"));
 }
 
@@ -159,10 +238,24 @@ fn bad_options_name_the_option() {
 /// view axis).
 fn centre_range(tiles: &Path, dir: &Path, eye: &str, attitude: &str, traversal: &str) -> f32 {
     let (png, exr) = (dir.join("c.png"), dir.join("c.exr"));
-    let args = ["--eye", eye, "--attitude", attitude, "--size", "5x5", "--no-lod", "--traversal", traversal, "--range-out", exr.to_str().unwrap()];
+    let args = [
+        "--eye",
+        eye,
+        "--attitude",
+        attitude,
+        "--size",
+        "5x5",
+        "--no-lod",
+        "--traversal",
+        traversal,
+        "--range-out",
+        exr.to_str().unwrap(),
+    ];
     render(tiles, &png, &args);
     let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
-    let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else { panic!("f32 samples") };
+    let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else {
+        panic!("f32 samples")
+    };
     z[12]
 }
 
@@ -174,28 +267,66 @@ fn rays_pass_through_an_arch_and_its_range_is_on_the_face_hit() {
     // Ground at 50 m, UTM-sized origin, 1 m cells; a 10 m wall along row 4; an arch over rows
     // 20..=24 (y 4 582 075..4 582 080): legs to 56 m at columns 20 and 24, a lintel 54..56 m
     // over columns 21..=23.
-    let ground = |z: f32| Run { bottom: f32::NEG_INFINITY, top: z, colour: [90, 140, 60, 255] };
+    let ground = |z: f32| Run {
+        bottom: f32::NEG_INFINITY,
+        top: z,
+        colour: [90, 140, 60, 255],
+    };
     let tiles = dir.path().join("arch.dbt");
     let grid = Grid::north_up(431_000.0, 4_582_100.0, 1.0, 48, 48, Crs::epsg(32633));
     write_columns(&tiles, grid, 16, 4, |c, r| match (c, r) {
         (_, 4) => vec![ground(60.0)],
         (20 | 24, 20..=24) => vec![ground(56.0)],
-        (21..=23, 20..=24) => vec![ground(50.0), Run { bottom: 54.0, top: 56.0, colour: [180, 40, 40, 255] }],
+        (21..=23, 20..=24) => vec![
+            ground(50.0),
+            Run {
+                bottom: 54.0,
+                top: 56.0,
+                colour: [180, 40, 40, 255],
+            },
+        ],
         _ => vec![ground(50.0)],
     })
     .unwrap();
     for t in ["hierarchical", "level0"] {
         // Looking north from y = 4 582 060.25: through the opening (52 m) to the wall's south
         // face at y = 4 582 095; on the lintel's south face at y = 4 582 075 (55 m); on the leg.
-        assert_eq!(centre_range(&tiles, dir.path(), "431022.5,4582060.25,52", "0,0,0", t), 34.75, "{t}");
-        assert_eq!(centre_range(&tiles, dir.path(), "431022.5,4582060.25,55", "0,0,0", t), 14.75, "{t}");
-        assert_eq!(centre_range(&tiles, dir.path(), "431020.5,4582060.25,52", "0,0,0", t), 14.75, "{t}");
+        assert_eq!(
+            centre_range(&tiles, dir.path(), "431022.5,4582060.25,52", "0,0,0", t),
+            34.75,
+            "{t}"
+        );
+        assert_eq!(
+            centre_range(&tiles, dir.path(), "431022.5,4582060.25,55", "0,0,0", t),
+            14.75,
+            "{t}"
+        );
+        assert_eq!(
+            centre_range(&tiles, dir.path(), "431020.5,4582060.25,52", "0,0,0", t),
+            14.75,
+            "{t}"
+        );
         // Standing under the lintel and looking straight up: its underside 4 m above.
-        assert_eq!(centre_range(&tiles, dir.path(), "431022.5,4582077.5,50.5", "0,90,0", t), 3.5, "{t}");
+        assert_eq!(
+            centre_range(&tiles, dir.path(), "431022.5,4582077.5,50.5", "0,90,0", t),
+            3.5,
+            "{t}"
+        );
     }
     // An eye inside the lintel is a one-line error.
     let out = dir.path().join("v.png");
-    let o = dbms(&["render", "--tiles", tiles.to_str().unwrap(), "--eye", "431022.5,4582077.5,55", "-o", out.to_str().unwrap()]);
+    let o = dbms(&[
+        "render",
+        "--tiles",
+        tiles.to_str().unwrap(),
+        "--eye",
+        "431022.5,4582077.5,55",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("inside a voxel column") && err.lines().count() == 1, "{err}");
+    assert!(
+        !o.status.success() && err.contains("inside a voxel column") && err.lines().count() == 1,
+        "{err}"
+    );
 }

@@ -4,13 +4,31 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().expect("run dbms")
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .expect("run dbms")
 }
 
-const FILES: [&str; 5] = ["dem.tif", "ortho.tif", "buildings.geojson", "truth.json", "scene.json"];
+const FILES: [&str; 5] = [
+    "dem.tif",
+    "ortho.tif",
+    "buildings.geojson",
+    "truth.json",
+    "scene.json",
+];
 
 fn sample(dir: &Path, seed: &str) {
-    let o = dbms(&["--quiet", "sample", "-o", dir.to_str().unwrap(), "--seed", seed, "--size", "160"]);
+    let o = dbms(&[
+        "--quiet",
+        "sample",
+        "-o",
+        dir.to_str().unwrap(),
+        "--seed",
+        seed,
+        "--size",
+        "160",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(o.stdout.is_empty(), "--quiet prints nothing");
 }
@@ -23,13 +41,19 @@ fn json(path: &Path) -> serde_json::Value {
 fn files_open_and_agree_with_each_other() {
     let dir = tempfile::tempdir().unwrap();
     sample(dir.path(), "7");
-    let dem = dbms::io::read_raster(&dir.path().join("dem.tif")).unwrap().to_elevation().unwrap();
+    let dem = dbms::io::read_raster(&dir.path().join("dem.tif"))
+        .unwrap()
+        .to_elevation()
+        .unwrap();
     assert_eq!((dem.width(), dem.height()), (160, 160));
     assert_eq!(dem.grid.cell_size(), (0.5, 0.5));
     assert_eq!(dem.grid.crs.epsg, Some(32632));
     assert_eq!(dem.grid.bounds().min_x, 500_000.0);
     assert!(dem.nodata_count() > 0 && dem.nodata_count() < 100);
-    let ortho = dbms::io::read_raster(&dir.path().join("ortho.tif")).unwrap().to_colour().unwrap();
+    let ortho = dbms::io::read_raster(&dir.path().join("ortho.tif"))
+        .unwrap()
+        .to_colour()
+        .unwrap();
     assert_eq!((ortho.width(), ortho.height()), (320, 320));
     assert_eq!(ortho.grid.bounds(), dem.grid.bounds());
 
@@ -43,7 +67,10 @@ fn files_open_and_agree_with_each_other() {
     assert_eq!(scene["buildings"]["count"], 5);
     for (f, b) in features.iter().zip(buildings) {
         assert_eq!(f["properties"]["id"], b["id"]);
-        assert!(f["properties"].get("roof_z").is_none(), "footprints carry no heights");
+        assert!(
+            f["properties"].get("roof_z").is_none(),
+            "footprints carry no heights"
+        );
         assert_eq!(f["geometry"]["coordinates"][0], b["footprint"]);
         let h = b["height_m"].as_f64().unwrap();
         assert!((3.0..=25.0).contains(&h));
@@ -56,7 +83,11 @@ fn files_open_and_agree_with_each_other() {
 
 #[test]
 fn same_seed_same_bytes_other_seed_other_bytes() {
-    let (a, b, c) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (a, b, c) = (
+        tempfile::tempdir().unwrap(),
+        tempfile::tempdir().unwrap(),
+        tempfile::tempdir().unwrap(),
+    );
     sample(a.path(), "3");
     sample(b.path(), "3");
     sample(c.path(), "4");
@@ -73,6 +104,9 @@ fn bad_size_is_a_one_line_error_and_writes_nothing() {
     let out = dir.path().join("scene");
     let o = dbms(&["sample", "-o", out.to_str().unwrap(), "--size", "10"]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("--size 10") && err.trim().lines().count() == 1, "{err}");
+    assert!(
+        !o.status.success() && err.contains("--size 10") && err.trim().lines().count() == 1,
+        "{err}"
+    );
     assert!(!out.exists());
 }

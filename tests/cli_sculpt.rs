@@ -12,8 +12,15 @@ use std::process::Command;
 const SIZE: u32 = 128;
 
 fn dbms(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().unwrap();
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
 
 fn sphere() -> Solid {
@@ -22,7 +29,12 @@ fn sphere() -> Solid {
 
 /// Render `solid` for each camera JSON: a photo (red object on blue) and a mask; write the
 /// views file with `silhouette` = "mask" or "key".
-fn write_views(dir: &Path, solid: &Solid, cameras: &[Value], silhouette: &str) -> std::path::PathBuf {
+fn write_views(
+    dir: &Path,
+    solid: &Solid,
+    cameras: &[Value],
+    silhouette: &str,
+) -> std::path::PathBuf {
     let mut views = vec![];
     for (i, cam) in cameras.iter().enumerate() {
         let spec: CameraSpec = serde_json::from_value(cam.clone()).unwrap();
@@ -38,8 +50,22 @@ fn write_views(dir: &Path, solid: &Solid, cameras: &[Value], silhouette: &str) -
             }
         }
         let (img, msk) = (format!("view{i}.png"), format!("mask{i}.png"));
-        image::save_buffer(dir.join(&img), &photo, SIZE, SIZE, image::ExtendedColorType::Rgb8).unwrap();
-        image::save_buffer(dir.join(&msk), &mask, SIZE, SIZE, image::ExtendedColorType::L8).unwrap();
+        image::save_buffer(
+            dir.join(&img),
+            &photo,
+            SIZE,
+            SIZE,
+            image::ExtendedColorType::Rgb8,
+        )
+        .unwrap();
+        image::save_buffer(
+            dir.join(&msk),
+            &mask,
+            SIZE,
+            SIZE,
+            image::ExtendedColorType::L8,
+        )
+        .unwrap();
         let mut v = json!({ "image": img, "camera": cam });
         if silhouette == "mask" {
             v["mask"] = json!(msk);
@@ -49,7 +75,12 @@ fn write_views(dir: &Path, solid: &Solid, cameras: &[Value], silhouette: &str) -
         views.push(v);
     }
     let p = dir.join("views.json");
-    std::fs::write(&p, serde_json::to_string_pretty(&json!({ "views": views, "bounds": [-1, -1, -1, 1, 1, 1] })).unwrap()).unwrap();
+    std::fs::write(
+        &p,
+        serde_json::to_string_pretty(&json!({ "views": views, "bounds": [-1, -1, -1, 1, 1, 1] }))
+            .unwrap(),
+    )
+    .unwrap();
     p
 }
 
@@ -79,12 +110,23 @@ fn ring8() -> Vec<Value> {
 fn against_truth(obj_path: &Path, solid: &Solid) -> (f64, f64) {
     let (obj, _) = format::read(obj_path).unwrap();
     let truth = solids::voxelize(solid, &obj.grid);
-    (truth.count_and(&obj.occupancy) as f64 / truth.count() as f64, truth.iou(&obj.occupancy))
+    (
+        truth.count_and(&obj.occupancy) as f64 / truth.count() as f64,
+        truth.iou(&obj.occupancy),
+    )
 }
 
 fn sculpt(dir: &Path, views: &Path, extra: &[&str]) -> (bool, String, String) {
     let out = dir.join("obj.dvox");
-    let mut args = vec!["sculpt", "--views", views.to_str().unwrap(), "--voxel", "0.05", "-o", out.to_str().unwrap()];
+    let mut args = vec![
+        "sculpt",
+        "--views",
+        views.to_str().unwrap(),
+        "--voxel",
+        "0.05",
+        "-o",
+        out.to_str().unwrap(),
+    ];
     args.extend_from_slice(extra);
     dbms(&args)
 }
@@ -107,7 +149,16 @@ fn eight_pinhole_views_carve_and_colour_a_sphere_from_a_colour_key() {
     let dir = tempfile::tempdir().unwrap();
     let views = write_views(dir.path(), &sphere(), &ring8(), "key");
     let out = dir.path().join("obj.dvox");
-    let args = ["--json", "sculpt", "--views", views.to_str().unwrap(), "--voxel", "0.05", "-o", out.to_str().unwrap()];
+    let args = [
+        "--json",
+        "sculpt",
+        "--views",
+        views.to_str().unwrap(),
+        "--voxel",
+        "0.05",
+        "-o",
+        out.to_str().unwrap(),
+    ];
     let (ok, stdout, stderr) = dbms(&args);
     assert!(ok, "{stderr}");
     let j: Value = serde_json::from_str(&stdout).unwrap();
@@ -117,8 +168,15 @@ fn eight_pinhole_views_carve_and_colour_a_sphere_from_a_colour_key() {
     assert!(kept > 0.98 && iou > 0.8, "kept {kept} iou {iou}");
     // Seen surface voxels are the object's red, never the blue background.
     let (obj, _) = format::read(&out).unwrap();
-    let red = obj.colours.iter().filter(|c| c[0] > 150 && c[2] < 80).count();
-    assert!(red as u64 >= j["colour"]["seen"].as_u64().unwrap() * 9 / 10, "red {red}");
+    let red = obj
+        .colours
+        .iter()
+        .filter(|c| c[0] > 150 && c[2] < 80)
+        .count();
+    assert!(
+        red as u64 >= j["colour"]["seen"].as_u64().unwrap() * 9 / 10,
+        "red {red}"
+    );
     // Same inputs, same bytes.
     let first = std::fs::read(&out).unwrap();
     assert!(dbms(&args).0);
@@ -129,10 +187,21 @@ fn eight_pinhole_views_carve_and_colour_a_sphere_from_a_colour_key() {
 fn hard_case_empty_silhouette_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
-    image::save_buffer(dir.path().join("mask1.png"), &vec![0u8; (SIZE * SIZE) as usize], SIZE, SIZE, image::ExtendedColorType::L8).unwrap();
+    image::save_buffer(
+        dir.path().join("mask1.png"),
+        &vec![0u8; (SIZE * SIZE) as usize],
+        SIZE,
+        SIZE,
+        image::ExtendedColorType::L8,
+    )
+    .unwrap();
     let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
     assert!(!ok);
-    assert!(stderr.contains("mask1.png: view 1: the silhouette is empty") && stderr.contains("; check the mask"), "{stderr}");
+    assert!(
+        stderr.contains("mask1.png: view 1: the silhouette is empty")
+            && stderr.contains("; check the mask"),
+        "{stderr}"
+    );
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
 }
 
@@ -145,9 +214,15 @@ fn hard_case_silhouette_touching_the_border_warns_and_keeps_the_object() {
     let views = write_views(dir.path(), &sphere(), &cams, "mask");
     let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
     assert!(ok, "{stderr}");
-    assert!(stderr.contains("view 0: the silhouette touches the image border"), "{stderr}");
+    assert!(
+        stderr.contains("view 0: the silhouette touches the image border"),
+        "{stderr}"
+    );
     let (kept, _) = against_truth(&dir.path().join("obj.dvox"), &sphere());
-    assert!(kept > 0.98, "the part outside the close view must survive: kept {kept}");
+    assert!(
+        kept > 0.98,
+        "the part outside the close view must survive: kept {kept}"
+    );
     // With --outside carve the close view cuts the sphere to what it sees.
     let (ok, _, _) = sculpt(dir.path(), &views, &["--outside", "carve"]);
     assert!(ok);
@@ -169,7 +244,10 @@ fn hard_case_camera_inside_the_bounding_box() {
     let (ok, _, stderr) = sculpt(dir.path(), &views, &["--behind", "carve"]);
     assert!(ok, "{stderr}");
     let (kept, _) = against_truth(&dir.path().join("obj.dvox"), &sphere());
-    assert!((0.88..0.93).contains(&kept), "carving behind the camera removes the 9 % cap y < -0.5: kept {kept}");
+    assert!(
+        (0.88..0.93).contains(&kept),
+        "carving behind the camera removes the 9 % cap y < -0.5: kept {kept}"
+    );
 }
 
 #[test]
@@ -177,13 +255,19 @@ fn hard_case_two_nearly_parallel_views() {
     let dir = tempfile::tempdir().unwrap();
     // 0.01° apart: together they constrain almost nothing along the viewing direction.
     let a = 0.01f64.to_radians();
-    let cams = vec![pinhole([0.0, -4.0, 0.0]), pinhole([4.0 * a.sin(), -4.0 * a.cos(), 0.0])];
+    let cams = vec![
+        pinhole([0.0, -4.0, 0.0]),
+        pinhole([4.0 * a.sin(), -4.0 * a.cos(), 0.0]),
+    ];
     let views = write_views(dir.path(), &sphere(), &cams, "mask");
     let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
     assert!(ok, "{stderr}");
     let (kept, iou) = against_truth(&dir.path().join("obj.dvox"), &sphere());
     assert!(kept > 0.98, "kept {kept}");
-    assert!(iou < 0.8, "two parallel views give an elongated hull, iou {iou}");
+    assert!(
+        iou < 0.8,
+        "two parallel views give an elongated hull, iou {iou}"
+    );
 }
 
 #[test]
@@ -203,7 +287,15 @@ fn hard_case_voxel_larger_than_the_object() {
     let dir = tempfile::tempdir().unwrap();
     let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
     let out = dir.path().join("obj.dvox");
-    let (ok, stdout, stderr) = dbms(&["sculpt", "--views", views.to_str().unwrap(), "--voxel", "5", "-o", out.to_str().unwrap()]);
+    let (ok, stdout, stderr) = dbms(&[
+        "sculpt",
+        "--views",
+        views.to_str().unwrap(),
+        "--voxel",
+        "5",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(ok, "{stderr}");
     assert!(stdout.contains("1 voxels in a 1x1x1 grid"), "{stdout}");
     // A 2 m voxel (wider than the 1.6 m sphere) whose centre (-0.8, -0.8, -0.8) is in every
@@ -219,7 +311,10 @@ fn hard_case_voxel_larger_than_the_object() {
         "-o",
         dir.path().join("x.dvox").to_str().unwrap(),
     ]);
-    assert!(!ok && stderr.contains("no voxel survives carving") && stderr.contains("smaller --voxel"), "{stderr}");
+    assert!(
+        !ok && stderr.contains("no voxel survives carving") && stderr.contains("smaller --voxel"),
+        "{stderr}"
+    );
     assert!(!dir.path().join("x.dvox").exists());
 }
 
@@ -232,7 +327,11 @@ fn hard_case_non_invertible_camera_is_an_error() {
     std::fs::write(&views, v.to_string()).unwrap();
     let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
     assert!(!ok);
-    assert!(stderr.contains("views.json: view 2: rotation R is singular") && stderr.contains("not invertible"), "{stderr}");
+    assert!(
+        stderr.contains("views.json: view 2: rotation R is singular")
+            && stderr.contains("not invertible"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -250,18 +349,33 @@ fn vox_export_of_an_oversized_object_is_refused() {
         "-o",
         dir.path().join("o.dvox").to_str().unwrap(),
     ]);
-    assert!(!ok && stderr.contains("at most 256 per axis") && stderr.contains("--export ply"), "{stderr}");
+    assert!(
+        !ok && stderr.contains("at most 256 per axis") && stderr.contains("--export ply"),
+        "{stderr}"
+    );
     // The grid geometry behind it: 2 m / 7 mm = 286 voxels.
-    assert_eq!(VoxelGrid::covering([-1.0; 3], [1.0; 3], 0.007).unwrap().dims[0], 286);
+    assert_eq!(
+        VoxelGrid::covering([-1.0; 3], [1.0; 3], 0.007)
+            .unwrap()
+            .dims[0],
+        286
+    );
 }
 
 #[test]
 fn missing_bounds_and_bad_views_files_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("v.json");
-    std::fs::write(&p, r#"{"views": [{"image": "a.png", "mask": "m.png", "camera": {"type": "fisheye"}}]}"#).unwrap();
+    std::fs::write(
+        &p,
+        r#"{"views": [{"image": "a.png", "mask": "m.png", "camera": {"type": "fisheye"}}]}"#,
+    )
+    .unwrap();
     let (ok, _, stderr) = sculpt(dir.path(), &p, &[]);
-    assert!(!ok && stderr.contains("v.json: not a valid views file") && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        !ok && stderr.contains("v.json: not a valid views file") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
     let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
     let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&views).unwrap()).unwrap();
     v.as_object_mut().unwrap().remove("bounds");
@@ -271,7 +385,9 @@ fn missing_bounds_and_bad_views_files_are_one_line_errors() {
 }
 
 fn schema(name: &str) -> jsonschema::Validator {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas").join(name);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("schemas")
+        .join(name);
     let v: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     jsonschema::validator_for(&v).unwrap()
 }
@@ -291,8 +407,18 @@ fn views_files_and_object_headers_match_their_schemas() {
     let views = write_views(dir.path(), &sphere(), &cams, "key");
     let views_schema = schema("views.schema.json");
     let doc: Value = serde_json::from_str(&std::fs::read_to_string(&views).unwrap()).unwrap();
-    assert!(views_schema.is_valid(&doc), "{:?}", views_schema.iter_errors(&doc).map(|e| e.to_string()).collect::<Vec<_>>());
-    assert!(views_schema.is_valid(&doc["views"]), "a bare list of views is valid too");
+    assert!(
+        views_schema.is_valid(&doc),
+        "{:?}",
+        views_schema
+            .iter_errors(&doc)
+            .map(|e| e.to_string())
+            .collect::<Vec<_>>()
+    );
+    assert!(
+        views_schema.is_valid(&doc["views"]),
+        "a bare list of views is valid too"
+    );
     let mut with_schema = doc.clone();
     with_schema["$schema"] = json!("https://dbms.invalid/schemas/views.schema.json");
     assert!(views_schema.is_valid(&with_schema));
@@ -314,15 +440,38 @@ fn views_files_and_object_headers_match_their_schemas() {
 fn object_revolve_cone_and_extrude() {
     let dir = tempfile::tempdir().unwrap();
     let d = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
-    let (ok, out, err) =
-        dbms(&["object", "revolve", "--profile", "5:0,5:8,0:9", "--voxel", "0.5", "-o", &d("tank.dvox"), "--export", "vox"]);
+    let (ok, out, err) = dbms(&[
+        "object",
+        "revolve",
+        "--profile",
+        "5:0,5:8,0:9",
+        "--voxel",
+        "0.5",
+        "-o",
+        &d("tank.dvox"),
+        "--export",
+        "vox",
+    ]);
     assert!(ok, "{err}");
     assert!(out.contains("anchor (bottom centre) at (0, 0, 0)"), "{out}");
     let (tank, _) = format::read(&dir.path().join("tank.dvox")).unwrap();
     assert_eq!(tank.grid.dims, [21, 21, 18]);
     assert!(dir.path().join("tank.vox").exists());
     let tree = |seed: &str, name: &str| {
-        dbms(&["object", "cone", "--height", "10", "--radius", "2.5", "--seed", seed, "--voxel", "0.25", "-o", &d(name)])
+        dbms(&[
+            "object",
+            "cone",
+            "--height",
+            "10",
+            "--radius",
+            "2.5",
+            "--seed",
+            seed,
+            "--voxel",
+            "0.25",
+            "-o",
+            &d(name),
+        ])
     };
     assert!(tree("1", "a.dvox").0 && tree("1", "b.dvox").0 && tree("2", "c.dvox").0);
     let bytes = |n: &str| std::fs::read(dir.path().join(n)).unwrap();
@@ -333,14 +482,45 @@ fn object_revolve_cone_and_extrude() {
         r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"h":7.5},"geometry":{"type":"Polygon","coordinates":[[[10,20],[18,20],[18,26],[10,26],[10,20]]]}}]}"#,
     )
     .unwrap();
-    let (ok, _, err) =
-        dbms(&["object", "extrude", "--footprints", &d("f.geojson"), "--height-field", "h", "--voxel", "0.5", "-o", &d("b.dvox")]);
+    let (ok, _, err) = dbms(&[
+        "object",
+        "extrude",
+        "--footprints",
+        &d("f.geojson"),
+        "--height-field",
+        "h",
+        "--voxel",
+        "0.5",
+        "-o",
+        &d("b.dvox"),
+    ]);
     assert!(ok, "{err}");
     let (b, _) = format::read(&dir.path().join("b.dvox")).unwrap();
     assert_eq!(b.len(), 16 * 12 * 15);
-    let (ok, _, err) = dbms(&["object", "extrude", "--footprints", &d("f.geojson"), "--voxel", "0.5", "-o", &d("x.dvox")]);
-    assert!(!ok && err.contains("feature 0: no positive number in property \"height\""), "{err}");
-    let (ok, _, err) = dbms(&["object", "revolve", "--profile", "5;0", "--voxel", "0.5", "-o", &d("x.dvox")]);
+    let (ok, _, err) = dbms(&[
+        "object",
+        "extrude",
+        "--footprints",
+        &d("f.geojson"),
+        "--voxel",
+        "0.5",
+        "-o",
+        &d("x.dvox"),
+    ]);
+    assert!(
+        !ok && err.contains("feature 0: no positive number in property \"height\""),
+        "{err}"
+    );
+    let (ok, _, err) = dbms(&[
+        "object",
+        "revolve",
+        "--profile",
+        "5;0",
+        "--voxel",
+        "0.5",
+        "-o",
+        &d("x.dvox"),
+    ]);
     assert!(!ok && err.contains("is not R:Z"), "{err}");
 }
 
@@ -375,28 +555,96 @@ fn place_records_objects_in_the_manifest() {
     let dir = tempfile::tempdir().unwrap();
     let db = database(dir.path());
     let tree = dir.path().join("tree.dvox");
-    assert!(dbms(&["object", "cone", "--height", "6", "--radius", "2", "--voxel", "0.5", "-o", tree.to_str().unwrap()]).0);
+    assert!(
+        dbms(&[
+            "object",
+            "cone",
+            "--height",
+            "6",
+            "--radius",
+            "2",
+            "--voxel",
+            "0.5",
+            "-o",
+            tree.to_str().unwrap()
+        ])
+        .0
+    );
     let (dbs, ts) = (db.to_str().unwrap(), tree.to_str().unwrap());
-    let (ok, out, err) = dbms(&["--json", "place", "--db", dbs, "--object", ts, "--at", "500005.5,5299995"]);
+    let (ok, out, err) = dbms(&[
+        "--json",
+        "place",
+        "--db",
+        dbs,
+        "--object",
+        ts,
+        "--at",
+        "500005.5,5299995",
+    ]);
     assert!(ok, "{err}");
     let p: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(p["z"], 3.0, "z from the ground");
-    let (ok, _, err) = dbms(&["place", "--db", dbs, "--object", ts, "--at", "500010,5299995,12.5", "--heading", "-90"]);
+    let (ok, _, err) = dbms(&[
+        "place",
+        "--db",
+        dbs,
+        "--object",
+        ts,
+        "--at",
+        "500010,5299995,12.5",
+        "--heading",
+        "-90",
+    ]);
     assert!(ok, "{err}");
-    let m: Value = serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    let m: Value =
+        serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
     let objs = m["objects"].as_array().unwrap();
     assert_eq!(objs.len(), 2);
-    assert_eq!((objs[1]["z"].as_f64(), objs[1]["heading_deg"].as_f64()), (Some(12.5), Some(270.0)));
-    assert_eq!(objs[0]["file"], objs[1]["file"], "one stored copy of the same object");
-    assert_eq!(std::fs::read(db.join(objs[0]["file"].as_str().unwrap())).unwrap(), std::fs::read(&tree).unwrap());
-    assert!(m["stages"].as_array().unwrap().iter().filter(|s| s["name"] == "place").count() == 2);
+    assert_eq!(
+        (objs[1]["z"].as_f64(), objs[1]["heading_deg"].as_f64()),
+        (Some(12.5), Some(270.0))
+    );
+    assert_eq!(
+        objs[0]["file"], objs[1]["file"],
+        "one stored copy of the same object"
+    );
+    assert_eq!(
+        std::fs::read(db.join(objs[0]["file"].as_str().unwrap())).unwrap(),
+        std::fs::read(&tree).unwrap()
+    );
+    assert!(
+        m["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|s| s["name"] == "place")
+            .count()
+            == 2
+    );
     let (ok, _, err) = dbms(&["info", "--verify", dbs]);
     assert!(ok, "{err}");
     // Outside the database, and not an object: clear errors, manifest untouched.
-    let (ok, _, err) = dbms(&["place", "--db", dbs, "--object", ts, "--at", "400000,5299995"]);
+    let (ok, _, err) = dbms(&[
+        "place",
+        "--db",
+        dbs,
+        "--object",
+        ts,
+        "--at",
+        "400000,5299995",
+    ]);
     assert!(!ok && err.contains("outside the database extent"), "{err}");
-    let (ok, _, err) = dbms(&["place", "--db", dbs, "--object", db.join("manifest.json").to_str().unwrap(), "--at", "500005,5299995"]);
+    let (ok, _, err) = dbms(&[
+        "place",
+        "--db",
+        dbs,
+        "--object",
+        db.join("manifest.json").to_str().unwrap(),
+        "--at",
+        "500005,5299995",
+    ]);
     assert!(!ok && err.contains("not a dbms voxel object"), "{err}");
-    let m2: Value = serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    let m2: Value =
+        serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
     assert_eq!(m2["objects"].as_array().unwrap().len(), 2);
 }

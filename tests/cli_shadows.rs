@@ -8,7 +8,10 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().expect("run dbms")
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .expect("run dbms")
 }
 
 /// A 60 × 40 database at 1 m cells in UTM 32N (about 47.9° N) with a 6 m wall along row 10
@@ -22,12 +25,14 @@ fn database(dir: &Path, buildings: bool) -> Elevation {
     *e.get_mut(30, 30) = f32::NAN;
     let mut db = Database::create(dir, grid, vec![]).unwrap();
     dbms::io::geotiff::write_f32(&dir.join("elevation.tif"), &e).unwrap();
-    db.set_layer(ELEVATION, "elevation", "elevation.tif", Some(1)).unwrap();
+    db.set_layer(ELEVATION, "elevation", "elevation.tif", Some(1))
+        .unwrap();
     if buildings {
         let block = r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"id":1,"roof_z":120.0},
             "geometry":{"type":"Polygon","coordinates":[[[500040,5299970],[500045,5299970],[500045,5299965],[500040,5299965],[500040,5299970]]]}}]}"#;
         std::fs::write(dir.join("buildings.geojson"), block).unwrap();
-        db.set_layer("buildings", "buildings", "buildings.geojson", None).unwrap();
+        db.set_layer("buildings", "buildings", "buildings.geojson", None)
+            .unwrap();
     }
     db.save().unwrap();
     e
@@ -59,7 +64,10 @@ fn mask_matches_the_library_and_declares_nodata() {
     let (mask, nodata, grid) = read_mask(&out);
     assert_eq!(nodata, Some(255.0));
     assert_eq!(grid, e.grid);
-    assert_eq!(mask, dbms::shadow::cast_shadows(&e, 45.0, 0.0).unwrap().data);
+    assert_eq!(
+        mask,
+        dbms::shadow::cast_shadows(&e, 45.0, 0.0).unwrap().data
+    );
     // The 6 m wall at 45° shades the 5 rows whose centres are closer than 6 m; the hole (row 30) is nodata.
     assert_eq!(mask.iter().filter(|&&v| v == 1).count(), 5 * 60);
     assert_eq!(mask[30 * 60 + 30], 255);
@@ -73,19 +81,39 @@ fn time_gives_the_sun_over_the_centre_and_json_reports_it() {
     database(dir.path(), false);
     let out = dir.path().join("mask.tif");
     let db = dir.path().to_str().unwrap();
-    let o = dbms(&["--json", "shadows", "--db", db, "--time", "2026-06-21T11:00:00Z", "-o", out.to_str().unwrap()]);
+    let o = dbms(&[
+        "--json",
+        "shadows",
+        "--db",
+        db,
+        "--time",
+        "2026-06-21T11:00:00Z",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     // Near local noon at midsummer, 48° N: the sun is high in the south.
     let el = v["sun"]["elevation_deg"].as_f64().unwrap();
     let az = v["sun"]["azimuth_deg"].as_f64().unwrap();
-    assert!((60.0..66.0).contains(&el) && (150.0..210.0).contains(&az), "{el} {az}");
+    assert!(
+        (60.0..66.0).contains(&el) && (150.0..210.0).contains(&az),
+        "{el} {az}"
+    );
     assert_eq!(v["cells"]["nodata"], 1);
     // Same inputs, same bytes.
     let first = std::fs::read(&out).unwrap();
-    assert!(dbms(&["shadows", "--db", db, "--time", "2026-06-21T11:00:00Z", "-o", out.to_str().unwrap()])
-        .status
-        .success());
+    assert!(dbms(&[
+        "shadows",
+        "--db",
+        db,
+        "--time",
+        "2026-06-21T11:00:00Z",
+        "-o",
+        out.to_str().unwrap()
+    ])
+    .status
+    .success());
     assert_eq!(first, std::fs::read(&out).unwrap());
 }
 
@@ -123,21 +151,65 @@ fn bad_input_is_one_line_error_and_no_output() {
     let out = dir.path().join("mask.tif");
     let o = out.to_str().unwrap();
     let cases: [(&[&str], &str); 4] = [
-        (&["shadows", "--db", db, "--sun-elevation", "-2", "--sun-azimuth", "90", "-o", o], "night"),
-        (&["shadows", "--db", db, "--time", "2026-06-21T23:00:00Z", "-o", o], "night"),
         (
-            &["shadows", "--db", "/nonexistent/db", "--sun-elevation", "30", "--sun-azimuth", "90", "-o", o],
+            &[
+                "shadows",
+                "--db",
+                db,
+                "--sun-elevation",
+                "-2",
+                "--sun-azimuth",
+                "90",
+                "-o",
+                o,
+            ],
+            "night",
+        ),
+        (
+            &[
+                "shadows",
+                "--db",
+                db,
+                "--time",
+                "2026-06-21T23:00:00Z",
+                "-o",
+                o,
+            ],
+            "night",
+        ),
+        (
+            &[
+                "shadows",
+                "--db",
+                "/nonexistent/db",
+                "--sun-elevation",
+                "30",
+                "--sun-azimuth",
+                "90",
+                "-o",
+                o,
+            ],
             "no such database",
         ),
-        (&["shadows", "--db", db, "--time", "yesterday", "-o", o], "RFC 3339"),
+        (
+            &["shadows", "--db", db, "--time", "yesterday", "-o", o],
+            "RFC 3339",
+        ),
     ];
     for (args, needle) in cases {
         let r = dbms(args);
         let err = String::from_utf8_lossy(&r.stderr);
-        assert!(!r.status.success() && err.contains(needle) && err.trim().lines().count() == 1, "{args:?}: {err}");
+        assert!(
+            !r.status.success() && err.contains(needle) && err.trim().lines().count() == 1,
+            "{args:?}: {err}"
+        );
     }
     // Half a sun, or both forms at once, is a usage error.
-    assert!(!dbms(&["shadows", "--db", db, "--sun-elevation", "30", "-o", o]).status.success());
+    assert!(
+        !dbms(&["shadows", "--db", db, "--sun-elevation", "30", "-o", o])
+            .status
+            .success()
+    );
     assert!(!dbms(&[
         "shadows",
         "--db",

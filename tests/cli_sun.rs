@@ -6,19 +6,28 @@ use dbms::grid::Grid;
 use std::process::{Command, Output};
 
 fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms")).args(args).output().expect("dbms runs")
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .output()
+        .expect("dbms runs")
 }
 
 fn json(args: &[&str]) -> serde_json::Value {
     let mut all = vec!["--json"];
     all.extend_from_slice(args);
     let out = dbms(&all);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).expect("stdout is JSON")
 }
 
 fn f(v: &serde_json::Value, key: &str) -> f64 {
-    v[key].as_f64().unwrap_or_else(|| panic!("no number {key} in {v}"))
+    v[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no number {key} in {v}"))
 }
 
 /// An error run: fails, prints nothing on stdout and exactly one line on stderr.
@@ -33,8 +42,22 @@ fn one_line_error(args: &[&str]) -> String {
 }
 
 const SPA_EXAMPLE: [&str; 16] = [
-    "sun", "--lat", "39.742476", "--lon", "-105.1786", "--height", "1830.14", "--time",
-    "2003-10-17T12:30:30-07:00", "--delta-t", "67", "--pressure", "820", "--temperature", "11", "--quiet",
+    "sun",
+    "--lat",
+    "39.742476",
+    "--lon",
+    "-105.1786",
+    "--height",
+    "1830.14",
+    "--time",
+    "2003-10-17T12:30:30-07:00",
+    "--delta-t",
+    "67",
+    "--pressure",
+    "820",
+    "--temperature",
+    "11",
+    "--quiet",
 ];
 
 /// The SPA paper's example (zenith 50.11162°, azimuth 194.34024°, printed to 5 decimals).
@@ -43,11 +66,28 @@ fn spa_example_as_json() {
     let v = json(&SPA_EXAMPLE);
     assert!((f(&v, "zenith_deg") - 50.11162).abs() <= 5e-6, "{v}");
     assert!((f(&v, "azimuth_deg") - 194.34024).abs() <= 5e-6, "{v}");
-    assert!((f(&v, "elevation_deg") - (90.0 - 50.11162)).abs() <= 5e-6, "{v}");
+    assert!(
+        (f(&v, "elevation_deg") - (90.0 - 50.11162)).abs() <= 5e-6,
+        "{v}"
+    );
     // The inputs come back too, the time normalised to UTC.
     assert_eq!(v["time"], "2003-10-17T19:30:30Z");
-    assert_eq!((f(&v, "latitude_deg"), f(&v, "longitude_deg"), f(&v, "height_m")), (39.742476, -105.1786, 1830.14));
-    assert_eq!((f(&v, "pressure_mbar"), f(&v, "temperature_c"), f(&v, "delta_t_s")), (820.0, 11.0, 67.0));
+    assert_eq!(
+        (
+            f(&v, "latitude_deg"),
+            f(&v, "longitude_deg"),
+            f(&v, "height_m")
+        ),
+        (39.742476, -105.1786, 1830.14)
+    );
+    assert_eq!(
+        (
+            f(&v, "pressure_mbar"),
+            f(&v, "temperature_c"),
+            f(&v, "delta_t_s")
+        ),
+        (820.0, 11.0, 67.0)
+    );
     assert_eq!(v["refraction"], true);
 }
 
@@ -56,7 +96,15 @@ fn human_output_names_the_three_angles() {
     let out = dbms(&SPA_EXAMPLE[..SPA_EXAMPLE.len() - 1]);
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
-    for want in ["elevation", "39.888378", "azimuth", "194.340241", "zenith", "50.111622", "with refraction"] {
+    for want in [
+        "elevation",
+        "39.888378",
+        "azimuth",
+        "194.340241",
+        "zenith",
+        "50.111622",
+        "with refraction",
+    ] {
         assert!(text.contains(want), "{want} missing from {text}");
     }
     // --quiet: nothing on stdout.
@@ -65,7 +113,15 @@ fn human_output_names_the_three_angles() {
 
 #[test]
 fn no_refraction_gives_the_geometric_sun() {
-    let base = ["sun", "--lat", "52", "--lon", "4.9", "--time", "2026-03-20T17:55:00Z"];
+    let base = [
+        "sun",
+        "--lat",
+        "52",
+        "--lon",
+        "4.9",
+        "--time",
+        "2026-03-20T17:55:00Z",
+    ];
     let seen = json(&base);
     let mut geo_args = base.to_vec();
     geo_args.push("--no-refraction");
@@ -80,7 +136,15 @@ fn no_refraction_gives_the_geometric_sun() {
 
 #[test]
 fn default_delta_t_is_reported() {
-    let v = json(&["sun", "--lat", "0", "--lon", "0", "--time", "2024-01-01T00:00:00Z"]);
+    let v = json(&[
+        "sun",
+        "--lat",
+        "0",
+        "--lon",
+        "0",
+        "--time",
+        "2024-01-01T00:00:00Z",
+    ]);
     let dt = f(&v, "delta_t_s");
     assert!(dt > 63.0 && dt < 76.0, "{v}");
     assert!(v["delta_t_source"].as_str().unwrap().contains("Espenak"));
@@ -92,14 +156,28 @@ fn db_centre_is_the_observer() {
     let dir = tempfile::tempdir().unwrap();
     // 10 km square in UTM 13N around Golden, Colorado.
     let grid = Grid::north_up(470_000.0, 4_405_000.0, 10.0, 1000, 1000, Crs::epsg(32613));
-    Database::create(dir.path(), grid, Vec::new()).unwrap().save().unwrap();
+    Database::create(dir.path(), grid, Vec::new())
+        .unwrap()
+        .save()
+        .unwrap();
     let db = dir.path().to_str().unwrap();
     let time = "2026-06-21T18:00:00Z";
     let v = json(&["sun", "--db", db, "--time", time]);
     let (lat, lon) = (f(&v, "latitude_deg"), f(&v, "longitude_deg"));
-    assert!((lat - 39.75).abs() < 0.1 && (lon + 105.35).abs() < 0.1, "centre {lat}, {lon}");
+    assert!(
+        (lat - 39.75).abs() < 0.1 && (lon + 105.35).abs() < 0.1,
+        "centre {lat}, {lon}"
+    );
     assert_eq!(v["db"], db);
-    let direct = json(&["sun", "--lat", &lat.to_string(), "--lon", &lon.to_string(), "--time", time]);
+    let direct = json(&[
+        "sun",
+        "--lat",
+        &lat.to_string(),
+        "--lon",
+        &lon.to_string(),
+        "--time",
+        time,
+    ]);
     for key in ["elevation_deg", "azimuth_deg", "zenith_deg"] {
         assert_eq!(f(&v, key), f(&direct, key), "{key}");
     }
@@ -110,24 +188,110 @@ fn db_without_geographic_centre_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     // A CRS the default build cannot convert to latitude/longitude (Web Mercator).
     let grid = Grid::north_up(0.0, 1000.0, 10.0, 10, 10, Crs::epsg(3857));
-    Database::create(dir.path(), grid, Vec::new()).unwrap().save().unwrap();
-    let err = one_line_error(&["sun", "--db", dir.path().to_str().unwrap(), "--time", "2026-06-21T18:00:00Z"]);
-    assert!(err.contains("latitude/longitude") && err.contains("--lat"), "{err}");
-    let err = one_line_error(&["sun", "--db", dir.path().join("nope").to_str().unwrap(), "--time", "2026-06-21T18:00:00Z"]);
-    assert!(err.contains("nope") && err.contains("no such database"), "{err}");
+    Database::create(dir.path(), grid, Vec::new())
+        .unwrap()
+        .save()
+        .unwrap();
+    let err = one_line_error(&[
+        "sun",
+        "--db",
+        dir.path().to_str().unwrap(),
+        "--time",
+        "2026-06-21T18:00:00Z",
+    ]);
+    assert!(
+        err.contains("latitude/longitude") && err.contains("--lat"),
+        "{err}"
+    );
+    let err = one_line_error(&[
+        "sun",
+        "--db",
+        dir.path().join("nope").to_str().unwrap(),
+        "--time",
+        "2026-06-21T18:00:00Z",
+    ]);
+    assert!(
+        err.contains("nope") && err.contains("no such database"),
+        "{err}"
+    );
 }
 
 #[test]
 fn bad_values_are_one_line_errors() {
     let t = "2026-06-21T10:00:00Z";
     let cases: [(&[&str], &str); 7] = [
-        (&["sun", "--lat", "0", "--lon", "0", "--time", "2026-06-21 10:00"], "RFC 3339"),
-        (&["sun", "--lat", "0", "--lon", "0", "--time", "2026-06-21T10:00:00"], "offset is required"),
-        (&["sun", "--lat", "95", "--lon", "0", "--time", t], "latitude 95"),
-        (&["sun", "--lat", "0", "--lon", "-190", "--time", t], "longitude -190"),
-        (&["sun", "--lat", "0", "--lon", "0", "--time", t, "--pressure", "-5"], "pressure"),
-        (&["sun", "--lat", "0", "--lon", "0", "--time", t, "--delta-t", "99999"], "delta T"),
-        (&["sun", "--lat", "0", "--lon", "0", "--time", "9999-01-01T00:00:00Z"], "year 9999"),
+        (
+            &[
+                "sun",
+                "--lat",
+                "0",
+                "--lon",
+                "0",
+                "--time",
+                "2026-06-21 10:00",
+            ],
+            "RFC 3339",
+        ),
+        (
+            &[
+                "sun",
+                "--lat",
+                "0",
+                "--lon",
+                "0",
+                "--time",
+                "2026-06-21T10:00:00",
+            ],
+            "offset is required",
+        ),
+        (
+            &["sun", "--lat", "95", "--lon", "0", "--time", t],
+            "latitude 95",
+        ),
+        (
+            &["sun", "--lat", "0", "--lon", "-190", "--time", t],
+            "longitude -190",
+        ),
+        (
+            &[
+                "sun",
+                "--lat",
+                "0",
+                "--lon",
+                "0",
+                "--time",
+                t,
+                "--pressure",
+                "-5",
+            ],
+            "pressure",
+        ),
+        (
+            &[
+                "sun",
+                "--lat",
+                "0",
+                "--lon",
+                "0",
+                "--time",
+                t,
+                "--delta-t",
+                "99999",
+            ],
+            "delta T",
+        ),
+        (
+            &[
+                "sun",
+                "--lat",
+                "0",
+                "--lon",
+                "0",
+                "--time",
+                "9999-01-01T00:00:00Z",
+            ],
+            "year 9999",
+        ),
     ];
     for (args, want) in cases {
         let err = one_line_error(args);

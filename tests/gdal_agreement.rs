@@ -16,7 +16,11 @@ use std::path::Path;
 use std::process::Command;
 
 fn have_gdalwarp() -> bool {
-    Command::new("gdalwarp").arg("--version").output().map(|o| o.status.success()).unwrap_or(false)
+    Command::new("gdalwarp")
+        .arg("--version")
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false)
 }
 
 /// Smooth but non-planar terrain with a nodata hole, at UTM coordinates.
@@ -37,8 +41,14 @@ fn photo(g: &Grid) -> Raster<[u8; 4]> {
     let data = (0..g.len())
         .map(|i| {
             let (c, r) = (i % g.width, i / g.width);
-            let v = |k: usize| (128.0 + 100.0 * (c as f64 * 0.09 + k as f64).sin() * (r as f64 * 0.05).cos()) as u8;
-            if c < 6 && r < 6 { [0, 0, 0, 0] } else { [v(0), v(1), (c % 256) as u8, 255] }
+            let v = |k: usize| {
+                (128.0 + 100.0 * (c as f64 * 0.09 + k as f64).sin() * (r as f64 * 0.05).cos()) as u8
+            };
+            if c < 6 && r < 6 {
+                [0, 0, 0, 0]
+            } else {
+                [v(0), v(1), (c % 256) as u8, 255]
+            }
         })
         .collect();
     Raster::new(g.clone(), data)
@@ -46,7 +56,12 @@ fn photo(g: &Grid) -> Raster<[u8; 4]> {
 
 fn run(cmd: &mut Command) {
     let o = cmd.output().expect("spawn");
-    assert!(o.status.success(), "{:?}: {}", cmd, String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{:?}: {}",
+        cmd,
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 /// RMS difference over cells valid in both, and whether the validity masks are identical.
@@ -74,14 +89,32 @@ fn agreement(dir: &Path, cell: f64) -> (f64, f64) {
     geotiff::write_f32(&dem, &terrain(&dem_grid)).unwrap();
     geotiff::write_rgba8(&ortho, &photo(&photo_grid)).unwrap();
     let db = dir.join(format!("db{cell}"));
-    run(Command::new(env!("CARGO_BIN_EXE_dbms")).args(["ingest", "-q", "--cell", &cell.to_string(), "-o"]).arg(&db).arg("--dem").arg(&dem).arg("--ortho").arg(&ortho));
-    let elev = read_raster(&db.join("elevation.tif")).unwrap().to_elevation().unwrap();
+    run(Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(["ingest", "-q", "--cell", &cell.to_string(), "-o"])
+        .arg(&db)
+        .arg("--dem")
+        .arg(&dem)
+        .arg("--ortho")
+        .arg(&ortho));
+    let elev = read_raster(&db.join("elevation.tif"))
+        .unwrap()
+        .to_elevation()
+        .unwrap();
     let g = &elev.grid;
     let b = g.bounds();
     let te = [b.min_x, b.min_y, b.max_x, b.max_y].map(|v| v.to_string());
-    let (gdem, gcol) = (dir.join(format!("g{cell}.tif")), dir.join(format!("gc{cell}.tif")));
+    let (gdem, gcol) = (
+        dir.join(format!("g{cell}.tif")),
+        dir.join(format!("gc{cell}.tif")),
+    );
     let warp = |r: &str, src: &Path, dst: &Path, extra: &[&str]| {
-        run(Command::new("gdalwarp").args(["-q", "-overwrite", "-r", r, "-te"]).args(&te).args(["-tr", &cell.to_string(), &cell.to_string()]).args(extra).arg(src).arg(dst));
+        run(Command::new("gdalwarp")
+            .args(["-q", "-overwrite", "-r", r, "-te"])
+            .args(&te)
+            .args(["-tr", &cell.to_string(), &cell.to_string()])
+            .args(extra)
+            .arg(src)
+            .arg(dst));
     };
     warp("bilinear", &dem, &gdem, &["-dstnodata", "-9999"]);
     warp("average", &ortho, &gcol, &["-dstalpha"]);
@@ -93,9 +126,17 @@ fn agreement(dir: &Path, cell: f64) -> (f64, f64) {
     println!("cell {cell}: elevation RMS vs gdalwarp -r bilinear = {elev_rms:.3e} m, nodata mismatches = {mismatched}");
     assert_eq!(mismatched, 0, "nodata cells differ from gdalwarp");
 
-    let ours = read_raster(&db.join("colour.tif")).unwrap().to_colour().unwrap();
+    let ours = read_raster(&db.join("colour.tif"))
+        .unwrap()
+        .to_colour()
+        .unwrap();
     let theirs = read_raster(&gcol).unwrap().to_colour().unwrap();
-    let grey = |c: &Raster<[u8; 4]>| c.data.iter().flat_map(|p| (0..3).map(move |k| if p[3] == 0 { f64::NAN } else { p[k] as f64 })).collect::<Vec<_>>();
+    let grey = |c: &Raster<[u8; 4]>| {
+        c.data
+            .iter()
+            .flat_map(|p| (0..3).map(move |k| if p[3] == 0 { f64::NAN } else { p[k] as f64 }))
+            .collect::<Vec<_>>()
+    };
     let (colour_rms, mismatched) = compare(&grey(&ours), &grey(&theirs));
     println!("cell {cell}: colour RMS vs gdalwarp -r average = {colour_rms:.3} grey levels, nodata mismatches = {mismatched}");
     assert_eq!(mismatched, 0, "colour nodata cells differ from gdalwarp");

@@ -9,15 +9,26 @@ use std::path::Path;
 use std::process::Command;
 
 fn schema(name: &str) -> jsonschema::Validator {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas").join(name);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("schemas")
+        .join(name);
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let value: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{name}: {e}"));
-    jsonschema::validator_for(&value).unwrap_or_else(|e| panic!("{name} is not a valid schema: {e}"))
+    let value: serde_json::Value =
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{name}: {e}"));
+    jsonschema::validator_for(&value)
+        .unwrap_or_else(|e| panic!("{name} is not a valid schema: {e}"))
 }
 
 fn assert_valid(v: &jsonschema::Validator, doc: &serde_json::Value, what: &str) {
-    let errors: Vec<String> = v.iter_errors(doc).map(|e| format!("{} at {}", e, e.instance_path())).collect();
-    assert!(errors.is_empty(), "{what} does not match its schema:\n{}", errors.join("\n"));
+    let errors: Vec<String> = v
+        .iter_errors(doc)
+        .map(|e| format!("{} at {}", e, e.instance_path()))
+        .collect();
+    assert!(
+        errors.is_empty(),
+        "{what} does not match its schema:\n{}",
+        errors.join("\n")
+    );
 }
 
 #[test]
@@ -43,7 +54,13 @@ fn ingest_manifest_matches_its_schema() {
     geotiff::write_rgba8(&o, &Raster::filled(g, [1, 2, 3, 255])).unwrap();
     let db = t.path().join("db");
     let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(["ingest", "-q", "--photo-time", "2026-06-21T10:00:00Z", "--dem"])
+        .args([
+            "ingest",
+            "-q",
+            "--photo-time",
+            "2026-06-21T10:00:00Z",
+            "--dem",
+        ])
         .arg(&d)
         .arg("--ortho")
         .arg(&o)
@@ -51,8 +68,13 @@ fn ingest_manifest_matches_its_schema() {
         .arg(&db)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let manifest: serde_json::Value = serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
     assert_valid(&schema("manifest.schema.json"), &manifest, "manifest.json");
     // And a broken manifest is caught: the schema is not vacuous.
     let mut bad = manifest.clone();
@@ -69,9 +91,17 @@ fn sample_truth_and_scene_match_their_schemas() {
         .arg(t.path())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for (file, name) in [("truth.json", "sample-truth.schema.json"), ("scene.json", "sample-scene.schema.json")] {
-        let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(t.path().join(file)).unwrap()).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for (file, name) in [
+        ("truth.json", "sample-truth.schema.json"),
+        ("scene.json", "sample-scene.schema.json"),
+    ] {
+        let doc: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(t.path().join(file)).unwrap()).unwrap();
         assert_valid(&schema(name), &doc, file);
     }
 }

@@ -779,13 +779,19 @@ fn unwritable_output_and_missing_input_are_one_line_errors() {
         .err()
         .expect("no directory to spool in")
         .to_string();
-    assert!(err.contains("no/such/dir") && err.contains("check that the output directory exists"), "{err}");
+    assert!(
+        err.contains("no/such/dir") && err.contains("check that the output directory exists"),
+        "{err}"
+    );
     let missing = tmp_file(&dir, "missing.dbt");
     let out = dbms(&["tiles", missing.to_str().unwrap()]);
     assert!(!out.status.success());
     assert_eq!(
         String::from_utf8(out.stderr).unwrap().trim_end(),
-        format!("dbms: error: {}: no such file or directory; check the path", missing.display())
+        format!(
+            "dbms: error: {}: no such file or directory; check the path",
+            missing.display()
+        )
     );
 }
 
@@ -812,13 +818,20 @@ fn uncompressed_pages_without_bricks_go_straight_to_their_place_in_any_order() {
         .for_each(|&(l, x, y)| w.write_page(l, x, y, &plain(l, x, y)).unwrap());
     w.finish().unwrap();
     let bytes = std::fs::read(&a).unwrap();
-    assert_eq!(bytes, std::fs::read(&b).unwrap(), "order or threads changed the bytes");
+    assert_eq!(
+        bytes,
+        std::fs::read(&b).unwrap(),
+        "order or threads changed the bytes"
+    );
     let r = TileReader::open(&a, 4).unwrap();
     for &(l, x, y) in &fx.pages() {
         let (got, want) = (r.page(l, x, y).unwrap(), plain(l, x, y));
         let bits = |p: &Page| p.max_z.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&got), bits(&want), "max_z of page ({l}, {x}, {y})");
-        assert_eq!((&got.colour, &got.state, &got.bricks), (&want.colour, &want.state, &None));
+        assert_eq!(
+            (&got.colour, &got.state, &got.bricks),
+            (&want.colour, &want.state, &None)
+        );
     }
     // Pages are consecutive in storage order, each at the next aligned offset, and the file
     // ends where the last one does: nothing of the writer's scratch is left in the file.
@@ -826,10 +839,16 @@ fn uncompressed_pages_without_bricks_go_straight_to_their_place_in_any_order() {
     let mut entries: Vec<IndexEntry> = r.entries().to_vec();
     entries.sort_by_key(|e| e.offset);
     for pair in entries.windows(2) {
-        assert_eq!(pair[1].offset, (pair[0].offset + raw).next_multiple_of(PAGE_ALIGN));
+        assert_eq!(
+            pair[1].offset,
+            (pair[0].offset + raw).next_multiple_of(PAGE_ALIGN)
+        );
     }
     assert_eq!(entries.last().unwrap().offset + raw, bytes.len() as u64);
-    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(names.len(), 2, "temporary files left behind: {names:?}");
 }
 

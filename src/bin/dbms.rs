@@ -49,7 +49,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let ctx = cmd::Ctx { quiet: cli.quiet, json: cli.json };
+    let ctx = cmd::Ctx {
+        quiet: cli.quiet,
+        json: cli.json,
+    };
     let result: dbms::Result<()> = match cli.command {
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),

@@ -31,7 +31,11 @@ impl Crs {
     /// A CRS known by EPSG code. Geographic-ness is inferred for the common codes
     /// (4326, 4269, 4258, 4267, 4019 and the 4000–4999 range of geographic 2-D CRSs).
     pub fn epsg(code: u32) -> Crs {
-        Crs { epsg: Some(code), geographic: (4000..5000).contains(&code), ..Crs::default() }
+        Crs {
+            epsg: Some(code),
+            geographic: (4000..5000).contains(&code),
+            ..Crs::default()
+        }
     }
 
     /// No CRS information at all (e.g. an ASCII grid without a .prj).
@@ -116,7 +120,11 @@ impl Crs {
 
     /// The unit of the coordinates, for messages and the manifest: `degree` or `metre`.
     pub fn unit(&self) -> &'static str {
-        if self.geographic { "degree" } else { "metre" }
+        if self.geographic {
+            "degree"
+        } else {
+            "metre"
+        }
     }
 }
 
@@ -142,7 +150,9 @@ pub fn foreign_units_in_wkt(wkt: &str) -> (Option<ForeignUnit>, Option<ForeignUn
     while let Some(at) = upper[from..].find("UNIT[") {
         let start = from + at;
         from = start + 5;
-        let keyword_start = upper[..start].rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).map_or(0, |i| i + 1);
+        let keyword_start = upper[..start]
+            .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .map_or(0, |i| i + 1);
         let keyword = &upper[keyword_start..start + 4];
         if !matches!(keyword, "UNIT" | "LENGTHUNIT") {
             continue; // ANGLEUNIT, SCALEUNIT, TIMEUNIT, PARAMETRICUNIT
@@ -151,20 +161,33 @@ pub fn foreign_units_in_wkt(wkt: &str) -> (Option<ForeignUnit>, Option<ForeignUn
         if parents.first() == Some(&"PARAMETER") {
             continue; // a WKT2 projection parameter's own unit, not the coordinates'
         }
-        let is_vertical = parents.iter().any(|k| matches!(*k, "VERT_CS" | "VERTCRS" | "VERTICALCRS"));
+        let is_vertical = parents
+            .iter()
+            .any(|k| matches!(*k, "VERT_CS" | "VERTCRS" | "VERTICALCRS"));
         let body = &wkt[from..];
         let end = body.find(']').unwrap_or(body.len());
         let mut parts = body[..end].splitn(3, ',');
-        let name = parts.next().unwrap_or("").trim().trim_matches('"').to_string();
+        let name = parts
+            .next()
+            .unwrap_or("")
+            .trim()
+            .trim_matches('"')
+            .to_string();
         let Some(metres) = parts.next().and_then(|f| f.trim().parse::<f64>().ok()) else {
             continue;
         };
         let lower = name.to_ascii_lowercase();
-        let angular = ["degree", "grad", "gon", "radian", "second", "minute"].iter().any(|a| lower.contains(a));
+        let angular = ["degree", "grad", "gon", "radian", "second", "minute"]
+            .iter()
+            .any(|a| lower.contains(a));
         if keyword == "UNIT" && angular {
             continue;
         }
-        let slot = if is_vertical { &mut vertical } else { &mut horizontal };
+        let slot = if is_vertical {
+            &mut vertical
+        } else {
+            &mut horizontal
+        };
         if (metres - 1.0).abs() > 1e-9 && slot.is_none() {
             *slot = Some(ForeignUnit { name, metres });
         }
@@ -180,7 +203,9 @@ fn enclosing(wkt: &str, at: usize) -> Vec<&str> {
         match c {
             ']' => depth += 1,
             '[' if depth == 0 => {
-                let start = wkt[..i].rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).map_or(0, |j| j + 1);
+                let start = wkt[..i]
+                    .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                    .map_or(0, |j| j + 1);
                 out.push(&wkt[start..i]);
             }
             '[' => depth -= 1,
@@ -222,7 +247,10 @@ pub fn foreign_unit_from_epsg(code: u16) -> Option<ForeignUnit> {
         9099 => ("British yard (Sears 1922 truncated)", 0.914398),
         _ => return None,
     };
-    Some(ForeignUnit { name: name.to_string(), metres })
+    Some(ForeignUnit {
+        name: name.to_string(),
+        metres,
+    })
 }
 
 /// Inverse transverse Mercator for a UTM zone (Krüger series to n³, as in Karney 2011 and the
@@ -237,8 +265,16 @@ fn utm_inverse(easting: f64, northing: f64, zone: u32, south: bool) -> (f64, f64
     let n = FLATTENING / (2.0 - FLATTENING);
     let (n2, n3) = (n * n, n * n * n);
     let a = A_AXIS / (1.0 + n) * (1.0 + n2 / 4.0 + n2 * n2 / 64.0);
-    let beta = [n / 2.0 - 2.0 / 3.0 * n2 + 37.0 / 96.0 * n3, n2 / 48.0 + n3 / 15.0, 17.0 / 480.0 * n3];
-    let delta = [2.0 * n - 2.0 / 3.0 * n2 - 2.0 * n3, 7.0 / 3.0 * n2 - 8.0 / 5.0 * n3, 56.0 / 15.0 * n3];
+    let beta = [
+        n / 2.0 - 2.0 / 3.0 * n2 + 37.0 / 96.0 * n3,
+        n2 / 48.0 + n3 / 15.0,
+        17.0 / 480.0 * n3,
+    ];
+    let delta = [
+        2.0 * n - 2.0 / 3.0 * n2 - 2.0 * n3,
+        7.0 / 3.0 * n2 - 8.0 / 5.0 * n3,
+        56.0 / 15.0 * n3,
+    ];
     let xi = (northing - n0) / (K0 * a);
     let eta = (easting - E0) / (K0 * a);
     let (mut xi_p, mut eta_p) = (xi, eta);
@@ -284,7 +320,10 @@ mod tests {
         // axes' LENGTHUNIT decides.
         let wkt2 = r#"PROJCRS["x",BASEGEOGCRS["NAD83",ANGLEUNIT["degree",0.0174532925199433]],CONVERSION["c",PARAMETER["k",0.9999,SCALEUNIT["unity",1]],PARAMETER["False easting",1968500,LENGTHUNIT["foot",0.3048]]],CS[Cartesian,2],AXIS["x",east,LENGTHUNIT["foot",0.3048]]]"#;
         assert_eq!(foreign_units_in_wkt(wkt2).0.unwrap().name, "foot");
-        let metric_axes = wkt2.replace(r#"east,LENGTHUNIT["foot",0.3048]"#, r#"east,LENGTHUNIT["metre",1]"#);
+        let metric_axes = wkt2.replace(
+            r#"east,LENGTHUNIT["foot",0.3048]"#,
+            r#"east,LENGTHUNIT["metre",1]"#,
+        );
         assert_eq!(foreign_units_in_wkt(&metric_axes), (None, None));
         let geo = r#"GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],UNIT["degree",0.0174532925199433]]"#;
         assert_eq!(foreign_units_in_wkt(geo), (None, None));
@@ -307,14 +346,35 @@ mod tests {
         // Reference values from GDAL 3.6 `gdaltransform -s_srs EPSG:326xx -t_srs EPSG:4326`.
         let cases = [
             (32614, 500_000.0, 3_620_000.0, 32.7177735495427, -99.0),
-            (32614, 635_000.0, 3_620_000.0, 32.7095006160078, -97.5596143604619),
-            (32614, 421_000.0, 4_000_000.0, 36.1414990471862, -99.8780956083833),
-            (32733, 300_000.0, 5_500_000.0, -40.6266397268273, 12.6353192129815),
+            (
+                32614,
+                635_000.0,
+                3_620_000.0,
+                32.7095006160078,
+                -97.5596143604619,
+            ),
+            (
+                32614,
+                421_000.0,
+                4_000_000.0,
+                36.1414990471862,
+                -99.8780956083833,
+            ),
+            (
+                32733,
+                300_000.0,
+                5_500_000.0,
+                -40.6266397268273,
+                12.6353192129815,
+            ),
         ];
         for (code, e, n, lat, lon) in cases {
             let (la, lo) = Crs::epsg(code).to_lat_lon(e, n).unwrap();
             // 1e-8 degrees is about a millimetre.
-            assert!((la - lat).abs() < 1e-8 && (lo - lon).abs() < 1e-8, "{code} {e} {n}: {la} {lo}");
+            assert!(
+                (la - lat).abs() < 1e-8 && (lo - lon).abs() < 1e-8,
+                "{code} {e} {n}: {la} {lo}"
+            );
         }
         assert_eq!(Crs::epsg(4326).to_lat_lon(-97.3, 32.7), Some((32.7, -97.3)));
         assert_eq!(Crs::epsg(2056).to_lat_lon(2_600_000.0, 1_200_000.0), None);

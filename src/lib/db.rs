@@ -16,9 +16,9 @@ use crate::grid::Grid;
 use crate::io::atomic::write_bytes_atomic;
 use crate::io::SourceRaster;
 use crate::raster::{Colour, Elevation, Raster, RowSource};
-use std::borrow::Cow;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -167,45 +167,77 @@ impl Database {
     /// Start a new database in `dir` (created if missing) for `grid`; nothing is written until
     /// [`save`](Self::save). An existing database there is replaced layer by layer.
     pub fn create(dir: &Path, grid: Grid, inputs: Vec<InputFile>) -> Result<Database> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
         let (cx, cy) = grid.centre();
-        let centre = grid.crs.to_lat_lon(cx, cy).map(|(latitude_deg, longitude_deg)| LatLon { latitude_deg, longitude_deg });
+        let centre = grid
+            .crs
+            .to_lat_lon(cx, cy)
+            .map(|(latitude_deg, longitude_deg)| LatLon {
+                latitude_deg,
+                longitude_deg,
+            });
         let manifest = Manifest {
             format: FORMAT_NAME.to_string(),
             format_version: FORMAT_VERSION,
-            units: Units { horizontal: grid.crs.unit().to_string(), vertical: "metre".to_string() },
+            units: Units {
+                horizontal: grid.crs.unit().to_string(),
+                vertical: "metre".to_string(),
+            },
             grid,
             centre,
             layers: BTreeMap::new(),
             objects: Vec::new(),
-            provenance: Provenance { inputs, dbms_version: env!("CARGO_PKG_VERSION").to_string() },
+            provenance: Provenance {
+                inputs,
+                dbms_version: env!("CARGO_PKG_VERSION").to_string(),
+            },
             stages: Vec::new(),
         };
-        Ok(Database { dir: dir.to_path_buf(), manifest })
+        Ok(Database {
+            dir: dir.to_path_buf(),
+            manifest,
+        })
     }
 
     /// Open an existing database, checking its manifest's format and version.
     pub fn open(dir: &Path) -> Result<Database> {
         let path = dir.join(MANIFEST_FILE);
         if !dir.is_dir() {
-            return Err(Error::file(dir, "no such database directory").fix("create it with `dbms ingest ... -o DIR`"));
+            return Err(Error::file(dir, "no such database directory")
+                .fix("create it with `dbms ingest ... -o DIR`"));
         }
         let text = std::fs::read_to_string(&path).map_err(|e| match e.kind() {
             std::io::ErrorKind::NotFound => {
-                Error::file(dir, "not a dbms database (no manifest.json)").fix("create it with `dbms ingest ... -o DIR`")
+                Error::file(dir, "not a dbms database (no manifest.json)")
+                    .fix("create it with `dbms ingest ... -o DIR`")
             }
             _ => Error::io(&path, e),
         })?;
-        let manifest: Manifest = serde_json::from_str(&text)
-            .map_err(|e| Error::file(&path, format!("not a valid dbms manifest: {e}")).fix("re-create the database with `dbms ingest`"))?;
+        let manifest: Manifest = serde_json::from_str(&text).map_err(|e| {
+            Error::file(&path, format!("not a valid dbms manifest: {e}"))
+                .fix("re-create the database with `dbms ingest`")
+        })?;
         if manifest.format != FORMAT_NAME {
-            return Err(Error::file(&path, format!("format is {:?}, not {FORMAT_NAME:?}", manifest.format)));
+            return Err(Error::file(
+                &path,
+                format!("format is {:?}, not {FORMAT_NAME:?}", manifest.format),
+            ));
         }
         if manifest.format_version > FORMAT_VERSION {
-            return Err(Error::file(&path, format!("format version {} is newer than this dbms reads ({FORMAT_VERSION})", manifest.format_version))
-                .fix("upgrade dbms"));
+            return Err(Error::file(
+                &path,
+                format!(
+                    "format version {} is newer than this dbms reads ({FORMAT_VERSION})",
+                    manifest.format_version
+                ),
+            )
+            .fix("upgrade dbms"));
         }
-        Ok(Database { dir: dir.to_path_buf(), manifest })
+        Ok(Database {
+            dir: dir.to_path_buf(),
+            manifest,
+        })
     }
 
     /// The database grid.
@@ -215,18 +247,22 @@ impl Database {
 
     /// Latitude/longitude of the grid centre in degrees, when known.
     pub fn centre_lat_lon(&self) -> Option<(f64, f64)> {
-        self.manifest.centre.map(|c| (c.latitude_deg, c.longitude_deg))
+        self.manifest
+            .centre
+            .map(|c| (c.latitude_deg, c.longitude_deg))
     }
 
     /// Path of a layer's file, or an error naming the stage that makes it.
     pub fn layer_path(&self, name: &str) -> Result<PathBuf> {
         match self.manifest.layers.get(name) {
             Some(l) => Ok(self.dir.join(&l.file)),
-            None => Err(Error::file(&self.dir, format!("database has no {name} layer")).fix(match name {
-                ELEVATION | COLOUR => "re-create it with `dbms ingest`",
-                "buildings" => "run `dbms shadow-height --apply` first",
-                _ => "run the stage that makes it first",
-            })),
+            None => Err(
+                Error::file(&self.dir, format!("database has no {name} layer")).fix(match name {
+                    ELEVATION | COLOUR => "re-create it with `dbms ingest`",
+                    "buildings" => "run `dbms shadow-height --apply` first",
+                    _ => "run the stage that makes it first",
+                }),
+            ),
         }
     }
 
@@ -241,13 +277,23 @@ impl Database {
     }
 
     /// Read a raster layer and check it lies on the database grid.
-    fn read_layer<T>(&self, name: &str, convert: impl FnOnce(&SourceRaster) -> Result<Raster<T>>) -> Result<Raster<T>> {
+    fn read_layer<T>(
+        &self,
+        name: &str,
+        convert: impl FnOnce(&SourceRaster) -> Result<Raster<T>>,
+    ) -> Result<Raster<T>> {
         let path = self.layer_path(name)?;
         let layer = convert(&crate::io::read_raster(&path)?).map_err(|e| e.in_file(&path))?;
         let (g, want) = (&layer.grid, self.grid());
         if (g.width, g.height) != (want.width, want.height) {
-            return Err(Error::file(&path, format!("is {}x{} cells but the database grid is {}x{}", g.width, g.height, want.width, want.height))
-                .fix("re-create the database with `dbms ingest`"));
+            return Err(Error::file(
+                &path,
+                format!(
+                    "is {}x{} cells but the database grid is {}x{}",
+                    g.width, g.height, want.width, want.height
+                ),
+            )
+            .fix("re-create the database with `dbms ingest`"));
         }
         Ok(layer)
     }
@@ -263,24 +309,49 @@ impl Database {
         self.layer_rows(COLOUR, SourceRaster::to_colour)
     }
 
-    fn layer_rows<T>(&self, name: &str, convert: fn(&SourceRaster) -> Result<Raster<T>>) -> Result<LayerRows<T>> {
-        let rows = LayerRows { path: self.layer_path(name)?, grid: self.grid().clone(), convert };
+    fn layer_rows<T>(
+        &self,
+        name: &str,
+        convert: fn(&SourceRaster) -> Result<Raster<T>>,
+    ) -> Result<LayerRows<T>> {
+        let rows = LayerRows {
+            path: self.layer_path(name)?,
+            grid: self.grid().clone(),
+            convert,
+        };
         // The first row says whether the file is readable and as wide as the grid; the height
         // is checked by every band that reaches the end.
         let probe = crate::io::geotiff::read_rows(&rows.path, 0..1.min(rows.grid.height))?;
         if probe.grid.width != rows.grid.width {
-            return Err(Error::file(&rows.path, format!("is {} cells wide but the database grid is {}", probe.grid.width, rows.grid.width))
-                .fix("re-create the database with `dbms ingest`"));
+            return Err(Error::file(
+                &rows.path,
+                format!(
+                    "is {} cells wide but the database grid is {}",
+                    probe.grid.width, rows.grid.width
+                ),
+            )
+            .fix("re-create the database with `dbms ingest`"));
         }
         Ok(rows)
     }
 
     /// Record a layer file that is already written inside the directory (hashes it now).
-    pub fn set_layer(&mut self, name: &str, kind: &str, file: &str, nodata_cells: Option<u64>) -> Result<()> {
+    pub fn set_layer(
+        &mut self,
+        name: &str,
+        kind: &str,
+        file: &str,
+        nodata_cells: Option<u64>,
+    ) -> Result<()> {
         let sha256 = sha256_file(&self.dir.join(file))?;
         self.manifest.layers.insert(
             name.to_string(),
-            Layer { file: file.to_string(), kind: kind.to_string(), sha256, nodata_cells },
+            Layer {
+                file: file.to_string(),
+                kind: kind.to_string(),
+                sha256,
+                nodata_cells,
+            },
         );
         Ok(())
     }
@@ -292,7 +363,11 @@ impl Database {
 
     /// Names of the stages that have run, in order.
     pub fn stages_run(&self) -> Vec<&str> {
-        self.manifest.stages.iter().map(|s| s.name.as_str()).collect()
+        self.manifest
+            .stages
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect()
     }
 
     /// Write `manifest.json` atomically.
@@ -309,8 +384,11 @@ impl Database {
         for (file, sha) in files.chain(objects) {
             let path = self.dir.join(file);
             if &sha256_file(&path)? != sha {
-                return Err(Error::file(&path, "checksum does not match the manifest (file changed or corrupt)")
-                    .fix("re-run the stage that wrote it"));
+                return Err(Error::file(
+                    &path,
+                    "checksum does not match the manifest (file changed or corrupt)",
+                )
+                .fix("re-run the stage that wrote it"));
             }
         }
         Ok(())
@@ -332,12 +410,28 @@ impl<T: Clone + Send + Sync> RowSource<T> for LayerRows<T> {
     }
 
     fn read_rows(&self, row0: usize, rows: usize) -> Result<Cow<'_, [T]>> {
-        assert!(row0 + rows <= self.grid.height, "rows {row0}..{} outside the grid", row0 + rows);
-        let band = (self.convert)(&crate::io::geotiff::read_rows(&self.path, row0..row0 + rows)?)
-            .map_err(|e| e.in_file(&self.path))?;
+        assert!(
+            row0 + rows <= self.grid.height,
+            "rows {row0}..{} outside the grid",
+            row0 + rows
+        );
+        let band = (self.convert)(&crate::io::geotiff::read_rows(
+            &self.path,
+            row0..row0 + rows,
+        )?)
+        .map_err(|e| e.in_file(&self.path))?;
         if (band.grid.width, band.grid.height) != (self.grid.width, rows) {
-            return Err(Error::file(&self.path, format!("rows {row0}..{} are {}x{} cells, not {}x{rows}", row0 + rows, band.grid.width, band.grid.height, self.grid.width))
-                .fix("re-create the database with `dbms ingest`"));
+            return Err(Error::file(
+                &self.path,
+                format!(
+                    "rows {row0}..{} are {}x{} cells, not {}x{rows}",
+                    row0 + rows,
+                    band.grid.width,
+                    band.grid.height,
+                    self.grid.width
+                ),
+            )
+            .fix("re-create the database with `dbms ingest`"));
         }
         Ok(Cow::Owned(band.data))
     }
@@ -355,7 +449,11 @@ pub fn sha256_file(path: &Path) -> Result<String> {
         }
         hasher.update(&buf[..n]);
     }
-    Ok(hasher.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(hasher
+        .finalize()
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect())
 }
 
 #[cfg(test)]
@@ -369,10 +467,15 @@ mod tests {
         let grid = Grid::north_up(500_000.0, 3_620_000.0, 0.5, 4, 3, Crs::epsg(32614));
         let mut db = Database::create(dir.path(), grid.clone(), vec![]).unwrap();
         let c = db.manifest.centre.unwrap();
-        assert!((c.latitude_deg - 32.7177).abs() < 1e-3 && (c.longitude_deg + 98.99998).abs() < 1e-4);
+        assert!(
+            (c.latitude_deg - 32.7177).abs() < 1e-3 && (c.longitude_deg + 98.99998).abs() < 1e-4
+        );
         std::fs::write(dir.path().join("a.bin"), b"abc").unwrap();
         db.set_layer("a", "test", "a.bin", None).unwrap();
-        assert_eq!(db.manifest.layers["a"].sha256, "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+        assert_eq!(
+            db.manifest.layers["a"].sha256,
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
         db.record_stage(Stage::now("ingest", serde_json::json!({})));
         db.save().unwrap();
         let back = Database::open(dir.path()).unwrap();
@@ -390,32 +493,80 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let grid = Grid::north_up(500_000.0, 3_620_000.0, 0.5, 300, 600, Crs::epsg(32614));
         let mut db = Database::create(dir.path(), grid.clone(), vec![]).unwrap();
-        let z: Vec<f32> = (0..grid.len()).map(|i| if i % 101 == 0 { f32::NAN } else { (i % 977) as f32 * 0.25 }).collect();
-        let c: Vec<[u8; 4]> = (0..grid.len()).map(|i| if i % 89 == 0 { [0; 4] } else { [i as u8, (i / 7) as u8, 3, 255] }).collect();
-        crate::io::geotiff::write_f32(&dir.path().join("elevation.tif"), &Raster::new(grid.clone(), z)).unwrap();
-        crate::io::geotiff::write_rgba8(&dir.path().join("colour.tif"), &Raster::new(grid.clone(), c)).unwrap();
-        db.set_layer(ELEVATION, "elevation", "elevation.tif", None).unwrap();
+        let z: Vec<f32> = (0..grid.len())
+            .map(|i| {
+                if i % 101 == 0 {
+                    f32::NAN
+                } else {
+                    (i % 977) as f32 * 0.25
+                }
+            })
+            .collect();
+        let c: Vec<[u8; 4]> = (0..grid.len())
+            .map(|i| {
+                if i % 89 == 0 {
+                    [0; 4]
+                } else {
+                    [i as u8, (i / 7) as u8, 3, 255]
+                }
+            })
+            .collect();
+        crate::io::geotiff::write_f32(
+            &dir.path().join("elevation.tif"),
+            &Raster::new(grid.clone(), z),
+        )
+        .unwrap();
+        crate::io::geotiff::write_rgba8(
+            &dir.path().join("colour.tif"),
+            &Raster::new(grid.clone(), c),
+        )
+        .unwrap();
+        db.set_layer(ELEVATION, "elevation", "elevation.tif", None)
+            .unwrap();
         db.set_layer(COLOUR, "colour", "colour.tif", None).unwrap();
         let (whole_z, whole_c) = (db.read_elevation().unwrap(), db.read_colour().unwrap());
         let (rows_z, rows_c) = (db.elevation_rows().unwrap(), db.colour_rows().unwrap());
         for (row0, n) in [(0, 1), (0, 256), (200, 100), (255, 2), (590, 10), (599, 1)] {
             let want = |w: usize| row0 * w..(row0 + n) * w;
             let got_z = rows_z.read_rows(row0, n).unwrap();
-            assert!(got_z.iter().zip(&whole_z.data[want(300)]).all(|(a, b)| a.to_bits() == b.to_bits()), "rows {row0}+{n}");
-            assert_eq!(&*rows_c.read_rows(row0, n).unwrap(), &whole_c.data[want(300)], "rows {row0}+{n}");
+            assert!(
+                got_z
+                    .iter()
+                    .zip(&whole_z.data[want(300)])
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "rows {row0}+{n}"
+            );
+            assert_eq!(
+                &*rows_c.read_rows(row0, n).unwrap(),
+                &whole_c.data[want(300)],
+                "rows {row0}+{n}"
+            );
         }
         let narrow = Grid::north_up(500_000.0, 3_620_000.0, 0.5, 299, 600, Crs::epsg(32614));
-        crate::io::geotiff::write_f32(&dir.path().join("elevation.tif"), &Raster::filled(narrow, 1.0)).unwrap();
+        crate::io::geotiff::write_f32(
+            &dir.path().join("elevation.tif"),
+            &Raster::filled(narrow, 1.0),
+        )
+        .unwrap();
         let e = db.elevation_rows().err().unwrap().to_string();
-        assert!(e.contains("299 cells wide") && e.contains("dbms ingest"), "{e}");
+        assert!(
+            e.contains("299 cells wide") && e.contains("dbms ingest"),
+            "{e}"
+        );
     }
 
     #[test]
     fn opening_a_non_database_says_how_to_make_one() {
         let dir = tempfile::tempdir().unwrap();
         let e = Database::open(dir.path()).unwrap_err().to_string();
-        assert!(e.contains("not a dbms database") && e.contains("dbms ingest"), "{e}");
+        assert!(
+            e.contains("not a dbms database") && e.contains("dbms ingest"),
+            "{e}"
+        );
         std::fs::write(dir.path().join(MANIFEST_FILE), "{").unwrap();
-        assert!(Database::open(dir.path()).unwrap_err().to_string().contains("not a valid dbms manifest"));
+        assert!(Database::open(dir.path())
+            .unwrap_err()
+            .to_string()
+            .contains("not a valid dbms manifest"));
     }
 }

@@ -25,12 +25,20 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 impl Error {
     /// A problem not tied to one file (bad option values, inconsistent inputs).
     pub fn msg(problem: impl Into<String>) -> Error {
-        Error { path: None, problem: problem.into(), fix: None }
+        Error {
+            path: None,
+            problem: problem.into(),
+            fix: None,
+        }
     }
 
     /// A problem in a named file.
     pub fn file(path: impl AsRef<Path>, problem: impl Into<String>) -> Error {
-        Error { path: Some(path.as_ref().to_path_buf()), problem: problem.into(), fix: None }
+        Error {
+            path: Some(path.as_ref().to_path_buf()),
+            problem: problem.into(),
+            fix: None,
+        }
     }
 
     /// Attach the advice that tells the user how to fix the problem.
@@ -51,10 +59,16 @@ impl Error {
     pub fn io(path: impl AsRef<Path>, err: std::io::Error) -> Error {
         let fix = match err.kind() {
             std::io::ErrorKind::NotFound => Some("check the path".to_string()),
-            std::io::ErrorKind::PermissionDenied => Some("check the file's permissions".to_string()),
+            std::io::ErrorKind::PermissionDenied => {
+                Some("check the file's permissions".to_string())
+            }
             _ => None,
         };
-        Error { path: Some(path.as_ref().to_path_buf()), problem: io_problem(&err), fix }
+        Error {
+            path: Some(path.as_ref().to_path_buf()),
+            problem: io_problem(&err),
+            fix,
+        }
     }
 }
 
@@ -94,7 +108,10 @@ mod tests {
         let e = Error::file("dem.tif", "not a TIFF file").fix("give a GeoTIFF");
         assert_eq!(e.to_string(), "dem.tif: not a TIFF file; give a GeoTIFF");
         let io = Error::io("x.tif", std::io::Error::from(std::io::ErrorKind::NotFound));
-        assert_eq!(io.to_string(), "x.tif: no such file or directory; check the path");
+        assert_eq!(
+            io.to_string(),
+            "x.tif: no such file or directory; check the path"
+        );
         assert!(!io.to_string().contains('\n'));
     }
 }

@@ -15,24 +15,41 @@ pub type Ring = Vec<(f64, f64)>;
 /// The features of a GeoJSON FeatureCollection file; `fix` is the advice when the file is not one.
 pub fn read_features(path: &Path, fix: &str) -> Result<Vec<Value>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let doc: Value = serde_json::from_str(&text).map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix(fix))?;
+    let doc: Value = serde_json::from_str(&text)
+        .map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix(fix))?;
     match doc.get("features").and_then(Value::as_array) {
         Some(features) => Ok(features.clone()),
-        None => Err(Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix(fix)),
+        None => {
+            Err(Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix(fix))
+        }
     }
 }
 
 /// The polygons of a Polygon or MultiPolygon geometry, each as its rings; or why it has none.
 pub fn polygons(geometry: &Value) -> std::result::Result<Vec<Vec<Ring>>, String> {
-    let coords = geometry.get("coordinates").ok_or("geometry has no coordinates")?;
+    let coords = geometry
+        .get("coordinates")
+        .ok_or("geometry has no coordinates")?;
     let parts: Vec<&Value> = match geometry.get("type").and_then(Value::as_str) {
         Some("Polygon") => vec![coords],
-        Some("MultiPolygon") => coords.as_array().ok_or("bad MultiPolygon coordinates")?.iter().collect(),
-        other => return Err(format!("geometry type {other:?} is not Polygon or MultiPolygon")),
+        Some("MultiPolygon") => coords
+            .as_array()
+            .ok_or("bad MultiPolygon coordinates")?
+            .iter()
+            .collect(),
+        other => {
+            return Err(format!(
+                "geometry type {other:?} is not Polygon or MultiPolygon"
+            ))
+        }
     };
     parts
         .into_iter()
-        .map(|p| rings(p).ok_or_else(|| "bad polygon coordinates (need [[[x, y], ...], ...] of finite numbers)".to_string()))
+        .map(|p| {
+            rings(p).ok_or_else(|| {
+                "bad polygon coordinates (need [[[x, y], ...], ...] of finite numbers)".to_string()
+            })
+        })
         .collect()
 }
 
@@ -59,7 +76,10 @@ mod tests {
 
     #[test]
     fn polygons_and_multipolygons_keep_rings_in_order() {
-        let sq = json!([[[0, 0], [2, 0], [2, 2], [0, 2], [0, 0]], [[0.5, 0.5], [1, 0.5], [1, 1], [0.5, 0.5]]]);
+        let sq = json!([
+            [[0, 0], [2, 0], [2, 2], [0, 2], [0, 0]],
+            [[0.5, 0.5], [1, 0.5], [1, 1], [0.5, 0.5]]
+        ]);
         let p = polygons(&json!({"type": "Polygon", "coordinates": sq})).unwrap();
         assert_eq!(p.len(), 1);
         assert_eq!(p[0].len(), 2);

@@ -33,18 +33,31 @@ impl GeoTransform {
     /// World position of pixel-space point `(px, py)` (fractional pixels, corner convention).
     #[inline]
     pub fn pixel_to_world(&self, px: f64, py: f64) -> (f64, f64) {
-        (self.origin_x + px * self.cell_x, self.origin_y + py * self.cell_y)
+        (
+            self.origin_x + px * self.cell_x,
+            self.origin_y + py * self.cell_y,
+        )
     }
 
     /// Pixel-space position of world point `(x, y)`; inverse of [`pixel_to_world`](Self::pixel_to_world).
     #[inline]
     pub fn world_to_pixel(&self, x: f64, y: f64) -> (f64, f64) {
-        ((x - self.origin_x) / self.cell_x, (y - self.origin_y) / self.cell_y)
+        (
+            (x - self.origin_x) / self.cell_x,
+            (y - self.origin_y) / self.cell_y,
+        )
     }
 
     /// GDAL's six-term geotransform `[origin_x, cell_x, 0, origin_y, 0, cell_y]`.
     pub fn to_gdal(&self) -> [f64; 6] {
-        [self.origin_x, self.cell_x, 0.0, self.origin_y, 0.0, self.cell_y]
+        [
+            self.origin_x,
+            self.cell_x,
+            0.0,
+            self.origin_y,
+            0.0,
+            self.cell_y,
+        ]
     }
 }
 
@@ -93,17 +106,26 @@ impl Bounds {
         if v.len() != 4 || v.iter().any(|x| !x.is_finite()) {
             return Err(bounds_error(s));
         }
-        let b = Bounds { min_x: v[0], min_y: v[1], max_x: v[2], max_y: v[3] };
+        let b = Bounds {
+            min_x: v[0],
+            min_y: v[1],
+            max_x: v[2],
+            max_y: v[3],
+        };
         if !(b.min_x < b.max_x && b.min_y < b.max_y) {
-            return Err(Error::msg(format!("--bounds {s}: MINX must be below MAXX and MINY below MAXY")));
+            return Err(Error::msg(format!(
+                "--bounds {s}: MINX must be below MAXX and MINY below MAXY"
+            )));
         }
         Ok(b)
     }
 }
 
 fn bounds_error(s: &str) -> Error {
-    Error::msg(format!("--bounds {s}: expected four numbers MINX,MINY,MAXX,MAXY"))
-        .fix("e.g. --bounds 500000,5000000,501000,5001000")
+    Error::msg(format!(
+        "--bounds {s}: expected four numbers MINX,MINY,MAXX,MAXY"
+    ))
+    .fix("e.g. --bounds 500000,5000000,501000,5001000")
 }
 
 /// A georeferenced grid: size, transform and CRS. Holds no data; see [`crate::raster::Raster`].
@@ -121,11 +143,23 @@ pub struct Grid {
 
 impl Grid {
     /// A north-up grid whose top-left corner is `(min_x, max_y)` with square cells of `cell` units.
-    pub fn north_up(min_x: f64, max_y: f64, cell: f64, width: usize, height: usize, crs: Crs) -> Grid {
+    pub fn north_up(
+        min_x: f64,
+        max_y: f64,
+        cell: f64,
+        width: usize,
+        height: usize,
+        crs: Crs,
+    ) -> Grid {
         Grid {
             width,
             height,
-            transform: GeoTransform { origin_x: min_x, origin_y: max_y, cell_x: cell, cell_y: -cell },
+            transform: GeoTransform {
+                origin_x: min_x,
+                origin_y: max_y,
+                cell_x: cell,
+                cell_y: -cell,
+            },
             crs,
         }
     }
@@ -135,11 +169,21 @@ impl Grid {
     /// Errors on a cell size that is not finite and positive.
     pub fn covering(bounds: &Bounds, cell: f64, crs: Crs) -> Result<Grid> {
         if !(cell.is_finite() && cell > 0.0) {
-            return Err(Error::msg(format!("cell size {cell} is not a positive number")).fix("give --cell a value > 0"));
+            return Err(
+                Error::msg(format!("cell size {cell} is not a positive number"))
+                    .fix("give --cell a value > 0"),
+            );
         }
         // Tolerate floating noise: 1000.0000000001 / 0.5 should be 2000 cells, not 2001.
         let n = |extent: f64| ((extent / cell) - 1e-9).ceil().max(1.0) as usize;
-        Ok(Grid::north_up(bounds.min_x, bounds.max_y, cell, n(bounds.width()), n(bounds.height()), crs))
+        Ok(Grid::north_up(
+            bounds.min_x,
+            bounds.max_y,
+            cell,
+            n(bounds.width()),
+            n(bounds.height()),
+            crs,
+        ))
     }
 
     /// Number of cells.
@@ -166,7 +210,8 @@ impl Grid {
     /// World coordinates of the centre of cell `(col, row)`.
     #[inline]
     pub fn cell_centre(&self, col: usize, row: usize) -> (f64, f64) {
-        self.transform.pixel_to_world(col as f64 + 0.5, row as f64 + 0.5)
+        self.transform
+            .pixel_to_world(col as f64 + 0.5, row as f64 + 0.5)
     }
 
     /// The cell containing world point `(x, y)`, or `None` outside the grid.
@@ -190,13 +235,21 @@ impl Grid {
     /// The world rectangle the grid covers (cell edges).
     pub fn bounds(&self) -> Bounds {
         let (x0, y0) = self.transform.pixel_to_world(0.0, 0.0);
-        let (x1, y1) = self.transform.pixel_to_world(self.width as f64, self.height as f64);
-        Bounds { min_x: x0.min(x1), min_y: y0.min(y1), max_x: x0.max(x1), max_y: y0.max(y1) }
+        let (x1, y1) = self
+            .transform
+            .pixel_to_world(self.width as f64, self.height as f64);
+        Bounds {
+            min_x: x0.min(x1),
+            min_y: y0.min(y1),
+            max_x: x0.max(x1),
+            max_y: y0.max(y1),
+        }
     }
 
     /// World coordinates of the grid's centre point.
     pub fn centre(&self) -> (f64, f64) {
-        self.transform.pixel_to_world(self.width as f64 / 2.0, self.height as f64 / 2.0)
+        self.transform
+            .pixel_to_world(self.width as f64 / 2.0, self.height as f64 / 2.0)
     }
 
     /// The sub-grid of a window: same cell size and CRS, origin moved to the window's corner.
@@ -205,7 +258,11 @@ impl Grid {
         Grid {
             width: w.width,
             height: w.height,
-            transform: GeoTransform { origin_x: x, origin_y: y, ..self.transform },
+            transform: GeoTransform {
+                origin_x: x,
+                origin_y: y,
+                ..self.transform
+            },
             crs: self.crs.clone(),
         }
     }
@@ -218,7 +275,12 @@ impl Grid {
         (0..h.div_ceil(tile)).flat_map(move |ty| {
             (0..w.div_ceil(tile)).map(move |tx| {
                 let (col, row) = (tx * tile, ty * tile);
-                Window { col, row, width: tile.min(w - col), height: tile.min(h - row) }
+                Window {
+                    col,
+                    row,
+                    width: tile.min(w - col),
+                    height: tile.min(h - row),
+                }
             })
         })
     }
@@ -242,7 +304,14 @@ mod tests {
     use super::*;
 
     fn utm_grid() -> Grid {
-        Grid::north_up(500_000.0, 5_000_000.0, 0.5, 40_000, 40_000, Crs::epsg(32614))
+        Grid::north_up(
+            500_000.0,
+            5_000_000.0,
+            0.5,
+            40_000,
+            40_000,
+            Crs::epsg(32614),
+        )
     }
 
     #[test]
@@ -266,10 +335,28 @@ mod tests {
     #[test]
     fn bounds_and_covering_grid() {
         let g = Grid::north_up(10.0, 20.0, 2.0, 5, 3, Crs::unknown());
-        assert_eq!(g.bounds(), Bounds { min_x: 10.0, min_y: 14.0, max_x: 20.0, max_y: 20.0 });
+        assert_eq!(
+            g.bounds(),
+            Bounds {
+                min_x: 10.0,
+                min_y: 14.0,
+                max_x: 20.0,
+                max_y: 20.0
+            }
+        );
         let c = Grid::covering(&g.bounds(), 0.5, Crs::unknown()).unwrap();
         assert_eq!((c.width, c.height), (20, 12));
-        let c = Grid::covering(&Bounds { min_x: 0.0, min_y: 0.0, max_x: 1.1, max_y: 1.0 }, 0.5, Crs::unknown()).unwrap();
+        let c = Grid::covering(
+            &Bounds {
+                min_x: 0.0,
+                min_y: 0.0,
+                max_x: 1.1,
+                max_y: 1.0,
+            },
+            0.5,
+            Crs::unknown(),
+        )
+        .unwrap();
         assert_eq!((c.width, c.height), (3, 2));
         assert!(Grid::covering(&g.bounds(), 0.0, Crs::unknown()).is_err());
         assert!(Grid::covering(&g.bounds(), -1.0, Crs::unknown()).is_err());
@@ -287,7 +374,12 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&n| n == 1));
-        let w = Window { col: 3, row: 3, width: 3, height: 2 };
+        let w = Window {
+            col: 3,
+            row: 3,
+            width: 3,
+            height: 2,
+        };
         let sub = g.window_grid(&w);
         assert_eq!(sub.cell_centre(0, 0), g.cell_centre(3, 3));
     }

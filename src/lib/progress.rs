@@ -28,7 +28,9 @@ impl Progress {
 
     /// A progress that never draws (library callers and tests).
     pub fn hidden() -> Progress {
-        Progress { bar: ProgressBar::hidden() }
+        Progress {
+            bar: ProgressBar::hidden(),
+        }
     }
 
     /// Start a new phase of `total` units labelled `what` on the same bar.

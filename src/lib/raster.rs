@@ -32,7 +32,10 @@ impl<T: Clone> Raster<T> {
     /// A raster with every cell set to `value`.
     pub fn filled(grid: Grid, value: T) -> Raster<T> {
         let n = grid.len();
-        Raster { grid, data: vec![value; n] }
+        Raster {
+            grid,
+            data: vec![value; n],
+        }
     }
 }
 
@@ -40,7 +43,11 @@ impl<T> Raster<T> {
     /// Wrap `data` (row-major, `grid.len()` values) on `grid`. Panics on a length mismatch,
     /// which is a programming error, never a user one.
     pub fn new(grid: Grid, data: Vec<T>) -> Raster<T> {
-        assert_eq!(data.len(), grid.len(), "raster data does not match its grid");
+        assert_eq!(
+            data.len(),
+            grid.len(),
+            "raster data does not match its grid"
+        );
         Raster { grid, data }
     }
 
@@ -90,7 +97,11 @@ impl<T: Clone + Sync> RowSource<T> for Raster<T> {
     }
 
     fn read_rows(&self, row0: usize, rows: usize) -> Result<Cow<'_, [T]>> {
-        assert!(row0 + rows <= self.grid.height, "rows {row0}..{} outside the grid", row0 + rows);
+        assert!(
+            row0 + rows <= self.grid.height,
+            "rows {row0}..{} outside the grid",
+            row0 + rows
+        );
         let w = self.grid.width;
         Ok(Cow::Borrowed(&self.data[row0 * w..(row0 + rows) * w]))
     }
@@ -104,10 +115,13 @@ impl Elevation {
 
     /// Minimum and maximum of the valid cells, or `None` when every cell is nodata.
     pub fn min_max(&self) -> Option<(f32, f32)> {
-        self.data.iter().filter(|v| !v.is_nan()).fold(None, |acc, &v| match acc {
-            None => Some((v, v)),
-            Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
-        })
+        self.data
+            .iter()
+            .filter(|v| !v.is_nan())
+            .fold(None, |acc, &v| match acc {
+                None => Some((v, v)),
+                Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
+            })
     }
 }
 
@@ -131,7 +145,15 @@ mod tests {
         assert_eq!(e.min_max(), Some((-3.0, 7.5)));
         let all_nan = Elevation::filled(g.clone(), f32::NAN);
         assert_eq!(all_nan.min_max(), None);
-        let c = Colour::new(g, vec![[1, 2, 3, 255], NODATA_COLOUR, [0, 0, 0, 255], [9, 9, 9, 255]]);
+        let c = Colour::new(
+            g,
+            vec![
+                [1, 2, 3, 255],
+                NODATA_COLOUR,
+                [0, 0, 0, 255],
+                [9, 9, 9, 255],
+            ],
+        );
         assert_eq!(c.nodata_count(), 1);
         assert_eq!(*c.get(0, 1), [0, 0, 0, 255]);
     }

@@ -31,7 +31,10 @@ impl Ctx {
     /// Print the result of a command on stdout: `json` with `--json`, else `human` unless quiet.
     pub fn report(&self, human: impl Display, json: serde_json::Value) {
         if self.json {
-            println!("{}", serde_json::to_string_pretty(&json).expect("JSON value serialises"));
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&json).expect("JSON value serialises")
+            );
         } else if !self.quiet {
             println!("{human}");
         }

@@ -94,7 +94,10 @@ fn parse_profile(s: &str) -> dbms::Result<Vec<[f64; 2]>> {
             let (r, z) = pair.split_once(':').unwrap_or((pair, ""));
             match (r.trim().parse::<f64>(), z.trim().parse::<f64>()) {
                 (Ok(r), Ok(z)) => Ok([r, z]),
-                _ => Err(dbms::Error::msg(format!("--profile {s}: \"{pair}\" is not R:Z")).fix("e.g. --profile 6:0,6:8,0:9.5")),
+                _ => Err(
+                    dbms::Error::msg(format!("--profile {s}: \"{pair}\" is not R:Z"))
+                        .fix("e.g. --profile 6:0,6:8,0:9.5"),
+                ),
             }
         })
         .collect()
@@ -102,11 +105,30 @@ fn parse_profile(s: &str) -> dbms::Result<Vec<[f64; 2]>> {
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let (obj, out, source, extra): (VoxelObject, Out, String, serde_json::Value) = match args.kind {
-        Kind::Revolve { profile, colour, out } => {
+        Kind::Revolve {
+            profile,
+            colour,
+            out,
+        } => {
             let obj = synth::revolve(&parse_profile(&profile)?, out.voxel, parse_rgb(&colour)?)?;
-            (obj, out, format!("dbms object revolve --profile {profile}"), serde_json::json!({}))
+            (
+                obj,
+                out,
+                format!("dbms object revolve --profile {profile}"),
+                serde_json::json!({}),
+            )
         }
-        Kind::Cone { height, radius, trunk, trunk_radius, vary, seed, colour, trunk_colour, out } => {
+        Kind::Cone {
+            height,
+            radius,
+            trunk,
+            trunk_radius,
+            vary,
+            seed,
+            colour,
+            trunk_colour,
+            out,
+        } => {
             let p = synth::TreeParams {
                 height,
                 radius,
@@ -125,11 +147,27 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 serde_json::json!({ "tree_height_m": h }),
             )
         }
-        Kind::Extrude { footprints, height_field, colour, roof_colour, out } => {
+        Kind::Extrude {
+            footprints,
+            height_field,
+            colour,
+            roof_colour,
+            out,
+        } => {
             let fp = synth::read_footprints(&footprints, &height_field)?;
-            let obj = synth::extrude(&fp, out.voxel, parse_rgb(&colour)?, parse_rgb(&roof_colour)?)?;
+            let obj = synth::extrude(
+                &fp,
+                out.voxel,
+                parse_rgb(&colour)?,
+                parse_rgb(&roof_colour)?,
+            )?;
             let n = fp.len();
-            (obj, out, format!("dbms object extrude ({n} footprints)"), serde_json::json!({ "footprints": n }))
+            (
+                obj,
+                out,
+                format!("dbms object extrude ({n} footprints)"),
+                serde_json::json!({ "footprints": n }),
+            )
         }
     };
     format::write(&out.output, &obj, &source)?;

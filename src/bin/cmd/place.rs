@@ -30,10 +30,31 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .collect::<Result<_, _>>()
         .ok()
         .filter(|v: &Vec<f64>| v.len() == 2 || v.len() == 3)
-        .ok_or_else(|| dbms::Error::msg(format!("--at {}: expected X,Y or X,Y,Z", args.at)).fix("e.g. --at 500120.5,5000340,0"))?;
+        .ok_or_else(|| {
+            dbms::Error::msg(format!("--at {}: expected X,Y or X,Y,Z", args.at))
+                .fix("e.g. --at 500120.5,5000340,0")
+        })?;
     let mut db = Database::open(&args.db)?;
-    let p = place(&mut db, &args.object, v[0], v[1], v.get(2).copied(), args.heading)?;
-    let human = format!("placed {} at ({}, {}, {}) heading {} deg in {}", p.file, p.x, p.y, p.z, p.heading_deg, args.db.display());
-    ctx.report(human, serde_json::to_value(&p).expect("placement serialises"));
+    let p = place(
+        &mut db,
+        &args.object,
+        v[0],
+        v[1],
+        v.get(2).copied(),
+        args.heading,
+    )?;
+    let human = format!(
+        "placed {} at ({}, {}, {}) heading {} deg in {}",
+        p.file,
+        p.x,
+        p.y,
+        p.z,
+        p.heading_deg,
+        args.db.display()
+    );
+    ctx.report(
+        human,
+        serde_json::to_value(&p).expect("placement serialises"),
+    );
     Ok(())
 }

@@ -14,10 +14,20 @@ pub struct Args {
     #[arg(long)]
     tiles: PathBuf,
     /// Eye position X,Y,Z: CRS units and metres.
-    #[arg(long, value_name = "X,Y,Z", required_unless_present = "top", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        required_unless_present = "top",
+        allow_hyphen_values = true
+    )]
     eye: Option<String>,
     /// ROLL,PITCH,YAW in degrees: roll right wing down positive, pitch up positive, yaw clockwise from north.
-    #[arg(long, value_name = "ROLL,PITCH,YAW", default_value = "0,0,0", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "ROLL,PITCH,YAW",
+        default_value = "0,0,0",
+        allow_hyphen_values = true
+    )]
     attitude: String,
     /// Horizontal field of view, degrees.
     #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
@@ -62,16 +72,27 @@ enum TraversalArg {
 
 /// Parse three comma-separated numbers for option `name`.
 fn triple(name: &str, s: &str, what: &str) -> dbms::Result<[f64; 3]> {
-    let v: Vec<f64> = s.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().unwrap_or_default();
-    v.try_into()
-        .map_err(|_| Error::msg(format!("{name} {s}: expected three comma-separated numbers")).fix(format!("give {what}")))
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .unwrap_or_default();
+    v.try_into().map_err(|_| {
+        Error::msg(format!(
+            "{name} {s}: expected three comma-separated numbers"
+        ))
+        .fix(format!("give {what}"))
+    })
 }
 
 /// Parse `WxH`.
 fn size(s: &str) -> dbms::Result<(usize, usize)> {
     s.split_once(['x', 'X'])
         .and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)))
-        .ok_or_else(|| Error::msg(format!("--size {s}: expected WIDTHxHEIGHT in pixels")).fix("e.g. --size 640x480"))
+        .ok_or_else(|| {
+            Error::msg(format!("--size {s}: expected WIDTHxHEIGHT in pixels"))
+                .fix("e.g. --size 640x480")
+        })
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -82,15 +103,28 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             Some(s) => size(s)?,
             None => {
                 let k = (g.width.max(g.height) as f64 / 1024.0).max(1.0);
-                (((g.width as f64 / k).round() as usize).max(1), ((g.height as f64 / k).round() as usize).max(1))
+                (
+                    ((g.width as f64 / k).round() as usize).max(1),
+                    ((g.height as f64 / k).round() as usize).max(1),
+                )
             }
         };
         render::render_top(&reader, w, h, !args.no_lod)?
     } else {
-        let eye = triple("--eye", args.eye.as_deref().unwrap_or_default(), "X,Y,Z in the database's CRS units and metres")?;
+        let eye = triple(
+            "--eye",
+            args.eye.as_deref().unwrap_or_default(),
+            "X,Y,Z in the database's CRS units and metres",
+        )?;
         let [roll, pitch, yaw] = triple("--attitude", &args.attitude, "ROLL,PITCH,YAW in degrees")?;
         let (width, height) = size(args.size.as_deref().unwrap_or("640x480"))?;
-        let camera = Camera { eye, attitude: Attitude { roll, pitch, yaw }, hfov: args.fov, width, height };
+        let camera = Camera {
+            eye,
+            attitude: Attitude { roll, pitch, yaw },
+            hfov: args.fov,
+            width,
+            height,
+        };
         let opts = ViewOptions {
             traversal: match args.traversal {
                 TraversalArg::Hierarchical => Traversal::Hierarchical,

@@ -20,7 +20,10 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
-    let scene = sample::generate(SampleOptions { seed: args.seed, size: args.size })?;
+    let scene = sample::generate(SampleOptions {
+        seed: args.seed,
+        size: args.size,
+    })?;
     let files = sample::write(&scene, &args.output)?;
     ctx.report(
         format!(

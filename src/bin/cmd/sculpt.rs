@@ -40,14 +40,21 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let opts = SculptOptions {
         voxel: args.voxel,
         bounds: args.bounds.as_deref().map(parse_box).transpose()?,
-        carve: CarveOptions { outside: args.outside, behind: args.behind },
+        carve: CarveOptions {
+            outside: args.outside,
+            behind: args.behind,
+        },
         fill: parse_rgb(&args.fill)?,
     };
     let (obj, report) = sculpt(&args.views, &opts)?;
     for w in &report.warnings {
         ctx.log(format!("dbms: warning: {w}"));
     }
-    format::write(&args.output, &obj, &format!("dbms sculpt --voxel {}", args.voxel))?;
+    format::write(
+        &args.output,
+        &obj,
+        &format!("dbms sculpt --voxel {}", args.voxel),
+    )?;
     let exports = write_exports(&args.output, &obj, &args.export)?;
     let d = report.dims;
     let c = report.colour;

@@ -24,7 +24,8 @@ pub struct Args {
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let db = Database::open(&args.db)?;
     let sun = args.sun.resolve(&db)?.ok_or_else(|| {
-        dbms::Error::msg("a shadow mask needs a sun").fix("give --time, or --sun-elevation and --sun-azimuth")
+        dbms::Error::msg("a shadow mask needs a sun")
+            .fix("give --time, or --sun-elevation and --sun-azimuth")
     })?;
     let elevation_path = db.layer_path(db::ELEVATION)?;
     let terrain = db.read_elevation()?;
@@ -36,7 +37,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     } else {
         (terrain, 0)
     };
-    let mask = cast_shadows(&heights, sun.elevation_deg, sun.azimuth_deg).map_err(|e| e.in_file(&elevation_path))?;
+    let mask = cast_shadows(&heights, sun.elevation_deg, sun.azimuth_deg)
+        .map_err(|e| e.in_file(&elevation_path))?;
     dbms::io::geotiff::write_u8(&args.output, &mask, Some(NODATA))?;
 
     let count = |v: u8| mask.data.iter().filter(|&&m| m == v).count();

@@ -13,10 +13,20 @@ use std::path::PathBuf;
 #[command(group = clap::ArgGroup::new("place").required(true).args(["lat", "db"]))]
 pub struct Args {
     /// Observer latitude, degrees north (-90..90).
-    #[arg(long, value_name = "DEG", allow_negative_numbers = true, requires = "lon")]
+    #[arg(
+        long,
+        value_name = "DEG",
+        allow_negative_numbers = true,
+        requires = "lon"
+    )]
     lat: Option<f64>,
     /// Observer longitude, degrees east (-180..180).
-    #[arg(long, value_name = "DEG", allow_negative_numbers = true, requires = "lat")]
+    #[arg(
+        long,
+        value_name = "DEG",
+        allow_negative_numbers = true,
+        requires = "lat"
+    )]
     lon: Option<f64>,
     /// Use the centre of this database instead of --lat/--lon.
     #[arg(long, value_name = "DB", conflicts_with_all = ["lat", "lon"])]
@@ -25,7 +35,12 @@ pub struct Args {
     #[arg(long, value_name = "RFC3339")]
     time: String,
     /// Observer height above the ellipsoid, metres (only the parallax uses it: 1e-7° per 100 m).
-    #[arg(long, value_name = "M", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "M",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     height: f64,
     /// The geometric sun, without atmospheric refraction.
     #[arg(long)]
@@ -34,7 +49,12 @@ pub struct Args {
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     delta_t: Option<f64>,
     /// UT1 - UTC in seconds, |dUT1| < 1 (IERS Bulletin A).
-    #[arg(long, value_name = "S", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     delta_ut1: f64,
     /// Station air pressure for refraction, millibar (hPa).
     #[arg(long, value_name = "MBAR", default_value_t = Atmosphere::default().pressure_mbar, allow_negative_numbers = true)]
@@ -48,18 +68,28 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let utc = sun::parse_time(&args.time)?;
     let (latitude_deg, longitude_deg) = match (&args.db, args.lat, args.lon) {
         (Some(dir), _, _) => Database::open(dir)?.centre_lat_lon().ok_or_else(|| {
-            Error::file(dir, "the database's CRS cannot be converted to latitude/longitude without GDAL")
-                .fix("give --lat and --lon, or use a dbms built with --features gdal")
+            Error::file(
+                dir,
+                "the database's CRS cannot be converted to latitude/longitude without GDAL",
+            )
+            .fix("give --lat and --lon, or use a dbms built with --features gdal")
         })?,
         (None, Some(lat), Some(lon)) => (lat, lon),
         _ => unreachable!("clap requires --db or both --lat and --lon"),
     };
-    let observer = Observer { latitude_deg, longitude_deg, height_m: args.height };
+    let observer = Observer {
+        latitude_deg,
+        longitude_deg,
+        height_m: args.height,
+    };
     let opts = SunOptions {
         refraction: !args.no_refraction,
         delta_t_s: args.delta_t,
         delta_ut1_s: args.delta_ut1,
-        atmosphere: Atmosphere { pressure_mbar: args.pressure, temperature_c: args.temperature },
+        atmosphere: Atmosphere {
+            pressure_mbar: args.pressure,
+            temperature_c: args.temperature,
+        },
     };
     let p = sun::sun_position(&observer, utc, &opts)?;
     let delta_t_s = args.delta_t.unwrap_or_else(|| sun::delta_t_model_s(utc));

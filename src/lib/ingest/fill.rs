@@ -27,7 +27,9 @@ impl HasPosition for Sample {
 /// Works in cell-index space, so the triangulation is well conditioned at any CRS offset.
 pub fn fill_voids(dem: &mut Elevation) -> usize {
     let (w, h) = (dem.width(), dem.height());
-    let nan = |c: i64, r: i64| c >= 0 && r >= 0 && c < w as i64 && r < h as i64 && dem.get(c as usize, r as usize).is_nan();
+    let nan = |c: i64, r: i64| {
+        c >= 0 && r >= 0 && c < w as i64 && r < h as i64 && dem.get(c as usize, r as usize).is_nan()
+    };
     let mut border = Vec::new();
     for r in 0..h as i64 {
         for c in 0..w as i64 {
@@ -37,7 +39,10 @@ pub fn fill_voids(dem: &mut Elevation) -> usize {
             }
             let touches_void = (-1..=1).any(|dy| (-1..=1).any(|dx| nan(c + dx, r + dy)));
             if touches_void {
-                border.push(Sample { at: Point2::new(c as f64, r as f64), z: v as f64 });
+                border.push(Sample {
+                    at: Point2::new(c as f64, r as f64),
+                    z: v as f64,
+                });
             }
         }
     }

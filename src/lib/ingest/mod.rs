@@ -8,13 +8,13 @@
 //! Delaunay interpolation ([`fill`]).
 
 pub mod fill;
-pub mod resample;
 #[cfg(feature = "gdal")]
 pub mod reproject;
+pub mod resample;
 
+use crate::crs::Crs;
 use crate::db::{self, Database, InputFile, Stage};
 use crate::error::{Error, Result};
-use crate::crs::Crs;
 use crate::grid::{Bounds, Grid};
 use crate::io::{self, SourceRaster};
 use crate::progress::Progress;
@@ -80,7 +80,10 @@ pub struct LayerSummary {
 pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<IngestSummary> {
     // Checked now with the parser later stages use on the recorded value, so they cannot disagree.
     if let Some(t) = &opts.photo_time {
-        crate::sun::parse_time(t).map_err(|e| Error { problem: format!("--photo-time: {}", e.problem), ..e })?;
+        crate::sun::parse_time(t).map_err(|e| Error {
+            problem: format!("--photo-time: {}", e.problem),
+            ..e
+        })?;
     }
     progress.phase(6, "ingest");
     let dem_src = io::read_raster(&opts.dem)?;
@@ -104,10 +107,15 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
         warp(&opts.dem, &grid, opts.dem_resampling)?.to_elevation()?
     };
     progress.inc(1);
-    let filled = opts.fill_voids.then(|| fill::fill_voids(&mut elevation) as u64);
+    let filled = opts
+        .fill_voids
+        .then(|| fill::fill_voids(&mut elevation) as u64);
     let range_m = elevation.min_max().ok_or_else(|| {
-        Error::file(&opts.dem, "no valid elevation falls inside the database grid")
-            .fix("check --bounds, or the DEM's nodata value and extent")
+        Error::file(
+            &opts.dem,
+            "no valid elevation falls inside the database grid",
+        )
+        .fix("check --bounds, or the DEM's nodata value and extent")
     })?;
     let colour = if ortho_src.grid.crs.same_as(&grid.crs) {
         resample::resample_colour(&ortho_src.to_colour()?, &grid)
@@ -115,23 +123,38 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
         // The photo's lattice has no exact size in the target CRS: its extent over its columns
         // and rows there decides coarsening against refining, as for a native photo.
         let ob = extent_in(&ortho_src, &grid.crs, &dem_src.grid.crs)?;
-        let (px, py) = (ob.width() / ortho_src.grid.width as f64, ob.height() / ortho_src.grid.height as f64);
-        let method = resample::colour_method(grid.transform.cell_x.abs() / px, grid.transform.cell_y.abs() / py);
+        let (px, py) = (
+            ob.width() / ortho_src.grid.width as f64,
+            ob.height() / ortho_src.grid.height as f64,
+        );
+        let method = resample::colour_method(
+            grid.transform.cell_x.abs() / px,
+            grid.transform.cell_y.abs() / py,
+        );
         warp(&opts.ortho, &grid, method)?.to_colour()?
     };
     drop(ortho_src);
     progress.inc(1);
 
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e).fix("choose a writable output directory"))?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| Error::io(out, e).fix("choose a writable output directory"))?;
     io::geotiff::write_f32(&out.join("elevation.tif"), &elevation)?;
     io::geotiff::write_rgba8(&out.join("colour.tif"), &colour)?;
     progress.inc(1);
 
-    let inputs = vec![input_file("dem", &opts.dem)?, input_file("ortho", &opts.ortho)?];
+    let inputs = vec![
+        input_file("dem", &opts.dem)?,
+        input_file("ortho", &opts.ortho)?,
+    ];
     let mut database = Database::create(out, grid.clone(), inputs)?;
     let elevation_nodata = elevation.nodata_count() as u64;
     let colour_nodata = colour.nodata_count() as u64;
-    database.set_layer(db::ELEVATION, "elevation", "elevation.tif", Some(elevation_nodata))?;
+    database.set_layer(
+        db::ELEVATION,
+        "elevation",
+        "elevation.tif",
+        Some(elevation_nodata),
+    )?;
     database.set_layer(db::COLOUR, "colour", "colour.tif", Some(colour_nodata))?;
     database.record_stage(Stage::now(
         "ingest",
@@ -148,13 +171,25 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     Ok(IngestSummary {
         database: out.to_path_buf(),
         grid,
-        elevation: LayerSummary { nodata_cells: elevation_nodata, filled_cells: filled, range_m: Some(range_m) },
-        colour: LayerSummary { nodata_cells: colour_nodata, filled_cells: None, range_m: None },
+        elevation: LayerSummary {
+            nodata_cells: elevation_nodata,
+            filled_cells: filled,
+            range_m: Some(range_m),
+        },
+        colour: LayerSummary {
+            nodata_cells: colour_nodata,
+            filled_cells: None,
+            range_m: None,
+        },
     })
 }
 
 fn input_file(role: &str, path: &Path) -> Result<InputFile> {
-    Ok(InputFile { role: role.to_string(), path: path.display().to_string(), sha256: db::sha256_file(path)? })
+    Ok(InputFile {
+        role: role.to_string(),
+        path: path.display().to_string(),
+        sha256: db::sha256_file(path)?,
+    })
 }
 
 /// The database CRS: `--t-srs` (GDAL builds), else the DEM's, else (DEM without CRS) the photo's.
@@ -163,10 +198,16 @@ fn target_crs(opts: &IngestOptions, dem: &SourceRaster, ortho: &SourceRaster) ->
         #[cfg(feature = "gdal")]
         return reproject::crs_from_definition(def);
         #[cfg(not(feature = "gdal"))]
-        return Err(Error::msg(format!("--t-srs {def} needs reprojection, which this build lacks"))
-            .fix("build dbms with --features gdal, or reproject the inputs with gdalwarp -t_srs"));
+        return Err(Error::msg(format!(
+            "--t-srs {def} needs reprojection, which this build lacks"
+        ))
+        .fix("build dbms with --features gdal, or reproject the inputs with gdalwarp -t_srs"));
     }
-    Ok(if dem.grid.crs.is_unknown() { ortho.grid.crs.clone() } else { dem.grid.crs.clone() })
+    Ok(if dem.grid.crs.is_unknown() {
+        ortho.grid.crs.clone()
+    } else {
+        dem.grid.crs.clone()
+    })
 }
 
 /// The extent of an input in the database CRS: its own, or (GDAL builds) carried across CRSs.
@@ -177,7 +218,8 @@ fn extent_in(src: &SourceRaster, target: &Crs, dem_crs: &Crs) -> Result<Bounds> 
     #[cfg(feature = "gdal")]
     {
         let _ = dem_crs;
-        reproject::transform_bounds(&src.grid.bounds(), &src.grid.crs, target).map_err(|e| e.in_file(&src.path))
+        reproject::transform_bounds(&src.grid.bounds(), &src.grid.crs, target)
+            .map_err(|e| e.in_file(&src.path))
     }
     #[cfg(not(feature = "gdal"))]
     Err(Error::file(&src.path, format!("orthophoto CRS {} differs from the DEM's {}", src.grid.crs.name(), dem_crs.name())).fix(format!(
@@ -196,13 +238,21 @@ fn warp(path: &Path, grid: &Grid, method: Resampling) -> Result<SourceRaster> {
     #[cfg(not(feature = "gdal"))]
     {
         let _ = (grid, method);
-        Err(Error::file(path, "is in another CRS and this build cannot reproject").fix("build dbms with --features gdal"))
+        Err(
+            Error::file(path, "is in another CRS and this build cannot reproject")
+                .fix("build dbms with --features gdal"),
+        )
     }
 }
 
 /// Decide the database grid from the inputs and options (see the module docs), checking CRSs,
 /// overlap, cell size and `max_cells`.
-pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions, target: &Crs) -> Result<Grid> {
+pub fn plan_grid(
+    dem: &SourceRaster,
+    ortho: &SourceRaster,
+    opts: &IngestOptions,
+    target: &Crs,
+) -> Result<Grid> {
     let crs = target.clone();
     let db = extent_in(dem, target, &dem.grid.crs)?;
     let ob = extent_in(ortho, target, &dem.grid.crs)?;
@@ -210,7 +260,8 @@ pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions,
     let photo_native = ortho.grid.crs.same_as(target);
     if let Some(cell) = opts.cell {
         if !(cell.is_finite() && cell > 0.0) {
-            return Err(Error::msg(format!("--cell {cell} is not a positive size")).fix("give the cell size in metres, e.g. --cell 0.5"));
+            return Err(Error::msg(format!("--cell {cell} is not a positive size"))
+                .fix("give the cell size in metres, e.g. --cell 0.5"));
         }
         if crs.geographic {
             return Err(Error::file(&opts.dem, format!("the database CRS is geographic (degrees, {}) but --cell is in metres", crs.name()))
@@ -218,11 +269,22 @@ pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions,
         }
     }
     let overlap = db.intersection(&ob).ok_or_else(|| {
-        Error::file(&opts.ortho, format!("orthophoto extent {} does not overlap the DEM's {}", show(&ob), show(&db)))
-            .fix("check that both files cover the same area in the same CRS")
+        Error::file(
+            &opts.ortho,
+            format!(
+                "orthophoto extent {} does not overlap the DEM's {}",
+                show(&ob),
+                show(&db)
+            ),
+        )
+        .fix("check that both files cover the same area in the same CRS")
     })?;
     let ot = &ortho.grid.transform;
-    let photo_cell = if photo_native { ot.cell_x.abs() } else { ob.width() / ortho.grid.width as f64 };
+    let photo_cell = if photo_native {
+        ot.cell_x.abs()
+    } else {
+        ob.width() / ortho.grid.width as f64
+    };
     let grid = match (opts.bounds, opts.cell) {
         (Some(b), cell) => {
             let cell = cell.unwrap_or(photo_cell);
@@ -235,7 +297,11 @@ pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions,
             let (cx, cy) = (ot.cell_x.abs(), ot.cell_y.abs());
             let snap = |v: f64, origin: f64, c: f64, up: bool| {
                 let k = (v - origin) / c;
-                let k = if up { (k - 1e-9).ceil() } else { (k + 1e-9).floor() };
+                let k = if up {
+                    (k - 1e-9).ceil()
+                } else {
+                    (k + 1e-9).floor()
+                };
                 origin + k * c
             };
             let b = Bounds {
@@ -245,8 +311,11 @@ pub fn plan_grid(dem: &SourceRaster, ortho: &SourceRaster, opts: &IngestOptions,
                 max_y: snap(overlap.max_y, ob.max_y, cy, false),
             };
             if !(b.min_x < b.max_x && b.min_y < b.max_y) {
-                return Err(Error::file(&opts.ortho, "the DEM and orthophoto overlap by less than one photo cell")
-                    .fix("check that both files cover the same area"));
+                return Err(Error::file(
+                    &opts.ortho,
+                    "the DEM and orthophoto overlap by less than one photo cell",
+                )
+                .fix("check that both files cover the same area"));
             }
             with_cells(&b, cx, cy, crs)?
         }

@@ -45,7 +45,11 @@ pub enum Resampling {
 type Taps = Vec<(u32, f64)>;
 
 /// The source index containing each target centre along one axis, if inside the source.
-fn axis_homes(n_target: usize, n_source: usize, centre_px: impl Fn(usize) -> f64) -> Vec<Option<u32>> {
+fn axis_homes(
+    n_target: usize,
+    n_source: usize,
+    centre_px: impl Fn(usize) -> f64,
+) -> Vec<Option<u32>> {
     (0..n_target)
         .map(|i| {
             let p = centre_px(i);
@@ -58,7 +62,13 @@ fn axis_homes(n_target: usize, n_source: usize, centre_px: impl Fn(usize) -> f64
 ///
 /// `centre_px(i)` is target index `i`'s centre in source pixel space (corner convention);
 /// `scale` is target cell / source cell along this axis (> 1 when coarsening).
-fn axis_taps(method: Resampling, n_target: usize, n_source: usize, scale: f64, centre_px: impl Fn(usize) -> f64) -> Vec<Taps> {
+fn axis_taps(
+    method: Resampling,
+    n_target: usize,
+    n_source: usize,
+    scale: f64,
+    centre_px: impl Fn(usize) -> f64,
+) -> Vec<Taps> {
     let n = n_source as i64;
     let widen = scale.max(1.0);
     (0..n_target)
@@ -67,10 +77,16 @@ fn axis_taps(method: Resampling, n_target: usize, n_source: usize, scale: f64, c
             let inside = p >= 0.0 && p < n_source as f64;
             match method {
                 Resampling::Nearest => {
-                    if inside { vec![(p.floor() as u32, 1.0)] } else { Vec::new() }
+                    if inside {
+                        vec![(p.floor() as u32, 1.0)]
+                    } else {
+                        Vec::new()
+                    }
                 }
                 Resampling::Bilinear | Resampling::Cubic if !inside => Vec::new(),
-                Resampling::Bilinear => kernel_taps(p - 0.5, widen, 1.0, n, |x| (1.0 - x.abs()).max(0.0)),
+                Resampling::Bilinear => {
+                    kernel_taps(p - 0.5, widen, 1.0, n, |x| (1.0 - x.abs()).max(0.0))
+                }
                 Resampling::Cubic => kernel_taps(p - 0.5, widen, 2.0, n, keys_cubic),
                 Resampling::Average => {
                     let (lo, hi) = (p - scale / 2.0, p + scale / 2.0);
@@ -128,17 +144,29 @@ impl Plan {
         let (st, dt) = (&src.transform, &dst.transform);
         let scale_x = (dt.cell_x / st.cell_x).abs();
         let scale_y = (dt.cell_y / st.cell_y).abs();
-        let col_px = |c: usize| (dt.origin_x + (c as f64 + 0.5) * dt.cell_x - st.origin_x) / st.cell_x;
-        let row_px = |r: usize| (dt.origin_y + (r as f64 + 0.5) * dt.cell_y - st.origin_y) / st.cell_y;
+        let col_px =
+            |c: usize| (dt.origin_x + (c as f64 + 0.5) * dt.cell_x - st.origin_x) / st.cell_x;
+        let row_px =
+            |r: usize| (dt.origin_y + (r as f64 + 0.5) * dt.cell_y - st.origin_y) / st.cell_y;
         let cols = axis_taps(method, dst.width, src.width, scale_x, col_px);
         let rows = axis_taps(method, dst.height, src.height, scale_y, row_px);
-        let homes = (method != Resampling::Average)
-            .then(|| (axis_homes(dst.width, src.width, col_px), axis_homes(dst.height, src.height, row_px)));
+        let homes = (method != Resampling::Average).then(|| {
+            (
+                axis_homes(dst.width, src.width, col_px),
+                axis_homes(dst.height, src.height, row_px),
+            )
+        });
         Plan { cols, rows, homes }
     }
 
     /// Is the source cell containing target cell `(c, r)`'s centre valid (methods with a home)?
-    fn home_valid<T>(&self, src: &Raster<T>, c: usize, r: usize, valid: impl Fn(&T) -> bool) -> bool {
+    fn home_valid<T>(
+        &self,
+        src: &Raster<T>,
+        c: usize,
+        r: usize,
+        valid: impl Fn(&T) -> bool,
+    ) -> bool {
         match &self.homes {
             None => true,
             Some((hx, hy)) => match (hx[c], hy[r]) {
@@ -194,25 +222,28 @@ fn accumulate<T, const N: usize>(
 pub fn resample_elevation(src: &Elevation, dst: &Grid, method: Resampling) -> Elevation {
     let plan = Plan::new(method, &src.grid, dst);
     // Cubic falls back to bilinear near nodata and edges.
-    let fallback = (method == Resampling::Cubic).then(|| Plan::new(Resampling::Bilinear, &src.grid, dst));
+    let fallback =
+        (method == Resampling::Cubic).then(|| Plan::new(Resampling::Bilinear, &src.grid, dst));
     let full_support = |xt: &Taps, yt: &Taps| xt.len() >= 4 && yt.len() >= 4;
     let sample = |v: &f32| (!v.is_nan()).then_some([*v as f64]);
     let mut out = vec![f32::NAN; dst.len()];
-    out.par_chunks_mut(dst.width.max(1)).enumerate().for_each(|(r, row)| {
-        for (c, cell) in row.iter_mut().enumerate() {
-            if !plan.home_valid(src, c, r, |v| !v.is_nan()) {
-                continue;
-            }
-            let (xt, yt) = (&plan.cols[c], &plan.rows[r]);
-            let (mut v, all_valid) = accumulate(src, xt, yt, sample);
-            if let Some(fb) = &fallback {
-                if !(all_valid && full_support(xt, yt)) {
-                    v = accumulate(src, &fb.cols[c], &fb.rows[r], sample).0;
+    out.par_chunks_mut(dst.width.max(1))
+        .enumerate()
+        .for_each(|(r, row)| {
+            for (c, cell) in row.iter_mut().enumerate() {
+                if !plan.home_valid(src, c, r, |v| !v.is_nan()) {
+                    continue;
                 }
+                let (xt, yt) = (&plan.cols[c], &plan.rows[r]);
+                let (mut v, all_valid) = accumulate(src, xt, yt, sample);
+                if let Some(fb) = &fallback {
+                    if !(all_valid && full_support(xt, yt)) {
+                        v = accumulate(src, &fb.cols[c], &fb.rows[r], sample).0;
+                    }
+                }
+                *cell = v.map_or(f32::NAN, |v| v[0] as f32);
             }
-            *cell = v.map_or(f32::NAN, |v| v[0] as f32);
-        }
-    });
+        });
     Raster::new(dst.clone(), out)
 }
 
@@ -236,17 +267,19 @@ pub fn resample_colour(src: &Colour, dst: &Grid) -> Colour {
     let plan = Plan::new(method, &src.grid, dst);
     let sample = |p: &[u8; 4]| (p[3] != 0).then(|| [p[0] as f64, p[1] as f64, p[2] as f64]);
     let mut out = vec![[0u8; 4]; dst.len()];
-    out.par_chunks_mut(dst.width.max(1)).enumerate().for_each(|(r, row)| {
-        for (c, cell) in row.iter_mut().enumerate() {
-            if !plan.home_valid(src, c, r, |p| p[3] != 0) {
-                continue;
+    out.par_chunks_mut(dst.width.max(1))
+        .enumerate()
+        .for_each(|(r, row)| {
+            for (c, cell) in row.iter_mut().enumerate() {
+                if !plan.home_valid(src, c, r, |p| p[3] != 0) {
+                    continue;
+                }
+                if let Some(v) = accumulate(src, &plan.cols[c], &plan.rows[r], sample).0 {
+                    let q = |x: f64| (x + 0.5).floor().clamp(0.0, 255.0) as u8;
+                    *cell = [q(v[0]), q(v[1]), q(v[2]), 255];
+                }
             }
-            if let Some(v) = accumulate(src, &plan.cols[c], &plan.rows[r], sample).0 {
-                let q = |x: f64| (x + 0.5).floor().clamp(0.0, 255.0) as u8;
-                *cell = [q(v[0]), q(v[1]), q(v[2]), 255];
-            }
-        }
-    });
+        });
     Raster::new(dst.clone(), out)
 }
 
@@ -266,7 +299,9 @@ mod tests {
         for r in 0..g.height {
             for col in 0..g.width {
                 let (x, y) = g.cell_centre(col, r);
-                data.push((a + b * (x - g.transform.origin_x) + c * (y - g.transform.origin_y)) as f32);
+                data.push(
+                    (a + b * (x - g.transform.origin_x) + c * (y - g.transform.origin_y)) as f32,
+                );
             }
         }
         Raster::new(g.clone(), data)
@@ -274,7 +309,12 @@ mod tests {
 
     #[test]
     fn bilinear_and_cubic_reproduce_a_plane_at_utm_coordinates() {
-        let src = plane(&grid(500_000.0, 5_300_000.0, 1.0, 20, 20), 100.0, 0.1, -0.05);
+        let src = plane(
+            &grid(500_000.0, 5_300_000.0, 1.0, 20, 20),
+            100.0,
+            0.1,
+            -0.05,
+        );
         let dst = grid(500_002.0, 5_299_998.0, 0.25, 60, 60);
         for m in [Resampling::Bilinear, Resampling::Cubic] {
             let out = resample_elevation(&src, &dst, m);
@@ -283,7 +323,11 @@ mod tests {
             let off = 0.1 * (dst.transform.origin_x - src.grid.transform.origin_x)
                 - 0.05 * (dst.transform.origin_y - src.grid.transform.origin_y);
             for (o, t) in out.data.iter().zip(&truth.data) {
-                assert!((*o as f64 - (*t as f64 + off)).abs() < 1e-3, "{m:?}: {o} vs {}", *t as f64 + off);
+                assert!(
+                    (*o as f64 - (*t as f64 + off)).abs() < 1e-3,
+                    "{m:?}: {o} vs {}",
+                    *t as f64 + off
+                );
             }
         }
     }
@@ -301,11 +345,15 @@ mod tests {
         }
         // A target cell between the hole and valid cells takes only valid values.
         let half = grid(0.0, 4.0, 0.5, 8, 8);
-        let out = resample_elevation(&Raster::new(g.clone(), {
-            let mut d = vec![10.0f32; 16];
-            d[5] = f32::NAN;
-            d
-        }), &half, Resampling::Bilinear);
+        let out = resample_elevation(
+            &Raster::new(g.clone(), {
+                let mut d = vec![10.0f32; 16];
+                d[5] = f32::NAN;
+                d
+            }),
+            &half,
+            Resampling::Bilinear,
+        );
         assert!(out.data.iter().all(|v| v.is_nan() || *v == 10.0));
     }
 
@@ -313,7 +361,12 @@ mod tests {
     fn outside_the_source_is_nodata_not_extrapolated() {
         let src = Raster::filled(grid(0.0, 4.0, 1.0, 4, 4), 5.0f32);
         let dst = grid(-2.0, 6.0, 1.0, 8, 8);
-        for m in [Resampling::Nearest, Resampling::Bilinear, Resampling::Cubic, Resampling::Average] {
+        for m in [
+            Resampling::Nearest,
+            Resampling::Bilinear,
+            Resampling::Cubic,
+            Resampling::Average,
+        ] {
             let out = resample_elevation(&src, &dst, m);
             assert_eq!(out.data.iter().filter(|v| !v.is_nan()).count(), 16, "{m:?}");
             assert!(out.get(0, 0).is_nan() && *out.get(2, 2) == 5.0);
@@ -323,12 +376,26 @@ mod tests {
     #[test]
     fn colour_average_is_exact_area_mean_and_ignores_nodata() {
         let g = grid(0.0, 2.0, 1.0, 2, 2);
-        let src = Raster::new(g, vec![[0, 0, 0, 255], [255, 255, 255, 255], [100, 50, 0, 255], [9, 9, 9, 0]]);
+        let src = Raster::new(
+            g,
+            vec![
+                [0, 0, 0, 255],
+                [255, 255, 255, 255],
+                [100, 50, 0, 255],
+                [9, 9, 9, 0],
+            ],
+        );
         let out = resample_colour(&src, &grid(0.0, 2.0, 2.0, 1, 1));
         // Mean of the three valid cells: r (0+255+100)/3 = 118.3, g 305/3 = 101.7, b 255/3 = 85.
         assert_eq!(out.data[0], [118, 102, 85, 255]);
         let copy = resample_colour(&src, &src.grid);
-        assert_eq!(copy.data, src.data.iter().map(|p| if p[3] == 0 { [0; 4] } else { *p }).collect::<Vec<_>>());
+        assert_eq!(
+            copy.data,
+            src.data
+                .iter()
+                .map(|p| if p[3] == 0 { [0; 4] } else { *p })
+                .collect::<Vec<_>>()
+        );
     }
 
     proptest! {

@@ -426,14 +426,23 @@ impl GeoTags {
     fn crs(&self, path: &Path) -> Result<(Crs, bool)> {
         let (mut crs, point) = self.crs_without_units(path)?;
         let keys = self.keys(path)?;
-        let short = |id| keys.iter().find_map(|(k, v)| match v {
-            KeyValue::Short(s) if *k == id => Some(*s),
-            _ => None,
-        });
+        let short = |id| {
+            keys.iter().find_map(|(k, v)| match v {
+                KeyValue::Short(s) if *k == id => Some(*s),
+                _ => None,
+            })
+        };
         let unit = |code: u16| match code {
             key::USER_DEFINED => keys.iter().find_map(|(k, v)| match v {
-                KeyValue::Doubles(d) if *k == key::PROJ_LINEAR_UNIT_SIZE && d.len() == 1 && (d[0] - 1.0).abs() > 1e-9 => {
-                    Some(crate::crs::ForeignUnit { name: "a user-defined unit".into(), metres: d[0] })
+                KeyValue::Doubles(d)
+                    if *k == key::PROJ_LINEAR_UNIT_SIZE
+                        && d.len() == 1
+                        && (d[0] - 1.0).abs() > 1e-9 =>
+                {
+                    Some(crate::crs::ForeignUnit {
+                        name: "a user-defined unit".into(),
+                        metres: d[0],
+                    })
                 }
                 _ => None,
             }),
@@ -1234,19 +1243,43 @@ mod tests {
     /// the unit is kept so ingest refuses feet; metres and degrees leave nothing to refuse.
     #[test]
     fn geokeys_linear_and_vertical_units() {
-        let tags = |keys: &[u16]| GeoTags { geokeys: Some(keys.to_vec()), ..Default::default() };
-        let feet = tags(&[1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 2277, 3076, 0, 1, 9003]);
+        let tags = |keys: &[u16]| GeoTags {
+            geokeys: Some(keys.to_vec()),
+            ..Default::default()
+        };
+        let feet = tags(&[
+            1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 2277, 3076, 0, 1, 9003,
+        ]);
         let (crs, _) = feet.crs(Path::new("x")).unwrap();
         assert_eq!(crs.epsg, Some(2277));
         assert_eq!(crs.foreign_unit.as_ref().unwrap().name, "US survey foot");
-        let e = crs.require_metric_coordinates(Path::new("dem.tif")).unwrap_err().to_string();
-        assert!(e.contains("US survey foot") && e.contains("gdalwarp -t_srs"), "{e}");
-        let metres = tags(&[1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32614, 3076, 0, 1, 9001]);
+        let e = crs
+            .require_metric_coordinates(Path::new("dem.tif"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("US survey foot") && e.contains("gdalwarp -t_srs"),
+            "{e}"
+        );
+        let metres = tags(&[
+            1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32614, 3076, 0, 1, 9001,
+        ]);
         let (crs, _) = metres.crs(Path::new("x")).unwrap();
-        assert!(crs.require_metric_coordinates(Path::new("x")).is_ok() && crs.require_metric_heights(Path::new("x")).is_ok());
-        let heights_in_feet = tags(&[1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32614, 4099, 0, 1, 9002]);
+        assert!(
+            crs.require_metric_coordinates(Path::new("x")).is_ok()
+                && crs.require_metric_heights(Path::new("x")).is_ok()
+        );
+        let heights_in_feet = tags(&[
+            1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32614, 4099, 0, 1, 9002,
+        ]);
         let (crs, _) = heights_in_feet.crs(Path::new("x")).unwrap();
-        assert_eq!((crs.foreign_unit.is_none(), crs.vertical_unit.unwrap().metres), (true, 0.3048));
+        assert_eq!(
+            (
+                crs.foreign_unit.is_none(),
+                crs.vertical_unit.unwrap().metres
+            ),
+            (true, 0.3048)
+        );
     }
 
     #[test]

@@ -43,14 +43,22 @@ impl<'a> Level0<'a> {
         raised: &'a Raised,
         effects: Option<&'a Effects<'a>>,
     ) -> Level0<'a> {
-        Level0 { terrain, colour, raised, effects, half_valid: AtomicUsize::new(0) }
+        Level0 {
+            terrain,
+            colour,
+            raised,
+            effects,
+            half_valid: AtomicUsize::new(0),
+        }
     }
 
     /// Level-0 rows `row0 .. row0 + rows` and the columns of their partial cells.
     pub fn band(&self, row0: usize, rows: usize) -> Result<Band> {
         let w = self.terrain.grid().width;
-        let (terrain, colour) =
-            rayon::join(|| self.terrain.read_rows(row0, rows), || self.colour.read_rows(row0, rows));
+        let (terrain, colour) = rayon::join(
+            || self.terrain.read_rows(row0, rows),
+            || self.colour.read_rows(row0, rows),
+        );
         let (terrain, colour) = (terrain?, colour?);
         let mut out = BaseRows::nodata(w, rows);
         let half_valid: usize = out
@@ -74,7 +82,11 @@ impl<'a> Level0<'a> {
                         Some(rc) => {
                             zs[col] = rc.top_z;
                             cs[col] = rc.colour.unwrap_or(c);
-                            ss[col] = if rc.partial { STATE_PARTIAL } else { STATE_OPAQUE };
+                            ss[col] = if rc.partial {
+                                STATE_PARTIAL
+                            } else {
+                                STATE_OPAQUE
+                            };
                         }
                         None => {
                             zs[col] = z;
@@ -112,12 +124,19 @@ impl<'a> Level0<'a> {
             .map(|rc| {
                 let k = rc.index - start;
                 let factor = factors.map_or(1.0, |f| f[k]);
-                let runs = self.raised.runs(rc.index).expect("a partial raised cell has runs");
+                let runs = self
+                    .raised
+                    .runs(rc.index)
+                    .expect("a partial raised cell has runs");
                 let runs = runs
                     .iter()
                     .map(|r| {
                         let [red, green, blue, _] = r.colour.unwrap_or(photo[k]);
-                        Run { bottom: r.bottom, top: r.top, colour: lit([red, green, blue, 255], factor) }
+                        Run {
+                            bottom: r.bottom,
+                            top: r.top,
+                            colour: lit([red, green, blue, 255], factor),
+                        }
                     })
                     .collect();
                 (k, runs)
@@ -136,9 +155,9 @@ impl<'a> Level0<'a> {
 mod tests {
     use super::*;
     use crate::crs::Crs;
-    use crate::raster::{Colour, Elevation};
     use crate::grid::Grid;
     use crate::pyramid::raised::{PlacedVoxels, RaisedCell};
+    use crate::raster::{Colour, Elevation};
     use crate::tiles::STATE_EMPTY;
 
     #[test]

@@ -142,7 +142,10 @@ pub fn build_pyramid(
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
     let prism_cells = match db.manifest.layers.contains_key("buildings") {
-        true => raised::rasterise_prisms(&grid, &raised::read_buildings(&db.layer_path("buildings")?)?),
+        true => raised::rasterise_prisms(
+            &grid,
+            &raised::read_buildings(&db.layer_path("buildings")?)?,
+        ),
         false => Vec::new(),
     };
     let mut placed_objects = Vec::new();

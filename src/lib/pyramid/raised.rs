@@ -53,7 +53,11 @@ pub struct TerrainSample {
 impl TerrainSample {
     /// Sample `terrain` at `indices` (any order, repeats allowed), reading only the bands of
     /// `band_rows` rows that hold one of them.
-    pub fn read(terrain: &dyn RowSource<f32>, mut indices: Vec<usize>, band_rows: usize) -> Result<TerrainSample> {
+    pub fn read(
+        terrain: &dyn RowSource<f32>,
+        mut indices: Vec<usize>,
+        band_rows: usize,
+    ) -> Result<TerrainSample> {
         indices.par_sort_unstable();
         indices.dedup();
         let (w, h) = (terrain.grid().width, terrain.grid().height);
@@ -70,7 +74,10 @@ impl TerrainSample {
 
 impl TerrainAt for TerrainSample {
     fn at(&self, index: usize) -> f32 {
-        let k = self.cells.binary_search_by_key(&index, |c| c.0).expect("the cell was sampled");
+        let k = self
+            .cells
+            .binary_search_by_key(&index, |c| c.0)
+            .expect("the cell was sampled");
         self.cells[k].1
     }
 }
@@ -394,7 +401,11 @@ pub struct PlacedVoxels {
 /// The cells an object marks (see the module doc for the footprint), sorted: the cells whose
 /// terrain [`Raised::objects`] needs.
 pub fn object_cells(grid: &Grid, obj: &PlacedVoxels) -> Vec<usize> {
-    let mut cells: Vec<usize> = obj.voxels.par_iter().flat_map_iter(|v| voxel_cells(grid, obj, v.0)).collect();
+    let mut cells: Vec<usize> = obj
+        .voxels
+        .par_iter()
+        .flat_map_iter(|v| voxel_cells(grid, obj, v.0))
+        .collect();
     cells.par_sort_unstable();
     cells.dedup();
     cells
@@ -407,12 +418,19 @@ fn object_pieces(grid: &Grid, obj: &PlacedVoxels, terrain: &impl TerrainAt) -> V
     obj.voxels
         .par_iter()
         .flat_map_iter(|&(local, [r, g, b])| {
-            let (bottom, top) = (obj.origin[2] + local[2] - half, obj.origin[2] + local[2] + half);
+            let (bottom, top) = (
+                obj.origin[2] + local[2] - half,
+                obj.origin[2] + local[2] + half,
+            );
             voxel_cells(grid, obj, local).into_iter().map(move |index| {
                 let grounded = bottom <= terrain.at(index) as f64 + half;
                 Piece {
                     index,
-                    bottom: if grounded { f32::NEG_INFINITY } else { bottom as f32 },
+                    bottom: if grounded {
+                        f32::NEG_INFINITY
+                    } else {
+                        bottom as f32
+                    },
                     top: top as f32,
                     colour: Some([r, g, b, 255]),
                 }
@@ -437,7 +455,8 @@ fn voxel_cells(grid: &Grid, obj: &PlacedVoxels, [u, v, _]: [f64; 3]) -> Vec<usiz
     let (px0, py0) = grid.transform.world_to_pixel(wx - rad, wy + rad);
     let (px1, py1) = grid.transform.world_to_pixel(wx + rad, wy - rad);
     let lo = |a: f64, b: f64| (a.min(b) - 0.5).ceil().max(0.0) as usize;
-    let hi = |a: f64, b: f64, n: usize| ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
+    let hi =
+        |a: f64, b: f64, n: usize| ((a.max(b) - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
     for row in lo(py0, py1)..hi(py0, py1, grid.height) {
         for col in lo(px0, px1)..hi(px0, px1, grid.width) {
             let (x, y) = grid.cell_centre(col, row);
@@ -723,23 +742,53 @@ mod tests {
     #[test]
     fn a_terrain_sample_raises_the_same_as_the_whole_terrain() {
         let g = Grid::north_up(0.0, 30.0, 1.0, 30, 30, Crs::unknown());
-        let t = Elevation::new(g.clone(), (0..900).map(|i| if i % 97 == 0 { f32::NAN } else { 100.0 + (i % 7) as f32 * 0.3 }).collect());
+        let t = Elevation::new(
+            g.clone(),
+            (0..900)
+                .map(|i| {
+                    if i % 97 == 0 {
+                        f32::NAN
+                    } else {
+                        100.0 + (i % 7) as f32 * 0.3
+                    }
+                })
+                .collect(),
+        );
         let arch = PlacedVoxels {
             origin: [12.3, 17.8, 100.0],
             heading_deg: 33.0,
             voxel_size: 0.7,
-            voxels: (0..40).map(|k| ([(k % 8) as f64 * 0.7 - 2.5, (k / 8) as f64 * 0.7, if k % 3 == 0 { 3.2 } else { 0.35 }], [k as u8, 1, 2])).collect(),
+            voxels: (0..40)
+                .map(|k| {
+                    (
+                        [
+                            (k % 8) as f64 * 0.7 - 2.5,
+                            (k / 8) as f64 * 0.7,
+                            if k % 3 == 0 { 3.2 } else { 0.35 },
+                        ],
+                        [k as u8, 1, 2],
+                    )
+                })
+                .collect(),
         };
-        let prism = Prism { rings: vec![square(2.0, 2.0, 9.0, 6.0)], roof_z: 106.0 };
+        let prism = Prism {
+            rings: vec![square(2.0, 2.0, 9.0, 6.0)],
+            roof_z: 106.0,
+        };
         let prism_cells = rasterise_prisms(&g, &[prism]);
         let mut wanted: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
         wanted.extend(object_cells(&g, &arch));
         for band_rows in [1, 4, 64] {
             let sample = TerrainSample::read(&t, wanted.clone(), band_rows).unwrap();
-            let from_sample = Raised::new(prism_cells.clone(), &sample).union(&Raised::objects(&g, &[arch.clone()], &sample), &sample);
-            let from_whole = Raised::new(prism_cells.clone(), &t).union(&Raised::objects(&g, &[arch.clone()], &t), &t);
+            let from_sample = Raised::new(prism_cells.clone(), &sample)
+                .union(&Raised::objects(&g, &[arch.clone()], &sample), &sample);
+            let from_whole = Raised::new(prism_cells.clone(), &t)
+                .union(&Raised::objects(&g, &[arch.clone()], &t), &t);
             assert_eq!(from_sample, from_whole, "bands of {band_rows} rows");
-            assert!(from_whole.cells().iter().any(|c| c.partial), "the test needs an overhang");
+            assert!(
+                from_whole.cells().iter().any(|c| c.partial),
+                "the test needs an overhang"
+            );
         }
     }
 

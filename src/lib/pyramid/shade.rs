@@ -220,8 +220,16 @@ impl ShadowBits {
         while let Some(r) = sweep.next_row() {
             let (b0, data) = &band;
             if !(r >= *b0 && (r - b0) * w < data.len()) {
-                let b0 = if upward { (r + 1).saturating_sub(per_band) } else { r };
-                let n = if upward { r + 1 - b0 } else { per_band.min(h - r) };
+                let b0 = if upward {
+                    (r + 1).saturating_sub(per_band)
+                } else {
+                    r
+                };
+                let n = if upward {
+                    r + 1 - b0
+                } else {
+                    per_band.min(h - r)
+                };
                 band = (b0, terrain.read_rows(b0, n)?.into_owned());
             }
             let (b0, data) = &band;
@@ -435,7 +443,11 @@ impl Effects<'_> {
             return None;
         }
         let (c, r) = (col as usize, row as usize);
-        let z = if photo { surface.photo_height(c, r) } else { surface.new_height(c, r) };
+        let z = if photo {
+            surface.photo_height(c, r)
+        } else {
+            surface.new_height(c, r)
+        };
         (!z.is_nan() && surface.class(c, r) == class).then_some(z as f64)
     }
 
@@ -443,7 +455,11 @@ impl Effects<'_> {
     /// within the cell's class.
     fn normal(&self, surface: &Band, photo: bool, col: usize, row: usize) -> [f64; 3] {
         let g = self.terrain.grid();
-        let z = if photo { surface.photo_height(col, row) } else { surface.new_height(col, row) } as f64;
+        let z = if photo {
+            surface.photo_height(col, row)
+        } else {
+            surface.new_height(col, row)
+        } as f64;
         let class = surface.class(col, row);
         let (c, r) = (col as isize, row as isize);
         let (dx, dy) = g.cell_size();
@@ -492,9 +508,9 @@ impl Effects<'_> {
 mod tests {
     use super::*;
     use crate::crs::Crs;
-    use crate::raster::Elevation;
     use crate::grid::Grid;
     use crate::pyramid::raised::{rasterise_prisms, Prism, RaisedCell};
+    use crate::raster::Elevation;
 
     fn terrain(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Elevation {
         let g = Grid::north_up(0.0, h as f64, 1.0, w, h, Crs::unknown());
@@ -547,24 +563,22 @@ mod tests {
     fn slopes_facing_the_sun_brighten_and_facing_away_darken() {
         // Ridge along north-south at column 5: west side rises eastward, east side falls.
         let t = terrain(11, 5, |c, _| 10.0 - (c as f32 - 5.0).abs() * 0.3);
-        let fx = prepare(
-            Some(sun(40.0, 90.0)),
-            None,
-            0.4,
-            &t,
-            none(),
-            none(),
-            none(),
-        )
-        .unwrap()
-        .unwrap();
-        assert!(fx.factor_at(8, 2).unwrap() > 1.0, "east slope faces the eastern sun");
+        let fx = prepare(Some(sun(40.0, 90.0)), None, 0.4, &t, none(), none(), none())
+            .unwrap()
+            .unwrap();
+        assert!(
+            fx.factor_at(8, 2).unwrap() > 1.0,
+            "east slope faces the eastern sun"
+        );
         assert!(fx.factor_at(2, 2).unwrap() < 1.0, "west slope faces away");
         // n·s on the east slope: normal (0.3, 0, 1)/|.|, s = (cos40, 0, sin40).
         let n = [0.3 / 1.09f64.sqrt(), 0.0, 1.0 / 1.09f64.sqrt()];
         let s = 40f64.to_radians();
         let want = 0.4 + 0.6 * (n[0] * s.cos() + n[2] * s.sin()) / s.sin();
-        assert!((fx.factor_at(8, 2).unwrap() - want).abs() < 1e-6, "heights are f32");
+        assert!(
+            (fx.factor_at(8, 2).unwrap() - want).abs() < 1e-6,
+            "heights are f32"
+        );
     }
 
     #[test]
@@ -603,11 +617,9 @@ mod tests {
         let (t, b) = building_scene();
         let s = sun(35.0, 90.0);
         // Nothing raised: nothing at all to do.
-        assert!(
-            prepare(Some(s), Some(s), 0.5, &t, none(), none(), none())
-                .unwrap()
-                .is_none()
-        );
+        assert!(prepare(Some(s), Some(s), 0.5, &t, none(), none(), none())
+            .unwrap()
+            .is_none());
         let fx = prepare(Some(s), Some(s), 0.5, &t, &b, none(), &b)
             .unwrap()
             .unwrap();

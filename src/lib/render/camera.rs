@@ -72,15 +72,25 @@ impl Camera {
     /// Check the camera's numbers; errors name the option to fix.
     pub fn validate(&self) -> Result<()> {
         if !self.eye.iter().all(|c| c.is_finite()) {
-            return Err(Error::msg("--eye: coordinates must be finite numbers").fix("give X,Y,Z in the database's CRS units and metres"));
+            return Err(Error::msg("--eye: coordinates must be finite numbers")
+                .fix("give X,Y,Z in the database's CRS units and metres"));
         }
         let a = self.attitude;
-        if ![a.roll, a.pitch, a.yaw].iter().all(|c| c.is_finite()) || !(-90.0..=90.0).contains(&a.pitch) {
-            return Err(Error::msg(format!("--attitude {},{},{}: pitch must be in [-90, 90] and all angles finite", a.roll, a.pitch, a.yaw))
-                .fix("give ROLL,PITCH,YAW in degrees (yaw clockwise from north, pitch up positive)"));
+        if ![a.roll, a.pitch, a.yaw].iter().all(|c| c.is_finite())
+            || !(-90.0..=90.0).contains(&a.pitch)
+        {
+            return Err(Error::msg(format!(
+                "--attitude {},{},{}: pitch must be in [-90, 90] and all angles finite",
+                a.roll, a.pitch, a.yaw
+            ))
+            .fix("give ROLL,PITCH,YAW in degrees (yaw clockwise from north, pitch up positive)"));
         }
         if !(self.hfov > 0.0 && self.hfov < 180.0) {
-            return Err(Error::msg(format!("--fov {}: must be between 0 and 180 degrees", self.hfov)).fix("60 is a usual value"));
+            return Err(Error::msg(format!(
+                "--fov {}: must be between 0 and 180 degrees",
+                self.hfov
+            ))
+            .fix("60 is a usual value"));
         }
         check_size(self.width, self.height)
     }
@@ -114,7 +124,8 @@ impl Basis {
     pub fn direction(&self, i: usize, j: usize) -> [f64; 3] {
         let x = (2.0 * (i as f64 + 0.5) / self.width - 1.0) * self.half_w;
         let y = (1.0 - 2.0 * (j as f64 + 0.5) / self.height) * self.half_h;
-        let d: [f64; 3] = std::array::from_fn(|k| self.forward[k] + x * self.right[k] + y * self.up[k]);
+        let d: [f64; 3] =
+            std::array::from_fn(|k| self.forward[k] + x * self.right[k] + y * self.up[k]);
         let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         // An axis-aligned direction stays exact: dividing by a norm of exactly 1 is exact.
         d.map(|c| c / n)
@@ -124,7 +135,10 @@ impl Basis {
 /// Check an image size: both sides at least 1 and at most 16384 pixels.
 pub fn check_size(width: usize, height: usize) -> Result<()> {
     if width == 0 || height == 0 || width > 16384 || height > 16384 {
-        return Err(Error::msg(format!("--size {width}x{height}: each side must be 1 to 16384 pixels")).fix("e.g. --size 640x480"));
+        return Err(Error::msg(format!(
+            "--size {width}x{height}: each side must be 1 to 16384 pixels"
+        ))
+        .fix("e.g. --size 640x480"));
     }
     Ok(())
 }
@@ -134,15 +148,27 @@ mod tests {
     use super::*;
 
     fn cam(roll: f64, pitch: f64, yaw: f64) -> Camera {
-        Camera { eye: [0.0; 3], attitude: Attitude { roll, pitch, yaw }, hfov: 90.0, width: 3, height: 3 }
+        Camera {
+            eye: [0.0; 3],
+            attitude: Attitude { roll, pitch, yaw },
+            hfov: 90.0,
+            width: 3,
+            height: 3,
+        }
     }
 
     #[test]
     fn yaw_is_clockwise_from_north_and_exact_on_the_axes() {
         assert_eq!(cam(0.0, 0.0, 0.0).basis().direction(1, 1), [0.0, 1.0, 0.0]);
         assert_eq!(cam(0.0, 0.0, 90.0).basis().direction(1, 1), [1.0, 0.0, 0.0]);
-        assert_eq!(cam(0.0, 0.0, -90.0).basis().direction(1, 1), [-1.0, 0.0, 0.0]);
-        assert_eq!(cam(0.0, -90.0, 30.0).basis().direction(1, 1), [0.0, 0.0, -1.0]);
+        assert_eq!(
+            cam(0.0, 0.0, -90.0).basis().direction(1, 1),
+            [-1.0, 0.0, 0.0]
+        );
+        assert_eq!(
+            cam(0.0, -90.0, 30.0).basis().direction(1, 1),
+            [0.0, 0.0, -1.0]
+        );
     }
 
     #[test]

@@ -97,7 +97,14 @@ fn may_hit(ray: &Ray, t: f64, t_far: f64, max_z: f32) -> bool {
 /// `−inf` first). Returns the range, the face and the index of the run hit (0 for a solid
 /// column). A pure function of the cell.
 #[inline]
-fn level0_hit(ray: &Ray, span: Span, c: i64, r: i64, max_z: f32, runs: Option<&[Run]>) -> Option<(f64, Face, usize)> {
+fn level0_hit(
+    ray: &Ray,
+    span: Span,
+    c: i64,
+    r: i64,
+    max_z: f32,
+    runs: Option<&[Run]>,
+) -> Option<(f64, Face, usize)> {
     let (eu, ev) = (ray.u.entry(c), ray.v.entry(r));
     let (t_in, face) = if eu >= ev && eu >= span.t0 {
         (eu, Face::WallU)
@@ -111,12 +118,17 @@ fn level0_hit(ray: &Ray, span: Span, c: i64, r: i64, max_z: f32, runs: Option<&[
         return None;
     }
     match runs {
-        None => run_hit(ray, t_in, face, t_out, f64::NEG_INFINITY, max_z as f64).map(|(t, f)| (t, f, 0)),
+        None => {
+            run_hit(ray, t_in, face, t_out, f64::NEG_INFINITY, max_z as f64).map(|(t, f)| (t, f, 0))
+        }
         // z is monotone along the ray, so the earliest entry over the runs is the first run met.
         Some(runs) => runs
             .iter()
             .enumerate()
-            .filter_map(|(k, run)| run_hit(ray, t_in, face, t_out, run.bottom as f64, run.top as f64).map(|(t, f)| (t, f, k)))
+            .filter_map(|(k, run)| {
+                run_hit(ray, t_in, face, t_out, run.bottom as f64, run.top as f64)
+                    .map(|(t, f)| (t, f, k))
+            })
             .min_by(|a, b| a.0.total_cmp(&b.0)),
     }
 }
@@ -125,7 +137,14 @@ fn level0_hit(ray: &Ray, span: Span, c: i64, r: i64, max_z: f32, runs: Option<&[
 /// the solid run `bottom ..= top` metres: on the entry face when it enters inside the run's
 /// heights, else on the run's top (falling) or bottom (rising) if it reaches it in the cell.
 #[inline]
-fn run_hit(ray: &Ray, t_in: f64, face: Face, t_out: f64, bottom: f64, top: f64) -> Option<(f64, Face)> {
+fn run_hit(
+    ray: &Ray,
+    t_in: f64,
+    face: Face,
+    t_out: f64,
+    bottom: f64,
+    top: f64,
+) -> Option<(f64, Face)> {
     let (z_in, z_out) = (ray.z(t_in), ray.z(t_out));
     if z_in.min(z_out) > top || z_in.max(z_out) < bottom {
         return None;
@@ -162,10 +181,19 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
         let exit_u = ray.u.exit(cc, s);
         let t_exit = exit_u.min(ray.v.exit(rr, s));
         if l == 0 {
-            let runs = if cell.state == STATE_PARTIAL { Some(sampler.column(c, r)?) } else { None };
+            let runs = if cell.state == STATE_PARTIAL {
+                Some(sampler.column(c, r)?)
+            } else {
+                None
+            };
             if let Some((t_hit, f, k)) = level0_hit(ray, span, c, r, cell.max_z, runs) {
                 let colour = runs.map_or(cell.colour, |runs| runs[k].colour);
-                let hit = Hit { t: t_hit, colour, face: f, level: 0 };
+                let hit = Hit {
+                    t: t_hit,
+                    colour,
+                    face: f,
+                    level: 0,
+                };
                 return Ok((Some(coarse_colour(hit, c, r, sampler, plan)?), steps));
             }
         } else if may_hit(ray, t, t_exit.min(span.t1), cell.max_z) {
@@ -174,10 +202,24 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                 let (tc, fc) = if ray.z(t) <= mz {
                     (t, face)
                 } else {
-                    (ray.time_at_height(mz).unwrap_or(t).max(t).min(t_exit.min(span.t1)), Face::Top)
+                    (
+                        ray.time_at_height(mz)
+                            .unwrap_or(t)
+                            .max(t)
+                            .min(t_exit.min(span.t1)),
+                        Face::Top,
+                    )
                 };
                 if tc > th[l] {
-                    return Ok((Some(Hit { t: tc, colour: cell.colour, face: fc, level: l }), steps));
+                    return Ok((
+                        Some(Hit {
+                            t: tc,
+                            colour: cell.colour,
+                            face: fc,
+                            level: l,
+                        }),
+                        steps,
+                    ));
                 }
             }
             l -= 1;
@@ -186,7 +228,11 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
         if t_exit >= span.t1 {
             return Ok((None, steps));
         }
-        face = if exit_u == t_exit { Face::WallU } else { Face::WallV };
+        face = if exit_u == t_exit {
+            Face::WallU
+        } else {
+            Face::WallV
+        };
         let (oc, or) = (c, r);
         t = t_exit;
         c = ray.u.cell_at(t, c);
@@ -212,7 +258,11 @@ fn coarse_colour(hit: Hit, c: i64, r: i64, sampler: &mut Sampler, plan: &Plan) -
     };
     let s = plan.scales[l];
     Ok(match sampler.cell(l, c.div_euclid(s), r.div_euclid(s))? {
-        Some(cell) => Hit { colour: cell.colour, level: l, ..hit },
+        Some(cell) => Hit {
+            colour: cell.colour,
+            level: l,
+            ..hit
+        },
         None => hit,
     })
 }

@@ -29,8 +29,8 @@ pub use march::{Face, Hit, Plan, Span, Traversal};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_bytes_atomic;
 use crate::tiles::{ReaderStats, TileReader, STATE_PARTIAL};
-use rayon::prelude::*;
 use ray::{Axis, Ray};
+use rayon::prelude::*;
 use sampler::{ColumnCache, Sampler};
 use serde::Serialize;
 use std::collections::BTreeSet;
@@ -62,7 +62,13 @@ pub struct ViewOptions {
 
 impl Default for ViewOptions {
     fn default() -> Self {
-        ViewOptions { traversal: Traversal::Hierarchical, lod: true, repeat: false, visibility: None, max_range: None }
+        ViewOptions {
+            traversal: Traversal::Hierarchical,
+            lod: true,
+            repeat: false,
+            visibility: None,
+            max_range: None,
+        }
     }
 }
 
@@ -115,15 +121,22 @@ impl Scene {
     fn of(reader: &TileReader) -> Result<Scene> {
         let info = reader.info();
         if info.grid.crs.geographic {
-            return Err(Error::file(reader.path(), "the tile set's CRS is geographic (degrees); rendering needs metres on every axis")
-                .fix("ingest the database in a projected CRS such as UTM"));
+            return Err(Error::file(
+                reader.path(),
+                "the tile set's CRS is geographic (degrees); rendering needs metres on every axis",
+            )
+            .fix("ingest the database in a projected CRS such as UTM"));
         }
         let top = info.levels.len() - 1;
         let l = &info.levels[top];
         let mut z_max = f32::NAN;
         for ty in 0..l.pages_y {
             for tx in 0..l.pages_x {
-                z_max = reader.page(top, tx, ty)?.max_z.iter().fold(z_max, |m, &z| m.max(z));
+                z_max = reader
+                    .page(top, tx, ty)?
+                    .max_z
+                    .iter()
+                    .fold(z_max, |m, &z| m.max(z));
             }
         }
         let t = &info.grid.transform;
@@ -133,13 +146,18 @@ impl Scene {
             origin: [t.origin_x, t.origin_y],
             cell: [t.cell_x, t.cell_y],
             z_max: z_max as f64,
-            scales: (0..info.levels.len()).map(|k| (info.factor as i64).pow(k as u32)).collect(),
+            scales: (0..info.levels.len())
+                .map(|k| (info.factor as i64).pow(k as u32))
+                .collect(),
         })
     }
 
     /// The eye in local cell space.
     fn local(&self, x: f64, y: f64) -> (f64, f64) {
-        ((x - self.origin[0]) / self.cell[0], (y - self.origin[1]) / self.cell[1])
+        (
+            (x - self.origin[0]) / self.cell[0],
+            (y - self.origin[1]) / self.cell[1],
+        )
     }
 
     /// Coarsest level usable: every level, or with `repeat` those whose cells tile the plane.
@@ -147,7 +165,12 @@ impl Scene {
         let n = self.scales.len() - 1;
         match repeat {
             false => n,
-            true => (0..=n).take_while(|&k| self.width % self.scales[k] == 0 && self.height % self.scales[k] == 0).last().unwrap_or(0),
+            true => (0..=n)
+                .take_while(|&k| {
+                    self.width % self.scales[k] == 0 && self.height % self.scales[k] == 0
+                })
+                .last()
+                .unwrap_or(0),
         }
     }
 
@@ -180,10 +203,15 @@ impl Scene {
 pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> Result<Frame> {
     camera.validate()?;
     if let Some(v) = opts.visibility.filter(|v| !(*v > 0.0 && v.is_finite())) {
-        return Err(Error::msg(format!("--haze {v}: visibility must be a positive number of metres")).fix("e.g. --haze 5000"));
+        return Err(Error::msg(format!(
+            "--haze {v}: visibility must be a positive number of metres"
+        ))
+        .fix("e.g. --haze 5000"));
     }
     if let Some(r) = opts.max_range.filter(|r| r.is_nan() || *r <= 0.0) {
-        return Err(Error::msg(format!("--max-range {r}: must be a positive number of metres")));
+        return Err(Error::msg(format!(
+            "--max-range {r}: must be a positive number of metres"
+        )));
     }
     let start = Instant::now();
     let before = reader.stats();
@@ -191,8 +219,10 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     let [ex, ey, ez] = camera.eye;
     let (u0, v0) = scene.local(ex, ey);
     if u0.abs().max(v0.abs()) > MAX_EYE_CELLS {
-        return Err(Error::msg(format!("--eye {ex},{ey},{ez}: the eye is over {MAX_EYE_CELLS:e} cells from the database"))
-            .fix("give X,Y in the tile set's CRS (see `dbms tiles`)"));
+        return Err(Error::msg(format!(
+            "--eye {ex},{ey},{ez}: the eye is over {MAX_EYE_CELLS:e} cells from the database"
+        ))
+        .fix("give X,Y in the tile set's CRS (see `dbms tiles`)"));
     }
     check_eye_above_terrain(reader, opts.repeat, u0, v0, camera)?;
 
@@ -203,9 +233,19 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
         traversal: opts.traversal,
         top,
         scales: scene.scales.clone(),
-        thresholds: opts.lod.then(|| scene.scales.iter().map(|&s| s as f64 * cell_m / per_pixel).collect()),
+        thresholds: opts.lod.then(|| {
+            scene
+                .scales
+                .iter()
+                .map(|&s| s as f64 * cell_m / per_pixel)
+                .collect()
+        }),
     };
-    let max_range = opts.max_range.unwrap_or(if opts.repeat { REPEAT_RANGE_DIAGONALS * scene.diagonal_m() } else { f64::INFINITY });
+    let max_range = opts.max_range.unwrap_or(if opts.repeat {
+        REPEAT_RANGE_DIAGONALS * scene.diagonal_m()
+    } else {
+        f64::INFINITY
+    });
     let basis = camera.basis();
     let column_cache = ColumnCache::default();
     let rows: Vec<Row> = (0..camera.height)
@@ -215,7 +255,12 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
             let mut row = Row::new(camera.width);
             for i in 0..camera.width {
                 let d = basis.direction(i, j);
-                let ray = Ray { u: Axis::new(u0, d[0] / scene.cell[0]), v: Axis::new(v0, d[1] / scene.cell[1]), z0: ez, dz: d[2] };
+                let ray = Ray {
+                    u: Axis::new(u0, d[0] / scene.cell[0]),
+                    v: Axis::new(v0, d[1] / scene.cell[1]),
+                    z0: ez,
+                    dz: d[2],
+                };
                 let hit = match scene.span(&ray, opts.repeat, max_range) {
                     Some(span) => {
                         let (hit, steps) = march::march(&ray, span, &mut sampler, &plan)?;
@@ -230,25 +275,48 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
             Ok(row)
         })
         .collect::<Result<_>>()?;
-    Ok(assemble(camera.width, camera.height, rows, reader, before, start))
+    Ok(assemble(
+        camera.width,
+        camera.height,
+        rows,
+        reader,
+        before,
+        start,
+    ))
 }
 
 /// Error if the eye is inside the solid part of any level-0 column whose closed cell contains
 /// it: at or below the top of a height-field column, or within a run of a voxel column (the
 /// gap under an arch is open air).
-fn check_eye_above_terrain(reader: &TileReader, repeat: bool, u: f64, v: f64, camera: &Camera) -> Result<()> {
+fn check_eye_above_terrain(
+    reader: &TileReader,
+    repeat: bool,
+    u: f64,
+    v: f64,
+    camera: &Camera,
+) -> Result<()> {
     let near = |x: f64| {
         let k = x.floor() as i64;
-        if x == x.floor() { vec![k - 1, k] } else { vec![k] }
+        if x == x.floor() {
+            vec![k - 1, k]
+        } else {
+            vec![k]
+        }
     };
     let column_cache = ColumnCache::default();
     let mut sampler = Sampler::new(reader, repeat, &column_cache);
     for c in near(u) {
         for r in near(v) {
-            let Some(cell) = sampler.cell(0, c, r)? else { continue };
+            let Some(cell) = sampler.cell(0, c, r)? else {
+                continue;
+            };
             let [x, y, z] = camera.eye;
             if cell.state == STATE_PARTIAL {
-                if let Some(run) = sampler.column(c, r)?.iter().find(|run| z >= run.bottom as f64 && z <= run.top as f64) {
+                if let Some(run) = sampler
+                    .column(c, r)?
+                    .iter()
+                    .find(|run| z >= run.bottom as f64 && z <= run.top as f64)
+                {
                     return Err(Error::msg(format!(
                         "--eye {x},{y},{z}: the eye is inside a voxel column, solid there from {:.2} m to {:.2} m",
                         run.bottom, run.top
@@ -278,7 +346,13 @@ struct Row {
 
 impl Row {
     fn new(width: usize) -> Row {
-        Row { rgb: Vec::with_capacity(width), range: Vec::with_capacity(width), steps: 0, hits: 0, touched: BTreeSet::new() }
+        Row {
+            rgb: Vec::with_capacity(width),
+            range: Vec::with_capacity(width),
+            steps: 0,
+            hits: 0,
+            touched: BTreeSet::new(),
+        }
     }
 
     fn put(&mut self, hit: Option<Hit>, dz: f64, visibility: Option<f64>) {
@@ -296,7 +370,14 @@ impl Row {
     }
 }
 
-fn assemble(width: usize, height: usize, rows: Vec<Row>, reader: &TileReader, before: ReaderStats, start: Instant) -> Frame {
+fn assemble(
+    width: usize,
+    height: usize,
+    rows: Vec<Row>,
+    reader: &TileReader,
+    before: ReaderStats,
+    start: Instant,
+) -> Frame {
     let mut frame_rgb = Vec::with_capacity(width * height);
     let mut frame_range = Vec::with_capacity(width * height);
     let (mut steps, mut hits, mut touched) = (0, 0, BTreeSet::new());
@@ -340,9 +421,16 @@ pub fn render_top(reader: &TileReader, width: usize, height: usize, lod: bool) -
     let start = Instant::now();
     let before = reader.stats();
     let scene = Scene::of(reader)?;
-    let (sx, sy) = (scene.width as f64 / width as f64, scene.height as f64 / height as f64);
+    let (sx, sy) = (
+        scene.width as f64 / width as f64,
+        scene.height as f64 / height as f64,
+    );
     let level = match lod {
-        true => scene.scales.iter().rposition(|&s| s as f64 <= sx.min(sy)).unwrap_or(0),
+        true => scene
+            .scales
+            .iter()
+            .rposition(|&s| s as f64 <= sx.min(sy))
+            .unwrap_or(0),
         false => 0,
     };
     let s = scene.scales[level];
@@ -359,7 +447,8 @@ pub fn render_top(reader: &TileReader, width: usize, height: usize, lod: bool) -
                 match sampler.cell(level, c, r)? {
                     Some(cell) if !cell.max_z.is_nan() => {
                         row.hits += 1;
-                        row.rgb.push([cell.colour[0], cell.colour[1], cell.colour[2]]);
+                        row.rgb
+                            .push([cell.colour[0], cell.colour[1], cell.colour[2]]);
                         row.range.push((scene.z_max - cell.max_z as f64) as f32);
                     }
                     _ => {
@@ -382,7 +471,12 @@ impl Frame {
         let mut out = Vec::new();
         let bytes: Vec<u8> = self.rgb.iter().flatten().copied().collect();
         image::codecs::png::PngEncoder::new(&mut out)
-            .write_image(&bytes, self.width as u32, self.height as u32, image::ExtendedColorType::Rgb8)
+            .write_image(
+                &bytes,
+                self.width as u32,
+                self.height as u32,
+                image::ExtendedColorType::Rgb8,
+            )
             .map_err(|e| Error::msg(format!("encoding the PNG failed: {e}")))?;
         Ok(out)
     }
@@ -400,9 +494,18 @@ impl Frame {
         // Scan lines in increasing order, compressed on one thread: blocks land in a fixed order,
         // so the file is byte-identical run to run (the default tiles go in completion order).
         let channels = AnyChannels::sort(SmallVec::from_vec(vec![channel]));
-        let layer = Layer::new((self.width, self.height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
+        let layer = Layer::new(
+            (self.width, self.height),
+            LayerAttributes::default(),
+            Encoding::SMALL_LOSSLESS,
+            channels,
+        );
         let mut buf = std::io::Cursor::new(Vec::new());
-        Image::from_layer(layer).write().non_parallel().to_buffered(&mut buf).map_err(|e| crate::Error::file(path, format!("encoding the EXR failed: {e}")))?;
+        Image::from_layer(layer)
+            .write()
+            .non_parallel()
+            .to_buffered(&mut buf)
+            .map_err(|e| crate::Error::file(path, format!("encoding the EXR failed: {e}")))?;
         write_bytes_atomic(path, &buf.into_inner())
     }
 }

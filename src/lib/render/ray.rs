@@ -25,7 +25,11 @@ impl Axis {
     /// The axis at `o` cells moving `d` cells per metre.
     pub fn new(o: f64, d: f64) -> Axis {
         let d = if d == 0.0 { 0.0 } else { d }; // no -0.0: one parallel case
-        Axis { o, d, inv: if d == 0.0 { 0.0 } else { 1.0 / d } }
+        Axis {
+            o,
+            d,
+            inv: if d == 0.0 { 0.0 } else { 1.0 / d },
+        }
     }
 
     /// Time (metres of range) at which the ray crosses boundary `b` (cells); `+inf` when the
@@ -47,7 +51,11 @@ impl Axis {
             return self.o.floor() as i64;
         }
         let est = (self.o + t * self.d).floor();
-        let mut k = if est.is_finite() && (est - guess as f64).abs() > 2.0 { est as i64 } else { guess };
+        let mut k = if est.is_finite() && (est - guess as f64).abs() > 2.0 {
+            est as i64
+        } else {
+            guess
+        };
         if self.d > 0.0 {
             // the largest k whose boundary is crossed
             while self.cross(k) > t {

@@ -48,7 +48,11 @@ impl<'a> Sampler<'a> {
         Sampler {
             reader,
             page_size: info.page_size,
-            sizes: info.levels.iter().map(|l| (l.width as i64, l.height as i64)).collect(),
+            sizes: info
+                .levels
+                .iter()
+                .map(|l| (l.width as i64, l.height as i64))
+                .collect(),
             wrap,
             memo: vec![None; info.levels.len()],
             column_cache,
@@ -92,7 +96,13 @@ impl<'a> Sampler<'a> {
         let (tx, ty) = (col / p, row / p);
         let cached = matches!(&self.columns, Some((x, y, _)) if (*x, *y) == (tx, ty));
         if !cached {
-            let shared = self.column_cache.pages.lock().expect("column cache lock").get(&(tx, ty)).cloned();
+            let shared = self
+                .column_cache
+                .pages
+                .lock()
+                .expect("column cache lock")
+                .get(&(tx, ty))
+                .cloned();
             let decoded = match shared {
                 Some(c) => c,
                 None => {
@@ -113,7 +123,10 @@ impl<'a> Sampler<'a> {
         let (.., columns) = self.columns.as_ref().expect("just decoded");
         let cell = (row % p) * p + col % p;
         columns.runs(cell).ok_or_else(|| {
-            Error::file(self.reader.path(), format!("page (level 0, {tx}, {ty}): cell {cell} has no voxel column"))
+            Error::file(
+                self.reader.path(),
+                format!("page (level 0, {tx}, {ty}): cell {cell} has no voxel column"),
+            )
         })
     }
 
@@ -124,11 +137,15 @@ impl<'a> Sampler<'a> {
         };
         let format = &self.reader.info().bricks;
         if format != BRICKS_FORMAT {
-            return Err(bad(format!("the header's bricks format is {format:?}, this dbms reads {BRICKS_FORMAT:?}")));
+            return Err(bad(format!(
+                "the header's bricks format is {format:?}, this dbms reads {BRICKS_FORMAT:?}"
+            )));
         }
         let blob = page.bricks.as_deref().unwrap_or(&[0u8; 4][..]); // no blob: no columns
         let columns = PageColumns::decode(blob, self.page_size * self.page_size).map_err(&bad)?;
-        columns.check_layers(&page.state, &page.max_z).map_err(bad)?;
+        columns
+            .check_layers(&page.state, &page.max_z)
+            .map_err(bad)?;
         Ok(columns)
     }
 }

@@ -16,7 +16,11 @@ const HAZE_BAND_RAD: f64 = 0.12;
 /// haze at and below the horizon blending into blue overhead.
 pub fn sky(dz: f64) -> [u8; 3] {
     let elevation = dz.clamp(-1.0, 1.0).asin();
-    let w = if elevation > 0.0 { 1.0 - (-elevation / HAZE_BAND_RAD).exp() } else { 0.0 };
+    let w = if elevation > 0.0 {
+        1.0 - (-elevation / HAZE_BAND_RAD).exp()
+    } else {
+        0.0
+    };
     std::array::from_fn(|k| (HORIZON[k] + (ZENITH[k] - HORIZON[k]) * w).round() as u8)
 }
 
@@ -57,7 +61,13 @@ mod tests {
     fn haze_grows_with_range() {
         let c = [0, 0, 0, 255];
         assert_eq!(shade(c, Face::Top, 100.0, None), [0, 0, 0]);
-        assert!(shade(c, Face::Top, 100.0, Some(1000.0))[0] < shade(c, Face::Top, 5000.0, Some(1000.0))[0]);
-        assert_eq!(shade([100, 100, 100, 255], Face::WallV, 0.0, None), [65, 65, 65]);
+        assert!(
+            shade(c, Face::Top, 100.0, Some(1000.0))[0]
+                < shade(c, Face::Top, 5000.0, Some(1000.0))[0]
+        );
+        assert_eq!(
+            shade([100, 100, 100, 255], Face::WallV, 0.0, None),
+            [65, 65, 65]
+        );
     }
 }

@@ -11,7 +11,15 @@ use std::sync::OnceLock;
 const GREY: [u8; 4] = [120, 120, 120, 255];
 
 /// A tile set over a `w × h` grid of 1 m cells with its north-west corner at `(x0, y0)`.
-fn tiles<F>(x0: f64, y0: f64, w: usize, h: usize, page: usize, factor: usize, f: F) -> (tempfile::TempDir, TileReader)
+fn tiles<F>(
+    x0: f64,
+    y0: f64,
+    w: usize,
+    h: usize,
+    page: usize,
+    factor: usize,
+    f: F,
+) -> (tempfile::TempDir, TileReader)
 where
     F: Fn(usize, usize) -> (f32, [u8; 4]) + Sync,
 {
@@ -24,11 +32,21 @@ where
 }
 
 fn camera(eye: [f64; 3], roll: f64, pitch: f64, yaw: f64, w: usize, h: usize) -> Camera {
-    Camera { eye, attitude: Attitude { roll, pitch, yaw }, hfov: 60.0, width: w, height: h }
+    Camera {
+        eye,
+        attitude: Attitude { roll, pitch, yaw },
+        hfov: 60.0,
+        width: w,
+        height: h,
+    }
 }
 
 fn no_lod(traversal: Traversal) -> ViewOptions {
-    ViewOptions { traversal, lod: false, ..ViewOptions::default() }
+    ViewOptions {
+        traversal,
+        lod: false,
+        ..ViewOptions::default()
+    }
 }
 
 fn centre(f: &Frame) -> usize {
@@ -39,21 +57,36 @@ fn centre(f: &Frame) -> usize {
 fn looking_straight_down_on_a_plane_gives_height_over_cosine() {
     // 100 m up over the middle of 256 m: the corner rays (< 37° off vertical) stay inside.
     let (_d, r) = tiles(0.0, 256.0, 256, 256, 64, 4, |_, _| (10.0, GREY));
-    let f = render_view(&r, &camera([128.25, 128.5, 110.0], 0.0, -90.0, 0.0, 9, 7), &ViewOptions::default()).unwrap();
+    let f = render_view(
+        &r,
+        &camera([128.25, 128.5, 110.0], 0.0, -90.0, 0.0, 9, 7),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert_eq!(f.range[centre(&f)], 100.0);
     let b = camera([0.0; 3], 0.0, -90.0, 0.0, 9, 7).basis();
     for (k, &range) in f.range.iter().enumerate() {
         let d = b.direction(k % 9, k / 9);
-        assert!((range as f64 - 100.0 / -d[2]).abs() < 1e-3, "pixel {k}: {range}");
+        assert!(
+            (range as f64 - 100.0 / -d[2]).abs() < 1e-3,
+            "pixel {k}: {range}"
+        );
     }
     assert_eq!(f.stats.hits, 63);
-    assert!(f.stats.reader.pages_read > 0 && f.stats.reader.bytes_read > 0 && f.stats.pages_touched > 0);
+    assert!(
+        f.stats.reader.pages_read > 0 && f.stats.reader.bytes_read > 0 && f.stats.pages_touched > 0
+    );
 }
 
 #[test]
 fn looking_straight_up_sees_only_sky() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |_, _| (10.0, GREY));
-    let f = render_view(&r, &camera([32.0, 32.0, 20.0], 0.0, 90.0, 0.0, 8, 6), &ViewOptions::default()).unwrap();
+    let f = render_view(
+        &r,
+        &camera([32.0, 32.0, 20.0], 0.0, 90.0, 0.0, 8, 6),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert!(f.range.iter().all(|r| r.is_infinite()));
     assert_eq!(f.stats.hits, 0);
     assert!(f.rgb.iter().all(|&c| c[2] > c[0]), "blue overhead");
@@ -74,9 +107,17 @@ fn ray_exactly_parallel_to_the_x_axis_hits_the_west_wall() {
     // Row 30 spans y in (33, 34]; eye 10 m up at x = 10.5, looking due east: the centre ray has
     // no north component and enters cell 40 at x = 40.
     for t in [Traversal::Hierarchical, Traversal::Level0] {
-        let f = render_view(&r, &camera([10.5, 33.5, 10.0], 0.0, 0.0, 90.0, 5, 5), &no_lod(t)).unwrap();
+        let f = render_view(
+            &r,
+            &camera([10.5, 33.5, 10.0], 0.0, 0.0, 90.0, 5, 5),
+            &no_lod(t),
+        )
+        .unwrap();
         assert_eq!(f.range[centre(&f)], 29.5, "{t:?}");
-        assert_eq!(f.rgb[centre(&f)], sky::shade([255, 0, 0, 255], Face::WallU, 29.5, None));
+        assert_eq!(
+            f.rgb[centre(&f)],
+            sky::shade([255, 0, 0, 255], Face::WallU, 29.5, None)
+        );
     }
 }
 
@@ -85,21 +126,44 @@ fn ray_exactly_parallel_to_the_y_axis_hits_the_north_wall() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
     // Column 40 spans x in [40, 41); looking due south from row 5 toward row 30 (y = 34 edge).
     for t in [Traversal::Hierarchical, Traversal::Level0] {
-        let f = render_view(&r, &camera([40.5, 60.25, 10.0], 0.0, 0.0, 180.0, 5, 5), &no_lod(t)).unwrap();
+        let f = render_view(
+            &r,
+            &camera([40.5, 60.25, 10.0], 0.0, 0.0, 180.0, 5, 5),
+            &no_lod(t),
+        )
+        .unwrap();
         assert_eq!(f.range[centre(&f)], 26.25, "{t:?}");
-        assert_eq!(f.rgb[centre(&f)], sky::shade([255, 0, 0, 255], Face::WallV, 26.25, None));
+        assert_eq!(
+            f.rgb[centre(&f)],
+            sky::shade([255, 0, 0, 255], Face::WallV, 26.25, None)
+        );
     }
 }
 
 #[test]
 fn a_rising_ray_that_enters_a_column_below_its_top_hits_the_wall() {
     // (a 50 m tower elsewhere keeps the database's top above the column's)
-    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |c, r| if (c, r) == (5, 5) { (50.0, GREY) } else { column(c, r) });
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |c, r| {
+        if (c, r) == (5, 5) {
+            (50.0, GREY)
+        } else {
+            column(c, r)
+        }
+    });
     // Half a metre west of the 20 m column, 19.2 m up, looking east 45° up: the ray meets the
     // wall at 19.7 m and would leave the cell over the top at 20.7 m.
     for t in [Traversal::Hierarchical, Traversal::Level0] {
-        let f = render_view(&r, &camera([39.5, 33.5, 19.2], 0.0, 45.0, 90.0, 5, 5), &no_lod(t)).unwrap();
-        assert!((f.range[centre(&f)] as f64 - 0.5 * 2f64.sqrt()).abs() < 1e-6, "{t:?}: {}", f.range[centre(&f)]);
+        let f = render_view(
+            &r,
+            &camera([39.5, 33.5, 19.2], 0.0, 45.0, 90.0, 5, 5),
+            &no_lod(t),
+        )
+        .unwrap();
+        assert!(
+            (f.range[centre(&f)] as f64 - 0.5 * 2f64.sqrt()).abs() < 1e-6,
+            "{t:?}: {}",
+            f.range[centre(&f)]
+        );
     }
 }
 
@@ -108,10 +172,25 @@ fn eye_exactly_on_a_cell_corner() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
     // Straight down from the corner shared by columns 39..=40 and rows 29..=30: the corner
     // touches the 20 m column, the eye is 30 m up.
-    let f = render_view(&r, &camera([40.0, 34.0, 30.0], 0.0, -90.0, 0.0, 5, 5), &ViewOptions::default()).unwrap();
+    let f = render_view(
+        &r,
+        &camera([40.0, 34.0, 30.0], 0.0, -90.0, 0.0, 5, 5),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert!(f.range.iter().all(|r| r.is_finite()));
-    let h = render_view(&r, &camera([40.0, 34.0, 30.0], 0.0, -50.0, 45.0, 31, 23), &no_lod(Traversal::Hierarchical)).unwrap();
-    let l = render_view(&r, &camera([40.0, 34.0, 30.0], 0.0, -50.0, 45.0, 31, 23), &no_lod(Traversal::Level0)).unwrap();
+    let h = render_view(
+        &r,
+        &camera([40.0, 34.0, 30.0], 0.0, -50.0, 45.0, 31, 23),
+        &no_lod(Traversal::Hierarchical),
+    )
+    .unwrap();
+    let l = render_view(
+        &r,
+        &camera([40.0, 34.0, 30.0], 0.0, -50.0, 45.0, 31, 23),
+        &no_lod(Traversal::Level0),
+    )
+    .unwrap();
     assert_eq!(h.rgb, l.rgb);
     assert_eq!(bits(&h.range), bits(&l.range));
 }
@@ -119,29 +198,56 @@ fn eye_exactly_on_a_cell_corner() {
 #[test]
 fn a_step_is_hit_on_its_wall_then_its_top() {
     // z = 0 west of column 32, 16 m from column 32 on; eye at x = 4.5, 8 m up, looking east.
-    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |c, _| (if c < 32 { 0.0 } else { 16.0 }, GREY));
-    let f = render_view(&r, &camera([4.5, 20.5, 8.0], 0.0, 0.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |c, _| {
+        (if c < 32 { 0.0 } else { 16.0 }, GREY)
+    });
+    let f = render_view(
+        &r,
+        &camera([4.5, 20.5, 8.0], 0.0, 0.0, 90.0, 5, 5),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert_eq!(f.range[centre(&f)], 27.5);
     // Looking down at 45°, from 24 m over x = 4.5: the ray reaches z = 16 at x = 12.5 (west
     // of the step) and would reach the ground at x = 28.5, so it hits the ground there.
-    let f = render_view(&r, &camera([4.5, 20.5, 24.0], 0.0, -45.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    let f = render_view(
+        &r,
+        &camera([4.5, 20.5, 24.0], 0.0, -45.0, 90.0, 5, 5),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert!((f.range[centre(&f)] as f64 - 24.0 * 2f64.sqrt()).abs() < 1e-4);
 }
 
 #[test]
 fn eye_below_the_terrain_is_an_error() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
-    let e = render_view(&r, &camera([40.5, 33.5, 19.0], 0.0, 0.0, 0.0, 4, 4), &ViewOptions::default()).unwrap_err();
+    let e = render_view(
+        &r,
+        &camera([40.5, 33.5, 19.0], 0.0, 0.0, 0.0, 4, 4),
+        &ViewOptions::default(),
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("below the terrain"), "{e}");
     // exactly on the edge of the column counts too
-    let e = render_view(&r, &camera([41.0, 33.5, 20.0], 0.0, 0.0, 0.0, 4, 4), &ViewOptions::default()).unwrap_err();
+    let e = render_view(
+        &r,
+        &camera([41.0, 33.5, 20.0], 0.0, 0.0, 0.0, 4, 4),
+        &ViewOptions::default(),
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("--eye 41,33.5,20"), "{e}");
 }
 
 #[test]
 fn an_eye_in_the_wrong_crs_is_an_error_not_a_hang() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, column);
-    let e = render_view(&r, &camera([1e300, -4.0, 10.0], 0.0, 0.0, 270.0, 4, 4), &ViewOptions::default()).unwrap_err();
+    let e = render_view(
+        &r,
+        &camera([1e300, -4.0, 10.0], 0.0, 0.0, 270.0, 4, 4),
+        &ViewOptions::default(),
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("cells from the database"), "{e}");
 }
 
@@ -149,23 +255,43 @@ fn an_eye_in_the_wrong_crs_is_an_error_not_a_hang() {
 fn eye_outside_the_database_looking_in_hits_its_edge() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |_, _| (10.0, GREY));
     // 100 m west of the west edge, 5 m up (below the 10 m plane), looking east: the wall at x = 0.
-    let f = render_view(&r, &camera([-100.0, 32.5, 5.0], 0.0, 0.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    let f = render_view(
+        &r,
+        &camera([-100.0, 32.5, 5.0], 0.0, 0.0, 90.0, 5, 5),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert_eq!(f.range[centre(&f)], 100.0);
     // From above and far away, looking down at it: the top of the plane.
-    let f = render_view(&r, &camera([-50.0, 32.5, 60.0], 0.0, -45.0, 90.0, 5, 5), &ViewOptions::default()).unwrap();
+    let f = render_view(
+        &r,
+        &camera([-50.0, 32.5, 60.0], 0.0, -45.0, 90.0, 5, 5),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert!((f.range[centre(&f)] as f64 - 50.0 * 2f64.sqrt()).abs() < 1e-4);
     // Looking away from it: sky and haze only.
-    let f = render_view(&r, &camera([-50.0, 32.5, 60.0], 0.0, -10.0, 270.0, 5, 5), &ViewOptions::default()).unwrap();
+    let f = render_view(
+        &r,
+        &camera([-50.0, 32.5, 60.0], 0.0, -10.0, 270.0, 5, 5),
+        &ViewOptions::default(),
+    )
+    .unwrap();
     assert_eq!(f.stats.hits, 0);
 }
 
 /// Rough terrain with sharp columns: heights from a hash of the cell.
 fn rough(c: usize, r: usize) -> (f32, [u8; 4]) {
-    let h = (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+    let h = (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
     let h = h ^ (h >> 29);
     let base = 8.0 * ((c as f32 * 0.07).sin() + (r as f32 * 0.05).cos());
     let spike = if h % 23 == 0 { (h % 17) as f32 } else { 0.0 };
-    let z = if h % 97 == 0 { f32::NAN } else { base + spike + (h % 5) as f32 * 0.25 };
+    let z = if h % 97 == 0 {
+        f32::NAN
+    } else {
+        base + spike + (h % 5) as f32 * 0.25
+    };
     (z, [(h % 251) as u8, (h >> 8) as u8, (h >> 16) as u8, 255])
 }
 
@@ -201,7 +327,12 @@ fn hierarchy_takes_fewer_steps_than_level0() {
     let cam = camera([10.0, 10.0, 30.0], 0.0, -8.0, 120.0, 32, 24);
     let h = render_view(r, &cam, &no_lod(Traversal::Hierarchical)).unwrap();
     let l = render_view(r, &cam, &no_lod(Traversal::Level0)).unwrap();
-    assert!(h.stats.cells_stepped * 2 < l.stats.cells_stepped, "{} vs {}", h.stats.cells_stepped, l.stats.cells_stepped);
+    assert!(
+        h.stats.cells_stepped * 2 < l.stats.cells_stepped,
+        "{} vs {}",
+        h.stats.cells_stepped,
+        l.stats.cells_stepped
+    );
 }
 
 #[test]
@@ -210,15 +341,54 @@ fn utm_sized_coordinates_do_not_jitter() {
     let (_a, near) = tiles(0.0, 150.0, 200, 150, 16, 2, rough);
     let (_b, utm) = tiles(x0, y0 + 150.0, 200, 150, 16, 2, rough);
     let eye = [20.25, 30.5, 30.0];
-    let local = render_view(&near, &camera(eye, 3.0, -12.0, 70.0, 48, 36), &ViewOptions::default()).unwrap();
-    let far = render_view(&utm, &camera([x0 + eye[0], y0 + eye[1], eye[2]], 3.0, -12.0, 70.0, 48, 36), &ViewOptions::default()).unwrap();
-    assert_eq!(local.rgb, far.rgb, "dyadic eye offsets subtract exactly: same frame");
+    let local = render_view(
+        &near,
+        &camera(eye, 3.0, -12.0, 70.0, 48, 36),
+        &ViewOptions::default(),
+    )
+    .unwrap();
+    let far = render_view(
+        &utm,
+        &camera([x0 + eye[0], y0 + eye[1], eye[2]], 3.0, -12.0, 70.0, 48, 36),
+        &ViewOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        local.rgb, far.rgb,
+        "dyadic eye offsets subtract exactly: same frame"
+    );
     assert_eq!(bits(&local.range), bits(&far.range));
     // Moving the eye 1 cm changes ranges by about 1 cm and only pixels on silhouettes.
-    let moved = render_view(&utm, &camera([x0 + eye[0] + 0.01, y0 + eye[1], eye[2]], 3.0, -12.0, 70.0, 48, 36), &ViewOptions::default()).unwrap();
-    let changed = far.rgb.iter().zip(&moved.rgb).filter(|(a, b)| a != b).count();
-    assert!(changed * 50 < far.rgb.len(), "{changed} of {} pixels changed", far.rgb.len());
-    let steady = far.range.iter().zip(&moved.range).filter(|(a, b)| a.is_finite() && (**a - **b).abs() <= 0.05).count();
+    let moved = render_view(
+        &utm,
+        &camera(
+            [x0 + eye[0] + 0.01, y0 + eye[1], eye[2]],
+            3.0,
+            -12.0,
+            70.0,
+            48,
+            36,
+        ),
+        &ViewOptions::default(),
+    )
+    .unwrap();
+    let changed = far
+        .rgb
+        .iter()
+        .zip(&moved.rgb)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        changed * 50 < far.rgb.len(),
+        "{changed} of {} pixels changed",
+        far.rgb.len()
+    );
+    let steady = far
+        .range
+        .iter()
+        .zip(&moved.range)
+        .filter(|(a, b)| a.is_finite() && (**a - **b).abs() <= 0.05)
+        .count();
     assert!(steady * 10 > far.range.iter().filter(|a| a.is_finite()).count() * 9);
 }
 
@@ -226,9 +396,18 @@ fn utm_sized_coordinates_do_not_jitter() {
 fn pitch_of_89_9_degrees() {
     let (_d, r) = rough_tiles();
     for pitch in [89.9, -89.9] {
-        let f = render_view(r, &camera([100.0, 75.0, 40.0], 0.0, pitch, 33.0, 16, 12), &ViewOptions::default()).unwrap();
+        let f = render_view(
+            r,
+            &camera([100.0, 75.0, 40.0], 0.0, pitch, 33.0, 16, 12),
+            &ViewOptions::default(),
+        )
+        .unwrap();
         assert!(f.range.iter().all(|x| !x.is_nan()));
-        assert_eq!(f.stats.hits == 0, pitch > 0.0, "up sees sky, down sees ground");
+        assert_eq!(
+            f.stats.hits == 0,
+            pitch > 0.0,
+            "up sees sky, down sees ground"
+        );
     }
 }
 
@@ -237,7 +416,15 @@ fn repeat_carries_the_ground_to_the_horizon() {
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 4, |_, _| (0.0, GREY));
     let cam = camera([32.0, 32.0, 5.0], 0.0, -5.0, 0.0, 20, 20);
     let once = render_view(&r, &cam, &ViewOptions::default()).unwrap();
-    let tiled = render_view(&r, &cam, &ViewOptions { repeat: true, ..ViewOptions::default() }).unwrap();
+    let tiled = render_view(
+        &r,
+        &cam,
+        &ViewOptions {
+            repeat: true,
+            ..ViewOptions::default()
+        },
+    )
+    .unwrap();
     let below = |f: &Frame| f.range.iter().filter(|x| x.is_finite()).count();
     assert!(below(&tiled) > below(&once));
     // every ray below the horizon that reaches the ground within 8 diagonals hits it
@@ -246,7 +433,10 @@ fn repeat_carries_the_ground_to_the_horizon() {
         let d = b.direction(k % 20, k / 20);
         let ground = 5.0 / -d[2];
         if d[2] < 0.0 && ground < REPEAT_RANGE_DIAGONALS * 64.0 * 2f64.sqrt() {
-            assert!((x as f64 - ground).abs() < 1e-3 * ground, "pixel {k}: {x} vs {ground}");
+            assert!(
+                (x as f64 - ground).abs() < 1e-3 * ground,
+                "pixel {k}: {x} vs {ground}"
+            );
         }
     }
 }
@@ -254,16 +444,44 @@ fn repeat_carries_the_ground_to_the_horizon() {
 #[test]
 fn range_thresholds_use_coarse_average_colour_far_away() {
     // A fine black/white checkerboard: level 1 (factor 2) averages it to grey.
-    let (_d, r) = tiles(0.0, 512.0, 512, 512, 64, 2, |c, r| (0.0, if (c + r) % 2 == 0 { [0, 0, 0, 255] } else { [255, 255, 255, 255] }));
+    let (_d, r) = tiles(0.0, 512.0, 512, 512, 64, 2, |c, r| {
+        (
+            0.0,
+            if (c + r) % 2 == 0 {
+                [0, 0, 0, 255]
+            } else {
+                [255, 255, 255, 255]
+            },
+        )
+    });
     let cam = camera([256.0, 0.5, 3.0], 0.0, -1.0, 0.0, 64, 48);
     let lod = render_view(&r, &cam, &ViewOptions::default()).unwrap();
     let far_grey = |f: &Frame| {
-        (0..f.rgb.len()).filter(|&k| f.range[k] > 200.0 && f.range[k].is_finite() && (f.rgb[k][0] as i32 - 128).abs() < 10).count()
+        (0..f.rgb.len())
+            .filter(|&k| {
+                f.range[k] > 200.0
+                    && f.range[k].is_finite()
+                    && (f.rgb[k][0] as i32 - 128).abs() < 10
+            })
+            .count()
     };
     let sharp = render_view(&r, &cam, &no_lod(Traversal::Hierarchical)).unwrap();
-    assert!(far_grey(&lod) > 0 && far_grey(&sharp) == 0, "{} {}", far_grey(&lod), far_grey(&sharp));
+    assert!(
+        far_grey(&lod) > 0 && far_grey(&sharp) == 0,
+        "{} {}",
+        far_grey(&lod),
+        far_grey(&sharp)
+    );
     // level-0 stepping with thresholds recolours far hits the same way
-    let l0 = render_view(&r, &cam, &ViewOptions { traversal: Traversal::Level0, ..ViewOptions::default() }).unwrap();
+    let l0 = render_view(
+        &r,
+        &cam,
+        &ViewOptions {
+            traversal: Traversal::Level0,
+            ..ViewOptions::default()
+        },
+    )
+    .unwrap();
     assert!(far_grey(&l0) > 0);
     assert!(lod.stats.cells_stepped < sharp.stats.cells_stepped);
 }
@@ -272,22 +490,32 @@ fn range_thresholds_use_coarse_average_colour_far_away() {
 fn frames_are_deterministic_and_encode() {
     let (_d, r) = rough_tiles();
     let cam = camera([5.0, 5.0, 35.0], 2.0, -15.0, 135.0, 40, 30);
-    let opts = ViewOptions { visibility: Some(300.0), ..ViewOptions::default() };
+    let opts = ViewOptions {
+        visibility: Some(300.0),
+        ..ViewOptions::default()
+    };
     let a = render_view(r, &cam, &opts).unwrap();
     let b = render_view(r, &cam, &opts).unwrap();
     assert_eq!(a.png().unwrap(), b.png().unwrap());
     let dir = tempfile::tempdir().unwrap();
     a.write_range_exr(&dir.path().join("r.exr")).unwrap();
     b.write_range_exr(&dir.path().join("r2.exr")).unwrap();
-    assert!(std::fs::read(dir.path().join("r.exr")).unwrap() == std::fs::read(dir.path().join("r2.exr")).unwrap());
+    assert!(
+        std::fs::read(dir.path().join("r.exr")).unwrap()
+            == std::fs::read(dir.path().join("r2.exr")).unwrap()
+    );
     let img = exr::prelude::read_first_flat_layer_from_file(dir.path().join("r.exr")).unwrap();
-    let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else { panic!("f32") };
+    let exr::prelude::FlatSamples::F32(z) = &img.layer_data.channel_data.list[0].sample_data else {
+        panic!("f32")
+    };
     assert_eq!(bits(z), bits(&a.range));
 }
 
 #[test]
 fn top_view_shows_each_cell_under_its_pixel() {
-    let (_d, r) = tiles(0.0, 32.0, 32, 32, 16, 4, |c, r| (c as f32, [c as u8 * 8, r as u8 * 8, 0, 255]));
+    let (_d, r) = tiles(0.0, 32.0, 32, 32, 16, 4, |c, r| {
+        (c as f32, [c as u8 * 8, r as u8 * 8, 0, 255])
+    });
     let f = render_top(&r, 32, 32, true).unwrap();
     for k in 0..32 * 32 {
         assert_eq!(f.rgb[k], [(k % 32) as u8 * 8, (k / 32) as u8 * 8, 0]);
@@ -316,7 +544,11 @@ const RED: [u8; 4] = [200, 30, 30, 255];
 const BLUE: [u8; 4] = [30, 30, 200, 255];
 
 fn ground(z: f32, colour: [u8; 4]) -> Run {
-    Run { bottom: f32::NEG_INFINITY, top: z, colour }
+    Run {
+        bottom: f32::NEG_INFINITY,
+        top: z,
+        colour,
+    }
 }
 
 /// Ground at 0 m; a 10 m back wall along row 5 (y 58..59); with `arch`, an arch over rows
@@ -328,7 +560,14 @@ fn arch_scene(arch: bool) -> (tempfile::TempDir, TileReader) {
     synthetic::write_columns(&path, grid, 16, 4, |c, r| match (c, r) {
         (_, 5) => vec![ground(10.0, BLUE)],
         (30 | 34, 28..=36) if arch => vec![ground(4.0, RED)],
-        (31..=33, 28..=36) if arch => vec![ground(0.0, GREY), Run { bottom: 3.0, top: 4.0, colour: RED }],
+        (31..=33, 28..=36) if arch => vec![
+            ground(0.0, GREY),
+            Run {
+                bottom: 3.0,
+                top: 4.0,
+                colour: RED,
+            },
+        ],
         _ => vec![ground(0.0, GREY)],
     })
     .unwrap();
@@ -353,14 +592,27 @@ fn a_ray_through_an_arch_opening_hits_what_is_behind_it() {
     let (range, rgb) = centre_hit(&with, &cam);
     assert_eq!(range, 47.75);
     assert_eq!(rgb, sky::shade(BLUE, Face::WallV, 47.75, None));
-    assert_eq!(range.to_bits(), centre_hit(&without, &cam).0.to_bits(), "the same range as with no arch");
+    assert_eq!(
+        range.to_bits(),
+        centre_hit(&without, &cam).0.to_bits(),
+        "the same range as with no arch"
+    );
     // 3.5 m up: the lintel's south face at y = 27.
     let (range, rgb) = centre_hit(&with, &camera([32.5, 10.25, 3.5], 0.0, 0.0, 0.0, 5, 5));
-    assert_eq!((range, rgb), (16.75, sky::shade(RED, Face::WallV, 16.75, None)));
+    assert_eq!(
+        (range, rgb),
+        (16.75, sky::shade(RED, Face::WallV, 16.75, None))
+    );
     // 4.5 m up: over the arch, on to the wall again.
-    assert_eq!(centre_hit(&with, &camera([32.5, 10.25, 4.5], 0.0, 0.0, 0.0, 5, 5)).0, 47.75);
+    assert_eq!(
+        centre_hit(&with, &camera([32.5, 10.25, 4.5], 0.0, 0.0, 0.0, 5, 5)).0,
+        47.75
+    );
     // Through the leg's column (x = 30.5) nothing passes.
-    assert_eq!(centre_hit(&with, &camera([30.5, 10.25, 1.5], 0.0, 0.0, 0.0, 5, 5)).0, 16.75);
+    assert_eq!(
+        centre_hit(&with, &camera([30.5, 10.25, 1.5], 0.0, 0.0, 0.0, 5, 5)).0,
+        16.75
+    );
 }
 
 #[test]
@@ -385,8 +637,17 @@ fn a_rising_ray_under_an_overhang_hits_its_underside_and_the_eye_may_stand_there
     assert!((range as f64 - 2.0 * 2f64.sqrt()).abs() < 1e-5, "{range}");
     assert_eq!(rgb, sky::shade(RED, Face::Bottom, range as f64, None));
     // Inside the lintel is inside solid matter.
-    let e = render_view(&with, &camera([32.5, 31.5, 3.5], 0.0, 0.0, 0.0, 4, 4), &ViewOptions::default()).unwrap_err();
-    assert!(e.to_string().contains("inside a voxel column, solid there from 3.00 m to 4.00 m"), "{e}");
+    let e = render_view(
+        &with,
+        &camera([32.5, 31.5, 3.5], 0.0, 0.0, 0.0, 4, 4),
+        &ViewOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("inside a voxel column, solid there from 3.00 m to 4.00 m"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -404,8 +665,17 @@ fn a_page_with_partial_cells_but_no_bricks_is_an_error_naming_the_page() {
     writer.write_page(0, 0, 0, &page).unwrap();
     writer.finish().unwrap();
     let r = TileReader::open(&path, 4).unwrap();
-    let e = render_view(&r, &camera([8.5, 7.5, 5.0], 0.0, -90.0, 0.0, 3, 3), &ViewOptions::default()).unwrap_err();
-    assert!(e.to_string().contains("page (level 0, 0, 0) bricks: cell 136 has state 1 (partial) but no column"), "{e}");
+    let e = render_view(
+        &r,
+        &camera([8.5, 7.5, 5.0], 0.0, -90.0, 0.0, 3, 3),
+        &ViewOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("page (level 0, 0, 0) bricks: cell 136 has state 1 (partial) but no column"),
+        "{e}"
+    );
 }
 
 /// [`rough`] with floating runs over some cells (arches, overhangs) and a second one over a few.
@@ -417,10 +687,18 @@ fn rough_columns(c: usize, r: usize) -> Vec<Run> {
     let h = (c as u64 * 31 + r as u64 * 17) % 11;
     let mut runs = vec![ground(z, colour)];
     if h < 3 {
-        runs.push(Run { bottom: z + 1.5 + h as f32, top: z + 3.0 + h as f32, colour: RED });
+        runs.push(Run {
+            bottom: z + 1.5 + h as f32,
+            top: z + 3.0 + h as f32,
+            colour: RED,
+        });
     }
     if h == 0 {
-        runs.push(Run { bottom: z + 5.0, top: z + 5.5, colour: BLUE });
+        runs.push(Run {
+            bottom: z + 5.0,
+            top: z + 5.5,
+            colour: BLUE,
+        });
     }
     runs
 }
@@ -430,7 +708,14 @@ fn rough_column_tiles() -> &'static (tempfile::TempDir, TileReader) {
     T.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.dbt");
-        synthetic::write_columns(&path, Grid::north_up(0.0, 150.0, 1.0, 200, 150, Crs::epsg(32614)), 16, 2, rough_columns).unwrap();
+        synthetic::write_columns(
+            &path,
+            Grid::north_up(0.0, 150.0, 1.0, 200, 150, Crs::epsg(32614)),
+            16,
+            2,
+            rough_columns,
+        )
+        .unwrap();
         let reader = TileReader::open(&path, 64).unwrap();
         (dir, reader)
     })

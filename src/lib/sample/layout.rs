@@ -63,7 +63,13 @@ pub struct Plan {
 }
 
 /// Roof colours: terracotta, slate, tar, concrete, weathered copper.
-const ROOFS: [[u8; 3]; 5] = [[156, 74, 58], [96, 98, 108], [62, 60, 64], [176, 172, 160], [104, 140, 120]];
+const ROOFS: [[u8; 3]; 5] = [
+    [156, 74, 58],
+    [96, 98, 108],
+    [62, 60, 64],
+    [176, 172, 160],
+    [104, 140, 120],
+];
 
 /// Lots per side and the offset of the lot grid for a square scene `extent` metres wide.
 fn lot_grid(extent: f64) -> (usize, f64) {
@@ -76,7 +82,16 @@ fn lot_grid(extent: f64) -> (usize, f64) {
 pub fn roads(extent: f64) -> Vec<Road> {
     let (n, offset) = lot_grid(extent);
     let at = |k: usize| offset + k.clamp(1, n.max(2) - 1) as f64 * LOT_PITCH;
-    vec![Road { north_south: true, centre: at(n / 2) }, Road { north_south: false, centre: at(n / 3) }]
+    vec![
+        Road {
+            north_south: true,
+            centre: at(n / 2),
+        },
+        Road {
+            north_south: false,
+            centre: at(n / 3),
+        },
+    ]
 }
 
 /// Buildings for a scene `extent` metres wide: about one lot in ten (at least 4 when there are
@@ -87,7 +102,9 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
     let mut rng = Rng::new(seed);
     let mut lots: Vec<(usize, usize)> = (0..n).flat_map(|i| (0..n).map(move |j| (i, j))).collect();
     rng.shuffle(&mut lots);
-    let count = ((lots.len() as f64 * 0.1).round() as usize).max(lots.len().min(4)).min(MAX_LOTS);
+    let count = ((lots.len() as f64 * 0.1).round() as usize)
+        .max(lots.len().min(4))
+        .min(MAX_LOTS);
     let mut plans = Vec::new();
     for (k, &(i, j)) in lots[..count].iter().enumerate() {
         let x0 = offset + i as f64 * LOT_PITCH + LOT_MARGIN;
@@ -97,7 +114,10 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
         let roof = |rng: &mut Rng| ROOFS[(rng.next_u64() % ROOFS.len() as u64) as usize];
         if k == 0 {
             let (w, d) = (rng.stepped(14.0, room, SNAP), rng.stepped(14.0, room, SNAP));
-            let (wn, dn) = (rng.stepped(6.0, w - 6.0, SNAP), rng.stepped(6.0, d - 6.0, SNAP));
+            let (wn, dn) = (
+                rng.stepped(6.0, w - 6.0, SNAP),
+                rng.stepped(6.0, d - 6.0, SNAP),
+            );
             let ring = vec![
                 (x0, y0),
                 (x0 + w, y0),
@@ -106,14 +126,22 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
                 (x0 + w - wn, y0 + d),
                 (x0, y0 + d),
             ];
-            plans.push(Plan { ring, shape: Shape::LShape, height_m: height(&mut rng), roof: roof(&mut rng) });
+            plans.push(Plan {
+                ring,
+                shape: Shape::LShape,
+                height_m: height(&mut rng),
+                roof: roof(&mut rng),
+            });
         } else if k % 4 == 2 {
             let (w1, w2) = (rng.stepped(7.0, 12.0, SNAP), rng.stepped(7.0, 12.0, SNAP));
             let (d1, d2) = (rng.stepped(8.0, 16.0, SNAP), rng.stepped(8.0, 16.0, SNAP));
             let h1 = height(&mut rng);
             // The neighbour differs by at least 3 m, so the shared wall casts a shadow step.
-            let h2 =
-                if h1 > 14.0 { h1 - rng.stepped(3.0, h1 - 3.0, 0.5) } else { h1 + rng.stepped(3.0, 25.0 - h1, 0.5) };
+            let h2 = if h1 > 14.0 {
+                h1 - rng.stepped(3.0, h1 - 3.0, 0.5)
+            } else {
+                h1 + rng.stepped(3.0, 25.0 - h1, 0.5)
+            };
             plans.push(Plan {
                 ring: rectangle(x0, y0, w1, d1),
                 shape: Shape::Adjacent,
@@ -128,7 +156,10 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
             });
         } else {
             let (w, d) = (rng.stepped(8.0, 20.0, SNAP), rng.stepped(8.0, 16.0, SNAP));
-            let (dx, dy) = (rng.stepped(0.0, room - w, SNAP), rng.stepped(0.0, room - d, SNAP));
+            let (dx, dy) = (
+                rng.stepped(0.0, room - w, SNAP),
+                rng.stepped(0.0, room - d, SNAP),
+            );
             plans.push(Plan {
                 ring: rectangle(x0 + dx, y0 + dy, w, d),
                 shape: Shape::Rectangle,
@@ -175,12 +206,19 @@ mod tests {
                 assert!(x > 0.0 && y > 0.0 && x < extent && y < extent);
                 assert_eq!((x / SNAP).fract(), 0.0);
                 for r in &roads {
-                    assert!(r.local(x, y).0.abs() > ROAD_HALF_WIDTH + 1.0, "{p:?} on {r:?}");
+                    assert!(
+                        r.local(x, y).0.abs() > ROAD_HALF_WIDTH + 1.0,
+                        "{p:?} on {r:?}"
+                    );
                 }
             }
         }
         assert_ne!(plans, buildings(43, extent));
         assert_eq!(plans, buildings(42, extent));
-        assert_eq!(buildings(1, 128.0).len(), 5, "4 lots: L, rectangle, pair, rectangle");
+        assert_eq!(
+            buildings(1, 128.0).len(),
+            5,
+            "4 lots: L, rectangle, pair, rectangle"
+        );
     }
 }

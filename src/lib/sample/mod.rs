@@ -74,7 +74,10 @@ pub struct SampleOptions {
 
 impl Default for SampleOptions {
     fn default() -> SampleOptions {
-        SampleOptions { seed: 1, size: DEFAULT_SIZE }
+        SampleOptions {
+            seed: 1,
+            size: DEFAULT_SIZE,
+        }
     }
 }
 
@@ -121,18 +124,25 @@ pub struct Scene {
 pub fn generate(options: SampleOptions) -> Result<Scene> {
     let n = options.size;
     if !(MIN_SIZE..=MAX_SIZE).contains(&n) {
-        return Err(Error::msg(format!("--size {n}: the sample needs {MIN_SIZE} to {MAX_SIZE} DEM cells per side"))
-            .fix(format!("the default is {DEFAULT_SIZE} (512 m)")));
+        return Err(Error::msg(format!(
+            "--size {n}: the sample needs {MIN_SIZE} to {MAX_SIZE} DEM cells per side"
+        ))
+        .fix(format!("the default is {DEFAULT_SIZE} (512 m)")));
     }
     let extent = n as f64 * DEM_CELL_M;
     let crs = Crs::epsg(EPSG);
-    let (lat, lon) = crs.to_lat_lon(MIN_X + extent / 2.0, MIN_Y + extent / 2.0).expect("UTM 32N converts");
+    let (lat, lon) = crs
+        .to_lat_lon(MIN_X + extent / 2.0, MIN_Y + extent / 2.0)
+        .expect("UTM 32N converts");
     let sun = sun_at_time(lat, lon)?;
     let terrain_seed = mix(options.seed ^ 0x7e44);
     let ground = |x: f64, y: f64| BASE_Z + octaves(terrain_seed, x, y, &TERRAIN);
 
     let dem_grid = Grid::north_up(MIN_X, MIN_Y + extent, DEM_CELL_M, n, n, crs.clone());
-    let mut dem = Elevation::new(dem_grid.clone(), sample_grid(&dem_grid, |x, y| ground(x, y) as f32));
+    let mut dem = Elevation::new(
+        dem_grid.clone(),
+        sample_grid(&dem_grid, |x, y| ground(x, y) as f32),
+    );
     let max_slope_percent = max_slope(&dem) * 100.0;
     for i in 0..NODATA_CORNER {
         for j in 0..NODATA_CORNER - i {
@@ -141,7 +151,13 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
     }
 
     let plans = layout::buildings(mix(options.seed ^ 0xb1d), extent);
-    let prisms: Vec<Prism> = plans.iter().map(|p| Prism { rings: vec![world_ring(&p.ring)], roof_z: 0.0 }).collect();
+    let prisms: Vec<Prism> = plans
+        .iter()
+        .map(|p| Prism {
+            rings: vec![world_ring(&p.ring)],
+            roof_z: 0.0,
+        })
+        .collect();
     let buildings: Vec<Building> = plans
         .iter()
         .zip(&prisms)
@@ -155,8 +171,13 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
                     ground(x - MIN_X, y - MIN_Y)
                 })
                 .collect();
-            let (lo, hi) = under.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
-            let mut footprint: Vec<[f64; 2]> = prism.rings[0].iter().map(|&(x, y)| [x, y]).collect();
+            let (lo, hi) = under
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| {
+                    (a.min(z), b.max(z))
+                });
+            let mut footprint: Vec<[f64; 2]> =
+                prism.rings[0].iter().map(|&(x, y)| [x, y]).collect();
             footprint.push(footprint[0]);
             Building {
                 id: i as u32 + 1,
@@ -170,17 +191,41 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
         })
         .collect();
 
-    let (ortho, shadow_fraction) = render_ortho(options.seed, extent, &crs, &sun, &ground, &plans, &buildings);
-    Ok(Scene { options, dem, ortho, buildings, sun, centre_lat_lon: (lat, lon), max_slope_percent, shadow_fraction })
+    let (ortho, shadow_fraction) = render_ortho(
+        options.seed,
+        extent,
+        &crs,
+        &sun,
+        &ground,
+        &plans,
+        &buildings,
+    );
+    Ok(Scene {
+        options,
+        dem,
+        ortho,
+        buildings,
+        sun,
+        centre_lat_lon: (lat, lon),
+        max_slope_percent,
+        shadow_fraction,
+    })
 }
 
 /// File names inside a sample directory.
-pub const FILES: [&str; 5] = ["dem.tif", "ortho.tif", "buildings.geojson", "truth.json", "scene.json"];
+pub const FILES: [&str; 5] = [
+    "dem.tif",
+    "ortho.tif",
+    "buildings.geojson",
+    "truth.json",
+    "scene.json",
+];
 
 /// Write a scene's files ([`FILES`]) into `dir` (created if missing), each atomically.
 /// Returns their paths.
 pub fn write(scene: &Scene, dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
     let paths: Vec<PathBuf> = FILES.iter().map(|f| dir.join(f)).collect();
     geotiff::write_f32(&paths[0], &scene.dem)?;
     geotiff::write_rgba8(&paths[1], &scene.ortho)?;
@@ -262,8 +307,16 @@ fn scene_json(scene: &Scene) -> serde_json::Value {
 
 /// The sun at [`SUN_TIME`] over a point.
 fn sun_at_time(latitude_deg: f64, longitude_deg: f64) -> Result<Sun> {
-    let obs = crate::sun::Observer { latitude_deg, longitude_deg, height_m: BASE_Z };
-    let pos = crate::sun::sun_position(&obs, crate::sun::parse_time(SUN_TIME)?, &crate::sun::SunOptions::default())?;
+    let obs = crate::sun::Observer {
+        latitude_deg,
+        longitude_deg,
+        height_m: BASE_Z,
+    };
+    let pos = crate::sun::sun_position(
+        &obs,
+        crate::sun::parse_time(SUN_TIME)?,
+        &crate::sun::SunOptions::default(),
+    )?;
     Sun::new(pos.elevation_deg, pos.azimuth_deg)
 }
 
@@ -322,7 +375,10 @@ fn render_ortho(
     // Which building (index + 1) covers each cell centre; 0 = none.
     let mut owner = vec![0u32; grid.len()];
     for (i, b) in buildings.iter().enumerate() {
-        let prism = Prism { rings: vec![b.footprint.iter().map(|p| (p[0], p[1])).collect()], roof_z: b.roof_z };
+        let prism = Prism {
+            rings: vec![b.footprint.iter().map(|p| (p[0], p[1])).collect()],
+            roof_z: b.roof_z,
+        };
         for c in rasterise_prisms(&grid, &[prism]) {
             owner[c.index] = i as u32 + 1;
         }
@@ -331,9 +387,16 @@ fn render_ortho(
     let surface: Vec<f32> = terrain
         .iter()
         .zip(&owner)
-        .map(|(&z, &o)| if o == 0 { z } else { buildings[o as usize - 1].roof_z as f32 })
+        .map(|(&z, &o)| {
+            if o == 0 {
+                z
+            } else {
+                buildings[o as usize - 1].roof_z as f32
+            }
+        })
         .collect();
-    let shadow = cast_shadows_slice(&surface, &grid, sun).expect("the sample grid is metric and matches its data");
+    let shadow = cast_shadows_slice(&surface, &grid, sun)
+        .expect("the sample grid is metric and matches its data");
     let roads = layout::roads(extent);
     let texture_seed = mix(seed ^ 0x0c01);
     let lit = sample_grid(&grid, |x, y| ground_colour(texture_seed, &roads, x, y));
@@ -344,13 +407,20 @@ fn render_ortho(
                 0 => lit[i],
                 o => roof_colour(texture_seed, plans[o as usize - 1].roof, i),
             };
-            let k = if shadow[i] == SHADOW { SHADOW_FACTOR } else { 1.0 };
+            let k = if shadow[i] == SHADOW {
+                SHADOW_FACTOR
+            } else {
+                1.0
+            };
             let c = |v: u8| (v as f64 * k).round() as u8;
             [c(rgb[0]), c(rgb[1]), c(rgb[2]), 255]
         })
         .collect();
     let shadowed = shadow.iter().filter(|&&s| s == SHADOW).count();
-    (Raster::new(grid, data), shadowed as f64 / shadow.len() as f64)
+    (
+        Raster::new(grid, data),
+        shadowed as f64 / shadow.len() as f64,
+    )
 }
 
 /// Lit colour of open ground at local `(x, y)`: asphalt with a dashed white centre line on the
@@ -386,7 +456,11 @@ mod tests {
     use super::*;
 
     fn small(seed: u64) -> Scene {
-        generate(SampleOptions { seed, size: MIN_SIZE }).unwrap()
+        generate(SampleOptions {
+            seed,
+            size: MIN_SIZE,
+        })
+        .unwrap()
     }
 
     #[test]
@@ -404,10 +478,20 @@ mod tests {
     fn stated_sun_slopes_and_nodata() {
         let s = small(1);
         assert!((30.0..=50.0).contains(&s.sun.elevation_deg), "{:?}", s.sun);
-        assert!(s.max_slope_percent > 3.0 && s.max_slope_percent < 22.0, "{}", s.max_slope_percent);
-        assert_eq!(s.dem.nodata_count(), NODATA_CORNER * (NODATA_CORNER + 1) / 2);
+        assert!(
+            s.max_slope_percent > 3.0 && s.max_slope_percent < 22.0,
+            "{}",
+            s.max_slope_percent
+        );
+        assert_eq!(
+            s.dem.nodata_count(),
+            NODATA_CORNER * (NODATA_CORNER + 1) / 2
+        );
         assert!(s.dem.get(MIN_SIZE - 1, MIN_SIZE - 1).is_nan() && !s.dem.get(0, 0).is_nan());
-        assert_eq!((s.ortho.width(), s.ortho.height()), (2 * MIN_SIZE, 2 * MIN_SIZE));
+        assert_eq!(
+            (s.ortho.width(), s.ortho.height()),
+            (2 * MIN_SIZE, 2 * MIN_SIZE)
+        );
         assert_eq!(s.ortho.grid.bounds(), s.dem.grid.bounds());
         assert!(s.ortho.data.iter().all(|p| p[3] == 255));
     }
@@ -418,12 +502,17 @@ mod tests {
         assert_eq!(s.buildings.len(), 5);
         for b in &s.buildings {
             assert!((b.roof_z - b.ground_max_z - b.height_m).abs() < 1e-9);
-            assert!(b.ground_min_z <= b.ground_max_z && b.ground_max_z - b.ground_min_z < 0.3 * 30.0);
+            assert!(
+                b.ground_min_z <= b.ground_max_z && b.ground_max_z - b.ground_min_z < 0.3 * 30.0
+            );
             // The DEM under the footprint is terrain, far below the roof.
             let [x, y] = b.footprint[0];
             let (c, r) = s.dem.grid.cell_at(x + 0.3, y + 0.3).unwrap();
             let z = *s.dem.get(c, r) as f64;
-            assert!(z >= b.ground_min_z - 0.5 && z <= b.ground_max_z + 0.5, "{z} vs {b:?}");
+            assert!(
+                z >= b.ground_min_z - 0.5 && z <= b.ground_max_z + 0.5,
+                "{z} vs {b:?}"
+            );
         }
     }
 
@@ -433,11 +522,21 @@ mod tests {
         let (east, north) = s.sun.direction();
         let texture_seed = mix(5 ^ 0x0c01);
         let roads = layout::roads(MIN_SIZE as f64 * DEM_CELL_M);
-        let tallest = s.buildings.iter().max_by(|a, b| a.height_m.total_cmp(&b.height_m)).unwrap();
+        let tallest = s
+            .buildings
+            .iter()
+            .max_by(|a, b| a.height_m.total_cmp(&b.height_m))
+            .unwrap();
         let xs = tallest.footprint.iter().map(|p| p[0]);
         let ys = tallest.footprint.iter().map(|p| p[1]);
-        let (x0, x1) = (xs.clone().fold(f64::INFINITY, f64::min), xs.fold(f64::NEG_INFINITY, f64::max));
-        let (y0, y1) = (ys.clone().fold(f64::INFINITY, f64::min), ys.fold(f64::NEG_INFINITY, f64::max));
+        let (x0, x1) = (
+            xs.clone().fold(f64::INFINITY, f64::min),
+            xs.fold(f64::NEG_INFINITY, f64::max),
+        );
+        let (y0, y1) = (
+            ys.clone().fold(f64::INFINITY, f64::min),
+            ys.fold(f64::NEG_INFINITY, f64::max),
+        );
         // Leave the footprint's bounding box 1 m beyond its corner, away from the sun (in its
         // shadow) and toward the sun (lit).
         let corner = |toward: f64| {
@@ -452,15 +551,27 @@ mod tests {
             let lit = ground_colour(texture_seed, &roads, cx - MIN_X, cy - MIN_Y);
             let k = if expect_shadow { SHADOW_FACTOR } else { 1.0 };
             let want = lit.map(|v| (v as f64 * k).round() as u8);
-            assert_eq!(s.ortho.get(c, r)[..3], want[..], "toward {toward}: building {}", tallest.id);
+            assert_eq!(
+                s.ortho.get(c, r)[..3],
+                want[..],
+                "toward {toward}: building {}",
+                tallest.id
+            );
         }
-        assert!(s.shadow_fraction > 0.01 && s.shadow_fraction < 0.3, "{}", s.shadow_fraction);
+        assert!(
+            s.shadow_fraction > 0.01 && s.shadow_fraction < 0.3,
+            "{}",
+            s.shadow_fraction
+        );
     }
 
     #[test]
     fn sizes_out_of_range_are_errors() {
         for size in [0, MIN_SIZE - 1, MAX_SIZE + 1] {
-            let e = generate(SampleOptions { seed: 1, size }).err().unwrap().to_string();
+            let e = generate(SampleOptions { seed: 1, size })
+                .err()
+                .unwrap()
+                .to_string();
             assert!(e.contains("--size") && e.contains("default"), "{e}");
         }
     }

@@ -13,9 +13,9 @@ pub fn mix(mut x: u64) -> u64 {
 /// Hash of a lattice point and a seed, uniform in [−1, 1].
 #[inline]
 fn lattice(seed: u64, ix: i64, iy: i64) -> f64 {
-    let h =
-        mix(seed
-            ^ mix((ix as u64).wrapping_mul(0xA24B_AED4_963E_E407) ^ (iy as u64).wrapping_mul(0x9FB2_1C65_1E98_DF25)));
+    let h = mix(seed
+        ^ mix((ix as u64).wrapping_mul(0xA24B_AED4_963E_E407)
+            ^ (iy as u64).wrapping_mul(0x9FB2_1C65_1E98_DF25)));
     (h >> 11) as f64 / (1u64 << 52) as f64 - 1.0
 }
 
@@ -29,7 +29,8 @@ pub fn value_noise(seed: u64, x: f64, y: f64) -> f64 {
     let (u, v) = (fade(fx), fade(fy));
     let (ix, iy) = (x0 as i64, y0 as i64);
     let a = lattice(seed, ix, iy) + u * (lattice(seed, ix + 1, iy) - lattice(seed, ix, iy));
-    let b = lattice(seed, ix, iy + 1) + u * (lattice(seed, ix + 1, iy + 1) - lattice(seed, ix, iy + 1));
+    let b =
+        lattice(seed, ix, iy + 1) + u * (lattice(seed, ix + 1, iy + 1) - lattice(seed, ix, iy + 1));
     a + v * (b - a)
 }
 

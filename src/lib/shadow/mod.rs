@@ -76,10 +76,14 @@ impl Sun {
         }
         if elevation_deg > 90.0 {
             return Err(
-                Error::msg(format!("sun elevation {elevation_deg}° is above 90°")).fix("give an elevation in (0, 90]")
+                Error::msg(format!("sun elevation {elevation_deg}° is above 90°"))
+                    .fix("give an elevation in (0, 90]"),
             );
         }
-        Ok(Sun { elevation_deg, azimuth_deg: azimuth_deg.rem_euclid(360.0) })
+        Ok(Sun {
+            elevation_deg,
+            azimuth_deg: azimuth_deg.rem_euclid(360.0),
+        })
     }
 
     /// Horizontal length in metres of the shadow cast by a vertical edge `height_m` metres tall
@@ -101,7 +105,11 @@ impl Sun {
 /// above the horizon and `sun_azimuth_deg` clockwise from north (toward the sun). Returns a mask
 /// on the same grid: [`SHADOW`] (1), [`LIT`] (0) or [`NODATA`] (255). O(n), parallel.
 /// Errors on an invalid sun (see [`Sun::new`]) or a grid not in metres.
-pub fn cast_shadows(height: &Elevation, sun_elevation_deg: f64, sun_azimuth_deg: f64) -> Result<Raster<u8>> {
+pub fn cast_shadows(
+    height: &Elevation,
+    sun_elevation_deg: f64,
+    sun_azimuth_deg: f64,
+) -> Result<Raster<u8>> {
     let sun = Sun::new(sun_elevation_deg, sun_azimuth_deg)?;
     let data = cast_shadows_slice(&height.data, &height.grid, &sun)?;
     Ok(Raster::new(height.grid.clone(), data))
@@ -141,12 +149,16 @@ fn check_grid(heights: &[f32], grid: &Grid) -> Result<()> {
 /// Shadows are cast in metres: the grid's cells must be positive sizes in a projected CRS.
 fn check_cells(grid: &Grid) -> Result<()> {
     if grid.crs.geographic {
-        return Err(Error::msg(format!("cannot cast shadows on a grid in degrees ({})", grid.crs.name()))
-            .fix("reproject the elevation to a projected CRS in metres (e.g. UTM) first"));
+        return Err(Error::msg(format!(
+            "cannot cast shadows on a grid in degrees ({})",
+            grid.crs.name()
+        ))
+        .fix("reproject the elevation to a projected CRS in metres (e.g. UTM) first"));
     }
     let (cx, cy) = grid.cell_size();
     if !(cx.is_finite() && cy.is_finite() && cx > 0.0 && cy > 0.0) {
-        return Err(Error::msg(format!("cell size {cx} × {cy} is not positive")).fix("fix the grid's geotransform"));
+        return Err(Error::msg(format!("cell size {cx} × {cy} is not positive"))
+            .fix("fix the grid's geotransform"));
     }
     Ok(())
 }
@@ -168,7 +180,10 @@ mod tests {
 
     fn raster(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Elevation {
         let g = grid(w, h, 1.0, 1.0);
-        let data = (0..h).flat_map(|r| (0..w).map(move |c| (c, r))).map(|(c, r)| f(c, r)).collect();
+        let data = (0..h)
+            .flat_map(|r| (0..w).map(move |c| (c, r)))
+            .map(|(c, r)| f(c, r))
+            .collect();
         Elevation::new(g, data)
     }
 
@@ -180,8 +195,9 @@ mod tests {
     /// with about 1 % nodata holes.
     fn rugged(w: usize, h: usize, seed: u64) -> Elevation {
         let hash = |c: usize, r: usize| {
-            let mut x =
-                (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F) ^ seed;
+            let mut x = (c as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+                ^ seed;
             x ^= x >> 29;
             x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
             x ^= x >> 32;
@@ -202,7 +218,16 @@ mod tests {
     #[test]
     fn row_sweep_takes_every_row_once_from_the_sun_side() {
         let g = grid(7, 5, 1.0, 1.0);
-        for (az, first) in [(0.0, 0), (20.0, 0), (180.0, 4), (200.0, 4), (90.0, 0), (270.0, 0), (80.0, 0), (100.0, 4)] {
+        for (az, first) in [
+            (0.0, 0),
+            (20.0, 0),
+            (180.0, 4),
+            (200.0, 4),
+            (90.0, 0),
+            (270.0, 0),
+            (80.0, 0),
+            (100.0, 4),
+        ] {
             let mut sweep = RowSweep::new(&g, &Sun::new(30.0, az).unwrap()).unwrap();
             let mut order = Vec::new();
             while let Some(r) = sweep.next_row() {
@@ -245,7 +270,11 @@ mod tests {
                 });
                 let m = cast_shadows(&e, el, az).unwrap();
                 // Walk from the centre cell away from the sun: shadow length in whole steps.
-                let step = if az % 90.0 == 0.0 { 1.0 } else { std::f64::consts::SQRT_2 };
+                let step = if az % 90.0 == 0.0 {
+                    1.0
+                } else {
+                    std::f64::consts::SQRT_2
+                };
                 let (dc, dr) = (
                     (-east).signum() as isize * (east != 0.0) as isize,
                     (north.signum() as isize) * (north != 0.0) as isize,
@@ -255,7 +284,11 @@ mod tests {
                 loop {
                     c += dc;
                     r += dr;
-                    if c < 0 || r < 0 || c >= n as isize || r >= n as isize || *m.get(c as usize, r as usize) != SHADOW
+                    if c < 0
+                        || r < 0
+                        || c >= n as isize
+                        || r >= n as isize
+                        || *m.get(c as usize, r as usize) != SHADOW
                     {
                         break;
                     }
@@ -263,8 +296,15 @@ mod tests {
                 }
                 let expected = sun.shadow_length(10.0);
                 // The last shadowed cell's centre is within one step of the true shadow edge.
-                assert!((k as f64 * step - expected).abs() <= step, "az {az} el {el}: {k} steps vs {expected} m");
-                assert_eq!(m, cast_shadows_reference(&e, &sun).unwrap(), "az {az} el {el}");
+                assert!(
+                    (k as f64 * step - expected).abs() <= step,
+                    "az {az} el {el}: {k} steps vs {expected} m"
+                );
+                assert_eq!(
+                    m,
+                    cast_shadows_reference(&e, &sun).unwrap(),
+                    "az {az} el {el}"
+                );
             }
         }
     }
@@ -291,9 +331,15 @@ mod tests {
         let m = cast_shadows(&e, 45.0, 0.0).unwrap();
         // Rows 1..=3 are closer than 3.5 m / tan 45° to the wall; row 2 is the hole.
         let col: Vec<u8> = (0..9).map(|r| *m.get(1, r)).collect();
-        assert_eq!(col, vec![LIT, SHADOW, NODATA, SHADOW, LIT, LIT, LIT, LIT, LIT]);
+        assert_eq!(
+            col,
+            vec![LIT, SHADOW, NODATA, SHADOW, LIT, LIT, LIT, LIT, LIT]
+        );
         let all_nan = raster(4, 4, |_, _| f32::NAN);
-        assert_eq!(count(&cast_shadows(&all_nan, 30.0, 10.0).unwrap(), NODATA), 16);
+        assert_eq!(
+            count(&cast_shadows(&all_nan, 30.0, 10.0).unwrap(), NODATA),
+            16
+        );
     }
 
     #[test]
@@ -318,9 +364,17 @@ mod tests {
             let sun = Sun::new(25.0, az).unwrap();
             let fast = cast_shadows(&e, 25.0, az).unwrap();
             let exact = cast_shadows_reference(&e, &sun).unwrap();
-            let same = fast.data.iter().zip(&exact.data).filter(|(a, b)| a == b).count();
+            let same = fast
+                .data
+                .iter()
+                .zip(&exact.data)
+                .filter(|(a, b)| a == b)
+                .count();
             let shadowed = count(&exact, SHADOW);
-            assert!(shadowed > 1000, "az {az}: test terrain casts too little shadow ({shadowed})");
+            assert!(
+                shadowed > 1000,
+                "az {az}: test terrain casts too little shadow ({shadowed})"
+            );
             let agreement = same as f64 / e.data.len() as f64;
             // Measured 0.944–0.984 on this very steep terrain (slopes to 400 %); a sweep along a
             // mirrored direction agrees about 0.82.
@@ -334,13 +388,21 @@ mod tests {
         // 5 columns east–west but only 1 row (3 m) north–south.
         let mut g = grid(40, 40, 1.0, 3.0);
         g.transform.cell_y = -3.0;
-        let e = Elevation::new(g.clone(), (0..1600).map(|i| if i % 40 == 0 || i < 40 { 5.5 } else { 0.0 }).collect());
+        let e = Elevation::new(
+            g.clone(),
+            (0..1600)
+                .map(|i| if i % 40 == 0 || i < 40 { 5.5 } else { 0.0 })
+                .collect(),
+        );
         let west = cast_shadows(&e, 45.0, 270.0).unwrap();
         assert_eq!((1..40).filter(|&c| *west.get(c, 20) == SHADOW).count(), 5);
         let north = cast_shadows(&e, 45.0, 0.0).unwrap();
         assert_eq!((1..40).filter(|&r| *north.get(20, r) == SHADOW).count(), 1);
         for az in [0.0, 90.0, 180.0, 270.0] {
-            assert_eq!(west_or(&e, az), cast_shadows_reference(&e, &Sun::new(45.0, az).unwrap()).unwrap());
+            assert_eq!(
+                west_or(&e, az),
+                cast_shadows_reference(&e, &Sun::new(45.0, az).unwrap()).unwrap()
+            );
         }
         fn west_or(e: &Elevation, az: f64) -> Raster<u8> {
             cast_shadows(e, 45.0, az).unwrap()
@@ -350,14 +412,26 @@ mod tests {
     #[test]
     fn bad_suns_and_grids_are_errors() {
         let e = raster(3, 3, |_, _| 1.0);
-        for (el, az) in [(0.0, 10.0), (-3.0, 10.0), (90.5, 0.0), (f64::NAN, 0.0), (30.0, f64::INFINITY)] {
+        for (el, az) in [
+            (0.0, 10.0),
+            (-3.0, 10.0),
+            (90.5, 0.0),
+            (f64::NAN, 0.0),
+            (30.0, f64::INFINITY),
+        ] {
             let err = cast_shadows(&e, el, az).unwrap_err().to_string();
             assert!(!err.contains('\n'), "{err}");
         }
-        assert!(cast_shadows(&e, -1.0, 0.0).unwrap_err().to_string().contains("night"));
+        assert!(cast_shadows(&e, -1.0, 0.0)
+            .unwrap_err()
+            .to_string()
+            .contains("night"));
         let mut geo = e.clone();
         geo.grid.crs = Crs::epsg(4326);
-        assert!(cast_shadows(&geo, 30.0, 0.0).unwrap_err().to_string().contains("degrees"));
+        assert!(cast_shadows(&geo, 30.0, 0.0)
+            .unwrap_err()
+            .to_string()
+            .contains("degrees"));
         assert!(cast_shadows_slice(&[1.0; 4], &e.grid, &Sun::new(30.0, 0.0).unwrap()).is_err());
         assert_eq!(Sun::new(10.0, -90.0).unwrap().azimuth_deg, 270.0);
     }
@@ -365,7 +439,12 @@ mod tests {
     #[test]
     fn window_cast_matches_the_cropped_raster() {
         let e = rugged(60, 50, 11);
-        let w = crate::grid::Window { col: 7, row: 5, width: 31, height: 19 };
+        let w = crate::grid::Window {
+            col: 7,
+            row: 5,
+            width: 31,
+            height: 19,
+        };
         let sub = e.grid.window_grid(&w);
         let crop: Vec<f32> = (w.row..w.row + w.height)
             .flat_map(|r| (w.col..w.col + w.width).map(move |c| (c, r)))
@@ -373,7 +452,12 @@ mod tests {
             .collect();
         let sun = Sun::new(20.0, 123.0).unwrap();
         let slice = cast_shadows_slice(&crop, &sub, &sun).unwrap();
-        assert_eq!(slice, cast_shadows(&Elevation::new(sub, crop), 20.0, 123.0).unwrap().data);
+        assert_eq!(
+            slice,
+            cast_shadows(&Elevation::new(sub, crop), 20.0, 123.0)
+                .unwrap()
+                .data
+        );
     }
 
     proptest! {

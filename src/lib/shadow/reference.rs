@@ -14,7 +14,9 @@ use rayon::prelude::*;
 pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8>> {
     let grid = &height.grid;
     check_grid(&height.data, grid)?;
-    let top = height.min_max().map_or(f64::NEG_INFINITY, |(_, hi)| hi as f64);
+    let top = height
+        .min_max()
+        .map_or(f64::NEG_INFINITY, |(_, hi)| hi as f64);
     let tan_e = sun.elevation_deg.to_radians().tan();
     let (east, north) = sun.direction();
     // Cells per metre toward the sun, along columns and rows.
@@ -24,34 +26,40 @@ pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8
     // A crossed cell's centre is at most half a diagonal behind the ray's entry point.
     let half_diagonal = 0.5 * cell_x.hypot(cell_y);
     let mut data = vec![NODATA; grid.len()];
-    data.par_chunks_mut(grid.width.max(1)).enumerate().for_each(|(row, out)| {
-        for (col, v) in out.iter_mut().enumerate() {
-            let z0 = *height.get(col, row);
-            if z0.is_nan() {
-                continue;
-            }
-            let z0 = z0 as f64;
-            let mut shadowed = false;
-            if sun.elevation_deg < 90.0 {
-                let walk = CellWalk { x: Axis::new(col, dc), y: Axis::new(row, dr) };
-                for ((c, r), t) in walk {
-                    if c < 0 || r < 0 || c >= w || r >= h {
-                        break;
-                    }
-                    if z0 + (t - half_diagonal) * tan_e > top {
-                        break;
-                    }
-                    // Metres along the ray to the point nearest the cell's centre.
-                    let d = (c - col as isize) as f64 * cell_x * east + (r - row as isize) as f64 * cell_y * north;
-                    if z0 + d * tan_e < *height.get(c as usize, r as usize) as f64 {
-                        shadowed = true;
-                        break;
+    data.par_chunks_mut(grid.width.max(1))
+        .enumerate()
+        .for_each(|(row, out)| {
+            for (col, v) in out.iter_mut().enumerate() {
+                let z0 = *height.get(col, row);
+                if z0.is_nan() {
+                    continue;
+                }
+                let z0 = z0 as f64;
+                let mut shadowed = false;
+                if sun.elevation_deg < 90.0 {
+                    let walk = CellWalk {
+                        x: Axis::new(col, dc),
+                        y: Axis::new(row, dr),
+                    };
+                    for ((c, r), t) in walk {
+                        if c < 0 || r < 0 || c >= w || r >= h {
+                            break;
+                        }
+                        if z0 + (t - half_diagonal) * tan_e > top {
+                            break;
+                        }
+                        // Metres along the ray to the point nearest the cell's centre.
+                        let d = (c - col as isize) as f64 * cell_x * east
+                            + (r - row as isize) as f64 * cell_y * north;
+                        if z0 + d * tan_e < *height.get(c as usize, r as usize) as f64 {
+                            shadowed = true;
+                            break;
+                        }
                     }
                 }
+                *v = if shadowed { SHADOW } else { LIT };
             }
-            *v = if shadowed { SHADOW } else { LIT };
-        }
-    });
+        });
     Ok(Raster::new(grid.clone(), data))
 }
 
@@ -71,8 +79,17 @@ struct Axis {
 impl Axis {
     /// From the centre of cell `index`, moving `rate` cells per metre.
     fn new(index: usize, rate: f64) -> Axis {
-        let delta = if rate == 0.0 { f64::INFINITY } else { 1.0 / rate.abs() };
-        Axis { cell: index as isize, step: rate.signum() as isize * (rate != 0.0) as isize, next: 0.5 * delta, delta }
+        let delta = if rate == 0.0 {
+            f64::INFINITY
+        } else {
+            1.0 / rate.abs()
+        };
+        Axis {
+            cell: index as isize,
+            step: rate.signum() as isize * (rate != 0.0) as isize,
+            next: 0.5 * delta,
+            delta,
+        }
     }
 
     fn advance(&mut self) {

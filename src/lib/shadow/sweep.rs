@@ -75,7 +75,11 @@ impl RowSweep {
         if drift > 1.0 - 1e-12 {
             drift = 1.0; // the diagonal of square cells, exactly
         }
-        let (frame_w, frame_h) = if transposed { (height, width) } else { (width, height) };
+        let (frame_w, frame_h) = if transposed {
+            (height, width)
+        } else {
+            (width, height)
+        };
         let offsets: Vec<usize> = (0..frame_h).map(|i| offset(i, drift)).collect();
         let max_offset = offsets.last().copied().unwrap_or(0);
         let step_m = 1.0 / major.abs();
@@ -89,7 +93,11 @@ impl RowSweep {
             max_offset,
             rise: step_m * sun.elevation_deg.to_radians().tan(),
             overhead,
-            horizon: if overhead { Vec::new() } else { vec![f64::NEG_INFINITY; frame_w + max_offset] },
+            horizon: if overhead {
+                Vec::new()
+            } else {
+                vec![f64::NEG_INFINITY; frame_w + max_offset]
+            },
             pushed: 0,
             chunk: CHUNK,
         })
@@ -102,7 +110,11 @@ impl RowSweep {
             return None;
         }
         // Non-transposed: frame row k; transposed: frame column k.
-        let flip = if self.transposed { self.flip_col } else { self.flip_row };
+        let flip = if self.transposed {
+            self.flip_col
+        } else {
+            self.flip_row
+        };
         Some(if flip { self.height - 1 - k } else { k })
     }
 
@@ -112,8 +124,14 @@ impl RowSweep {
     /// # Panics
     /// When every row has been pushed already, or on slices not `width` long.
     pub fn push(&mut self, heights: &[f32], mask: &mut [u8]) {
-        assert!(self.pushed < self.height, "RowSweep: every row was pushed already");
-        assert!(heights.len() == self.width && mask.len() == self.width, "RowSweep: row length");
+        assert!(
+            self.pushed < self.height,
+            "RowSweep: every row was pushed already"
+        );
+        assert!(
+            heights.len() == self.width && mask.len() == self.width,
+            "RowSweep: row length"
+        );
         let k = self.pushed;
         self.pushed += 1;
         if self.overhead {
@@ -134,7 +152,8 @@ impl RowSweep {
                     .par_chunks_mut(chunk)
                     .zip(heights.par_rchunks(chunk).zip(mask.par_rchunks_mut(chunk)))
                     .for_each(|(h, (z, m))| {
-                        for ((h, z), m) in h.iter_mut().zip(z.iter().rev()).zip(m.iter_mut().rev()) {
+                        for ((h, z), m) in h.iter_mut().zip(z.iter().rev()).zip(m.iter_mut().rev())
+                        {
                             *m = step(h, *z, rise);
                         }
                     });

@@ -90,7 +90,12 @@ pub(super) fn spa(inp: &Input) -> Output {
 
     // 3.5 True obliquity of the ecliptic.
     let u = jme / 10.0;
-    let eps0 = poly(u, &[84381.448, -4680.93, -1.55, 1999.25, -51.38, -249.67, -39.05, 7.12, 27.87, 5.79, 2.45]);
+    let eps0 = poly(
+        u,
+        &[
+            84381.448, -4680.93, -1.55, 1999.25, -51.38, -249.67, -39.05, 7.12, 27.87, 5.79, 2.45,
+        ],
+    );
     let epsilon = eps0 / 3600.0 + delta_eps;
 
     // 3.6–3.7 Aberration and apparent sun longitude.
@@ -106,10 +111,15 @@ pub(super) fn spa(inp: &Input) -> Output {
     // 3.9–3.10 Geocentric right ascension and declination.
     let (lam, eps, bet) = (lambda.to_radians(), epsilon.to_radians(), beta.to_radians());
     let alpha = wrap_deg(
-        (lam.sin() * eps.cos() - bet.tan() * eps.sin()).atan2(lam.cos()).to_degrees(),
+        (lam.sin() * eps.cos() - bet.tan() * eps.sin())
+            .atan2(lam.cos())
+            .to_degrees(),
     );
     // Clamped: rounding can carry the sine of an overhead sun a few ulps past 1 (asin → NaN).
-    let delta = (bet.sin() * eps.cos() + bet.cos() * eps.sin() * lam.sin()).clamp(-1.0, 1.0).asin().to_degrees();
+    let delta = (bet.sin() * eps.cos() + bet.cos() * eps.sin() * lam.sin())
+        .clamp(-1.0, 1.0)
+        .asin()
+        .to_degrees();
 
     // 3.11 Observer local hour angle.
     let hour_angle = wrap_deg(nu + inp.longitude_deg - alpha);
@@ -122,8 +132,8 @@ pub(super) fn spa(inp: &Input) -> Output {
     let y = 0.99664719 * uu.sin() + inp.height_m / 6378140.0 * phi.sin();
     let (h, dl) = (hour_angle.to_radians(), delta.to_radians());
     let delta_alpha = (-x * xi.sin() * h.sin()).atan2(dl.cos() - x * xi.sin() * h.cos());
-    let delta_prime = ((dl.sin() - y * xi.sin()) * delta_alpha.cos())
-        .atan2(dl.cos() - x * xi.sin() * h.cos());
+    let delta_prime =
+        ((dl.sin() - y * xi.sin()) * delta_alpha.cos()).atan2(dl.cos() - x * xi.sin() * h.cos());
 
     // 3.13 Topocentric local hour angle.
     let h_prime = h - delta_alpha;
@@ -134,8 +144,13 @@ pub(super) fn spa(inp: &Input) -> Output {
         .clamp(-1.0, 1.0)
         .asin()
         .to_degrees();
-    let e = e0 + inp.refraction.map_or(0.0, |(p, t)| refraction_deg(e0, p, t));
-    let gamma = h_prime.sin().atan2(h_prime.cos() * phi.sin() - delta_prime.tan() * phi.cos());
+    let e = e0
+        + inp
+            .refraction
+            .map_or(0.0, |(p, t)| refraction_deg(e0, p, t));
+    let gamma = h_prime
+        .sin()
+        .atan2(h_prime.cos() * phi.sin() - delta_prime.tan() * phi.cos());
     let azimuth = wrap_deg(gamma.to_degrees() + 180.0);
 
     Output {
@@ -164,7 +179,8 @@ pub(super) fn spa(inp: &Input) -> Output {
 fn refraction_deg(e0: f64, p: f64, t: f64) -> f64 {
     let cutoff = -(SUN_RADIUS_DEG + HORIZON_REFRACTION_DEG);
     let bennett = |e: f64| {
-        (p / 1010.0) * (283.0 / (273.0 + t)) * 1.02 / (60.0 * (e + 10.3 / (e + 5.11)).to_radians().tan())
+        (p / 1010.0) * (283.0 / (273.0 + t)) * 1.02
+            / (60.0 * (e + 10.3 / (e + 5.11)).to_radians().tan())
     };
     if e0 >= cutoff {
         bennett(e0)
@@ -176,7 +192,11 @@ fn refraction_deg(e0: f64, p: f64, t: f64) -> f64 {
 /// Σᵢ τⁱ Σⱼ Aⱼ cos(Bⱼ + Cⱼ τ) / 10⁸: one of L, B, R (radians or AU).
 fn earth_series(series: &[&[[f64; 3]]], jme: f64) -> f64 {
     let horner = series.iter().rev().fold(0.0, |acc, terms| {
-        acc * jme + terms.iter().map(|[a, b, c]| a * (b + c * jme).cos()).sum::<f64>()
+        acc * jme
+            + terms
+                .iter()
+                .map(|[a, b, c]| a * (b + c * jme).cos())
+                .sum::<f64>()
     });
     horner / 1e8
 }
@@ -194,7 +214,11 @@ fn nutation(jce: f64) -> (f64, f64) {
     ];
     let (mut psi, mut eps) = (0.0, 0.0);
     for (y, [a, b, c, d]) in NUTATION_Y.iter().zip(NUTATION_ABCD.iter()) {
-        let arg: f64 = y.iter().zip(x.iter()).map(|(&yi, xi)| f64::from(yi) * xi).sum();
+        let arg: f64 = y
+            .iter()
+            .zip(x.iter())
+            .map(|(&yi, xi)| f64::from(yi) * xi)
+            .sum();
         let arg = arg.to_radians();
         psi += (a + b * jce) * arg.sin();
         eps += (c + d * jce) * arg.cos();
@@ -258,7 +282,10 @@ mod tests {
             ("azimuth", o.azimuth, 194.34024, 5e-6),
         ];
         for (name, got, want, tol) in cases {
-            assert!((got - want).abs() <= tol, "{name}: got {got}, paper {want} (tolerance {tol})");
+            assert!(
+                (got - want).abs() <= tol,
+                "{name}: got {got}, paper {want} (tolerance {tol})"
+            );
         }
     }
 
@@ -267,10 +294,22 @@ mod tests {
     #[test]
     fn refraction_is_continuous_through_the_cutoff() {
         let cutoff = -(SUN_RADIUS_DEG + HORIZON_REFRACTION_DEG);
-        let (above, below) = (refraction_deg(cutoff, 1013.25, 15.0), refraction_deg(cutoff - 1e-9, 1013.25, 15.0));
-        assert!((above - below).abs() < 1e-8, "step at the cut-off: {above} vs {below}");
-        assert!(above > 0.5 && above < 0.7, "refraction at the cut-off {above}");
-        assert_eq!(refraction_deg(cutoff - REFRACTION_FADE_DEG, 1013.25, 15.0), 0.0);
+        let (above, below) = (
+            refraction_deg(cutoff, 1013.25, 15.0),
+            refraction_deg(cutoff - 1e-9, 1013.25, 15.0),
+        );
+        assert!(
+            (above - below).abs() < 1e-8,
+            "step at the cut-off: {above} vs {below}"
+        );
+        assert!(
+            above > 0.5 && above < 0.7,
+            "refraction at the cut-off {above}"
+        );
+        assert_eq!(
+            refraction_deg(cutoff - REFRACTION_FADE_DEG, 1013.25, 15.0),
+            0.0
+        );
         assert_eq!(refraction_deg(-30.0, 1013.25, 15.0), 0.0);
         let half = refraction_deg(cutoff - REFRACTION_FADE_DEG / 2.0, 1013.25, 15.0);
         assert!((half - above / 2.0).abs() < 1e-12);

@@ -34,7 +34,9 @@ pub struct View {
 }
 
 /// What a view does with a voxel it cannot see (behind it or outside its image).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Unseen {
     /// The view gives no evidence: the voxel stays (default).
@@ -54,7 +56,10 @@ pub struct CarveOptions {
 
 impl Default for CarveOptions {
     fn default() -> Self {
-        CarveOptions { outside: Unseen::Keep, behind: Unseen::Keep }
+        CarveOptions {
+            outside: Unseen::Keep,
+            behind: Unseen::Keep,
+        }
     }
 }
 
@@ -84,8 +89,10 @@ fn check(views: &[View]) -> Result<()> {
         return Err(Error::msg("no views to carve from").fix("give at least one view"));
     }
     if let Some(i) = views.iter().position(|v| v.silhouette.area() == 0) {
-        return Err(Error::msg(format!("view {i}: the silhouette is empty, so it would carve away everything"))
-            .fix("check the mask or the background key and tolerance"));
+        return Err(Error::msg(format!(
+            "view {i}: the silhouette is empty, so it would carve away everything"
+        ))
+        .fix("check the mask or the background key and tolerance"));
     }
     Ok(())
 }
@@ -93,7 +100,9 @@ fn check(views: &[View]) -> Result<()> {
 /// The reference carver: the exact rule for every voxel of `grid`.
 pub fn carve_dense(grid: &VoxelGrid, views: &[View], opts: &CarveOptions) -> Result<Occupancy> {
     check(views)?;
-    Ok(Occupancy::from_fn(grid, |c| views.iter().all(|v| keeps(v, c, opts))))
+    Ok(Occupancy::from_fn(grid, |c| {
+        views.iter().all(|v| keeps(v, c, opts))
+    }))
 }
 
 /// The hierarchical carver; its result equals [`carve_dense`]'s exactly.
@@ -101,7 +110,12 @@ pub fn carve(grid: &VoxelGrid, views: &[View], opts: &CarveOptions) -> Result<Oc
     check(views)?;
     let out = AtomicOccupancy::new(grid);
     let all: Vec<usize> = (0..views.len()).collect();
-    let ctx = Ctx { grid, views, opts, out: &out };
+    let ctx = Ctx {
+        grid,
+        views,
+        opts,
+        out: &out,
+    };
     ctx.carve_box([0; 3], grid.dims, &all);
     Ok(out.finish())
 }
@@ -157,7 +171,9 @@ impl Ctx<'_> {
             }
         }
         if volume >= PARALLEL_VOXELS {
-            children.par_iter().for_each(|&(l, h)| self.carve_box(l, h, &partial));
+            children
+                .par_iter()
+                .for_each(|&(l, h)| self.carve_box(l, h, &partial));
         } else {
             for (l, h) in children {
                 self.carve_box(l, h, &partial);
@@ -168,7 +184,8 @@ impl Ctx<'_> {
     fn fill(&self, lo: [u32; 3], hi: [u32; 3]) {
         for y in lo[1]..hi[1] {
             for x in lo[0]..hi[0] {
-                self.out.set_run(self.grid.index(x, y, lo[2]), (hi[2] - lo[2]) as usize);
+                self.out
+                    .set_run(self.grid.index(x, y, lo[2]), (hi[2] - lo[2]) as usize);
             }
         }
     }
@@ -178,7 +195,10 @@ impl Ctx<'_> {
             for x in lo[0]..hi[0] {
                 for z in lo[2]..hi[2] {
                     let c = self.grid.centre(x, y, z);
-                    if active.iter().all(|&vi| keeps(&self.views[vi], c, self.opts)) {
+                    if active
+                        .iter()
+                        .all(|&vi| keeps(&self.views[vi], c, self.opts))
+                    {
                         self.out.set(self.grid.index(x, y, z));
                     }
                 }
@@ -191,13 +211,26 @@ impl Ctx<'_> {
     fn classify(&self, view: &View, lo: [u32; 3], hi: [u32; 3]) -> Class {
         // The voxel centres of the box span the box between its first and last centres; depth is
         // affine and perspective maps segments to segments, so the corners bound everything.
-        let (a, b) = (self.grid.centre(lo[0], lo[1], lo[2]), self.grid.centre(hi[0] - 1, hi[1] - 1, hi[2] - 1));
-        let corners = (0..8)
-            .map(|k| [if k & 1 == 0 { a[0] } else { b[0] }, if k & 2 == 0 { a[1] } else { b[1] }, if k & 4 == 0 { a[2] } else { b[2] }]);
+        let (a, b) = (
+            self.grid.centre(lo[0], lo[1], lo[2]),
+            self.grid.centre(hi[0] - 1, hi[1] - 1, hi[2] - 1),
+        );
+        let corners = (0..8).map(|k| {
+            [
+                if k & 1 == 0 { a[0] } else { b[0] },
+                if k & 2 == 0 { a[1] } else { b[1] },
+                if k & 4 == 0 { a[2] } else { b[2] },
+            ]
+        });
         // Rounding margin on depths (metres): far above f64 noise at UTM magnitudes.
         const DEPTH_EPS: f64 = 1e-7;
         let mut depth = (f64::INFINITY, f64::NEG_INFINITY);
-        let (mut umin, mut umax, mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let (mut umin, mut umax, mut vmin, mut vmax) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
         let pinhole = matches!(view.camera, Camera::Pinhole(_));
         for c in corners {
             if pinhole {
@@ -216,7 +249,11 @@ impl Ctx<'_> {
         }
         if pinhole {
             if depth.1 <= NEAR - DEPTH_EPS {
-                return if self.opts.behind == Unseen::Keep { Class::Keep } else { Class::Carve };
+                return if self.opts.behind == Unseen::Keep {
+                    Class::Keep
+                } else {
+                    Class::Carve
+                };
             }
             if depth.0 <= NEAR + DEPTH_EPS {
                 return Class::Partial;
@@ -231,9 +268,22 @@ impl Ctx<'_> {
         let r0 = (vmin - pad(vmin)).floor().clamp(-1.0, h);
         let r1 = (vmax + pad(vmax)).floor().clamp(-1.0, h);
         let leaves_image = c0 < 0.0 || r0 < 0.0 || c1 >= w || r1 >= h;
-        let (ic0, ic1, ir0, ir1) = (c0.max(0.0) as u32, (c1 + 1.0).min(w) as u32, r0.max(0.0) as u32, (r1 + 1.0).min(h) as u32);
-        let area = if ic0 < ic1 && ir0 < ir1 { (ic1 - ic0) as u64 * (ir1 - ir0) as u64 } else { 0 };
-        let inside = if area > 0 { s.count(ic0, ir0, ic1, ir1) } else { 0 };
+        let (ic0, ic1, ir0, ir1) = (
+            c0.max(0.0) as u32,
+            (c1 + 1.0).min(w) as u32,
+            r0.max(0.0) as u32,
+            (r1 + 1.0).min(h) as u32,
+        );
+        let area = if ic0 < ic1 && ir0 < ir1 {
+            (ic1 - ic0) as u64 * (ir1 - ir0) as u64
+        } else {
+            0
+        };
+        let inside = if area > 0 {
+            s.count(ic0, ir0, ic1, ir1)
+        } else {
+            0
+        };
         let outside_keeps = self.opts.outside == Unseen::Keep;
         if inside == area && (!leaves_image || outside_keeps) {
             Class::Keep
@@ -256,15 +306,33 @@ mod tests {
             .map(|i| {
                 let az = (i as f64 / n as f64) * std::f64::consts::TAU;
                 let e = elev_deg.to_radians();
-                let pos = [dist * e.cos() * az.cos(), dist * e.cos() * az.sin(), dist * e.sin()];
+                let pos = [
+                    dist * e.cos() * az.cos(),
+                    dist * e.cos() * az.sin(),
+                    dist * e.sin(),
+                ];
                 let f = size as f64 * 1.2;
-                Camera::look_at(f, f, size as f64 / 2.0, size as f64 / 2.0, pos, [0.0; 3], None).unwrap()
+                Camera::look_at(
+                    f,
+                    f,
+                    size as f64 / 2.0,
+                    size as f64 / 2.0,
+                    pos,
+                    [0.0; 3],
+                    None,
+                )
+                .unwrap()
             })
             .collect()
     }
 
     fn views_of(solid: &Solid, cams: Vec<Camera>, size: u32) -> Vec<View> {
-        cams.into_iter().map(|camera| View { silhouette: solids::render(solid, &camera, size, size), camera }).collect()
+        cams.into_iter()
+            .map(|camera| View {
+                silhouette: solids::render(solid, &camera, size, size),
+                camera,
+            })
+            .collect()
     }
 
     fn unit_grid(n: u32) -> VoxelGrid {
@@ -288,30 +356,53 @@ mod tests {
     fn utm_sized_coordinates_carve_the_same_as_near_the_origin() {
         // The same scene 500 km east, 5000 km north: the carvers still agree and still find the sphere.
         let c = [500_123.25, 5_000_456.75, 312.5];
-        let solid = Solid::Sphere { centre: c, radius: 0.8 };
+        let solid = Solid::Sphere {
+            centre: c,
+            radius: 0.8,
+        };
         let cams: Vec<Camera> = ring(8, 4.0, 25.0, 96)
             .into_iter()
             .map(|cam| {
-                let Camera::Pinhole(p) = cam else { unreachable!() };
+                let Camera::Pinhole(p) = cam else {
+                    unreachable!()
+                };
                 let pos = [0, 1, 2].map(|a| p.centre[a] + c[a]);
                 Camera::look_at(p.fx, p.fy, p.cx, p.cy, pos, c, None).unwrap()
             })
             .collect();
         let views = views_of(&solid, cams, 96);
-        let g = VoxelGrid::covering([c[0] - 1.0, c[1] - 1.0, c[2] - 1.0], [c[0] + 1.0, c[1] + 1.0, c[2] + 1.0], 2.0 / 40.0).unwrap();
+        let g = VoxelGrid::covering(
+            [c[0] - 1.0, c[1] - 1.0, c[2] - 1.0],
+            [c[0] + 1.0, c[1] + 1.0, c[2] + 1.0],
+            2.0 / 40.0,
+        )
+        .unwrap();
         let h = carve(&g, &views, &CarveOptions::default()).unwrap();
-        assert_eq!(h, carve_dense(&g, &views, &CarveOptions::default()).unwrap());
-        let near_origin =
-            carve(&unit_grid(40), &views_of(&solids::benchmark_solids()[0], ring(8, 4.0, 25.0, 96), 96), &CarveOptions::default()).unwrap();
+        assert_eq!(
+            h,
+            carve_dense(&g, &views, &CarveOptions::default()).unwrap()
+        );
+        let near_origin = carve(
+            &unit_grid(40),
+            &views_of(&solids::benchmark_solids()[0], ring(8, 4.0, 25.0, 96), 96),
+            &CarveOptions::default(),
+        )
+        .unwrap();
         assert!(h.iou(&near_origin) > 0.99, "iou {}", h.iou(&near_origin));
     }
 
     #[test]
     fn empty_silhouette_is_an_error() {
         let cam = Camera::orthographic([0.0, 0.0, -1.0], None, 10.0, [0.0; 3], 8.0, 8.0).unwrap();
-        let views = vec![View { camera: cam, silhouette: Silhouette::new(16, 16, vec![false; 256]) }];
+        let views = vec![View {
+            camera: cam,
+            silhouette: Silhouette::new(16, 16, vec![false; 256]),
+        }];
         let e = carve(&unit_grid(8), &views, &CarveOptions::default()).unwrap_err();
-        assert!(e.to_string().contains("view 0: the silhouette is empty"), "{e}");
+        assert!(
+            e.to_string().contains("view 0: the silhouette is empty"),
+            "{e}"
+        );
         assert!(carve(&unit_grid(8), &[], &CarveOptions::default()).is_err());
     }
 
@@ -320,10 +411,16 @@ mod tests {
         // A camera at the centre of the box looking east: half the box is behind it.
         let cam = Camera::look_at(20.0, 20.0, 16.0, 16.0, [0.0; 3], [1.0, 0.0, 0.0], None).unwrap();
         let sil = Silhouette::new(32, 32, (0..1024).map(|i| i % 32 < 16).collect());
-        let views = vec![View { camera: cam, silhouette: sil }];
+        let views = vec![View {
+            camera: cam,
+            silhouette: sil,
+        }];
         let g = unit_grid(16);
         for behind in [Unseen::Keep, Unseen::Carve] {
-            let opts = CarveOptions { behind, outside: Unseen::Keep };
+            let opts = CarveOptions {
+                behind,
+                outside: Unseen::Keep,
+            };
             let h = carve(&g, &views, &opts).unwrap();
             assert_eq!(h, carve_dense(&g, &views, &opts).unwrap());
             let west_kept = h.get(2, 8, 8);
@@ -335,14 +432,24 @@ mod tests {
     fn outside_rule_decides_voxels_off_the_image() {
         // A tiny top view that sees only the middle of the box, silhouette everywhere.
         let cam = Camera::orthographic([0.0, 0.0, -1.0], None, 4.0, [0.0; 3], 2.0, 2.0).unwrap();
-        let views = vec![View { camera: cam, silhouette: Silhouette::new(4, 4, vec![true; 16]) }];
+        let views = vec![View {
+            camera: cam,
+            silhouette: Silhouette::new(4, 4, vec![true; 16]),
+        }];
         let g = unit_grid(16);
         let keep = carve(&g, &views, &CarveOptions::default()).unwrap();
         assert_eq!(keep.count(), g.len());
-        let opts = CarveOptions { outside: Unseen::Carve, behind: Unseen::Keep };
+        let opts = CarveOptions {
+            outside: Unseen::Carve,
+            behind: Unseen::Keep,
+        };
         let cut = carve(&g, &views, &opts).unwrap();
         assert_eq!(cut, carve_dense(&g, &views, &opts).unwrap());
-        assert_eq!(cut.count(), 8 * 8 * 16, "only the 1 m × 1 m the image covers survives");
+        assert_eq!(
+            cut.count(),
+            8 * 8 * 16,
+            "only the 1 m × 1 m the image covers survives"
+        );
     }
 
     proptest! {

@@ -30,7 +30,13 @@ pub struct ColourStats {
 /// Colour `occupancy` from `views` and their `images` (same order; a pixel counts only where both
 /// the image and the silhouette have it); `fill` is the
 /// colour of interior and unseen voxels. Parallel over y-slabs, deterministic.
-pub fn colour(grid: VoxelGrid, occupancy: Occupancy, views: &[View], images: &[Picture], fill: [u8; 3]) -> (VoxelObject, ColourStats) {
+pub fn colour(
+    grid: VoxelGrid,
+    occupancy: Occupancy,
+    views: &[View],
+    images: &[Picture],
+    fill: [u8; 3],
+) -> (VoxelObject, ColourStats) {
     assert_eq!(views.len(), images.len(), "one image per view");
     let slabs: Vec<(Vec<[u8; 3]>, usize, usize)> = (0..grid.dims[1])
         .into_par_iter()
@@ -68,15 +74,31 @@ pub fn colour(grid: VoxelGrid, occupancy: Occupancy, views: &[View], images: &[P
     let surface = slabs.iter().map(|s| s.1).sum();
     let seen = slabs.iter().map(|s| s.2).sum();
     let colours = slabs.into_iter().flat_map(|s| s.0).collect();
-    (VoxelObject::new(grid, occupancy, colours), ColourStats { surface, seen, unseen: surface - seen })
+    (
+        VoxelObject::new(grid, occupancy, colours),
+        ColourStats {
+            surface,
+            seen,
+            unseen: surface - seen,
+        },
+    )
 }
 
 /// The image pixel `view` sees voxel `v` through, or `None` when it does not see it.
-fn seen_pixel(grid: &VoxelGrid, occ: &Occupancy, view: &View, img: &Picture, v: [u32; 3]) -> Option<[u8; 4]> {
+fn seen_pixel(
+    grid: &VoxelGrid,
+    occ: &Occupancy,
+    view: &View,
+    img: &Picture,
+    v: [u32; 3],
+) -> Option<[u8; 4]> {
     let c = grid.centre(v[0], v[1], v[2]);
     let [u, w] = view.camera.project(c)?;
     let s = &view.silhouette;
-    let (width, height) = (img.width.min(s.width()) as f64, img.height.min(s.height()) as f64);
+    let (width, height) = (
+        img.width.min(s.width()) as f64,
+        img.height.min(s.height()) as f64,
+    );
     if !(u >= 0.0 && w >= 0.0 && u < width && w < height) {
         return None;
     }
@@ -120,7 +142,14 @@ fn visible(grid: &VoxelGrid, occ: &Occupancy, camera: &Camera, c: [f64; 3], v: [
 
 /// Does the ray `start + t·dir` (voxel units, `dir` unit), starting in empty voxel `cell`, meet a
 /// solid voxel for `t < t_end`? Amanatides–Woo traversal; ties step the lowest axis first.
-fn occluded(grid: &VoxelGrid, occ: &Occupancy, mut cell: [i64; 3], start: [f64; 3], dir: [f64; 3], t_end: f64) -> bool {
+fn occluded(
+    grid: &VoxelGrid,
+    occ: &Occupancy,
+    mut cell: [i64; 3],
+    start: [f64; 3],
+    dir: [f64; 3],
+    t_end: f64,
+) -> bool {
     let dims = grid.dims.map(|d| d as i64);
     let mut t_next = [f64::INFINITY; 3];
     let mut t_step = [0.0f64; 3];
@@ -129,7 +158,11 @@ fn occluded(grid: &VoxelGrid, occ: &Occupancy, mut cell: [i64; 3], start: [f64; 
         if dir[a] != 0.0 {
             step[a] = if dir[a] > 0.0 { 1 } else { -1 };
             t_step[a] = 1.0 / dir[a].abs();
-            let boundary = if dir[a] > 0.0 { (cell[a] + 1) as f64 } else { cell[a] as f64 };
+            let boundary = if dir[a] > 0.0 {
+                (cell[a] + 1) as f64
+            } else {
+                cell[a] as f64
+            };
             t_next[a] = ((boundary - start[a]) / dir[a]).max(0.0);
         }
     }
@@ -161,28 +194,68 @@ mod tests {
     use crate::voxel::silhouette::Silhouette;
 
     fn flat(colour: [u8; 4], w: u32, h: u32) -> Picture {
-        Picture { width: w, height: h, pixels: vec![colour; (w * h) as usize] }
+        Picture {
+            width: w,
+            height: h,
+            pixels: vec![colour; (w * h) as usize],
+        }
     }
 
     #[test]
     fn hidden_voxels_do_not_take_the_occluders_colour() {
         // Two walls across x (x = 2..=3 and x = 6..=7); a red view from −x, a blue view from +x.
         let g = VoxelGrid::new([0.0; 3], 1.0, [10, 4, 4]).unwrap();
-        let occ = Occupancy::from_fn(&g, |p| (2.0..4.0).contains(&p[0]) || (6.0..8.0).contains(&p[0]));
+        let occ = Occupancy::from_fn(&g, |p| {
+            (2.0..4.0).contains(&p[0]) || (6.0..8.0).contains(&p[0])
+        });
         let sil = || Silhouette::new(16, 16, vec![true; 256]);
-        let from_west = Camera::orthographic([1.0, 0.0, 0.0], None, 4.0, [5.0, 2.0, 2.0], 8.0, 8.0).unwrap();
-        let from_east = Camera::look_at(40.0, 40.0, 8.0, 8.0, [30.0, 2.0, 2.0], [5.0, 2.0, 2.0], None).unwrap();
-        let views = vec![View { camera: from_west, silhouette: sil() }, View { camera: from_east, silhouette: sil() }];
-        let images = vec![flat([255, 0, 0, 255], 16, 16), flat([0, 0, 255, 255], 16, 16)];
+        let from_west =
+            Camera::orthographic([1.0, 0.0, 0.0], None, 4.0, [5.0, 2.0, 2.0], 8.0, 8.0).unwrap();
+        let from_east = Camera::look_at(
+            40.0,
+            40.0,
+            8.0,
+            8.0,
+            [30.0, 2.0, 2.0],
+            [5.0, 2.0, 2.0],
+            None,
+        )
+        .unwrap();
+        let views = vec![
+            View {
+                camera: from_west,
+                silhouette: sil(),
+            },
+            View {
+                camera: from_east,
+                silhouette: sil(),
+            },
+        ];
+        let images = vec![
+            flat([255, 0, 0, 255], 16, 16),
+            flat([0, 0, 255, 255], 16, 16),
+        ];
         let fill = [9, 9, 9];
         let (obj, stats) = colour(g, occ, &views, &images, fill);
         let rank = crate::voxel::occupancy::Rank::new(&obj.occupancy);
         let at = |x| obj.colour_at(&rank, x, 1, 1).unwrap();
         assert_eq!(at(2), [255, 0, 0], "west face seen by the red view");
-        assert_eq!(at(3), fill, "east face of the first wall is hidden from both views");
-        assert_eq!(at(6), fill, "west face of the second wall is behind the first wall");
+        assert_eq!(
+            at(3),
+            fill,
+            "east face of the first wall is hidden from both views"
+        );
+        assert_eq!(
+            at(6),
+            fill,
+            "west face of the second wall is behind the first wall"
+        );
         assert_eq!(at(7), [0, 0, 255], "east face seen by the blue view");
-        assert_eq!(stats.surface, obj.len(), "4 voxels thick: every voxel touches the grid edge or air");
+        assert_eq!(
+            stats.surface,
+            obj.len(),
+            "4 voxels thick: every voxel touches the grid edge or air"
+        );
         assert_eq!(stats.seen + stats.unseen, stats.surface);
     }
 
@@ -192,7 +265,10 @@ mod tests {
         let g = VoxelGrid::covering([-1.0; 3], [1.0; 3], 2.0 / 32.0).unwrap();
         let occ = Occupancy::from_fn(&g, |p| p[0] * p[0] + p[1] * p[1] + p[2] * p[2] <= 0.81);
         let top = Camera::orthographic([0.0, 0.0, -1.0], None, 20.0, [0.0; 3], 25.0, 25.0).unwrap();
-        let views = vec![View { camera: top, silhouette: Silhouette::new(50, 50, vec![true; 2500]) }];
+        let views = vec![View {
+            camera: top,
+            silhouette: Silhouette::new(50, 50, vec![true; 2500]),
+        }];
         let columns = (0..32u32)
             .flat_map(|y| (0..32u32).map(move |x| (x, y)))
             .filter(|&(x, y)| (0..32).any(|z| occ.get(x as i64, y as i64, z)))
@@ -206,11 +282,28 @@ mod tests {
         let g = VoxelGrid::new([0.0; 3], 1.0, [1, 1, 1]).unwrap();
         let occ = Occupancy::from_fn(&g, |_| true);
         let sil = || Silhouette::new(4, 4, vec![true; 16]);
-        let cams = [[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]].map(|d| Camera::orthographic(d, None, 2.0, [0.5; 3], 2.0, 2.0).unwrap());
-        let views: Vec<View> = cams.into_iter().map(|camera| View { camera, silhouette: sil() }).collect();
-        let images = vec![flat([100, 0, 51, 255], 4, 4), flat([201, 10, 50, 255], 4, 4)];
+        let cams = [[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]
+            .map(|d| Camera::orthographic(d, None, 2.0, [0.5; 3], 2.0, 2.0).unwrap());
+        let views: Vec<View> = cams
+            .into_iter()
+            .map(|camera| View {
+                camera,
+                silhouette: sil(),
+            })
+            .collect();
+        let images = vec![
+            flat([100, 0, 51, 255], 4, 4),
+            flat([201, 10, 50, 255], 4, 4),
+        ];
         let (obj, stats) = colour(g, occ, &views, &images, [0; 3]);
         assert_eq!(obj.colours, vec![[151, 5, 51]]);
-        assert_eq!(stats, ColourStats { surface: 1, seen: 1, unseen: 0 });
+        assert_eq!(
+            stats,
+            ColourStats {
+                surface: 1,
+                seen: 1,
+                unseen: 0
+            }
+        );
     }
 }

@@ -49,7 +49,10 @@ pub fn check_runs(runs: &[Run]) -> Result<(), String> {
         return Err("has no runs (the ground run is required)".into());
     };
     if first.bottom != f32::NEG_INFINITY {
-        return Err(format!("ground run's bottom is {}, expected -inf", first.bottom));
+        return Err(format!(
+            "ground run's bottom is {}, expected -inf",
+            first.bottom
+        ));
     }
     let mut below = f32::NEG_INFINITY;
     for (k, r) in runs.iter().enumerate() {
@@ -60,7 +63,10 @@ pub fn check_runs(runs: &[Run]) -> Result<(), String> {
             ));
         }
         if !(r.top.is_finite() && r.top > r.bottom) {
-            return Err(format!("run {k} has top {} m, not finite and above its bottom {} m", r.top, r.bottom));
+            return Err(format!(
+                "run {k} has top {} m, not finite and above its bottom {} m",
+                r.top, r.bottom
+            ));
         }
         if r.colour[3] != 255 {
             return Err(format!("run {k} has alpha {}, expected 255", r.colour[3]));
@@ -85,10 +91,14 @@ impl PageColumns {
     pub fn push(&mut self, cell: usize, runs: &[Run]) -> Result<(), String> {
         let c = u32::try_from(cell).map_err(|_| format!("cell {cell} is beyond u32"))?;
         if self.cells.last().is_some_and(|&last| last >= c) {
-            return Err(format!("cell {cell} is not after cell {}", self.cells.last().unwrap()));
+            return Err(format!(
+                "cell {cell} is not after cell {}",
+                self.cells.last().unwrap()
+            ));
         }
         check_runs(runs).map_err(|e| format!("cell {cell}: {e}"))?;
-        let end = u32::try_from(self.runs.len() + runs.len()).map_err(|_| "over 2^32 runs in a page".to_string())?;
+        let end = u32::try_from(self.runs.len() + runs.len())
+            .map_err(|_| "over 2^32 runs in a page".to_string())?;
         self.cells.push(c);
         self.runs.extend_from_slice(runs);
         self.ends.push(end);
@@ -145,19 +155,28 @@ impl PageColumns {
             let cell = word("a cell header")? as usize;
             let count = word("a cell header")? as usize;
             if cell >= page_cells {
-                return Err(format!("column {k} is for cell {cell}, beyond the page's {page_cells} cells"));
+                return Err(format!(
+                    "column {k} is for cell {cell}, beyond the page's {page_cells} cells"
+                ));
             }
             runs.clear();
             for _ in 0..count {
                 let bottom = f32::from_bits(word("a run")?);
                 let top = f32::from_bits(word("a run")?);
                 let c = word("a run")?.to_le_bytes();
-                runs.push(Run { bottom, top, colour: c });
+                runs.push(Run {
+                    bottom,
+                    top,
+                    colour: c,
+                });
             }
             out.push(cell, &runs)?;
         }
         if at != blob.len() {
-            return Err(format!("has {} bytes after its last column", blob.len() - at));
+            return Err(format!(
+                "has {} bytes after its last column",
+                blob.len() - at
+            ));
         }
         Ok(out)
     }
@@ -165,19 +184,31 @@ impl PageColumns {
     /// Check the columns against their page's layers: exactly the `state` 1 cells have a column,
     /// and each column's last top is the cell's `max_z`, bit for bit.
     pub fn check_layers(&self, state: &[u8], max_z: &[f32]) -> Result<(), String> {
-        let partial = state.iter().filter(|&&s| s == crate::tiles::STATE_PARTIAL).count();
+        let partial = state
+            .iter()
+            .filter(|&&s| s == crate::tiles::STATE_PARTIAL)
+            .count();
         for (cell, runs) in self.iter() {
             if state.get(cell) != Some(&crate::tiles::STATE_PARTIAL) {
-                return Err(format!("cell {cell} has a column but its state is not 1 (partial)"));
+                return Err(format!(
+                    "cell {cell} has a column but its state is not 1 (partial)"
+                ));
             }
             let top = runs.last().expect("checked non-empty").top;
             if top.to_bits() != max_z[cell].to_bits() {
-                return Err(format!("cell {cell}: the column's top {top} m is not the cell's max_z {} m", max_z[cell]));
+                return Err(format!(
+                    "cell {cell}: the column's top {top} m is not the cell's max_z {} m",
+                    max_z[cell]
+                ));
             }
         }
         if partial != self.len() {
-            let missing = (0..state.len()).find(|&i| state[i] == crate::tiles::STATE_PARTIAL && self.runs(i).is_none());
-            return Err(format!("cell {} has state 1 (partial) but no column", missing.unwrap_or(0)));
+            let missing = (0..state.len())
+                .find(|&i| state[i] == crate::tiles::STATE_PARTIAL && self.runs(i).is_none());
+            return Err(format!(
+                "cell {} has state 1 (partial) but no column",
+                missing.unwrap_or(0)
+            ));
         }
         Ok(())
     }
@@ -191,13 +222,29 @@ mod tests {
     const C: [u8; 4] = [10, 20, 30, 255];
 
     fn run(bottom: f32, top: f32) -> Run {
-        Run { bottom, top, colour: C }
+        Run {
+            bottom,
+            top,
+            colour: C,
+        }
     }
 
     fn arch() -> PageColumns {
         let mut p = PageColumns::default();
-        p.push(3, &[run(f32::NEG_INFINITY, 101.0), run(102.0, 103.0)]).unwrap();
-        p.push(4, &[run(f32::NEG_INFINITY, 100.0), Run { bottom: 102.0, top: 103.0, colour: [1, 2, 3, 255] }]).unwrap();
+        p.push(3, &[run(f32::NEG_INFINITY, 101.0), run(102.0, 103.0)])
+            .unwrap();
+        p.push(
+            4,
+            &[
+                run(f32::NEG_INFINITY, 100.0),
+                Run {
+                    bottom: 102.0,
+                    top: 103.0,
+                    colour: [1, 2, 3, 255],
+                },
+            ],
+        )
+        .unwrap();
         p
     }
 
@@ -214,7 +261,12 @@ mod tests {
         assert_eq!(back, p);
         assert_eq!(back.runs(4).unwrap()[1].colour, [1, 2, 3, 255]);
         assert!(back.runs(5).is_none());
-        assert_eq!(PageColumns::decode(&PageColumns::default().encode(), 16).unwrap().len(), 0);
+        assert_eq!(
+            PageColumns::decode(&PageColumns::default().encode(), 16)
+                .unwrap()
+                .len(),
+            0
+        );
     }
 
     #[test]
@@ -269,13 +321,22 @@ mod tests {
         (state[3], state[4], max_z[3], max_z[4]) = (1, 1, 103.0, 103.0);
         p.check_layers(&state, &max_z).unwrap();
         max_z[4] = 103.5;
-        assert!(p.check_layers(&state, &max_z).unwrap_err().contains("not the cell's max_z"));
+        assert!(p
+            .check_layers(&state, &max_z)
+            .unwrap_err()
+            .contains("not the cell's max_z"));
         max_z[4] = 103.0;
         state[7] = 1;
-        assert!(p.check_layers(&state, &max_z).unwrap_err().contains("cell 7 has state 1"));
+        assert!(p
+            .check_layers(&state, &max_z)
+            .unwrap_err()
+            .contains("cell 7 has state 1"));
         state[7] = 2;
         state[3] = 2;
-        assert!(p.check_layers(&state, &max_z).unwrap_err().contains("cell 3 has a column"));
+        assert!(p
+            .check_layers(&state, &max_z)
+            .unwrap_err()
+            .contains("cell 3 has a column"));
     }
 
     proptest! {

@@ -37,13 +37,23 @@ impl Export {
 
 /// Write `obj` in each of `kinds` beside `object_path` (same stem, the export's extension);
 /// returns the paths written.
-pub fn write_exports(object_path: &Path, obj: &VoxelObject, kinds: &[Export]) -> Result<Vec<std::path::PathBuf>> {
+pub fn write_exports(
+    object_path: &Path,
+    obj: &VoxelObject,
+    kinds: &[Export],
+) -> Result<Vec<std::path::PathBuf>> {
     let mut done = Vec::new();
     for &k in kinds {
         let p = object_path.with_extension(k.extension());
         if p == object_path {
-            return Err(Error::file(object_path, format!("the object file would be overwritten by its {} export", k.extension()))
-                .fix("name the object *.dvox"));
+            return Err(Error::file(
+                object_path,
+                format!(
+                    "the object file would be overwritten by its {} export",
+                    k.extension()
+                ),
+            )
+            .fix("name the object *.dvox"));
         }
         match k {
             Export::Ply => write_ply(&p, obj)?,
@@ -109,7 +119,12 @@ pub fn encode_vox(obj: &VoxelObject) -> Result<Vec<u8>> {
         let c = palette.get(i).copied().unwrap_or([0, 0, 0]);
         rgba.extend_from_slice(&[c[0], c[1], c[2], 255]);
     }
-    let children = [chunk(b"SIZE", &size, &[]), chunk(b"XYZI", &xyzi, &[]), chunk(b"RGBA", &rgba, &[])].concat();
+    let children = [
+        chunk(b"SIZE", &size, &[]),
+        chunk(b"XYZI", &xyzi, &[]),
+        chunk(b"RGBA", &rgba, &[]),
+    ]
+    .concat();
     let mut out = b"VOX ".to_vec();
     out.extend_from_slice(&150u32.to_le_bytes());
     out.extend(chunk(b"MAIN", &[], &children));
@@ -152,8 +167,10 @@ fn palette(obj: &VoxelObject) -> (Vec<[u8; 3]>, IndexOf<'_>) {
             }
         }
     }
-    let index =
-        move |c: [u8; 3]| (1 + (level(c[0], LEVELS[0]) * LEVELS[1] + level(c[1], LEVELS[1])) * LEVELS[2] + level(c[2], LEVELS[2])) as u8;
+    let index = move |c: [u8; 3]| {
+        (1 + (level(c[0], LEVELS[0]) * LEVELS[1] + level(c[1], LEVELS[1])) * LEVELS[2]
+            + level(c[2], LEVELS[2])) as u8
+    };
     (entries, Box::new(index))
 }
 
@@ -175,13 +192,24 @@ mod tests {
             let (id, n) = (&b[off..off + 4], u(off + 4));
             let c = &b[off + 12..off + 12 + n];
             match id {
-                b"SIZE" => size = [0, 1, 2].map(|k| u32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap())),
+                b"SIZE" => {
+                    size = [0, 1, 2]
+                        .map(|k| u32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap()))
+                }
                 b"XYZI" => {
                     let count = u32::from_le_bytes(c[..4].try_into().unwrap()) as usize;
                     assert_eq!(n, 4 + 4 * count);
-                    vox = c[4..].chunks_exact(4).map(|v| [v[0], v[1], v[2], v[3]]).collect();
+                    vox = c[4..]
+                        .chunks_exact(4)
+                        .map(|v| [v[0], v[1], v[2], v[3]])
+                        .collect();
                 }
-                b"RGBA" => pal = c.chunks_exact(4).map(|v| [v[0], v[1], v[2], v[3]]).collect(),
+                b"RGBA" => {
+                    pal = c
+                        .chunks_exact(4)
+                        .map(|v| [v[0], v[1], v[2], v[3]])
+                        .collect()
+                }
                 other => panic!("unexpected chunk {other:?}"),
             }
             off += 12 + n;
@@ -192,7 +220,15 @@ mod tests {
     #[test]
     fn vox_round_trips_positions_and_exact_palette() {
         let g = VoxelGrid::new([0.0; 3], 1.0, [3, 4, 5]).unwrap();
-        let o = VoxelObject::from_fn(g, |p, _| (p[2] < 2.0).then(|| if p[0] < 1.0 { [200, 10, 10] } else { [10, 200, 10] }));
+        let o = VoxelObject::from_fn(g, |p, _| {
+            (p[2] < 2.0).then(|| {
+                if p[0] < 1.0 {
+                    [200, 10, 10]
+                } else {
+                    [10, 200, 10]
+                }
+            })
+        });
         let (size, vox, pal) = parse_vox(&encode_vox(&o).unwrap());
         assert_eq!(size, [3, 4, 5]);
         assert_eq!(pal.len(), 256);
@@ -207,7 +243,9 @@ mod tests {
     #[test]
     fn vox_quantises_many_colours_and_rejects_oversize() {
         let g = VoxelGrid::new([0.0; 3], 1.0, [16, 16, 4]).unwrap();
-        let o = VoxelObject::from_fn(g, |p, i| Some([(p[0] * 16.0) as u8, (p[1] * 16.0) as u8, (i % 251) as u8]));
+        let o = VoxelObject::from_fn(g, |p, i| {
+            Some([(p[0] * 16.0) as u8, (p[1] * 16.0) as u8, (i % 251) as u8])
+        });
         let (_, vox, pal) = parse_vox(&encode_vox(&o).unwrap());
         for (v, (_, c)) in vox.iter().zip(o.voxels()) {
             assert!(v[3] >= 1);
@@ -216,8 +254,14 @@ mod tests {
                 assert!((p[k] as i32 - c[k] as i32).abs() <= 26, "{p:?} vs {c:?}");
             }
         }
-        let big = VoxelObject::from_fn(VoxelGrid::new([0.0; 3], 1.0, [257, 1, 1]).unwrap(), |_, _| Some([1, 1, 1]));
-        assert!(encode_vox(&big).unwrap_err().to_string().contains("at most 256 per axis"));
+        let big = VoxelObject::from_fn(
+            VoxelGrid::new([0.0; 3], 1.0, [257, 1, 1]).unwrap(),
+            |_, _| Some([1, 1, 1]),
+        );
+        assert!(encode_vox(&big)
+            .unwrap_err()
+            .to_string()
+            .contains("at most 256 per axis"));
     }
 
     #[test]
@@ -229,7 +273,9 @@ mod tests {
         write_ply(&p, &o).unwrap();
         let b = std::fs::read(&p).unwrap();
         let end = b.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
-        assert!(std::str::from_utf8(&b[..end]).unwrap().contains("element vertex 4\n"));
+        assert!(std::str::from_utf8(&b[..end])
+            .unwrap()
+            .contains("element vertex 4\n"));
         assert_eq!(b.len() - end, 4 * 27);
         let x = f64::from_le_bytes(b[end..end + 8].try_into().unwrap());
         let y = f64::from_le_bytes(b[end + 8..end + 16].try_into().unwrap());

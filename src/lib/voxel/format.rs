@@ -118,11 +118,15 @@ fn bad(problem: impl Into<String>) -> Error {
 /// Decode `.dvox` bytes, checking every structural rule of the format.
 pub fn decode(bytes: &[u8]) -> Result<(VoxelObject, Header)> {
     if bytes.len() < 12 || &bytes[..8] != MAGIC {
-        return Err(Error::msg("not a dbms voxel object (bad magic bytes)").fix("give a .dvox file written by dbms"));
+        return Err(Error::msg("not a dbms voxel object (bad magic bytes)")
+            .fix("give a .dvox file written by dbms"));
     }
     let hlen = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes")) as usize;
-    let json = bytes.get(12..12 + hlen).ok_or_else(|| bad("file ends inside the header (truncated?)"))?;
-    let header: Header = serde_json::from_slice(json).map_err(|e| bad(format!("bad header: {e}")))?;
+    let json = bytes
+        .get(12..12 + hlen)
+        .ok_or_else(|| bad("file ends inside the header (truncated?)"))?;
+    let header: Header =
+        serde_json::from_slice(json).map_err(|e| bad(format!("bad header: {e}")))?;
     if header.format != FORMAT_NAME || header.version != VERSION {
         return Err(Error::msg(format!(
             "header says {} version {}; this dbms reads {FORMAT_NAME} version {VERSION}",
@@ -133,15 +137,25 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelObject, Header)> {
     let grid = VoxelGrid::new(header.origin, header.voxel_size, header.dims)?;
     let packed = &bytes[12 + hlen..];
     if packed.len() as u64 != header.body_bytes {
-        return Err(bad(format!("body is {} bytes, header says {} (truncated?)", packed.len(), header.body_bytes)));
+        return Err(bad(format!(
+            "body is {} bytes, header says {} (truncated?)",
+            packed.len(),
+            header.body_bytes
+        )));
     }
     if crc32fast::hash(packed) != header.body_crc32 {
         return Err(bad("body checksum mismatch (corrupt file)"));
     }
-    let body = lz4_flex::decompress_size_prepended(packed).map_err(|e| bad(format!("body does not decompress: {e}")))?;
+    let body = lz4_flex::decompress_size_prepended(packed)
+        .map_err(|e| bad(format!("body does not decompress: {e}")))?;
     let (nruns, nvox) = (header.runs as usize, header.voxels as usize);
     if (body.len() as u64) != header.runs * 8 + header.voxels * 3 {
-        return Err(bad(format!("body holds {} bytes, expected {} runs and {} voxels", body.len(), nruns, nvox)));
+        return Err(bad(format!(
+            "body holds {} bytes, expected {} runs and {} voxels",
+            body.len(),
+            nruns,
+            nvox
+        )));
     }
     let mut occ = Occupancy::empty(&grid);
     let mut total = 0usize;
@@ -150,11 +164,16 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelObject, Header)> {
         let f = |k: usize| u16::from_le_bytes([rec[2 * k], rec[2 * k + 1]]) as u32;
         let (x, y, z0, len) = (f(0), f(1), f(2), f(3));
         if len == 0 || x >= grid.dims[0] || y >= grid.dims[1] || z0 + len > grid.dims[2] {
-            return Err(bad(format!("run ({x}, {y}, {z0}, {len}) lies outside the {:?} grid", grid.dims)));
+            return Err(bad(format!(
+                "run ({x}, {y}, {z0}, {len}) lies outside the {:?} grid",
+                grid.dims
+            )));
         }
         let start = grid.index(x, y, z0);
         if prev_end.is_some_and(|e| start < e) {
-            return Err(bad(format!("run ({x}, {y}, {z0}) is out of order or overlaps the previous one")));
+            return Err(bad(format!(
+                "run ({x}, {y}, {z0}) is out of order or overlaps the previous one"
+            )));
         }
         for i in start..start + len as usize {
             occ.set_index(i, true);
@@ -165,7 +184,10 @@ pub fn decode(bytes: &[u8]) -> Result<(VoxelObject, Header)> {
     if total != nvox {
         return Err(bad(format!("runs hold {total} voxels, header says {nvox}")));
     }
-    let colours = body[nruns * 8..].chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let colours = body[nruns * 8..]
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
     Ok((VoxelObject::new(grid, occ, colours), header))
 }
 
@@ -196,8 +218,14 @@ mod tests {
         let g = VoxelGrid::new([0.0; 3], 1.0, [2, 2, 2]).unwrap();
         let o = VoxelObject::from_fn(g, |p, _| (p[2] < 1.0).then_some([1, 2, 3]));
         let mut bytes = encode(&o, "");
-        assert!(decode(b"PK\x03\x04 zip file").unwrap_err().to_string().contains("bad magic"));
-        assert!(decode(&bytes[..bytes.len() - 1]).unwrap_err().to_string().contains("truncated"));
+        assert!(decode(b"PK\x03\x04 zip file")
+            .unwrap_err()
+            .to_string()
+            .contains("bad magic"));
+        assert!(decode(&bytes[..bytes.len() - 1])
+            .unwrap_err()
+            .to_string()
+            .contains("truncated"));
         let last = bytes.len() - 1;
         bytes[last] ^= 0xff;
         assert!(decode(&bytes).unwrap_err().to_string().contains("checksum"));

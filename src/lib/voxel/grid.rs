@@ -33,12 +33,17 @@ impl VoxelGrid {
     /// Errors on a non-positive voxel size, a zero or too large dimension.
     pub fn new(origin: [f64; 3], voxel_size: f64, dims: [u32; 3]) -> Result<VoxelGrid> {
         if !(voxel_size.is_finite() && voxel_size > 0.0) {
-            return Err(Error::msg(format!("voxel size {voxel_size} is not a positive number")).fix("give --voxel a value > 0 (metres)"));
+            return Err(
+                Error::msg(format!("voxel size {voxel_size} is not a positive number"))
+                    .fix("give --voxel a value > 0 (metres)"),
+            );
         }
         if origin.iter().any(|v| !v.is_finite()) {
             return Err(Error::msg("voxel grid origin is not finite"));
         }
-        let total = dims.iter().fold(1u64, |acc, &d| acc.saturating_mul(d as u64));
+        let total = dims
+            .iter()
+            .fold(1u64, |acc, &d| acc.saturating_mul(d as u64));
         if dims.iter().any(|&d| d == 0 || d > MAX_DIM) || total > MAX_VOXELS {
             return Err(Error::msg(format!(
                 "voxel grid of {}×{}×{} voxels is empty or too large (at most {MAX_DIM} per axis and {MAX_VOXELS} in all)",
@@ -46,21 +51,34 @@ impl VoxelGrid {
             ))
             .fix("use a larger --voxel or smaller bounds"));
         }
-        Ok(VoxelGrid { origin, voxel_size, dims })
+        Ok(VoxelGrid {
+            origin,
+            voxel_size,
+            dims,
+        })
     }
 
     /// The grid of `voxel_size` voxels covering the box `min..max` (metres), snapped outward so
     /// every point of the box is in a voxel; its minimum corner is `min`.
     pub fn covering(min: [f64; 3], max: [f64; 3], voxel_size: f64) -> Result<VoxelGrid> {
         if (0..3).any(|a| !(min[a].is_finite() && max[a].is_finite() && min[a] < max[a])) {
-            return Err(Error::msg(format!("bounds {min:?}..{max:?}: each minimum must be below its maximum"))
-                .fix("give --bounds MINX,MINY,MINZ,MAXX,MAXY,MAXZ"));
+            return Err(Error::msg(format!(
+                "bounds {min:?}..{max:?}: each minimum must be below its maximum"
+            ))
+            .fix("give --bounds MINX,MINY,MINZ,MAXX,MAXY,MAXZ"));
         }
         if !(voxel_size.is_finite() && voxel_size > 0.0) {
-            return Err(Error::msg(format!("voxel size {voxel_size} is not a positive number")).fix("give --voxel a value > 0 (metres)"));
+            return Err(
+                Error::msg(format!("voxel size {voxel_size} is not a positive number"))
+                    .fix("give --voxel a value > 0 (metres)"),
+            );
         }
         // Tolerate floating noise: 2.0000000001 / 0.5 is 4 voxels, not 5.
-        let n = |a: usize| ((max[a] - min[a]) / voxel_size - 1e-9).ceil().clamp(1.0, u32::MAX as f64) as u32;
+        let n = |a: usize| {
+            ((max[a] - min[a]) / voxel_size - 1e-9)
+                .ceil()
+                .clamp(1.0, u32::MAX as f64) as u32
+        };
         VoxelGrid::new(min, voxel_size, [n(0), n(1), n(2)])
     }
 
@@ -93,26 +111,46 @@ impl VoxelGrid {
     #[inline]
     pub fn centre(&self, x: u32, y: u32, z: u32) -> [f64; 3] {
         let s = self.voxel_size;
-        [self.origin[0] + (x as f64 + 0.5) * s, self.origin[1] + (y as f64 + 0.5) * s, self.origin[2] + (z as f64 + 0.5) * s]
+        [
+            self.origin[0] + (x as f64 + 0.5) * s,
+            self.origin[1] + (y as f64 + 0.5) * s,
+            self.origin[2] + (z as f64 + 0.5) * s,
+        ]
     }
 
     /// World position (metres) of the maximum corner of the grid.
     pub fn max_corner(&self) -> [f64; 3] {
         let s = self.voxel_size;
-        [self.origin[0] + self.dims[0] as f64 * s, self.origin[1] + self.dims[1] as f64 * s, self.origin[2] + self.dims[2] as f64 * s]
+        [
+            self.origin[0] + self.dims[0] as f64 * s,
+            self.origin[1] + self.dims[1] as f64 * s,
+            self.origin[2] + self.dims[2] as f64 * s,
+        ]
     }
 }
 
 /// Parse `MINX,MINY,MINZ,MAXX,MAXY,MAXZ` (metres; the `--bounds` option of `dbms sculpt`).
 pub fn parse_box(s: &str) -> Result<[f64; 6]> {
-    let bad = || Error::msg(format!("--bounds {s}: expected six numbers MINX,MINY,MINZ,MAXX,MAXY,MAXZ")).fix("e.g. --bounds -1,-1,0,1,1,2");
-    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| bad())?;
+    let bad = || {
+        Error::msg(format!(
+            "--bounds {s}: expected six numbers MINX,MINY,MINZ,MAXX,MAXY,MAXZ"
+        ))
+        .fix("e.g. --bounds -1,-1,0,1,1,2")
+    };
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| bad())?;
     let b: [f64; 6] = v.try_into().map_err(|_| bad())?;
     if b.iter().any(|x| !x.is_finite()) {
         return Err(bad());
     }
     if (0..3).any(|a| b[a] >= b[a + 3]) {
-        return Err(Error::msg(format!("--bounds {s}: each minimum must be below its maximum")).fix("give MINX,MINY,MINZ,MAXX,MAXY,MAXZ"));
+        return Err(Error::msg(format!(
+            "--bounds {s}: each minimum must be below its maximum"
+        ))
+        .fix("give MINX,MINY,MINZ,MAXX,MAXY,MAXZ"));
     }
     Ok(b)
 }
@@ -133,12 +171,24 @@ mod tests {
 
     #[test]
     fn covering_snaps_outward_and_keeps_utm_precision() {
-        let g = VoxelGrid::covering([500_000.0, 5_000_000.0, 100.0], [500_010.0, 5_000_004.1, 102.0], 0.5).unwrap();
+        let g = VoxelGrid::covering(
+            [500_000.0, 5_000_000.0, 100.0],
+            [500_010.0, 5_000_004.1, 102.0],
+            0.5,
+        )
+        .unwrap();
         assert_eq!(g.dims, [20, 9, 4]);
         let c = g.centre(19, 8, 3);
-        assert!((c[0] - 500_009.75).abs() < 1e-9 && (c[1] - 5_000_004.25).abs() < 1e-9 && (c[2] - 101.75).abs() < 1e-12);
+        assert!(
+            (c[0] - 500_009.75).abs() < 1e-9
+                && (c[1] - 5_000_004.25).abs() < 1e-9
+                && (c[2] - 101.75).abs() < 1e-12
+        );
         // A voxel larger than the box still gives one voxel.
-        assert_eq!(VoxelGrid::covering([0.0; 3], [1.0; 3], 5.0).unwrap().dims, [1, 1, 1]);
+        assert_eq!(
+            VoxelGrid::covering([0.0; 3], [1.0; 3], 5.0).unwrap().dims,
+            [1, 1, 1]
+        );
         assert!(VoxelGrid::covering([0.0; 3], [1.0; 3], 0.0).is_err());
         assert!(VoxelGrid::covering([0.0; 3], [1.0, -1.0, 1.0], 0.1).is_err());
         assert!(VoxelGrid::covering([0.0; 3], [1e6; 3], 1e-3).is_err());
@@ -146,7 +196,10 @@ mod tests {
 
     #[test]
     fn parse_box_accepts_six_ordered_numbers_only() {
-        assert_eq!(parse_box("-1,-2,0,1,2,3.5").unwrap(), [-1.0, -2.0, 0.0, 1.0, 2.0, 3.5]);
+        assert_eq!(
+            parse_box("-1,-2,0,1,2,3.5").unwrap(),
+            [-1.0, -2.0, 0.0, 1.0, 2.0, 3.5]
+        );
         assert!(parse_box("0,0,0,1,1").is_err());
         assert!(parse_box("0,0,1,1,1,1").is_err());
         assert!(parse_box("0,0,0,1,1,nan").is_err());

@@ -24,15 +24,30 @@ pub struct VoxelObject {
 impl VoxelObject {
     /// Wrap an occupancy and its colours; panics when the counts differ (a programming error).
     pub fn new(grid: VoxelGrid, occupancy: Occupancy, colours: Vec<[u8; 3]>) -> VoxelObject {
-        assert_eq!(occupancy.dims(), grid.dims, "occupancy does not match its grid");
-        assert_eq!(colours.len(), occupancy.count(), "one colour per occupied voxel");
-        VoxelObject { grid, occupancy, colours }
+        assert_eq!(
+            occupancy.dims(),
+            grid.dims,
+            "occupancy does not match its grid"
+        );
+        assert_eq!(
+            colours.len(),
+            occupancy.count(),
+            "one colour per occupied voxel"
+        );
+        VoxelObject {
+            grid,
+            occupancy,
+            colours,
+        }
     }
 
     /// The object whose voxel at centre `p` (world metres) is solid with colour `c` when
     /// `shade(p, index)` is `Some(c)`; `index` is the voxel's storage index (for seeded
     /// per-voxel variation). Evaluated in parallel, once per voxel.
-    pub fn from_fn(grid: VoxelGrid, shade: impl Fn([f64; 3], usize) -> Option<[u8; 3]> + Sync) -> VoxelObject {
+    pub fn from_fn(
+        grid: VoxelGrid,
+        shade: impl Fn([f64; 3], usize) -> Option<[u8; 3]> + Sync,
+    ) -> VoxelObject {
         let occ = AtomicOccupancy::new(&grid);
         // One y-slab per task; slabs are contiguous in storage order, so concatenating them in y
         // order keeps the colours in storage order.
@@ -67,7 +82,10 @@ impl VoxelObject {
 
     /// Solid voxels as `(indices, colour)`, ascending storage order.
     pub fn voxels(&self) -> impl Iterator<Item = ([u32; 3], [u8; 3])> + '_ {
-        self.occupancy.occupied().zip(&self.colours).map(|(i, &c)| (self.grid.coords(i), c))
+        self.occupancy
+            .occupied()
+            .zip(&self.colours)
+            .map(|(i, &c)| (self.grid.coords(i), c))
     }
 
     /// Colour of voxel `(x, y, z)`, or `None` when it is empty.
@@ -97,15 +115,25 @@ impl VoxelObject {
     pub fn occupied_extent(&self) -> Option<([u32; 3], [u32; 3])> {
         self.voxels().fold(None, |acc, (v, _)| match acc {
             None => Some((v, v)),
-            Some((lo, hi)) => Some(([0, 1, 2].map(|a| lo[a].min(v[a])), [0, 1, 2].map(|a| hi[a].max(v[a])))),
+            Some((lo, hi)) => Some((
+                [0, 1, 2].map(|a| lo[a].min(v[a])),
+                [0, 1, 2].map(|a| hi[a].max(v[a])),
+            )),
         })
     }
 }
 
 /// Parse an 8-bit colour `R,G,B` (the `--colour` and `--fill` options).
 pub fn parse_rgb(s: &str) -> crate::error::Result<[u8; 3]> {
-    let bad = || crate::error::Error::msg(format!("colour {s}: expected R,G,B with each 0..255")).fix("e.g. 128,128,128");
-    let v: Vec<u8> = s.split(',').map(|t| t.trim().parse::<u8>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+    let bad = || {
+        crate::error::Error::msg(format!("colour {s}: expected R,G,B with each 0..255"))
+            .fix("e.g. 128,128,128")
+    };
+    let v: Vec<u8> = s
+        .split(',')
+        .map(|t| t.trim().parse::<u8>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| bad())?;
     v.try_into().map_err(|_| bad())
 }
 
@@ -116,23 +144,36 @@ mod tests {
     #[test]
     fn from_fn_keeps_colours_in_storage_order() {
         let g = VoxelGrid::new([10.0, 20.0, 0.0], 0.5, [4, 3, 5]).unwrap();
-        let o = VoxelObject::from_fn(g, |p, _| (p[2] < 1.0).then(|| [(p[0] * 4.0) as u8, (p[1] * 4.0) as u8, (p[2] * 4.0) as u8]));
+        let o = VoxelObject::from_fn(g, |p, _| {
+            (p[2] < 1.0).then(|| [(p[0] * 4.0) as u8, (p[1] * 4.0) as u8, (p[2] * 4.0) as u8])
+        });
         assert_eq!(o.len(), 4 * 3 * 2);
         let rank = Rank::new(&o.occupancy);
         for (v, c) in o.voxels() {
             let p = g.centre(v[0], v[1], v[2]);
-            assert_eq!(c, [(p[0] * 4.0) as u8, (p[1] * 4.0) as u8, (p[2] * 4.0) as u8]);
+            assert_eq!(
+                c,
+                [(p[0] * 4.0) as u8, (p[1] * 4.0) as u8, (p[2] * 4.0) as u8]
+            );
             assert_eq!(o.colour_at(&rank, v[0], v[1], v[2]), Some(c));
         }
         assert_eq!(o.colour_at(&rank, 0, 0, 4), None);
         assert_eq!(o.anchor(), [11.0, 20.75, 0.0]);
         assert_eq!(o.occupied_extent(), Some(([0, 0, 0], [3, 2, 1])));
-        assert_eq!(o.surface_count(), o.len(), "a two-voxel-thick slab is all surface");
+        assert_eq!(
+            o.surface_count(),
+            o.len(),
+            "a two-voxel-thick slab is all surface"
+        );
     }
 
     #[test]
     fn rgb_parsing() {
         assert_eq!(parse_rgb("1, 2,255").unwrap(), [1, 2, 255]);
-        assert!(parse_rgb("1,2").is_err() && parse_rgb("1,2,256").is_err() && parse_rgb("a,b,c").is_err());
+        assert!(
+            parse_rgb("1,2").is_err()
+                && parse_rgb("1,2,256").is_err()
+                && parse_rgb("a,b,c").is_err()
+        );
     }
 }

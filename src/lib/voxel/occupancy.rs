@@ -19,7 +19,10 @@ pub struct Occupancy {
 impl Occupancy {
     /// All voxels empty.
     pub fn empty(grid: &VoxelGrid) -> Occupancy {
-        Occupancy { grid_dims: grid.dims, words: vec![0; grid.len().div_ceil(64)] }
+        Occupancy {
+            grid_dims: grid.dims,
+            words: vec![0; grid.len().div_ceil(64)],
+        }
     }
 
     /// Occupied where `solid(centre)` is true for the voxel's world centre (metres); parallel.
@@ -74,7 +77,11 @@ impl Occupancy {
 
     /// Number of voxels occupied in both `self` and `other` (same dimensions).
     pub fn count_and(&self, other: &Occupancy) -> usize {
-        self.words.iter().zip(&other.words).map(|(a, b)| (a & b).count_ones() as usize).sum()
+        self.words
+            .iter()
+            .zip(&other.words)
+            .map(|(a, b)| (a & b).count_ones() as usize)
+            .sum()
     }
 
     /// Intersection over union with `other` (same dimensions); 1 when both are empty.
@@ -106,9 +113,16 @@ impl Occupancy {
     pub fn is_surface(&self, x: u32, y: u32, z: u32) -> bool {
         let (x, y, z) = (x as i64, y as i64, z as i64);
         self.get(x, y, z)
-            && [(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)]
-                .iter()
-                .any(|&(dx, dy, dz)| !self.get(x + dx, y + dy, z + dz))
+            && [
+                (-1, 0, 0),
+                (1, 0, 0),
+                (0, -1, 0),
+                (0, 1, 0),
+                (0, 0, -1),
+                (0, 0, 1),
+            ]
+            .iter()
+            .any(|&(dx, dy, dz)| !self.get(x + dx, y + dy, z + dz))
     }
 
     /// The raw words (64 voxels each, storage order, bit 0 first).
@@ -143,9 +157,10 @@ impl<'a> Rank<'a> {
     /// Rank of occupied storage index `i`, or `None` when `i` is empty.
     #[inline]
     pub fn of(&self, i: usize) -> Option<usize> {
-        self.occ
-            .get_index(i)
-            .then(|| self.before[i >> 6] as usize + (self.occ.words[i >> 6] & ((1u64 << (i & 63)) - 1)).count_ones() as usize)
+        self.occ.get_index(i).then(|| {
+            self.before[i >> 6] as usize
+                + (self.occ.words[i >> 6] & ((1u64 << (i & 63)) - 1)).count_ones() as usize
+        })
     }
 }
 
@@ -161,7 +176,11 @@ impl AtomicOccupancy {
     /// All voxels empty.
     pub fn new(grid: &VoxelGrid) -> AtomicOccupancy {
         let len = grid.len();
-        AtomicOccupancy { dims: grid.dims, len, words: (0..len.div_ceil(64)).map(|_| AtomicU64::new(0)).collect() }
+        AtomicOccupancy {
+            dims: grid.dims,
+            len,
+            words: (0..len.div_ceil(64)).map(|_| AtomicU64::new(0)).collect(),
+        }
     }
 
     /// Mark storage index `i` occupied.
@@ -177,7 +196,11 @@ impl AtomicOccupancy {
         while i < end {
             let bit = i & 63;
             let take = (64 - bit).min(end - i);
-            let mask = if take == 64 { u64::MAX } else { ((1u64 << take) - 1) << bit };
+            let mask = if take == 64 {
+                u64::MAX
+            } else {
+                ((1u64 << take) - 1) << bit
+            };
             self.words[i >> 6].fetch_or(mask, Ordering::Relaxed);
             i += take;
         }
@@ -185,7 +208,10 @@ impl AtomicOccupancy {
 
     /// The finished occupancy.
     pub fn finish(self) -> Occupancy {
-        Occupancy { grid_dims: self.dims, words: self.words.into_iter().map(AtomicU64::into_inner).collect() }
+        Occupancy {
+            grid_dims: self.dims,
+            words: self.words.into_iter().map(AtomicU64::into_inner).collect(),
+        }
     }
 }
 

@@ -29,19 +29,31 @@ pub fn ground_height(dem: &Elevation, x: f64, y: f64) -> Option<f64> {
     let (c1, r1) = ((c0 + 1).min(g.width - 1), (r0 + 1).min(g.height - 1));
     let (fx, fy) = (cx - c0 as f64, cy - r0 as f64);
     let v = |c: usize, r: usize| *dem.get(c, r) as f64;
-    let z = (v(c0, r0) * (1.0 - fx) + v(c1, r0) * fx) * (1.0 - fy) + (v(c0, r1) * (1.0 - fx) + v(c1, r1) * fx) * fy;
+    let z = (v(c0, r0) * (1.0 - fx) + v(c1, r0) * fx) * (1.0 - fy)
+        + (v(c0, r1) * (1.0 - fx) + v(c1, r1) * fx) * fy;
     (!z.is_nan()).then_some(z)
 }
 
 /// Place the object at `object_path` in `db` with its anchor at `(x, y)` and height `z`
 /// (absolute metres, or the ground's when `None`), turned by `heading_deg`; saves the manifest.
-pub fn place(db: &mut Database, object_path: &Path, x: f64, y: f64, z: Option<f64>, heading_deg: f64) -> Result<PlacedObject> {
-    if !(x.is_finite() && y.is_finite() && z.is_none_or(f64::is_finite) && heading_deg.is_finite()) {
+pub fn place(
+    db: &mut Database,
+    object_path: &Path,
+    x: f64,
+    y: f64,
+    z: Option<f64>,
+    heading_deg: f64,
+) -> Result<PlacedObject> {
+    if !(x.is_finite() && y.is_finite() && z.is_none_or(f64::is_finite) && heading_deg.is_finite())
+    {
         return Err(Error::msg("--at and --heading must be finite numbers"));
     }
     if db.grid().crs.geographic {
-        return Err(Error::file(&db.dir, "the database is in geographic coordinates (degrees) but voxel objects are in metres")
-            .fix("ingest onto a projected CRS (e.g. UTM)"));
+        return Err(Error::file(
+            &db.dir,
+            "the database is in geographic coordinates (degrees) but voxel objects are in metres",
+        )
+        .fix("ingest onto a projected CRS (e.g. UTM)"));
     }
     // Read (and so check) the object before touching the database.
     let (obj, _): (VoxelObject, _) = format::read(object_path)?;
@@ -55,11 +67,16 @@ pub fn place(db: &mut Database, object_path: &Path, x: f64, y: f64, z: Option<f6
     }
     let z = match z {
         Some(z) => z,
-        None => ground_height(&db.read_elevation()?, x, y)
-            .ok_or_else(|| Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)")).fix("give the height as --at X,Y,Z"))?,
+        None => ground_height(&db.read_elevation()?, x, y).ok_or_else(|| {
+            Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)"))
+                .fix("give the height as --at X,Y,Z")
+        })?,
     };
     let sha256 = sha256_file(object_path)?;
-    let stem = object_path.file_stem().and_then(|s| s.to_str()).unwrap_or("object");
+    let stem = object_path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("object");
     let file = format!("objects/{stem}-{}.dvox", &sha256[..12]);
     let dest = db.dir.join(&file);
     if !dest.exists() {
@@ -68,7 +85,14 @@ pub fn place(db: &mut Database, object_path: &Path, x: f64, y: f64, z: Option<f6
         let bytes = std::fs::read(object_path).map_err(|e| Error::io(object_path, e))?;
         crate::io::atomic::write_bytes_atomic(&dest, &bytes)?;
     }
-    let placed = PlacedObject { file, sha256, x, y, z, heading_deg: heading_deg.rem_euclid(360.0) };
+    let placed = PlacedObject {
+        file,
+        sha256,
+        x,
+        y,
+        z,
+        heading_deg: heading_deg.rem_euclid(360.0),
+    };
     db.manifest.objects.push(placed.clone());
     db.record_stage(Stage::now(
         "place",
@@ -91,7 +115,11 @@ mod tests {
         let dem = Elevation::new(g, vec![0.0, 1.0, 2.0, 10.0, 11.0, 12.0]);
         assert_eq!(ground_height(&dem, 1005.0, 1995.0), Some(0.0));
         assert!((ground_height(&dem, 1010.0, 1990.0).unwrap() - 5.5).abs() < 1e-9);
-        assert_eq!(ground_height(&dem, 1001.0, 1999.0), Some(0.0), "clamped at the edge");
+        assert_eq!(
+            ground_height(&dem, 1001.0, 1999.0),
+            Some(0.0),
+            "clamped at the edge"
+        );
         assert_eq!(ground_height(&dem, 999.0, 1995.0), None);
         let mut holes = dem.clone();
         holes.data[1] = f32::NAN;

@@ -41,7 +41,8 @@ pub struct SculptReport {
 pub fn sculpt(path: &Path, opts: &SculptOptions) -> Result<(VoxelObject, SculptReport)> {
     let file = ViewsFile::read(path)?;
     let b = opts.bounds.or(file.bounds).ok_or_else(|| {
-        Error::file(path, "no bounds to carve").fix("give --bounds MINX,MINY,MINZ,MAXX,MAXY,MAXZ or \"bounds\" in the views file")
+        Error::file(path, "no bounds to carve")
+            .fix("give --bounds MINX,MINY,MINZ,MAXX,MAXY,MAXZ or \"bounds\" in the views file")
     })?;
     let grid = VoxelGrid::covering([b[0], b[1], b[2]], [b[3], b[4], b[5]], opts.voxel)?;
     let loaded = load(path, &file)?;
@@ -63,6 +64,12 @@ pub fn sculpt(path: &Path, opts: &SculptOptions) -> Result<(VoxelObject, SculptR
             .fix("check the cameras and bounds, or use a smaller --voxel if the object is smaller than one voxel"));
     }
     let (obj, stats) = colour(grid, occ, &views, &images, opts.fill);
-    let report = SculptReport { views: views.len(), dims: grid.dims, voxels: obj.len(), colour: stats, warnings };
+    let report = SculptReport {
+        views: views.len(),
+        dims: grid.dims,
+        voxels: obj.len(),
+        colour: stats,
+        warnings,
+    };
     Ok((obj, report))
 }

@@ -28,7 +28,12 @@ impl Silhouette {
                 sat[(r + 1) * (w + 1) + c + 1] = sat[r * (w + 1) + c + 1] + row;
             }
         }
-        Silhouette { width, height, inside, sat }
+        Silhouette {
+            width,
+            height,
+            inside,
+            sat,
+        }
     }
 
     /// Image width, pixels.
@@ -54,7 +59,8 @@ impl Silhouette {
         let (c0, r0) = ((c0 as usize).min(c1), (r0 as usize).min(r1));
         let w = self.width as usize + 1;
         let s = &self.sat;
-        (s[r1 * w + c1] as u64 + s[r0 * w + c0] as u64) - (s[r0 * w + c1] as u64 + s[r1 * w + c0] as u64)
+        (s[r1 * w + c1] as u64 + s[r0 * w + c0] as u64)
+            - (s[r0 * w + c1] as u64 + s[r1 * w + c0] as u64)
     }
 
     /// Number of silhouette pixels.

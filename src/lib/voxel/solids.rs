@@ -55,16 +55,26 @@ impl Solid {
                 let w = sub(p, *centre);
                 dot(w, w) <= radius * radius
             }
-            Solid::Cylinder { base, radius, height } => {
+            Solid::Cylinder {
+                base,
+                radius,
+                height,
+            } => {
                 let w = sub(p, *base);
                 (0.0..=*height).contains(&w[2]) && w[0] * w[0] + w[1] * w[1] <= radius * radius
             }
-            Solid::Cone { base, radius, height } => {
+            Solid::Cone {
+                base,
+                radius,
+                height,
+            } => {
                 let w = sub(p, *base);
                 let r = radius * (height - w[2]) / height;
                 (0.0..=*height).contains(&w[2]) && w[0] * w[0] + w[1] * w[1] <= r * r
             }
-            Solid::Boxes(boxes) => boxes.iter().any(|(lo, hi)| (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a])),
+            Solid::Boxes(boxes) => boxes
+                .iter()
+                .any(|(lo, hi)| (0..3).all(|a| lo[a] <= p[a] && p[a] <= hi[a])),
         }
     }
 
@@ -75,22 +85,40 @@ impl Solid {
         match self {
             Solid::Sphere { centre, radius } => {
                 let w = sub(o, *centre);
-                somewhere_nonneg(-dot(d, d), -2.0 * dot(w, d), radius * radius - dot(w, w), span)
+                somewhere_nonneg(
+                    -dot(d, d),
+                    -2.0 * dot(w, d),
+                    radius * radius - dot(w, w),
+                    span,
+                )
             }
-            Solid::Cylinder { base, radius, height } => {
+            Solid::Cylinder {
+                base,
+                radius,
+                height,
+            } => {
                 let w = sub(o, *base);
                 let span = slab(w[2], d[2], 0.0, *height, span);
                 let (a, b, c) = radial(w, d);
                 somewhere_nonneg(-a, -b, radius * radius - c, span)
             }
-            Solid::Cone { base, radius, height } => {
+            Solid::Cone {
+                base,
+                radius,
+                height,
+            } => {
                 let w = sub(o, *base);
                 let span = slab(w[2], d[2], 0.0, *height, span);
                 // k²(h − z(t))² − radial²(t) ≥ 0 on the lower nappe (z ≤ h, from the slab).
                 let k2 = (radius / height).powi(2);
                 let g = height - w[2];
                 let (a, b, c) = radial(w, d);
-                somewhere_nonneg(k2 * d[2] * d[2] - a, -2.0 * k2 * g * d[2] - b, k2 * g * g - c, span)
+                somewhere_nonneg(
+                    k2 * d[2] * d[2] - a,
+                    -2.0 * k2 * g * d[2] - b,
+                    k2 * g * g - c,
+                    span,
+                )
             }
             Solid::Boxes(boxes) => boxes.iter().any(|(lo, hi)| {
                 let mut s = span;
@@ -105,13 +133,21 @@ impl Solid {
 
 /// Coefficients of `x(t)² + y(t)²` for the horizontal part of `w + t·d`.
 fn radial(w: [f64; 3], d: [f64; 3]) -> (f64, f64, f64) {
-    (d[0] * d[0] + d[1] * d[1], 2.0 * (w[0] * d[0] + w[1] * d[1]), w[0] * w[0] + w[1] * w[1])
+    (
+        d[0] * d[0] + d[1] * d[1],
+        2.0 * (w[0] * d[0] + w[1] * d[1]),
+        w[0] * w[0] + w[1] * w[1],
+    )
 }
 
 /// Narrow `span` to the `t` where `lo ≤ w + t·d ≤ hi`.
 fn slab(w: f64, d: f64, lo: f64, hi: f64, span: (f64, f64)) -> (f64, f64) {
     if d == 0.0 {
-        return if (lo..=hi).contains(&w) { span } else { (1.0, 0.0) };
+        return if (lo..=hi).contains(&w) {
+            span
+        } else {
+            (1.0, 0.0)
+        };
     }
     let (t0, t1) = ((lo - w) / d, (hi - w) / d);
     (span.0.max(t0.min(t1)), span.1.min(t0.max(t1)))
@@ -159,11 +195,18 @@ pub fn voxelize(solid: &Solid, grid: &VoxelGrid) -> Occupancy {
 /// The exact (pixel-free) visual hull on `grid`: a voxel is kept when, for every camera (with
 /// its image size `(camera, width, height)`), the ray through its centre meets the solid; voxels
 /// behind a camera or off its image follow `opts` exactly as in carving.
-pub fn exact_hull(solid: &Solid, cameras: &[(Camera, u32, u32)], grid: &VoxelGrid, opts: &CarveOptions) -> Occupancy {
+pub fn exact_hull(
+    solid: &Solid,
+    cameras: &[(Camera, u32, u32)],
+    grid: &VoxelGrid,
+    opts: &CarveOptions,
+) -> Occupancy {
     Occupancy::from_fn(grid, |p| {
         cameras.iter().all(|(cam, w, h)| match cam.project(p) {
             None => opts.behind == Unseen::Keep,
-            Some([u, v]) if u < 0.0 || v < 0.0 || u >= *w as f64 || v >= *h as f64 => opts.outside == Unseen::Keep,
+            Some([u, v]) if u < 0.0 || v < 0.0 || u >= *w as f64 || v >= *h as f64 => {
+                opts.outside == Unseen::Keep
+            }
             Some([u, v]) => solid.hit(&cam.ray(u, v)),
         })
     })
@@ -173,10 +216,24 @@ pub fn exact_hull(solid: &Solid, cameras: &[(Camera, u32, u32)], grid: &VoxelGri
 /// concave L-shaped block (an L in plan, 1 m tall).
 pub fn benchmark_solids() -> Vec<Solid> {
     vec![
-        Solid::Sphere { centre: [0.0; 3], radius: 0.8 },
-        Solid::Cylinder { base: [0.0, 0.0, -0.8], radius: 0.5, height: 1.6 },
-        Solid::Cone { base: [0.0, 0.0, -0.8], radius: 0.7, height: 1.6 },
-        Solid::Boxes(vec![([-0.8, -0.8, -0.5], [0.8, -0.1, 0.5]), ([-0.8, -0.1, -0.5], [-0.1, 0.8, 0.5])]),
+        Solid::Sphere {
+            centre: [0.0; 3],
+            radius: 0.8,
+        },
+        Solid::Cylinder {
+            base: [0.0, 0.0, -0.8],
+            radius: 0.5,
+            height: 1.6,
+        },
+        Solid::Cone {
+            base: [0.0, 0.0, -0.8],
+            radius: 0.7,
+            height: 1.6,
+        },
+        Solid::Boxes(vec![
+            ([-0.8, -0.8, -0.5], [0.8, -0.1, 0.5]),
+            ([-0.8, -0.1, -0.5], [-0.1, 0.8, 0.5]),
+        ]),
     ]
 }
 
@@ -204,17 +261,32 @@ mod tests {
     #[test]
     fn hits_and_misses_on_named_rays() {
         let [sphere, cyl, cone, l] = <[Solid; 4]>::try_from(benchmark_solids()).unwrap();
-        let down = |x: f64, y: f64| Ray { origin: [x, y, 5.0], dir: [0.0, 0.0, -1.0], t_min: 0.0, t_max: f64::INFINITY };
+        let down = |x: f64, y: f64| Ray {
+            origin: [x, y, 5.0],
+            dir: [0.0, 0.0, -1.0],
+            t_min: 0.0,
+            t_max: f64::INFINITY,
+        };
         assert!(sphere.hit(&down(0.79, 0.0)) && !sphere.hit(&down(0.81, 0.0)));
         assert!(cyl.hit(&down(0.49, 0.0)) && !cyl.hit(&down(0.51, 0.0)));
         assert!(cone.hit(&down(0.69, 0.0)) && !cone.hit(&down(0.71, 0.0)));
         // The L's notch (x > -0.1, y > -0.1) is empty from above.
         assert!(!l.hit(&down(0.4, 0.4)) && l.hit(&down(-0.4, 0.4)) && l.hit(&down(0.4, -0.4)));
         // Horizontal ray above the cone's apex misses; one through its middle hits.
-        let side = |z: f64| Ray { origin: [-5.0, 0.0, z], dir: [1.0, 0.0, 0.0], t_min: f64::NEG_INFINITY, t_max: f64::INFINITY };
+        let side = |z: f64| Ray {
+            origin: [-5.0, 0.0, z],
+            dir: [1.0, 0.0, 0.0],
+            t_min: f64::NEG_INFINITY,
+            t_max: f64::INFINITY,
+        };
         assert!(!cone.hit(&side(0.81)) && cone.hit(&side(0.0)));
         // A ray pointing away does not hit behind its origin.
-        let away = Ray { origin: [0.0, 0.0, 5.0], dir: [0.0, 0.0, 1.0], t_min: 0.0, t_max: f64::INFINITY };
+        let away = Ray {
+            origin: [0.0, 0.0, 5.0],
+            dir: [0.0, 0.0, 1.0],
+            t_min: 0.0,
+            t_max: f64::INFINITY,
+        };
         assert!(!sphere.hit(&away) && !cyl.hit(&away) && !cone.hit(&away));
     }
 }

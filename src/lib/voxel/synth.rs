@@ -19,7 +19,10 @@ use std::path::Path;
 /// The grid with anchor at the origin for a solid of `radius` and `height` metres.
 fn local_grid(radius: f64, height: f64, voxel: f64) -> Result<VoxelGrid> {
     if !(voxel.is_finite() && voxel > 0.0) {
-        return Err(Error::msg(format!("voxel size {voxel} is not a positive number")).fix("give --voxel a value > 0 (metres)"));
+        return Err(
+            Error::msg(format!("voxel size {voxel} is not a positive number"))
+                .fix("give --voxel a value > 0 (metres)"),
+        );
     }
     let across = ((2.0 * radius / voxel - 1e-9).ceil().max(1.0) as u64) | 1; // odd
     let up = (height / voxel - 1e-9).ceil().max(1.0) as u64;
@@ -32,21 +35,34 @@ fn local_grid(radius: f64, height: f64, voxel: f64) -> Result<VoxelGrid> {
 /// points (metres, z up from the base) traced from bottom to top; the solid is the closed
 /// polygon profile → axis → first point, swept round the axis.
 pub fn revolve(profile: &[[f64; 2]], voxel: f64, colour: [u8; 3]) -> Result<VoxelObject> {
-    if profile.len() < 2 || profile.iter().flatten().any(|v| !v.is_finite()) || profile.iter().any(|p| p[0] < 0.0) {
-        return Err(Error::msg("the profile needs at least two finite R:Z points with R ≥ 0").fix("e.g. --profile 6:0,6:8,0:9.5"));
+    if profile.len() < 2
+        || profile.iter().flatten().any(|v| !v.is_finite())
+        || profile.iter().any(|p| p[0] < 0.0)
+    {
+        return Err(
+            Error::msg("the profile needs at least two finite R:Z points with R ≥ 0")
+                .fix("e.g. --profile 6:0,6:8,0:9.5"),
+        );
     }
     let zmin = profile.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min);
-    let zmax = profile.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max);
+    let zmax = profile
+        .iter()
+        .map(|p| p[1])
+        .fold(f64::NEG_INFINITY, f64::max);
     let rmax = profile.iter().map(|p| p[0]).fold(0.0, f64::max);
     if !(zmax > zmin && rmax > 0.0) || zmin < 0.0 {
-        return Err(Error::msg("the profile must span some height and radius, with z ≥ 0 (z is up from the ground)")
-            .fix("e.g. --profile 6:0,6:8,0:9.5"));
+        return Err(Error::msg(
+            "the profile must span some height and radius, with z ≥ 0 (z is up from the ground)",
+        )
+        .fix("e.g. --profile 6:0,6:8,0:9.5"));
     }
     let mut ring: Vec<[f64; 2]> = vec![[0.0, profile[0][1]]];
     ring.extend_from_slice(profile);
     ring.push([0.0, profile[profile.len() - 1][1]]);
     let grid = local_grid(rmax, zmax, voxel)?;
-    Ok(VoxelObject::from_fn(grid, |p, _| inside_ring(&ring, [p[0].hypot(p[1]), p[2]]).then_some(colour)))
+    Ok(VoxelObject::from_fn(grid, |p, _| {
+        inside_ring(&ring, [p[0].hypot(p[1]), p[2]]).then_some(colour)
+    }))
 }
 
 /// Even-odd point-in-polygon for a closed ring of 2-D points.
@@ -55,7 +71,9 @@ fn inside_ring(ring: &[[f64; 2]], q: [f64; 2]) -> bool {
     let mut j = ring.len() - 1;
     for i in 0..ring.len() {
         let (a, b) = (ring[i], ring[j]);
-        if (a[1] > q[1]) != (b[1] > q[1]) && q[0] < (b[0] - a[0]) * (q[1] - a[1]) / (b[1] - a[1]) + a[0] {
+        if (a[1] > q[1]) != (b[1] > q[1])
+            && q[0] < (b[0] - a[0]) * (q[1] - a[1]) / (b[1] - a[1]) + a[0]
+        {
             inside = !inside;
         }
         j = i;
@@ -108,10 +126,14 @@ pub struct TreeParams {
 pub fn cone_tree(p: &TreeParams, voxel: f64) -> Result<(VoxelObject, f64)> {
     let positive = |v: f64| v.is_finite() && v > 0.0;
     if !(positive(p.height) && positive(p.radius) && positive(p.trunk_radius)) {
-        return Err(Error::msg("tree height, radius and trunk radius must be positive metres").fix("e.g. --height 12 --radius 3"));
+        return Err(
+            Error::msg("tree height, radius and trunk radius must be positive metres")
+                .fix("e.g. --height 12 --radius 3"),
+        );
     }
     if !(0.0..1.0).contains(&p.trunk_fraction) || !(0.0..1.0).contains(&p.vary) {
-        return Err(Error::msg("--trunk and --vary must be fractions in [0, 1)").fix("e.g. --trunk 0.25 --vary 0.2"));
+        return Err(Error::msg("--trunk and --vary must be fractions in [0, 1)")
+            .fix("e.g. --trunk 0.25 --vary 0.2"));
     }
     let mut rng = SplitMix(p.seed);
     let size = 1.0 + p.vary * rng.signed();
@@ -124,8 +146,13 @@ pub fn cone_tree(p: &TreeParams, voxel: f64) -> Result<(VoxelObject, f64)> {
     let obj = VoxelObject::from_fn(grid, |q, index| {
         let rad = q[0].hypot(q[1]);
         if q[2] >= base && q[2] <= h && rad <= r * (h - q[2]) / (h - base) {
-            let jitter = 1.0 + vary / 2.0 * SplitMix(seed ^ (index as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93)).signed();
-            Some(p.crown.map(|c| (c as f64 * shade * jitter).round().clamp(0.0, 255.0) as u8))
+            let jitter = 1.0
+                + vary / 2.0
+                    * SplitMix(seed ^ (index as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93)).signed();
+            Some(
+                p.crown
+                    .map(|c| (c as f64 * shade * jitter).round().clamp(0.0, 255.0) as u8),
+            )
         } else if q[2] < base && rad <= p.trunk_radius {
             Some(p.trunk)
         } else {
@@ -147,7 +174,8 @@ pub struct Footprint {
 /// Read the footprints of a GeoJSON FeatureCollection (Polygon and MultiPolygon features) with
 /// their height from property `height_field` (a number, metres).
 pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>> {
-    let features = crate::geojson::read_features(path, "give a GeoJSON FeatureCollection of Polygons")?;
+    let features =
+        crate::geojson::read_features(path, "give a GeoJSON FeatureCollection of Polygons")?;
     let mut out = Vec::new();
     for (i, f) in features.iter().enumerate() {
         let bad = |what: &str| Error::file(path, format!("feature {i}: {what}"));
@@ -159,23 +187,34 @@ pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>
                 },
             )?;
         let geometry = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
-        for poly in crate::geojson::polygons(geometry).map_err(|e| bad(&e).fix("give footprints as polygons"))? {
+        for poly in crate::geojson::polygons(geometry)
+            .map_err(|e| bad(&e).fix("give footprints as polygons"))?
+        {
             if poly.is_empty() || poly.iter().any(|ring| ring.len() < 3) {
                 return Err(bad("polygon rings need at least 3 [x, y] positions"));
             }
-            let rings = poly.into_iter().map(|r| r.into_iter().map(|(x, y)| [x, y]).collect()).collect();
+            let rings = poly
+                .into_iter()
+                .map(|r| r.into_iter().map(|(x, y)| [x, y]).collect())
+                .collect();
             out.push(Footprint { rings, height });
         }
     }
     if out.is_empty() {
-        return Err(Error::file(path, "no footprints in the collection").fix("give at least one Polygon feature"));
+        return Err(Error::file(path, "no footprints in the collection")
+            .fix("give at least one Polygon feature"));
     }
     Ok(out)
 }
 
 /// Flat-roofed prisms standing on z = 0 over `footprints`, in world x, y; roof voxels (the top
 /// voxel of each column) take `roof`, the rest `wall`. Where footprints overlap the tallest wins.
-pub fn extrude(footprints: &[Footprint], voxel: f64, wall: [u8; 3], roof: [u8; 3]) -> Result<VoxelObject> {
+pub fn extrude(
+    footprints: &[Footprint],
+    voxel: f64,
+    wall: [u8; 3],
+    roof: [u8; 3],
+) -> Result<VoxelObject> {
     let pts = footprints.iter().flat_map(|f| f.rings.iter().flatten());
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in pts {
@@ -190,10 +229,18 @@ pub fn extrude(footprints: &[Footprint], voxel: f64, wall: [u8; 3], roof: [u8; 3
         .iter()
         .map(|f| {
             let outer = &f.rings[0];
-            let fold = |a: usize, init: f64, op: fn(f64, f64) -> f64| outer.iter().map(|p| p[a]).fold(init, op);
+            let fold = |a: usize, init: f64, op: fn(f64, f64) -> f64| {
+                outer.iter().map(|p| p[a]).fold(init, op)
+            };
             (
-                [fold(0, f64::INFINITY, f64::min), fold(1, f64::INFINITY, f64::min)],
-                [fold(0, f64::NEG_INFINITY, f64::max), fold(1, f64::NEG_INFINITY, f64::max)],
+                [
+                    fold(0, f64::INFINITY, f64::min),
+                    fold(1, f64::INFINITY, f64::min),
+                ],
+                [
+                    fold(0, f64::NEG_INFINITY, f64::max),
+                    fold(1, f64::NEG_INFINITY, f64::max),
+                ],
             )
         })
         .collect();
@@ -207,7 +254,14 @@ pub fn extrude(footprints: &[Footprint], voxel: f64, wall: [u8; 3], roof: [u8; 3
                 .iter()
                 .zip(&bboxes)
                 .filter(|(_, (l, h))| c[0] >= l[0] && c[0] <= h[0] && c[1] >= l[1] && c[1] <= h[1])
-                .filter(|(f, _)| f.rings.iter().filter(|r| inside_ring(r, [c[0], c[1]])).count() % 2 == 1)
+                .filter(|(f, _)| {
+                    f.rings
+                        .iter()
+                        .filter(|r| inside_ring(r, [c[0], c[1]]))
+                        .count()
+                        % 2
+                        == 1
+                })
                 .map(|(f, _)| f.height)
                 .fold(0.0, f64::max)
         })
@@ -232,9 +286,18 @@ mod tests {
         let vol = o.len() as f64 * 0.25f64.powi(3);
         assert!((vol - PI * 25.0 * 8.0).abs() / (PI * 200.0) < 0.02, "{vol}");
         assert_eq!(o.grid.dims[0] % 2, 1);
-        assert!(o.anchor().iter().all(|v| v.abs() < 1e-12), "anchor at the origin: {:?}", o.anchor());
+        assert!(
+            o.anchor().iter().all(|v| v.abs() < 1e-12),
+            "anchor at the origin: {:?}",
+            o.anchor()
+        );
         // A domed tank: profile to a 0-radius apex.
-        let dome = revolve(&[[5.0, 0.0], [5.0, 8.0], [3.0, 9.5], [0.0, 10.0]], 0.25, [1, 1, 1]).unwrap();
+        let dome = revolve(
+            &[[5.0, 0.0], [5.0, 8.0], [3.0, 9.5], [0.0, 10.0]],
+            0.25,
+            [1, 1, 1],
+        )
+        .unwrap();
         assert!(dome.len() > o.len());
         assert!(revolve(&[[5.0, 0.0]], 0.25, [0; 3]).is_err());
         assert!(revolve(&[[-1.0, 0.0], [1.0, 2.0]], 0.25, [0; 3]).is_err());
@@ -255,7 +318,14 @@ mod tests {
         let (a, ha) = cone_tree(&p, 0.25).unwrap();
         let (b, hb) = cone_tree(&p, 0.25).unwrap();
         assert_eq!((a.clone(), ha), (b, hb), "same seed, same tree");
-        let (c, hc) = cone_tree(&TreeParams { seed: 8, ..p.clone() }, 0.25).unwrap();
+        let (c, hc) = cone_tree(
+            &TreeParams {
+                seed: 8,
+                ..p.clone()
+            },
+            0.25,
+        )
+        .unwrap();
         assert!(ha != hc && a != c);
         assert!((ha - 12.0).abs() <= 2.4 + 1e-9);
         // The thin trunk (0.1 m < one voxel) is still one column of trunk-coloured voxels.
@@ -265,9 +335,13 @@ mod tests {
         let no_vary = TreeParams { vary: 0.0, ..p };
         let (t, h) = cone_tree(&no_vary, 0.25).unwrap();
         assert_eq!(h, 12.0);
-        let crown_vol = t.colours.iter().filter(|c| **c == [40, 100, 40]).count() as f64 * 0.25f64.powi(3);
+        let crown_vol =
+            t.colours.iter().filter(|c| **c == [40, 100, 40]).count() as f64 * 0.25f64.powi(3);
         let want = PI * 9.0 * 9.0 / 3.0;
-        assert!((crown_vol - want).abs() / want < 0.05, "{crown_vol} vs {want}");
+        assert!(
+            (crown_vol - want).abs() / want < 0.05,
+            "{crown_vol} vs {want}"
+        );
     }
 
     #[test]
@@ -295,6 +369,9 @@ mod tests {
         assert_eq!(o.colour_at(&rank, 0, 0, 10), Some([1, 1, 1]), "wall");
         assert_eq!(o.colour_at(&rank, 10, 10, 0), None, "courtyard");
         std::fs::write(&p, r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[[[0,0],[1,0],[1,1]]]}}]}"#).unwrap();
-        assert!(read_footprints(&p, "height").unwrap_err().to_string().contains("feature 0: no positive number in property \"height\""));
+        assert!(read_footprints(&p, "height")
+            .unwrap_err()
+            .to_string()
+            .contains("feature 0: no positive number in property \"height\""));
     }
 }

@@ -118,7 +118,17 @@ impl CameraSpec {
     pub fn build(&self, width: u32, height: u32) -> Result<Camera> {
         let (w2, h2) = (width as f64 / 2.0, height as f64 / 2.0);
         match *self {
-            CameraSpec::Pinhole { fx, fy, cx, cy, r, t, position, look_at, up } => {
+            CameraSpec::Pinhole {
+                fx,
+                fy,
+                cx,
+                cy,
+                r,
+                t,
+                position,
+                look_at,
+                up,
+            } => {
                 let (cx, cy) = (cx.unwrap_or(w2), cy.unwrap_or(h2));
                 match (r, t, position, look_at) {
                     (Some(r), Some(t), None, None) if up.is_none() => Camera::pinhole(fx, fy, cx, cy, r, t),
@@ -129,9 +139,21 @@ impl CameraSpec {
                     .fix("give one of the two forms")),
                 }
             }
-            CameraSpec::Orthographic { direction, up, scale, centre, cx, cy } => {
-                Camera::orthographic(direction, up, scale, centre.unwrap_or([0.0; 3]), cx.unwrap_or(w2), cy.unwrap_or(h2))
-            }
+            CameraSpec::Orthographic {
+                direction,
+                up,
+                scale,
+                centre,
+                cx,
+                cy,
+            } => Camera::orthographic(
+                direction,
+                up,
+                scale,
+                centre.unwrap_or([0.0; 3]),
+                cx.unwrap_or(w2),
+                cy.unwrap_or(h2),
+            ),
         }
     }
 }
@@ -141,12 +163,17 @@ impl ViewsFile {
     pub fn read(path: &Path) -> Result<ViewsFile> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let parsed = if text.trim_start().starts_with('[') {
-            serde_json::from_str::<Vec<ViewSpec>>(&text).map(|views| ViewsFile { views, bounds: None, schema: None })
+            serde_json::from_str::<Vec<ViewSpec>>(&text).map(|views| ViewsFile {
+                views,
+                bounds: None,
+                schema: None,
+            })
         } else {
             serde_json::from_str::<ViewsFile>(&text)
         };
         let file = parsed.map_err(|e| {
-            Error::file(path, format!("not a valid views file: {e}")).fix("see docs/sculpt.md and schemas/views.schema.json")
+            Error::file(path, format!("not a valid views file: {e}"))
+                .fix("see docs/sculpt.md and schemas/views.schema.json")
         })?;
         if file.views.is_empty() {
             return Err(Error::file(path, "the file lists no views").fix("give at least one view"));
@@ -172,10 +199,16 @@ pub fn load(path: &Path, file: &ViewsFile) -> Result<Vec<LoadedView>> {
         .iter()
         .enumerate()
         .map(|(i, spec)| {
-            let in_view = |e: Error, p: &Path| Error { problem: format!("view {i}: {}", e.problem), ..e.in_file(p) };
+            let in_view = |e: Error, p: &Path| Error {
+                problem: format!("view {i}: {}", e.problem),
+                ..e.in_file(p)
+            };
             let image_path = dir.join(&spec.image);
             let image = Picture::read(&image_path).map_err(|e| in_view(e, &image_path))?;
-            let camera = spec.camera.build(image.width, image.height).map_err(|e| in_view(e, path))?;
+            let camera = spec
+                .camera
+                .build(image.width, image.height)
+                .map_err(|e| in_view(e, path))?;
             let (inside, silhouette_path): (Vec<bool>, PathBuf) = match (&spec.mask, &spec.key) {
                 (Some(m), None) => {
                     let mask_path = dir.join(m);
@@ -190,25 +223,42 @@ pub fn load(path: &Path, file: &ViewsFile) -> Result<Vec<LoadedView>> {
                         )
                         .fix("give a mask of the image's size"));
                     }
-                    let on = |p: &[u8; 4]| p[3] >= 128 && (p[0] as u32 + p[1] as u32 + p[2] as u32) >= 3 * 128;
+                    let on = |p: &[u8; 4]| {
+                        p[3] >= 128 && (p[0] as u32 + p[1] as u32 + p[2] as u32) >= 3 * 128
+                    };
                     (mask.pixels.iter().map(on).collect(), mask_path)
                 }
                 (None, Some(k)) => {
-                    let on = |p: &[u8; 4]| p[3] >= 128 && (0..3).any(|c| p[c].abs_diff(k.colour[c]) > k.tolerance);
+                    let on = |p: &[u8; 4]| {
+                        p[3] >= 128 && (0..3).any(|c| p[c].abs_diff(k.colour[c]) > k.tolerance)
+                    };
                     (image.pixels.iter().map(on).collect(), image_path.clone())
                 }
-                _ => return Err(Error::file(path, format!("view {i}: give exactly one of \"mask\" and \"key\"")).fix("see docs/sculpt.md")),
+                _ => {
+                    return Err(Error::file(
+                        path,
+                        format!("view {i}: give exactly one of \"mask\" and \"key\""),
+                    )
+                    .fix("see docs/sculpt.md"))
+                }
             };
             let silhouette = Silhouette::new(image.width, image.height, inside);
             if silhouette.area() == 0 {
-                return Err(Error::file(&silhouette_path, format!("view {i}: the silhouette is empty, so it would carve away everything"))
-                    .fix(if spec.key.is_some() {
-                        "check the key colour and raise the tolerance"
-                    } else {
-                        "check the mask (white = object)"
-                    }));
+                return Err(Error::file(
+                    &silhouette_path,
+                    format!("view {i}: the silhouette is empty, so it would carve away everything"),
+                )
+                .fix(if spec.key.is_some() {
+                    "check the key colour and raise the tolerance"
+                } else {
+                    "check the mask (white = object)"
+                }));
             }
-            Ok(LoadedView { view: View { camera, silhouette }, image, silhouette_path })
+            Ok(LoadedView {
+                view: View { camera, silhouette },
+                image,
+                silhouette_path,
+            })
         })
         .collect()
 }
