@@ -3,41 +3,82 @@
 //! half-written file that `make` would take as up to date.
 
 use crate::error::{Error, Result};
+use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use tempfile::TempPath;
+
+/// An output being written: a temporary file in the destination's directory that
+/// [`AtomicFile::commit`] syncs and renames over the destination. Dropped without a commit (an
+/// error, a panic), it is removed and the destination is untouched.
+pub struct AtomicFile {
+    path: PathBuf,
+    file: BufWriter<File>,
+    tmp: TempPath,
+}
+
+impl AtomicFile {
+    /// Start writing `path` (its directory must exist).
+    pub fn create(path: &Path) -> Result<AtomicFile> {
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let tmp = tempfile::Builder::new()
+            .prefix(".dbms-")
+            .suffix(".tmp")
+            .tempfile_in(dir)
+            .map_err(|e| {
+                Error::io(dir, e).fix("check that the output directory exists and is writable")
+            })?;
+        let (file, tmp) = tmp.into_parts();
+        Ok(AtomicFile {
+            path: path.to_path_buf(),
+            file: BufWriter::with_capacity(1 << 20, file),
+            tmp,
+        })
+    }
+
+    /// The destination path (for error messages).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The buffered temporary file, positioned where writing left off.
+    pub fn writer(&mut self) -> &mut BufWriter<File> {
+        &mut self.file
+    }
+
+    /// Flush, make the file world-readable, sync it to disk and rename it over the destination.
+    pub fn commit(self) -> Result<()> {
+        let path = self.path;
+        let file = self
+            .file
+            .into_inner()
+            .map_err(|e| Error::io(&path, e.into_error()))?;
+        // tempfile creates 0600; outputs are ordinary files other users and tools may read.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            file.set_permissions(std::fs::Permissions::from_mode(0o644))
+                .map_err(|e| Error::io(&path, e))?;
+        }
+        file.sync_all().map_err(|e| Error::io(&path, e))?;
+        self.tmp
+            .persist(&path)
+            .map_err(|e| Error::io(&path, e.error))?;
+        Ok(())
+    }
+}
 
 /// Write `path` atomically; `fill` writes the whole content to the given writer.
 pub fn write_atomic<F>(path: &Path, fill: F) -> Result<()>
 where
-    F: FnOnce(&mut BufWriter<&mut std::fs::File>) -> Result<()>,
+    F: FnOnce(&mut BufWriter<File>) -> Result<()>,
 {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".dbms-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(|e| {
-            Error::io(dir, e).fix("check that the output directory exists and is writable")
-        })?;
-    {
-        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
-        fill(&mut w)?;
-        w.flush().map_err(|e| Error::io(path, e))?;
-    }
-    // tempfile creates 0600; outputs are ordinary files other users and tools may read.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| Error::io(path, e))?;
-    }
-    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
+    let mut out = AtomicFile::create(path)?;
+    fill(out.writer())?;
+    out.commit()
 }
 
 /// Write bytes to `path` atomically.
