@@ -42,11 +42,30 @@ impl From<BaseRows> for Band {
 /// (`info.grid.width` cells each), as a [`Band`] or plain [`BaseRows`]; it is called for
 /// consecutive page-rows, top to bottom. A level-0 page with partial cells gets their columns
 /// as its `bricks` blob ([`PageColumns`]); other pages get none.
-pub fn build_levels<B, T, E>(info: &TileSetInfo, mut band: B, emit: &E) -> Result<()>
+pub fn build_levels<B, T, E>(info: &TileSetInfo, band: B, emit: &E) -> Result<()>
 where
     B: FnMut(usize, usize) -> Result<T>,
     T: Into<Band>,
     E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
+{
+    build_levels_by_page_row(info, band, emit, &mut |_, _| Ok(()))
+}
+
+/// [`build_levels`], and after the last page of each page-row `(level, ty)` has been emitted,
+/// `page_row_done(level, ty)` on the calling thread, with no page of any level being emitted at
+/// the same time (so it may take locks the emitter takes, and run parallel work of its own).
+/// Each level's page-rows complete in order, top to bottom.
+pub fn build_levels_by_page_row<B, T, E, D>(
+    info: &TileSetInfo,
+    mut band: B,
+    emit: &E,
+    page_row_done: &mut D,
+) -> Result<()>
+where
+    B: FnMut(usize, usize) -> Result<T>,
+    T: Into<Band>,
+    E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
+    D: FnMut(usize, usize) -> Result<()>,
 {
     let (p, f) = (info.page_size, info.factor);
     if info.levels.len() > 1 && p % f != 0 {
@@ -80,8 +99,9 @@ where
             )));
         }
         emit_page_row(info, 0, ty, &base, Some(&columns), emit)?;
+        page_row_done(0, ty)?;
         if info.levels.len() > 1 {
-            push(info, &mut pending, 1, reduce(&base, f), emit)?;
+            push(info, &mut pending, 1, reduce(&base, f), emit, page_row_done)?;
         }
     }
     Ok(())
@@ -97,15 +117,17 @@ struct Pending {
 }
 
 /// Add rows to level `k`; emit and reduce onward whenever a page-row is complete.
-fn push<E>(
+fn push<E, D>(
     info: &TileSetInfo,
     pending: &mut [Pending],
     k: usize,
     rows: CoarseRows,
     emit: &E,
+    page_row_done: &mut D,
 ) -> Result<()>
 where
     E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
+    D: FnMut(usize, usize) -> Result<()>,
 {
     let level = &info.levels[k];
     let slot = &mut pending[k - 1];
@@ -118,8 +140,16 @@ where
     let ty = slot.next_ty;
     slot.next_ty += 1;
     emit_page_row(info, k, ty, &full, None, emit)?;
+    page_row_done(k, ty)?;
     if k + 1 < info.levels.len() {
-        push(info, pending, k + 1, reduce(&full, info.factor), emit)?;
+        push(
+            info,
+            pending,
+            k + 1,
+            reduce(&full, info.factor),
+            emit,
+            page_row_done,
+        )?;
     }
     Ok(())
 }
@@ -193,6 +223,7 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::Grid;
+    use crate::raster::Raster;
     use std::sync::Mutex;
 
     /// Every page of a 10×7 grid with pages of 4 and factor 2 arrives exactly once.
@@ -232,12 +263,19 @@ mod tests {
         }
     }
 
+    /// One level as whole rasters, gathered from its pages.
+    struct Level {
+        max_z: Raster<f32>,
+        colour: Raster<[u8; 4]>,
+        state: Raster<u8>,
+    }
+
     fn build(
         base: &BaseRows,
         height: usize,
         page: usize,
         factor: usize,
-    ) -> (TileSetInfo, Vec<crate::pyramid::export::LevelRasters>) {
+    ) -> (TileSetInfo, Vec<Level>) {
         let grid = Grid::north_up(
             500_000.0,
             5_000_000.0,
@@ -247,17 +285,40 @@ mod tests {
             Crs::epsg(32632),
         );
         let info = TileSetInfo::new(grid, page, factor, None).unwrap();
-        let collector = crate::pyramid::export::LevelCollector::new(&info);
+        let levels: Vec<Mutex<Level>> = (0..info.levels.len())
+            .map(|k| {
+                let g = info.level_grid(k);
+                Mutex::new(Level {
+                    max_z: Raster::filled(g.clone(), f32::NAN),
+                    colour: Raster::filled(g.clone(), [0; 4]),
+                    state: Raster::filled(g, 0),
+                })
+            })
+            .collect();
         build_levels(
             &info,
             |row0, rows| Ok(cut(base, row0, rows)),
-            &|l, tx, ty, p| {
-                collector.put(l, tx, ty, p);
+            &|k, tx, ty, page| {
+                let (cols, rows) = info.page_extent(k, tx, ty);
+                let mut l = levels[k].lock().unwrap();
+                for r in 0..rows {
+                    for c in 0..cols {
+                        let p = info.page_size;
+                        let (col, row, i) = (tx * p + c, ty * p + r, r * p + c);
+                        *l.max_z.get_mut(col, row) = page.max_z[i];
+                        *l.colour.get_mut(col, row) = page.colour[i];
+                        *l.state.get_mut(col, row) = page.state[i];
+                    }
+                }
                 Ok(())
             },
         )
         .unwrap();
-        (info, collector.into_levels())
+        let levels = levels
+            .into_iter()
+            .map(|l| l.into_inner().unwrap())
+            .collect();
+        (info, levels)
     }
 
     proptest::proptest! {

@@ -1,92 +1,196 @@
-//! Whole levels out of pages: `--export-levels DIR` (GeoTIFFs GDAL and QGIS open) and tests.
+//! Every level as GeoTIFF (`--export-levels DIR`), streamed while the pyramid is built.
 //!
-//! Invariant: a collected level holds exactly the cells of the pages given to it (padding is
-//! dropped), on the level's own grid — the database's corner, cell size `c · f^N` — so the
-//! GeoTIFFs line up with the database in any GIS. Memory: every level whole, 9 bytes a cell
-//! (about 9.6 · W · H bytes for factor 4); only used when asked for.
+//! Invariant: `level<N>_maxz.tif` and `level<N>_colour.tif` hold exactly the cells of level N's
+//! pages (padding dropped), on the level's own grid — the database's corner, cell size `c · f^N`
+//! — so they line up with the database in any GIS. Pages are copied into their level's current
+//! page-row; when the cascade reports the page-row complete, its rows go to the GeoTIFF writers
+//! and the buffer is reused. Memory per level of width `Wk`: one page-row (`P · Wk` cells) plus
+//! the writers' tile row (256 rows), 8 bytes a cell each — about `8 · (P + 256) · W · f / (f − 1)`
+//! bytes in all (22 MB for W = 8192, P = 256, f = 4), whatever the grid's height.
 
 use crate::error::{Error, Result};
-use crate::io::geotiff;
-use crate::raster::{Colour, Elevation, Raster};
+use crate::io::geotiff::GeoTiffWriter;
 use crate::tiles::{Page, TileSetInfo};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-/// One level as whole rasters.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LevelRasters {
-    /// Max Z, metres; NaN = nodata.
-    pub max_z: Elevation,
-    /// Average colour; alpha 0 = nodata.
-    pub colour: Colour,
-    /// Occupancy state.
-    pub state: Raster<u8>,
-}
-
-/// Gathers pages (from any thread) into whole levels.
-pub struct LevelCollector {
+/// Writes every level of a pyramid as GeoTIFFs while its pages are emitted.
+pub struct LevelExporter {
     info: TileSetInfo,
-    levels: Vec<Mutex<LevelRasters>>,
+    dir: PathBuf,
+    levels: Vec<Mutex<LevelOut>>,
 }
 
-impl LevelCollector {
-    /// Empty (nodata) rasters for every level of `info`.
-    pub fn new(info: &TileSetInfo) -> LevelCollector {
+/// One level being written.
+struct LevelOut {
+    /// The current page-row's cells, row-major over the level's width (empty between page-rows).
+    max_z: Vec<f32>,
+    colour: Vec<[u8; 4]>,
+    /// Pages of the current page-row received so far.
+    pages: usize,
+    z_file: GeoTiffWriter<f32>,
+    colour_file: GeoTiffWriter<[u8; 4]>,
+}
+
+impl LevelExporter {
+    /// Start `level<N>_maxz.tif` (float32, nodata −9999) and `level<N>_colour.tif` (RGBA8,
+    /// alpha = mask) for every level of `info` in `dir` (created if missing). Nothing appears
+    /// in `dir` until [`finish`](Self::finish).
+    pub fn create(info: &TileSetInfo, dir: &Path) -> Result<LevelExporter> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| Error::io(dir, e).fix("choose a writable --export-levels directory"))?;
         let levels = (0..info.levels.len())
             .map(|k| {
+                let (z, c) = Self::files(dir, k);
                 let g = info.level_grid(k);
-                Mutex::new(LevelRasters {
-                    max_z: Raster::filled(g.clone(), f32::NAN),
-                    colour: Raster::filled(g.clone(), [0; 4]),
-                    state: Raster::filled(g, 0),
-                })
+                Ok(Mutex::new(LevelOut {
+                    max_z: Vec::new(),
+                    colour: Vec::new(),
+                    pages: 0,
+                    z_file: GeoTiffWriter::create_f32(&z, &g)?,
+                    colour_file: GeoTiffWriter::create_rgba8(&c, &g)?,
+                }))
             })
-            .collect();
-        LevelCollector {
+            .collect::<Result<_>>()?;
+        Ok(LevelExporter {
             info: info.clone(),
+            dir: dir.to_path_buf(),
             levels,
-        }
+        })
     }
 
-    /// Copy page `(level, tx, ty)` into its level.
+    /// The two files of level `k` in `dir`.
+    fn files(dir: &Path, k: usize) -> (PathBuf, PathBuf) {
+        (
+            dir.join(format!("level{k}_maxz.tif")),
+            dir.join(format!("level{k}_colour.tif")),
+        )
+    }
+
+    /// Copy page `(level, tx, ty)` into its level's current page-row (from any thread).
     pub fn put(&self, level: usize, tx: usize, ty: usize, page: &Page) {
         let p = self.info.page_size;
         let (cols, rows) = self.info.page_extent(level, tx, ty);
+        let w = self.info.levels[level].width;
         let mut l = self.levels[level]
             .lock()
             .expect("no panics while holding the lock");
-        let w = l.max_z.grid.width;
-        for r in 0..rows {
-            let (src, dst) = (r * p, (ty * p + r) * w + tx * p);
-            l.max_z.data[dst..dst + cols].copy_from_slice(&page.max_z[src..src + cols]);
-            l.colour.data[dst..dst + cols].copy_from_slice(&page.colour[src..src + cols]);
-            l.state.data[dst..dst + cols].copy_from_slice(&page.state[src..src + cols]);
+        if l.max_z.is_empty() {
+            l.max_z.resize(rows * w, f32::NAN);
+            l.colour.resize(rows * w, [0; 4]);
         }
+        for r in 0..rows {
+            let (src, dst) = (r * p, r * w + tx * p);
+            l.max_z[dst..dst + cols].copy_from_slice(&page.max_z[src..src + cols]);
+            l.colour[dst..dst + cols].copy_from_slice(&page.colour[src..src + cols]);
+        }
+        l.pages += 1;
     }
 
-    /// The collected levels, finest first.
-    pub fn into_levels(self) -> Vec<LevelRasters> {
-        self.levels
-            .into_iter()
-            .map(|m| m.into_inner().expect("no panics while holding the lock"))
-            .collect()
+    /// Page-row `ty` of `level` is complete (every page of it was [`put`](Self::put)): write its
+    /// rows. Page-rows of a level must complete in order.
+    pub fn page_row_done(&self, level: usize, ty: usize) -> Result<()> {
+        let mut l = self.levels[level]
+            .lock()
+            .expect("no panics while holding the lock");
+        let l = &mut *l;
+        if l.pages != self.info.levels[level].pages_x {
+            return Err(Error::msg(format!(
+                "internal: level {level} page-row {ty} exported incomplete"
+            )));
+        }
+        l.z_file.push_rows(&l.max_z)?;
+        l.colour_file.push_rows(&l.colour)?;
+        l.max_z.clear();
+        l.colour.clear();
+        l.pages = 0;
+        Ok(())
     }
 
-    /// Write `level<N>_maxz.tif` (float32, nodata −9999) and `level<N>_colour.tif` (RGBA8, alpha
-    /// = mask) for every level into `dir` (created if missing). Returns the files written.
-    pub fn write(self, dir: &Path) -> Result<Vec<PathBuf>> {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| Error::io(dir, e).fix("choose a writable --export-levels directory"))?;
+    /// Finish every file and move it into place. Returns the files written, finest level first.
+    pub fn finish(self) -> Result<Vec<PathBuf>> {
         let mut files = Vec::new();
-        for (k, l) in self.into_levels().into_iter().enumerate() {
-            let (z, c) = (
-                dir.join(format!("level{k}_maxz.tif")),
-                dir.join(format!("level{k}_colour.tif")),
-            );
-            geotiff::write_f32(&z, &l.max_z)?;
-            geotiff::write_rgba8(&c, &l.colour)?;
+        for (k, l) in self.levels.into_iter().enumerate() {
+            let l = l.into_inner().expect("no panics while holding the lock");
+            l.z_file.finish()?;
+            l.colour_file.finish()?;
+            let (z, c) = Self::files(&self.dir, k);
             files.extend([z, c]);
         }
         Ok(files)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+    use crate::grid::Grid;
+    use crate::io::geotiff;
+    use crate::io::Samples;
+    use crate::pyramid::cascade::build_levels_by_page_row;
+    use crate::pyramid::reduce::BaseRows;
+    use std::collections::HashMap;
+
+    /// Exported levels hold exactly the pages' cells, on the level grids: a 37 × 23 grid (not a
+    /// multiple of the page or the factor) with pages of 8 and factor 2, so some levels have
+    /// several page-rows and edge pages are cut.
+    #[test]
+    fn exported_levels_equal_the_pages() {
+        let grid = Grid::north_up(500_000.0, 5_000_000.0, 0.5, 37, 23, Crs::epsg(32614));
+        let info = TileSetInfo::new(grid, 8, 2, None).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("levels");
+        let exporter = LevelExporter::create(&info, &out).unwrap();
+        let pages = Mutex::new(HashMap::new());
+        build_levels_by_page_row(
+            &info,
+            |row0, rows| {
+                let mut b = BaseRows::nodata(37, rows);
+                for i in 0..37 * rows {
+                    let g = row0 * 37 + i;
+                    if g % 11 != 0 {
+                        b.max_z[i] = 100.0 + (g % 29) as f32 * 0.5;
+                        b.colour[i] = [(g % 251) as u8, (g % 13) as u8, 7, 255];
+                        b.state[i] = 2;
+                    }
+                }
+                Ok(b)
+            },
+            &|l, tx, ty, p| {
+                exporter.put(l, tx, ty, p);
+                pages.lock().unwrap().insert((l, tx, ty), p.clone());
+                Ok(())
+            },
+            &mut |l, ty| exporter.page_row_done(l, ty),
+        )
+        .unwrap();
+        let files = exporter.finish().unwrap();
+        assert_eq!(files.len(), 2 * info.levels.len());
+        let pages = pages.into_inner().unwrap();
+        let p = info.page_size;
+        for k in 0..info.levels.len() {
+            let z = geotiff::read(&out.join(format!("level{k}_maxz.tif"))).unwrap();
+            let c = geotiff::read(&out.join(format!("level{k}_colour.tif"))).unwrap();
+            let g = info.level_grid(k);
+            assert_eq!((&z.grid, &c.grid), (&g, &g), "level {k} grid");
+            let (Samples::F32(z), Samples::U8(c)) = (z.samples, c.samples) else {
+                panic!("level {k}: unexpected sample types");
+            };
+            for row in 0..g.height {
+                for col in 0..g.width {
+                    let page = &pages[&(k, col / p, row / p)];
+                    let i = (row % p) * p + col % p;
+                    let want = page.max_z[i];
+                    let got = z[row * g.width + col];
+                    assert!(
+                        got.to_bits() == want.to_bits() || (got == -9999.0 && want.is_nan()),
+                        "level {k} ({col}, {row}): {got} vs {want}"
+                    );
+                    let at = 4 * (row * g.width + col);
+                    assert_eq!(&c[at..at + 4], &page.colour[i], "level {k} ({col}, {row})");
+                }
+            }
+        }
     }
 }

@@ -186,29 +186,33 @@ pub fn build_pyramid(
     seconds.prepare = lap();
     let level0 = base::Level0::new(&terrain, &colour, &all, effects.as_ref());
     let writer = TileWriter::create(out, info.clone())?;
-    let collector = opts
-        .export_levels
-        .as_ref()
-        .map(|_| export::LevelCollector::new(&info));
+    let exporter = match &opts.export_levels {
+        Some(dir) => Some(export::LevelExporter::create(&info, dir)?),
+        None => None,
+    };
     progress.phase(info.page_count() as u64, "pyramid");
-    cascade::build_levels(
+    cascade::build_levels_by_page_row(
         &info,
         |row0, rows| level0.band(row0, rows),
         &|level, tx, ty, page| {
-            if let Some(c) = &collector {
-                c.put(level, tx, ty, page);
+            if let Some(x) = &exporter {
+                x.put(level, tx, ty, page);
             }
             writer.write_page(level, tx, ty, page)?;
             progress.inc(1);
             Ok(())
         },
+        &mut |level, ty| match &exporter {
+            Some(x) => x.page_row_done(level, ty),
+            None => Ok(()),
+        },
     )?;
     seconds.levels = lap();
     writer.finish()?;
     progress.finish();
-    let exported = match (collector, &opts.export_levels) {
-        (Some(c), Some(dir)) => c.write(dir)?,
-        _ => Vec::new(),
+    let exported = match exporter {
+        Some(x) => x.finish()?,
+        None => Vec::new(),
     };
     seconds.finish = lap();
 
