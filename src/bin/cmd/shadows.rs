@@ -2,8 +2,11 @@
 
 use super::Ctx;
 use dbms::db::{self, Database};
-use dbms::pyramid::raised::{rasterise_prisms, read_buildings, Raised};
-use dbms::shadow::{cast_shadows, LIT, NODATA, SHADOW};
+use dbms::io::geotiff::GeoTiffWriter;
+use dbms::pyramid::raised::{rasterise_prisms, read_buildings, Raised, TerrainSample};
+use dbms::pyramid::shade::{band_rows, ShadowBits};
+use dbms::raster::RowSource;
+use dbms::shadow::{LIT, NODATA, SHADOW};
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -28,21 +31,39 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             .fix("give --time, or --sun-elevation and --sun-azimuth")
     })?;
     let elevation_path = db.layer_path(db::ELEVATION)?;
-    let terrain = db.read_elevation()?;
+    // The terrain is streamed band by band, never whole: memory is the one-bit-a-cell mask
+    // plus a band (docs/shadows.md).
+    let terrain = db.elevation_rows()?;
+    let grid = terrain.grid().clone();
     // Raised buildings stand in the sun's way only when shadow-height has written them.
-    let (heights, building_cells) = if db.manifest.layers.contains_key("buildings") {
-        let prisms = read_buildings(&db.layer_path("buildings")?)?;
-        let raised = Raised::new(rasterise_prisms(&terrain.grid, &prisms), &terrain);
-        (raised.heights(&terrain), raised.len())
+    let prisms = if db.manifest.layers.contains_key("buildings") {
+        rasterise_prisms(&grid, &read_buildings(&db.layer_path("buildings")?)?)
     } else {
-        (terrain, 0)
+        Vec::new()
     };
-    let mask = cast_shadows(&heights, sun.elevation_deg, sun.azimuth_deg)
-        .map_err(|e| e.in_file(&elevation_path))?;
-    dbms::io::geotiff::write_u8(&args.output, &mask, Some(NODATA))?;
+    let band = band_rows(grid.width);
+    let under = prisms.iter().map(|c| c.index).collect();
+    let raised = Raised::new(prisms, &TerrainSample::read(&terrain, under, band)?);
+    let bits = ShadowBits::cast(&terrain, &raised, &sun).map_err(|e| e.in_file(&elevation_path))?;
 
-    let count = |v: u8| mask.data.iter().filter(|&&m| m == v).count();
-    let (shadow, lit, nodata) = (count(SHADOW), count(LIT), count(NODATA));
+    let mut out = GeoTiffWriter::create_u8(&args.output, &grid, Some(NODATA))?;
+    let (mut nodata, mut mask) = (0, Vec::new());
+    for row0 in (0..grid.height).step_by(band) {
+        let rows = band.min(grid.height - row0);
+        let heights = terrain.read_rows(row0, rows)?;
+        let first = row0 * grid.width;
+        mask.clear();
+        mask.extend(heights.iter().enumerate().map(|(k, z)| match () {
+            _ if z.is_nan() => NODATA,
+            _ if bits.get(first + k) => SHADOW,
+            _ => LIT,
+        }));
+        nodata += heights.iter().filter(|z| z.is_nan()).count();
+        out.push_rows(&mask)?;
+    }
+    out.finish()?;
+    let (shadow, building_cells) = (bits.count(), raised.len());
+    let lit = grid.len() - shadow - nodata;
     let valid = (shadow + lit).max(1) as f64;
     ctx.report(
         format!(

@@ -161,8 +161,9 @@ pub fn lit(mut colour: [u8; 4], factor: f64) -> [u8; 4] {
     colour
 }
 
-/// Rows per band of `BAND_CELLS` for a grid `width` cells wide (at least 1).
-fn band_rows(width: usize) -> usize {
+/// Rows in a band of about 4 M cells (`BAND_CELLS`) of a grid `width` cells wide (at least 1):
+/// how many rows the stages that stream the terrain read at a time.
+pub fn band_rows(width: usize) -> usize {
     (BAND_CELLS / width.max(1)).max(1)
 }
 
@@ -200,15 +201,16 @@ fn enu(s: &Sun) -> [f64; 3] {
     [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()]
 }
 
-/// A cast-shadow mask, one bit per cell, row-major: set = in cast shadow.
-struct ShadowBits {
+/// A cast-shadow mask, one bit per cell, row-major: set = in cast shadow (nodata cells are
+/// never set). `W · H / 8` bytes: the only whole-grid state of a streamed cast.
+pub struct ShadowBits {
     bits: Vec<u64>,
 }
 
 impl ShadowBits {
     /// Cast `sun` over the terrain with `raised` laid over it. The sweep takes rows in the sun's
     /// order, so the terrain is read in bands in that order (down the grid or up it).
-    fn cast(terrain: &dyn RowSource<f32>, raised: &Raised, sun: &Sun) -> Result<ShadowBits> {
+    pub fn cast(terrain: &dyn RowSource<f32>, raised: &Raised, sun: &Sun) -> Result<ShadowBits> {
         let g = terrain.grid();
         let (w, h) = (g.width, g.height);
         let mut bits = vec![0u64; (w * h).div_ceil(64)];
@@ -247,11 +249,13 @@ impl ShadowBits {
         Ok(ShadowBits { bits })
     }
 
-    fn get(&self, i: usize) -> bool {
+    /// Whether cell `i` (row-major index) is in cast shadow.
+    pub fn get(&self, i: usize) -> bool {
         self.bits[i / 64] >> (i % 64) & 1 == 1
     }
 
-    fn count(&self) -> usize {
+    /// Cells in cast shadow.
+    pub fn count(&self) -> usize {
         self.bits.iter().map(|b| b.count_ones() as usize).sum()
     }
 }
