@@ -735,45 +735,21 @@ pub struct GeoTiffWriter<T> {
 impl GeoTiffWriter<f32> {
     /// A Float32 GeoTIFF on `grid` (see [`write_f32`]).
     pub fn create_f32(path: &Path, grid: &Grid) -> Result<Self> {
-        let spec = Spec {
-            samples: 1,
-            bytes: 4,
-            float: true,
-            rgb: false,
-            alpha: false,
-            nodata: Some("-9999".into()),
-        };
-        Self::create(path, grid, spec)
+        Self::create(path, grid, Spec::float32())
     }
 }
 
 impl GeoTiffWriter<[u8; 4]> {
     /// An RGBA8 GeoTIFF on `grid` (see [`write_rgba8`]).
     pub fn create_rgba8(path: &Path, grid: &Grid) -> Result<Self> {
-        let spec = Spec {
-            samples: 4,
-            bytes: 1,
-            float: false,
-            rgb: true,
-            alpha: true,
-            nodata: None,
-        };
-        Self::create(path, grid, spec)
+        Self::create(path, grid, Spec::rgba8())
     }
 }
 
 impl GeoTiffWriter<u8> {
     /// A single-band byte GeoTIFF on `grid` (see [`write_u8`]).
     pub fn create_u8(path: &Path, grid: &Grid, nodata: Option<u8>) -> Result<Self> {
-        let spec = Spec {
-            samples: 1,
-            bytes: 1,
-            float: false,
-            rgb: false,
-            alpha: false,
-            nodata: nodata.map(|v| v.to_string()),
-        };
-        Self::create(path, grid, spec)
+        Self::create(path, grid, Spec::byte(nodata))
     }
 }
 
@@ -976,6 +952,42 @@ struct Spec {
 }
 
 impl Spec {
+    /// Float32 elevation, nodata -9999.
+    fn float32() -> Spec {
+        Spec {
+            samples: 1,
+            bytes: 4,
+            float: true,
+            rgb: false,
+            alpha: false,
+            nodata: Some(F32_NODATA.to_string()),
+        }
+    }
+
+    /// RGB with an unassociated alpha band as the mask.
+    fn rgba8() -> Spec {
+        Spec {
+            samples: 4,
+            bytes: 1,
+            float: false,
+            rgb: true,
+            alpha: true,
+            nodata: None,
+        }
+    }
+
+    /// One byte band with an optional nodata value.
+    fn byte(nodata: Option<u8>) -> Spec {
+        Spec {
+            samples: 1,
+            bytes: 1,
+            float: false,
+            rgb: false,
+            alpha: false,
+            nodata: nodata.map(|v| v.to_string()),
+        }
+    }
+
     fn pixel_bytes(&self) -> usize {
         self.samples as usize * self.bytes as usize
     }
@@ -1248,15 +1260,8 @@ mod tests {
         let p = dir.path().join("big.tif");
         let g = Grid::north_up(0.0, 600.0, 1.0, 300, 270, Crs::epsg(32614));
         let data: Vec<u8> = (0..g.len()).map(|i| (i * 7 % 251) as u8).collect();
-        let spec = Spec {
-            samples: 1,
-            bytes: 1,
-            float: false,
-            rgb: false,
-            alpha: false,
-            nodata: Some("255".into()),
-        };
-        let mut w = GeoTiffWriter::<u8>::create_layout(&p, &g, spec, true).unwrap();
+        let mut w =
+            GeoTiffWriter::<u8>::create_layout(&p, &g, Spec::byte(Some(255)), true).unwrap();
         w.push_rows(&data).unwrap();
         w.finish().unwrap();
         assert_eq!(&std::fs::read(&p).unwrap()[..4], b"II\x2b\x00");
