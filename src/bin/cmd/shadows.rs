@@ -42,9 +42,11 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         Vec::new()
     };
     let band = band_rows(grid.width);
+    let progress = ctx.progress(1 + grid.height.div_ceil(band) as u64, "shadows");
     let under = prisms.iter().map(|c| c.index).collect();
     let raised = Raised::new(prisms, &TerrainSample::read(&terrain, under, band)?);
     let bits = ShadowBits::cast(&terrain, &raised, &sun).map_err(|e| e.in_file(&elevation_path))?;
+    progress.inc(1);
 
     let mut out = GeoTiffWriter::create_u8(&args.output, &grid, Some(NODATA))?;
     let (mut nodata, mut mask) = (0, Vec::new());
@@ -60,8 +62,10 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         }));
         nodata += heights.iter().filter(|z| z.is_nan()).count();
         out.push_rows(&mask)?;
+        progress.inc(1);
     }
     out.finish()?;
+    progress.finish();
     let (shadow, building_cells) = (bits.count(), raised.len());
     let lit = grid.len() - shadow - nodata;
     let valid = (shadow + lit).max(1) as f64;
