@@ -363,6 +363,32 @@ fn export_levels_are_georeferenced_geotiffs() {
     }
 }
 
+/// Bands of the layers are read one page-row at a time: a page-row that is all nodata (a void
+/// or the corner of a rotated footprint across the whole width) is nodata in the tiles, not an
+/// error, with or without a sun.
+#[test]
+fn a_page_row_of_nodata_is_nodata_not_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = make_db(dir.path(), None);
+    let path = db.dir.join("elevation.tif");
+    let mut z = db.read_elevation().unwrap();
+    z.data[..40 * W].fill(f32::NAN);
+    dbms::io::geotiff::write_f32(&path, &z).unwrap();
+    db.set_layer("elevation", "elevation", "elevation.tif", None)
+        .unwrap();
+    db.save().unwrap();
+    for sun in [
+        &[][..],
+        &["--sun-elevation", "20", "--sun-azimuth", "250"][..],
+    ] {
+        let out = dir.path().join("t.dbt");
+        pyramid(&db.dir, &out, sun); // pages of 32 rows: the first page-row is all nodata
+        let r = TileReader::open(&out, 64).unwrap();
+        assert!(r.cell(0, 3, 5).unwrap().unwrap().max_z.is_nan());
+        assert_eq!(r.cell(0, 3, 45).unwrap().unwrap().max_z, 212.0);
+    }
+}
+
 #[test]
 fn same_inputs_give_byte_identical_tiles() {
     let dir = tempfile::tempdir().unwrap();

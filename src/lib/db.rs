@@ -299,9 +299,10 @@ impl Database {
     }
 
     /// The elevation layer read band by band ([`LayerRows`]): for streaming a grid larger than
-    /// memory. Checked against the grid now; each band converts as [`read_elevation`](Self::read_elevation) does.
+    /// memory. Checked against the grid now; each band converts as [`read_elevation`](Self::read_elevation) does,
+    /// except that a band may be all nodata.
     pub fn elevation_rows(&self) -> Result<LayerRows<f32>> {
-        self.layer_rows(ELEVATION, SourceRaster::to_elevation)
+        self.layer_rows(ELEVATION, SourceRaster::to_elevation_band)
     }
 
     /// The colour layer read band by band ([`LayerRows`]), as [`read_colour`](Self::read_colour) converts it.

@@ -157,11 +157,19 @@ impl SourceRaster {
     /// become NaN. Errors if the raster has no valid cell ("all cells are nodata"). Integer types
     /// convert exactly (values beyond ±2^24 cannot and are an error); Float64 rounds to nearest f32.
     pub fn to_elevation(&self) -> Result<Elevation> {
-        let data = with_samples!(&self.samples, v => self.elevation_values(v))?;
-        if data.iter().all(|v| v.is_nan()) {
+        let e = self.to_elevation_band()?;
+        if e.data.iter().all(|v| v.is_nan()) {
             return Err(Error::file(&self.path, "all cells are nodata")
                 .fix("check the nodata value and the data (gdalinfo -stats)"));
         }
+        Ok(e)
+    }
+
+    /// [`to_elevation`](Self::to_elevation) for a band of a larger raster (read with
+    /// `geotiff::read_rows`): the same conversion, but a band may be all nodata (a void or the
+    /// corner of a rotated footprint spanning the band) — only a whole raster may not.
+    pub fn to_elevation_band(&self) -> Result<Elevation> {
+        let data = with_samples!(&self.samples, v => self.elevation_values(v))?;
         Ok(Raster::new(self.grid.clone(), data))
     }
 
