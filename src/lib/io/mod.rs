@@ -16,6 +16,7 @@ mod chunks;
 pub mod gdal;
 pub mod geotiff;
 pub mod image_world;
+pub mod input;
 
 use crate::crs::Crs;
 use crate::error::{Error, Result};
@@ -80,6 +81,19 @@ impl Samples {
             Samples::I32(_) => "Int32",
             Samples::F32(_) => "Float32",
             Samples::F64(_) => "Float64",
+        }
+    }
+
+    /// Samples `range` as a new buffer of the same type.
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Samples {
+        match self {
+            Samples::U8(v) => Samples::U8(v[range].to_vec()),
+            Samples::U16(v) => Samples::U16(v[range].to_vec()),
+            Samples::I16(v) => Samples::I16(v[range].to_vec()),
+            Samples::U32(v) => Samples::U32(v[range].to_vec()),
+            Samples::I32(v) => Samples::I32(v[range].to_vec()),
+            Samples::F32(v) => Samples::F32(v[range].to_vec()),
+            Samples::F64(v) => Samples::F64(v[range].to_vec()),
         }
     }
 
@@ -327,17 +341,23 @@ fn sniff(head: &[u8]) -> Kind {
 ///
 /// Errors: missing file, not a raster, truncated/corrupt data, no georeference.
 pub fn read_raster(path: &Path) -> Result<SourceRaster> {
+    match kind_of(path)? {
+        (Kind::Tiff, _) => geotiff::read(path),
+        (Kind::AsciiGrid, _) => ascii_grid::read(path),
+        (Kind::Png | Kind::Jpeg, _) => image_world::read(path),
+        (Kind::Other, n) => read_other(path, n),
+    }
+}
+
+/// What kind of raster a file is, by its first bytes, and how many of those were there (< 64
+/// only for a tiny file).
+fn kind_of(path: &Path) -> Result<(Kind, usize)> {
     let mut head = [0u8; 64];
     let n = {
         let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         read_up_to(&mut f, &mut head).map_err(|e| Error::io(path, e))?
     };
-    match sniff(&head[..n]) {
-        Kind::Tiff => geotiff::read(path),
-        Kind::AsciiGrid => ascii_grid::read(path),
-        Kind::Png | Kind::Jpeg => image_world::read(path),
-        Kind::Other => read_other(path, n),
-    }
+    Ok((sniff(&head[..n]), n))
 }
 
 #[cfg(feature = "gdal")]
