@@ -16,9 +16,10 @@ use crate::crs::Crs;
 use crate::db::{self, Database, InputFile, Stage};
 use crate::error::{Error, Result};
 use crate::grid::{Bounds, Grid};
+use crate::io::input::RasterInput;
 use crate::io::{self, SourceRaster};
 use crate::progress::Progress;
-use resample::Resampling;
+use resample::{Resampler, Resampling};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -86,74 +87,46 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
         })?;
     }
     progress.phase(6, "ingest");
-    let dem_src = io::read_raster(&opts.dem)?;
+    let dem = RasterInput::open(&opts.dem)?;
     progress.inc(1);
-    let ortho_src = io::read_raster(&opts.ortho)?;
+    let ortho = RasterInput::open(&opts.ortho)?;
     progress.inc(1);
-    let target = target_crs(opts, &dem_src, &ortho_src)?;
+    let target = target_crs(opts, dem.grid(), ortho.grid())?;
     // dbms works in metres: a State Plane grid in feet, or heights in feet, would be read wrong.
-    let target_from = match (&opts.t_srs, dem_src.grid.crs.is_unknown()) {
+    let target_from = match (&opts.t_srs, dem.grid().crs.is_unknown()) {
         (Some(_), _) => Path::new("--t-srs"),
         (None, true) => opts.ortho.as_path(),
         (None, false) => opts.dem.as_path(),
     };
     target.require_metric_coordinates(target_from)?;
-    dem_src.grid.crs.require_metric_heights(&opts.dem)?;
-    let grid = plan_grid(&dem_src, &ortho_src, opts, &target)?;
+    dem.grid().crs.require_metric_heights(&opts.dem)?;
+    let grid = plan_grid(&dem, &ortho, opts, &target)?;
 
-    let mut elevation = if dem_src.grid.crs.same_as(&grid.crs) {
-        resample::resample_elevation(&dem_src.to_elevation()?, &grid, opts.dem_resampling)
-    } else {
-        warp(&opts.dem, &grid, opts.dem_resampling)?.to_elevation()?
-    };
-    progress.inc(1);
-    let filled = opts
-        .fill_voids
-        .then(|| fill::fill_voids(&mut elevation) as u64);
-    let range_m = elevation.min_max().ok_or_else(|| {
-        Error::file(
-            &opts.dem,
-            "no valid elevation falls inside the database grid",
-        )
-        .fix("check --bounds, or the DEM's nodata value and extent")
-    })?;
-    let colour = if ortho_src.grid.crs.same_as(&grid.crs) {
-        resample::resample_colour(&ortho_src.to_colour()?, &grid)
-    } else {
-        // The photo's lattice has no exact size in the target CRS: its extent over its columns
-        // and rows there decides coarsening against refining, as for a native photo.
-        let ob = extent_in(&ortho_src, &grid.crs, &dem_src.grid.crs)?;
-        let (px, py) = (
-            ob.width() / ortho_src.grid.width as f64,
-            ob.height() / ortho_src.grid.height as f64,
-        );
-        let method = resample::colour_method(
-            grid.transform.cell_x.abs() / px,
-            grid.transform.cell_y.abs() / py,
-        );
-        warp(&opts.ortho, &grid, method)?.to_colour()?
-    };
-    drop(ortho_src);
-    progress.inc(1);
-
+    let created = !out.exists();
     std::fs::create_dir_all(out)
         .map_err(|e| Error::io(out, e).fix("choose a writable output directory"))?;
-    io::geotiff::write_f32(&out.join("elevation.tif"), &elevation)?;
-    io::geotiff::write_rgba8(&out.join("colour.tif"), &colour)?;
-    progress.inc(1);
+    let layers = write_layers(&dem, &ortho, &grid, opts, out, progress);
+    let (elevation, colour_nodata) = match layers {
+        Ok(l) => l,
+        Err(e) => {
+            // The layers' temporary files are gone; leave no empty directory behind either.
+            if created {
+                let _ = std::fs::remove_dir(out);
+            }
+            return Err(e);
+        }
+    };
 
     let inputs = vec![
         input_file("dem", &opts.dem)?,
         input_file("ortho", &opts.ortho)?,
     ];
     let mut database = Database::create(out, grid.clone(), inputs)?;
-    let elevation_nodata = elevation.nodata_count() as u64;
-    let colour_nodata = colour.nodata_count() as u64;
     database.set_layer(
         db::ELEVATION,
         "elevation",
         "elevation.tif",
-        Some(elevation_nodata),
+        Some(elevation.nodata_cells),
     )?;
     database.set_layer(db::COLOUR, "colour", "colour.tif", Some(colour_nodata))?;
     database.record_stage(Stage::now(
@@ -162,7 +135,7 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
             "dem": opts.dem, "ortho": opts.ortho, "cell": opts.cell, "bounds": opts.bounds,
             "dem_resampling": opts.dem_resampling, "fill_voids": opts.fill_voids,
             "photo_time": opts.photo_time, "t_srs": opts.t_srs,
-            "dem_format": dem_src.format, "dem_pixel_is_point": dem_src.pixel_is_point,
+            "dem_format": dem.meta().format, "dem_pixel_is_point": dem.meta().pixel_is_point,
         }),
     ));
     database.save()?;
@@ -171,17 +144,140 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     Ok(IngestSummary {
         database: out.to_path_buf(),
         grid,
-        elevation: LayerSummary {
-            nodata_cells: elevation_nodata,
-            filled_cells: filled,
-            range_m: Some(range_m),
-        },
+        elevation,
         colour: LayerSummary {
             nodata_cells: colour_nodata,
             filled_cells: None,
             range_m: None,
         },
     })
+}
+
+/// Rows of the database grid resampled and written per band: about 4 M cells.
+const BAND_CELLS: usize = 1 << 22;
+
+/// Resample (or warp) both layers onto `grid` and write `elevation.tif` and `colour.tif` in
+/// `out`, band by band: memory is a band of the grid and the source rows it reads, except with
+/// `--fill-voids` (the elevation is filled whole) and for inputs read whole
+/// ([`RasterInput`]) or warped by GDAL. Both files appear only once both are complete.
+/// Returns the elevation's summary and the colour's nodata cells.
+fn write_layers(
+    dem: &RasterInput,
+    ortho: &RasterInput,
+    grid: &Grid,
+    opts: &IngestOptions,
+    out: &Path,
+    progress: &Progress,
+) -> Result<(LayerSummary, u64)> {
+    let band = (BAND_CELLS / grid.width.max(1)).max(1);
+    let bands = (0..grid.height)
+        .step_by(band)
+        .map(move |r0| r0..(r0 + band).min(grid.height));
+
+    let mut z_file = io::geotiff::GeoTiffWriter::create_f32(&out.join("elevation.tif"), grid)?;
+    let mut z_stats = ElevationStats::default();
+    let mut whole = opts.fill_voids.then(Vec::new);
+    let mut put = |z: Vec<f32>| -> Result<()> {
+        match &mut whole {
+            Some(all) => all.extend(z),
+            None => {
+                z_stats.add(&z);
+                z_file.push_rows(&z)?;
+            }
+        }
+        Ok(())
+    };
+    if dem.grid().crs.same_as(&grid.crs) {
+        let r = Resampler::new(opts.dem_resampling, dem.grid(), grid);
+        for rows in bands.clone() {
+            let src = r.source_rows(rows.clone());
+            let s = dem.rows(src.clone())?.to_elevation_band()?;
+            put(r.elevation(&s.data, src.start, rows))?;
+        }
+    } else {
+        put(warp(&opts.dem, grid, opts.dem_resampling)?
+            .to_elevation()?
+            .data)?;
+    }
+    let filled = match whole {
+        Some(all) => {
+            let mut e = crate::raster::Raster::new(grid.clone(), all);
+            let n = fill::fill_voids(&mut e) as u64;
+            z_stats.add(&e.data);
+            z_file.push_rows(&e.data)?;
+            Some(n)
+        }
+        None => None,
+    };
+    let range_m = z_stats.range.ok_or_else(|| {
+        Error::file(
+            &opts.dem,
+            "no valid elevation falls inside the database grid",
+        )
+        .fix("check --bounds, or the DEM's nodata value and extent")
+    })?;
+    progress.inc(1);
+
+    let mut c_file = io::geotiff::GeoTiffWriter::create_rgba8(&out.join("colour.tif"), grid)?;
+    let mut c_nodata = 0u64;
+    let mut put = |c: Vec<[u8; 4]>| -> Result<()> {
+        c_nodata += c.iter().filter(|p| p[3] == 0).count() as u64;
+        c_file.push_rows(&c)
+    };
+    if ortho.grid().crs.same_as(&grid.crs) {
+        let r = Resampler::colour(ortho.grid(), grid);
+        for rows in bands {
+            let src = r.source_rows(rows.clone());
+            let s = ortho.rows(src.clone())?.to_colour()?;
+            put(r.colours(&s.data, src.start, rows))?;
+        }
+    } else {
+        // The photo's lattice has no exact size in the target CRS: its extent over its columns
+        // and rows there decides coarsening against refining, as for a native photo.
+        let ob = extent_in(ortho, &grid.crs, &dem.grid().crs)?;
+        let (px, py) = (
+            ob.width() / ortho.grid().width as f64,
+            ob.height() / ortho.grid().height as f64,
+        );
+        let method = resample::colour_method(
+            grid.transform.cell_x.abs() / px,
+            grid.transform.cell_y.abs() / py,
+        );
+        put(warp(&opts.ortho, grid, method)?.to_colour()?.data)?;
+    }
+    progress.inc(1);
+    z_file.finish()?;
+    c_file.finish()?;
+    progress.inc(1);
+    Ok((
+        LayerSummary {
+            nodata_cells: z_stats.nodata,
+            filled_cells: filled,
+            range_m: Some(range_m),
+        },
+        c_nodata,
+    ))
+}
+
+/// Nodata count and valid range of elevation cells seen so far.
+#[derive(Default)]
+struct ElevationStats {
+    nodata: u64,
+    /// Lowest and highest valid height, metres.
+    range: Option<(f32, f32)>,
+}
+
+impl ElevationStats {
+    fn add(&mut self, z: &[f32]) {
+        for &v in z {
+            if v.is_nan() {
+                self.nodata += 1;
+            } else {
+                let (lo, hi) = self.range.unwrap_or((v, v));
+                self.range = Some((lo.min(v), hi.max(v)));
+            }
+        }
+    }
 }
 
 fn input_file(role: &str, path: &Path) -> Result<InputFile> {
@@ -193,7 +289,7 @@ fn input_file(role: &str, path: &Path) -> Result<InputFile> {
 }
 
 /// The database CRS: `--t-srs` (GDAL builds), else the DEM's, else (DEM without CRS) the photo's.
-fn target_crs(opts: &IngestOptions, dem: &SourceRaster, ortho: &SourceRaster) -> Result<Crs> {
+fn target_crs(opts: &IngestOptions, dem: &Grid, ortho: &Grid) -> Result<Crs> {
     if let Some(def) = &opts.t_srs {
         #[cfg(feature = "gdal")]
         return reproject::crs_from_definition(def);
@@ -203,26 +299,26 @@ fn target_crs(opts: &IngestOptions, dem: &SourceRaster, ortho: &SourceRaster) ->
         ))
         .fix("build dbms with --features gdal, or reproject the inputs with gdalwarp -t_srs"));
     }
-    Ok(if dem.grid.crs.is_unknown() {
-        ortho.grid.crs.clone()
+    Ok(if dem.crs.is_unknown() {
+        ortho.crs.clone()
     } else {
-        dem.grid.crs.clone()
+        dem.crs.clone()
     })
 }
 
 /// The extent of an input in the database CRS: its own, or (GDAL builds) carried across CRSs.
-fn extent_in(src: &SourceRaster, target: &Crs, dem_crs: &Crs) -> Result<Bounds> {
-    if src.grid.crs.same_as(target) {
-        return Ok(src.grid.bounds());
+fn extent_in(src: &RasterInput, target: &Crs, dem_crs: &Crs) -> Result<Bounds> {
+    let (grid, path) = (src.grid(), &src.meta().path);
+    if grid.crs.same_as(target) {
+        return Ok(grid.bounds());
     }
     #[cfg(feature = "gdal")]
     {
         let _ = dem_crs;
-        reproject::transform_bounds(&src.grid.bounds(), &src.grid.crs, target)
-            .map_err(|e| e.in_file(&src.path))
+        reproject::transform_bounds(&grid.bounds(), &grid.crs, target).map_err(|e| e.in_file(path))
     }
     #[cfg(not(feature = "gdal"))]
-    Err(Error::file(&src.path, format!("orthophoto CRS {} differs from the DEM's {}", src.grid.crs.name(), dem_crs.name())).fix(format!(
+    Err(Error::file(path, format!("orthophoto CRS {} differs from the DEM's {}", grid.crs.name(), dem_crs.name())).fix(format!(
         "reproject the photo onto the DEM's CRS (gdalwarp -t_srs {} ...), or build dbms with --features gdal",
         dem_crs.name()
     )))
@@ -248,16 +344,16 @@ fn warp(path: &Path, grid: &Grid, method: Resampling) -> Result<SourceRaster> {
 /// Decide the database grid from the inputs and options (see the module docs), checking CRSs,
 /// overlap, cell size and `max_cells`.
 pub fn plan_grid(
-    dem: &SourceRaster,
-    ortho: &SourceRaster,
+    dem: &RasterInput,
+    ortho: &RasterInput,
     opts: &IngestOptions,
     target: &Crs,
 ) -> Result<Grid> {
     let crs = target.clone();
-    let db = extent_in(dem, target, &dem.grid.crs)?;
-    let ob = extent_in(ortho, target, &dem.grid.crs)?;
+    let db = extent_in(dem, target, &dem.grid().crs)?;
+    let ob = extent_in(ortho, target, &dem.grid().crs)?;
     // A photo carried across CRSs has no lattice in the target; its cell there is estimated.
-    let photo_native = ortho.grid.crs.same_as(target);
+    let photo_native = ortho.grid().crs.same_as(target);
     if let Some(cell) = opts.cell {
         if !(cell.is_finite() && cell > 0.0) {
             return Err(Error::msg(format!("--cell {cell} is not a positive size"))
@@ -279,11 +375,11 @@ pub fn plan_grid(
         )
         .fix("check that both files cover the same area in the same CRS")
     })?;
-    let ot = &ortho.grid.transform;
+    let ot = &ortho.grid().transform;
     let photo_cell = if photo_native {
         ot.cell_x.abs()
     } else {
-        ob.width() / ortho.grid.width as f64
+        ob.width() / ortho.grid().width as f64
     };
     let grid = match (opts.bounds, opts.cell) {
         (Some(b), cell) => {
