@@ -208,7 +208,7 @@ fn read_impl(path: &Path, window: Option<std::ops::Range<usize>>) -> Result<Sour
     }
     if whole && rows.len() != height as usize {
         let row = width as usize * bands;
-        samples = slice(samples, rows.start * row..rows.end * row);
+        samples = samples.slice(rows.start * row..rows.end * row);
     }
     if ycbcr {
         // The decoder leaves JPEG's YCbCr as stored; GDAL (libjpeg) returns RGB.
@@ -292,19 +292,6 @@ fn samples_from(path: &Path, buf: DecodingResult) -> Result<Samples> {
             )
         }
     })
-}
-
-/// The samples at `range` only.
-fn slice(samples: Samples, range: std::ops::Range<usize>) -> Samples {
-    match samples {
-        Samples::U8(v) => Samples::U8(v[range].to_vec()),
-        Samples::U16(v) => Samples::U16(v[range].to_vec()),
-        Samples::I16(v) => Samples::I16(v[range].to_vec()),
-        Samples::U32(v) => Samples::U32(v[range].to_vec()),
-        Samples::I32(v) => Samples::I32(v[range].to_vec()),
-        Samples::F32(v) => Samples::F32(v[range].to_vec()),
-        Samples::F64(v) => Samples::F64(v[range].to_vec()),
-    }
 }
 
 /// Planar (band-sequential) samples to pixel-interleaved.
