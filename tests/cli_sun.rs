@@ -184,6 +184,38 @@ fn db_centre_is_the_observer() {
 }
 
 #[test]
+fn db_reports_the_azimuth_from_grid_north() {
+    // Near the east edge of UTM 13N at 39.7° N grid north is about 1.9° east of true north, so
+    // a shadow cast along the true azimuth would be off by that much.
+    let dir = tempfile::tempdir().unwrap();
+    let grid = Grid::north_up(750_000.0, 4_405_000.0, 10.0, 100, 100, Crs::epsg(32613));
+    Database::create(dir.path(), grid, Vec::new())
+        .unwrap()
+        .save()
+        .unwrap();
+    let db = dir.path().to_str().unwrap();
+    let v = json(&["sun", "--db", db, "--time", "2026-06-21T18:00:00Z"]);
+    let gamma = f(&v, "grid_convergence_deg");
+    assert!((1.7..2.1).contains(&gamma), "{v}");
+    let expect = (f(&v, "azimuth_deg") - gamma).rem_euclid(360.0);
+    assert!((f(&v, "grid_azimuth_deg") - expect).abs() < 1e-12, "{v}");
+    // The stages take the same sun for the same time.
+    let lib = dbms::pyramid::sun_at(&Database::open(dir.path()).unwrap(), "2026-06-21T18:00:00Z");
+    assert!((lib.unwrap().azimuth_deg - expect).abs() < 1e-9);
+    // Without a database there is no grid: no grid azimuth.
+    let direct = json(&[
+        "sun",
+        "--lat",
+        "39.7",
+        "--lon",
+        "-102",
+        "--time",
+        "2026-06-21T18:00:00Z",
+    ]);
+    assert!(direct["grid_azimuth_deg"].is_null() && direct["grid_convergence_deg"].is_null());
+}
+
+#[test]
 fn db_without_geographic_centre_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     // A CRS the default build cannot convert to latitude/longitude (Web Mercator).

@@ -57,13 +57,15 @@ impl Ctx {
 /// database centre, NREL SPA) or both angles. Each command decides what giving neither means.
 #[derive(clap::Args)]
 pub struct SunArgs {
-    /// UTC time (RFC 3339, e.g. 2026-06-21T10:00:00Z): the sun over the database centre.
+    /// UTC time (RFC 3339, e.g. 2026-06-21T10:00:00Z): the sun over the database centre (NREL
+    /// SPA), its azimuth turned to grid north by the meridian convergence there.
     #[arg(long, conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
     pub time: Option<String>,
     /// Sun elevation above the horizon, degrees (0, 90].
     #[arg(long, requires = "sun_azimuth", allow_negative_numbers = true)]
     pub sun_elevation: Option<f64>,
-    /// Sun azimuth, degrees clockwise from north, toward the sun.
+    /// Sun azimuth, degrees clockwise from grid north (the grid's +y axis, as GRASS r.sunmask
+    /// takes it), toward the sun. `dbms sun --db DB` prints it for a time.
     #[arg(long, requires = "sun_elevation", allow_negative_numbers = true)]
     pub sun_azimuth: Option<f64>,
 }

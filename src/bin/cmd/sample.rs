@@ -27,7 +27,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let files = sample::write(&scene, &args.output)?;
     ctx.report(
         format!(
-            "{}: {} × {} DEM at {} m, {} × {} orthophoto at {} m, {} buildings; sun {} (elevation {:.2}°, azimuth {:.2}°)",
+            "{}: {} × {} DEM at {} m, {} × {} orthophoto at {} m, {} buildings; sun {} (elevation {:.2}°, azimuth {:.2}° from grid north)",
             args.output.display(),
             scene.dem.width(),
             scene.dem.height(),
@@ -44,7 +44,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             "output": args.output,
             "files": files,
             "buildings": scene.buildings.len(),
-            "sun": { "time": sample::SUN_TIME, "elevation_deg": scene.sun.elevation_deg, "azimuth_deg": scene.sun.azimuth_deg },
+            "sun": sample::sun_json(&scene),
             "max_slope_percent": scene.max_slope_percent,
             "shadow_fraction": scene.shadow_fraction,
         }),

@@ -8,7 +8,8 @@ use dbms::Error;
 use serde_json::json;
 use std::path::PathBuf;
 
-/// Sun elevation, azimuth (clockwise from north) and zenith in degrees, by NREL SPA.
+/// Sun elevation, azimuth (clockwise from true north) and zenith in degrees, by NREL SPA; with
+/// --db also the azimuth from grid north (true azimuth less the meridian convergence).
 #[derive(clap::Args)]
 #[command(group = clap::ArgGroup::new("place").required(true).args(["lat", "db"]))]
 pub struct Args {
@@ -66,15 +67,27 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let utc = sun::parse_time(&args.time)?;
-    let (latitude_deg, longitude_deg) = match (&args.db, args.lat, args.lon) {
-        (Some(dir), _, _) => Database::open(dir)?.centre_lat_lon().ok_or_else(|| {
-            Error::file(
-                dir,
-                "the database's CRS cannot be converted to latitude/longitude without GDAL",
-            )
-            .fix("give --lat and --lon, or use a dbms built with --features gdal")
-        })?,
-        (None, Some(lat), Some(lon)) => (lat, lon),
+    // With --db, also the meridian convergence at the centre: grid north's angle from true north.
+    let (latitude_deg, longitude_deg, convergence_deg) = match (&args.db, args.lat, args.lon) {
+        (Some(dir), _, _) => {
+            let db = Database::open(dir)?;
+            let (cx, cy) = db.grid().centre();
+            let convergence = db.grid().crs.grid_convergence_deg(cx, cy);
+            match (db.centre_lat_lon(), convergence) {
+                (Some((lat, lon)), Some(gamma)) => (lat, lon, Some(gamma)),
+                _ => {
+                    return Err(Error::file(
+                        dir,
+                        format!(
+                            "cannot convert the grid centre to latitude/longitude ({}: dbms converts geographic and UTM CRSs)",
+                            db.grid().crs.name()
+                        ),
+                    )
+                    .fix("give --lat and --lon of the centre instead"))
+                }
+            }
+        }
+        (None, Some(lat), Some(lon)) => (lat, lon, None),
         _ => unreachable!("clap requires --db or both --lat and --lon"),
     };
     let observer = Observer {
@@ -95,18 +108,26 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let delta_t_s = args.delta_t.unwrap_or_else(|| sun::delta_t_model_s(utc));
     let time = utc.to_rfc3339_opts(SecondsFormat::AutoSi, true);
 
-    let human = format!(
-        "sun at {time} seen from {latitude_deg:.6} N, {longitude_deg:.6} E, {} m ({}):\n  elevation {:11.6} deg\n  azimuth   {:11.6} deg (clockwise from north)\n  zenith    {:11.6} deg",
+    let grid_azimuth_deg = convergence_deg.map(|g| (p.azimuth_deg - g).rem_euclid(360.0));
+    let mut human = format!(
+        "sun at {time} seen from {latitude_deg:.6} N, {longitude_deg:.6} E, {} m ({}):\n  elevation {:11.6} deg\n  azimuth   {:11.6} deg (clockwise from true north)\n  zenith    {:11.6} deg",
         args.height,
         if opts.refraction { "with refraction" } else { "geometric, no refraction" },
         p.elevation_deg,
         p.azimuth_deg,
         p.zenith_deg,
     );
+    if let (Some(a), Some(g)) = (grid_azimuth_deg, convergence_deg) {
+        human += &format!(
+            "\n  grid azimuth {a:8.6} deg (clockwise from grid north; convergence {g:+.6} deg)"
+        );
+    }
     let json = json!({
         "elevation_deg": p.elevation_deg,
         "azimuth_deg": p.azimuth_deg,
         "zenith_deg": p.zenith_deg,
+        "grid_azimuth_deg": grid_azimuth_deg,
+        "grid_convergence_deg": convergence_deg,
         "time": time,
         "latitude_deg": latitude_deg,
         "longitude_deg": longitude_deg,

@@ -110,8 +110,11 @@ pub struct Scene {
     pub ortho: Colour,
     /// Buildings, by id.
     pub buildings: Vec<Building>,
-    /// The sun of the orthophoto's shadows.
+    /// The sun of the orthophoto's shadows (azimuth from grid north, as they were cast).
     pub sun: Sun,
+    /// Meridian convergence at the scene centre, degrees: the sun's true azimuth is
+    /// `sun.azimuth_deg + grid_convergence_deg`.
+    pub grid_convergence_deg: f64,
     /// Latitude and longitude of the scene centre, degrees.
     pub centre_lat_lon: (f64, f64),
     /// Largest terrain slope between neighbouring DEM cells, percent.
@@ -131,10 +134,10 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
     }
     let extent = n as f64 * DEM_CELL_M;
     let crs = Crs::epsg(EPSG);
-    let (lat, lon) = crs
-        .to_lat_lon(MIN_X + extent / 2.0, MIN_Y + extent / 2.0)
-        .expect("UTM 32N converts");
-    let sun = sun_at_time(lat, lon)?;
+    let (cx, cy) = (MIN_X + extent / 2.0, MIN_Y + extent / 2.0);
+    let (lat, lon) = crs.to_lat_lon(cx, cy).expect("UTM 32N converts");
+    let grid_convergence_deg = crs.grid_convergence_deg(cx, cy).expect("UTM 32N converts");
+    let sun = sun_at_time(lat, lon, grid_convergence_deg)?;
     let terrain_seed = mix(options.seed ^ 0x7e44);
     let ground = |x: f64, y: f64| BASE_Z + octaves(terrain_seed, x, y, &TERRAIN);
 
@@ -206,6 +209,7 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
         ortho,
         buildings,
         sun,
+        grid_convergence_deg,
         centre_lat_lon: (lat, lon),
         max_slope_percent,
         shadow_fraction,
@@ -242,8 +246,15 @@ fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
 }
 
 /// The sun as recorded in `truth.json` and `scene.json`.
-fn sun_json(scene: &Scene) -> serde_json::Value {
-    json!({ "time": SUN_TIME, "elevation_deg": scene.sun.elevation_deg, "azimuth_deg": scene.sun.azimuth_deg })
+/// The scene's sun as scene.json, truth.json and `dbms sample --json` state it: the azimuth
+/// from true north (what `dbms sun` prints) and from grid north (what the shadows were cast for).
+pub fn sun_json(scene: &Scene) -> serde_json::Value {
+    json!({
+        "time": SUN_TIME,
+        "elevation_deg": scene.sun.elevation_deg,
+        "azimuth_deg": (scene.sun.azimuth_deg + scene.grid_convergence_deg).rem_euclid(360.0),
+        "grid_azimuth_deg": scene.sun.azimuth_deg,
+    })
 }
 
 /// GeoJSON footprints with only an `id` (the legacy `crs` member tells GDAL the UTM zone).
@@ -305,8 +316,9 @@ fn scene_json(scene: &Scene) -> serde_json::Value {
     })
 }
 
-/// The sun at [`SUN_TIME`] over a point.
-fn sun_at_time(latitude_deg: f64, longitude_deg: f64) -> Result<Sun> {
+/// The sun at [`SUN_TIME`] over a point where grid north is `grid_convergence_deg` clockwise
+/// from true north, its azimuth from grid north.
+fn sun_at_time(latitude_deg: f64, longitude_deg: f64, grid_convergence_deg: f64) -> Result<Sun> {
     let obs = crate::sun::Observer {
         latitude_deg,
         longitude_deg,
@@ -317,7 +329,7 @@ fn sun_at_time(latitude_deg: f64, longitude_deg: f64) -> Result<Sun> {
         crate::sun::parse_time(SUN_TIME)?,
         &crate::sun::SunOptions::default(),
     )?;
-    Sun::new(pos.elevation_deg, pos.azimuth_deg)
+    Sun::new(pos.elevation_deg, pos.azimuth_deg - grid_convergence_deg)
 }
 
 /// Local ring (metres from the south-west corner) to scene CRS coordinates.

@@ -54,7 +54,10 @@ pub const NODATA: u8 = 255;
 pub struct Sun {
     /// Elevation above the horizon, degrees, in (0, 90].
     pub elevation_deg: f64,
-    /// Azimuth toward the sun, degrees clockwise from north, in [0, 360).
+    /// Azimuth toward the sun, degrees clockwise from grid north (the grid's +y axis), in
+    /// [0, 360). A sun model's azimuth is from true north: subtract the grid's meridian
+    /// convergence ([`crate::crs::Crs::grid_convergence_deg`]) first, as
+    /// [`crate::pyramid::sun_at`] does.
     pub azimuth_deg: f64,
 }
 
