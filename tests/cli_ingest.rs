@@ -288,12 +288,32 @@ fn bad_inputs_fail_cleanly_with_one_line() {
     // Not a TIFF.
     let junk = dir.join("junk.tif");
     std::fs::write(&junk, "this is not a raster\n").unwrap();
-    assert_clean_failure(&ingest(&junk, &o, &[]), "junk.tif");
+    assert_clean_failure(&ingest(&junk, &o, &[]), "junk.tif: not a TIFF");
     // Truncated TIFF.
     let trunc = dir.join("trunc.tif");
     let bytes = std::fs::read(&d).unwrap();
     std::fs::write(&trunc, &bytes[..bytes.len() / 2]).unwrap();
-    assert_clean_failure(&ingest(&trunc, &o, &[]), "trunc.tif");
+    assert_clean_failure(
+        &ingest(&trunc, &o, &[]),
+        "trunc.tif: corrupt or truncated TIFF",
+    );
+    // Corrupt Deflate data inside a tile: the decoder's own (multi-line) message is quoted on
+    // one line.
+    let bad = dir.join("bad_deflate.tif");
+    let mut bytes = std::fs::read(&d).unwrap();
+    let (at, len) = {
+        let mut dec = tiff::decoder::Decoder::new(std::fs::File::open(&d).unwrap()).unwrap();
+        let mut tag = |t| dec.get_tag_u64_vec(t).unwrap()[0] as usize;
+        (
+            tag(tiff::tags::Tag::TileOffsets),
+            tag(tiff::tags::Tag::TileByteCounts),
+        )
+    };
+    for b in &mut bytes[at + len / 4..at + len / 2] {
+        *b ^= 0x5a;
+    }
+    std::fs::write(&bad, &bytes).unwrap();
+    assert_clean_failure(&ingest(&bad, &o, &[]), "bad_deflate.tif");
     // All-nodata DEM.
     let g = Grid::north_up(X0, Y0, 1.0, 40, 30, Crs::epsg(32632));
     let nod = dir.join("nodata.tif");
@@ -349,8 +369,14 @@ fn bad_inputs_fail_cleanly_with_one_line() {
     assert_clean_failure(&ingest(&gd, &go, &["--cell", "1"]), "geographic");
     // Bad --photo-time.
     assert_clean_failure(&ingest(&d, &o, &["--photo-time", "yesterday"]), "RFC 3339");
-    // None of the failures left a database behind.
-    assert!(!db.join("manifest.json").exists());
+    // None of the failures left a database behind, nor a temporary file.
+    assert!(!db.exists(), "a failed ingest left {}", db.display());
+    let left: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".dbms-") || n.ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
 }
 
 #[test]

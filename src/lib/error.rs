@@ -84,17 +84,40 @@ fn io_problem(err: &std::io::Error) -> String {
     }
 }
 
+/// Always one line: a problem or fix quoting another library's multi-line message (a decoder's
+/// error, say) has each run of white space that holds a line break folded into one space.
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if let Some(p) = &self.path {
             write!(f, "{}: ", p.display())?;
         }
-        write!(f, "{}", self.problem)?;
+        write!(f, "{}", one_line(&self.problem))?;
         if let Some(fix) = &self.fix {
-            write!(f, "; {fix}")?;
+            write!(f, "; {}", one_line(fix))?;
         }
         Ok(())
     }
+}
+
+/// `s` with line breaks and the white space around them folded into single spaces, and no
+/// trailing white space left by a final break.
+fn one_line(s: &str) -> std::borrow::Cow<'_, str> {
+    if !s.contains(['\n', '\r']) {
+        return s.into();
+    }
+    let mut out = String::with_capacity(s.len());
+    for (i, line) in s
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .enumerate()
+    {
+        if i > 0 {
+            out.push(' ');
+        }
+        out.push_str(line);
+    }
+    out.into()
 }
 
 impl std::error::Error for Error {}
@@ -102,6 +125,19 @@ impl std::error::Error for Error {}
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_quoted_multi_line_message_still_renders_one_line() {
+        let e = Error::file(
+            "dem.tif",
+            "chunk 3: Deflate data: Mismatched Adler,\n\n  expected 1",
+        )
+        .fix("re-create the file\r\n");
+        assert_eq!(
+            e.to_string(),
+            "dem.tif: chunk 3: Deflate data: Mismatched Adler, expected 1; re-create the file"
+        );
+    }
 
     #[test]
     fn renders_one_line_with_path_problem_and_fix() {
