@@ -350,9 +350,13 @@ fn vox_export_of_an_oversized_object_is_refused() {
         dir.path().join("o.dvox").to_str().unwrap(),
     ]);
     assert!(
-        !ok && stderr.contains("at most 256 per axis") && stderr.contains("--export ply"),
+        !ok && stderr.contains("o.vox: ")
+            && stderr.contains("at most 256 per axis")
+            && stderr.contains("--export ply"),
         "{stderr}"
     );
+    // Refused before anything was written: no object either.
+    assert!(!dir.path().join("o.dvox").exists() && !dir.path().join("o.vox").exists());
     // The grid geometry behind it: 2 m / 7 mm = 286 voxels.
     assert_eq!(
         VoxelGrid::covering([-1.0; 3], [1.0; 3], 0.007)

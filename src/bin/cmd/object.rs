@@ -1,7 +1,7 @@
 //! `dbms object`: synthetic voxel objects (tanks, trees, extruded buildings).
 
 use super::Ctx;
-use dbms::voxel::export::{write_exports, Export};
+use dbms::voxel::export::{check_exports, write_exports, Export};
 use dbms::voxel::object::{parse_rgb, VoxelObject};
 use dbms::voxel::{format, synth};
 use std::path::PathBuf;
@@ -170,6 +170,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             )
         }
     };
+    check_exports(&out.output, &obj, &out.export)?;
     format::write(&out.output, &obj, &source)?;
     let exports = write_exports(&out.output, &obj, &out.export)?;
     let d = obj.grid.dims;

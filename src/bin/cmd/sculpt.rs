@@ -2,7 +2,7 @@
 
 use super::Ctx;
 use dbms::voxel::carve::{CarveOptions, Unseen};
-use dbms::voxel::export::{write_exports, Export};
+use dbms::voxel::export::{check_exports, write_exports, Export};
 use dbms::voxel::sculpt::{sculpt, SculptOptions};
 use dbms::voxel::{format, grid::parse_box, object::parse_rgb};
 use std::path::PathBuf;
@@ -50,6 +50,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     for w in &report.warnings {
         ctx.log(format!("dbms: warning: {w}"));
     }
+    check_exports(&args.output, &obj, &args.export)?;
     format::write(
         &args.output,
         &obj,

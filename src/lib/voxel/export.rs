@@ -35,33 +35,52 @@ impl Export {
     }
 }
 
-/// Write `obj` in each of `kinds` beside `object_path` (same stem, the export's extension);
-/// returns the paths written.
+/// The paths `obj`'s exports of `kinds` go to beside `object_path` (same stem, the export's
+/// extension), after checking every one can be written: none would overwrite the object, and
+/// the object fits a `.vox`. Callers check before writing the object, so a refused export
+/// leaves no output at all.
+pub fn check_exports(
+    object_path: &Path,
+    obj: &VoxelObject,
+    kinds: &[Export],
+) -> Result<Vec<std::path::PathBuf>> {
+    kinds
+        .iter()
+        .map(|&k| {
+            let p = object_path.with_extension(k.extension());
+            if p == object_path {
+                return Err(Error::file(
+                    object_path,
+                    format!(
+                        "the object file would be overwritten by its {} export",
+                        k.extension()
+                    ),
+                )
+                .fix("name the object *.dvox"));
+            }
+            if k == Export::Vox {
+                vox_fits(obj).map_err(|e| e.in_file(&p))?;
+            }
+            Ok(p)
+        })
+        .collect()
+}
+
+/// Write `obj` in each of `kinds` beside `object_path` ([`check_exports`] first); returns the
+/// paths written.
 pub fn write_exports(
     object_path: &Path,
     obj: &VoxelObject,
     kinds: &[Export],
 ) -> Result<Vec<std::path::PathBuf>> {
-    let mut done = Vec::new();
-    for &k in kinds {
-        let p = object_path.with_extension(k.extension());
-        if p == object_path {
-            return Err(Error::file(
-                object_path,
-                format!(
-                    "the object file would be overwritten by its {} export",
-                    k.extension()
-                ),
-            )
-            .fix("name the object *.dvox"));
-        }
+    let paths = check_exports(object_path, obj, kinds)?;
+    for (&k, p) in kinds.iter().zip(&paths) {
         match k {
-            Export::Ply => write_ply(&p, obj)?,
-            Export::Vox => write_vox(&p, obj)?,
+            Export::Ply => write_ply(p, obj)?,
+            Export::Vox => write_vox(p, obj)?,
         }
-        done.push(p);
     }
-    Ok(done)
+    Ok(paths)
 }
 
 /// Largest number of voxels per axis a MagicaVoxel model holds.
@@ -89,8 +108,8 @@ pub fn write_ply(path: &Path, obj: &VoxelObject) -> Result<()> {
     })
 }
 
-/// The `.vox` bytes of `obj`; errors when a dimension exceeds [`VOX_MAX_DIM`].
-pub fn encode_vox(obj: &VoxelObject) -> Result<Vec<u8>> {
+/// Errors when a dimension of `obj` exceeds [`VOX_MAX_DIM`].
+fn vox_fits(obj: &VoxelObject) -> Result<()> {
     let d = obj.grid.dims;
     if d.iter().any(|&n| n > VOX_MAX_DIM) {
         return Err(Error::msg(format!(
@@ -99,6 +118,13 @@ pub fn encode_vox(obj: &VoxelObject) -> Result<Vec<u8>> {
         ))
         .fix("sculpt with a larger --voxel or smaller --bounds, or use --export ply"));
     }
+    Ok(())
+}
+
+/// The `.vox` bytes of `obj`; errors when a dimension exceeds [`VOX_MAX_DIM`].
+pub fn encode_vox(obj: &VoxelObject) -> Result<Vec<u8>> {
+    vox_fits(obj)?;
+    let d = obj.grid.dims;
     let (palette, index_of) = palette(obj);
     let chunk = |id: &[u8; 4], content: &[u8], children: &[u8]| {
         let mut c = Vec::with_capacity(12 + content.len() + children.len());

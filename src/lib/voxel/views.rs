@@ -249,7 +249,7 @@ pub fn load(path: &Path, file: &ViewsFile) -> Result<Vec<LoadedView>> {
                     format!("view {i}: the silhouette is empty, so it would carve away everything"),
                 )
                 .fix(if spec.key.is_some() {
-                    "check the key colour and raise the tolerance"
+                    "check the key colour and lower the tolerance (pixels within it of the key are background)"
                 } else {
                     "check the mask (white = object)"
                 }));
