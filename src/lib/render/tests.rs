@@ -179,6 +179,16 @@ fn eye_exactly_on_a_cell_corner() {
     )
     .unwrap();
     assert!(f.range.iter().all(|r| r.is_finite()));
+    // The vertical centre ray has no horizontal step to look into: it is in the cell whose
+    // half-open span [col, col + 1) × [row, row + 1) holds the corner, column 40 / row 30, and
+    // lands on its top 10 m down; the other rays reach the 0 m ground around it.
+    assert_eq!(f.range[centre(&f)], 10.0);
+    assert_eq!(f.rgb[centre(&f)][1], 0, "red column top");
+    let b = camera([40.0, 34.0, 30.0], 0.0, -90.0, 0.0, 5, 5).basis();
+    for (k, &x) in f.range.iter().enumerate().filter(|&(k, _)| k != centre(&f)) {
+        let d = b.direction(k % 5, k / 5);
+        assert!((x as f64 - 30.0 / -d[2]).abs() < 1e-4, "pixel {k}: {x}");
+    }
     let h = render_view(
         &r,
         &camera([40.0, 34.0, 30.0], 0.0, -50.0, 45.0, 31, 23),
@@ -314,8 +324,12 @@ proptest! {
         let (_d, r) = rough_tiles();
         let cam = camera([x, y, z], roll, pitch, yaw, 24, 18);
         let opts = |t| ViewOptions { repeat, ..no_lod(t) };
-        let h = render_view(r, &cam, &opts(Traversal::Hierarchical)).unwrap();
-        let l = render_view(r, &cam, &opts(Traversal::Level0)).unwrap();
+        let h = render_view(r, &cam, &opts(Traversal::Hierarchical));
+        let l = render_view(r, &cam, &opts(Traversal::Level0));
+        // An eye below a terrain spike (up to 33 m here) is refused by both alike.
+        prop_assert_eq!(h.is_ok(), l.is_ok());
+        prop_assume!(h.is_ok());
+        let (h, l) = (h.unwrap(), l.unwrap());
         prop_assert_eq!(&h.rgb, &l.rgb);
         prop_assert_eq!(bits(&h.range), bits(&l.range));
     }
@@ -408,6 +422,14 @@ fn pitch_of_89_9_degrees() {
             pitch > 0.0,
             "up sees sky, down sees ground"
         );
+        // Looking down, 0.1° off the vertical: the same frame by both traversals.
+        if pitch < 0.0 {
+            let cam = camera([100.0, 75.0, 40.0], 0.0, pitch, 33.0, 16, 12);
+            let h = render_view(r, &cam, &no_lod(Traversal::Hierarchical)).unwrap();
+            let l = render_view(r, &cam, &no_lod(Traversal::Level0)).unwrap();
+            assert_eq!(bits(&h.range), bits(&l.range));
+            assert_eq!(h.rgb, l.rgb);
+        }
     }
 }
 
