@@ -726,6 +726,72 @@ fn cli_prints_the_summary_and_verifies() {
 }
 
 #[test]
+fn cli_lists_the_page_index_as_its_schema_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, path) = standard(&dir, Compression::Lz4);
+    let p = path.to_str().unwrap();
+    let out = dbms(&["tiles", p, "--index", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let schema = |name: &str| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("schemas")
+            .join(name);
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        jsonschema::validator_for(&v).unwrap()
+    };
+    for (doc, name) in [
+        (&j, "tiles-index.schema.json"),
+        (&j["header"], "tiles-header.schema.json"),
+    ] {
+        let errors: Vec<String> = schema(name)
+            .iter_errors(doc)
+            .map(|e| e.to_string())
+            .collect();
+        assert!(errors.is_empty(), "{name}: {errors:?}");
+    }
+    // Entry by entry what the reader holds, at the page the index position stands for.
+    let reader = TileReader::open(&path, 0).unwrap();
+    let index = j["index"].as_array().unwrap();
+    assert_eq!(index.len(), reader.entries().len());
+    for (pos, (listed, e)) in index.iter().zip(reader.entries()).enumerate() {
+        let (l, tx, ty) = reader.info().page_at(pos).unwrap();
+        assert_eq!(
+            (
+                listed["level"].as_u64(),
+                listed["tx"].as_u64(),
+                listed["ty"].as_u64()
+            ),
+            (Some(l as u64), Some(tx as u64), Some(ty as u64))
+        );
+        assert_eq!(listed["offset"], e.offset);
+        assert_eq!(listed["stored_len"], e.stored_len);
+        assert_eq!(listed["raw_len"], e.raw_len);
+        assert_eq!(listed["crc32"], e.crc);
+        assert_eq!(
+            listed["offset"].as_u64().unwrap() % reader.info().alignment,
+            0
+        );
+        let lz4 = listed["flags"].as_array().unwrap().contains(&"lz4".into());
+        assert_eq!(lz4, e.stored_len < e.raw_len, "page {pos}");
+    }
+    // Without --index there is no index; the human listing has one line a page.
+    let out = dbms(&["tiles", p, "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(j["index"].is_null());
+    let text = String::from_utf8(dbms(&["tiles", p, "--index"]).stdout).unwrap();
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("  0, ")).count(),
+        9 * 6
+    );
+}
+
+#[test]
 fn cli_verify_fails_naming_the_first_bad_page() {
     let dir = tempfile::tempdir().unwrap();
     let (_, path) = standard(&dir, Compression::None);

@@ -1,7 +1,8 @@
-//! `dbms tiles TILES [--verify]`: describe a tile file and optionally check every page.
+//! `dbms tiles TILES [--verify] [--index]`: describe a tile file, optionally check every page
+//! and list its page index.
 
 use super::Ctx;
-use dbms::tiles::{TileReader, FLAG_BRICKS, FLAG_LZ4};
+use dbms::tiles::{IndexEntry, TileReader, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE};
 use serde_json::json;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -14,6 +15,32 @@ pub struct Args {
     /// Read every page and check its checksum; exit non-zero naming the first bad page.
     #[arg(long)]
     verify: bool,
+    /// Also list the page index: every page's (level, tx, ty), offset, lengths, CRC-32 and flags,
+    /// in index order (JSON: schemas/tiles-index.schema.json).
+    #[arg(long)]
+    index: bool,
+}
+
+/// The names of the flags set in an index entry (docs/tile-format.md, Index).
+fn flag_names(flags: u32) -> Vec<&'static str> {
+    [
+        (FLAG_LZ4, "lz4"),
+        (FLAG_BRICKS, "bricks"),
+        (FLAG_SHUFFLE, "planes"),
+    ]
+    .into_iter()
+    .filter(|&(bit, _)| flags & bit != 0)
+    .map(|(_, name)| name)
+    .collect()
+}
+
+/// One page's index entry as `dbms tiles --index --json` lists it.
+fn entry_json(page: (usize, usize, usize), e: &IndexEntry) -> serde_json::Value {
+    json!({
+        "level": page.0, "tx": page.1, "ty": page.2,
+        "offset": e.offset, "stored_len": e.stored_len, "raw_len": e.raw_len,
+        "crc32": e.crc, "flags": flag_names(e.flags),
+    })
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -92,6 +119,36 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     if let Some(n) = verified {
         let _ = write!(human, "\nverified: all {n} pages match their checksums");
     }
+    let pages: Vec<(usize, usize, usize)> = (0..entries.len())
+        .map(|pos| info.page_at(pos).expect("an entry per index position"))
+        .collect();
+    if args.index {
+        let _ = write!(
+            human,
+            "\nindex (level, tx, ty: offset, stored/raw bytes, crc32, flags):"
+        );
+        for (&(l, tx, ty), e) in pages.iter().zip(entries) {
+            let _ = write!(
+                human,
+                "\n  {l}, {tx}, {ty}: {}, {}/{}, {:08x}, {}",
+                e.offset,
+                e.stored_len,
+                e.raw_len,
+                e.crc,
+                match flag_names(e.flags).join("+") {
+                    f if f.is_empty() => "none".to_string(),
+                    f => f,
+                }
+            );
+        }
+    }
+    let index = args.index.then(|| {
+        pages
+            .iter()
+            .zip(entries)
+            .map(|(&p, e)| entry_json(p, e))
+            .collect::<Vec<_>>()
+    });
 
     ctx.report(
         human,
@@ -106,6 +163,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             "stored_bytes": stored,
             "raw_bytes": raw,
             "verified_pages": verified,
+            "index": index,
         }),
     );
     Ok(())
