@@ -463,10 +463,10 @@ fn repeat_carries_the_ground_to_the_horizon() {
     }
 }
 
-#[test]
-fn range_thresholds_use_coarse_average_colour_far_away() {
-    // A fine black/white checkerboard: level 1 (factor 2) averages it to grey.
-    let (_d, r) = tiles(0.0, 512.0, 512, 512, 64, 2, |c, r| {
+/// A fine black/white checkerboard of 1 m cells, 512 m square, factor 2: every coarser level
+/// averages it to grey.
+fn checkerboard() -> (tempfile::TempDir, TileReader) {
+    tiles(0.0, 512.0, 512, 512, 64, 2, |c, r| {
         (
             0.0,
             if (c + r) % 2 == 0 {
@@ -475,7 +475,48 @@ fn range_thresholds_use_coarse_average_colour_far_away() {
                 [255, 255, 255, 255]
             },
         )
-    });
+    })
+}
+
+#[test]
+fn range_threshold_is_cell_size_times_pixels_over_field_of_view() {
+    // TH_1 = L · N_pix / H_fov with L = 2 m (level 1), N_pix = 64, H_fov = 60°: 122.2 m. A hit
+    // takes level 1's grey only beyond it, and every hit a level-1 cell (under 3 m of a grazing
+    // ray) beyond it does; a threshold off by any factor near 2 fails one of the two.
+    let (_d, r) = checkerboard();
+    let cam = camera([256.0, 0.5, 3.0], 0.0, -1.0, 0.0, 64, 48);
+    let th1 = 2.0 * 64.0 / 60f64.to_radians();
+    for traversal in [Traversal::Hierarchical, Traversal::Level0] {
+        let opts = ViewOptions {
+            traversal,
+            ..ViewOptions::default()
+        };
+        let f = render_view(&r, &cam, &opts).unwrap();
+        let (mut near, mut far) = (0, 0);
+        for (k, &t) in f.range.iter().enumerate().filter(|(_, t)| t.is_finite()) {
+            let (t, v) = (t as f64, f.rgb[k][0] as i32);
+            let grey = (v - 128).abs() < 10;
+            if t <= th1 {
+                assert!(
+                    !grey,
+                    "{traversal:?} pixel {k} at {t} m is grey within TH_1 {th1}"
+                );
+                near += 1;
+            } else if t > th1 + 3.0 {
+                assert!(
+                    grey,
+                    "{traversal:?} pixel {k} at {t} m is {v}, past TH_1 {th1}"
+                );
+                far += 1;
+            }
+        }
+        assert!(near > 100 && far > 30, "{near} {far}");
+    }
+}
+
+#[test]
+fn range_thresholds_use_coarse_average_colour_far_away() {
+    let (_d, r) = checkerboard();
     let cam = camera([256.0, 0.5, 3.0], 0.0, -1.0, 0.0, 64, 48);
     let lod = render_view(&r, &cam, &ViewOptions::default()).unwrap();
     let far_grey = |f: &Frame| {
