@@ -154,6 +154,77 @@ fn measures_generated_buildings_keeps_properties_and_reports_the_bad_one() {
 }
 
 #[test]
+fn each_degenerate_footprint_fails_alone_with_its_reason() {
+    let t = tempfile::tempdir().unwrap();
+    let truth = generated_db(t.path());
+    let good = read_json(&t.path().join("fp.geojson"))["features"][0].clone();
+    let (x, y) = (500_010.0, 5_300_010.0);
+    let poly = |name: &str, ring: Value| json!({"type": "Feature", "properties": {"name": name}, "geometry": {"type": "Polygon", "coordinates": [ring]}});
+    let features = vec![
+        poly(
+            "two points",
+            json!([[x, y], [x + 5.0, y], [x + 5.0, y], [x, y]]),
+        ),
+        poly(
+            "collinear",
+            json!([[x, y], [x + 5.0, y], [x + 9.0, y], [x, y]]),
+        ),
+        good,
+        json!({"type": "Feature", "properties": {"name": "no geometry"}, "geometry": null}),
+        poly(
+            "bowtie",
+            json!([
+                [x, y],
+                [x + 5.0, y + 5.0],
+                [x + 5.0, y],
+                [x, y + 5.0],
+                [x, y]
+            ]),
+        ),
+    ];
+    std::fs::write(
+        t.path().join("bad.geojson"),
+        json!({"type": "FeatureCollection", "features": features}).to_string(),
+    )
+    .unwrap();
+    let out = ok(
+        &[
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "bad.geojson",
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "135",
+            "-o",
+            "h.geojson",
+        ],
+        t.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let h = read_json(&t.path().join("h.geojson"));
+    assert_schema(&h);
+    let fs = h["features"].as_array().unwrap();
+    assert_eq!(fs.len(), 5);
+    for (k, reason) in [
+        (0, "fewer than 3"),
+        (1, "zero area"),
+        (3, "geometry"),
+        (4, "self-intersecting"),
+    ] {
+        let p = &fs[k]["properties"];
+        assert_eq!(p["height_m"], Value::Null, "{p}");
+        assert!(p["error"].as_str().unwrap().contains(reason), "{k}: {p}");
+        assert!(stderr.contains(&format!("feature {k}: ")), "{k}: {stderr}");
+    }
+    // The good one among them is measured as when it stood with its own kind.
+    let got = fs[2]["properties"]["height_m"].as_f64().unwrap();
+    assert!((got - truth[0]).abs() <= 0.5, "{got} vs {}", truth[0]);
+}
+
+#[test]
 fn apply_writes_the_buildings_layer_that_shadows_and_pyramid_read() {
     let t = tempfile::tempdir().unwrap();
     generated_db(t.path());
