@@ -529,13 +529,18 @@ fn object_revolve_cone_and_extrude() {
 }
 
 /// A 20 × 10 cell database at 1 m with flat ground at 3 m, made by `dbms ingest`.
+/// A 20 × 10 m database of 1 m cells on a plane rising 0.5 m a metre east and 0.25 m a metre
+/// south: 3 m at the centre of the north-west cell.
 fn database(dir: &Path) -> std::path::PathBuf {
     use dbms::crs::Crs;
     use dbms::grid::Grid;
     use dbms::raster::Raster;
     let g = Grid::north_up(500_000.0, 5_300_000.0, 1.0, 20, 10, Crs::epsg(32632));
     let (dem, ortho) = (dir.join("dem.tif"), dir.join("ortho.tif"));
-    dbms::io::geotiff::write_f32(&dem, &Raster::filled(g.clone(), 3.0f32)).unwrap();
+    let plane = (0..g.len())
+        .map(|i| 3.0 + 0.5 * (i % 20) as f32 + 0.25 * (i / 20) as f32)
+        .collect();
+    dbms::io::geotiff::write_f32(&dem, &Raster::new(g.clone(), plane)).unwrap();
     dbms::io::geotiff::write_rgba8(&ortho, &Raster::filled(g, [1, 2, 3, 255])).unwrap();
     let db = dir.join("db");
     let (ok, _, err) = dbms(&[
@@ -587,7 +592,8 @@ fn place_records_objects_in_the_manifest() {
     ]);
     assert!(ok, "{err}");
     let p: Value = serde_json::from_str(&out).unwrap();
-    assert_eq!(p["z"], 3.0, "z from the ground");
+    // Between cell centres (5, 4) and (5, 5): the ground is interpolated, 3 + 2.5 + 1.125 m.
+    assert_eq!(p["z"], 6.625, "z from the ground");
     let (ok, _, err) = dbms(&[
         "place",
         "--db",
