@@ -283,6 +283,49 @@ fn hard_case_view_straight_down_with_default_up() {
 }
 
 #[test]
+fn straight_down_view_has_image_right_east_and_image_top_north() {
+    // The mask is drawn by hand, not rendered through the camera code the carver shares: the
+    // object fills part of the top-right quarter of a straight-down image with no "up" (north-up
+    // by rule), so every voxel kept must lie north-east of the camera's foot.
+    let dir = tempfile::tempdir().unwrap();
+    let n = SIZE as usize;
+    let mut mask = vec![0u8; n * n];
+    for r in n / 8..3 * n / 8 {
+        for c in 5 * n / 8..7 * n / 8 {
+            mask[r * n + c] = 255;
+        }
+    }
+    let save = |name: &str, bytes: &[u8], kind| {
+        image::save_buffer(dir.path().join(name), bytes, SIZE, SIZE, kind).unwrap()
+    };
+    save("m.png", &mask, image::ExtendedColorType::L8);
+    save(
+        "p.png",
+        &vec![128; n * n * 3],
+        image::ExtendedColorType::Rgb8,
+    );
+    let views = dir.path().join("views.json");
+    let spec = json!({
+        "views": [{ "image": "p.png", "mask": "m.png", "camera": pinhole([0.0, 0.0, 4.0]) }],
+        "bounds": [-1, -1, -1, 1, 1, 1],
+    });
+    std::fs::write(&views, spec.to_string()).unwrap();
+    let (ok, _, stderr) = sculpt(dir.path(), &views, &[]);
+    assert!(ok, "{stderr}");
+    let (obj, _) = format::read(&dir.path().join("obj.dvox")).unwrap();
+    let mut kept = 0;
+    for ([x, y, z], _) in obj.voxels() {
+        let [cx, cy, _] = obj.grid.centre(x, y, z);
+        assert!(
+            cx > 0.0 && cy > 0.0,
+            "voxel at ({cx}, {cy}) is not north-east"
+        );
+        kept += 1;
+    }
+    assert!(kept > 1000, "{kept}");
+}
+
+#[test]
 fn hard_case_voxel_larger_than_the_object() {
     let dir = tempfile::tempdir().unwrap();
     let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
