@@ -362,8 +362,11 @@ fn bad(name: &str, problem: &str) {
 fn bad_inputs_are_one_line_errors_naming_the_file() {
     bad("truncated.tif", "corrupt or truncated TIFF");
     if cfg!(feature = "gdal") {
-        bad("not_a_raster.tif", "not a raster GDAL can open");
-        bad("empty.tif", "not a raster GDAL can open");
+        bad(
+            "not_a_raster.tif",
+            "not a TIFF, ASCII grid, PNG or JPEG file, nor a raster GDAL can open; check",
+        );
+        bad("empty.tif", "nor a raster GDAL can open");
     } else {
         bad(
             "not_a_raster.tif",

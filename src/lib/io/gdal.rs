@@ -40,9 +40,16 @@ extern "C" {
 /// Read any raster GDAL can open. EPSG code from the SRS's authority code, WKT kept.
 pub fn read(path: &Path) -> Result<SourceRaster> {
     let ds = Dataset::open(path).map_err(|e| {
+        // GDAL says nothing when no driver recognises the file: say what was tried instead.
+        let why = match &e {
+            gdal::errors::GdalError::NullPointer { msg, .. } if msg.trim().is_empty() => {
+                String::new()
+            }
+            _ => format!(" ({})", one_line(&e.to_string())),
+        };
         Error::file(
             path,
-            format!("not a raster GDAL can open ({})", one_line(&e.to_string())),
+            format!("not a TIFF, ASCII grid, PNG or JPEG file, nor a raster GDAL can open{why}"),
         )
         .fix("check the file with gdalinfo")
     })?;
