@@ -72,7 +72,7 @@ pub fn refine(
         })
         .collect();
     let corridor: Vec<bool> = sub.iter().map(Option::is_some).collect();
-    let attached = attached_shadow(local, &corridor);
+    let attached = attached_shadow(local, &corridor, keep);
     let observed = observed_fraction(local, &corridor, &attached);
     let mut events: Vec<(f64, usize)> = sub
         .iter()
@@ -201,8 +201,10 @@ pub(super) fn first_wall(fp: &Footprint, p: (f64, f64), d: (f64, f64)) -> Option
 /// The observed shadow this footprint casts: the corridor's [`Class::Shadow`] cells connected
 /// (8-neighbours, through corridor shadow cells) to the footprint's own cells. Shadow further
 /// along the corridor beyond lit ground is someone else's (a neighbour's, a tree's) and would
-/// pull the search toward a height whose shadow reaches it.
-fn attached_shadow(local: &Local, corridor: &[bool]) -> Vec<bool> {
+/// pull the search toward a height whose shadow reaches it. The connection may also run through
+/// kept [`Class::Unusable`] cells (another building's shadow over the start of this one's):
+/// they hide the shadow, they do not end it.
+fn attached_shadow(local: &Local, corridor: &[bool], keep: &[bool]) -> Vec<bool> {
     let (w, h) = (local.grid.width, local.grid.height);
     let neighbours = |i: usize| {
         let (c, r) = ((i % w) as i64, (i / w) as i64);
@@ -212,22 +214,23 @@ fn attached_shadow(local: &Local, corridor: &[bool]) -> Vec<bool> {
             .map(move |(x, y)| y as usize * w + x as usize)
     };
     let open = |i: usize| corridor[i] && local.class[i] == Class::Shadow;
+    let through = |i: usize| open(i) || (keep[i] && local.class[i] == Class::Unusable);
     let mut seen = vec![false; corridor.len()];
     let mut stack: Vec<usize> = (0..corridor.len())
-        .filter(|&i| open(i) && neighbours(i).any(|j| local.class[j] == Class::Own))
+        .filter(|&i| through(i) && neighbours(i).any(|j| local.class[j] == Class::Own))
         .collect();
     for &i in &stack {
         seen[i] = true;
     }
     while let Some(i) = stack.pop() {
         for j in neighbours(i) {
-            if !seen[j] && open(j) {
+            if !seen[j] && through(j) {
                 seen[j] = true;
                 stack.push(j);
             }
         }
     }
-    seen
+    (0..seen.len()).map(|i| seen[i] && open(i)).collect()
 }
 
 #[cfg(test)]

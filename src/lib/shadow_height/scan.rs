@@ -3,8 +3,12 @@
 //! Invariant: scan lines run along the shadow direction `u` (away from the sun), spaced half a
 //! cell apart across the footprint, keeping one cell clear of its two extreme tangents (where the
 //! raster edge is ragged). Each line starts where it last leaves the polygon (its sun-far edge)
-//! and walks in quarter-cell steps; it ends, valid, at the first lit cell. A line is dropped when
-//! it leaves the window or meets unusable cells ("cut") or another footprint. For a prism on flat
+//! and walks the cells it crosses; it ends, valid, at the first lit cell. A line is dropped
+//! ("cut") when it leaves the window or its shadow ends in or within a cell of unusable cells
+//! (passing through them, e.g. under another building's shadow, it goes on), and dropped as
+//! meeting another footprint when it enters one or its shadow ends on a lit cell touching one
+//! (or with one within a cell further along): that cell may read lit only because the other
+//! building's sunlit roof covers part of it. For a prism on flat
 //! ground every valid line's length is exactly `H / tan(elevation)`, whatever the footprint's
 //! shape, so the median over lines is a robust length.
 
@@ -28,9 +32,9 @@ pub struct Scan {
     pub origin: (f64, f64),
     /// Valid lines that crossed at least one shadow cell.
     pub with_shadow: usize,
-    /// Lines dropped: shadow left the window or reached nodata / terrain shadow.
+    /// Lines dropped: shadow left the window or ended in or next to unusable cells.
     pub cut: usize,
-    /// Lines dropped: shadow reached another footprint.
+    /// Lines dropped: shadow reached another footprint or ended on a lit cell against one.
     pub on_other: usize,
 }
 
@@ -86,6 +90,9 @@ pub fn scan(
         }
         let start = (o.0 + exit * u.0 + t * n.0, o.1 + exit * u.1 + t * n.1);
         let mut seen_shadow = false;
+        // Where the line last left unusable cells (metres along it): a shadow ending within a
+        // cell of them has an unknown end; one merely passing through them goes on.
+        let mut unusable_until = f64::NEG_INFINITY;
         let mut walk = CellWalk::new(&local.grid, start, u);
         loop {
             let (x, cell_at) = walk.next_cell();
@@ -98,10 +105,11 @@ pub fn scan(
                 (i, local.class[i])
             });
             match class {
-                None | Some((_, Class::Unusable)) => {
+                None => {
                     out.cut += 1;
                     break;
                 }
+                Some((_, Class::Unusable)) => unusable_until = walk.t,
                 Some((_, Class::Other)) => {
                     out.on_other += 1;
                     break;
@@ -109,16 +117,37 @@ pub fn scan(
                 Some((_, Class::Own)) => {}
                 Some((_, Class::Shadow)) => seen_shadow = true,
                 Some((i, Class::Lit)) => {
-                    out.lengths.push(x);
-                    out.line_t.push(t);
-                    out.tip_roofs.push(local.heights[i] as f64 + x * tan_e);
-                    out.with_shadow += seen_shadow as usize;
+                    if x - unusable_until < cell {
+                        out.cut += 1;
+                    } else if meets_other(local, cell_at.unwrap(), &mut walk, x + cell) {
+                        out.on_other += 1;
+                    } else {
+                        out.lengths.push(x);
+                        out.line_t.push(t);
+                        out.tip_roofs.push(local.heights[i] as f64 + x * tan_e);
+                        out.with_shadow += seen_shadow as usize;
+                    }
                     break;
                 }
             }
         }
     }
     out
+}
+
+/// Whether the lit cell `at` ending a line's shadow is within a cell of another footprint: one
+/// of its 8 neighbours is [`Class::Other`], or the line enters such a cell before `until`
+/// metres. That cell may read lit only because the other building's sunlit roof covers part
+/// of it; the shadow met the building there rather than ending.
+fn meets_other(local: &Local, at: (usize, usize), walk: &mut CellWalk, until: f64) -> bool {
+    let (w, h) = (local.grid.width, local.grid.height);
+    let (c, r) = at;
+    let near = (r.saturating_sub(1)..=(r + 1).min(h - 1))
+        .flat_map(|rr| (c.saturating_sub(1)..=(c + 1).min(w - 1)).map(move |cc| rr * w + cc))
+        .any(|i| local.class[i] == Class::Other);
+    near || std::iter::from_fn(|| Some(walk.next_cell()))
+        .take_while(|&(x, _)| x <= until)
+        .any(|(_, a)| a.is_some_and(|(c, r)| local.class[r * w + c] == Class::Other))
 }
 
 /// Amanatides–Woo traversal of a grid's cells along a ray: each call gives the distance (metres,
@@ -266,6 +295,34 @@ mod tests {
         // A shadow longer than the window: cut at the window's edge.
         let (l, fp) = local(25, Class::Lit);
         assert_eq!(scan(&fp, &l, (0.0, 1.0), 1.0, 100.0, 1.0).cut, 17);
+    }
+
+    #[test]
+    fn a_shadow_ending_on_a_lit_cell_against_another_footprint_met_it() {
+        // Shadow 5 cells, then a cell reading lit (the neighbour's sunlit roof covers part of
+        // it), then the neighbour: the shadow met the neighbour, it did not end (before: 17
+        // valid lines of 5 m, the distance to the neighbour).
+        let (mut l, fp) = local(5, Class::Lit);
+        for c in 10..20 {
+            l.class[(39 - 26) * 40 + c] = Class::Other;
+        }
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 30.0, 1.0);
+        assert_eq!((s.on_other, s.lengths.len()), (17, 0), "{s:?}");
+    }
+
+    #[test]
+    fn a_shadow_starting_under_unusable_cells_is_measured_past_them() {
+        // Another building's shadow (unusable) over the first 3 cells of a 6-cell shadow: the
+        // shadow's end is seen, the line is valid.
+        let (mut l, fp) = local(6, Class::Lit);
+        for r in 20..23usize {
+            for c in 10..20 {
+                l.class[(39 - r) * 40 + c] = Class::Unusable;
+            }
+        }
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 30.0, 1.0);
+        assert_eq!((s.cut, s.lengths.len()), (0, 17), "{s:?}");
+        assert!(s.lengths.iter().all(|&x| x == 6.0), "{:?}", s.lengths);
     }
 
     #[test]
