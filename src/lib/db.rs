@@ -252,6 +252,15 @@ impl Database {
             .map(|c| (c.latitude_deg, c.longitude_deg))
     }
 
+    /// Latitude, longitude and meridian convergence at the grid centre, degrees, when the CRS
+    /// allows them ([`crate::crs::Crs::grid_convergence_deg`]): where a sun model stands, and
+    /// how far its true azimuths turn to lie along the grid.
+    pub fn centre_on_globe(&self) -> Option<(f64, f64, f64)> {
+        let (lat, lon) = self.centre_lat_lon()?;
+        let (cx, cy) = self.grid().centre();
+        Some((lat, lon, self.grid().crs.grid_convergence_deg(cx, cy)?))
+    }
+
     /// Path of a layer's file, or an error naming the stage that makes it.
     pub fn layer_path(&self, name: &str) -> Result<PathBuf> {
         match self.manifest.layers.get(name) {

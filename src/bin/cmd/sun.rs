@@ -71,21 +71,17 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let (latitude_deg, longitude_deg, convergence_deg) = match (&args.db, args.lat, args.lon) {
         (Some(dir), _, _) => {
             let db = Database::open(dir)?;
-            let (cx, cy) = db.grid().centre();
-            let convergence = db.grid().crs.grid_convergence_deg(cx, cy);
-            match (db.centre_lat_lon(), convergence) {
-                (Some((lat, lon)), Some(gamma)) => (lat, lon, Some(gamma)),
-                _ => {
-                    return Err(Error::file(
-                        dir,
-                        format!(
-                            "cannot convert the grid centre to latitude/longitude ({}: dbms converts geographic and UTM CRSs)",
-                            db.grid().crs.name()
-                        ),
-                    )
-                    .fix("give --lat and --lon of the centre instead"))
-                }
-            }
+            let (lat, lon, gamma) = db.centre_on_globe().ok_or_else(|| {
+                Error::file(
+                    dir,
+                    format!(
+                        "cannot convert the grid centre to latitude/longitude ({}: dbms converts geographic and UTM CRSs)",
+                        db.grid().crs.name()
+                    ),
+                )
+                .fix("give --lat and --lon of the centre instead")
+            })?;
+            (lat, lon, Some(gamma))
         }
         (None, Some(lat), Some(lon)) => (lat, lon, None),
         _ => unreachable!("clap requires --db or both --lat and --lon"),

@@ -261,11 +261,11 @@ pub fn photo_sun(db: &Database) -> Result<Option<Sun>> {
 
 /// The sun over the database centre at an RFC 3339 time (`--time`), with its azimuth turned from
 /// true north (NREL SPA's) to grid north by the meridian convergence at the centre
-/// ([`Crs::grid_convergence_deg`](crate::crs::Crs::grid_convergence_deg)): shadows fall along
-/// the grid azimuth, and near a UTM zone's edge the two differ by 2° or more.
+/// ([`Database::centre_on_globe`]): shadows fall along the grid azimuth, and near a UTM zone's
+/// edge the two differ by 2° or more.
 pub fn sun_at(db: &Database, time: &str) -> Result<Sun> {
     let utc = crate::sun::parse_time(time)?;
-    let (latitude_deg, longitude_deg) = db.centre_lat_lon().ok_or_else(|| {
+    let (latitude_deg, longitude_deg, convergence_deg) = db.centre_on_globe().ok_or_else(|| {
         Error::file(
             &db.dir,
             format!(
@@ -281,15 +281,6 @@ pub fn sun_at(db: &Database, time: &str) -> Result<Sun> {
         height_m: 0.0,
     };
     let pos = crate::sun::sun_position(&obs, utc, &crate::sun::SunOptions::default())?;
-    let (cx, cy) = db.grid().centre();
-    let convergence_deg =
-        db.grid().crs.grid_convergence_deg(cx, cy).ok_or_else(|| {
-            Error::file(
-            &db.dir,
-            format!("cannot tell grid north from true north in {}", db.grid().crs.name()),
-        )
-        .fix("give --sun-elevation and --sun-azimuth (clockwise from grid north) instead of a time")
-        })?;
     Sun::new(pos.elevation_deg, pos.azimuth_deg - convergence_deg)
         .map_err(|e| Error::msg(format!("at {time}: {}", e.problem)).fix(e.fix.unwrap_or_default()))
 }
