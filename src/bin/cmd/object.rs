@@ -170,9 +170,10 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             )
         }
     };
-    check_exports(&out.output, &obj, &out.export)?;
+    let planned = check_exports(&out.output, &obj, &out.export)?;
     format::write(&out.output, &obj, &source)?;
-    let exports = write_exports(&out.output, &obj, &out.export)?;
+    write_exports(&obj, &planned)?;
+    let exports: Vec<&PathBuf> = planned.iter().map(|(_, p)| p).collect();
     let d = obj.grid.dims;
     let a = obj.anchor();
     let human = format!(

@@ -50,13 +50,14 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     for w in &report.warnings {
         ctx.log(format!("dbms: warning: {w}"));
     }
-    check_exports(&args.output, &obj, &args.export)?;
+    let planned = check_exports(&args.output, &obj, &args.export)?;
     format::write(
         &args.output,
         &obj,
         &format!("dbms sculpt --voxel {}", args.voxel),
     )?;
-    let exports = write_exports(&args.output, &obj, &args.export)?;
+    write_exports(&obj, &planned)?;
+    let exports: Vec<&PathBuf> = planned.iter().map(|(_, p)| p).collect();
     let d = report.dims;
     let c = report.colour;
     let mut human = format!(

@@ -35,15 +35,18 @@ impl Export {
     }
 }
 
-/// The paths `obj`'s exports of `kinds` go to beside `object_path` (same stem, the export's
+/// An export [`check_exports`] found writable: its kind and the path it goes to.
+pub type PlannedExport = (Export, std::path::PathBuf);
+
+/// Where `obj`'s exports of `kinds` go beside `object_path` (same stem, the export's
 /// extension), after checking every one can be written: none would overwrite the object, and
 /// the object fits a `.vox`. Callers check before writing the object, so a refused export
-/// leaves no output at all.
+/// leaves no output at all, then write the plan with [`write_exports`].
 pub fn check_exports(
     object_path: &Path,
     obj: &VoxelObject,
     kinds: &[Export],
-) -> Result<Vec<std::path::PathBuf>> {
+) -> Result<Vec<PlannedExport>> {
     kinds
         .iter()
         .map(|&k| {
@@ -61,26 +64,20 @@ pub fn check_exports(
             if k == Export::Vox {
                 vox_fits(obj).map_err(|e| e.in_file(&p))?;
             }
-            Ok(p)
+            Ok((k, p))
         })
         .collect()
 }
 
-/// Write `obj` in each of `kinds` beside `object_path` ([`check_exports`] first); returns the
-/// paths written.
-pub fn write_exports(
-    object_path: &Path,
-    obj: &VoxelObject,
-    kinds: &[Export],
-) -> Result<Vec<std::path::PathBuf>> {
-    let paths = check_exports(object_path, obj, kinds)?;
-    for (&k, p) in kinds.iter().zip(&paths) {
+/// Write `obj` as each export of a plan from [`check_exports`].
+pub fn write_exports(obj: &VoxelObject, planned: &[PlannedExport]) -> Result<()> {
+    for (k, p) in planned {
         match k {
             Export::Ply => write_ply(p, obj)?,
             Export::Vox => write_vox(p, obj)?,
         }
     }
-    Ok(paths)
+    Ok(())
 }
 
 /// Largest number of voxels per axis a MagicaVoxel model holds.
