@@ -119,15 +119,20 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     if let Some(n) = verified {
         let _ = write!(human, "\nverified: all {n} pages match their checksums");
     }
-    let pages: Vec<(usize, usize, usize)> = (0..entries.len())
-        .map(|pos| info.page_at(pos).expect("an entry per index position"))
-        .collect();
-    if args.index {
+    // With --index: each entry beside the page its index position stands for.
+    let index: Option<Vec<_>> = args.index.then(|| {
+        entries
+            .iter()
+            .enumerate()
+            .map(|(pos, e)| (info.page_at(pos).expect("an entry per index position"), e))
+            .collect()
+    });
+    if let Some(pages) = &index {
         let _ = write!(
             human,
             "\nindex (level, tx, ty: offset, stored/raw bytes, crc32, flags):"
         );
-        for (&(l, tx, ty), e) in pages.iter().zip(entries) {
+        for &((l, tx, ty), e) in pages {
             let _ = write!(
                 human,
                 "\n  {l}, {tx}, {ty}: {}, {}/{}, {:08x}, {}",
@@ -142,14 +147,9 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             );
         }
     }
-    let index = args.index.then(|| {
-        pages
-            .iter()
-            .zip(entries)
-            .map(|(&p, e)| entry_json(p, e))
-            .collect::<Vec<_>>()
-    });
 
+    let index_json: Option<Vec<_>> =
+        index.map(|pages| pages.into_iter().map(|(p, e)| entry_json(p, e)).collect());
     ctx.report(
         human,
         json!({
@@ -163,7 +163,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             "stored_bytes": stored,
             "raw_bytes": raw,
             "verified_pages": verified,
-            "index": index,
+            "index": index_json,
         }),
     );
     Ok(())
