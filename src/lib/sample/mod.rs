@@ -245,7 +245,6 @@ fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     write_bytes_atomic(path, text.as_bytes())
 }
 
-/// The sun as recorded in `truth.json` and `scene.json`.
 /// The scene's sun as scene.json, truth.json and `dbms sample --json` state it: the azimuth
 /// from true north (what `dbms sun` prints) and from grid north (what the shadows were cast for).
 pub fn sun_json(scene: &Scene) -> serde_json::Value {
