@@ -2,8 +2,9 @@
 //!
 //! Invariant: the output depends only on the [`TileSetInfo`] and the set of pages, never on the
 //! order or thread they arrived from. Memory stays bounded: each page is encoded by the calling
-//! thread and written to a temporary file beside the output at once; the writer keeps only a
-//! small record per page. Uncompressed pages without bricks all have the same length, so their
+//! thread and handed to the writer's one I/O thread, which writes it to a temporary file beside
+//! the output (at most [`QUEUED_PAGES`] pages wait); the writer keeps only a small record per
+//! page. Uncompressed pages without bricks all have the same length, so their
 //! canonical offsets are known before the first page arrives: such a page goes straight to its
 //! final place, and when every page did, [`TileWriter::finish`] only adds the preamble, header
 //! and index in front and renames the file into place. Otherwise (lz4, bricks) pages are
@@ -22,11 +23,18 @@ use std::fs::File;
 use std::io::Write;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::mpsc::{sync_channel, SyncSender};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+/// Pages encoded and waiting for the I/O thread, at most (each up to one page's raw bytes).
+pub const QUEUED_PAGES: usize = 8;
 
 /// Writes one tile file. `write_page` takes `&self`, so pages can be produced and written from
-/// many threads (e.g. inside a rayon loop); encoding, compression and the positioned write of
-/// the page's bytes run on the calling thread, outside any lock.
+/// many threads (e.g. inside a rayon loop); checking, encoding and compression run on the
+/// calling thread, outside any lock, and the positioned writes on the writer's own I/O thread.
+/// One thread writes because concurrent writes to one file serialise on its inode lock in the
+/// kernel, where waiting threads spin (measured: a tenth of the CPU of a pyramid build).
 pub struct TileWriter {
     path: PathBuf,
     info: TileSetInfo,
@@ -37,9 +45,80 @@ pub struct TileWriter {
     plan: Option<Vec<u64>>,
     target: Target,
     slots: Mutex<Slots>,
+    io: Sink,
 }
 
-/// Where pages are written.
+/// The I/O thread: takes `(bytes, offset)` and writes them into the target file, in arrival
+/// order. On the first error it stops taking more and keeps the error, which the next
+/// [`Sink::send`] or [`Sink::close`] returns.
+struct Sink {
+    queue: Option<SyncSender<(Vec<u8>, u64)>>,
+    thread: Option<JoinHandle<()>>,
+    failed: Arc<Mutex<Option<std::io::Error>>>,
+}
+
+impl Sink {
+    fn start(file: File) -> std::io::Result<Sink> {
+        let (queue, pages) = sync_channel::<(Vec<u8>, u64)>(QUEUED_PAGES);
+        let failed = Arc::new(Mutex::new(None));
+        let keep = Arc::clone(&failed);
+        let thread = std::thread::Builder::new()
+            .name("dbms-tile-io".into())
+            .spawn(move || {
+                for (bytes, at) in pages {
+                    if let Err(e) = file.write_all_at(&bytes, at) {
+                        *keep.lock().unwrap_or_else(|p| p.into_inner()) = Some(e);
+                        return;
+                    }
+                }
+            })?;
+        Ok(Sink {
+            queue: Some(queue),
+            thread: Some(thread),
+            failed,
+        })
+    }
+
+    /// Queue `bytes` for offset `at`, or the error the I/O thread stopped on.
+    fn send(&self, bytes: Vec<u8>, at: u64) -> std::io::Result<()> {
+        let queue = self.queue.as_ref().expect("open until closed");
+        match queue.send((bytes, at)) {
+            Ok(()) => Ok(()),
+            Err(_) => Err(self.error()),
+        }
+    }
+
+    /// Wait for every queued write; the error the I/O thread stopped on, if any.
+    fn close(&mut self) -> std::io::Result<()> {
+        self.queue = None;
+        let Some(thread) = self.thread.take() else {
+            return Ok(());
+        };
+        if thread.join().is_err() {
+            return Err(std::io::Error::other(
+                "the tile writer's I/O thread panicked",
+            ));
+        }
+        match self.failed.lock().unwrap_or_else(|p| p.into_inner()).take() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// The error the I/O thread stopped on (taken once; later callers get a generic one).
+    fn error(&self) -> std::io::Error {
+        let kept = self.failed.lock().unwrap_or_else(|p| p.into_inner()).take();
+        kept.unwrap_or_else(|| std::io::Error::other("an earlier write of the tile file failed"))
+    }
+}
+
+impl Drop for Sink {
+    fn drop(&mut self) {
+        let _ = self.close();
+    }
+}
+
+/// Where pages are written (the I/O thread holds a second handle of the same file).
 enum Target {
     /// The output's temporary file (planned layout): renamed into place by `finish`.
     Direct(tempfile::NamedTempFile),
@@ -128,6 +207,11 @@ impl TileWriter {
             ),
         };
         let pages = vec![None; info.page_count()];
+        let io = target
+            .file()
+            .try_clone()
+            .and_then(Sink::start)
+            .map_err(cannot)?;
         Ok(TileWriter {
             path: path.to_path_buf(),
             layout,
@@ -136,6 +220,7 @@ impl TileWriter {
             target,
             info,
             slots: Mutex::new(Slots { len, pages }),
+            io,
         })
     }
 
@@ -183,17 +268,17 @@ impl TileWriter {
             });
             at
         };
-        self.target
-            .file()
-            .write_all_at(&enc.stored, at)
-            .map_err(|e| {
-                Error::io(&self.path, e).fix("check the free space in the output's directory")
-            })
+        self.io.send(enc.stored, at).map_err(|e| {
+            Error::io(&self.path, e).fix("check the free space in the output's directory")
+        })
     }
 
     /// Check every page was written, then finish the file in canonical order and rename it
     /// into place. Errors name the first missing page.
-    pub fn finish(self) -> Result<()> {
+    pub fn finish(mut self) -> Result<()> {
+        self.io.close().map_err(|e| {
+            Error::io(&self.path, e).fix("check the free space in the output's directory")
+        })?;
         let slots = self.slots.into_inner().unwrap_or_else(|p| p.into_inner());
         let missing = slots.pages.iter().filter(|p| p.is_none()).count();
         if let Some(first) = slots.pages.iter().position(Option::is_none) {
