@@ -863,9 +863,16 @@ fn unwritable_output_and_missing_input_are_one_line_errors() {
 
 #[test]
 fn uncompressed_pages_without_bricks_go_straight_to_their_place_in_any_order() {
+    // Pages of 16 cells (576 bytes: written through the page cache) and of 256 (144 × 4096
+    // bytes: written with O_DIRECT where the file system allows it).
+    straight_to_place(70, 45, 16);
+    straight_to_place(700, 300, 256);
+}
+
+fn straight_to_place(width: usize, height: usize, p: usize) {
     use rayon::prelude::*;
     let dir = tempfile::tempdir().unwrap();
-    let fx = Fixture::new(70, 45, 16, 2, Compression::None, 5);
+    let fx = Fixture::new(width, height, p, 2, Compression::None, 5);
     let plain = |l, x, y| Page {
         bricks: None,
         ..fx.page(l, x, y)
@@ -901,7 +908,7 @@ fn uncompressed_pages_without_bricks_go_straight_to_their_place_in_any_order() {
     }
     // Pages are consecutive in storage order, each at the next aligned offset, and the file
     // ends where the last one does: nothing of the writer's scratch is left in the file.
-    let raw = 9 * 16 * 16;
+    let raw = 9 * (p * p) as u64;
     let mut entries: Vec<IndexEntry> = r.entries().to_vec();
     entries.sort_by_key(|e| e.offset);
     for pair in entries.windows(2) {

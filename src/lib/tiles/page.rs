@@ -75,10 +75,50 @@ impl Page {
 
 /// A page as stored: what goes in the file and in its index entry.
 pub(crate) struct Encoded {
-    pub stored: Vec<u8>,
+    pub stored: StoredBytes,
     pub raw_len: u32,
     pub crc: u32,
     pub flags: u32,
+}
+
+/// Memory alignment of uncompressed stored bytes: enough for `O_DIRECT` writes.
+pub(crate) const MEMORY_ALIGN: usize = 4096;
+
+/// A page's stored bytes: `buf[start..start + len]`. Uncompressed pages start at a multiple of
+/// [`MEMORY_ALIGN`] in memory, so they can be written with direct I/O.
+pub(crate) struct StoredBytes {
+    buf: Vec<u8>,
+    start: usize,
+    len: usize,
+}
+
+impl StoredBytes {
+    /// `len` zero bytes starting at a multiple of [`MEMORY_ALIGN`] in memory.
+    pub(crate) fn aligned_zeroed(len: usize) -> StoredBytes {
+        let buf = vec![0u8; len + MEMORY_ALIGN];
+        // Moving the Vec never moves its heap block, so the alignment holds wherever it goes.
+        let start = buf.as_ptr().align_offset(MEMORY_ALIGN);
+        StoredBytes { buf, start, len }
+    }
+
+    pub(crate) fn as_mut_slice(&mut self) -> &mut [u8] {
+        &mut self.buf[self.start..self.start + self.len]
+    }
+}
+
+impl std::ops::Deref for StoredBytes {
+    type Target = [u8];
+
+    fn deref(&self) -> &[u8] {
+        &self.buf[self.start..self.start + self.len]
+    }
+}
+
+impl From<Vec<u8>> for StoredBytes {
+    fn from(buf: Vec<u8>) -> StoredBytes {
+        let len = buf.len();
+        StoredBytes { buf, start: 0, len }
+    }
 }
 
 /// Where the known layers sit in a page's raw bytes (from the header's layer table).
@@ -163,13 +203,17 @@ pub(crate) fn check(
 /// Encode a checked page with the standard layer table of a writer.
 pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> Result<Encoded> {
     let bricks = page.bricks.as_deref().unwrap_or(&[]);
-    let mut raw = vec![0u8; layout.fixed_len + bricks.len()];
-    for (i, z) in page.max_z.iter().enumerate() {
-        raw[layout.max_z + 4 * i..][..4].copy_from_slice(&z.to_bits().to_le_bytes());
-    }
-    for (i, c) in page.colour.iter().enumerate() {
-        raw[layout.colour + 4 * i..][..4].copy_from_slice(c);
-    }
+    let mut stored_raw = StoredBytes::aligned_zeroed(layout.fixed_len + bricks.len());
+    let raw = stored_raw.as_mut_slice();
+    let n = layout.cells;
+    let max_z = raw[layout.max_z..][..4 * n].chunks_exact_mut(4);
+    max_z
+        .zip(&page.max_z)
+        .for_each(|(b, z)| b.copy_from_slice(&z.to_bits().to_le_bytes()));
+    let colour = raw[layout.colour..][..4 * n].chunks_exact_mut(4);
+    colour
+        .zip(&page.colour)
+        .for_each(|(b, c)| b.copy_from_slice(c));
     raw[layout.state..][..layout.cells].copy_from_slice(&page.state);
     raw[layout.fixed_len..].copy_from_slice(bricks);
     let raw_len = u32::try_from(raw.len()).map_err(|_| {
@@ -185,15 +229,15 @@ pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> 
     };
     let stored = match compression {
         Compression::Lz4 => {
-            let packed = lz4_flex::block::compress(&to_planes(layout, &raw));
+            let packed = lz4_flex::block::compress(&to_planes(layout, raw));
             if packed.len() < raw.len() {
                 flags |= FLAG_LZ4 | FLAG_SHUFFLE;
-                packed
+                packed.into()
             } else {
-                raw
+                stored_raw
             }
         }
-        Compression::None => raw,
+        Compression::None => stored_raw,
     };
     Ok(Encoded {
         crc: crc32fast::hash(&stored),
