@@ -44,17 +44,20 @@ impl From<BaseRows> for Band {
 /// as its `bricks` blob ([`PageColumns`]); other pages get none.
 pub fn build_levels<B, T, E>(info: &TileSetInfo, band: B, emit: &E) -> Result<()>
 where
-    B: FnMut(usize, usize) -> Result<T>,
-    T: Into<Band>,
+    B: FnMut(usize, usize) -> Result<T> + Send,
+    T: Into<Band> + Send,
     E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
 {
     build_levels_by_page_row(info, band, emit, &mut |_, _| Ok(()))
 }
 
 /// [`build_levels`], and after the last page of each page-row `(level, ty)` has been emitted,
-/// `page_row_done(level, ty)` on the calling thread, with no page of any level being emitted at
+/// `page_row_done(level, ty)`, on one thread at a time, with no page of any level being emitted at
 /// the same time (so it may take locks the emitter takes, and run parallel work of its own).
 /// Each level's page-rows complete in order, top to bottom.
+///
+/// The next level-0 band is made while the current one's pages are emitted and reduced (two
+/// bands in memory at a time), so reading and decoding it overlaps writing.
 pub fn build_levels_by_page_row<B, T, E, D>(
     info: &TileSetInfo,
     mut band: B,
@@ -62,10 +65,10 @@ pub fn build_levels_by_page_row<B, T, E, D>(
     page_row_done: &mut D,
 ) -> Result<()>
 where
-    B: FnMut(usize, usize) -> Result<T>,
-    T: Into<Band>,
+    B: FnMut(usize, usize) -> Result<T> + Send,
+    T: Into<Band> + Send,
     E: Fn(usize, usize, usize, &Page) -> Result<()> + Sync,
-    D: FnMut(usize, usize) -> Result<()>,
+    D: FnMut(usize, usize) -> Result<()> + Send,
 {
     let (p, f) = (info.page_size, info.factor);
     if info.levels.len() > 1 && p % f != 0 {
@@ -83,13 +86,18 @@ where
         })
         .collect();
     let top = &info.levels[0];
+    // Level-0 rows of page-row `ty`.
+    let span = |ty: usize| (ty * p, p.min(top.height - ty * p));
+    let mut next = match top.pages_y {
+        0 => None,
+        _ => Some(band(0, span(0).1)),
+    };
     for ty in 0..top.pages_y {
-        let row0 = ty * p;
-        let rows = p.min(top.height - row0);
+        let (row0, rows) = span(ty);
         let Band {
             rows: base,
             columns,
-        } = band(row0, rows)?.into();
+        } = next.take().expect("made in the previous round")?.into();
         if base.width != top.width || base.rows() != rows {
             return Err(Error::msg(format!(
                 "internal: level-0 band at row {row0} is {}×{} cells, expected {}×{rows}",
@@ -98,11 +106,24 @@ where
                 top.width
             )));
         }
-        emit_page_row(info, 0, ty, &base, Some(&columns), emit)?;
-        page_row_done(0, ty)?;
-        if info.levels.len() > 1 {
-            push(info, &mut pending, 1, reduce(&base, f), emit, page_row_done)?;
-        }
+        let make_next = || match ty + 1 < top.pages_y {
+            true => {
+                let (row0, rows) = span(ty + 1);
+                Some(band(row0, rows))
+            }
+            false => None,
+        };
+        let this_band = || -> Result<()> {
+            emit_page_row(info, 0, ty, &base, Some(&columns), emit)?;
+            page_row_done(0, ty)?;
+            if info.levels.len() > 1 {
+                push(info, &mut pending, 1, reduce(&base, f), emit, page_row_done)?;
+            }
+            Ok(())
+        };
+        let done;
+        (next, done) = rayon::join(make_next, this_band);
+        done?;
     }
     Ok(())
 }

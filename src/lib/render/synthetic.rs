@@ -106,7 +106,7 @@ fn write_bands<B>(
     band: B,
 ) -> Result<()>
 where
-    B: Fn(usize, usize, usize) -> Band,
+    B: Fn(usize, usize, usize) -> Band + Sync,
 {
     let mut info = TileSetInfo::new(grid, page_size, factor, None)?;
     info.compression = compression;
