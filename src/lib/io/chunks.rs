@@ -332,14 +332,18 @@ fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> 
                     )
                 })
                 .collect::<Result<_>>()?;
-            for (cx, c) in decoded.iter().enumerate() {
-                let x0 = cx * plan.chunk_w;
-                let n = (plan.chunk_w.min(plan.width - x0)) * spp;
-                for r in 0..n_rows {
-                    part[r * row_len + x0 * spp..][..n]
-                        .copy_from_slice(&c[(skip + r) * plan.chunk_w * spp..][..n]);
-                }
-            }
+            // Rows in parallel: a band one chunk row tall is a single part, and copying it
+            // on one thread would leave the other cores idle.
+            part.par_chunks_mut(row_len)
+                .enumerate()
+                .for_each(|(r, row)| {
+                    for (cx, c) in decoded.iter().enumerate() {
+                        let x0 = cx * plan.chunk_w;
+                        let n = (plan.chunk_w.min(plan.width - x0)) * spp;
+                        row[x0 * spp..][..n]
+                            .copy_from_slice(&c[(skip + r) * plan.chunk_w * spp..][..n]);
+                    }
+                });
             Ok(())
         })?;
     Ok(out)
