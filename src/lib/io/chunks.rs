@@ -298,7 +298,8 @@ word!(u64);
 /// Samples of image rows `rows` as words, in the `tiff` crate's layout (pixel-interleaved, or
 /// plane after plane). Only the chunk rows that overlap `rows` are read. One task per chunk row
 /// (and plane), the chunks of a row decoded in parallel too, so a single-strip image still
-/// spreads.
+/// spreads; each chunk's bytes are then turned into words straight in the output rows, rows in
+/// parallel.
 fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> Result<Vec<W>> {
     let spp = plan.chunk_samples();
     let row_len = plan.width * spp;
@@ -316,47 +317,72 @@ fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> 
             }
         }
     }
+    let chunk_row_bytes = plan.chunk_w * spp * W::BYTES;
     parts
         .into_par_iter()
         .try_for_each(|(plane, cy, skip, part)| {
             let n_rows = part.len() / row_len;
-            let decoded: Vec<Vec<W>> = (0..across)
+            let decoded: Vec<Vec<u8>> = (0..across)
                 .into_par_iter()
                 .map(|cx| {
-                    chunk(
-                        path,
-                        file,
-                        plan,
-                        (plane * down + cy) * across + cx,
-                        skip + n_rows,
-                    )
+                    let index = (plane * down + cy) * across + cx;
+                    chunk_bytes(path, file, plan, index, skip + n_rows, W::BYTES)
                 })
                 .collect::<Result<_>>()?;
-            // Rows in parallel: a band one chunk row tall is a single part, and copying it
+            // Rows in parallel: a band one chunk row tall is a single part, and converting it
             // on one thread would leave the other cores idle.
-            part.par_chunks_mut(row_len)
-                .enumerate()
-                .for_each(|(r, row)| {
+            part.par_chunks_mut(row_len).enumerate().for_each_init(
+                Vec::new,
+                |scratch, (r, row)| {
                     for (cx, c) in decoded.iter().enumerate() {
                         let x0 = cx * plan.chunk_w;
                         let n = (plan.chunk_w.min(plan.width - x0)) * spp;
-                        row[x0 * spp..][..n]
-                            .copy_from_slice(&c[(skip + r) * plan.chunk_w * spp..][..n]);
+                        let bytes = &c[(skip + r) * chunk_row_bytes..][..chunk_row_bytes];
+                        chunk_row(plan, bytes, &mut row[x0 * spp..][..n], scratch);
                     }
-                });
+                },
+            );
             Ok(())
         })?;
     Ok(out)
 }
 
-/// The first `rows` rows of chunk `index` as words, un-predicted (rows of `chunk_w` pixels).
-fn chunk<W: Word>(
+/// One stored row of a chunk (`chunk_w` pixels, inflated, bytes already un-differenced for the
+/// floating-point predictor) as words into `out`, its first `out.len()` samples (fewer than the
+/// chunk's when the chunk overhangs the image's right edge; `scratch` holds the whole row then).
+fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Vec<W>) {
+    let spp = plan.chunk_samples();
+    match plan.predictor {
+        // Byte planes, most significant first, whatever the file's byte order.
+        3 if out.len() * W::BYTES == bytes.len() => W::from_planes(bytes, out),
+        3 => {
+            scratch.resize(bytes.len() / W::BYTES, W::default());
+            W::from_planes(bytes, scratch);
+            out.copy_from_slice(&scratch[..out.len()]);
+        }
+        p => {
+            for (w, b) in out.iter_mut().zip(bytes.chunks_exact(W::BYTES)) {
+                *w = W::from_bytes(b, plan.big_endian);
+            }
+            // Running sums from the row's left edge: the overhang is at the right, so the
+            // image's samples do not depend on it.
+            if p == 2 {
+                undifference(out, spp);
+            }
+        }
+    }
+}
+
+/// The first `rows` rows of chunk `index` as stored bytes, inflated; for the floating-point
+/// predictor the bytes are also un-differenced along each row (samples of `word` bytes).
+fn chunk_bytes(
     path: &Path,
     file: &File,
     plan: &Plan,
     index: usize,
     rows: usize,
-) -> Result<Vec<W>> {
+    word: usize,
+) -> Result<Vec<u8>> {
     let corrupt = |what: String| {
         Error::file(
             path,
@@ -365,10 +391,10 @@ fn chunk<W: Word>(
         .fix("re-create the file, or check it with gdalinfo")
     };
     let spp = plan.chunk_samples();
-    let row_words = plan.chunk_w * spp;
+    let row_bytes = plan.chunk_w * spp * word;
     // Tiles are stored whole and the last strip may be too: only the first `rows` rows matter.
-    let want = rows * row_words * W::BYTES;
-    let whole = plan.chunk_h * row_words * W::BYTES;
+    let want = rows * row_bytes;
+    let whole = plan.chunk_h * row_bytes;
     let count =
         usize::try_from(plan.counts[index]).map_err(|_| corrupt("byte count too large".into()))?;
     let mut stored = vec![0u8; count];
@@ -401,31 +427,13 @@ fn chunk<W: Word>(
         )));
     }
     raw.truncate(want);
-    let mut words = vec![W::default(); rows * row_words];
-    match plan.predictor {
-        3 => {
-            // Floating-point predictor: bytes differenced along the row, then byte planes,
-            // most significant first, whatever the file's byte order.
-            for (row, out) in raw
-                .chunks_exact_mut(row_words * W::BYTES)
-                .zip(words.chunks_exact_mut(row_words))
-            {
-                undifference(row, spp);
-                W::from_planes(row, out);
-            }
-        }
-        p => {
-            for (w, b) in words.iter_mut().zip(raw.chunks_exact(W::BYTES)) {
-                *w = W::from_bytes(b, plan.big_endian);
-            }
-            if p == 2 {
-                for row in words.chunks_exact_mut(row_words) {
-                    undifference(row, spp);
-                }
-            }
+    if plan.predictor == 3 {
+        // Floating-point predictor: bytes differenced along the row (stride: a pixel's samples).
+        for row in raw.chunks_exact_mut(row_bytes) {
+            undifference(row, spp);
         }
     }
-    Ok(words)
+    Ok(raw)
 }
 
 #[cfg(test)]
