@@ -311,18 +311,18 @@ impl Database {
     /// memory. Checked against the grid now; each band converts as [`read_elevation`](Self::read_elevation) does,
     /// except that a band may be all nodata.
     pub fn elevation_rows(&self) -> Result<LayerRows<f32>> {
-        self.layer_rows(ELEVATION, SourceRaster::to_elevation_band)
+        self.layer_rows(ELEVATION, SourceRaster::into_elevation_band)
     }
 
     /// The colour layer read band by band ([`LayerRows`]), as [`read_colour`](Self::read_colour) converts it.
     pub fn colour_rows(&self) -> Result<LayerRows<[u8; 4]>> {
-        self.layer_rows(COLOUR, SourceRaster::to_colour)
+        self.layer_rows(COLOUR, |s| s.to_colour())
     }
 
     fn layer_rows<T>(
         &self,
         name: &str,
-        convert: fn(&SourceRaster) -> Result<Raster<T>>,
+        convert: fn(SourceRaster) -> Result<Raster<T>>,
     ) -> Result<LayerRows<T>> {
         let rows = LayerRows {
             path: self.layer_path(name)?,
@@ -411,7 +411,7 @@ impl Database {
 pub struct LayerRows<T> {
     path: PathBuf,
     grid: Grid,
-    convert: fn(&SourceRaster) -> Result<Raster<T>>,
+    convert: fn(SourceRaster) -> Result<Raster<T>>,
 }
 
 impl<T: Clone + Send + Sync> RowSource<T> for LayerRows<T> {
@@ -425,7 +425,7 @@ impl<T: Clone + Send + Sync> RowSource<T> for LayerRows<T> {
             "rows {row0}..{} outside the grid",
             row0 + rows
         );
-        let band = (self.convert)(&crate::io::geotiff::read_rows(
+        let band = (self.convert)(crate::io::geotiff::read_rows(
             &self.path,
             row0..row0 + rows,
         )?)

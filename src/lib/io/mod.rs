@@ -187,6 +187,25 @@ impl SourceRaster {
         Ok(Raster::new(self.grid.clone(), data))
     }
 
+    /// [`to_elevation_band`](Self::to_elevation_band), converting in place when the samples are
+    /// already one band of `f32` (a database's elevation layer): no second copy of the band.
+    pub fn into_elevation_band(self) -> Result<Elevation> {
+        match self.samples {
+            Samples::F32(mut v) if self.bands == 1 => {
+                let nodata = self.nodata;
+                v.par_chunks_mut(CHUNK).for_each(|chunk| {
+                    for x in chunk {
+                        if !x.is_finite() || nodata.is_some_and(|nd| x.is_nodata(nd)) {
+                            *x = f32::NAN;
+                        }
+                    }
+                });
+                Ok(Raster::new(self.grid, v))
+            }
+            _ => self.to_elevation_band(),
+        }
+    }
+
     fn elevation_values<T: SampleValue>(&self, v: &[T]) -> Result<Vec<f32>> {
         let (bands, nodata) = (self.bands, self.nodata);
         let limit = T::EXACT_F32_LIMIT.unwrap_or(f32::MAX as f64);
@@ -505,6 +524,31 @@ mod tests {
         let e = r.to_elevation().unwrap();
         assert!(e.data[0].is_nan());
         assert_eq!(&e.data[1..], &[12.0, -32767.0]);
+    }
+
+    #[test]
+    fn in_place_elevation_band_equals_the_copying_one() {
+        let nd = -3.4e38f64;
+        let values = vec![
+            1.5,
+            -9999.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            nd as f32,
+            -7.25,
+        ];
+        for nodata in [None, Some(-9999.0), Some(nd), Some(f64::NAN)] {
+            let r = raster(1, Samples::F32(values.clone()), nodata);
+            let copied = r.to_elevation_band().unwrap();
+            let in_place = r.into_elevation_band().unwrap();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(&in_place.data),
+                bits(&copied.data),
+                "nodata {nodata:?}"
+            );
+        }
     }
 
     #[test]
