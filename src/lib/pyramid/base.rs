@@ -15,7 +15,7 @@ use super::reduce::BaseRows;
 use super::shade::{lit, Effects};
 use crate::error::Result;
 use crate::raster::RowSource;
-use crate::tiles::{STATE_OPAQUE, STATE_PARTIAL};
+use crate::tiles::{STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL};
 use crate::voxel::columns::Run;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -53,14 +53,28 @@ impl<'a> Level0<'a> {
     }
 
     /// Level-0 rows `row0 .. row0 + rows` and the columns of their partial cells.
+    ///
+    /// The decoded layers become the band's `max_z` and `colour` in place (no copy): nodata
+    /// cells are cleared, raised cells lifted, and the photo's colour under raised cells kept
+    /// aside for their voxel columns.
     pub fn band(&self, row0: usize, rows: usize) -> Result<Band> {
         let w = self.terrain.grid().width;
         let (terrain, colour) = rayon::join(
             || self.terrain.read_rows(row0, rows),
             || self.colour.read_rows(row0, rows),
         );
-        let (terrain, colour) = (terrain?, colour?);
-        let mut out = BaseRows::nodata(w, rows);
+        let mut out = BaseRows {
+            width: w,
+            max_z: terrain?.into_owned(),
+            colour: colour?.into_owned(),
+            state: vec![STATE_EMPTY; w * rows],
+        };
+        let start = row0 * w;
+        let raised = self.raised.range(start, start + w * rows);
+        let photo: Vec<[u8; 4]> = raised
+            .iter()
+            .map(|rc| out.colour[rc.index - start])
+            .collect();
         let half_valid: usize = out
             .max_z
             .par_chunks_mut(w)
@@ -72,27 +86,24 @@ impl<'a> Level0<'a> {
                 let mut raised = self.raised.range(start, start + w).iter().peekable();
                 let mut half_valid = 0;
                 for col in 0..w {
-                    let (z, c) = (terrain[r * w + col], colour[r * w + col]);
                     let lifted = raised.next_if(|rc| rc.index == start + col);
-                    if z.is_nan() || c[3] == 0 {
-                        half_valid += usize::from(z.is_nan() != (c[3] == 0));
+                    if zs[col].is_nan() || cs[col][3] == 0 {
+                        half_valid += usize::from(zs[col].is_nan() != (cs[col][3] == 0));
+                        zs[col] = f32::NAN;
+                        cs[col] = [0; 4];
                         continue;
                     }
                     match lifted {
                         Some(rc) => {
                             zs[col] = rc.top_z;
-                            cs[col] = rc.colour.unwrap_or(c);
+                            cs[col] = rc.colour.unwrap_or(cs[col]);
                             ss[col] = if rc.partial {
                                 STATE_PARTIAL
                             } else {
                                 STATE_OPAQUE
                             };
                         }
-                        None => {
-                            zs[col] = z;
-                            cs[col] = c;
-                            ss[col] = STATE_OPAQUE;
-                        }
+                        None => ss[col] = STATE_OPAQUE,
                     }
                 }
                 half_valid
@@ -103,12 +114,13 @@ impl<'a> Level0<'a> {
             Some(fx) => Some(fx.shade_band(row0, &mut out.colour)?),
             None => None,
         };
-        let columns = self.columns(row0, &out, &colour, factors.as_deref());
+        let columns = self.columns(row0, &out, &photo, factors.as_deref());
         Ok(Band { rows: out, columns })
     }
 
     /// The voxel columns of the partial cells of band `rows` (starting at grid row `row0`), lit
-    /// by the band's effect `factors` when there are any.
+    /// by the band's effect `factors` when there are any; `photo` holds the orthophoto's colour
+    /// of each of the band's raised cells, in [`Raised::range`] order.
     fn columns(
         &self,
         row0: usize,
@@ -120,8 +132,9 @@ impl<'a> Level0<'a> {
         let cells = self.raised.range(start, start + rows.state.len());
         cells
             .par_iter()
-            .filter(|rc| rows.state[rc.index - start] == STATE_PARTIAL)
-            .map(|rc| {
+            .zip(photo)
+            .filter(|(rc, _)| rows.state[rc.index - start] == STATE_PARTIAL)
+            .map(|(rc, &photo)| {
                 let k = rc.index - start;
                 let factor = factors.map_or(1.0, |f| f[k]);
                 let runs = self
@@ -131,7 +144,7 @@ impl<'a> Level0<'a> {
                 let runs = runs
                     .iter()
                     .map(|r| {
-                        let [red, green, blue, _] = r.colour.unwrap_or(photo[k]);
+                        let [red, green, blue, _] = r.colour.unwrap_or(photo);
                         Run {
                             bottom: r.bottom,
                             top: r.top,
