@@ -18,6 +18,7 @@ use crate::raster::{Colour, Raster};
 use rayon::prelude::*;
 use std::io::{BufReader, Seek, Write};
 use std::marker::PhantomData;
+use std::os::unix::fs::FileExt;
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::encoder::compression::{CompressionAlgorithm, Deflate, DeflateLevel};
@@ -222,6 +223,25 @@ fn read_impl(path: &Path, window: Option<std::ops::Range<usize>>) -> Result<Sour
             }
         }
     }
+    // An internal mask on grey or RGB colour becomes its alpha band (masks on other images are
+    // not looked for: their nodata is the GDAL_NODATA value).
+    let mask = match samples {
+        Samples::U8(_) | Samples::U16(_) if alpha_band.is_none() && matches!(bands, 1 | 3) => {
+            read_mask(path, &mut dec, &chunk_file, rows.clone())?
+        }
+        _ => None,
+    };
+    let (bands, alpha_band) = match mask {
+        Some(mask) => {
+            samples = match samples {
+                Samples::U8(v) => Samples::U8(with_band(v, bands, &mask, u8::MAX)),
+                Samples::U16(v) => Samples::U16(with_band(v, bands, &mask, u16::MAX)),
+                other => other,
+            };
+            (bands + 1, Some(bands))
+        }
+        None => (bands, alpha_band),
+    };
 
     let (crs, pixel_is_point) = tags.crs(path)?;
     let transform = match tags.transform(path, pixel_is_point)? {
@@ -262,6 +282,156 @@ fn read_impl(path: &Path, window: Option<std::ops::Range<usize>>) -> Result<Sour
         pixel_is_point,
         format: "GTiff",
     })
+}
+
+/// The TIFF internal mask of image rows `rows` — the first later IFD with NewSubfileType bit 4
+/// (mask) and not bit 1 (reduced resolution), as GDAL writes for `GDAL_TIFF_INTERNAL_MASK=YES`
+/// and finds it — one byte a cell, 0 where masked (nodata); `None` when the file has none. Only
+/// the strips or tiles the rows overlap are read. 1- or 8-bit, one sample, the image's size,
+/// uncompressed, LZW or Deflate without predictor; other masks are an error with a fix.
+fn read_mask<R: std::io::Read + Seek>(
+    path: &Path,
+    dec: &mut Decoder<R>,
+    file: &std::fs::File,
+    rows: std::ops::Range<usize>,
+) -> Result<Option<Vec<u8>>> {
+    let err = |e| corrupt(path, e);
+    let (width, height) = dec.dimensions().map_err(err)?;
+    let (width, height) = (width as usize, height as usize);
+    loop {
+        if !dec.more_images() {
+            return Ok(None);
+        }
+        dec.next_image().map_err(err)?;
+        let kind: u32 = dec
+            .find_tag_unsigned(Tag::NewSubfileType)
+            .map_err(err)?
+            .unwrap_or(0);
+        if kind & 4 != 0 && kind & 1 == 0 {
+            break;
+        }
+    }
+    let unsigned = |dec: &mut Decoder<R>, tag, default: u64| -> Result<u64> {
+        Ok(dec.find_tag_unsigned(tag).map_err(err)?.unwrap_or(default))
+    };
+    let (w, h) = dec.dimensions().map_err(err)?;
+    let bits = unsigned(dec, Tag::BitsPerSample, 1)?;
+    let spp = unsigned(dec, Tag::SamplesPerPixel, 1)?;
+    let compression = unsigned(dec, Tag::Compression, 1)?;
+    let predictor = unsigned(dec, Tag::Predictor, 1)?;
+    let layout = format!(
+        "{w} × {h} cells, {spp} sample(s) of {bits} bit(s), compression {compression}, predictor {predictor}"
+    );
+    if (w as usize, h as usize) != (width, height)
+        || spp != 1
+        || !matches!(bits, 1 | 8)
+        || !matches!(compression, 1 | 5 | 8 | 32946)
+        || predictor != 1
+    {
+        return Err(Error::file(
+            path,
+            format!("unsupported internal mask ({layout}; the image is {width} × {height})"),
+        )
+        .fix("make the mask an alpha band: gdal_translate -b 1 -b 2 -b 3 -b mask -co ALPHA=YES in.tif out.tif"));
+    }
+    let tiled = dec.find_tag(Tag::TileWidth).map_err(err)?.is_some();
+    let (cw, ch, offsets, counts) = if tiled {
+        (
+            unsigned(dec, Tag::TileWidth, 0)? as usize,
+            unsigned(dec, Tag::TileLength, 0)? as usize,
+            dec.find_tag_unsigned_vec::<u64>(Tag::TileOffsets),
+            dec.find_tag_unsigned_vec::<u64>(Tag::TileByteCounts),
+        )
+    } else {
+        let rows_per_strip = unsigned(dec, Tag::RowsPerStrip, height as u64)?;
+        (
+            width,
+            rows_per_strip.min(height as u64) as usize,
+            dec.find_tag_unsigned_vec::<u64>(Tag::StripOffsets),
+            dec.find_tag_unsigned_vec::<u64>(Tag::StripByteCounts),
+        )
+    };
+    let bad = |what: String| {
+        Error::file(path, format!("corrupt internal mask: {what}"))
+            .fix("re-create the file, or check it with gdalinfo")
+    };
+    let (offsets, counts) = (
+        offsets.map_err(err)?.unwrap_or_default(),
+        counts.map_err(err)?.unwrap_or_default(),
+    );
+    let across = width.div_ceil(cw.max(1));
+    if cw == 0
+        || ch == 0
+        || offsets.len() < across * height.div_ceil(ch)
+        || counts.len() < offsets.len()
+    {
+        return Err(bad(format!(
+            "{layout}, {cw} × {ch} chunks, {} offsets",
+            offsets.len()
+        )));
+    }
+    let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let row_bytes = (cw * bits as usize).div_ceil(8);
+    let mut mask = vec![0u8; width * rows.len()];
+    for cy in rows.start / ch..rows.end.div_ceil(ch) {
+        for cx in 0..across {
+            let i = cy * across + cx;
+            if counts[i] > file_len {
+                return Err(bad(format!(
+                    "chunk {i} of {} bytes in a file of {file_len}",
+                    counts[i]
+                )));
+            }
+            let mut stored = vec![0u8; counts[i] as usize];
+            file.read_exact_at(&mut stored, offsets[i])
+                .map_err(|e| bad(format!("chunk {i}: {e}")))?;
+            let want = row_bytes * ch;
+            let raw = match compression {
+                1 => stored,
+                5 => weezl::decode::Decoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8)
+                    .decode(&stored)
+                    .map_err(|e| bad(format!("chunk {i}: LZW data: {e}")))?,
+                _ => zune_inflate::DeflateDecoder::new_with_options(
+                    &stored,
+                    zune_inflate::DeflateOptions::default().set_limit(2 * want + 4096),
+                )
+                .decode_zlib()
+                .map_err(|e| bad(format!("chunk {i}: Deflate data: {e:?}")))?,
+            };
+            for y in (cy * ch).max(rows.start)..((cy + 1) * ch).min(rows.end) {
+                let src = (y - cy * ch) * row_bytes;
+                let out = &mut mask[(y - rows.start) * width..][..width];
+                for x in cx * cw..((cx + 1) * cw).min(width) {
+                    let c = x - cx * cw;
+                    let v = if bits == 1 {
+                        raw.get(src + c / 8).map(|b| b >> (7 - c % 8) & 1)
+                    } else {
+                        raw.get(src + c).copied()
+                    };
+                    out[x] =
+                        v.ok_or_else(|| bad(format!("chunk {i} decodes to {} bytes", raw.len())))?;
+                }
+            }
+        }
+    }
+    Ok(Some(mask))
+}
+
+/// Pixels of `bands` samples with `mask` appended as one more sample: 0 where the mask is 0,
+/// `on` elsewhere.
+fn with_band<T: Copy + Default + Send + Sync>(
+    v: Vec<T>,
+    bands: usize,
+    mask: &[u8],
+    on: T,
+) -> Vec<T> {
+    v.par_chunks(bands)
+        .zip(mask.par_iter())
+        .flat_map_iter(|(px, &m)| {
+            let alpha = if m == 0 { T::default() } else { on };
+            px.iter().copied().chain([alpha])
+        })
+        .collect()
 }
 
 /// Full-range (JFIF) YCbCr to RGB in place, on the first three samples of a pixel, as libjpeg does.
@@ -714,6 +884,9 @@ pub struct GeoTiffWriter<T> {
     /// File offset and length of every tile written, in tile order.
     offsets: Vec<u64>,
     counts: Vec<u64>,
+    /// The same for the tiles of the internal mask (empty unless `spec.mask`).
+    mask_offsets: Vec<u64>,
+    mask_counts: Vec<u64>,
     /// Bytes in the file so far.
     pos: u64,
     sample: PhantomData<T>,
@@ -731,6 +904,17 @@ impl GeoTiffWriter<[u8; 4]> {
     pub fn create_rgba8(path: &Path, grid: &Grid) -> Result<Self> {
         Self::create(path, grid, Spec::rgba8())
     }
+
+    /// An RGB8 GeoTIFF on `grid` (PhotometricInterpretation RGB, 3 bands, tiled, Deflate with
+    /// horizontal predictor) fed RGBA cells: the alpha is not stored as a band but as a TIFF
+    /// internal mask, as GDAL writes one with `GDAL_TIFF_INTERNAL_MASK=YES` — a second IFD after
+    /// the image's (NewSubfileType 4, PhotometricInterpretation 4 = transparency mask, 1 bit a
+    /// cell, same size and 256 × 256 tiles, Deflate), bit 1 where alpha ≠ 0. GDAL reports it as
+    /// "Mask Flags: PER_DATASET" (masked cells are nodata to every GDAL tool) and [`read`] returns
+    /// it as a 4th (alpha) band, so no colour value has to be given up as nodata.
+    pub fn create_rgb8_masked(path: &Path, grid: &Grid) -> Result<Self> {
+        Self::create(path, grid, Spec::rgb8_masked())
+    }
 }
 
 impl GeoTiffWriter<u8> {
@@ -744,13 +928,14 @@ impl<T: TiffSample> GeoTiffWriter<T> {
     /// Classic TIFF, or BigTIFF when the padded samples would pass [`BIGTIFF_ABOVE`] bytes.
     fn create(path: &Path, grid: &Grid, spec: Spec) -> Result<Self> {
         let tiles = grid.width.div_ceil(TILE) as u64 * grid.height.div_ceil(TILE) as u64;
-        let big = tiles * (TILE * TILE * spec.pixel_bytes()) as u64 > BIGTIFF_ABOVE;
+        let mask = if spec.mask { TILE * TILE / 8 } else { 0 };
+        let big = tiles * (TILE * TILE * spec.pixel_bytes() + mask) as u64 > BIGTIFF_ABOVE;
         Self::create_layout(path, grid, spec, big)
     }
 
     /// [`create`](Self::create) with the TIFF flavour chosen by the caller.
     fn create_layout(path: &Path, grid: &Grid, spec: Spec, big: bool) -> Result<Self> {
-        debug_assert_eq!(spec.pixel_bytes(), std::mem::size_of::<T>());
+        debug_assert_eq!(spec.cell_bytes(), std::mem::size_of::<T>());
         let (w, h) = (grid.width, grid.height);
         if w == 0 || h == 0 {
             return Err(Error::file(path, "cannot write an empty raster"));
@@ -781,6 +966,8 @@ impl<T: TiffSample> GeoTiffWriter<T> {
             rows_done: 0,
             offsets: Vec::with_capacity(tiles),
             counts: Vec::with_capacity(tiles),
+            mask_offsets: Vec::new(),
+            mask_counts: Vec::new(),
             pos: header.len() as u64,
             sample: PhantomData,
         })
@@ -801,7 +988,7 @@ impl<T: TiffSample> GeoTiffWriter<T> {
                 ),
             ));
         }
-        let row_len = w * self.spec.pixel_bytes();
+        let row_len = w * self.spec.cell_bytes();
         while !cells.is_empty() {
             let room = TILE - self.buf.len() / row_len;
             let (now, rest) = cells.split_at(room.min(cells.len() / w) * w);
@@ -833,41 +1020,64 @@ impl<T: TiffSample> GeoTiffWriter<T> {
     }
 
     /// Compress the buffered rows (one tile row, or the last, shorter one) as tiles in parallel,
-    /// padded with zeros beyond the grid, and append them in order.
+    /// padded with zeros beyond the grid, and append them in order (then the tiles of the
+    /// internal mask of those rows, if the spec has one).
     fn flush_tile_row(&mut self) -> Result<()> {
         let (w, spec) = (self.grid.width, &self.spec);
-        let pixel = spec.pixel_bytes();
-        let (row_len, tile_row_len) = (w * pixel, TILE * pixel);
+        let (pixel, cell) = (spec.pixel_bytes(), spec.cell_bytes());
+        let (row_len, tile_row_len) = (w * cell, TILE * pixel);
         let (buf, rows) = (&self.buf, self.buf.len() / row_len);
-        let tiles: Vec<Vec<u8>> = (0..w.div_ceil(TILE))
+        let tiles: Vec<(Vec<u8>, Option<Vec<u8>>)> = (0..w.div_ceil(TILE))
             .into_par_iter()
             .map(|tx| {
                 let (mut raw, mut scratch) = (
                     Vec::with_capacity(TILE * tile_row_len),
                     Vec::with_capacity(tile_row_len),
                 );
-                let cols = tx * TILE * pixel..((tx + 1) * TILE).min(w) * pixel;
+                let cols = tx * TILE * cell..((tx + 1) * TILE).min(w) * cell;
+                let src = |r: usize| &buf[r * row_len..][cols.clone()];
                 for r in 0..TILE {
                     let start = raw.len();
-                    if r < rows {
-                        raw.extend_from_slice(&buf[r * row_len..][cols.clone()]);
+                    if r < rows && spec.mask {
+                        raw.extend(src(r).chunks_exact(cell).flat_map(|c| &c[..pixel]));
+                    } else if r < rows {
+                        raw.extend_from_slice(src(r));
                     }
                     raw.resize(start + tile_row_len, 0);
                     spec.predict(&mut raw[start..], &mut scratch);
                 }
-                let mut packed = Vec::with_capacity(raw.len() / 2);
-                // Writing into a Vec cannot fail.
-                let _ = Deflate::with_level(DeflateLevel::Balanced).write_to(&mut packed, &raw);
-                packed
+                let mask = spec.mask.then(|| {
+                    // 1 bit a cell, most significant first; 0 (nodata) beyond the grid.
+                    let mut bits = vec![0u8; TILE * TILE / 8];
+                    for r in 0..rows {
+                        for (i, c) in src(r).chunks_exact(cell).enumerate() {
+                            if c[pixel] != 0 {
+                                bits[r * TILE / 8 + i / 8] |= 0x80 >> (i % 8);
+                            }
+                        }
+                    }
+                    deflate(&bits)
+                });
+                (deflate(&raw), mask)
             })
             .collect();
         let path = self.out.path().to_path_buf();
-        for t in tiles {
-            self.offsets.push(self.pos);
-            self.counts.push(t.len() as u64);
+        let (image, masks): (Vec<_>, Vec<_>) = tiles.into_iter().unzip();
+        for (t, mask) in image
+            .iter()
+            .map(|t| (t, false))
+            .chain(masks.iter().flatten().map(|t| (t, true)))
+        {
+            let (offsets, counts) = if mask {
+                (&mut self.mask_offsets, &mut self.mask_counts)
+            } else {
+                (&mut self.offsets, &mut self.counts)
+            };
+            offsets.push(self.pos);
+            counts.push(t.len() as u64);
             self.out
                 .writer()
-                .write_all(&t)
+                .write_all(t)
                 .map_err(|e| Error::io(&path, e))?;
             self.pos += t.len() as u64;
         }
@@ -900,7 +1110,14 @@ impl<T: TiffSample> GeoTiffWriter<T> {
             pos += 1;
         }
         let entries = ifd_entries(&self.grid, &self.spec, self.offsets, self.counts, big);
-        let ifd = ifd_bytes(&entries, pos, big);
+        let mut ifd = ifd_bytes(&entries, pos, big, 0);
+        if self.spec.mask {
+            // GDAL finds the mask by scanning the IFDs after the image's: chain it second.
+            let at = pos + ifd.len() as u64;
+            let mask = mask_ifd_entries(&self.grid, self.mask_offsets, self.mask_counts, big);
+            ifd = ifd_bytes(&entries, pos, big, at);
+            ifd.extend(ifd_bytes(&mask, at, big, 0));
+        }
         if !big && pos + ifd.len() as u64 > u32::MAX as u64 {
             return Err(
                 Error::file(&path, "compressed data exceeds the 4 GiB of a classic TIFF")
@@ -934,6 +1151,9 @@ struct Spec {
     rgb: bool,
     /// The last sample is unassociated alpha.
     alpha: bool,
+    /// Each cell arrives with one more byte after its samples (RGBA's alpha) that is written
+    /// not as a sample but as the TIFF internal mask (bit 1 where the byte is not 0).
+    mask: bool,
     /// GDAL_NODATA text.
     nodata: Option<String>,
 }
@@ -947,6 +1167,7 @@ impl Spec {
             float: true,
             rgb: false,
             alpha: false,
+            mask: false,
             nodata: Some(F32_NODATA.to_string()),
         }
     }
@@ -959,6 +1180,20 @@ impl Spec {
             float: false,
             rgb: true,
             alpha: true,
+            mask: false,
+            nodata: None,
+        }
+    }
+
+    /// RGB, the cells' alpha written as the internal mask.
+    fn rgb8_masked() -> Spec {
+        Spec {
+            samples: 3,
+            bytes: 1,
+            float: false,
+            rgb: true,
+            alpha: false,
+            mask: true,
             nodata: None,
         }
     }
@@ -971,12 +1206,19 @@ impl Spec {
             float: false,
             rgb: false,
             alpha: false,
+            mask: false,
             nodata: nodata.map(|v| v.to_string()),
         }
     }
 
+    /// Bytes of a stored pixel.
     fn pixel_bytes(&self) -> usize {
         self.samples as usize * self.bytes as usize
+    }
+
+    /// Bytes of a cell as pushed: the stored pixel and the mask byte, if any.
+    fn cell_bytes(&self) -> usize {
+        self.pixel_bytes() + self.mask as usize
     }
 
     /// Apply the predictor to one row of a tile, in place (TIFF 6 section 14 and Adobe's
@@ -1057,13 +1299,7 @@ fn ifd_entries(
 ) -> Vec<(u16, Field)> {
     let n = spec.samples as usize;
     let long = |v: u64| Field::Long(vec![v as u32]);
-    let chunks = |v: Vec<u64>| {
-        if big {
-            Field::Long8(v)
-        } else {
-            Field::Long(v.into_iter().map(|x| x as u32).collect())
-        }
-    };
+    let chunks = |v| chunk_field(v, big);
     let t = &grid.transform;
     let mut e = vec![
         (256, long(grid.width as u64)),
@@ -1111,8 +1347,52 @@ fn ifd_entries(
     e
 }
 
-/// An IFD placed at file offset `at`, followed by its out-of-line values (word-aligned).
-fn ifd_bytes(entries: &[(u16, Field)], at: u64, big: bool) -> Vec<u8> {
+/// Tile offsets or byte counts: LONG in a classic TIFF, LONG8 in a BigTIFF.
+fn chunk_field(v: Vec<u64>, big: bool) -> Field {
+    if big {
+        Field::Long8(v)
+    } else {
+        Field::Long(v.into_iter().map(|x| x as u32).collect())
+    }
+}
+
+/// The tags of the internal mask's IFD, as GDAL writes them for `GDAL_TIFF_INTERNAL_MASK=YES`:
+/// a transparency mask (NewSubfileType 4; PhotometricInterpretation 4),
+/// 1 bit a cell, tiled like the image, Deflate without predictor, no georeference of its own.
+fn mask_ifd_entries(
+    grid: &Grid,
+    offsets: Vec<u64>,
+    counts: Vec<u64>,
+    big: bool,
+) -> Vec<(u16, Field)> {
+    let long = |v: u64| Field::Long(vec![v as u32]);
+    vec![
+        (254, long(4)), // NewSubfileType: transparency mask
+        (256, long(grid.width as u64)),
+        (257, long(grid.height as u64)),
+        (258, Field::Short(vec![1])),
+        (259, Field::Short(vec![8])), // Deflate
+        (262, Field::Short(vec![4])), // transparency mask
+        (277, Field::Short(vec![1])),
+        (284, Field::Short(vec![1])),
+        (322, long(TILE as u64)),
+        (323, long(TILE as u64)),
+        (324, chunk_field(offsets, big)),
+        (325, chunk_field(counts, big)),
+    ]
+}
+
+/// Deflate (zlib) of one tile's bytes.
+fn deflate(raw: &[u8]) -> Vec<u8> {
+    let mut packed = Vec::with_capacity(raw.len() / 2);
+    // Writing into a Vec cannot fail.
+    let _ = Deflate::with_level(DeflateLevel::Balanced).write_to(&mut packed, raw);
+    packed
+}
+
+/// An IFD placed at file offset `at`, followed by its out-of-line values (word-aligned), that
+/// chains to the IFD at offset `next` (0: none).
+fn ifd_bytes(entries: &[(u16, Field)], at: u64, big: bool, next: u64) -> Vec<u8> {
     let (entry_len, inline) = if big { (20u64, 8usize) } else { (12, 4) };
     let head = if big { 8 } else { 2 };
     let mut data_pos = at + head + entries.len() as u64 * entry_len + inline as u64;
@@ -1147,7 +1427,11 @@ fn ifd_bytes(entries: &[(u16, Field)], at: u64, big: bool) -> Vec<u8> {
             data.extend_from_slice(&bytes);
         }
     }
-    ifd.extend_from_slice(&vec![0u8; inline]); // no next IFD
+    if big {
+        ifd.extend_from_slice(&next.to_le_bytes());
+    } else {
+        ifd.extend_from_slice(&(next as u32).to_le_bytes());
+    }
     ifd.extend_from_slice(&data);
     ifd
 }
@@ -1351,6 +1635,59 @@ mod tests {
         let s = read(&p).unwrap();
         assert_eq!(s.samples, Samples::U8(m.data.clone()));
         assert_eq!(s.nodata, Some(255.0));
+    }
+
+    /// RGB8 with the alpha as internal mask: masked cells read back as nodata whatever their
+    /// RGB (black stays a valid colour), whole or by rows across a tile row, and the mask is the
+    /// second IFD as GDAL expects (NewSubfileType 4, transparency mask, 1 bit).
+    #[test]
+    fn rgb8_masked_round_trips_mask_as_nodata() {
+        let dir = tempfile::tempdir().unwrap();
+        let g = Grid::north_up(500_000.0, 5_000_000.0, 0.5, 300, 270, Crs::epsg(32614));
+        let cells: Vec<[u8; 4]> = (0..g.len())
+            .map(|i| match i % 7 {
+                0 => [(i % 251) as u8, 9, 9, 0],
+                1 => [0, 0, 0, 255],
+                _ => [(i % 251) as u8, (i % 13) as u8, 7, 255],
+            })
+            .collect();
+        let p = dir.path().join("c.tif");
+        let mut w = GeoTiffWriter::create_rgb8_masked(&p, &g).unwrap();
+        for band in cells.chunks(300 * 100) {
+            w.push_rows(band).unwrap();
+        }
+        w.finish().unwrap();
+        let want: Vec<[u8; 4]> = cells
+            .iter()
+            .map(|&[r, g, b, a]| {
+                if a == 0 {
+                    NODATA_COLOUR
+                } else {
+                    [r, g, b, 255]
+                }
+            })
+            .collect();
+        let s = read(&p).unwrap();
+        assert_eq!((s.bands, s.alpha_band, &s.grid), (4, Some(3), &g));
+        assert_eq!(s.to_colour().unwrap().data, want);
+        let rows = read_rows(&p, 250..262).unwrap();
+        assert_eq!(rows.to_colour().unwrap().data, want[250 * 300..262 * 300]);
+
+        let again = dir.path().join("again.tif");
+        let mut w = GeoTiffWriter::create_rgb8_masked(&again, &g).unwrap();
+        w.push_rows(&cells).unwrap();
+        w.finish().unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&again).unwrap());
+
+        let mut dec = Decoder::new(std::fs::File::open(&p).unwrap()).unwrap();
+        let tag = |dec: &mut Decoder<_>, t| dec.find_tag_unsigned::<u32>(t).unwrap();
+        assert_eq!(tag(&mut dec, Tag::SamplesPerPixel), Some(3));
+        assert_eq!(tag(&mut dec, Tag::PhotometricInterpretation), Some(2));
+        dec.next_image().unwrap();
+        assert_eq!(tag(&mut dec, Tag::NewSubfileType), Some(4));
+        assert_eq!(tag(&mut dec, Tag::PhotometricInterpretation), Some(4));
+        assert_eq!(tag(&mut dec, Tag::BitsPerSample), Some(1));
+        assert!(!dec.more_images());
     }
 
     #[test]
