@@ -359,8 +359,45 @@ fn export_levels_are_georeferenced_geotiffs() {
             );
             assert_eq!(info["size"], json!([38, 28]));
         }
-        _ => eprintln!("skipped: gdalinfo not found"),
+        _ => {
+            eprintln!("skipped: gdalinfo not found");
+            return;
+        }
     }
+    // The colour is RGB with an internal mask: GDAL sees three bands sharing a per-dataset mask,
+    // and the mask it extracts is 0 exactly on the tiles' nodata cells.
+    let colour = exp.join("level0_colour.tif");
+    let o = Command::new("gdalinfo")
+        .arg("-json")
+        .arg(&colour)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let info: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let bands = info["bands"].as_array().unwrap();
+    let interp: Vec<_> = bands.iter().map(|b| &b["colorInterpretation"]).collect();
+    assert_eq!(interp, [&json!("Red"), &json!("Green"), &json!("Blue")]);
+    for b in bands {
+        assert_eq!(b["mask"]["flags"], json!(["PER_DATASET"]), "{b}");
+    }
+    let mask = dir.path().join("mask.tif");
+    let o = Command::new("gdal_translate")
+        .args(["-q", "-b", "mask"])
+        .args([&colour, &mask])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mask = dbms::io::read_raster(&mask).unwrap();
+    let mut nodata = 0;
+    for row in 0..H {
+        for col in 0..W {
+            let valid = r.cell(0, col, row).unwrap().unwrap().colour[3] != 0;
+            nodata += usize::from(!valid);
+            let m = mask.sample(row * W + col, 0);
+            assert_eq!(m, if valid { 255.0 } else { 0.0 }, "({col}, {row})");
+        }
+    }
+    assert!(nodata > 0, "the database has nodata cells");
 }
 
 /// Bands of the layers are read one page-row at a time: a page-row that is all nodata (a void

@@ -1,12 +1,13 @@
 //! Every level as GeoTIFF (`--export-levels DIR`), streamed while the pyramid is built.
 //!
 //! Invariant: `level<N>_maxz.tif` and `level<N>_colour.tif` hold exactly the cells of level N's
-//! pages (padding dropped), on the level's own grid — the database's corner, cell size `c · f^N`
-//! — so they line up with the database in any GIS. Pages are copied into their level's current
-//! page-row; when the cascade reports the page-row complete, its rows go to the GeoTIFF writers
-//! and the buffer is reused. Memory per level of width `Wk`: one page-row (`P · Wk` cells) plus
-//! the writers' tile row (256 rows), 8 bytes a cell each — about `8 · (P + 256) · W · f / (f − 1)`
-//! bytes in all (22 MB for W = 8192, P = 256, f = 4), whatever the grid's height.
+//! pages (padding dropped; the colour's alpha, 0 or 255, as the RGB file's internal mask), on
+//! the level's own grid — the database's corner, cell size `c · f^N` — so they line up with the
+//! database in any GIS. Pages are copied into their level's current page-row; when the cascade
+//! reports the page-row complete, its rows go to the GeoTIFF writers and the buffer is reused.
+//! Memory per level of width `Wk`: one page-row (`P · Wk` cells) plus the writers' tile row
+//! (256 rows), 8 bytes a cell each — about `8 · (P + 256) · W · f / (f − 1)` bytes in all
+//! (22 MB for W = 8192, P = 256, f = 4), whatever the grid's height.
 
 use crate::error::{Error, Result};
 use crate::io::geotiff::GeoTiffWriter;
@@ -33,8 +34,8 @@ struct LevelOut {
 }
 
 impl LevelExporter {
-    /// Start `level<N>_maxz.tif` (float32, nodata −9999) and `level<N>_colour.tif` (RGBA8,
-    /// alpha = mask) for every level of `info` in `dir` (created if missing). Nothing appears
+    /// Start `level<N>_maxz.tif` (float32, nodata −9999) and `level<N>_colour.tif` (RGB8 with a
+    /// TIFF internal mask from the alpha: 0 = nodata) for every level of `info` in `dir` (created if missing). Nothing appears
     /// in `dir` until [`finish`](Self::finish).
     pub fn create(info: &TileSetInfo, dir: &Path) -> Result<LevelExporter> {
         std::fs::create_dir_all(dir)
@@ -48,7 +49,7 @@ impl LevelExporter {
                     colour: Vec::new(),
                     pages: 0,
                     z_file: GeoTiffWriter::create_f32(&z, &g)?,
-                    colour_file: GeoTiffWriter::create_rgba8(&c, &g)?,
+                    colour_file: GeoTiffWriter::create_rgb8_masked(&c, &g)?,
                 }))
             })
             .collect::<Result<_>>()?;
@@ -174,6 +175,11 @@ mod tests {
             let c = geotiff::read(&out.join(format!("level{k}_colour.tif"))).unwrap();
             let g = info.level_grid(k);
             assert_eq!((&z.grid, &c.grid), (&g, &g), "level {k} grid");
+            assert_eq!(
+                (c.bands, c.alpha_band),
+                (4, Some(3)),
+                "level {k}: the mask is alpha"
+            );
             let (Samples::F32(z), Samples::U8(c)) = (z.samples, c.samples) else {
                 panic!("level {k}: unexpected sample types");
             };
