@@ -5,7 +5,7 @@
 //! order); layouts it does not accept (other compressions, float16, sub-byte samples, mixed
 //! sample formats) return `None` from [`plan`] and are left to the `tiff` crate. Each chunk's
 //! compressed bytes are read by offset and byte count (positioned reads, no shared cursor),
-//! inflated (Deflate by `zune-inflate`, adler-32 checked; LZW by `weezl`) and un-predicted on a
+//! inflated (Deflate by libdeflate, adler-32 checked; LZW by `weezl`) and un-predicted on a
 //! rayon thread, then copied into the image.
 
 use crate::error::{Error, Result};
@@ -347,6 +347,22 @@ fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> 
     Ok(out)
 }
 
+thread_local! {
+    /// libdeflate's decompressor, one per thread (it keeps its tables between calls).
+    static INFLATER: std::cell::RefCell<libdeflater::Decompressor> =
+        std::cell::RefCell::new(libdeflater::Decompressor::new());
+}
+
+/// Inflate a zlib stream (TIFF's Deflate, adler-32 checked) of at most `limit` bytes; `Err`
+/// says what is wrong with the data (a longer stream is refused as corrupt).
+pub(crate) fn inflate_zlib(stored: &[u8], limit: usize) -> std::result::Result<Vec<u8>, String> {
+    let mut raw = vec![0u8; limit];
+    let n = INFLATER.with(|d| d.borrow_mut().zlib_decompress(stored, &mut raw));
+    let n = n.map_err(|e| format!("Deflate data: {e}"))?;
+    raw.truncate(n);
+    Ok(raw)
+}
+
 /// One stored row of a chunk (`chunk_w` pixels, inflated, bytes already un-differenced for the
 /// floating-point predictor) as words into `out`, its first `out.len()` samples (fewer than the
 /// chunk's when the chunk overhangs the image's right edge; `scratch` holds the whole row then).
@@ -408,14 +424,9 @@ fn chunk_bytes(
         })?;
     let mut raw = match plan.codec {
         Codec::None => stored,
-        Codec::Deflate => {
-            let opts = zune_inflate::DeflateOptions::default()
-                .set_limit(2 * whole + 4096)
-                .set_size_hint(want);
-            zune_inflate::DeflateDecoder::new_with_options(&stored, opts)
-                .decode_zlib()
-                .map_err(|e| corrupt(format!("Deflate data: {e:?}")))?
-        }
+        // A stream may hold more than the rows wanted (a whole tile), never more than the
+        // whole chunk: anything longer is corrupt.
+        Codec::Deflate => inflate_zlib(&stored, whole).map_err(corrupt)?,
         Codec::Lzw => weezl::decode::Decoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8)
             .decode(&stored)
             .map_err(|e| corrupt(format!("LZW data: {e}")))?,

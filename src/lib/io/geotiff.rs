@@ -391,12 +391,8 @@ fn read_mask<R: std::io::Read + Seek>(
                 5 => weezl::decode::Decoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8)
                     .decode(&stored)
                     .map_err(|e| bad(format!("chunk {i}: LZW data: {e}")))?,
-                _ => zune_inflate::DeflateDecoder::new_with_options(
-                    &stored,
-                    zune_inflate::DeflateOptions::default().set_limit(2 * want + 4096),
-                )
-                .decode_zlib()
-                .map_err(|e| bad(format!("chunk {i}: Deflate data: {e:?}")))?,
+                _ => super::chunks::inflate_zlib(&stored, want)
+                    .map_err(|e| bad(format!("chunk {i}: {e}")))?,
             };
             for y in (cy * ch).max(rows.start)..((cy + 1) * ch).min(rows.end) {
                 let src = (y - cy * ch) * row_bytes;
