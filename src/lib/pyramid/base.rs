@@ -283,9 +283,10 @@ mod tests {
         );
         let all = block.union(&objects, &t);
         let sun = crate::shadow::Sun::new(20.0, 90.0).unwrap();
-        let fx = crate::pyramid::shade::prepare(Some(sun), None, 0.5, &t, &block, &objects, &all)
-            .unwrap()
-            .unwrap();
+        let fx =
+            crate::pyramid::shade::prepare(Some(sun), None, 0.5, &t, &c, &block, &objects, &all)
+                .unwrap()
+                .unwrap();
         let l0 = Level0::new(&t, &c, &all, Some(&fx));
         let band = l0.band(0, 12).unwrap();
         assert_eq!(band.columns.len(), 6);

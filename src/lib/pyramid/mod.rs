@@ -174,6 +174,7 @@ pub fn build_pyramid(
         photo_sun,
         opts.shadow_factor,
         &terrain,
+        &colour,
         &buildings,
         &objects,
         &all,

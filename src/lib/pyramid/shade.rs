@@ -14,8 +14,11 @@
 //! * the photo's own sun → terrain and roofs keep `I_new / I_photo = 1` (the photo holds their
 //!   shading and shadows; nothing is computed for them), walls and objects are shaded and
 //!   objects' new shadows darken what they fall on;
-//! * a different sun → the photo's shadows (cast over terrain + buildings for the photo's sun)
-//!   are brightened by `1 / F`, the new ones darkened by `F`, slopes re-shaded.
+//! * a different sun → the photo's shadows are brightened by `1 / F` — on the ground those
+//!   detected in the photo itself ([`detected`]: shadows of things the database does not hold
+//!   are there too, and a cast from a height slightly off is not), on raised roofs those cast
+//!   over terrain + buildings for the photo's sun — the new ones darkened by `F`, slopes
+//!   re-shaded.
 //!
 //! Normals are central differences of the heights (one-sided at edges, nodata and class
 //! boundaries: terrain, building and object cells only use neighbours of their own class, so a
@@ -29,10 +32,12 @@
 //! terrain with the raised cells laid over it, built for a band of rows with a one-row apron
 //! (normals need the rows either side), and the cast shadows are kept as one bit per cell, cast
 //! with [`RowSweep`] from bands read in the sun's order. Memory: 2 bits a cell for the two
-//! masks, plus a few bands of `BAND_CELLS` cells.
+//! masks (3 with the detected one), plus a few bands of `BAND_CELLS` cells.
+
+mod detected;
 
 use super::raised::Raised;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::raster::RowSource;
 use crate::shadow::{RowSweep, Sun, SHADOW};
 use rayon::prelude::*;
@@ -78,7 +83,11 @@ pub struct Effects<'a> {
     /// The photo's surface (terrain + buildings) differs from the new one and is shaded apart.
     photo_apart: bool,
     new_shadow: Option<ShadowBits>,
+    /// The cast for the photo's sun (over the surface the photo saw).
     photo_shadow: Option<ShadowBits>,
+    /// The photo's shadows as the photo shows them ([`detected`]): with a different sun, what
+    /// is compensated on the ground instead of `photo_shadow`.
+    detected: Option<ShadowBits>,
     /// Raised cells with an exposed vertical face.
     wall_cells: usize,
     lambert: bool,
@@ -86,17 +95,29 @@ pub struct Effects<'a> {
 }
 
 /// Does a sun need effects at all? `sun: None` → nothing (no work).
-/// `photo_sun` is the orthophoto's own sun when the database records it.
+/// `photo_sun` is the orthophoto's own sun when the database records it; `colour` is the
+/// orthophoto on the terrain's grid, read (twice, band by band) only when the two suns differ,
+/// to detect the photo's shadows.
+#[allow(clippy::too_many_arguments)]
 pub fn prepare<'a>(
     sun: Option<Sun>,
     photo_sun: Option<Sun>,
     shadow_factor: f64,
     terrain: &'a dyn RowSource<f32>,
+    colour: &dyn RowSource<[u8; 4]>,
     buildings: &'a Raised,
     objects: &'a Raised,
     all: &'a Raised,
 ) -> Result<Option<Effects<'a>>> {
     let Some(sun) = sun else { return Ok(None) };
+    let (g, gc) = (terrain.grid(), colour.grid());
+    if (gc.width, gc.height) != (g.width, g.height) {
+        return Err(Error::msg(format!(
+            "the colour layer is {} × {} cells, the elevation {} × {}",
+            gc.width, gc.height, g.width, g.height
+        ))
+        .fix("both layers must be on the database grid: run dbms ingest again"));
+    }
     let same_sun = photo_sun.is_some_and(|p| same(&p, &sun));
     let nothing_unseen = buildings.is_empty() && objects.is_empty();
     if same_sun && nothing_unseen {
@@ -115,11 +136,20 @@ pub fn prepare<'a>(
         },
     );
     let (new_shadow, photo_shadow) = (Some(new_shadow?), photo_shadow?);
+    // A different sun: the photo's shadows on the ground are found in the photo itself.
+    let detected = match photo_sun.is_some() && !same_sun {
+        true => Some(detected::detect(colour, buildings)?),
+        false => None,
+    };
     let mut applied = Vec::new();
     if !same_sun {
         applied.extend(["cast_shadows", "terrain_lambert"]);
         if photo_sun.is_some() {
-            applied.extend(["photo_shadow_compensation", "photo_shading_compensation"]);
+            applied.extend([
+                "photo_shadow_detection",
+                "photo_shadow_compensation",
+                "photo_shading_compensation",
+            ]);
         }
     } else if !objects.is_empty() {
         applied.push("object_shadows");
@@ -143,6 +173,7 @@ pub fn prepare<'a>(
         photo_apart,
         new_shadow,
         photo_shadow,
+        detected,
         wall_cells: 0,
         lambert: !same_sun,
         applied,
@@ -300,6 +331,7 @@ impl Effects<'_> {
             "applied": self.applied,
             "shadow_cells": self.new_shadow.as_ref().map(ShadowBits::count),
             "photo_shadow_cells": self.photo_shadow.as_ref().map(ShadowBits::count),
+            "detected_photo_shadow_cells": self.detected.as_ref().map(ShadowBits::count),
             "wall_cells": self.wall_cells,
         })
     }
@@ -388,9 +420,12 @@ impl Effects<'_> {
         let i = self.terrain.grid().index(col, row);
         let class = surface.class(col, row);
         let shadow_new = self.new_shadow.as_ref().is_some_and(|m| m.get(i));
-        let shadow_photo = match &self.photo_shadow {
-            Some(m) => m.get(i),
-            None => self.same_sun && shadow_new,
+        // The photo's shadow: on the ground as detected in the photo when the sun differs; on
+        // roofs (never judged by the detector) and for the same sun, the cast for its sun.
+        let shadow_photo = match (&self.detected, &self.photo_shadow) {
+            (Some(d), _) if class != BUILDING => d.get(i),
+            (_, Some(m)) => m.get(i),
+            (_, None) => self.same_sun && shadow_new,
         };
         let faces = if class == TERRAIN {
             Vec::new()
@@ -514,12 +549,17 @@ mod tests {
     use crate::crs::Crs;
     use crate::grid::Grid;
     use crate::pyramid::raised::{rasterise_prisms, Prism, RaisedCell};
-    use crate::raster::Elevation;
+    use crate::raster::{Colour, Elevation};
 
     fn terrain(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Elevation {
         let g = Grid::north_up(0.0, h as f64, 1.0, w, h, Crs::unknown());
         let data = (0..w * h).map(|i| f(i % w, i / w)).collect();
         Elevation::new(g, data)
+    }
+
+    /// An evenly lit orthophoto on the terrain's grid.
+    fn plain(t: &Elevation) -> Colour {
+        Colour::filled(t.grid.clone(), [120, 120, 120, 255])
     }
 
     fn sun(e: f64, a: f64) -> Sun {
@@ -535,12 +575,25 @@ mod tests {
     #[test]
     fn no_sun_prepares_nothing() {
         let t = terrain(8, 8, |c, _| c as f32);
-        assert!(prepare(None, None, 0.5, &t, none(), none(), none())
-            .unwrap()
-            .is_none());
+        assert!(
+            prepare(None, None, 0.5, &t, &plain(&t), none(), none(), none())
+                .unwrap()
+                .is_none()
+        );
         let r = record_none(None, None, 0.5);
         assert_eq!(r["applied"], json!([]));
         assert!(r["sun"].is_null());
+    }
+
+    #[test]
+    fn a_colour_layer_on_another_grid_is_an_error() {
+        let t = terrain(8, 8, |_, _| 0.0);
+        let c = plain(&terrain(8, 7, |_, _| 0.0));
+        let s = Some(sun(30.0, 90.0));
+        let e = prepare(s, s, 0.5, &t, &c, none(), none(), none())
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("8 × 7"), "{e}");
     }
 
     #[test]
@@ -551,6 +604,7 @@ mod tests {
             None,
             0.5,
             &t,
+            &plain(&t),
             none(),
             none(),
             none(),
@@ -567,9 +621,18 @@ mod tests {
     fn slopes_facing_the_sun_brighten_and_facing_away_darken() {
         // Ridge along north-south at column 5: west side rises eastward, east side falls.
         let t = terrain(11, 5, |c, _| 10.0 - (c as f32 - 5.0).abs() * 0.3);
-        let fx = prepare(Some(sun(40.0, 90.0)), None, 0.4, &t, none(), none(), none())
-            .unwrap()
-            .unwrap();
+        let fx = prepare(
+            Some(sun(40.0, 90.0)),
+            None,
+            0.4,
+            &t,
+            &plain(&t),
+            none(),
+            none(),
+            none(),
+        )
+        .unwrap()
+        .unwrap();
         assert!(
             fx.factor_at(8, 2).unwrap() > 1.0,
             "east slope faces the eastern sun"
@@ -594,6 +657,7 @@ mod tests {
             None,
             0.5,
             &t,
+            &plain(&t),
             none(),
             none(),
             none(),
@@ -621,10 +685,19 @@ mod tests {
         let (t, b) = building_scene();
         let s = sun(35.0, 90.0);
         // Nothing raised: nothing at all to do.
-        assert!(prepare(Some(s), Some(s), 0.5, &t, none(), none(), none())
-            .unwrap()
-            .is_none());
-        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, none(), &b)
+        assert!(prepare(
+            Some(s),
+            Some(s),
+            0.5,
+            &t,
+            &plain(&t),
+            none(),
+            none(),
+            none()
+        )
+        .unwrap()
+        .is_none());
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), &b, none(), &b)
             .unwrap()
             .unwrap();
         assert_eq!(fx.record()["applied"], json!(["wall_shading"]));
@@ -653,7 +726,7 @@ mod tests {
         both.extend(o.cells());
         let all = Raised::new(both, &t);
         let s = sun(45.0, 90.0);
-        let fx = prepare(Some(s), Some(s), 0.5, &t, &b, &o, &all)
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), &b, &o, &all)
             .unwrap()
             .unwrap();
         assert_eq!(
@@ -676,11 +749,27 @@ mod tests {
         assert!((fx.factor_at(3, 15).unwrap() - 0.5).abs() < 1e-9);
     }
 
+    /// An orthophoto of textured ground (index 90–130) taken under `photo_sun`: the cells in the
+    /// cast shadow of the terrain with `seen` laid over it are darkened by `f`.
+    fn photo_of(t: &Elevation, seen: &Raised, photo_sun: &Sun, f: f64) -> Colour {
+        let shadow = ShadowBits::cast(t, seen, photo_sun).unwrap();
+        let data = (0..t.grid.len())
+            .map(|i| {
+                let v = 90.0 + ((i * 7919) % 41) as f64;
+                let k = if shadow.get(i) { f } else { 1.0 };
+                let c = (v * k).round() as u8;
+                [c, c, c, 255]
+            })
+            .collect();
+        Colour::new(t.grid.clone(), data)
+    }
+
     #[test]
     fn a_different_sun_compensates_the_photos_shadows_and_casts_new_ones() {
         let (t, b) = building_scene();
         let (photo, now) = (sun(35.0, 90.0), sun(35.0, 270.0));
-        let fx = prepare(Some(now), Some(photo), 0.5, &t, &b, none(), &b)
+        let ortho = photo_of(&t, &b, &photo, 0.5);
+        let fx = prepare(Some(now), Some(photo), 0.5, &t, &ortho, &b, none(), &b)
             .unwrap()
             .unwrap();
         let applied = fx.record()["applied"].clone();
@@ -696,5 +785,53 @@ mod tests {
         // East of it: lit in the photo, shadowed now → × F.
         assert!((fx.factor_at(13, 10).unwrap() - 0.5).abs() < 1e-12);
         assert_eq!(fx.factor_at(2, 2).unwrap(), 1.0);
+    }
+
+    #[test]
+    fn a_different_sun_compensates_the_shadows_detected_in_the_photo_not_the_cast() {
+        // Flat ground, 96 × 96 cells of 1 m; photo sun in the east at 35°, new sun in the west.
+        let t = terrain(96, 96, |_, _| 0.0);
+        let (photo, now) = (sun(35.0, 90.0), sun(35.0, 270.0));
+        let prism = |x0: f64, y0: f64, roof_z: f64| Prism {
+            rings: vec![vec![
+                (x0, y0),
+                (x0 + 6.0, y0),
+                (x0 + 6.0, y0 + 6.0),
+                (x0, y0 + 6.0),
+            ]],
+            roof_z,
+        };
+        // The photo saw two 5 m blocks: one the database does not hold (unmeasured, a tree…),
+        // one it holds 12 m tall (a height measured wrong), so its cast reaches too far west.
+        let (missing, wrong) = (prism(60.0, 60.0, 5.0), prism(60.0, 20.0, 5.0));
+        let seen = Raised::new(rasterise_prisms(&t.grid, &[missing, wrong.clone()]), &t);
+        let ortho = photo_of(&t, &seen, &photo, 0.5);
+        let db = Raised::new(
+            rasterise_prisms(
+                &t.grid,
+                &[Prism {
+                    roof_z: 12.0,
+                    ..wrong
+                }],
+            ),
+            &t,
+        );
+        let fx = prepare(Some(now), Some(photo), 0.5, &t, &ortho, &db, none(), &db)
+            .unwrap()
+            .unwrap();
+        let r = fx.record();
+        assert!(r["applied"]
+            .as_array()
+            .unwrap()
+            .contains(&json!("photo_shadow_detection")));
+        // The photo's shadows, 7 cells west of each block (5 m at 35°) on 6 rows, are found.
+        assert_eq!(r["detected_photo_shadow_cells"], json!(84), "{r}");
+        // West of the block the database lacks: dark in the photo, lit now → × 1/F.
+        assert!((fx.factor_at(57, 33).unwrap() - 2.0).abs() < 1e-12);
+        // 12 m cast west of the wrong block: 17 cells; beyond the photo's 7 the ground was lit
+        // and stays lit → unchanged (a cast-only compensation brightened it × 1/F).
+        assert_eq!(fx.factor_at(45, 73).unwrap(), 1.0);
+        // Within the photo's shadow of that block: compensated.
+        assert!((fx.factor_at(57, 73).unwrap() - 2.0).abs() < 1e-12);
     }
 }

@@ -34,11 +34,26 @@ pub fn shadow_index(rgb: [u8; 4]) -> f64 {
 /// [`MIN_DARK_FRACTION`] of all cells.
 pub fn otsu_threshold(indices: impl Iterator<Item = f64>) -> Option<f64> {
     let mut hist = [0u64; 256];
-    let mut n = 0u64;
     for v in indices {
-        hist[(v.round() as usize).min(255)] += 1;
-        n += 1;
+        hist[index_bin(v)] += 1;
     }
+    otsu_threshold_of(&hist, 1.0)
+}
+
+/// The histogram bin of a shadow index: the index rounded, at most 255 (what
+/// [`otsu_threshold`] counts; for callers that build the histogram themselves).
+pub fn index_bin(index: f64) -> usize {
+    (index.round() as usize).min(255)
+}
+
+/// [`otsu_threshold`] over a histogram of shadow indices already counted (bin `k` holds the
+/// cells whose [`index_bin`] is `k`), with the dark class held to at most `max_dark_fraction`
+/// of the cells: a clear split with a bigger dark side is retried on its dark side, like an
+/// unclear one. With 1 it is [`otsu_threshold`]'s threshold. Below 1 it finds shadow under a
+/// bright third class: light roofs over grass split as roof versus ground (ratio ~0.55, clear),
+/// putting the ground in the dark class; the ground is most of the cells, the shadow is not.
+pub fn otsu_threshold_of(hist: &[u64; 256], max_dark_fraction: f64) -> Option<f64> {
+    let n: u64 = hist.iter().sum();
     if n < 16 {
         return None;
     }
@@ -50,7 +65,7 @@ pub fn otsu_threshold(indices: impl Iterator<Item = f64>) -> Option<f64> {
         if (dark as f64) < min_dark {
             return None;
         }
-        if m0 < MAX_DARK_RATIO * m1 {
+        if m0 < MAX_DARK_RATIO * m1 && dark as f64 <= max_dark_fraction * n as f64 {
             return Some(split as f64 + 0.5);
         }
         top = split + 1;
@@ -129,5 +144,26 @@ mod tests {
         assert!(t > 44.0 && t < 85.0, "{t}");
         // The same ground without the shadow: no shadow class, however deep the retry goes.
         assert_eq!(otsu_threshold((0..10_000).map(ground)), None);
+    }
+
+    #[test]
+    fn a_bright_third_class_is_passed_over_when_the_dark_class_must_be_a_minority() {
+        // 60 % grass (85–95), 35 % light roofs (165–175), 5 % shadow (36–42).
+        let mut hist = [0u64; 256];
+        for i in 0..10_000usize {
+            let v = match i % 20 {
+                0 => 36 + (i / 20) % 7,
+                1..=7 => 165 + i % 11,
+                _ => 85 + i % 11,
+            };
+            hist[v] += 1;
+        }
+        let all = otsu_threshold_of(&hist, 1.0).unwrap();
+        assert!(
+            all > 95.0 && all < 165.0,
+            "roofs split from the grass: {all}"
+        );
+        let t = otsu_threshold_of(&hist, 0.5).unwrap();
+        assert!(t > 42.0 && t < 85.0, "{t}");
     }
 }
