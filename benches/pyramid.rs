@@ -4,9 +4,9 @@
 //! `DBMS_BENCH_DIR`, default a temporary one). Steps:
 //! 1. generate a W×W database (rolling terrain with nodata holes, a textured colour layer) with
 //!    the library's GeoTIFF writers — not timed;
-//! 2. ours: the pyramid (factor 4, pages of 256, no sun) from the database's GeoTIFFs to the
-//!    tile file, in a child process (this bench re-run with `--child`) that reads its own peak
-//!    resident memory (`VmHWM` in /proc/self/status);
+//! 2. ours: `dbms pyramid` (the release binary, as a modeller runs it: factor 4, pages of 256, no
+//!    sun) from the database's GeoTIFFs to the tile file, under `/usr/bin/time` for its peak
+//!    memory, its `--json` summary giving the time of each step;
 //! 3. GDAL, when `gdalwarp` is on PATH: the same max-Z levels with `gdalwarp -r max -tr`, each
 //!    level from the previous, and the average-colour levels with `gdaladdo -r average 4 16 64`
 //!    (both multi-threaded), each run under `/usr/bin/time` for its peak memory;
@@ -17,8 +17,6 @@
 use dbms::crs::Crs;
 use dbms::db::{Database, Stage};
 use dbms::grid::Grid;
-use dbms::progress::Progress;
-use dbms::pyramid::{build_pyramid, PyramidOptions};
 use dbms::raster::{Colour, Elevation};
 use dbms::tiles::TileReader;
 use rayon::prelude::*;
@@ -27,11 +25,6 @@ use std::process::Command;
 use std::time::Instant;
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    if let Some(i) = args.iter().position(|a| a == "--child") {
-        child(Path::new(&args[i + 1]), Path::new(&args[i + 2]));
-        return;
-    }
     let size: usize = std::env::var("DBMS_BENCH_SIZE")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -74,7 +67,7 @@ fn main() {
         for (k, c) in cell.iter().enumerate().skip(1) {
             let out = work.join(format!("gdal_level{k}_maxz.tif"));
             let _ = std::fs::remove_file(&out);
-            let (s, kb) = timed(
+            let (s, kb, _) = timed(
                 Command::new("gdalwarp")
                     .args([
                         "-q",
@@ -104,7 +97,7 @@ fn main() {
         }
         let colour = work.join("gdal_colour.tif");
         std::fs::copy(db_dir.join("colour.tif"), &colour).expect("copy colour");
-        let (s, kb) = timed(
+        let (s, kb, _) = timed(
             Command::new("gdaladdo")
                 .args([
                     "-q",
@@ -137,53 +130,28 @@ fn main() {
     }
 }
 
-/// The child: build the pyramid and report seconds and peak resident memory (kB).
-fn child(db_dir: &Path, tiles: &Path) {
-    let mut db = Database::open(db_dir).expect("open bench database");
-    let t = Instant::now();
-    let summary = build_pyramid(
-        &mut db,
-        tiles,
-        &PyramidOptions::default(),
-        &Progress::hidden(),
-    )
-    .expect("pyramid");
-    let secs = t.elapsed().as_secs_f64();
-    let s = summary.seconds;
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let hwm = status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .unwrap_or("0");
-    println!(
-        "{secs} {hwm} {} {} {} {}",
-        s.read, s.prepare, s.levels, s.finish
-    );
-}
-
+/// Ours as a modeller runs it: the `dbms pyramid` command (release build) on the database,
+/// under `/usr/bin/time` for its peak memory; its `--json` summary gives the steps' seconds.
 fn run_ours(db_dir: &Path, tiles: &Path) -> (f64, u64, Vec<f64>) {
-    let exe = std::env::current_exe().expect("bench executable");
-    let o = Command::new(exe)
-        .arg("--child")
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_dbms"));
+    cmd.arg("--quiet")
+        .arg("--json")
+        .arg("pyramid")
+        .arg("--db")
         .arg(db_dir)
-        .arg(tiles)
-        .output()
-        .expect("run child");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = String::from_utf8_lossy(&o.stdout);
-    let mut it = text.split_whitespace();
-    let secs: f64 = it
-        .next()
-        .and_then(|s| s.parse().ok())
-        .expect("child seconds");
-    let kb: u64 = it.next().and_then(|s| s.parse().ok()).expect("child VmHWM");
-    let steps = it.map(|s| s.parse().expect("child step seconds")).collect();
-    (secs, kb, steps)
+        .arg("-o")
+        .arg(tiles);
+    let (secs, kb, stdout) = timed(&mut cmd);
+    let summary: serde_json::Value = serde_json::from_str(&stdout).expect("dbms --json summary");
+    let steps = ["read", "prepare", "levels", "finish"]
+        .iter()
+        .map(|k| summary["seconds"][k].as_f64().expect("step seconds"))
+        .collect();
+    (secs, kb.unwrap_or(0), steps)
 }
 
-/// Run a command, returning wall seconds and (under /usr/bin/time) peak resident kB.
-fn timed(cmd: &mut Command) -> (f64, Option<u64>) {
+/// Run a command, returning wall seconds, (under /usr/bin/time) peak resident kB, and stdout.
+fn timed(cmd: &mut Command) -> (f64, Option<u64>, String) {
     let have_time = Path::new("/usr/bin/time").exists();
     let t = Instant::now();
     let o = if have_time {
@@ -212,7 +180,7 @@ fn timed(cmd: &mut Command) -> (f64, Option<u64>) {
                 .and_then(|l| l.trim().parse().ok())
         })
         .flatten();
-    (secs, kb)
+    (secs, kb, String::from_utf8_lossy(&o.stdout).into_owned())
 }
 
 fn which(tool: &str) -> bool {
