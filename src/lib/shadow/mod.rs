@@ -4,10 +4,11 @@
 //! The surface of each cell is the point at its centre, at its height. A valid cell is **in
 //! shadow** when the ray from its centre toward the sun passes below the surface of another valid
 //! cell it crosses: the ray is compared with that cell's height where it comes nearest to the
-//! cell's centre (for rays along a grid axis: at whole cell distances). This is the rule GRASS
-//! `r.sunmask` samples (see docs/shadows.md): on smooth terrain a slope facing away from the sun
-//! is shadowed only when it is steeper than the sun, and a vertical step of height `h` shades
-//! the cells whose centres are closer than `h / tan(elevation)` to the step's top cell. Nodata
+//! cell's centre (for rays along a grid axis: at whole cell distances). GRASS `r.sunmask`
+//! samples the same surface at slightly different distances (see below and docs/shadows.md).
+//! On smooth terrain a slope facing away from the sun is shadowed only when it is steeper than
+//! the sun, and a vertical step of height `h` shades the cells whose centres are closer than
+//! `h / tan(elevation)` to the step's top cell. Nodata
 //! cells (NaN) cast no shadow, are not shadowed, and are marked [`NODATA`]; rays cross them.
 //! Cells outside the grid cast nothing.
 //!
@@ -27,15 +28,22 @@
 //!   (Amanatides–Woo traversal; a ray through a cell corner steps diagonally and touches neither
 //!   side cell). O(n · shadow length); used by tests and benchmarks to check the sweep.
 //!
+//! And GRASS `r.sunmask`'s rule, [`cast_shadows_sunmask`]: the same surface, but each step of a
+//! ray compares the height of the cell *containing* the step point at the *step's* distance, a
+//! bias toward shadow off the axes. It reproduces GRASS's masks cell for cell, for comparisons
+//! and for modellers who must match GRASS; the casts above stay the default.
+//!
 //! Units: heights in metres; cell sizes from the grid, in metres (a geographic grid is rejected;
 //! non-square cells are allowed); sun angles in degrees, azimuth clockwise from north toward the
 //! sun, elevation above the horizon in (0, 90]. A sun at or below the horizon is an error: the
 //! whole grid would be in night shadow, which is almost always a wrong `--time`.
 
 mod reference;
+mod sunmask;
 mod sweep;
 
 pub use reference::cast_shadows_reference;
+pub use sunmask::{cast_shadows_sunmask, cast_shadows_sunmask_slice};
 pub use sweep::RowSweep;
 
 use crate::error::{Error, Result};

@@ -124,19 +124,60 @@ impl RowSweep {
     /// # Panics
     /// When every row has been pushed already, or on slices not `width` long.
     pub fn push(&mut self, heights: &[f32], mask: &mut [u8]) {
+        self.push_with(heights, mask, step);
+    }
+
+    /// Like [`push`](Self::push), but each cell receives its shadow horizon instead of a mask
+    /// value: the height in metres the ray from its centre must clear,
+    /// `max over the cells k steps ahead on its line (z_k − k · rise)`, `−inf` when nothing
+    /// ahead is valid (and at the zenith). A valid cell is shadowed exactly when its height is
+    /// below it. Same panics.
+    pub(crate) fn push_horizons(&mut self, heights: &[f32], horizons: &mut [f64]) {
+        self.push_with(heights, horizons, |h, z, rise| {
+            let before = *h;
+            step(h, z, rise);
+            before
+        });
+    }
+
+    /// Rise of the ray toward the sun per frame row, metres (0 at the zenith): where a cell
+    /// sits along its row moves its distance to another row by at most half of this.
+    pub(crate) fn rise(&self) -> f64 {
+        if self.overhead {
+            0.0
+        } else {
+            self.rise
+        }
+    }
+
+    /// Frame rows are grid columns: the lines run nearer east–west, so they drift across rows.
+    pub(crate) fn transposed(&self) -> bool {
+        self.transposed
+    }
+
+    /// The walk behind [`push`](Self::push): `cell(horizon, z, rise)` gives a cell's output and
+    /// moves its line's horizon on to the next cell.
+    fn push_with<T: Send>(
+        &mut self,
+        heights: &[f32],
+        out: &mut [T],
+        cell: impl Fn(&mut f64, f32, f64) -> T + Sync,
+    ) {
         assert!(
             self.pushed < self.height,
             "RowSweep: every row was pushed already"
         );
         assert!(
-            heights.len() == self.width && mask.len() == self.width,
+            heights.len() == self.width && out.len() == self.width,
             "RowSweep: row length"
         );
         let k = self.pushed;
         self.pushed += 1;
         if self.overhead {
-            for (m, z) in mask.iter_mut().zip(heights) {
-                *m = if z.is_nan() { NODATA } else { LIT };
+            // Nothing can block a vertical ray: every cell starts its own empty horizon.
+            for (o, z) in out.iter_mut().zip(heights) {
+                let mut empty = f64::NEG_INFINITY;
+                *o = cell(&mut empty, *z, 0.0);
             }
             return;
         }
@@ -150,20 +191,20 @@ impl RowSweep {
             if self.flip_col {
                 lines
                     .par_chunks_mut(chunk)
-                    .zip(heights.par_rchunks(chunk).zip(mask.par_rchunks_mut(chunk)))
-                    .for_each(|(h, (z, m))| {
-                        for ((h, z), m) in h.iter_mut().zip(z.iter().rev()).zip(m.iter_mut().rev())
+                    .zip(heights.par_rchunks(chunk).zip(out.par_rchunks_mut(chunk)))
+                    .for_each(|(h, (z, o))| {
+                        for ((h, z), o) in h.iter_mut().zip(z.iter().rev()).zip(o.iter_mut().rev())
                         {
-                            *m = step(h, *z, rise);
+                            *o = cell(h, *z, rise);
                         }
                     });
             } else {
                 lines
                     .par_chunks_mut(chunk)
-                    .zip(heights.par_chunks(chunk).zip(mask.par_chunks_mut(chunk)))
-                    .for_each(|(h, (z, m))| {
-                        for ((h, z), m) in h.iter_mut().zip(z).zip(m.iter_mut()) {
-                            *m = step(h, *z, rise);
+                    .zip(heights.par_chunks(chunk).zip(out.par_chunks_mut(chunk)))
+                    .for_each(|(h, (z, o))| {
+                        for ((h, z), o) in h.iter_mut().zip(z).zip(o.iter_mut()) {
+                            *o = cell(h, *z, rise);
                         }
                     });
             }
@@ -175,7 +216,7 @@ impl RowSweep {
             let base = k + self.max_offset;
             for (i, &o) in self.offsets.iter().enumerate() {
                 let c = if self.flip_row { self.width - 1 - i } else { i };
-                mask[c] = step(&mut self.horizon[base - o], heights[c], rise);
+                out[c] = cell(&mut self.horizon[base - o], heights[c], rise);
             }
         }
     }
