@@ -227,3 +227,101 @@ fn bad_input_is_one_line_error_and_no_output() {
     .success());
     assert!(!out.exists());
 }
+
+/// `dbms shadows` with extra arguments on `dir`'s database, sun 40° high in the north (no distance is a tie); the mask
+/// and the `--json` summary.
+fn shadows_40_north(dir: &Path, extra: &[&str]) -> (Vec<u8>, serde_json::Value) {
+    let out = dir.join("mask.tif");
+    let mut args = vec![
+        "--json",
+        "shadows",
+        "--db",
+        dir.to_str().unwrap(),
+        "--sun-elevation",
+        "40",
+        "--sun-azimuth",
+        "0",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    let o = dbms(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (
+        read_mask(&out).0,
+        serde_json::from_slice(&o.stdout).unwrap(),
+    )
+}
+
+#[test]
+fn placed_objects_cast_shadows_unless_terrain_only() {
+    use dbms::db::PlacedObject;
+    use dbms::voxel::{format, grid::VoxelGrid, object::VoxelObject};
+    let dir = tempfile::tempdir().unwrap();
+    database(dir.path(), false);
+    // A 1 × 1 × 10 m tower of 1 m voxels standing on cell (50, 25) (ground 100 m).
+    let tower = VoxelObject::from_fn(
+        VoxelGrid::new([0.0, 0.0, 0.0], 1.0, [1, 1, 10]).unwrap(),
+        |_, _| Some([90, 90, 90]),
+    );
+    let file = dir.path().join("tower.dvox");
+    format::write(&file, &tower, "test tower").unwrap();
+    let mut db = Database::open(dir.path()).unwrap();
+    db.manifest.objects.push(PlacedObject {
+        file: "tower.dvox".into(),
+        sha256: dbms::db::sha256_file(&file).unwrap(),
+        x: 500_050.5,
+        y: 5_300_000.0 - 25.5,
+        z: 100.0,
+        heading_deg: 0.0,
+    });
+    db.save().unwrap();
+
+    let (mask, v) = shadows_40_north(dir.path(), &[]);
+    assert_eq!(
+        (v["object_cells"].as_u64(), v["rule"].as_str()),
+        (Some(1), Some("geometric"))
+    );
+    // The 110 m top shades the 11 cells of column 50 whose centres are closer than
+    // 10 m / tan 40° = 11.9 m south; the tower's own cell is lit, and so is every cell beside.
+    let col: Vec<u8> = (24..40).map(|r| mask[r * 60 + 50]).collect();
+    assert_eq!(col, [0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 0, 0, 0]);
+    assert!((26..37).all(|r| mask[r * 60 + 49] == 0 && mask[r * 60 + 51] == 0));
+    // The 6 m wall's 7 rows (closer than 7.2 m) and the tower's 11 cells.
+    assert_eq!(v["cells"]["shadow"], 7 * 60 + 11);
+
+    let (bare, v) = shadows_40_north(dir.path(), &["--terrain-only"]);
+    assert_eq!(v["object_cells"], 0);
+    assert_eq!(v["cells"]["shadow"], 7 * 60);
+    assert!((26..37).all(|r| bare[r * 60 + 50] == 0));
+
+    // r.sunmask's rule sees the same tower; along the north axis it equals the geometric one.
+    let (sunmask, v) = shadows_40_north(dir.path(), &["--rule", "sunmask"]);
+    assert_eq!(v["rule"], "sunmask");
+    assert_eq!(sunmask, mask);
+}
+
+#[test]
+fn sunmask_rule_matches_the_library_off_the_axes() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = database(dir.path(), false);
+    let out = dir.path().join("mask.tif");
+    let o = dbms(&[
+        "shadows",
+        "--db",
+        dir.path().to_str().unwrap(),
+        "--sun-elevation",
+        "20",
+        "--sun-azimuth",
+        "33",
+        "--rule",
+        "sunmask",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let sun = dbms::shadow::Sun::new(20.0, 33.0).unwrap();
+    let expected = dbms::shadow::cast_shadows_sunmask(&e, &sun).unwrap().data;
+    assert!(expected.contains(&1));
+    assert_eq!(read_mask(&out).0, expected);
+}

@@ -25,9 +25,11 @@
 //! * Sources combine by [`Raised::union`]: the union of their pieces per cell, so a lintel over
 //!   a taller roof disappears into it and a lintel above a roof leaves a gap.
 
+use crate::db::{Database, PlacedObject};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::raster::{Elevation, RowSource};
+use crate::voxel::object::VoxelObject;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -396,6 +398,69 @@ pub struct PlacedVoxels {
     pub voxel_size: f64,
     /// Occupied voxels: local centre and RGB colour.
     pub voxels: Vec<([f64; 3], [u8; 3])>,
+}
+
+/// A placed object's voxels relative to its anchor (the centre of its grid's bottom face, which
+/// `dbms place` puts at the placement point): local centres in metres, world origin in CRS
+/// units with z in metres.
+pub fn placed_voxels(obj: &VoxelObject, placed: &PlacedObject) -> PlacedVoxels {
+    let a = obj.anchor();
+    let voxels = obj
+        .voxels()
+        .map(|([x, y, z], rgb)| {
+            let c = obj.grid.centre(x, y, z);
+            ([c[0] - a[0], c[1] - a[1], c[2] - a[2]], rgb)
+        })
+        .collect();
+    PlacedVoxels {
+        origin: [placed.x, placed.y, placed.z],
+        heading_deg: placed.heading_deg,
+        voxel_size: obj.grid.voxel_size,
+        voxels,
+    }
+}
+
+/// What stands on a database's terrain: the buildings of its `buildings` layer (when it has
+/// one) and its placed voxel objects, each merged, and both together. The surface shadows are
+/// cast over is the terrain with `all` laid over it.
+pub struct Standing {
+    /// Raised buildings (flat-roofed prisms).
+    pub buildings: Raised,
+    /// Placed voxel objects.
+    pub objects: Raised,
+    /// Their union.
+    pub all: Raised,
+}
+
+impl Standing {
+    /// Read the database's buildings and objects and raise them over `terrain` (metres, NaN =
+    /// nodata), sampled only under them, in bands of `band_rows` rows. Errors name the
+    /// buildings layer or object file that cannot be read.
+    pub fn read(db: &Database, terrain: &dyn RowSource<f32>, band_rows: usize) -> Result<Standing> {
+        let grid = terrain.grid();
+        let prism_cells = match db.manifest.layers.contains_key("buildings") {
+            true => rasterise_prisms(grid, &read_buildings(&db.layer_path("buildings")?)?),
+            false => Vec::new(),
+        };
+        let mut placed = Vec::new();
+        for p in &db.manifest.objects {
+            let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
+            placed.push(placed_voxels(&obj, p));
+        }
+        let mut under: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
+        for obj in &placed {
+            under.extend(object_cells(grid, obj));
+        }
+        let ground = TerrainSample::read(terrain, under, band_rows)?;
+        let buildings = Raised::new(prism_cells, &ground);
+        let objects = Raised::objects(grid, &placed, &ground);
+        let all = buildings.union(&objects, &ground);
+        Ok(Standing {
+            buildings,
+            objects,
+            all,
+        })
+    }
 }
 
 /// The cells an object marks (see the module doc for the footprint), sorted: the cells whose
