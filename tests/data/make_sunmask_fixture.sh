@@ -13,7 +13,7 @@ cd "$(dirname "$0")"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 W=24 H=18 CELL=10
-SUNS="10,45 15,135 8,200.5 12,290 20,0 6,333.3 9,90"
+SUNS="10,45 15,135 8,200.5 12,290 20,0 6,333.3 9,90 7,300 11,30"
 
 python3 - "$tmp" $W $H $CELL <<'PY'
 import math, sys
