@@ -1,5 +1,6 @@
 //! Benchmark: `shadow::cast_shadows` — throughput, ratio to the exact reference march, thread
-//! scaling, and agreement with GRASS GIS `r.sunmask` on a real DEM.
+//! scaling, and agreement of both rules (geometric, r.sunmask's) with GRASS GIS `r.sunmask` on a
+//! real DEM.
 //!
 //! `cargo bench --bench shadows`. Environment:
 //! * `DBMS_BENCH_SIZE`: side of the generated grid (default 4096, 1 m cells: rolling hills
@@ -13,7 +14,9 @@
 use dbms::crs::Crs;
 use dbms::grid::{Grid, Window};
 use dbms::raster::{Elevation, Raster};
-use dbms::shadow::{cast_shadows, cast_shadows_reference, Sun, NODATA, SHADOW};
+use dbms::shadow::{
+    cast_shadows, cast_shadows_reference, cast_shadows_sunmask, Sun, NODATA, SHADOW,
+};
 use rayon::prelude::*;
 use std::path::Path;
 use std::process::Command;
@@ -29,8 +32,8 @@ fn main() {
         "## cast_shadows on a generated {size} × {size} grid ({} threads)\n",
         rayon::current_num_threads()
     );
-    println!("| sun elevation, azimuth | best of 3 | ns per cell | Mcells/s | cells in shadow |");
-    println!("|---|---|---|---|---|");
+    println!("| sun elevation, azimuth | best of 3 | ns per cell | Mcells/s | cells in shadow | sunmask rule: best of 3, ns per cell, in shadow |");
+    println!("|---|---|---|---|---|---|");
     for (el, az) in [
         (30.0, 0.0),
         (30.0, 45.0),
@@ -39,13 +42,20 @@ fn main() {
         (5.0, 300.0),
     ] {
         let (secs, mask) = best_of(3, || cast_shadows(&terrain, el, az).unwrap());
-        let shadow = mask.data.iter().filter(|&&v| v == SHADOW).count();
+        let sun = Sun::new(el, az).unwrap();
+        let (rule_s, rule) = best_of(3, || cast_shadows_sunmask(&terrain, &sun).unwrap());
+        let n = terrain.data.len() as f64;
+        let shade =
+            |m: &Raster<u8>| 100.0 * m.data.iter().filter(|&&v| v == SHADOW).count() as f64 / n;
         println!(
-            "| {el}°, {az}° | {:.1} ms | {:.2} | {:.0} | {:.1} % |",
+            "| {el}°, {az}° | {:.1} ms | {:.2} | {:.0} | {:.1} % | {:.1} ms, {:.2}, {:.1} % |",
             secs * 1e3,
-            secs * 1e9 / terrain.data.len() as f64,
-            terrain.data.len() as f64 / secs / 1e6,
-            100.0 * shadow as f64 / terrain.data.len() as f64
+            secs * 1e9 / n,
+            n / secs / 1e6,
+            shade(&mask),
+            rule_s * 1e3,
+            rule_s * 1e9 / n,
+            shade(&rule)
         );
     }
 
@@ -187,7 +197,7 @@ fn sunmask_comparison() {
         cx,
         crop.nodata_count()
     );
-    println!("| sun | r.sunmask shadow | ours shadow | agreement (sweep) | agreement (reference) | r.sunmask vs its rule re-implemented | bilinear-surface march: shadow, vs ours, vs r.sunmask | r.sunmask time | µs per cell (GRASS) | ours |");
+    println!("| sun | r.sunmask shadow | geometric shadow | agreement (geometric sweep) | agreement (exact reference) | sunmask rule: shadow, agreement | bilinear-surface march: shadow, vs geometric, vs r.sunmask | r.sunmask time | µs per cell (GRASS) | ms per Mcell: geometric, sunmask rule |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for (el, az) in [
         (2.0, 270.0),
@@ -195,10 +205,12 @@ fn sunmask_comparison() {
         (3.0, 135.0),
         (4.0, 45.0),
         (5.0, 200.0),
+        (3.0, 300.0),
+        (6.0, 160.0),
     ] {
         let out = tmp.path().join(format!("sunmask_{el}_{az}.tif"));
         let script = format!(
-            "r.in.gdal --quiet input={} output=dem && g.region raster=dem && r.sunmask --quiet elevation=dem output=sh altitude={el} azimuth={az} && r.out.gdal --quiet -c input=sh output={} type=Byte nodata=255",
+            "r.in.gdal --quiet input={} output=dem && g.region raster=dem && r.sunmask --quiet -z elevation=dem output=sh altitude={el} azimuth={az} && r.out.gdal --quiet -c input=sh output={} type=Byte nodata=255",
             crop_path.display(),
             out.display()
         );
@@ -233,23 +245,28 @@ fn sunmask_comparison() {
             })
             .collect();
         let theirs = Raster::new(crop.grid.clone(), theirs);
+        let sun = Sun::new(el, az).unwrap();
         let (ours_s, ours) = best_of(3, || cast_shadows(&crop, el, az).unwrap());
-        let exact = cast_shadows_reference(&crop, &Sun::new(el, az).unwrap()).unwrap();
+        let (rule_s, rule) = best_of(3, || cast_shadows_sunmask(&crop, &sun).unwrap());
+        let exact = cast_shadows_reference(&crop, &sun).unwrap();
         let count = |m: &Raster<u8>| m.data.iter().filter(|&&v| v == SHADOW).count();
         let surface = bilinear_surface_march(&crop, el, az);
+        let per_mcell = |s: f64| s * 1e9 / crop.data.len() as f64;
         println!(
-            "| {el}°, {az}° | {} | {} | {:.2} % | {:.2} % | {:.2} % | {}, {:.2} %, {:.2} % | {:.1} s | {:.0} | {:.3} µs per cell |",
+            "| {el}°, {az}° | {} | {} | {:.2} % | {:.2} % | {}, {:.2} % | {}, {:.2} %, {:.2} % | {:.1} s | {:.0} | {:.1}, {:.1} |",
             count(&theirs),
             count(&ours),
             agreement(&ours, &theirs),
             agreement(&exact, &theirs),
-            agreement(&sunmask_rule(&crop, el, az), &theirs),
+            count(&rule),
+            agreement(&rule, &theirs),
             count(&surface),
             agreement(&surface, &ours),
             agreement(&surface, &theirs),
             grass_s,
             grass_s * 1e6 / crop.data.len() as f64,
-            ours_s * 1e6 / crop.data.len() as f64
+            per_mcell(ours_s),
+            per_mcell(rule_s),
         );
     }
 }
@@ -296,49 +313,6 @@ fn bilinear_surface_march(e: &Elevation, el: f64, az: f64) -> Raster<u8> {
                     return SHADOW;
                 }
                 d += step_m;
-            }
-            0
-        })
-        .collect();
-    Raster::new(e.grid.clone(), data)
-}
-
-/// r.sunmask's rule (GRASS 8 `raster/r.sunmask/main.c`), re-implemented to show where we differ:
-/// from each cell centre it steps `(sin a · cell_x, cos a · cell_y)` at a time and compares the
-/// height of the cell *containing* each step point with the ray's height at the step's distance.
-/// Along a diagonal that distance is up to 0.7 cells shorter than the distance to the sampled
-/// cell's centre, which is where our model compares, so r.sunmask shades more there.
-fn sunmask_rule(e: &Elevation, el: f64, az: f64) -> Raster<u8> {
-    let (cx, cy) = e.grid.cell_size();
-    let (tan_e, a) = (el.to_radians().tan(), az.to_radians());
-    let (step_c, step_r) = (a.sin(), -a.cos()); // cells per step
-    let top = e.min_max().unwrap().1 as f64;
-    let data = (0..e.data.len())
-        .map(|i| {
-            let z = e.data[i] as f64;
-            if z.is_nan() {
-                return NODATA;
-            }
-            let (c0, r0) = ((i % e.width()) as f64 + 0.5, (i / e.width()) as f64 + 0.5);
-            for k in 1.. {
-                let (c, r) = (c0 + k as f64 * step_c, r0 + k as f64 * step_r);
-                let dist =
-                    ((k as f64 * step_c * cx).powi(2) + (k as f64 * step_r * cy).powi(2)).sqrt();
-                if c < 0.0
-                    || r < 0.0
-                    || c > e.width() as f64
-                    || r > e.height() as f64
-                    || dist * tan_e > top - z
-                {
-                    break;
-                }
-                let z2 = *e.get(
-                    (c as usize).min(e.width() - 1),
-                    (r as usize).min(e.height() - 1),
-                ) as f64;
-                if z2 - z > dist * tan_e {
-                    return SHADOW;
-                }
             }
             0
         })
