@@ -20,13 +20,11 @@ pub mod raised;
 pub mod reduce;
 pub mod shade;
 
-use crate::db::{self, Database, PlacedObject, Stage};
+use crate::db::{self, Database, Stage};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
 use crate::shadow::Sun;
 use crate::tiles::{Compression, TileSetInfo, TileWriter};
-use crate::voxel::object::VoxelObject;
-use raised::{PlacedVoxels, Raised};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -137,30 +135,14 @@ pub fn build_pyramid(
     info.compression = opts.compression;
     // The layers are read band by band (each band's tiles decoded in parallel), never whole.
     let (terrain, colour) = (db.elevation_rows()?, db.colour_rows()?);
-    let grid = db.grid().clone();
     seconds.read = lap();
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
-    let prism_cells = match db.manifest.layers.contains_key("buildings") {
-        true => raised::rasterise_prisms(
-            &grid,
-            &raised::read_buildings(&db.layer_path("buildings")?)?,
-        ),
-        false => Vec::new(),
-    };
-    let mut placed_objects = Vec::new();
-    for placed in &db.manifest.objects {
-        let (obj, _) = crate::voxel::format::read(&db.dir.join(&placed.file))?;
-        placed_objects.push(placed_voxels(&obj, placed));
-    }
-    let mut under: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
-    for obj in &placed_objects {
-        under.extend(raised::object_cells(&grid, obj));
-    }
-    let ground = raised::TerrainSample::read(&terrain, under, opts.page_size)?;
-    let buildings = Raised::new(prism_cells, &ground);
-    let objects = Raised::objects(&grid, &placed_objects, &ground);
-    let all = buildings.union(&objects, &ground);
+    let raised::Standing {
+        buildings,
+        objects,
+        all,
+    } = raised::Standing::read(db, &terrain, opts.page_size)?;
 
     // The photo's sun matters only against a requested one (a night-time photo_time must not
     // stop a build without a sun).
@@ -284,23 +266,4 @@ pub fn sun_at(db: &Database, time: &str) -> Result<Sun> {
     let pos = crate::sun::sun_position(&obs, utc, &crate::sun::SunOptions::default())?;
     Sun::new(pos.elevation_deg, pos.azimuth_deg - convergence_deg)
         .map_err(|e| Error::msg(format!("at {time}: {}", e.problem)).fix(e.fix.unwrap_or_default()))
-}
-
-/// A placed object's voxels relative to its anchor (the centre of its grid's bottom face, which
-/// `dbms place` puts at the placement point), for [`raised::rasterise_object`].
-fn placed_voxels(obj: &VoxelObject, placed: &PlacedObject) -> PlacedVoxels {
-    let a = obj.anchor();
-    let voxels = obj
-        .voxels()
-        .map(|([x, y, z], rgb)| {
-            let c = obj.grid.centre(x, y, z);
-            ([c[0] - a[0], c[1] - a[1], c[2] - a[2]], rgb)
-        })
-        .collect();
-    PlacedVoxels {
-        origin: [placed.x, placed.y, placed.z],
-        heading_deg: placed.heading_deg,
-        voxel_size: obj.grid.voxel_size,
-        voxels,
-    }
 }
