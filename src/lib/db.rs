@@ -277,22 +277,22 @@ impl Database {
 
     /// Read the terrain elevation layer (metres, NaN = nodata), checked against the grid.
     pub fn read_elevation(&self) -> Result<Elevation> {
-        self.read_layer(ELEVATION, SourceRaster::to_elevation)
+        self.read_layer(ELEVATION, |s| s.to_elevation())
     }
 
     /// Read the colour layer (RGBA8, alpha 0 = nodata), checked against the grid.
     pub fn read_colour(&self) -> Result<Colour> {
-        self.read_layer(COLOUR, SourceRaster::to_colour)
+        self.read_layer(COLOUR, SourceRaster::into_colour)
     }
 
     /// Read a raster layer and check it lies on the database grid.
     fn read_layer<T>(
         &self,
         name: &str,
-        convert: impl FnOnce(&SourceRaster) -> Result<Raster<T>>,
+        convert: impl FnOnce(SourceRaster) -> Result<Raster<T>>,
     ) -> Result<Raster<T>> {
         let path = self.layer_path(name)?;
-        let layer = convert(&crate::io::read_raster(&path)?).map_err(|e| e.in_file(&path))?;
+        let layer = convert(crate::io::read_raster(&path)?).map_err(|e| e.in_file(&path))?;
         let (g, want) = (&layer.grid, self.grid());
         if (g.width, g.height) != (want.width, want.height) {
             return Err(Error::file(
@@ -316,7 +316,7 @@ impl Database {
 
     /// The colour layer read band by band ([`LayerRows`]), as [`read_colour`](Self::read_colour) converts it.
     pub fn colour_rows(&self) -> Result<LayerRows<[u8; 4]>> {
-        self.layer_rows(COLOUR, |s| s.to_colour())
+        self.layer_rows(COLOUR, SourceRaster::into_colour)
     }
 
     fn layer_rows<T>(

@@ -300,6 +300,29 @@ impl SourceRaster {
         .fix("select the bands: gdal_translate -b 1 -b 2 -b 3 in.tif out.tif"))
     }
 
+    /// [`to_colour`](Self::to_colour), converting in place when the samples are RGBA bytes (a
+    /// database's colour layer): no second copy of the band.
+    pub fn into_colour(self) -> Result<Colour> {
+        let (colour, alpha) = self.colour_layout()?;
+        let rgba = self.bands == 4 && colour == 3 && alpha == Some(3);
+        match self.samples {
+            Samples::U8(v) if rgba => {
+                // Same size and alignment: the bytes become pixels without a copy (the copy is
+                // only for an allocation whose capacity is not a whole number of pixels).
+                let mut px: Vec<[u8; 4]> = bytemuck::allocation::try_cast_vec(v)
+                    .unwrap_or_else(|(_, v)| bytemuck::cast_slice(&v).to_vec());
+                let nodata = self.nodata;
+                px.par_chunks_mut(CHUNK).for_each(|chunk| {
+                    for p in chunk {
+                        *p = pixel_colour(p, 3, Some(3), nodata, |s| s);
+                    }
+                });
+                Ok(Raster::new(self.grid, px))
+            }
+            _ => self.to_colour(),
+        }
+    }
+
     fn colour_values<T: SampleValue>(
         &self,
         v: &[T],
@@ -310,22 +333,33 @@ impl SourceRaster {
         let (bands, nodata) = (self.bands, self.nodata);
         (0..self.grid.len())
             .into_par_iter()
-            .map(|i| {
-                let px = &v[i * bands..(i + 1) * bands];
-                let masked = alpha.is_some_and(|a| px[a].into() == 0.0);
-                let is_nd = nodata.is_some_and(|nd| px[..colour].iter().all(|s| s.is_nodata(nd)));
-                if masked || is_nd {
-                    return crate::raster::NODATA_COLOUR;
-                }
-                let g = |b: usize| to8(px[b]);
-                if colour == 1 {
-                    let y = g(0);
-                    [y, y, y, 255]
-                } else {
-                    [g(0), g(1), g(2), 255]
-                }
-            })
+            .map(|i| pixel_colour(&v[i * bands..(i + 1) * bands], colour, alpha, nodata, &to8))
             .collect()
+    }
+}
+
+/// One pixel's colour from its samples `px`: the first `colour` bands (1 = grey, 3 = RGB)
+/// through `to8`, alpha 255; [`NODATA_COLOUR`](crate::raster::NODATA_COLOUR) when band `alpha`
+/// is 0 or every colour band equals `nodata`.
+#[inline]
+fn pixel_colour<T: SampleValue>(
+    px: &[T],
+    colour: usize,
+    alpha: Option<usize>,
+    nodata: Option<f64>,
+    to8: impl Fn(T) -> u8,
+) -> [u8; 4] {
+    let masked = alpha.is_some_and(|a| px[a].into() == 0.0);
+    let is_nd = nodata.is_some_and(|nd| px[..colour].iter().all(|s| s.is_nodata(nd)));
+    if masked || is_nd {
+        return crate::raster::NODATA_COLOUR;
+    }
+    let g = |b: usize| to8(px[b]);
+    if colour == 1 {
+        let y = g(0);
+        [y, y, y, 255]
+    } else {
+        [g(0), g(1), g(2), 255]
     }
 }
 
@@ -548,6 +582,39 @@ mod tests {
                 bits(&copied.data),
                 "nodata {nodata:?}"
             );
+        }
+    }
+
+    #[test]
+    fn in_place_colour_equals_the_copying_one() {
+        // RGBA (in place, also from a vector whose capacity is not whole pixels), and layouts
+        // that take the copying path: RGB, grey + alpha, 16-bit RGBA.
+        let rgba: Vec<u8> = vec![
+            10, 20, 30, 255, 1, 2, 3, 0, 7, 7, 7, 128, 0, 0, 0, 255, 9, 9, 9, 9,
+        ];
+        let mut odd = Vec::with_capacity(rgba.len() + 3);
+        odd.extend_from_slice(&rgba);
+        let cases = [
+            (4, Samples::U8(rgba.clone()), None),
+            (4, Samples::U8(rgba.clone()), Some(9.0)),
+            (4, Samples::U8(odd), Some(0.0)),
+            (3, Samples::U8(rgba[..15].to_vec()), Some(7.0)),
+            (2, Samples::U8(rgba.clone()), None),
+            (
+                4,
+                Samples::U16(rgba.iter().map(|&s| s as u16 * 257).collect()),
+                None,
+            ),
+        ];
+        for (bands, samples, nodata) in cases {
+            let r = raster(bands, samples, nodata);
+            let copied = r.to_colour().unwrap();
+            let in_place = r.into_colour().unwrap();
+            assert_eq!(
+                in_place.data, copied.data,
+                "{bands} bands, nodata {nodata:?}"
+            );
+            assert_eq!(in_place.grid, copied.grid);
         }
     }
 
