@@ -202,11 +202,13 @@ where
                 for r in 0..p {
                     let o = r * p;
                     let valid = if r < rows.rows() { cols } else { 0 };
-                    for c in 0..valid {
-                        let i = r * w + tx * p + c;
-                        page.max_z[o + c] = rows.max_z(i);
-                        page.colour[o + c] = rows.colour(i);
-                        page.state[o + c] = rows.state(i);
+                    if valid > 0 {
+                        rows.copy_run(
+                            r * w + tx * p,
+                            &mut page.max_z[o..o + valid],
+                            &mut page.colour[o..o + valid],
+                            &mut page.state[o..o + valid],
+                        );
                     }
                     page.max_z[o + valid..o + p].fill(f32::NAN);
                     page.colour[o + valid..o + p].fill([0; 4]);

@@ -19,14 +19,58 @@ pub trait LevelRows: Sync {
     fn width(&self) -> usize;
     /// Number of rows held.
     fn rows(&self) -> usize;
-    /// Maximum height of cell `i`, metres; NaN = nodata.
-    fn max_z(&self, i: usize) -> f32;
-    /// Sums of red, green, blue over the valid level-0 cells under cell `i`, and their count.
-    fn colour_sum(&self, i: usize) -> ([u64; 3], u64);
-    /// Displayed colour of cell `i`: the rounded average, alpha 255; alpha 0 when no valid cell.
-    fn colour(&self, i: usize) -> [u8; 4];
-    /// Occupancy state of cell `i` (`tiles::STATE_*`).
-    fn state(&self, i: usize) -> u8;
+    /// Fold cells `i .. i + n` (within one row) into `block`.
+    fn fold_run(&self, i: usize, n: usize, block: &mut Block);
+    /// Cells `i .. i + max_z.len()` (within one row) into `max_z` (metres, NaN = nodata),
+    /// `colour` (the displayed colour: alpha 255, or `[0; 4]` when no valid cell) and `state`
+    /// (`tiles::STATE_*`), all as long.
+    fn copy_run(&self, i: usize, max_z: &mut [f32], colour: &mut [[u8; 4]], state: &mut [u8]);
+}
+
+/// What a coarse cell gathers from its children: see the module doc for the rules.
+#[derive(Debug, Clone, Copy)]
+pub struct Block {
+    /// Max of the children's `max_z`, NaN while no child is valid.
+    pub max_z: f32,
+    /// Σ red, green, blue over the valid level-0 cells under the children.
+    pub sum: [u64; 3],
+    /// Number of those cells.
+    pub count: u64,
+    /// Some child is not empty.
+    pub any_filled: bool,
+    /// Every child is opaque.
+    pub all_opaque: bool,
+}
+
+impl Block {
+    /// A block with no children yet.
+    pub const EMPTY: Block = Block {
+        max_z: f32::NAN,
+        sum: [0; 3],
+        count: 0,
+        any_filled: false,
+        all_opaque: true,
+    };
+
+    /// One child's height and state.
+    #[inline]
+    fn add(&mut self, max_z: f32, state: u8) {
+        // f32::max ignores a NaN operand: NaN only when every child is NaN.
+        self.max_z = self.max_z.max(max_z);
+        self.any_filled |= state != STATE_EMPTY;
+        self.all_opaque &= state == STATE_OPAQUE;
+    }
+
+    /// The occupancy state: empty when every child is, opaque when every child is, else partial.
+    pub fn state(&self) -> u8 {
+        if !self.any_filled {
+            STATE_EMPTY
+        } else if self.all_opaque {
+            STATE_OPAQUE
+        } else {
+            STATE_PARTIAL
+        }
+    }
 }
 
 /// Level-0 rows: the database cells themselves (after merging objects and applying effects).
@@ -63,25 +107,23 @@ impl LevelRows for BaseRows {
         self.max_z.len() / self.width.max(1)
     }
     #[inline]
-    fn max_z(&self, i: usize) -> f32 {
-        self.max_z[i]
-    }
-    #[inline]
-    fn colour_sum(&self, i: usize) -> ([u64; 3], u64) {
-        let [r, g, b, a] = self.colour[i];
-        if a == 0 {
-            ([0; 3], 0)
-        } else {
-            ([r as u64, g as u64, b as u64], 1)
+    fn fold_run(&self, i: usize, n: usize, block: &mut Block) {
+        let cells = self.max_z[i..i + n].iter().zip(&self.colour[i..i + n]);
+        for ((&z, &[r, g, b, a]), &st) in cells.zip(&self.state[i..i + n]) {
+            block.add(z, st);
+            // A level-0 cell counts when its colour is valid (alpha not 0).
+            let valid = u64::from(a != 0);
+            block.sum[0] += valid * r as u64;
+            block.sum[1] += valid * g as u64;
+            block.sum[2] += valid * b as u64;
+            block.count += valid;
         }
     }
-    #[inline]
-    fn colour(&self, i: usize) -> [u8; 4] {
-        self.colour[i]
-    }
-    #[inline]
-    fn state(&self, i: usize) -> u8 {
-        self.state[i]
+    fn copy_run(&self, i: usize, max_z: &mut [f32], colour: &mut [[u8; 4]], state: &mut [u8]) {
+        let n = max_z.len();
+        max_z.copy_from_slice(&self.max_z[i..i + n]);
+        colour.copy_from_slice(&self.colour[i..i + n]);
+        state.copy_from_slice(&self.state[i..i + n]);
     }
 }
 
@@ -126,6 +168,12 @@ impl CoarseRows {
         self.count.drain(..n);
         self.state.drain(..n);
     }
+
+    /// Displayed colour of cell `i`: the rounded average, alpha 255; `[0; 4]` when no valid cell.
+    #[inline]
+    pub fn colour(&self, i: usize) -> [u8; 4] {
+        average(self.sum[i], self.count[i])
+    }
 }
 
 impl LevelRows for CoarseRows {
@@ -136,20 +184,27 @@ impl LevelRows for CoarseRows {
         self.max_z.len() / self.width.max(1)
     }
     #[inline]
-    fn max_z(&self, i: usize) -> f32 {
-        self.max_z[i]
+    fn fold_run(&self, i: usize, n: usize, block: &mut Block) {
+        let cells = self.max_z[i..i + n].iter().zip(&self.sum[i..i + n]);
+        for ((&z, s), (&count, &st)) in
+            cells.zip(self.count[i..i + n].iter().zip(&self.state[i..i + n]))
+        {
+            block.add(z, st);
+            block.sum = [
+                block.sum[0] + s[0],
+                block.sum[1] + s[1],
+                block.sum[2] + s[2],
+            ];
+            block.count += count;
+        }
     }
-    #[inline]
-    fn colour_sum(&self, i: usize) -> ([u64; 3], u64) {
-        (self.sum[i], self.count[i])
-    }
-    #[inline]
-    fn colour(&self, i: usize) -> [u8; 4] {
-        average(self.sum[i], self.count[i])
-    }
-    #[inline]
-    fn state(&self, i: usize) -> u8 {
-        self.state[i]
+    fn copy_run(&self, i: usize, max_z: &mut [f32], colour: &mut [[u8; 4]], state: &mut [u8]) {
+        let n = max_z.len();
+        max_z.copy_from_slice(&self.max_z[i..i + n]);
+        state.copy_from_slice(&self.state[i..i + n]);
+        for (k, c) in colour.iter_mut().enumerate() {
+            *c = self.colour(i + k);
+        }
     }
 }
 
@@ -166,7 +221,8 @@ pub fn average(sum: [u64; 3], count: u64) -> [u8; 4] {
 /// Reduce the rows `fine` by `factor` in both directions: coarse row `r` is made of fine rows
 /// `r·f .. r·f + f` (fewer at the bottom), coarse column `c` of fine columns `c·f .. c·f + f`
 /// (fewer at the right edge). Output width `ceil(width / f)`, rows `ceil(rows / f)`. Parallel
-/// over coarse rows.
+/// over coarse rows; each coarse row gathers its fine rows one after another, a run of `f`
+/// cells per coarse cell.
 pub fn reduce<R: LevelRows>(fine: &R, factor: usize) -> CoarseRows {
     let (w, h) = (fine.width(), fine.rows());
     let (cw, ch) = (w.div_ceil(factor), h.div_ceil(factor));
@@ -186,34 +242,20 @@ pub fn reduce<R: LevelRows>(fine: &R, factor: usize) -> CoarseRows {
         .zip(out.count.par_chunks_mut(cw))
         .zip(out.state.par_chunks_mut(cw))
         .enumerate()
-        .for_each(|(r, (((zs, sums), counts), states))| {
-            let rows = (r * factor)..((r + 1) * factor).min(h);
-            for c in 0..cw {
-                let cols = (c * factor)..((c + 1) * factor).min(w);
-                let (mut z, mut sum, mut count) = (f32::NAN, [0u64; 3], 0u64);
-                let (mut any_filled, mut all_opaque) = (false, true);
-                for fr in rows.clone() {
-                    for i in cols.clone().map(|fc| fr * w + fc) {
-                        // f32::max ignores a NaN operand: NaN only when every child is NaN.
-                        z = z.max(fine.max_z(i));
-                        let (s, n) = fine.colour_sum(i);
-                        sum = [sum[0] + s[0], sum[1] + s[1], sum[2] + s[2]];
-                        count += n;
-                        let st = fine.state(i);
-                        any_filled |= st != STATE_EMPTY;
-                        all_opaque &= st == STATE_OPAQUE;
-                    }
+        .for_each_init(Vec::new, |blocks, (r, (((zs, sums), counts), states))| {
+            blocks.clear();
+            blocks.resize(cw, Block::EMPTY);
+            for fr in (r * factor)..((r + 1) * factor).min(h) {
+                for (c, block) in blocks.iter_mut().enumerate() {
+                    let c0 = c * factor;
+                    fine.fold_run(fr * w + c0, factor.min(w - c0), block);
                 }
-                zs[c] = z;
-                sums[c] = sum;
-                counts[c] = count;
-                states[c] = if !any_filled {
-                    STATE_EMPTY
-                } else if all_opaque {
-                    STATE_OPAQUE
-                } else {
-                    STATE_PARTIAL
-                };
+            }
+            for (c, block) in blocks.iter().enumerate() {
+                zs[c] = block.max_z;
+                sums[c] = block.sum;
+                counts[c] = block.count;
+                states[c] = block.state();
             }
         });
     out
