@@ -83,7 +83,13 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
         && formats.iter().all(|&f| f == format)
         && match format {
             1 | 2 => matches!(predictor, 1 | 2),
-            3 => b >= 32 && (1..=3).contains(&predictor),
+            // The floating-point predictor's rows are summed with a pixel's samples as lanes
+            // (see float_row): up to 4 in a chunk; more are left to the tiff crate.
+            3 => {
+                b >= 32
+                    && (1..=3).contains(&predictor)
+                    && (predictor != 3 || planar || samples <= 4)
+            }
             _ => false,
         };
     if !supported || width == 0 || height == 0 {
@@ -227,13 +233,59 @@ pub(crate) fn decode(
 }
 
 /// An unsigned sample word: samples are decoded as their bits, then reinterpreted (in place).
-trait Word: Copy + Default + Send + Sync {
+trait Word: bytemuck::Pod + Default + Send + Sync {
     const BYTES: usize;
     fn from_bytes(b: &[u8], big_endian: bool) -> Self;
+    /// The word with its bytes reversed.
+    fn swap_bytes(self) -> Self;
     fn wrapping_add(self, other: Self) -> Self;
-    /// Words from byte planes, most significant plane first: `out[i]`'s bytes are
-    /// `planes[i]`, `planes[n + i]`, … for `n = out.len()`.
-    fn from_planes(planes: &[u8], out: &mut [Self]);
+}
+
+/// The most lanes (samples of a pixel in a chunk) [`float_row`] sums side by side.
+const FLOAT_LANES: usize = 4;
+
+/// Words of one stored row under the floating-point predictor (TIFF Technical Note 3). `bytes`
+/// holds the row's byte planes, most significant first (`out[i]`'s bytes are `bytes[i]`,
+/// `bytes[n + i]`, … for `n = out.len()`), differenced as one stream with stride `spp` (a
+/// pixel's samples, at most [`FLOAT_LANES`]). A plane's running sums start where the previous
+/// plane's end, so those starting sums are found first (plain byte sums), then the planes are
+/// summed side by side straight into words: no pass that un-differences the bytes in place.
+fn float_row<W: Word>(bytes: &[u8], spp: usize, out: &mut [W]) {
+    fn lanes<W: Word, const N: usize>(bytes: &[u8], out: &mut [W]) {
+        let n = out.len();
+        let mut planes: [&[u8]; 8] = [&[]; 8];
+        for (k, plane) in bytes.chunks_exact(n).take(W::BYTES).enumerate() {
+            planes[k] = plane;
+        }
+        // acc[k][j]: the running sum of plane k, lane j.
+        let mut acc = [[0u8; N]; 8];
+        for k in 1..W::BYTES {
+            acc[k] = acc[k - 1];
+            for px in planes[k - 1].chunks_exact(N) {
+                for j in 0..N {
+                    acc[k][j] = acc[k][j].wrapping_add(px[j]);
+                }
+            }
+        }
+        for (p, words) in out.chunks_exact_mut(N).enumerate() {
+            for (j, word) in words.iter_mut().enumerate() {
+                let mut be = [0u8; 8];
+                for k in 0..W::BYTES {
+                    acc[k][j] = acc[k][j].wrapping_add(planes[k][p * N + j]);
+                    be[k] = acc[k][j];
+                }
+                *word = W::from_bytes(&be[..W::BYTES], true);
+            }
+        }
+    }
+    debug_assert_eq!(bytes.len(), out.len() * W::BYTES);
+    match spp {
+        1 => lanes::<W, 1>(bytes, out),
+        2 => lanes::<W, 2>(bytes, out),
+        3 => lanes::<W, 3>(bytes, out),
+        4 => lanes::<W, FLOAT_LANES>(bytes, out),
+        _ => unreachable!("plan() leaves more than {FLOAT_LANES} lanes to the tiff crate"),
+    }
 }
 
 /// Undo horizontal differencing in place: each value plus the one `stride` before it, running
@@ -279,13 +331,9 @@ macro_rules! word {
             fn wrapping_add(self, other: $t) -> $t {
                 <$t>::wrapping_add(self, other)
             }
-            fn from_planes(planes: &[u8], out: &mut [$t]) {
-                const N: usize = std::mem::size_of::<$t>();
-                let n = out.len();
-                let planes: [&[u8]; N] = std::array::from_fn(|k| &planes[k * n..(k + 1) * n]);
-                for (i, w) in out.iter_mut().enumerate() {
-                    *w = <$t>::from_be_bytes(std::array::from_fn(|k| planes[k][i]));
-                }
+            #[inline]
+            fn swap_bytes(self) -> $t {
+                <$t>::swap_bytes(self)
             }
         }
     };
@@ -363,22 +411,24 @@ pub(crate) fn inflate_zlib(stored: &[u8], limit: usize) -> std::result::Result<V
     Ok(raw)
 }
 
-/// One stored row of a chunk (`chunk_w` pixels, inflated, bytes already un-differenced for the
-/// floating-point predictor) as words into `out`, its first `out.len()` samples (fewer than the
+/// One stored row of a chunk (`chunk_w` pixels, inflated) as words into `out`, its first `out.len()` samples (fewer than the
 /// chunk's when the chunk overhangs the image's right edge; `scratch` holds the whole row then).
 fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Vec<W>) {
     let spp = plan.chunk_samples();
     match plan.predictor {
         // Byte planes, most significant first, whatever the file's byte order.
-        3 if out.len() * W::BYTES == bytes.len() => W::from_planes(bytes, out),
+        3 if out.len() * W::BYTES == bytes.len() => float_row(bytes, spp, out),
         3 => {
             scratch.resize(bytes.len() / W::BYTES, W::default());
-            W::from_planes(bytes, scratch);
+            float_row(bytes, spp, scratch);
             out.copy_from_slice(&scratch[..out.len()]);
         }
         p => {
-            for (w, b) in out.iter_mut().zip(bytes.chunks_exact(W::BYTES)) {
-                *w = W::from_bytes(b, plan.big_endian);
+            // The words' bytes as stored, then turned round if the file's order is not ours.
+            let n = out.len();
+            bytemuck::cast_slice_mut(out).copy_from_slice(&bytes[..n * W::BYTES]);
+            if W::BYTES > 1 && plan.big_endian != cfg!(target_endian = "big") {
+                out.iter_mut().for_each(|w| *w = w.swap_bytes());
             }
             // Running sums from the row's left edge: the overhang is at the right, so the
             // image's samples do not depend on it.
@@ -389,8 +439,8 @@ fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Ve
     }
 }
 
-/// The first `rows` rows of chunk `index` as stored bytes, inflated; for the floating-point
-/// predictor the bytes are also un-differenced along each row (samples of `word` bytes).
+/// The first `rows` rows of chunk `index` as stored bytes, inflated (rows of samples of `word`
+/// bytes).
 fn chunk_bytes(
     path: &Path,
     file: &File,
@@ -438,12 +488,6 @@ fn chunk_bytes(
         )));
     }
     raw.truncate(want);
-    if plan.predictor == 3 {
-        // Floating-point predictor: bytes differenced along the row (stride: a pixel's samples).
-        for row in raw.chunks_exact_mut(row_bytes) {
-            undifference(row, spp);
-        }
-    }
     Ok(raw)
 }
 
@@ -530,6 +574,46 @@ mod tests {
             let mut got = row;
             undifference(&mut got, stride);
             assert_eq!(got, want, "stride {stride}");
+        }
+    }
+
+    /// A row encoded as TIFF Technical Note 3 says (words' big-endian bytes as planes, then the
+    /// byte stream differenced with stride `spp`) comes back word for word.
+    #[test]
+    fn float_row_undoes_the_floating_point_predictor_for_every_lane_count() {
+        fn encode<W: Word>(words: &[W], spp: usize, be: impl Fn(W) -> Vec<u8>) -> Vec<u8> {
+            let n = words.len();
+            let mut bytes = vec![0u8; n * W::BYTES];
+            for (i, &w) in words.iter().enumerate() {
+                for (k, b) in be(w).into_iter().enumerate() {
+                    bytes[k * n + i] = b;
+                }
+            }
+            for i in (spp..bytes.len()).rev() {
+                bytes[i] = bytes[i].wrapping_sub(bytes[i - spp]);
+            }
+            bytes
+        }
+        for spp in 1..=FLOAT_LANES {
+            let n = 12 * spp;
+            let words: Vec<u32> = (0..n as u32)
+                .map(|i| (i as f32 * 0.7 - 3.0).sin().to_bits() ^ i.wrapping_mul(0x9E37_79B9))
+                .collect();
+            let mut got = vec![0u32; n];
+            float_row(
+                &encode(&words, spp, |w| w.to_be_bytes().to_vec()),
+                spp,
+                &mut got,
+            );
+            assert_eq!(got, words, "u32, {spp} lanes");
+            let words: Vec<u64> = words.iter().map(|&w| (w as u64) << 29 ^ w as u64).collect();
+            let mut got = vec![0u64; n];
+            float_row(
+                &encode(&words, spp, |w| w.to_be_bytes().to_vec()),
+                spp,
+                &mut got,
+            );
+            assert_eq!(got, words, "u64, {spp} lanes");
         }
     }
 
