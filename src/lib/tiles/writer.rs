@@ -28,7 +28,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 /// Pages encoded and waiting for the I/O thread, at most (each up to one page's raw bytes).
-pub const QUEUED_PAGES: usize = 8;
+pub const QUEUED_PAGES: usize = 32;
 
 /// Writes one tile file. `write_page` takes `&self`, so pages can be produced and written from
 /// many threads (e.g. inside a rayon loop); checking, encoding and compression run on the
