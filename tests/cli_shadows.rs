@@ -4,7 +4,7 @@ use dbms::crs::Crs;
 use dbms::db::{Database, ELEVATION};
 use dbms::grid::Grid;
 use dbms::raster::Elevation;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn dbms(args: &[&str]) -> Output {
@@ -38,6 +38,17 @@ fn database(dir: &Path, buildings: bool) -> Elevation {
     e
 }
 
+/// `dbms shadows --db DIR ARGS -o DIR/mask.tif`, which must succeed: its output and the mask.
+fn shadows(dir: &Path, args: &[&str]) -> (Output, PathBuf) {
+    let out = dir.join("mask.tif");
+    let mut all = vec!["shadows", "--db", dir.to_str().unwrap()];
+    all.extend(args);
+    all.extend(["-o", out.to_str().unwrap()]);
+    let o = dbms(&all);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (o, out)
+}
+
 fn read_mask(path: &Path) -> (Vec<u8>, Option<f64>, Grid) {
     let r = dbms::io::read_raster(path).unwrap();
     let v = (0..r.grid.len()).map(|i| r.sample(i, 0) as u8).collect();
@@ -48,19 +59,7 @@ fn read_mask(path: &Path) -> (Vec<u8>, Option<f64>, Grid) {
 fn mask_matches_the_library_and_declares_nodata() {
     let dir = tempfile::tempdir().unwrap();
     let e = database(dir.path(), false);
-    let out = dir.path().join("mask.tif");
-    let o = dbms(&[
-        "shadows",
-        "--db",
-        dir.path().to_str().unwrap(),
-        "--sun-elevation",
-        "45",
-        "--sun-azimuth",
-        "0",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (o, out) = shadows(dir.path(), &["--sun-elevation", "45", "--sun-azimuth", "0"]);
     let (mask, nodata, grid) = read_mask(&out);
     assert_eq!(nodata, Some(255.0));
     assert_eq!(grid, e.grid);
@@ -79,19 +78,8 @@ fn mask_matches_the_library_and_declares_nodata() {
 fn time_gives_the_sun_over_the_centre_and_json_reports_it() {
     let dir = tempfile::tempdir().unwrap();
     database(dir.path(), false);
-    let out = dir.path().join("mask.tif");
-    let db = dir.path().to_str().unwrap();
-    let o = dbms(&[
-        "--json",
-        "shadows",
-        "--db",
-        db,
-        "--time",
-        "2026-06-21T11:00:00Z",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let noon = ["--json", "--time", "2026-06-21T11:00:00Z"];
+    let (o, out) = shadows(dir.path(), &noon);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     // Near local noon at midsummer, 48° N: the sun is high in the south.
     let el = v["sun"]["elevation_deg"].as_f64().unwrap();
@@ -103,17 +91,7 @@ fn time_gives_the_sun_over_the_centre_and_json_reports_it() {
     assert_eq!(v["cells"]["nodata"], 1);
     // Same inputs, same bytes.
     let first = std::fs::read(&out).unwrap();
-    assert!(dbms(&[
-        "shadows",
-        "--db",
-        db,
-        "--time",
-        "2026-06-21T11:00:00Z",
-        "-o",
-        out.to_str().unwrap()
-    ])
-    .status
-    .success());
+    shadows(dir.path(), &noon);
     assert_eq!(first, std::fs::read(&out).unwrap());
 }
 
@@ -121,20 +99,8 @@ fn time_gives_the_sun_over_the_centre_and_json_reports_it() {
 fn buildings_layer_casts_shadows_too() {
     let dir = tempfile::tempdir().unwrap();
     database(dir.path(), true);
-    let out = dir.path().join("mask.tif");
-    let o = dbms(&[
-        "--json",
-        "shadows",
-        "--db",
-        dir.path().to_str().unwrap(),
-        "--sun-elevation",
-        "45",
-        "--sun-azimuth",
-        "0",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let args = ["--json", "--sun-elevation", "45", "--sun-azimuth", "0"];
+    let (o, out) = shadows(dir.path(), &args);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["building_cells"], 25);
     // The 20 m block (5 × 5 cells at rows 30..35) shades every row south of it, to the grid's edge.
@@ -231,22 +197,9 @@ fn bad_input_is_one_line_error_and_no_output() {
 /// `dbms shadows` with extra arguments on `dir`'s database, sun 40° high in the north (no distance is a tie); the mask
 /// and the `--json` summary.
 fn shadows_40_north(dir: &Path, extra: &[&str]) -> (Vec<u8>, serde_json::Value) {
-    let out = dir.join("mask.tif");
-    let mut args = vec![
-        "--json",
-        "shadows",
-        "--db",
-        dir.to_str().unwrap(),
-        "--sun-elevation",
-        "40",
-        "--sun-azimuth",
-        "0",
-        "-o",
-        out.to_str().unwrap(),
-    ];
+    let mut args = vec!["--json", "--sun-elevation", "40", "--sun-azimuth", "0"];
     args.extend(extra);
-    let o = dbms(&args);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (o, out) = shadows(dir, &args);
     (
         read_mask(&out).0,
         serde_json::from_slice(&o.stdout).unwrap(),
@@ -305,21 +258,15 @@ fn placed_objects_cast_shadows_unless_terrain_only() {
 fn sunmask_rule_matches_the_library_off_the_axes() {
     let dir = tempfile::tempdir().unwrap();
     let e = database(dir.path(), false);
-    let out = dir.path().join("mask.tif");
-    let o = dbms(&[
-        "shadows",
-        "--db",
-        dir.path().to_str().unwrap(),
+    let args = [
         "--sun-elevation",
         "20",
         "--sun-azimuth",
         "33",
         "--rule",
         "sunmask",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ];
+    let (_, out) = shadows(dir.path(), &args);
     let sun = dbms::shadow::Sun::new(20.0, 33.0).unwrap();
     let expected = dbms::shadow::cast_shadows_sunmask(&e, &sun).unwrap().data;
     assert!(expected.contains(&1));

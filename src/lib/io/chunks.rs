@@ -581,7 +581,8 @@ mod tests {
     /// byte stream differenced with stride `spp`) comes back word for word.
     #[test]
     fn float_row_undoes_the_floating_point_predictor_for_every_lane_count() {
-        fn encode<W: Word>(words: &[W], spp: usize, be: impl Fn(W) -> Vec<u8>) -> Vec<u8> {
+        /// Encode `words` as the predictor does, then decode them with float_row.
+        fn round_trip<W: Word>(words: &[W], spp: usize, be: impl Fn(W) -> Vec<u8>) -> Vec<W> {
             let n = words.len();
             let mut bytes = vec![0u8; n * W::BYTES];
             for (i, &w) in words.iter().enumerate() {
@@ -592,27 +593,18 @@ mod tests {
             for i in (spp..bytes.len()).rev() {
                 bytes[i] = bytes[i].wrapping_sub(bytes[i - spp]);
             }
-            bytes
+            let mut got = vec![W::default(); n];
+            float_row(&bytes, spp, &mut got);
+            got
         }
         for spp in 1..=FLOAT_LANES {
-            let n = 12 * spp;
-            let words: Vec<u32> = (0..n as u32)
+            let words: Vec<u32> = (0..12 * spp as u32)
                 .map(|i| (i as f32 * 0.7 - 3.0).sin().to_bits() ^ i.wrapping_mul(0x9E37_79B9))
                 .collect();
-            let mut got = vec![0u32; n];
-            float_row(
-                &encode(&words, spp, |w| w.to_be_bytes().to_vec()),
-                spp,
-                &mut got,
-            );
+            let got = round_trip(&words, spp, |w| w.to_be_bytes().to_vec());
             assert_eq!(got, words, "u32, {spp} lanes");
             let words: Vec<u64> = words.iter().map(|&w| (w as u64) << 29 ^ w as u64).collect();
-            let mut got = vec![0u64; n];
-            float_row(
-                &encode(&words, spp, |w| w.to_be_bytes().to_vec()),
-                spp,
-                &mut got,
-            );
+            let got = round_trip(&words, spp, |w| w.to_be_bytes().to_vec());
             assert_eq!(got, words, "u64, {spp} lanes");
         }
     }

@@ -572,14 +572,20 @@ mod tests {
         NONE.get_or_init(Raised::default)
     }
 
+    /// The effects over bare terrain `t` (nothing raised) in a plain grey photo.
+    fn bare(
+        sun: Option<Sun>,
+        photo_sun: Option<Sun>,
+        factor: f64,
+        t: &Elevation,
+    ) -> Option<Effects<'_>> {
+        prepare(sun, photo_sun, factor, t, &plain(t), none(), none(), none()).unwrap()
+    }
+
     #[test]
     fn no_sun_prepares_nothing() {
         let t = terrain(8, 8, |c, _| c as f32);
-        assert!(
-            prepare(None, None, 0.5, &t, &plain(&t), none(), none(), none())
-                .unwrap()
-                .is_none()
-        );
+        assert!(bare(None, None, 0.5, &t).is_none());
         let r = record_none(None, None, 0.5);
         assert_eq!(r["applied"], json!([]));
         assert!(r["sun"].is_null());
@@ -599,18 +605,7 @@ mod tests {
     #[test]
     fn flat_ground_without_photo_sun_is_unchanged() {
         let t = terrain(8, 8, |_, _| 10.0);
-        let fx = prepare(
-            Some(sun(30.0, 135.0)),
-            None,
-            0.5,
-            &t,
-            &plain(&t),
-            none(),
-            none(),
-            none(),
-        )
-        .unwrap()
-        .unwrap();
+        let fx = bare(Some(sun(30.0, 135.0)), None, 0.5, &t).unwrap();
         let mut c = vec![[100, 150, 200, 255]; 64];
         fx.shade_band(0, &mut c).unwrap();
         assert!(c.iter().all(|p| *p == [100, 150, 200, 255]));
@@ -621,18 +616,7 @@ mod tests {
     fn slopes_facing_the_sun_brighten_and_facing_away_darken() {
         // Ridge along north-south at column 5: west side rises eastward, east side falls.
         let t = terrain(11, 5, |c, _| 10.0 - (c as f32 - 5.0).abs() * 0.3);
-        let fx = prepare(
-            Some(sun(40.0, 90.0)),
-            None,
-            0.4,
-            &t,
-            &plain(&t),
-            none(),
-            none(),
-            none(),
-        )
-        .unwrap()
-        .unwrap();
+        let fx = bare(Some(sun(40.0, 90.0)), None, 0.4, &t).unwrap();
         assert!(
             fx.factor_at(8, 2).unwrap() > 1.0,
             "east slope faces the eastern sun"
@@ -652,18 +636,7 @@ mod tests {
     fn cliff_shadow_darkens_by_the_shadow_factor() {
         // A 10 m cliff face at column 3 (west high), sun in the west at 45°: 10 cells of shadow.
         let t = terrain(30, 3, |c, _| if c <= 3 { 10.0 } else { 0.0 });
-        let fx = prepare(
-            Some(sun(45.0, 270.0)),
-            None,
-            0.5,
-            &t,
-            &plain(&t),
-            none(),
-            none(),
-            none(),
-        )
-        .unwrap()
-        .unwrap();
+        let fx = bare(Some(sun(45.0, 270.0)), None, 0.5, &t).unwrap();
         let mut c = vec![[200, 100, 50, 255]; 90];
         fx.shade_band(0, &mut c).unwrap();
         assert_eq!(c[31 + 5], [100, 50, 25, 255], "in the cliff's shadow");
@@ -685,18 +658,7 @@ mod tests {
         let (t, b) = building_scene();
         let s = sun(35.0, 90.0);
         // Nothing raised: nothing at all to do.
-        assert!(prepare(
-            Some(s),
-            Some(s),
-            0.5,
-            &t,
-            &plain(&t),
-            none(),
-            none(),
-            none()
-        )
-        .unwrap()
-        .is_none());
+        assert!(bare(Some(s), Some(s), 0.5, &t).is_none());
         let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), &b, none(), &b)
             .unwrap()
             .unwrap();
