@@ -88,7 +88,7 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
             3 => {
                 b >= 32
                     && (1..=3).contains(&predictor)
-                    && (predictor != 3 || planar || samples <= 4)
+                    && (predictor != 3 || planar || samples <= FLOAT_LANES)
             }
             _ => false,
         };
@@ -235,7 +235,8 @@ pub(crate) fn decode(
 /// An unsigned sample word: samples are decoded as their bits, then reinterpreted (in place).
 trait Word: bytemuck::Pod + Default + Send + Sync {
     const BYTES: usize;
-    fn from_bytes(b: &[u8], big_endian: bool) -> Self;
+    /// The word whose bytes, most significant first, are `b` (`BYTES` long).
+    fn from_be_bytes(b: &[u8]) -> Self;
     /// The word with its bytes reversed.
     fn swap_bytes(self) -> Self;
     fn wrapping_add(self, other: Self) -> Self;
@@ -274,7 +275,7 @@ fn float_row<W: Word>(bytes: &[u8], spp: usize, out: &mut [W]) {
                     acc[k][j] = acc[k][j].wrapping_add(planes[k][p * N + j]);
                     be[k] = acc[k][j];
                 }
-                *word = W::from_bytes(&be[..W::BYTES], true);
+                *word = W::from_be_bytes(&be[..W::BYTES]);
             }
         }
     }
@@ -283,7 +284,7 @@ fn float_row<W: Word>(bytes: &[u8], spp: usize, out: &mut [W]) {
         1 => lanes::<W, 1>(bytes, out),
         2 => lanes::<W, 2>(bytes, out),
         3 => lanes::<W, 3>(bytes, out),
-        4 => lanes::<W, FLOAT_LANES>(bytes, out),
+        4 => lanes::<W, 4>(bytes, out),
         _ => unreachable!("plan() leaves more than {FLOAT_LANES} lanes to the tiff crate"),
     }
 }
@@ -319,13 +320,8 @@ macro_rules! word {
         impl Word for $t {
             const BYTES: usize = std::mem::size_of::<$t>();
             #[inline]
-            fn from_bytes(b: &[u8], big_endian: bool) -> $t {
-                let a = b.try_into().expect("word-sized slice");
-                if big_endian {
-                    <$t>::from_be_bytes(a)
-                } else {
-                    <$t>::from_le_bytes(a)
-                }
+            fn from_be_bytes(b: &[u8]) -> $t {
+                <$t>::from_be_bytes(b.try_into().expect("word-sized slice"))
             }
             #[inline]
             fn wrapping_add(self, other: $t) -> $t {
@@ -411,8 +407,9 @@ pub(crate) fn inflate_zlib(stored: &[u8], limit: usize) -> std::result::Result<V
     Ok(raw)
 }
 
-/// One stored row of a chunk (`chunk_w` pixels, inflated) as words into `out`, its first `out.len()` samples (fewer than the
-/// chunk's when the chunk overhangs the image's right edge; `scratch` holds the whole row then).
+/// One stored row of a chunk (`chunk_w` pixels, inflated) as words into `out`, its first
+/// `out.len()` samples (fewer than the chunk's when the chunk overhangs the image's right edge;
+/// `scratch` holds the whole row then).
 fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Vec<W>) {
     let spp = plan.chunk_samples();
     match plan.predictor {
