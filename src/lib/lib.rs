@@ -14,6 +14,8 @@
 //! * [`sample`]: the generated sample scene.
 //! * [`voxel`]: sculpted and synthetic voxel objects.
 //! * [`pyramid`] and [`tiles`]: the render database; [`render`]: the ray-casting preview.
+//!
+//! Shared by the stages: [`walk`], the one grid traversal (cells a ray crosses, explicit corner rule).
 
 pub mod crs;
 pub mod db;
@@ -32,5 +34,6 @@ pub mod shadow_height;
 pub mod sun;
 pub mod tiles;
 pub mod voxel;
+pub mod walk;
 
 pub use error::{Error, Result};

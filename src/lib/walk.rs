@@ -1,0 +1,450 @@
+//! Grid traversal: the cells a ray crosses, in order, with an explicit corner rule.
+//!
+//! One traversal for every place that walks a line across cells (shadow-height's scan lines,
+//! the reference shadow march, the voxel-colour visibility ray): a line in continuous cell
+//! coordinates — cell `k` of an axis spans `[k, k + 1)` — from `start`, moving `dir` cells per
+//! unit of the caller's parameter `t` (metres, or cells).
+//!
+//! # Invariants
+//! * **Crossing times are one pure function.** The ray crosses boundary `b` of axis `a` at
+//!   `t = (b − start[a]) / dir[a]` ([`cross`]), computed afresh for every boundary (no running
+//!   sum that drifts over thousands of cells), so two walks over the same ray agree bit for bit.
+//! * **Start cell.** On each axis the cell holding `start`; a start exactly on a boundary is in
+//!   the cell the ray moves into (`floor` moving up or parallel, `ceil − 1` moving down).
+//! * **Corners.** The ray passes *through a corner* when, at the time it crosses the nearest
+//!   boundary, it is within [`CORNER_EPS`] cells of a boundary of another axis too: exact
+//!   diagonals, and directions a few ulps off them, all count. The [`Corner`] rule then says what
+//!   is visited:
+//!   - [`Corner::Diagonal`]: the ray steps straight into the diagonal cell. The side cells touch
+//!     the ray at one point only, so they are not crossed (a zero-area contact is no contact).
+//!   - [`Corner::Touching`]: the side cells are visited too, each with zero length
+//!     (`t_in == t_out`), before the diagonal cell: the *supercover* of the line, every cell the
+//!     closed line touches — for marking the cells a polygon edge covers in part.
+//! * **Visits.** Each [`Visit`] holds the cell and the times the ray enters and leaves it. In
+//!   `Diagonal` mode the visits tile the ray: each `t_in` is the previous `t_out`, and every
+//!   visit has positive length (but the start cell's, when `start` sits on its exit boundary).
+//!   A ray parallel to an axis never crosses that axis' boundaries; a ray with no direction at
+//!   all visits its start cell once, to `t = +∞`.
+//!
+//! The walk is an unbounded iterator: callers stop it (`take_while` on `t_in`, or on leaving
+//! their grid).
+
+/// How close (cells) the ray must pass to a boundary of another axis, when it crosses one, to
+/// count as passing through their corner. Far above the rounding of `cross` for coordinates up
+/// to 10⁶ cells, far below any distance that matters.
+pub const CORNER_EPS: f64 = 1e-9;
+
+/// What a walk visits where the ray passes exactly through a cell corner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Corner {
+    /// Step into the diagonal cell only (the cells the ray crosses with positive length).
+    Diagonal,
+    /// Also visit the side cells, with zero length (every cell the line touches).
+    Touching,
+}
+
+/// One cell of a walk and the parameter interval the ray spends in it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Visit<const N: usize> {
+    /// The cell's index on each axis.
+    pub cell: [i64; N],
+    /// Parameter at which the ray enters the cell (0 for the start cell).
+    pub t_in: f64,
+    /// Parameter at which it leaves (`+∞` if never).
+    pub t_out: f64,
+}
+
+/// The parameter at which a ray at `o` moving `d` cells per unit crosses boundary `b` (cells):
+/// `(b − o) / d`, `+∞` when `d == 0`.
+#[inline]
+pub fn cross(o: f64, d: f64, b: i64) -> f64 {
+    if d == 0.0 {
+        f64::INFINITY
+    } else {
+        (b as f64 - o) / d
+    }
+}
+
+/// The cells a ray crosses; see the module doc. `N` is 2 (raster cells) or 3 (voxels).
+#[derive(Debug, Clone)]
+pub struct Walk<const N: usize> {
+    start: [f64; N],
+    dir: [f64; N],
+    corner: Corner,
+    cell: [i64; N],
+    step: [i64; N],
+    /// Parameter at which the ray entered `cell`.
+    t_in: f64,
+    /// Side cells still to visit at a corner (Touching), and how many.
+    pending: [[i64; N]; 8],
+    n_pending: usize,
+    pending_t: f64,
+    done: bool,
+}
+
+impl<const N: usize> Walk<N> {
+    /// A walk from `start` (cell coordinates) moving `dir` cells per unit of `t`. Non-finite
+    /// components of `dir` are taken as 0.
+    pub fn new(start: [f64; N], dir: [f64; N], corner: Corner) -> Walk<N> {
+        assert!((1..=3).contains(&N), "walks are 1-, 2- or 3-dimensional");
+        let dir = dir.map(|d| if d.is_finite() && d != 0.0 { d } else { 0.0 });
+        let cell = std::array::from_fn(|a| {
+            if dir[a] < 0.0 {
+                start[a].ceil() as i64 - 1
+            } else {
+                start[a].floor() as i64
+            }
+        });
+        Walk {
+            start,
+            dir,
+            corner,
+            cell,
+            step: dir.map(|d| {
+                if d > 0.0 {
+                    1
+                } else if d < 0.0 {
+                    -1
+                } else {
+                    0
+                }
+            }),
+            t_in: 0.0,
+            pending: [[0; N]; 8],
+            n_pending: 0,
+            pending_t: 0.0,
+            done: false,
+        }
+    }
+
+    /// The boundary the ray crosses next on axis `a`.
+    #[inline]
+    fn next_boundary(&self, a: usize) -> i64 {
+        if self.step[a] > 0 {
+            self.cell[a] + 1
+        } else {
+            self.cell[a]
+        }
+    }
+}
+
+impl<const N: usize> Iterator for Walk<N> {
+    type Item = Visit<N>;
+
+    fn next(&mut self) -> Option<Visit<N>> {
+        if self.n_pending > 0 {
+            self.n_pending -= 1;
+            let t = self.pending_t;
+            return Some(Visit {
+                cell: self.pending[self.n_pending],
+                t_in: t,
+                t_out: t,
+            });
+        }
+        if self.done {
+            return None;
+        }
+        // The nearest crossing, and every axis the ray meets a boundary of at that time.
+        let times: [f64; N] =
+            std::array::from_fn(|a| cross(self.start[a], self.dir[a], self.next_boundary(a)));
+        let (m, t_out) =
+            times
+                .iter()
+                .copied()
+                .enumerate()
+                .fold(
+                    (0, f64::INFINITY),
+                    |best, (a, t)| if t < best.1 { (a, t) } else { best },
+                );
+        let here = Visit {
+            cell: self.cell,
+            t_in: self.t_in,
+            t_out,
+        };
+        if t_out == f64::INFINITY {
+            self.done = true;
+            return Some(here);
+        }
+        let tied: [bool; N] = std::array::from_fn(|a| {
+            a == m
+                || (self.dir[a] != 0.0
+                    && (self.start[a] + t_out * self.dir[a] - self.next_boundary(a) as f64).abs()
+                        <= CORNER_EPS)
+        });
+        if self.corner == Corner::Touching {
+            // Every proper, non-empty subset of the tied axes stepped: the side cells.
+            let axes: Vec<usize> = (0..N).filter(|&a| tied[a]).collect();
+            let full = (1usize << axes.len()) - 1;
+            self.n_pending = 0;
+            for mask in (1..full).rev() {
+                let mut c = self.cell;
+                for (k, &a) in axes.iter().enumerate() {
+                    if mask & (1 << k) != 0 {
+                        c[a] += self.step[a];
+                    }
+                }
+                self.pending[self.n_pending] = c;
+                self.n_pending += 1;
+            }
+            self.pending_t = t_out;
+        }
+        for a in 0..N {
+            if tied[a] {
+                self.cell[a] += self.step[a];
+            }
+        }
+        self.t_in = t_out;
+        Some(here)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn cells<const N: usize>(w: Walk<N>, n: usize) -> Vec<[i64; N]> {
+        w.take(n).map(|v| v.cell).collect()
+    }
+
+    /// Every cell the segment `[0, t_end]` crosses with positive length, by brute force: all
+    /// boundary crossings sorted, the cell at the middle of each interval between them.
+    fn brute<const N: usize>(start: [f64; N], dir: [f64; N], t_end: f64) -> Vec<[i64; N]> {
+        let mut ts = vec![0.0, t_end];
+        for a in 0..N {
+            if dir[a] == 0.0 {
+                continue;
+            }
+            let (lo, hi) = (
+                start[a].min(start[a] + dir[a] * t_end),
+                start[a].max(start[a] + dir[a] * t_end),
+            );
+            for b in lo.ceil() as i64..=hi.floor() as i64 {
+                let t = cross(start[a], dir[a], b);
+                if t > 0.0 && t < t_end {
+                    ts.push(t);
+                }
+            }
+        }
+        ts.sort_by(f64::total_cmp);
+        ts.windows(2)
+            .filter(|w| w[1] - w[0] > 1e-7)
+            .map(|w| {
+                let t = (w[0] + w[1]) / 2.0;
+                std::array::from_fn(|a| (start[a] + t * dir[a]).floor() as i64)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn hard_case_exact_axes_walk_one_row_or_column() {
+        for (d, step) in [
+            ([1.0, 0.0], [1, 0]),
+            ([-1.0, 0.0], [-1, 0]),
+            ([0.0, 1.0], [0, 1]),
+            ([0.0, -1.0], [0, -1]),
+        ] {
+            let got = cells(Walk::new([2.5, 3.5], d, Corner::Diagonal), 4);
+            let want: Vec<[i64; 2]> = (0..4).map(|k| [2 + step[0] * k, 3 + step[1] * k]).collect();
+            assert_eq!(got, want, "{d:?}");
+            // Along a boundary: the cell on the + side, both rules alike.
+            let on = cells(Walk::new([2.0, 3.0], [1.0, 0.0], Corner::Touching), 3);
+            assert_eq!(on, [[2, 3], [3, 3], [4, 3]]);
+        }
+    }
+
+    #[test]
+    fn hard_case_exact_diagonals_step_corner_to_corner() {
+        for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)] {
+            let d = [sx * 0.7, sy * 0.7];
+            // From a corner: straight down the diagonal, never a side cell.
+            let got = cells(Walk::new([5.0, 5.0], d, Corner::Diagonal), 4);
+            let first = [if sx > 0.0 { 5 } else { 4 }, if sy > 0.0 { 5 } else { 4 }];
+            let want: Vec<[i64; 2]> = (0..4)
+                .map(|k| [first[0] + sx as i64 * k, first[1] + sy as i64 * k])
+                .collect();
+            assert_eq!(got, want, "{d:?}");
+            // Touching: each corner adds its two side cells, zero length.
+            let v: Vec<Visit<2>> = Walk::new([5.0, 5.0], d, Corner::Touching).take(7).collect();
+            assert_eq!(v[0].cell, want[0]);
+            assert_eq!(v[3].cell, want[1]);
+            assert_eq!(v[6].cell, want[2]);
+            for side in [&v[1], &v[2], &v[4], &v[5]] {
+                assert_eq!(side.t_in, side.t_out);
+            }
+            let mut sides = [v[1].cell, v[2].cell];
+            sides.sort();
+            let mut expect = [
+                [want[0][0] + sx as i64, want[0][1]],
+                [want[0][0], want[0][1] + sy as i64],
+            ];
+            expect.sort();
+            assert_eq!(sides, expect);
+        }
+    }
+
+    #[test]
+    fn hard_case_a_few_ulps_off_a_diagonal_walks_it_exactly() {
+        let d = 0.5f64;
+        for k in 1..=4 {
+            let mut off = d;
+            for _ in 0..k {
+                off = f64::from_bits(off.to_bits() + 1);
+            }
+            let mut under = d;
+            for _ in 0..k {
+                under = f64::from_bits(under.to_bits() - 1);
+            }
+            for dir in [[d, off], [off, d], [d, under], [-under, d]] {
+                let got = cells(Walk::new([10.0, 20.0], dir, Corner::Diagonal), 2000);
+                let sx = dir[0].signum() as i64;
+                let x0 = if sx > 0 { 10 } else { 9 };
+                let want: Vec<[i64; 2]> = (0..2000).map(|i| [x0 + sx * i, 20 + i]).collect();
+                assert_eq!(got, want, "{dir:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn hard_case_utm_sized_start_stays_exact() {
+        // A start 5·10⁶ cells out, along the diagonal: every crossing still found a corner.
+        let got = cells(
+            Walk::new([5.0e6, 5.3e6], [0.5, 0.5], Corner::Diagonal),
+            1000,
+        );
+        assert!(got
+            .iter()
+            .enumerate()
+            .all(|(i, c)| *c == [5_000_000 + i as i64, 5_300_000 + i as i64]));
+    }
+
+    #[test]
+    fn no_direction_visits_the_start_cell_once() {
+        let v: Vec<Visit<2>> = Walk::new([1.5, -0.5], [0.0, f64::NAN], Corner::Diagonal)
+            .take(3)
+            .collect();
+        assert_eq!(v.len(), 1);
+        assert_eq!((v[0].cell, v[0].t_out), ([1, -1], f64::INFINITY));
+    }
+
+    #[test]
+    fn three_axes_through_a_voxel_corner() {
+        let d = [1.0, 1.0, 1.0];
+        assert_eq!(
+            cells(Walk::new([0.0, 0.0, 0.0], d, Corner::Diagonal), 3),
+            [[0, 0, 0], [1, 1, 1], [2, 2, 2]]
+        );
+        // Touching: the six side voxels of the corner, then the diagonal one.
+        let v: Vec<[i64; 3]> = cells(Walk::new([0.0, 0.0, 0.0], d, Corner::Touching), 8);
+        assert_eq!(v[7], [1, 1, 1]);
+        let mut sides = v[1..7].to_vec();
+        sides.sort();
+        assert_eq!(
+            sides,
+            [
+                [0, 0, 1],
+                [0, 1, 0],
+                [0, 1, 1],
+                [1, 0, 0],
+                [1, 0, 1],
+                [1, 1, 0]
+            ]
+        );
+    }
+
+    /// A direction: arbitrary, or exactly on an axis or a diagonal, or a few ulps off one.
+    fn direction() -> impl Strategy<Value = [f64; 2]> {
+        let any = (-3.0f64..3.0, -3.0f64..3.0).prop_map(|(x, y)| [x, y]);
+        let special = (0usize..8, 0.05f64..3.0, -4i64..=4).prop_map(|(k, s, ulps)| {
+            let (x, y) = [
+                (1.0, 0.0),
+                (0.0, 1.0),
+                (-1.0, 0.0),
+                (0.0, -1.0),
+                (1.0, 1.0),
+                (-1.0, 1.0),
+                (1.0, -1.0),
+                (-1.0, -1.0),
+            ][k];
+            let nudge = |v: f64| {
+                if v == 0.0 {
+                    v
+                } else {
+                    f64::from_bits((v.to_bits() as i64 + ulps) as u64)
+                }
+            };
+            [x * s, nudge(y * s)]
+        });
+        prop_oneof![any, special]
+    }
+
+    fn start() -> impl Strategy<Value = [f64; 2]> {
+        let any = (-50.0f64..50.0, -50.0f64..50.0).prop_map(|(x, y)| [x, y]);
+        let on_grid = (-50i64..50, -50i64..50, 0usize..3).prop_map(|(x, y, k)| match k {
+            0 => [x as f64, y as f64],             // a corner
+            1 => [x as f64, y as f64 + 0.5],       // a boundary
+            _ => [x as f64 + 0.5, y as f64 + 0.5], // a centre
+        });
+        prop_oneof![any, on_grid]
+    }
+
+    proptest! {
+        #[test]
+        fn diagonal_walk_is_the_brute_force_cell_sequence(o in start(), d in direction(), t_end in 0.5f64..40.0) {
+            let visits: Vec<Visit<2>> = Walk::new(o, d, Corner::Diagonal)
+                .take_while(|v| v.t_in < t_end)
+                .collect();
+            // Tiled: each entry is the previous exit; steps of one cell per axis at most.
+            for w in visits.windows(2) {
+                prop_assert_eq!(w[1].t_in, w[0].t_out);
+                prop_assert!(w[0].t_out >= w[0].t_in);
+                prop_assert!((0..2).all(|a| (w[1].cell[a] - w[0].cell[a]).abs() <= 1));
+            }
+            // The cells with positive length are exactly the brute-force ones (the brute force
+            // merges crossings closer than 1e-7, as the walk merges corners).
+            let got: Vec<[i64; 2]> = visits
+                .iter()
+                .filter(|v| v.t_out.min(t_end) - v.t_in > 1e-7)
+                .map(|v| v.cell)
+                .collect();
+            prop_assert_eq!(got, brute(o, d, t_end));
+        }
+
+        #[test]
+        fn touching_walk_is_the_diagonal_walk_plus_zero_length_side_cells(o in start(), d in direction()) {
+            let diag: Vec<[i64; 2]> = cells(Walk::new(o, d, Corner::Diagonal), 50);
+            let touch: Vec<Visit<2>> = Walk::new(o, d, Corner::Touching).take(150).collect();
+            let long: Vec<[i64; 2]> = touch.iter().filter(|v| v.t_out > v.t_in || v.t_out == f64::INFINITY).map(|v| v.cell).collect();
+            prop_assert_eq!(&long[..long.len().min(50)], &diag[..long.len().min(50)]);
+            // Every side cell is 4-adjacent to the cell before it and to the next long cell.
+            for (k, v) in touch.iter().enumerate() {
+                let Some(next) = touch[k..].iter().find(|x| x.t_out > x.t_in) else {
+                    break; // the last corner's diagonal cell is past the 150 taken
+                };
+                if v.t_in == v.t_out {
+                    let prev = touch[..k].iter().rev().find(|x| x.t_out > x.t_in || x.t_in == 0.0).unwrap();
+                    let dist = |a: [i64; 2], b: [i64; 2]| (a[0] - b[0]).abs() + (a[1] - b[1]).abs();
+                    prop_assert_eq!(dist(v.cell, next.cell), 1);
+                    prop_assert_eq!(dist(v.cell, prev.cell), 1);
+                }
+            }
+        }
+
+        #[test]
+        fn reversed_segment_visits_the_same_cells_backwards(o in start(), d in direction(), t_end in 0.5f64..30.0) {
+            let end = [o[0] + d[0] * t_end, o[1] + d[1] * t_end];
+            let fwd: Vec<[i64; 2]> = Walk::new(o, d, Corner::Diagonal)
+                .take_while(|v| v.t_in < t_end)
+                .filter(|v| v.t_out.min(t_end) - v.t_in > 1e-6)
+                .map(|v| v.cell)
+                .collect();
+            let mut back: Vec<[i64; 2]> = Walk::new(end, [-d[0], -d[1]], Corner::Diagonal)
+                .take_while(|v| v.t_in < t_end)
+                .filter(|v| v.t_out.min(t_end) - v.t_in > 1e-6)
+                .map(|v| v.cell)
+                .collect();
+            back.reverse();
+            prop_assert_eq!(fwd, back);
+        }
+    }
+}
