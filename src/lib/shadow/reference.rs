@@ -3,14 +3,17 @@
 use super::{check_grid, Sun, LIT, NODATA, SHADOW};
 use crate::error::Result;
 use crate::raster::{Elevation, Raster};
+use crate::walk::{Corner, Walk};
 use rayon::prelude::*;
 
-/// Cast shadows by marching each valid cell's ray toward the sun cell by cell (Amanatides–Woo),
-/// exactly as the module's model states: shadowed when, at the point nearest a crossed valid
-/// cell's centre, the ray is below that cell's height. A ray through a cell corner (within 1e-9
-/// relative) steps diagonally, touching neither side cell. Stops a ray once it is above the
-/// highest cell. Cost O(n · shadow length in cells): a check for [`super::cast_shadows`], not a
-/// production path. Same errors.
+/// Cast shadows by marching each valid cell's ray toward the sun cell by cell (the shared
+/// [`crate::walk::Walk`], in metres along the ray), exactly as the module's model states:
+/// shadowed when, at the point nearest a crossed valid cell's centre, the ray is below that
+/// cell's height. A ray through a cell corner (within [`crate::walk::CORNER_EPS`] cells)
+/// steps diagonally, touching neither side cell ([`Corner::Diagonal`]: a side cell meets the
+/// ray at one point, which is not a crossing). Stops a ray once it is above the highest cell.
+/// Cost O(n · shadow length in cells): a check for [`super::cast_shadows`], not a production
+/// path. Same errors.
 pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8>> {
     let grid = &height.grid;
     check_grid(&height.data, grid)?;
@@ -37,11 +40,11 @@ pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8
                 let z0 = z0 as f64;
                 let mut shadowed = false;
                 if sun.elevation_deg < 90.0 {
-                    let walk = CellWalk {
-                        x: Axis::new(col, dc),
-                        y: Axis::new(row, dr),
-                    };
-                    for ((c, r), t) in walk {
+                    let centre = [col as f64 + 0.5, row as f64 + 0.5];
+                    // The cells after the start one, each with the metres at which it is entered.
+                    let walk = Walk::new(centre, [dc, dr], Corner::Diagonal).skip(1);
+                    for visit in walk {
+                        let ([c, r], t) = (visit.cell.map(|i| i as isize), visit.t_in);
                         if c < 0 || r < 0 || c >= w || r >= h {
                             break;
                         }
@@ -61,64 +64,4 @@ pub fn cast_shadows_reference(height: &Elevation, sun: &Sun) -> Result<Raster<u8
             }
         });
     Ok(Raster::new(grid.clone(), data))
-}
-
-/// One axis of a grid traversal from a cell centre.
-#[derive(Clone, Copy)]
-struct Axis {
-    /// Current cell index.
-    cell: isize,
-    /// −1, 0 or +1.
-    step: isize,
-    /// Metres along the ray to the next boundary on this axis.
-    next: f64,
-    /// Metres along the ray between boundaries on this axis.
-    delta: f64,
-}
-
-impl Axis {
-    /// From the centre of cell `index`, moving `rate` cells per metre.
-    fn new(index: usize, rate: f64) -> Axis {
-        let delta = if rate == 0.0 {
-            f64::INFINITY
-        } else {
-            1.0 / rate.abs()
-        };
-        Axis {
-            cell: index as isize,
-            step: rate.signum() as isize * (rate != 0.0) as isize,
-            next: 0.5 * delta,
-            delta,
-        }
-    }
-
-    fn advance(&mut self) {
-        self.cell += self.step;
-        self.next += self.delta;
-    }
-}
-
-/// Iterator over the cells a ray enters: `((col, row), metres at entry)`.
-struct CellWalk {
-    x: Axis,
-    y: Axis,
-}
-
-impl Iterator for CellWalk {
-    type Item = ((isize, isize), f64);
-
-    fn next(&mut self) -> Option<Self::Item> {
-        let (tx, ty) = (self.x.next, self.y.next);
-        let t = tx.min(ty);
-        if (tx - ty).abs() <= 1e-9 * t {
-            // Through a corner: diagonal step.
-            self.x.advance();
-            self.y.advance();
-        } else if tx < ty {
-            self.x.advance();
-        } else {
-            self.y.advance();
-        }
-        Some(((self.x.cell, self.y.cell), t))
-    }
 }
