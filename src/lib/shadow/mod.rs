@@ -26,7 +26,8 @@
 //!   [`cast_shadows_slice`] is that loop over a slice held in memory.
 //! * [`cast_shadows_reference`]: marches every cell's ray exactly, cell by cell
 //!   (the shared [`crate::walk::Walk`] with [`crate::walk::Corner::Diagonal`]: a ray through a
-//!   cell corner steps diagonally and touches neither side cell). O(n · shadow length); used by tests and benchmarks to check the sweep.
+//!   cell corner steps diagonally and touches neither side cell). O(n · shadow length); used by
+//!   tests and benchmarks to check the sweep.
 //!
 //! And GRASS `r.sunmask`'s rule, [`cast_shadows_sunmask`]: the same surface, but each step of a
 //! ray compares the height of the cell *containing* the step point at the *step's* distance, a
