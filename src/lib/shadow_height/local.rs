@@ -2,9 +2,10 @@
 //!
 //! Invariant: a [`Local`] covers a window of the database grid (never outside it); every cell
 //! holds exactly one [`Class`], with the footprint's own cells taking precedence over other
-//! footprints', and those over the photo's lit / shadow reading. Cells whose reading cannot be
-//! trusted — nodata colour or elevation, or cells the bare terrain shadows itself — are
-//! [`Class::Unusable`]: a building's shadow reaching them has an unknown end.
+//! footprints', those over the cells the footprint covers in part ([`Class::Edge`]), and those
+//! over the photo's lit / shadow reading. Cells whose reading cannot be trusted — nodata colour
+//! or elevation, or cells the bare terrain shadows itself — are [`Class::Unusable`]: a
+//! building's shadow reaching them has an unknown end.
 
 use crate::grid::{Grid, Window};
 
@@ -15,8 +16,15 @@ pub enum Class {
     Lit,
     /// Open ground, in shadow in the photo.
     Shadow,
-    /// Under this footprint.
+    /// Under this footprint (its centre is inside the polygon).
     Own,
+    /// Open ground that this footprint's polygon covers in part (an edge of the polygon crosses
+    /// the cell, its centre is outside): the photo shows a mix of the lit roof and the ground
+    /// beside it, so its reading says nothing about the shadow. Scan lines walk through it like
+    /// [`Class::Own`]; the refinement leaves it out of the comparison. (A footprint edge at
+    /// 0.6–0.8 of a cell made this cell read lit with the shadow beside it, and every line
+    /// leaving through that edge measured 0 m: issue 13's silent 1.66 m for 10.6 m.)
+    Edge,
     /// Under another footprint.
     Other,
     /// Nodata, or shadowed by the terrain alone.

@@ -35,6 +35,7 @@ use crate::grid::Grid;
 use crate::pyramid::raised::{rasterise_prisms, Prism};
 use crate::raster::{Colour, Elevation, Raster};
 use crate::shadow::{cast_shadows, Sun, SHADOW};
+use crate::walk::{Corner, Walk};
 use local::{Class, Local};
 use rayon::prelude::*;
 
@@ -49,6 +50,18 @@ pub const MAX_SHADOW_CELLS: f64 = 4096.0;
 /// Fewest valid scan lines a height is measured from (fewer when the footprint casts fewer): a
 /// median of one or two lines that slipped past a neighbour is no measurement.
 pub const MIN_VALID_LINES: usize = 3;
+
+/// Independent evidence a height must have to be reported without a flag (see
+/// [`Flags::lines_disagree`], [`Flags::estimates_disagree`], [`Flags::poor_shadow_match`]):
+/// the fraction of valid scan lines whose own roof estimate (tip terrain + length · tan e) is
+/// within [`AGREE_CELLS`] cells of shadow length of their median.
+pub const MIN_AGREEING_LINES: f64 = 0.5;
+/// See [`MIN_AGREEING_LINES`]: how far (in cells of shadow length, `cell · tan e` metres each)
+/// a line's roof may be from the median, and the refined roof from the lines' median roof.
+pub const AGREE_CELLS: f64 = 2.0;
+/// See [`MIN_AGREEING_LINES`]: the lowest IoU of the synthetic shadow at the refined height and
+/// the observed one.
+pub const MIN_OVERLAP: f64 = 0.6;
 
 /// Tuning of a run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,6 +106,15 @@ pub struct Flags {
     pub low_sun: bool,
     /// Sun elevation above [`HIGH_SUN_DEG`].
     pub high_sun: bool,
+    /// Fewer than [`MIN_AGREEING_LINES`] of the valid scan lines imply a roof within
+    /// [`AGREE_CELLS`] cells of shadow of their median: the lines measured different things.
+    pub lines_disagree: bool,
+    /// The refined roof is more than [`AGREE_CELLS`] cells of shadow from the roof the scan
+    /// lines imply over the real terrain (median of tip terrain + length · tan e).
+    pub estimates_disagree: bool,
+    /// The synthetic shadow at the refined height overlaps the observed one by less than
+    /// [`MIN_OVERLAP`] (IoU).
+    pub poor_shadow_match: bool,
 }
 
 impl Flags {
@@ -107,6 +129,9 @@ impl Flags {
             (self.shadow_on_other_building, "shadow_on_other_building"),
             (self.low_sun, "low_sun"),
             (self.high_sun, "high_sun"),
+            (self.lines_disagree, "lines_disagree"),
+            (self.estimates_disagree, "estimates_disagree"),
+            (self.poor_shadow_match, "poor_shadow_match"),
         ]
         .into_iter()
         .filter_map(|(on, name)| on.then_some(name))
@@ -287,6 +312,28 @@ fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f6
         .collect()
 }
 
+/// `base` (one optional class per cell of `grid`, a window) with the cells that an edge of
+/// `fp` crosses — every cell the closed edge touches ([`Corner::Touching`]) — and that are
+/// still open ground, [`Class::Edge`].
+fn own_edge(mut base: Vec<Option<Class>>, fp: &Footprint, grid: &Grid) -> Vec<Option<Class>> {
+    let t = &grid.transform;
+    let (w, h) = (grid.width as i64, grid.height as i64);
+    for (a, b) in fp.edges() {
+        let (pa, pb) = (t.world_to_pixel(a.0, a.1), t.world_to_pixel(b.0, b.1));
+        let d = [pb.0 - pa.0, pb.1 - pa.1];
+        for v in Walk::new([pa.0, pa.1], d, Corner::Touching).take_while(|v| v.t_in <= 1.0) {
+            let [c, r] = v.cell;
+            if c >= 0 && r >= 0 && c < w && r < h {
+                let k = (r * w + c) as usize;
+                if base[k].is_none() {
+                    base[k] = Some(Class::Edge);
+                }
+            }
+        }
+    }
+    base
+}
+
 /// What every footprint's measurement reads.
 struct Shared<'a> {
     inputs: &'a Inputs<'a>,
@@ -331,7 +378,7 @@ impl Shared<'_> {
         let u = (-dx, -dy);
         let max_len = (self.opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cell);
         let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
-        let (local, threshold) = self.classify(id, win);
+        let (local, threshold) = self.classify(id, fp, win);
         let mut m = Measurement {
             height_m: None,
             roof_z: None,
@@ -389,6 +436,28 @@ impl Shared<'_> {
         m.height_m = Some(r.height_m);
         m.roof_z = Some(ground_z + r.height_m);
         m.overlap = Some(r.overlap);
+        // Never a silent wrong height: unflagged only when the lines agree with each other, the
+        // refinement agrees with them, and its shadow matches the photo's.
+        let tol = AGREE_CELLS * m.uncertainty_m;
+        let line_roofs: Vec<f64> = s
+            .tip_roofs
+            .iter()
+            .copied()
+            .filter(|z| z.is_finite())
+            .collect();
+        match scan::median(&line_roofs) {
+            Some(ray_roof) => {
+                let agreeing = line_roofs
+                    .iter()
+                    .filter(|z| (*z - ray_roof).abs() <= tol)
+                    .count();
+                m.flags.lines_disagree =
+                    (agreeing as f64) < MIN_AGREEING_LINES * line_roofs.len() as f64;
+                m.flags.estimates_disagree = (ground_z + r.height_m - ray_roof).abs() > tol;
+            }
+            None => m.flags.estimates_disagree = true,
+        }
+        m.flags.poor_shadow_match = r.overlap < MIN_OVERLAP;
         Ok(m)
     }
 
@@ -431,7 +500,7 @@ impl Shared<'_> {
     }
 
     /// Classify the window's cells for footprint `id`; the detection threshold used, if any.
-    fn classify(&self, id: u32, win: crate::grid::Window) -> (Local, Option<f64>) {
+    fn classify(&self, id: u32, fp: &Footprint, win: crate::grid::Window) -> (Local, Option<f64>) {
         let w = self.grid.width;
         let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
         let n = win.width * win.height;
@@ -453,6 +522,7 @@ impl Shared<'_> {
                 }
             })
             .collect();
+        let base = own_edge(base, fp, &self.grid.window_grid(&win));
         // Open ground: from the mask, or below the local threshold of the shadow index.
         let (is_shadow, threshold): (Box<dyn Fn(usize) -> bool>, Option<f64>) =
             match self.inputs.mask {

@@ -214,10 +214,14 @@ fn attached_shadow(local: &Local, corridor: &[bool], keep: &[bool]) -> Vec<bool>
             .map(move |(x, y)| y as usize * w + x as usize)
     };
     let open = |i: usize| corridor[i] && local.class[i] == Class::Shadow;
-    let through = |i: usize| open(i) || (keep[i] && local.class[i] == Class::Unusable);
+    // Unusable cells hide the shadow; the footprint's edge cells mix it with the roof.
+    let through = |i: usize| {
+        open(i) || local.class[i] == Class::Edge || (keep[i] && local.class[i] == Class::Unusable)
+    };
     let mut seen = vec![false; corridor.len()];
     let mut stack: Vec<usize> = (0..corridor.len())
         .filter(|&i| through(i) && neighbours(i).any(|j| local.class[j] == Class::Own))
+        .chain((0..corridor.len()).filter(|&i| local.class[i] == Class::Edge))
         .collect();
     for &i in &stack {
         seen[i] = true;

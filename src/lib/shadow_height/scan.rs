@@ -3,7 +3,8 @@
 //! Invariant: scan lines run along the shadow direction `u` (away from the sun), spaced half a
 //! cell apart across the footprint, keeping one cell clear of its two extreme tangents (where the
 //! raster edge is ragged). Each line starts where it last leaves the polygon (its sun-far edge)
-//! and walks the cells it crosses; it ends, valid, at the first lit cell. A line is dropped
+//! and walks the cells it crosses ([`crate::walk`], through corners diagonally); cells its own
+//! roof covers in part ([`Class::Edge`]) do not end it; it ends, valid, at the first lit cell. A line is dropped
 //! ("cut") when it leaves the window or its shadow ends in or within a cell of unusable cells
 //! (passing through them, e.g. under another building's shadow, it goes on), and dropped as
 //! meeting another footprint when it enters one or its shadow ends on a lit cell touching one
@@ -14,6 +15,7 @@
 
 use super::footprint::Footprint;
 use super::local::{Class, Local};
+use crate::walk::{Corner, Walk};
 
 /// What the scan lines of one footprint found.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -93,10 +95,14 @@ pub fn scan(
         // Where the line last left unusable cells (metres along it): a shadow ending within a
         // cell of them has an unknown end; one merely passing through them goes on.
         let mut unusable_until = f64::NEG_INFINITY;
-        let mut walk = CellWalk::new(&local.grid, start, u);
+        // Where the line last left its own footprint's cells or edge cells, metres.
+        let mut roof_until = 0.0f64;
+        let mut walk = cells_along(local, start, u);
         loop {
-            let (x, cell_at) = walk.next_cell();
-            if x > max_len + cell {
+            let (x, x_out, cell_at) = walk.next().expect("a walk along a unit vector never ends");
+            // Past the longest shadow sought beyond the footprint and its edge cells (a line
+            // grazing an oblique edge may cross several).
+            if x > roof_until + max_len + cell {
                 out.cut += 1;
                 break;
             }
@@ -109,12 +115,13 @@ pub fn scan(
                     out.cut += 1;
                     break;
                 }
-                Some((_, Class::Unusable)) => unusable_until = walk.t,
+                Some((_, Class::Unusable)) => unusable_until = x_out,
                 Some((_, Class::Other)) => {
                     out.on_other += 1;
                     break;
                 }
-                Some((_, Class::Own)) => {}
+                // The own roof, or a cell it covers in part: not yet the shadow's end.
+                Some((_, Class::Own | Class::Edge)) => roof_until = x_out,
                 Some((_, Class::Shadow)) => seen_shadow = true,
                 Some((i, Class::Lit)) => {
                     if x - unusable_until < cell {
@@ -139,73 +146,44 @@ pub fn scan(
 /// of its 8 neighbours is [`Class::Other`], or the line enters such a cell before `until`
 /// metres. That cell may read lit only because the other building's sunlit roof covers part
 /// of it; the shadow met the building there rather than ending.
-fn meets_other(local: &Local, at: (usize, usize), walk: &mut CellWalk, until: f64) -> bool {
+fn meets_other(
+    local: &Local,
+    at: (usize, usize),
+    walk: &mut impl Iterator<Item = (f64, f64, Option<(usize, usize)>)>,
+    until: f64,
+) -> bool {
     let (w, h) = (local.grid.width, local.grid.height);
     let (c, r) = at;
     let near = (r.saturating_sub(1)..=(r + 1).min(h - 1))
         .flat_map(|rr| (c.saturating_sub(1)..=(c + 1).min(w - 1)).map(move |cc| rr * w + cc))
         .any(|i| local.class[i] == Class::Other);
-    near || std::iter::from_fn(|| Some(walk.next_cell()))
-        .take_while(|&(x, _)| x <= until)
-        .any(|(_, a)| a.is_some_and(|(c, r)| local.class[r * w + c] == Class::Other))
+    near || walk
+        .take_while(|&(x, _, _)| x <= until)
+        .any(|(_, _, a)| a.is_some_and(|(c, r)| local.class[r * w + c] == Class::Other))
 }
 
-/// Amanatides–Woo traversal of a grid's cells along a ray: each call gives the distance (metres,
-/// ≥ 0) at which the ray enters the next cell, and that cell (`None` once outside the grid).
-struct CellWalk {
-    cell: (i64, i64),
-    size: (i64, i64),
-    step: (i64, i64),
-    t_max: (f64, f64),
-    t_delta: (f64, f64),
-    t: f64,
-}
-
-impl CellWalk {
-    fn new(grid: &crate::grid::Grid, start: (f64, f64), u: (f64, f64)) -> CellWalk {
-        let tr = &grid.transform;
-        let (px, py) = tr.world_to_pixel(start.0, start.1);
-        // Pixel units per metre along the ray.
-        let (vx, vy) = (u.0 / tr.cell_x, u.1 / tr.cell_y);
-        let axis = |p: f64, v: f64| -> (i64, f64, f64) {
-            let c = p.floor();
-            if v > 0.0 {
-                (1, (c + 1.0 - p) / v, 1.0 / v)
-            } else if v < 0.0 {
-                (-1, (p - c) / -v, -1.0 / v)
-            } else {
-                (0, f64::INFINITY, f64::INFINITY)
-            }
-        };
-        let (sx, mx, dx) = axis(px, vx);
-        let (sy, my, dy) = axis(py, vy);
-        CellWalk {
-            cell: (px.floor() as i64, py.floor() as i64),
-            size: (grid.width as i64, grid.height as i64),
-            step: (sx, sy),
-            t_max: (mx, my),
-            t_delta: (dx, dy),
-            t: 0.0,
-        }
-    }
-
-    /// Entry distance of the current cell and the cell; then advance.
-    fn next_cell(&mut self) -> (f64, Option<(usize, usize)>) {
-        let (c, r) = self.cell;
-        let here = (c >= 0 && r >= 0 && c < self.size.0 && r < self.size.1)
-            .then_some((c as usize, r as usize));
-        let t = self.t;
-        if self.t_max.0 < self.t_max.1 {
-            self.t = self.t_max.0;
-            self.cell.0 += self.step.0;
-            self.t_max.0 += self.t_delta.0;
-        } else {
-            self.t = self.t_max.1;
-            self.cell.1 += self.step.1;
-            self.t_max.1 += self.t_delta.1;
-        }
-        (t, here)
-    }
+/// The cells of `local` a scan line from `start` (world metres) along the unit vector `u` crosses
+/// ([`Corner::Diagonal`]: a line through a cell corner steps into the diagonal cell, the side
+/// cells touch it at a point only): the metres at which it enters and leaves each, and the
+/// cell (`None` once outside the window).
+fn cells_along(
+    local: &Local,
+    start: (f64, f64),
+    u: (f64, f64),
+) -> impl Iterator<Item = (f64, f64, Option<(usize, usize)>)> {
+    let tr = &local.grid.transform;
+    let p = tr.world_to_pixel(start.0, start.1);
+    let (w, h) = (local.grid.width as i64, local.grid.height as i64);
+    Walk::new(
+        [p.0, p.1],
+        [u.0 / tr.cell_x, u.1 / tr.cell_y],
+        Corner::Diagonal,
+    )
+    .map(move |v| {
+        let [c, r] = v.cell;
+        let inside = c >= 0 && r >= 0 && c < w && r < h;
+        (v.t_in, v.t_out, inside.then_some((c as usize, r as usize)))
+    })
 }
 
 /// Median of finite values, `None` when there are none.
