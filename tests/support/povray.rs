@@ -1,0 +1,465 @@
+//! Independent-truth scenes for `dbms shadow-height`: orthophotos rendered by POV-Ray.
+//!
+//! POV-Ray shares no code and no conventions with dbms: the scene is stated as geometry (a
+//! ground plane, buildings as CSG solids, a parallel sun) and POV-Ray's own ray tracer decides
+//! every pixel — shadows, anti-aliased edges, shading. dbms then sees only what a modeller has:
+//! a PNG with a world file, an Esri ASCII DEM, footprints in GeoJSON. The truth is the geometry
+//! written into the scene, never anything dbms computed.
+//!
+//! Conventions of this generator (its own, stated here): world coordinates are metres east and
+//! north; the image covers `size` cells of `cell` metres from the world corner `origin` (west,
+//! north), one pixel per cell. POV-Ray's axes are x = east, y = up, z = north; its orthographic
+//! camera looks straight down with +z (north) up the image and +x (east) to the right. Scene
+//! coordinates are kept local (relative to `origin`) so POV-Ray never sees UTM-sized numbers;
+//! the world file and DEM carry the offset.
+//!
+//! Used by `tests/povray_shadow_height.rs` (a small slice, in CI) and
+//! `benches/shadow_height_povray.rs` (the table in docs/shadow-height.md).
+
+#![allow(dead_code)]
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// WKT of the harness's CRS (WGS 84 / UTM zone 32N); numbers are only labels to dbms here.
+const UTM32N_WKT: &str = r#"PROJCS["WGS 84 / UTM zone 32N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4326"]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",9],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AXIS["Northing",NORTH],AUTHORITY["EPSG","32632"]]"#;
+
+/// A roof shape over a footprint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Roof {
+    /// Flat at absolute height `z`, metres.
+    Flat { z: f64 },
+    /// Two planes meeting at a ridge along the rectangle's long axis (`axis_deg` from east,
+    /// counter-clockwise): eaves at `eave_z`, ridge at `ridge_z`, absolute metres.
+    Gable { eave_z: f64, ridge_z: f64 },
+    /// Four planes of equal pitch: the gable's two plus two hips at the short ends.
+    Hip { eave_z: f64, ridge_z: f64 },
+}
+
+impl Roof {
+    /// The highest point of the roof (the ridge, or the flat roof), absolute metres.
+    pub fn top_z(&self) -> f64 {
+        match *self {
+            Roof::Flat { z } => z,
+            Roof::Gable { ridge_z, .. } | Roof::Hip { ridge_z, .. } => ridge_z,
+        }
+    }
+}
+
+/// A building: a rectangle (centre, full sides along its axis and across, rotation of its
+/// first side from east counter-clockwise, degrees) with a roof.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Building {
+    /// Centre, world metres (east, north).
+    pub centre: (f64, f64),
+    /// Side along the rectangle's axis (the ridge), and across it, metres.
+    pub size: (f64, f64),
+    /// Direction of the first side, degrees counter-clockwise from east.
+    pub rotation_deg: f64,
+    /// Roof.
+    pub roof: Roof,
+    /// Roof colour, linear RGB in [0, 1].
+    pub colour: [f64; 3],
+}
+
+impl Building {
+    /// The rectangle's corners, counter-clockwise, world metres.
+    pub fn corners(&self) -> [(f64, f64); 4] {
+        let (s, c) = self.rotation_deg.to_radians().sin_cos();
+        let (a, b) = (self.size.0 / 2.0, self.size.1 / 2.0);
+        [(-a, -b), (a, -b), (a, b), (-a, b)]
+            .map(|(x, y)| (self.centre.0 + x * c - y * s, self.centre.1 + x * s + y * c))
+    }
+}
+
+/// Something standing on the ground that is not a building: it casts shadow and hides ground.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Clutter {
+    /// A tree: crown of `radius` metres whose top is `height` metres above the ground at
+    /// `at`, on a trunk.
+    Tree {
+        at: (f64, f64),
+        radius: f64,
+        height: f64,
+    },
+    /// A vehicle: a box `size` (length, width, height) metres at `at`, rotated `heading_deg`.
+    Vehicle {
+        at: (f64, f64),
+        size: (f64, f64, f64),
+        heading_deg: f64,
+    },
+}
+
+/// How the photo was taken.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Camera {
+    /// A true orthophoto: every pixel looks straight down.
+    Ortho,
+    /// A vertical frame photo from `height_m` above the (flat) ground at world point `nadir`,
+    /// rectified on the bare ground: the ground is in place, anything standing leans away from
+    /// the nadir (relief displacement). Valid on flat ground only.
+    Perspective { nadir: (f64, f64), height_m: f64 },
+}
+
+/// One scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// World coordinates of the image's north-west corner, metres.
+    pub origin: (f64, f64),
+    /// Cell (pixel) size, metres.
+    pub cell: f64,
+    /// Image size in cells (columns, rows).
+    pub size: (usize, usize),
+    /// Ground height at `origin`, metres, and its gradient (rise per metre east, per metre north).
+    pub ground: (f64, f64, f64),
+    /// Sun azimuth, degrees clockwise from grid north, toward the sun.
+    pub sun_azimuth_deg: f64,
+    /// Sun elevation above the horizon, degrees.
+    pub sun_elevation_deg: f64,
+    /// Buildings.
+    pub buildings: Vec<Building>,
+    /// Non-building objects.
+    pub clutter: Vec<Clutter>,
+    /// Misregistration: the footprints written are the true ones moved by this, metres (east,
+    /// north), as footprints from another source sit off the photo.
+    pub footprint_shift: (f64, f64),
+    /// The camera.
+    pub camera: Camera,
+    /// Anti-aliasing: POV-Ray's non-adaptive `n × n` samples per pixel (1 = none).
+    pub antialias: u32,
+}
+
+/// Paths of a written scene.
+pub struct Written {
+    pub dir: PathBuf,
+    pub ortho: PathBuf,
+    pub dem: PathBuf,
+    pub footprints: PathBuf,
+}
+
+impl Scene {
+    /// World extent: (west, south, east, north), metres.
+    pub fn extent(&self) -> (f64, f64, f64, f64) {
+        let (w, n) = self.origin;
+        let e = w + self.size.0 as f64 * self.cell;
+        let s = n - self.size.1 as f64 * self.cell;
+        (w, s, e, n)
+    }
+
+    /// Ground height at world point `p`, metres.
+    pub fn ground_z(&self, p: (f64, f64)) -> f64 {
+        let (z0, gx, gy) = self.ground;
+        z0 + gx * (p.0 - self.origin.0) + gy * (p.1 - self.origin.1)
+    }
+
+    /// Local POV-Ray coordinates (x east, z north) of world point `p`.
+    fn local(&self, p: (f64, f64)) -> (f64, f64) {
+        (p.0 - self.origin.0, p.1 - self.origin.1)
+    }
+
+    /// Unit vector toward the sun (east, north, up).
+    fn toward_sun(&self) -> (f64, f64, f64) {
+        let (a, e) = (
+            self.sun_azimuth_deg.to_radians(),
+            self.sun_elevation_deg.to_radians(),
+        );
+        (a.sin() * e.cos(), a.cos() * e.cos(), e.sin())
+    }
+
+    /// The POV-Ray scene description.
+    pub fn pov(&self) -> String {
+        let mut s = String::new();
+        let (width, height) = (
+            self.size.0 as f64 * self.cell,
+            self.size.1 as f64 * self.cell,
+        );
+        // Image centre, local: x = width / 2, z = −height / 2 (origin is the north-west corner).
+        let (cx, cz) = (width / 2.0, -height / 2.0);
+        let (z0, gx, gy) = self.ground;
+        let zmax = self
+            .buildings
+            .iter()
+            .map(|b| b.roof.top_z())
+            .fold(z0.abs() + 1000.0, f64::max);
+        writeln!(s, "#version 3.7;").unwrap();
+        writeln!(
+            s,
+            "global_settings {{ assumed_gamma 1.0 ambient_light rgb <1,1,1> max_trace_level 5 }}"
+        )
+        .unwrap();
+        match self.camera {
+            Camera::Ortho => {
+                writeln!(
+                    s,
+                    "camera {{ orthographic location <{cx:.6}, {top:.6}, {cz:.6}> \
+                     direction <0, -1, 0> right <{width:.6}, 0, 0> up <0, 0, {height:.6}> }}",
+                    top = zmax + 100.0
+                )
+                .unwrap();
+            }
+            Camera::Perspective { nadir, height_m } => {
+                // A vertical camera at `height_m` over the ground (z0 at the nadir) whose image
+                // plane, put at ground level, is exactly the scene's extent: the ground maps to
+                // its own cells (the rectification of a flat-ground photo), objects standing on
+                // it lean away from the nadir.
+                let (nx, nz) = self.local(nadir);
+                let gz = self.ground_z(nadir);
+                writeln!(
+                    s,
+                    "camera {{ perspective location <{nx:.6}, {eye:.6}, {nz:.6}> \
+                     direction <{dx:.6}, {dy:.6}, {dz:.6}> right <{width:.6}, 0, 0> up <0, 0, {height:.6}> }}",
+                    eye = gz + height_m,
+                    dx = cx - nx,
+                    dy = -height_m,
+                    dz = cz - nz
+                )
+                .unwrap();
+            }
+        }
+        let (e, n, u) = self.toward_sun();
+        writeln!(
+            s,
+            "light_source {{ <{:.9}, {:.9}, {:.9}> color rgb <1.0, 0.97, 0.92> parallel point_at <0, 0, 0> }}",
+            e * 1e6,
+            u * 1e6,
+            n * 1e6
+        )
+        .unwrap();
+        // Ground: a sloped plane through (0, z0, 0), textured like mixed grass and soil.
+        writeln!(
+            s,
+            "plane {{ <{:.9}, 1, {:.9}>, 0 translate <0, {z0:.6}, 0>\n  \
+             texture {{ pigment {{ bozo scale 2.3 turbulence 0.4 color_map {{ \
+             [0.0 color rgb <0.16, 0.26, 0.09>] [0.5 color rgb <0.22, 0.30, 0.12>] \
+             [0.7 color rgb <0.30, 0.28, 0.18>] [1.0 color rgb <0.24, 0.31, 0.13>] }} }}\n  \
+             finish {{ ambient rgb <0.30, 0.33, 0.42> diffuse 0.75 }} }} }}",
+            -gx, -gy
+        )
+        .unwrap();
+        for b in &self.buildings {
+            s.push_str(&self.building_pov(b));
+        }
+        for c in &self.clutter {
+            s.push_str(&self.clutter_pov(c));
+        }
+        s
+    }
+
+    fn building_pov(&self, b: &Building) -> String {
+        let corners = b.corners().map(|p| self.local(p));
+        let base = corners
+            .iter()
+            .map(|&(x, z)| self.ground_z((x + self.origin.0, z + self.origin.1)))
+            .fold(f64::INFINITY, f64::min)
+            - 2.0;
+        let top = b.roof.top_z();
+        let mut s = String::new();
+        let pts: Vec<String> = corners
+            .iter()
+            .chain(std::iter::once(&corners[0]))
+            .map(|(x, z)| format!("<{x:.6}, {z:.6}>"))
+            .collect();
+        writeln!(s, "intersection {{").unwrap();
+        writeln!(
+            s,
+            "  prism {{ linear_sweep linear_spline {base:.6}, {top:.6}, 5, {} }}",
+            pts.join(", ")
+        )
+        .unwrap();
+        // Roof planes: a plane keeps the side its normal points away from.
+        let (sn, cs) = b.rotation_deg.to_radians().sin_cos();
+        let along = (cs, sn); // ridge direction (east, north)
+        let across = (-sn, cs);
+        let (cx, cz) = self.local(b.centre);
+        let (a, w) = (b.size.0 / 2.0, b.size.1 / 2.0);
+        let mut plane = |dir: (f64, f64), half: f64, eave: f64, ridge: f64, run: f64| {
+            // Height falls from `ridge` at distance `half − run` from the centre along `dir` to
+            // `eave` at `half`: z = ridge − (ridge − eave)/run · (d − (half − run)).
+            let k = (ridge - eave) / run;
+            // Plane: k·d + z = ridge + k·(half − run), d = (p − c)·dir. Normal (k·dir, 1).
+            let d0 = ridge + k * (half - run) + k * (cx * dir.0 + cz * dir.1);
+            let norm = (k * k + 1.0).sqrt();
+            writeln!(
+                s,
+                "  plane {{ <{:.9}, {:.9}, {:.9}>, {:.9} }}",
+                k * dir.0 / norm,
+                1.0 / norm,
+                k * dir.1 / norm,
+                d0 / norm
+            )
+            .unwrap();
+        };
+        match b.roof {
+            Roof::Flat { .. } => {}
+            Roof::Gable { eave_z, ridge_z } => {
+                for sign in [1.0, -1.0] {
+                    plane((across.0 * sign, across.1 * sign), w, eave_z, ridge_z, w);
+                }
+            }
+            Roof::Hip { eave_z, ridge_z } => {
+                for sign in [1.0, -1.0] {
+                    plane((across.0 * sign, across.1 * sign), w, eave_z, ridge_z, w);
+                    plane((along.0 * sign, along.1 * sign), a, eave_z, ridge_z, w);
+                }
+            }
+        }
+        let [r, g, bl] = b.colour;
+        writeln!(
+            s,
+            "  texture {{ pigment {{ color rgb <{r:.4}, {g:.4}, {bl:.4}> }} \
+             finish {{ ambient rgb <0.30, 0.33, 0.42> diffuse 0.75 }} }}\n}}"
+        )
+        .unwrap();
+        s
+    }
+
+    fn clutter_pov(&self, c: &Clutter) -> String {
+        let finish = "finish { ambient rgb <0.30, 0.33, 0.42> diffuse 0.75 }";
+        match *c {
+            Clutter::Tree { at, radius, height } => {
+                let (x, z) = self.local(at);
+                let g = self.ground_z(at);
+                format!(
+                    "union {{ cylinder {{ <{x:.6}, {g0:.6}, {z:.6}>, <{x:.6}, {top:.6}, {z:.6}>, {tr:.4} }} \
+                     sphere {{ <{x:.6}, {cy:.6}, {z:.6}>, {radius:.4} }} \
+                     texture {{ pigment {{ color rgb <0.07, 0.16, 0.05> }} {finish} }} }}\n",
+                    g0 = g - 1.0,
+                    top = g + height - radius,
+                    tr = (radius * 0.15).max(0.15),
+                    cy = g + height - radius,
+                )
+            }
+            Clutter::Vehicle {
+                at,
+                size,
+                heading_deg,
+            } => {
+                let (x, z) = self.local(at);
+                let g = self.ground_z(at);
+                format!(
+                    "box {{ <{:.4}, -1, {:.4}>, <{:.4}, {:.4}, {:.4}> rotate <0, {:.6}, 0> translate <{x:.6}, {g:.6}, {z:.6}> \
+                     texture {{ pigment {{ color rgb <0.55, 0.08, 0.06> }} {finish} }} }}\n",
+                    -size.0 / 2.0,
+                    -size.1 / 2.0,
+                    size.0 / 2.0,
+                    size.2 + 1.0,
+                    size.1 / 2.0,
+                    // POV's `rotate y` turns x toward −z... (left-handed): a heading
+                    // counter-clockwise from east is a negative rotation about +y.
+                    -heading_deg,
+                )
+            }
+        }
+    }
+
+    /// Write the scene into `dir` (created): `scene.pov`, `ortho.png` (rendered) with its world
+    /// file and `.prj`, `dem.asc` (the ground at every cell centre) with its `.prj`, and
+    /// `footprints.geojson` (moved by `footprint_shift`). Errors name what failed.
+    pub fn write(&self, dir: &Path) -> Result<Written, String> {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        let put = |name: &str, text: &str| -> Result<PathBuf, String> {
+            let p = dir.join(name);
+            std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))?;
+            Ok(p)
+        };
+        let pov = put("scene.pov", &self.pov())?;
+        let ortho = dir.join("ortho.png");
+        let aa = if self.antialias > 1 {
+            vec![
+                "+A0.0".to_string(),
+                "+AM1".to_string(),
+                format!("+R{}", self.antialias),
+                "-J".to_string(),
+            ]
+        } else {
+            vec!["-A".to_string()]
+        };
+        let out = Command::new("povray")
+            .arg(format!("+I{}", pov.display()))
+            .arg(format!("+O{}", ortho.display()))
+            .arg(format!("+W{}", self.size.0))
+            .arg(format!("+H{}", self.size.1))
+            .args([
+                "+FN8",
+                "-D",
+                "-V",
+                "+WT1",
+                "Display_Gamma=1.0",
+                "File_Gamma=1.0",
+            ])
+            .args(&aa)
+            .output()
+            .map_err(|e| format!("povray: {e} (apt-get install povray)"))?;
+        if !out.status.success() || !ortho.exists() {
+            return Err(format!(
+                "povray failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            ));
+        }
+        let (w, _, _, n) = self.extent();
+        put(
+            "ortho.pgw",
+            &format!(
+                "{c}\n0\n0\n{m}\n{x}\n{y}\n",
+                c = self.cell,
+                m = -self.cell,
+                x = w + self.cell / 2.0,
+                y = n - self.cell / 2.0
+            ),
+        )?;
+        put("ortho.prj", UTM32N_WKT)?;
+        let mut dem = format!(
+            "ncols {}\nnrows {}\nxllcorner {:.6}\nyllcorner {:.6}\ncellsize {}\n",
+            self.size.0,
+            self.size.1,
+            w,
+            n - self.size.1 as f64 * self.cell,
+            self.cell
+        );
+        for r in 0..self.size.1 {
+            let y = n - (r as f64 + 0.5) * self.cell;
+            let row: Vec<String> = (0..self.size.0)
+                .map(|c| {
+                    let x = w + (c as f64 + 0.5) * self.cell;
+                    format!("{:.4}", self.ground_z((x, y)))
+                })
+                .collect();
+            dem.push_str(&row.join(" "));
+            dem.push('\n');
+        }
+        let dem_path = put("dem.asc", &dem)?;
+        put("dem.prj", UTM32N_WKT)?;
+        let (sx, sy) = self.footprint_shift;
+        let features: Vec<String> = self
+            .buildings
+            .iter()
+            .enumerate()
+            .map(|(k, b)| {
+                let mut ring: Vec<String> = b
+                    .corners()
+                    .iter()
+                    .map(|(x, y)| format!("[{:.4}, {:.4}]", x + sx, y + sy))
+                    .collect();
+                ring.push(ring[0].clone());
+                format!(
+                    "{{\"type\":\"Feature\",\"properties\":{{\"id\":{k}}},\"geometry\":{{\"type\":\"Polygon\",\"coordinates\":[[{}]]}}}}",
+                    ring.join(", ")
+                )
+            })
+            .collect();
+        let fp = put(
+            "footprints.geojson",
+            &format!(
+                "{{\"type\":\"FeatureCollection\",\"features\":[\n{}\n]}}\n",
+                features.join(",\n")
+            ),
+        )?;
+        Ok(Written {
+            dir: dir.to_path_buf(),
+            ortho,
+            dem: dem_path,
+            footprints: fp,
+        })
+    }
+}

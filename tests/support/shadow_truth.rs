@@ -1,0 +1,151 @@
+//! Run `dbms ingest` and `dbms shadow-height` on a POV-Ray scene and pair each building's
+//! result with its truth. Shared by the POV-Ray test slice and bench: [`measure_scene`] does it
+//! all; the bench calls its two halves, [`prepare_scene`] (render and ingest, run in parallel)
+//! and [`measure_prepared`] (timed, run alone).
+
+#![allow(dead_code)]
+
+use super::povray::{Scene, Written};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// One building's result beside its truth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    /// True roof top (flat roof, or ridge), absolute metres.
+    pub truth_z: f64,
+    /// Measured absolute roof, metres (`None`: no height).
+    pub roof_z: Option<f64>,
+    /// Flags dbms set.
+    pub flags: Vec<String>,
+    /// The feature's `error`, if any.
+    pub error: Option<String>,
+    /// The whole output feature's properties.
+    pub properties: serde_json::Value,
+}
+
+impl Outcome {
+    /// Whether dbms said anything that warns against trusting the height: a flag other than
+    /// the sun's (`low_sun`, `high_sun` describe the setting, not this building).
+    pub fn flagged(&self) -> bool {
+        self.flags.iter().any(|f| f != "low_sun" && f != "high_sun")
+    }
+
+    /// Measured minus true, metres.
+    pub fn error_m(&self) -> Option<f64> {
+        self.roof_z.map(|z| z - self.truth_z)
+    }
+}
+
+/// The dbms binary under test.
+pub fn dbms() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+}
+
+fn run(mut c: Command, what: &str) -> Result<(), String> {
+    let out = c.output().map_err(|e| format!("{what}: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "{what} failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    Ok(())
+}
+
+/// A scene rendered and ingested into a database, ready for `dbms shadow-height`.
+pub struct Prepared {
+    /// The scene's files (photo, DEM, footprints).
+    pub written: Written,
+    /// The database `dbms ingest` wrote.
+    pub db: PathBuf,
+    /// Wall clock of POV-Ray's render (with the DEM and footprints written), seconds.
+    pub render_secs: f64,
+    /// Wall clock of `dbms ingest`, seconds.
+    pub ingest_secs: f64,
+}
+
+/// Render `scene` into `dir` and ingest it (`dir/db`).
+pub fn prepare_scene(scene: &Scene, dir: &Path) -> Result<Prepared, String> {
+    let t = Instant::now();
+    let w = scene.write(dir)?;
+    let render_secs = t.elapsed().as_secs_f64();
+    let db = dir.join("db");
+    let mut ingest = dbms();
+    ingest
+        .args(["--quiet", "ingest", "--dem"])
+        .arg(&w.dem)
+        .arg("--ortho")
+        .arg(&w.ortho)
+        .arg("-o")
+        .arg(&db);
+    let t = Instant::now();
+    run(ingest, "dbms ingest")?;
+    Ok(Prepared {
+        written: w,
+        db,
+        render_secs,
+        ingest_secs: t.elapsed().as_secs_f64(),
+    })
+}
+
+/// Run `dbms shadow-height` on a prepared scene (the scene's sun, default options; output
+/// `heights.geojson` beside the photo): one outcome per building in scene order, and the
+/// command's wall clock in seconds (process start, reading the database and footprints,
+/// measuring, writing).
+pub fn measure_prepared(scene: &Scene, p: &Prepared) -> Result<(Vec<Outcome>, f64), String> {
+    let heights = p.written.dir.join("heights.geojson");
+    let mut sh = dbms();
+    sh.args(["--quiet", "shadow-height", "--db"])
+        .arg(&p.db)
+        .arg("--footprints")
+        .arg(&p.written.footprints)
+        .arg(format!("--sun-elevation={}", scene.sun_elevation_deg))
+        .arg(format!("--sun-azimuth={}", scene.sun_azimuth_deg))
+        .arg("-o")
+        .arg(&heights);
+    let t = Instant::now();
+    run(sh, "dbms shadow-height")?;
+    let secs = t.elapsed().as_secs_f64();
+    let text = std::fs::read_to_string(&heights).map_err(|e| e.to_string())?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    let features = v["features"].as_array().ok_or("no features")?;
+    if features.len() != scene.buildings.len() {
+        return Err(format!(
+            "{}: {} features for {} buildings",
+            heights.display(),
+            features.len(),
+            scene.buildings.len()
+        ));
+    }
+    let outcomes = features
+        .iter()
+        .zip(&scene.buildings)
+        .map(|(f, b)| {
+            let p = &f["properties"];
+            Outcome {
+                truth_z: b.roof.top_z(),
+                roof_z: p["roof_z"].as_f64(),
+                flags: p["flags"]
+                    .as_array()
+                    .map(|a| {
+                        a.iter()
+                            .filter_map(|x| x.as_str().map(String::from))
+                            .collect()
+                    })
+                    .unwrap_or_default(),
+                error: p["error"].as_str().map(String::from),
+                properties: p.clone(),
+            }
+        })
+        .collect();
+    Ok((outcomes, secs))
+}
+
+/// Render `scene` into `dir`, ingest it, measure every building; one outcome per building in
+/// scene order.
+pub fn measure_scene(scene: &Scene, dir: &Path) -> Result<Vec<Outcome>, String> {
+    let p = prepare_scene(scene, dir)?;
+    Ok(measure_prepared(scene, &p)?.0)
+}
