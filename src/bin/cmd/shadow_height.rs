@@ -27,6 +27,11 @@ pub struct Args {
     /// Tallest building sought, metres.
     #[arg(long, default_value_t = sh::Options::default().max_height_m)]
     max_height: f64,
+    /// Largest footprint misregistration sought, metres: the footprints are moved by the
+    /// scene's robust shift onto their roofs in the photo (median of the buildings' clear
+    /// estimates); 0 takes them as given.
+    #[arg(long, default_value_t = 3.0)]
+    max_shift: f64,
     /// Also write the measured buildings into the database as its `buildings` layer
     /// (flat-roofed prisms for `dbms pyramid` and `dbms shadows`).
     #[arg(long)]
@@ -57,10 +62,31 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .as_deref()
         .map(|p| sh::read_mask(p, db.grid()))
         .transpose()?;
-    let valid: Vec<sh::Footprint> = features
+    let given: Vec<sh::Footprint> = features
         .iter()
         .filter_map(|f| f.footprint.clone().ok())
         .collect();
+    if !(args.max_shift.is_finite() && args.max_shift >= 0.0) {
+        return Err(Error::msg(format!(
+            "--max-shift {} is not a distance in metres",
+            args.max_shift
+        ))
+        .fix("give 0 (footprints as given) or the largest misregistration, e.g. 3"));
+    }
+    let (registration, valid) = if args.max_shift > 0.0 {
+        sh::register_footprints(&colour, &given, args.max_shift)
+    } else {
+        let none = sh::Registration {
+            scene: None,
+            buildings: vec![None; given.len()],
+        };
+        (none, given)
+    };
+    if let Some((e, n, k)) = registration.scene {
+        ctx.log(format!(
+            "footprints moved {e:+.2} m east, {n:+.2} m north onto the photo (median of {k} buildings)"
+        ));
+    }
     let inputs = sh::Inputs {
         terrain: &terrain,
         colour: &colour,
@@ -69,7 +95,19 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let opts = sh::Options {
         max_height_m: args.max_height,
     };
-    let mut measured = sh::measure(&inputs, &valid, &sun, &opts)?.into_iter();
+    let cell = {
+        let (cx, cy) = db.grid().cell_size();
+        cx.max(cy)
+    };
+    let mut measured = sh::measure(&inputs, &valid, &sun, &opts)?
+        .into_iter()
+        .enumerate()
+        .map(|(k, r)| {
+            r.map(|mut m| {
+                m.flags.footprint_off_photo = registration.off_photo(k, cell);
+                m
+            })
+        });
     let results: Vec<Result<sh::Measurement, String>> = features
         .iter()
         .map(|f| {
@@ -88,7 +126,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         }
     }
 
-    let doc = output::heights_geojson(&features, &results, &sun, db.grid().crs.epsg);
+    let doc = output::heights_geojson(&features, &results, &registration, &sun, db.grid().crs.epsg);
     write_bytes_atomic(&args.output, output::to_text(&doc).as_bytes())?;
     let count = |f: &dyn Fn(&sh::Measurement) -> bool| {
         results.iter().filter(|r| r.as_ref().is_ok_and(f)).count()

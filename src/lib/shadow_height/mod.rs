@@ -25,6 +25,7 @@ pub mod footprint;
 pub mod local;
 pub mod output;
 pub mod refine;
+pub mod register;
 pub mod scan;
 pub mod synth;
 
@@ -106,6 +107,10 @@ pub struct Flags {
     pub low_sun: bool,
     /// Sun elevation above [`HIGH_SUN_DEG`].
     pub high_sun: bool,
+    /// The footprint's own registration estimate is clear and more than a cell from the
+    /// scene's shift that was applied: its outline does not fit its roof in the photo
+    /// ([`register`]), so the shadow is measured from the wrong place.
+    pub footprint_off_photo: bool,
     /// Fewer than [`MIN_AGREEING_LINES`] of the valid scan lines imply a roof within
     /// [`AGREE_CELLS`] cells of shadow of their median: the lines measured different things.
     pub lines_disagree: bool,
@@ -129,6 +134,7 @@ impl Flags {
             (self.shadow_on_other_building, "shadow_on_other_building"),
             (self.low_sun, "low_sun"),
             (self.high_sun, "high_sun"),
+            (self.footprint_off_photo, "footprint_off_photo"),
             (self.lines_disagree, "lines_disagree"),
             (self.estimates_disagree, "estimates_disagree"),
             (self.poor_shadow_match, "poor_shadow_match"),
@@ -164,6 +170,51 @@ pub struct Measurement {
     pub threshold: Option<f64>,
     /// Hard cases met.
     pub flags: Flags,
+}
+
+/// How footprints were registered to the photo before measuring ([`register_footprints`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Registration {
+    /// The shift applied to every footprint, metres (east, north), and how many buildings'
+    /// clear estimates its median is over; `None`: none was clear, nothing moved.
+    pub scene: Option<(f64, f64, usize)>,
+    /// Each footprint's own estimate (relative to the footprint as given).
+    pub buildings: Vec<Option<register::Shift>>,
+}
+
+impl Registration {
+    /// The applied shift, metres (east, north); zero when none.
+    pub fn applied(&self) -> (f64, f64) {
+        self.scene.map_or((0.0, 0.0), |(e, n, _)| (e, n))
+    }
+
+    /// Whether footprint `k`'s own clear estimate is more than `cell` metres from the applied
+    /// shift.
+    pub fn off_photo(&self, k: usize, cell: f64) -> bool {
+        let (e, n) = self.applied();
+        self.buildings[k].is_some_and(|s| s.counts() && (s.east_m - e).hypot(s.north_m - n) > cell)
+    }
+}
+
+/// Estimate every footprint's shift onto its roof in `colour` (within ±`max_shift_m` metres)
+/// and the scene's robust shift ([`register`]); the footprints moved by it.
+pub fn register_footprints(
+    colour: &Colour,
+    footprints: &[Footprint],
+    max_shift_m: f64,
+) -> (Registration, Vec<Footprint>) {
+    let buildings: Vec<Option<register::Shift>> = footprints
+        .par_iter()
+        .map(|f| register::estimate(f, colour, max_shift_m))
+        .collect();
+    let scene = register::scene_shift(&buildings);
+    let reg = Registration { scene, buildings };
+    let (e, n) = reg.applied();
+    let moved = footprints
+        .iter()
+        .map(|f| register::moved(f, e, n))
+        .collect();
+    (reg, moved)
 }
 
 /// Measure every footprint. The outer error is for the whole run (grids that differ, a grid in

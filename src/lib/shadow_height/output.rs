@@ -1,29 +1,45 @@
 //! The heights GeoJSON (`dbms shadow-height -o`) and the database's `buildings` layer (`--apply`).
 //!
-//! Invariant: one output feature per input feature, in input order, geometry unchanged, input
-//! properties kept (ours replace same-named ones); the added properties are those of
+//! Invariant: one output feature per input feature, in input order, geometry as given moved by
+//! the registration shift that was applied (none: unchanged), input properties kept (ours replace same-named ones); the added properties are those of
 //! `schemas/heights.schema.json`. The `buildings` layer holds only the measured features, each
 //! with a numeric `roof_z` (what [`crate::pyramid::raised::read_buildings`] reads).
 
-use super::{InputFeature, Measurement};
+use super::{InputFeature, Measurement, Registration};
 use crate::shadow::Sun;
 use serde_json::{json, Map, Value};
 
 /// The output FeatureCollection. `results[k]` belongs to `features[k]`: a measurement, or why
-/// the feature could not be measured (bad footprint or outside the grid).
+/// the feature could not be measured (bad footprint or outside the grid). `registration` has
+/// one estimate per *valid* feature, in order; its applied shift is recorded at the top and
+/// in each measured feature (`footprint_shift_m`), the geometry is moved by it (where the
+/// heights were measured), and each building's own estimate is `own_shift_m`.
 pub fn heights_geojson(
     features: &[InputFeature],
     results: &[std::result::Result<Measurement, String>],
+    registration: &Registration,
     sun: &Sun,
     epsg: Option<u32>,
 ) -> Value {
+    let (east, north) = registration.applied();
+    let mut own = registration.buildings.iter();
     let out: Vec<Value> = features
         .iter()
         .zip(results)
         .map(|(f, r)| {
             let mut p: Map<String, Value> = f.properties.as_object().cloned().unwrap_or_default();
+            let own = f.footprint.is_ok().then(|| own.next()).flatten().copied().flatten();
+            let mut geometry = f.geometry.clone();
+            if f.footprint.is_ok() {
+                translate(&mut geometry, east, north);
+            }
             match r {
                 Ok(m) => {
+                    p.insert("footprint_shift_m".into(), json!([east, north]));
+                    p.insert(
+                        "own_shift_m".into(),
+                        json!(own.map(|s| json!({ "east": s.east_m, "north": s.north_m, "peak_ratio": s.peak_ratio }))),
+                    );
                     p.insert("height_m".into(), json!(m.height_m));
                     p.insert("roof_z".into(), json!(m.roof_z));
                     p.insert("initial_height_m".into(), json!(m.initial_height_m));
@@ -44,19 +60,42 @@ pub fn heights_geojson(
                     p.insert("error".into(), json!(e));
                 }
             }
-            json!({ "type": "Feature", "properties": p, "geometry": f.geometry })
+            json!({ "type": "Feature", "properties": p, "geometry": geometry })
         })
         .collect();
     let mut doc = json!({
         "type": "FeatureCollection",
         "name": "heights",
         "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg },
+        "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
         "features": out,
     });
     if let Some(code) = epsg {
         doc["crs"] = json!({ "type": "name", "properties": { "name": format!("urn:ogc:def:crs:EPSG::{code}") } });
     }
     doc
+}
+
+/// Move every position of a GeoJSON geometry by `(east, north)` (nested coordinate arrays,
+/// down to the `[x, y, ...]` positions).
+fn translate(geometry: &mut Value, east: f64, north: f64) {
+    fn walk(v: &mut Value, east: f64, north: f64) {
+        if let Some(a) = v.as_array_mut() {
+            if a.first().is_some_and(Value::is_number) {
+                if let (Some(x), Some(y)) = (a[0].as_f64(), a.get(1).and_then(Value::as_f64)) {
+                    a[0] = json!(x + east);
+                    a[1] = json!(y + north);
+                }
+            } else {
+                a.iter_mut().for_each(|x| walk(x, east, north));
+            }
+        }
+    }
+    if east != 0.0 || north != 0.0 {
+        if let Some(c) = geometry.get_mut("coordinates") {
+            walk(c, east, north);
+        }
+    }
 }
 
 /// The `buildings` layer: the features of a heights document that have a numeric `roof_z`.
