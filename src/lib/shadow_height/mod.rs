@@ -26,6 +26,7 @@ pub mod local;
 pub mod output;
 pub mod refine;
 pub mod register;
+pub mod roof;
 pub mod scan;
 pub mod synth;
 
@@ -107,6 +108,10 @@ pub struct Flags {
     pub low_sun: bool,
     /// Sun elevation above [`HIGH_SUN_DEG`].
     pub high_sun: bool,
+    /// The roof looks pitched in the photo (faces of different brightness, [`roof`]): the
+    /// height is that of a flat roof casting the same shadow — the eaves where the far face is
+    /// lit, between eaves and ridge otherwise — not the ridge.
+    pub pitched_roof: bool,
     /// The footprint's own registration estimate is clear and more than a cell from the
     /// scene's shift that was applied: its outline does not fit its roof in the photo
     /// ([`register`]), so the shadow is measured from the wrong place.
@@ -134,6 +139,7 @@ impl Flags {
             (self.shadow_on_other_building, "shadow_on_other_building"),
             (self.low_sun, "low_sun"),
             (self.high_sun, "high_sun"),
+            (self.pitched_roof, "pitched_roof"),
             (self.footprint_off_photo, "footprint_off_photo"),
             (self.lines_disagree, "lines_disagree"),
             (self.estimates_disagree, "estimates_disagree"),
@@ -444,6 +450,7 @@ impl Shared<'_> {
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
+                pitched_roof: roof::looks_pitched(fp, self.inputs.colour, cells),
                 ..Flags::default()
             },
         };
