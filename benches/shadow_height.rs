@@ -337,6 +337,7 @@ fn case(layout: &str, ground: &str, elev: f64, cell: f64, notes: &mut Vec<Note>)
             terrain: &scene.terrain,
             colour: &scene.colour,
             mask: None,
+            leans: None,
         };
         let t = Instant::now();
         let out = measure(&inputs, &scene.footprints, &sun, &Options::default()).unwrap();

@@ -274,3 +274,100 @@ fn misregistered_footprints_are_moved_onto_their_roofs() {
         check(&format!("footprints {shift:?} m off"), &s);
     }
 }
+
+/// Measure `s`: (buildings, flagged or refused, silent gross errors — unflagged roofs off by more
+/// than two cells).
+fn tally(name: &str, s: &Scene) -> (usize, usize, usize) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = measure_scene(s, dir.path()).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let flagged = out
+        .iter()
+        .filter(|o| o.flagged() || o.roof_z.is_none())
+        .count();
+    let silent: Vec<&shadow_truth::Outcome> = out
+        .iter()
+        .filter(|o| !o.flagged() && o.error_m().is_some_and(|e| e.abs() > 2.0 * s.cell))
+        .collect();
+    assert!(
+        silent.is_empty(),
+        "{name}: silent gross errors: {silent:#?}"
+    );
+    (out.len(), flagged, silent.len())
+}
+
+#[test]
+fn real_photo_effects_are_handled_or_flagged() {
+    if !have_povray() {
+        return;
+    }
+    use povray::Clutter;
+    let flat_ground = (250.0, 0.0, 0.0);
+    // Perspective frame photos rectified on the ground, nadir 500 m from the buildings, the
+    // camera given: roofs lean 1.7–5 m; within two cells or flagged.
+    for h in [1000.0, 3000.0] {
+        let mut s = slice_scene(0.5, 135.0, 40.0, flat_ground, true, 5);
+        s.camera = Camera::Perspective {
+            nadir: (499_700.0, 5_299_800.0),
+            height_m: h,
+        };
+        let (n, f, _) = tally(&format!("perspective from {h} m"), &s);
+        assert!(f * 2 <= n, "perspective from {h} m: {f} of {n} flagged");
+    }
+    // Gable and hip roofs, 3 m from eaves to ridge: the shadow's tip is the eaves'. Flagged.
+    for gable in [true, false] {
+        let mut s = slice_scene(0.5, 160.0, 35.0, flat_ground, true, 6);
+        for b in &mut s.buildings {
+            let ridge_z = b.roof.top_z();
+            let eave_z = ridge_z - 3.0;
+            b.roof = if gable {
+                Roof::Gable { eave_z, ridge_z }
+            } else {
+                Roof::Hip { eave_z, ridge_z }
+            };
+        }
+        let (n, f, _) = tally(if gable { "gable roofs" } else { "hip roofs" }, &s);
+        assert_eq!(f, n, "every pitched roof flagged");
+    }
+    // Trees and vehicles around and in the shadows; roofs darker than shadow: measured.
+    let mut s = slice_scene(0.5, 200.0, 35.0, flat_ground, false, 8);
+    let mut rng = Rng(99);
+    for b in s.buildings.clone() {
+        for _ in 0..3 {
+            let mut near = || {
+                (
+                    b.centre.0 + 25.0 * (rng.next() - 0.5),
+                    b.centre.1 + 25.0 * (rng.next() - 0.5),
+                )
+            };
+            let (tree, car) = (near(), near());
+            s.clutter.push(Clutter::Tree {
+                at: tree,
+                radius: 1.5 + 2.0 * rng.next(),
+                height: 4.0 + 6.0 * rng.next(),
+            });
+            s.clutter.push(Clutter::Vehicle {
+                at: car,
+                size: (4.5, 1.8, 1.5),
+                heading_deg: 360.0 * rng.next(),
+            });
+        }
+    }
+    let (n, f, _) = tally("trees and vehicles", &s);
+    assert!(f * 10 <= n, "trees and vehicles: {f} of {n} flagged");
+    let mut s = slice_scene(0.5, 120.0, 35.0, flat_ground, true, 9);
+    for b in &mut s.buildings {
+        b.colour = [0.03, 0.03, 0.035];
+    }
+    let (n, f, _) = tally("roofs darker than shadow", &s);
+    assert!(f * 10 <= n, "dark roofs: {f} of {n} flagged");
+    // A sun at 8°: long, faint shadows (lit ground barely brighter than shadow): no silent
+    // error.
+    let mut s = slice_scene(0.5, 250.0, 8.0, flat_ground, false, 10);
+    for b in &mut s.buildings {
+        let top = b.roof.top_z();
+        b.roof = Roof::Flat {
+            z: 250.0 + (top - 250.0) * 0.4,
+        };
+    }
+    tally("sun at 8°", &s);
+}

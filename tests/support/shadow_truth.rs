@@ -90,7 +90,8 @@ pub fn prepare_scene(scene: &Scene, dir: &Path) -> Result<Prepared, String> {
     })
 }
 
-/// Run `dbms shadow-height` on a prepared scene (the scene's sun, default options; output
+/// Run `dbms shadow-height` on a prepared scene (the scene's sun, its camera for a perspective
+/// photo, default options otherwise; output
 /// `heights.geojson` beside the photo): one outcome per building in scene order, and the
 /// command's wall clock in seconds (process start, reading the database and footprints,
 /// measuring, writing).
@@ -105,6 +106,15 @@ pub fn measure_prepared(scene: &Scene, p: &Prepared) -> Result<(Vec<Outcome>, f6
         .arg(format!("--sun-azimuth={}", scene.sun_azimuth_deg))
         .arg("-o")
         .arg(&heights);
+    if let super::povray::Camera::Perspective { nadir, height_m } = scene.camera {
+        // A frame photo: dbms is told where it was taken from.
+        sh.arg(format!(
+            "--camera={},{},{}",
+            nadir.0,
+            nadir.1,
+            scene.ground_z(nadir) + height_m
+        ));
+    }
     let t = Instant::now();
     run(sh, "dbms shadow-height")?;
     let secs = t.elapsed().as_secs_f64();

@@ -32,6 +32,12 @@ pub struct Args {
     /// estimates); 0 takes them as given.
     #[arg(long, default_value_t = 3.0)]
     max_shift: f64,
+    /// The photo's perspective centre when it is a frame photo rectified on the bare ground
+    /// (not a true orthophoto): EAST,NORTH,Z in the database CRS, Z absolute metres. Roofs
+    /// lean away from the nadir; the cells a building covers on its way from base to roof are
+    /// not read as ground, and only the radial part of each roof's offset is taken as lean.
+    #[arg(long, value_name = "EAST,NORTH,Z")]
+    camera: Option<String>,
     /// Also write the measured buildings into the database as its `buildings` layer
     /// (flat-roofed prisms for `dbms pyramid` and `dbms shadows`).
     #[arg(long)]
@@ -73,14 +79,11 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         ))
         .fix("give 0 (footprints as given) or the largest misregistration, e.g. 3"));
     }
+    let camera = args.camera.as_deref().map(parse_camera).transpose()?;
     let (registration, valid) = if args.max_shift > 0.0 {
-        sh::register_footprints(&colour, &given, args.max_shift)
+        sh::register_footprints(&colour, &given, args.max_shift, camera.as_ref())
     } else {
-        let none = sh::Registration {
-            scene: None,
-            buildings: vec![None; given.len()],
-        };
-        (none, given)
+        (sh::Registration::none(given.len()), given)
     };
     if let Some((e, n, k)) = registration.scene {
         ctx.log(format!(
@@ -91,6 +94,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         terrain: &terrain,
         colour: &colour,
         mask: mask.as_ref(),
+        leans: camera.is_some().then_some(&registration.leans[..]),
     };
     let opts = sh::Options {
         max_height_m: args.max_height,
@@ -165,4 +169,27 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         }),
     );
     Ok(())
+}
+
+/// `EAST,NORTH,Z` metres.
+fn parse_camera(text: &str) -> dbms::Result<sh::register::Camera> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| {
+            Error::msg(format!("--camera {text}: not three numbers")).fix(
+                "give the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250",
+            )
+        })?;
+    match v[..] {
+        [east, north, z] if v.iter().all(|x| x.is_finite()) => {
+            Ok(sh::register::Camera { east, north, z })
+        }
+        _ => Err(
+            Error::msg(format!("--camera {text}: not three numbers")).fix(
+                "give the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250",
+            ),
+        ),
+    }
 }

@@ -89,6 +89,11 @@ pub struct Inputs<'a> {
     pub colour: &'a Colour,
     /// Observed shadow mask replacing the automatic detection.
     pub mask: Option<&'a Raster<u8>>,
+    /// Per footprint, how far its roof appears moved from its base in the photo, metres (east,
+    /// north): the relief displacement of a perspective photo rectified on the bare ground
+    /// ([`register::leans`]). The cells between the base and the moved roof show roof and
+    /// walls, not ground: they are [`Class::Edge`]. `None`: a true orthophoto.
+    pub leans: Option<&'a [(f64, f64)]>,
 }
 
 /// The hard cases met while measuring one footprint.
@@ -182,39 +187,70 @@ pub struct Measurement {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Registration {
     /// The shift applied to every footprint, metres (east, north), and how many buildings'
-    /// clear estimates its median is over; `None`: none was clear, nothing moved.
+    /// clear estimates it rests on; `None`: none was clear, nothing moved.
     pub scene: Option<(f64, f64, usize)>,
     /// Each footprint's own estimate (relative to the footprint as given).
     pub buildings: Vec<Option<register::Shift>>,
+    /// Each footprint's roof lean in a perspective photo, metres (east, north); zeros for an
+    /// orthophoto.
+    pub leans: Vec<(f64, f64)>,
 }
 
 impl Registration {
+    /// No registration: `n` footprints taken as given.
+    pub fn none(n: usize) -> Registration {
+        Registration {
+            scene: None,
+            buildings: vec![None; n],
+            leans: vec![(0.0, 0.0); n],
+        }
+    }
+
     /// The applied shift, metres (east, north); zero when none.
     pub fn applied(&self) -> (f64, f64) {
         self.scene.map_or((0.0, 0.0), |(e, n, _)| (e, n))
     }
 
     /// Whether footprint `k`'s own clear estimate is more than `cell` metres from the applied
-    /// shift.
+    /// shift plus its lean.
     pub fn off_photo(&self, k: usize, cell: f64) -> bool {
         let (e, n) = self.applied();
-        self.buildings[k].is_some_and(|s| s.counts() && (s.east_m - e).hypot(s.north_m - n) > cell)
+        let (le, ln) = self.leans[k];
+        self.buildings[k]
+            .is_some_and(|s| s.counts() && (s.east_m - e - le).hypot(s.north_m - n - ln) > cell)
     }
 }
 
-/// Estimate every footprint's shift onto its roof in `colour` (within ±`max_shift_m` metres)
-/// and the scene's robust shift ([`register`]); the footprints moved by it.
+/// Estimate every footprint's shift onto its roof in `colour` (within ±`max_shift_m` metres),
+/// then the scene's shift: the median of the clear estimates for an orthophoto, or, with the
+/// `camera` of a perspective photo, the shift that leaves only radial leans
+/// ([`register::with_camera`]). Returns the registration and the footprints moved by the
+/// scene's shift.
 pub fn register_footprints(
     colour: &Colour,
     footprints: &[Footprint],
     max_shift_m: f64,
+    camera: Option<&register::Camera>,
 ) -> (Registration, Vec<Footprint>) {
     let buildings: Vec<Option<register::Shift>> = footprints
         .par_iter()
         .map(|f| register::estimate(f, colour, max_shift_m))
         .collect();
-    let scene = register::scene_shift(&buildings);
-    let reg = Registration { scene, buildings };
+    let (scene, leans) = match camera {
+        None => (
+            register::scene_shift(&buildings),
+            vec![(0.0, 0.0); footprints.len()],
+        ),
+        Some(cam) => {
+            let (cx, cy) = colour.grid.cell_size();
+            register::with_camera(footprints, &buildings, cam, cx.max(cy))
+        }
+    };
+    let reg = Registration {
+        scene,
+        buildings,
+        leans,
+    };
     let (e, n) = reg.applied();
     let moved = footprints
         .iter()
@@ -371,20 +407,53 @@ fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f6
 
 /// `base` (one optional class per cell of `grid`, a window) with the cells that an edge of
 /// `fp` crosses — every cell the closed edge touches ([`Corner::Touching`]) — and that are
-/// still open ground, [`Class::Edge`].
-fn own_edge(mut base: Vec<Option<Class>>, fp: &Footprint, grid: &Grid) -> Vec<Option<Class>> {
+/// still open ground, [`Class::Edge`]; with a `lean` (metres), also every open cell that the
+/// footprint covers anywhere on its way from its base to its leaning roof (outlines every half
+/// cell along the lean: their edges, and the cells whose centre they hold).
+fn own_edge(
+    mut base: Vec<Option<Class>>,
+    fp: &Footprint,
+    lean: (f64, f64),
+    grid: &Grid,
+) -> Vec<Option<Class>> {
     let t = &grid.transform;
     let (w, h) = (grid.width as i64, grid.height as i64);
-    for (a, b) in fp.edges() {
-        let (pa, pb) = (t.world_to_pixel(a.0, a.1), t.world_to_pixel(b.0, b.1));
-        let d = [pb.0 - pa.0, pb.1 - pa.1];
-        for v in Walk::new([pa.0, pa.1], d, Corner::Touching).take_while(|v| v.t_in <= 1.0) {
-            let [c, r] = v.cell;
-            if c >= 0 && r >= 0 && c < w && r < h {
-                let k = (r * w + c) as usize;
-                if base[k].is_none() {
-                    base[k] = Some(Class::Edge);
-                }
+    let (cx, cy) = grid.cell_size();
+    let steps = (lean.0.hypot(lean.1) / (0.5 * cx.min(cy))).ceil() as usize;
+    let mut mark = |c: i64, r: i64| {
+        if c >= 0 && r >= 0 && c < w && r < h {
+            let k = (r * w + c) as usize;
+            if base[k].is_none() {
+                base[k] = Some(Class::Edge);
+            }
+        }
+    };
+    for s in 0..=steps {
+        let f = if steps == 0 {
+            0.0
+        } else {
+            s as f64 / steps as f64
+        };
+        let moved = register::moved(fp, f * lean.0, f * lean.1);
+        for (a, b) in moved.edges() {
+            let (pa, pb) = (t.world_to_pixel(a.0, a.1), t.world_to_pixel(b.0, b.1));
+            let d = [pb.0 - pa.0, pb.1 - pa.1];
+            for v in Walk::new([pa.0, pa.1], d, Corner::Touching).take_while(|v| v.t_in <= 1.0) {
+                mark(v.cell[0], v.cell[1]);
+            }
+        }
+        if s > 0 {
+            for cell in rasterise_prisms(
+                grid,
+                &[Prism {
+                    rings: moved.rings.clone(),
+                    roof_z: 0.0,
+                }],
+            ) {
+                mark(
+                    (cell.index % grid.width) as i64,
+                    (cell.index / grid.width) as i64,
+                );
             }
         }
     }
@@ -435,7 +504,8 @@ impl Shared<'_> {
         let u = (-dx, -dy);
         let max_len = (self.opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cell);
         let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
-        let (local, threshold) = self.classify(id, fp, win);
+        let lean = self.inputs.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
+        let (local, threshold) = self.classify(id, fp, lean, win);
         let mut m = Measurement {
             height_m: None,
             roof_z: None,
@@ -450,7 +520,7 @@ impl Shared<'_> {
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
-                pitched_roof: roof::looks_pitched(fp, self.inputs.colour, cells),
+                pitched_roof: self.looks_pitched(fp, cells, lean),
                 ..Flags::default()
             },
         };
@@ -519,6 +589,24 @@ impl Shared<'_> {
         Ok(m)
     }
 
+    /// Whether the roof of `fp` (own cells `cells`) looks pitched where the photo shows it: over
+    /// the footprint moved by its `lean` (metres) in a perspective photo.
+    fn looks_pitched(&self, fp: &Footprint, cells: &[usize], lean: (f64, f64)) -> bool {
+        if lean == (0.0, 0.0) {
+            return roof::looks_pitched(fp, self.inputs.colour, cells);
+        }
+        let seen = register::moved(fp, lean.0, lean.1);
+        let prism = Prism {
+            rings: seen.rings.clone(),
+            roof_z: 0.0,
+        };
+        let cells: Vec<usize> = rasterise_prisms(self.grid, &[prism])
+            .into_iter()
+            .map(|c| c.index)
+            .collect();
+        roof::looks_pitched(&seen, self.inputs.colour, &cells)
+    }
+
     /// The other footprints with a roof whose shadow can reach window `win` of footprint `id`:
     /// their box swept toward the shadow over the longest shadow sought meets the window's.
     fn shading_neighbours(&self, id: u32, win: &crate::grid::Window) -> Vec<(&Footprint, f64)> {
@@ -557,8 +645,15 @@ impl Shared<'_> {
         })
     }
 
-    /// Classify the window's cells for footprint `id`; the detection threshold used, if any.
-    fn classify(&self, id: u32, fp: &Footprint, win: crate::grid::Window) -> (Local, Option<f64>) {
+    /// Classify the window's cells for footprint `id` (its roof seen `lean` metres from its
+    /// base); the detection threshold used, if any.
+    fn classify(
+        &self,
+        id: u32,
+        fp: &Footprint,
+        lean: (f64, f64),
+        win: crate::grid::Window,
+    ) -> (Local, Option<f64>) {
         let w = self.grid.width;
         let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
         let n = win.width * win.height;
@@ -580,7 +675,7 @@ impl Shared<'_> {
                 }
             })
             .collect();
-        let base = own_edge(base, fp, &self.grid.window_grid(&win));
+        let base = own_edge(base, fp, lean, &self.grid.window_grid(&win));
         // Open ground: from the mask, or below the local threshold of the shadow index.
         let (is_shadow, threshold): (Box<dyn Fn(usize) -> bool>, Option<f64>) =
             match self.inputs.mask {
@@ -671,6 +766,7 @@ mod tests {
             terrain: &scene.terrain,
             colour: &scene.colour,
             mask: None,
+            leans: None,
         };
         let out = measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap();
         out.into_iter().zip(scene.height_m).collect()
@@ -915,6 +1011,7 @@ mod tests {
             terrain: &scene.terrain,
             colour: &scene.colour,
             mask: None,
+            leans: None,
         };
         let out = measure(&inputs, &fps, &s.sun, &Options::default()).unwrap();
         assert!((out[0].as_ref().unwrap().height_m.unwrap() - 8.0).abs() <= 0.5);
@@ -945,6 +1042,7 @@ mod tests {
             terrain: &scene.terrain,
             colour: &blank,
             mask: Some(&mask),
+            leans: None,
         };
         let m = measure(&with, &scene.footprints, &s.sun, &Options::default())
             .unwrap()
@@ -958,6 +1056,7 @@ mod tests {
             terrain: &scene.terrain,
             colour: &blank,
             mask: None,
+            leans: None,
         };
         let m = measure(&without, &scene.footprints, &s.sun, &Options::default())
             .unwrap()
@@ -978,6 +1077,7 @@ mod tests {
             terrain: &scene.terrain,
             colour: &scene.colour,
             mask: Some(&other),
+            leans: None,
         };
         let e = measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap_err();
         assert!(e.to_string().contains("not on the database grid"), "{e}");

@@ -164,6 +164,98 @@ pub fn scene_shift(shifts: &[Option<Shift>]) -> Option<(f64, f64, usize)> {
     ))
 }
 
+/// The perspective centre of a frame photo: world metres east and north, and its absolute
+/// height, metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Metres east.
+    pub east: f64,
+    /// Metres north.
+    pub north: f64,
+    /// Absolute height, metres.
+    pub z: f64,
+}
+
+/// Registration of a perspective photo rectified on the bare ground. A building's roof outline
+/// is seen moved by the scene's misregistration `g` plus its *lean*, the relief displacement
+/// `λ·ρ`: radially away from the nadir (`ρ`, unit), by `λ = r·h / (Z − h)` ≥ 0 for a roof `h`
+/// above the ground, `r` from the nadir. So the part of a building's estimate `s` across its
+/// radial direction (`n ⟂ ρ`) is `g`'s alone: `s·n = g·n`. `g` is the least-squares solution
+/// over the clear estimates (each a line in the plane; buildings in different directions from
+/// the nadir fix both components; estimates more than `cell` off the first solution are
+/// dropped and it is solved again), and each clear building's lean is `max(0, (s − g)·ρ)·ρ`
+/// (0 for unclear estimates). Returns `g` (metres east, north) with the number of buildings
+/// it rests on (`None` with fewer than two), and the leans.
+pub fn with_camera(
+    footprints: &[Footprint],
+    shifts: &[Option<Shift>],
+    camera: &Camera,
+    cell: f64,
+) -> (Option<(f64, f64, usize)>, Vec<(f64, f64)>) {
+    let radial: Vec<(f64, f64)> = footprints
+        .iter()
+        .map(|f| {
+            let b = f.bbox();
+            let (dx, dy) = (
+                (b.0 + b.2) / 2.0 - camera.east,
+                (b.1 + b.3) / 2.0 - camera.north,
+            );
+            let r = dx.hypot(dy);
+            if r > 0.0 {
+                (dx / r, dy / r)
+            } else {
+                (0.0, 0.0)
+            }
+        })
+        .collect();
+    let clear: Vec<usize> = (0..shifts.len())
+        .filter(|&k| shifts[k].is_some_and(|s| s.counts()) && radial[k] != (0.0, 0.0))
+        .collect();
+    let solve = |use_: &[usize]| -> Option<(f64, f64)> {
+        let (mut a, mut b, mut c, mut u, mut v) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &k in use_ {
+            let s = shifts[k].unwrap();
+            let n = (-radial[k].1, radial[k].0);
+            let d = s.east_m * n.0 + s.north_m * n.1;
+            a += n.0 * n.0;
+            b += n.0 * n.1;
+            c += n.1 * n.1;
+            u += d * n.0;
+            v += d * n.1;
+        }
+        // A little pull toward no shift keeps the solution defined when every building lies
+        // in one direction from the nadir (then g along that direction is not observable).
+        let eps = 1e-3 * use_.len() as f64;
+        let (a, c) = (a + eps, c + eps);
+        let det = a * c - b * b;
+        (use_.len() >= 2 && det > 0.0).then(|| ((c * u - b * v) / det, (a * v - b * u) / det))
+    };
+    let across = |k: usize, g: (f64, f64)| {
+        let s = shifts[k].unwrap();
+        let n = (-radial[k].1, radial[k].0);
+        ((s.east_m - g.0) * n.0 + (s.north_m - g.1) * n.1).abs()
+    };
+    let Some(first) = solve(&clear) else {
+        return (None, vec![(0.0, 0.0); footprints.len()]);
+    };
+    let kept: Vec<usize> = clear
+        .iter()
+        .copied()
+        .filter(|&k| across(k, first) <= cell)
+        .collect();
+    let g = solve(&kept).unwrap_or(first);
+    let leans = (0..footprints.len())
+        .map(|k| match shifts[k] {
+            Some(s) if clear.contains(&k) => {
+                let l = ((s.east_m - g.0) * radial[k].0 + (s.north_m - g.1) * radial[k].1).max(0.0);
+                (l * radial[k].0, l * radial[k].1)
+            }
+            _ => (0.0, 0.0),
+        })
+        .collect();
+    (Some((g.0, g.1, kept.len())), leans)
+}
+
 /// `fp` moved by `(east_m, north_m)`.
 pub fn moved(fp: &Footprint, east_m: f64, north_m: f64) -> Footprint {
     Footprint {
