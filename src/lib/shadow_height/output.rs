@@ -22,13 +22,16 @@ pub fn heights_geojson(
     epsg: Option<u32>,
 ) -> Value {
     let (east, north) = registration.applied();
-    let mut own = registration.buildings.iter();
+    let mut own = registration.buildings.iter().zip(&registration.leans);
     let out: Vec<Value> = features
         .iter()
         .zip(results)
         .map(|(f, r)| {
             let mut p: Map<String, Value> = f.properties.as_object().cloned().unwrap_or_default();
-            let own = f.footprint.is_ok().then(|| own.next()).flatten().copied().flatten();
+            let (own, lean) = match f.footprint.is_ok().then(|| own.next()).flatten() {
+                Some((s, l)) => (*s, *l),
+                None => (None, (0.0, 0.0)),
+            };
             let mut geometry = f.geometry.clone();
             if f.footprint.is_ok() {
                 translate(&mut geometry, east, north);
@@ -36,6 +39,7 @@ pub fn heights_geojson(
             match r {
                 Ok(m) => {
                     p.insert("footprint_shift_m".into(), json!([east, north]));
+                    p.insert("lean_m".into(), json!([lean.0, lean.1]));
                     p.insert(
                         "own_shift_m".into(),
                         json!(own.map(|s| json!({ "east": s.east_m, "north": s.north_m, "peak_ratio": s.peak_ratio }))),
