@@ -27,6 +27,14 @@ pub struct Args {
     /// Tallest building sought, metres.
     #[arg(long, default_value_t = sh::Options::default().max_height_m)]
     max_height: f64,
+    /// Scan-line spacing across the shadow, cells: smaller is more lines (a more robust median,
+    /// slower); see docs/shadow-height.md for what each setting costs.
+    #[arg(long, default_value_t = sh::Options::default().line_spacing_cells)]
+    line_spacing: f64,
+    /// Refinement points per cell side (1 to 15): the synthetic shadow covers a cell in
+    /// (N × N)ths; more resolves heights finer than a cell of shadow, slower.
+    #[arg(long, default_value_t = sh::Options::default().sub_points)]
+    sub_points: usize,
     /// Largest footprint misregistration sought, metres: the footprints are moved by the
     /// scene's robust shift onto their roofs in the photo (median of the buildings' clear
     /// estimates); 0 takes them as given.
@@ -98,6 +106,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     };
     let opts = sh::Options {
         max_height_m: args.max_height,
+        line_spacing_cells: args.line_spacing,
+        sub_points: args.sub_points,
     };
     let cell = {
         let (cx, cy) = db.grid().cell_size();
@@ -149,6 +159,9 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             json!({
                 "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
                 "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
+                "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
+                "max_shift_m": args.max_shift, "camera": args.camera,
+                "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
             }),
         ));
         db.save()?;

@@ -70,12 +70,19 @@ pub const MIN_OVERLAP: f64 = 0.6;
 pub struct Options {
     /// Tallest building sought, metres above ground: bounds the search window and the refinement.
     pub max_height_m: f64,
+    /// Scan-line spacing across the shadow direction, in cells (> 0; default 0.5).
+    pub line_spacing_cells: f64,
+    /// Refinement points per cell side (1..=15; default 4: a cell's synthetic shadow in
+    /// sixteenths).
+    pub sub_points: usize,
 }
 
 impl Default for Options {
     fn default() -> Options {
         Options {
             max_height_m: 150.0,
+            line_spacing_cells: 0.5,
+            sub_points: 4,
         }
     }
 }
@@ -277,6 +284,18 @@ pub fn measure(
     if inputs.mask.is_some_and(|m| m.grid != *grid) {
         return Err(Error::msg("the shadow mask is not on the database grid")
             .fix("make it on the database grid (same size, origin and cell size as the database layers)"));
+    }
+    if !(opts.line_spacing_cells.is_finite() && opts.line_spacing_cells > 0.0) {
+        return Err(Error::msg(format!(
+            "--line-spacing {} is not a positive number of cells",
+            opts.line_spacing_cells
+        )));
+    }
+    if !(1..=15).contains(&opts.sub_points) {
+        return Err(Error::msg(format!(
+            "--sub-points {} is not from 1 to 15",
+            opts.sub_points
+        )));
     }
     if !(opts.max_height_m.is_finite() && opts.max_height_m > 0.0) {
         return Err(Error::msg(format!(
@@ -524,7 +543,15 @@ impl Shared<'_> {
                 ..Flags::default()
             },
         };
-        let s = scan::scan(fp, &local, u, cell, max_len, tan_e);
+        let s = scan::scan(
+            fp,
+            &local,
+            u,
+            cell,
+            self.opts.line_spacing_cells * cell,
+            max_len,
+            tan_e,
+        );
         m.lines_total = s.lines;
         m.lines_used = s.lengths.len();
         m.flags.shadow_cut_by_edge_or_nodata = s.cut > 0;
@@ -557,7 +584,16 @@ impl Shared<'_> {
         m.initial_height_m = Some(z0);
         // Shadow seen by the lines but none of it attached to the footprint in the corridor:
         // nothing to refine against, and no height is better than an unchecked one.
-        let Some(r) = refine::refine(&sub, fp, &keep, u, tan_e, ground_z, z_hi) else {
+        let Some(r) = refine::refine(
+            &sub,
+            fp,
+            &keep,
+            u,
+            tan_e,
+            ground_z,
+            z_hi,
+            self.opts.sub_points,
+        ) else {
             m.flags.no_shadow = true;
             return Ok(m);
         };

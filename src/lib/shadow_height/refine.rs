@@ -7,7 +7,7 @@
 //! `z` first meets the footprint's walls `t` metres away, so the point is in the shadow of a roof
 //! at `ground_z + Z` exactly when `Z > z + t·tan(elevation) − ground_z`, the point's *threshold*.
 //! (Cells the bare terrain shadows are unusable, so nothing else blocks the ray.) Each open cell
-//! holds `SUB × SUB` points, so the synthetic shadow covers it in fractions. A prism's shadow only
+//! holds `sub × sub` points (`Options::sub_points`), so the synthetic shadow covers it in fractions. A prism's shadow only
 //! grows with its height; the *corridor* is the kept cells with a point whose threshold is up to
 //! `z_hi`. The observed shadow is the corridor's shadow cells connected to the footprint (shadow
 //! beyond lit ground belongs to something else) and the cells touching them, each as the
@@ -30,10 +30,8 @@ pub struct Refined {
     pub overlap: f64,
 }
 
-/// Sub-points per cell side: the synthetic shadow covers a cell in sixteenths.
-const SUB: usize = 4;
-
 /// Search heights in `(0, z_hi]` metres above `ground_z` (absolute metres) for footprint `fp`,
+/// with `sub × sub` points per cell (1..=15),
 /// whose cells are [`Class::Own`] in `local`. `u` is the unit shadow direction (east, north),
 /// `tan_e` the tangent of the sun elevation. Only cells with `keep[i]` can be in the corridor
 /// (the caller drops the bands of scan lines that met other buildings or disagreed with the
@@ -46,22 +44,24 @@ pub fn refine(
     tan_e: f64,
     ground_z: f64,
     z_hi: f64,
+    sub: usize,
 ) -> Option<Refined> {
     let w = local.grid.width;
+    let n_sub = sub * sub;
     let toward_sun = (-u.0, -u.1);
     let t = &local.grid.transform;
-    // Per open kept cell, the thresholds of its SUB × SUB sub-points (NaN: never shadowed).
-    let sub: Vec<Option<[f64; SUB * SUB]>> = (0..local.class.len())
+    // Per open kept cell, the thresholds of its sub × sub points (NaN: never shadowed).
+    let points: Vec<Option<Vec<f64>>> = (0..local.class.len())
         .map(|i| {
             if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
                 return None;
             }
             let (c, r) = ((i % w) as f64, (i / w) as f64);
-            let mut th = [f64::NAN; SUB * SUB];
+            let mut th = vec![f64::NAN; n_sub];
             for (k, v) in th.iter_mut().enumerate() {
                 let (fx, fy) = (
-                    ((k % SUB) as f64 + 0.5) / SUB as f64,
-                    ((k / SUB) as f64 + 0.5) / SUB as f64,
+                    ((k % sub) as f64 + 0.5) / sub as f64,
+                    ((k / sub) as f64 + 0.5) / sub as f64,
                 );
                 let p = t.pixel_to_world(c + fx, r + fy);
                 if let Some(d) = first_wall(fp, p, toward_sun) {
@@ -71,26 +71,37 @@ pub fn refine(
             th.iter().any(|&v| v <= z_hi).then_some(th)
         })
         .collect();
-    let corridor: Vec<bool> = sub.iter().map(Option::is_some).collect();
+    let corridor: Vec<bool> = points.iter().map(Option::is_some).collect();
     let attached = attached_shadow(local, &corridor, keep);
     let observed = observed_fraction(local, &corridor, &attached);
-    let mut events: Vec<(f64, usize)> = sub
+    let mut events: Vec<(f64, usize)> = points
         .iter()
         .enumerate()
-        .filter_map(|(i, th)| th.map(|th| (i, th)))
-        .flat_map(|(i, th)| th.into_iter().filter(|&v| v <= z_hi).map(move |v| (v, i)))
+        .filter_map(|(i, th)| th.as_ref().map(|th| (i, th)))
+        .flat_map(|(i, th)| {
+            th.iter()
+                .copied()
+                .filter(|&v| v <= z_hi)
+                .map(move |v| (v, i))
+        })
         .collect();
     events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    best_interval(&events, &observed, z_hi)
+    best_interval(&events, &observed, z_hi, n_sub)
 }
 
-/// The best score over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`
+/// The best score over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`, `per_cell`
+/// sub-points to a cell,
 /// sorted by `Z` (a sub-point is in the synthetic shadow when `Z` is above it), `observed[i]`
 /// the observed shadow fraction of cell `i`. The score is the IoU of fractions,
 /// `Σ min(s, o) / Σ max(s, o)` with `s` the cell's synthetic fraction; the answer is the middle
 /// of the first interval reaching the best.
-fn best_interval(events: &[(f64, usize)], observed: &[f64], z_hi: f64) -> Option<Refined> {
-    let step = 1.0 / (SUB * SUB) as f64;
+fn best_interval(
+    events: &[(f64, usize)],
+    observed: &[f64],
+    z_hi: f64,
+    per_cell: usize,
+) -> Option<Refined> {
+    let step = 1.0 / per_cell as f64;
     let (mut num, mut den): (f64, f64) = (0.0, observed.iter().sum());
     if den == 0.0 {
         return None;
@@ -310,7 +321,7 @@ mod tests {
         // the wall; every height in (5.5, 6.5] shadows those cell centres: the answer is 6 ± 0.5.
         let sun = Sun::new(45.0, 180.0).unwrap();
         let (l, fp) = scene(&sun, 106.5);
-        let r = refine(&l, &fp, &[true; 1600], (0.0, 1.0), 1.0, 100.0, 20.0).unwrap();
+        let r = refine(&l, &fp, &[true; 1600], (0.0, 1.0), 1.0, 100.0, 20.0, 4).unwrap();
         assert!((r.height_m - 6.0).abs() <= 0.5, "{r:?}");
         assert!(r.overlap > 0.95, "{r:?}");
     }
@@ -323,7 +334,7 @@ mod tests {
         let (dx, dy) = sun.direction();
         let tan_e = 60f64.to_radians().tan();
         let (l, fp) = scene(&sun, 109.0);
-        let r = refine(&l, &fp, &[true; 1600], (-dx, -dy), tan_e, 100.0, 30.0).unwrap();
+        let r = refine(&l, &fp, &[true; 1600], (-dx, -dy), tan_e, 100.0, 30.0, 4).unwrap();
         assert!((r.height_m - 9.0).abs() <= 0.5, "{r:?}");
     }
 
@@ -336,7 +347,7 @@ mod tests {
             .filter(|c| **c == Class::Shadow)
             .for_each(|c| *c = Class::Lit);
         assert_eq!(
-            refine(&l, &fp, &[true; 1600], (0.0, 1.0), 1.0, 100.0, 20.0),
+            refine(&l, &fp, &[true; 1600], (0.0, 1.0), 1.0, 100.0, 20.0, 4),
             None
         );
     }
@@ -347,14 +358,14 @@ mod tests {
         // 1.0, cell 1's at 2.0 (all at once). Above 1: 1 / 1.5; above 2: 1.5 / 2 = 0.75 (best).
         let mut ev: Vec<(f64, usize)> = (0..16).map(|_| (1.0, 0)).collect();
         ev.extend((0..16).map(|_| (2.0, 1)));
-        let r = best_interval(&ev, &[1.0, 0.5], 4.0).unwrap();
+        let r = best_interval(&ev, &[1.0, 0.5], 4.0, 16).unwrap();
         assert_eq!((r.height_m, r.overlap), (3.0, 0.75));
         // Half of cell 1's sub-points at 2, half at 3: exactly its observed half above 2.
         let mut ev: Vec<(f64, usize)> = (0..16).map(|_| (1.0, 0)).collect();
         ev.extend((0..16).map(|k| (2.0 + (k / 8) as f64, 1)));
-        let r = best_interval(&ev, &[1.0, 0.5], 4.0).unwrap();
+        let r = best_interval(&ev, &[1.0, 0.5], 4.0, 16).unwrap();
         assert_eq!((r.height_m, r.overlap), (2.5, 1.0));
-        assert_eq!(best_interval(&ev, &[0.0, 0.0], 4.0), None);
+        assert_eq!(best_interval(&ev, &[0.0, 0.0], 4.0, 16), None);
     }
 
     #[test]

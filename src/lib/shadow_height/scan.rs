@@ -1,7 +1,7 @@
 //! Shadow length along the sun azimuth, over parallel scan lines.
 //!
-//! Invariant: scan lines run along the shadow direction `u` (away from the sun), spaced half a
-//! cell apart across the footprint, keeping one cell clear of its two extreme tangents (where the
+//! Invariant: scan lines run along the shadow direction `u` (away from the sun), spaced
+//! `spacing` apart across the footprint (half a cell by default), keeping one cell clear of its two extreme tangents (where the
 //! raster edge is ragged). Each line starts where it last leaves the polygon (its sun-far edge)
 //! and walks the cells it crosses ([`crate::walk`], through corners diagonally); cells its own
 //! roof covers in part ([`Class::Edge`]) do not end it; it ends, valid, at the first lit cell. A line is dropped
@@ -41,12 +41,14 @@ pub struct Scan {
 }
 
 /// Scan the footprint's shadow in `local`. `u` is the unit shadow direction (east, north),
-/// `cell` the cell size and `max_len` the longest shadow sought, metres; `tan_e` = tan(elevation).
+/// `cell` the cell size, `spacing` the distance between lines and `max_len` the longest shadow
+/// sought, metres; `tan_e` = tan(elevation).
 pub fn scan(
     fp: &Footprint,
     local: &Local,
     u: (f64, f64),
     cell: f64,
+    spacing: f64,
     max_len: f64,
     tan_e: f64,
 ) -> Scan {
@@ -65,7 +67,6 @@ pub fn scan(
                 let t = proj(p).1;
                 (a.min(t), z.max(t))
             });
-    let spacing = cell / 2.0;
     let ts: Vec<f64> = if t_max - t_min > 2.0 * cell + spacing {
         let k = ((t_max - t_min - 2.0 * cell) / spacing).floor() as usize;
         (0..=k).map(|i| t_min + cell + i as f64 * spacing).collect()
@@ -254,7 +255,7 @@ mod tests {
     #[test]
     fn every_line_measures_the_shadow_to_the_first_lit_cell() {
         let (l, fp) = local(6, Class::Lit);
-        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 30.0, 1.0);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
         assert_eq!(s.lines, 17); // 10 m wide, 1 m clear each side, every 0.5 m.
         assert_eq!(s.lengths.len(), 17);
         assert!(s.lengths.iter().all(|&x| x == 6.0), "{:?}", s.lengths);
@@ -266,13 +267,13 @@ mod tests {
     #[test]
     fn lines_meeting_other_footprints_or_unusable_cells_are_dropped() {
         let (l, fp) = local(6, Class::Other);
-        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 30.0, 1.0);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
         assert_eq!((s.on_other, s.lengths.len()), (17, 0));
         let (l, fp) = local(6, Class::Unusable);
-        assert_eq!(scan(&fp, &l, (0.0, 1.0), 1.0, 30.0, 1.0).cut, 17);
+        assert_eq!(scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0).cut, 17);
         // A shadow longer than the window: cut at the window's edge.
         let (l, fp) = local(25, Class::Lit);
-        assert_eq!(scan(&fp, &l, (0.0, 1.0), 1.0, 100.0, 1.0).cut, 17);
+        assert_eq!(scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 100.0, 1.0).cut, 17);
     }
 
     #[test]
@@ -284,7 +285,7 @@ mod tests {
         for c in 10..20 {
             l.class[(39 - 26) * 40 + c] = Class::Other;
         }
-        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 30.0, 1.0);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
         assert_eq!((s.on_other, s.lengths.len()), (17, 0), "{s:?}");
     }
 
@@ -298,7 +299,7 @@ mod tests {
                 l.class[(39 - r) * 40 + c] = Class::Unusable;
             }
         }
-        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 30.0, 1.0);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
         assert_eq!((s.cut, s.lengths.len()), (0, 17), "{s:?}");
         assert!(s.lengths.iter().all(|&x| x == 6.0), "{:?}", s.lengths);
     }
