@@ -48,8 +48,20 @@ pub struct Local {
 }
 
 impl Local {
-    /// The part of this local view inside `w` (a window of the database grid within `self.win`).
+    /// The part of this local view inside `w` (a window of the database grid), clipped to
+    /// `self.win`: a crop never reaches outside what was classified.
     pub fn crop(&self, w: Window, db_grid: &Grid) -> Local {
+        let (c0, r0) = (w.col.max(self.win.col), w.row.max(self.win.row));
+        let c1 = (w.col + w.width).min(self.win.col + self.win.width).max(c0);
+        let r1 = (w.row + w.height)
+            .min(self.win.row + self.win.height)
+            .max(r0);
+        let w = Window {
+            col: c0,
+            row: r0,
+            width: c1 - c0,
+            height: r1 - r0,
+        };
         let (dc, dr) = (w.col - self.win.col, w.row - self.win.row);
         let mut class = Vec::with_capacity(w.width * w.height);
         let mut heights = Vec::with_capacity(w.width * w.height);
@@ -138,5 +150,21 @@ mod tests {
         assert_eq!(c.class.len(), 6);
         assert_eq!(c.index[..2], [(2 * 14 + 2) as f32, (2 * 14 + 3) as f32]);
         assert_eq!(c.grid.transform.origin_x, 40.0);
+        // A crop asked beyond the classified window is clipped to it (a short --max-height
+        // made the refinement's window outrun the scan's: a panic before).
+        let big = l.crop(
+            Window {
+                col: 30,
+                row: 20,
+                width: 100,
+                height: 100,
+            },
+            &g,
+        );
+        assert_eq!(
+            (big.win.col, big.win.row, big.win.width, big.win.height),
+            (38, 28, 14, 34)
+        );
+        assert_eq!(big.class.len(), 14 * 34);
     }
 }
