@@ -96,6 +96,15 @@ pub fn prepare_scene(scene: &Scene, dir: &Path) -> Result<Prepared, String> {
 /// command's wall clock in seconds (process start, reading the database and footprints,
 /// measuring, writing).
 pub fn measure_prepared(scene: &Scene, p: &Prepared) -> Result<(Vec<Outcome>, f64), String> {
+    measure_prepared_with(scene, p, &[])
+}
+
+/// [`measure_prepared`] with `extra` options for `dbms shadow-height` (e.g. `--sub-points=8`).
+pub fn measure_prepared_with(
+    scene: &Scene,
+    p: &Prepared,
+    extra: &[String],
+) -> Result<(Vec<Outcome>, f64), String> {
     let heights = p.written.dir.join("heights.geojson");
     let mut sh = dbms();
     sh.args(["--quiet", "shadow-height", "--db"])
@@ -115,6 +124,7 @@ pub fn measure_prepared(scene: &Scene, p: &Prepared) -> Result<(Vec<Outcome>, f6
             scene.ground_z(nadir) + height_m
         ));
     }
+    sh.args(extra);
     let t = Instant::now();
     run(sh, "dbms shadow-height")?;
     let secs = t.elapsed().as_secs_f64();
