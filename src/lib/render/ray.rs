@@ -6,10 +6,11 @@
 //! at a hit *is* the range. Working relative to the grid origin keeps UTM-sized eyes exact.
 //!
 //! Invariant: the time the ray crosses a cell boundary `b` is one pure function,
-//! [`Axis::cross`], used by every traversal and every level (a level-`k` boundary is the level-0
-//! boundary `K · f^k`), and the cell the ray is in at time `t` is a pure function of `t`
-//! ([`Axis::cell_at`]: a boundary crossed at exactly `t` counts as crossed). So any two
-//! traversals that visit a cell agree bit for bit on its entry and exit times.
+//! [`Axis::cross`] (which is [`crate::walk::cross`]), used by every traversal and every level
+//! (a level-`k` boundary is the level-0 boundary `K · f^k`), and the cell the ray is in at time
+//! `t` is a pure function of `t` ([`Axis::cell_at`]: a boundary crossed at exactly `t` counts as
+//! crossed). So any two traversals that visit a cell agree bit for bit on its entry and exit
+//! times.
 
 /// One horizontal axis of a ray: origin and rate of change in cells (per metre of range).
 #[derive(Debug, Clone, Copy)]
@@ -18,29 +19,21 @@ pub struct Axis {
     pub o: f64,
     /// Cells per metre of range (signed; 0 for a ray parallel to this axis' boundaries).
     pub d: f64,
-    inv: f64,
 }
 
 impl Axis {
     /// The axis at `o` cells moving `d` cells per metre.
     pub fn new(o: f64, d: f64) -> Axis {
         let d = if d == 0.0 { 0.0 } else { d }; // no -0.0: one parallel case
-        Axis {
-            o,
-            d,
-            inv: if d == 0.0 { 0.0 } else { 1.0 / d },
-        }
+        Axis { o, d }
     }
 
     /// Time (metres of range) at which the ray crosses boundary `b` (cells); `+inf` when the
-    /// ray is parallel to the boundaries.
+    /// ray is parallel to the boundaries. The crate's one crossing function,
+    /// [`crate::walk::cross`] (`(b − o) / d`), shared with every other grid walk.
     #[inline]
     pub fn cross(&self, b: i64) -> f64 {
-        if self.d == 0.0 {
-            f64::INFINITY
-        } else {
-            (b as f64 - self.o) * self.inv
-        }
+        crate::walk::cross(self.o, self.d, b)
     }
 
     /// Index of the cell holding the ray at time `t` (a boundary crossed at exactly `t` is
