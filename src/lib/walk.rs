@@ -173,7 +173,13 @@ impl<const N: usize> Iterator for Walk<N> {
         });
         if self.corner == Corner::Touching {
             // Every proper, non-empty subset of the tied axes stepped: the side cells.
-            let axes: Vec<usize> = (0..N).filter(|&a| tied[a]).collect();
+            let mut axes = [0usize; 3];
+            let mut n_axes = 0;
+            for a in (0..N).filter(|&a| tied[a]) {
+                axes[n_axes] = a;
+                n_axes += 1;
+            }
+            let axes = &axes[..n_axes];
             let full = (1usize << axes.len()) - 1;
             self.n_pending = 0;
             for mask in (1..full).rev() {
