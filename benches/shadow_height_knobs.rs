@@ -16,46 +16,12 @@ mod povray;
 #[path = "../tests/support/shadow_truth.rs"]
 mod shadow_truth;
 
-use povray::{Building, Camera, Roof, Scene};
+use povray::{isolated_layout, Camera, Scene};
 use shadow_truth::{measure_prepared_with, prepare_scene, Prepared};
-
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// 16 isolated buildings on a 4 × 4 layout 60 m apart, 0.5 m cells, flat or sloped ground.
 fn scene(seed: u64, az: f64, el: f64, ground: (f64, f64, f64), shift: (f64, f64)) -> Scene {
     let origin = (500_000.0, 5_300_260.0);
-    let mut rng = Rng(seed);
-    let mut buildings = Vec::new();
-    for i in 0..4 {
-        for j in 0..4 {
-            let centre = (
-                origin.0 + 40.0 + 60.0 * i as f64 + rng.next(),
-                origin.1 - 40.0 - 60.0 * j as f64 - rng.next(),
-            );
-            let size = (8.0 + 14.0 * rng.next(), 8.0 + 14.0 * rng.next());
-            let g = ground.0 + ground.1 * (centre.0 - origin.0) + ground.2 * (centre.1 - origin.1);
-            let h = 6.0 + 14.0 * rng.next();
-            let grey = 0.35 + 0.3 * rng.next();
-            buildings.push(Building {
-                centre,
-                size,
-                rotation_deg: 360.0 * rng.next(),
-                roof: Roof::Flat {
-                    z: g + h + 0.25 * size.0.hypot(size.1) * ground.1.hypot(ground.2),
-                },
-                colour: [grey, grey * 0.95, grey * 0.9],
-            });
-        }
-    }
     Scene {
         origin,
         cell: 0.5,
@@ -63,7 +29,7 @@ fn scene(seed: u64, az: f64, el: f64, ground: (f64, f64, f64), shift: (f64, f64)
         ground,
         sun_azimuth_deg: az,
         sun_elevation_deg: el,
-        buildings,
+        buildings: isolated_layout(seed, 4, 14.0, true, ground, origin),
         clutter: vec![],
         footprint_shift: shift,
         camera: Camera::Ortho,

@@ -12,7 +12,7 @@ mod povray;
 #[path = "support/shadow_truth.rs"]
 mod shadow_truth;
 
-use povray::{Building, Camera, Roof, Scene};
+use povray::{isolated_layout, Building, Camera, Rng, Roof, Scene};
 use shadow_truth::{measure_scene, Outcome};
 
 fn have_povray() -> bool {
@@ -70,48 +70,6 @@ fn the_issue_13_diagonal_case_is_measured_within_a_cell() {
     let o: &Outcome = &out[0];
     let roof = o.roof_z.unwrap_or_else(|| panic!("no height: {o:?}"));
     assert!((roof - 260.6).abs() <= 0.5, "{o:?}");
-}
-
-/// A deterministic stream in [0, 1).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// Nine isolated buildings on a 3 × 3 layout 60 m apart (shadows never meet): sides 8–20 m,
-/// roofs 6–16 m above the ground, at sub-cell offsets drawn from `seed`; axis-aligned or
-/// rotated.
-fn layout(seed: u64, rotated: bool, ground: (f64, f64, f64), origin: (f64, f64)) -> Vec<Building> {
-    let mut rng = Rng(seed);
-    let mut out = Vec::new();
-    for i in 0..3 {
-        for j in 0..3 {
-            let centre = (
-                origin.0 + 40.0 + 60.0 * i as f64 + rng.next(),
-                origin.1 - 40.0 - 60.0 * j as f64 - rng.next(),
-            );
-            let size = (8.0 + 12.0 * rng.next(), 8.0 + 12.0 * rng.next());
-            let g = ground.0 + ground.1 * (centre.0 - origin.0) + ground.2 * (centre.1 - origin.1);
-            let h = 6.0 + 10.0 * rng.next();
-            let rotation_deg = if rotated { 360.0 * rng.next() } else { 0.0 };
-            let grey = 0.35 + 0.3 * rng.next();
-            out.push(Building {
-                centre,
-                size,
-                rotation_deg,
-                // The roof over the highest corner's ground, so every wall stands clear.
-                roof: flat(g + h + 0.25 * size.0.hypot(size.1) * ground.1.hypot(ground.2)),
-                colour: [grey, grey * 0.95, grey * 0.9],
-            });
-        }
-    }
-    out
 }
 
 /// Measure `s` and check issue 13's goals on it: no unflagged roof off by more than two cells,
@@ -175,7 +133,7 @@ fn slice_scene(
         ground,
         sun_azimuth_deg: az,
         sun_elevation_deg: el,
-        buildings: layout(seed, rotated, ground, origin),
+        buildings: isolated_layout(seed, 3, 12.0, rotated, ground, origin),
         clutter: vec![],
         footprint_shift: (0.0, 0.0),
         camera: Camera::Ortho,

@@ -14,7 +14,7 @@
 //! [`MAX_FACE_RATIO`] of the brighter, and the classes are *faces*, not texture: at least
 //! [`MIN_COHERENCE`] of the 4-neighbour pairs of roof cells are of the same class.
 
-use super::detect::{index_bin, otsu_threshold_of};
+use super::detect::{index_bin, otsu_split, otsu_threshold_of};
 use super::footprint::Footprint;
 use crate::raster::Colour;
 
@@ -54,7 +54,9 @@ pub fn looks_pitched(fp: &Footprint, colour: &Colour, cells: &[usize]) -> bool {
         hist[index_bin(y(i))] += 1;
     }
     // Otsu's split without the shadow-specific retry: the dark class may be most of the roof.
-    let Some(t) = otsu_threshold_of(&hist, 1.0).or_else(|| plain_split(&hist)) else {
+    let Some(t) = otsu_threshold_of(&hist, 1.0)
+        .or_else(|| otsu_split(&hist).map(|(split, _, _)| split as f64 + 0.5))
+    else {
         return false;
     };
     let dark: Vec<bool> = inner.iter().map(|&i| y(i) < t).collect();
@@ -87,32 +89,6 @@ pub fn looks_pitched(fp: &Footprint, colour: &Colour, cells: &[usize]) -> bool {
         }
     }
     pairs > 0 && same as f64 >= MIN_COHERENCE * pairs as f64
-}
-
-/// Otsu's threshold with no clarity rule (two classes wherever the histogram has two bins).
-fn plain_split(hist: &[u64; 256]) -> Option<f64> {
-    let n: f64 = hist.iter().sum::<u64>() as f64;
-    let total: f64 = hist
-        .iter()
-        .enumerate()
-        .map(|(i, &c)| i as f64 * c as f64)
-        .sum();
-    let (mut w0, mut s0) = (0.0, 0.0);
-    let mut best: Option<(f64, usize)> = None;
-    for (t, &c) in hist.iter().enumerate().take(255) {
-        w0 += c as f64;
-        s0 += t as f64 * c as f64;
-        let w1 = n - w0;
-        if w0 == 0.0 || w1 == 0.0 {
-            continue;
-        }
-        let d = s0 / w0 - (total - s0) / w1;
-        let var = w0 * w1 * d * d;
-        if best.is_none_or(|b| var > b.0) {
-            best = Some((var, t));
-        }
-    }
-    best.map(|(_, t)| t as f64 + 0.5)
 }
 
 /// Distance (metres) from `p` to the nearest edge of `fp`.
