@@ -9,7 +9,8 @@
 //! `cargo bench --bench shadow_height_povray` (all rows, ~15 min on 2 cores) or `-- quick`
 //! (a subset, ~2 min); `-- keep` keeps every scene's directory (otherwise only those with a
 //! silent gross error are kept, under the temporary directory printed at the start); any other
-//! word runs only the settings whose label contains it (`-- quick keep "el 8°"`).
+//! word runs only the settings whose label contains it (`-- quick keep "el 8° ·"`), and options
+//! starting with `--` go to `dbms shadow-height` (`-- "el 80°" --max-shift=0`).
 //! Needs `povray` on PATH (`apt-get install povray`).
 //!
 //! The scenes. Each holds four buildings on a 2 × 2 lattice of square slots; a building and the
@@ -52,8 +53,8 @@ mod povray;
 #[path = "../tests/support/shadow_truth.rs"]
 mod shadow_truth;
 
-use povray::{Building, Camera, Roof, Scene};
-use shadow_truth::{measure_prepared, prepare_scene, Outcome};
+use povray::{Building, Camera, Rng, Roof, Scene};
+use shadow_truth::{measure_prepared_with, prepare_scene, Outcome};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -74,21 +75,6 @@ const MAX_SHADOW_M: f64 = 60.0;
 const GROSS_CELLS: f64 = 2.0;
 /// Scenes rendered and ingested at once (POV-Ray runs one thread each).
 const WORKERS: usize = 2;
-
-/// A deterministic stream of numbers in [0, 1) (as in benches/shadow_height.rs).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
 
 /// FNV-1a of a label: the seed of a setting's layouts.
 fn seed(label: &str, layout: usize) -> u64 {
@@ -454,10 +440,17 @@ fn main() {
     let quick = args.iter().any(|a| a == "quick");
     let keep = args.iter().any(|a| a == "keep");
     // Any other argument (cargo passes `--bench`) not starting with `-`: only the settings
-    // whose label contains it, e.g. `"el 8°"` or `"az 135° · el 80°"`.
+    // whose label contains it, e.g. `"el 8° ·"` or `"az 135° · el 80°"`.
     let filters: Vec<&String> = args
         .iter()
         .filter(|a| !a.starts_with('-') && *a != "quick" && *a != "keep")
+        .collect();
+    // Options for `dbms shadow-height` (`--max-shift=0`): every argument starting with `--` but
+    // cargo's `--bench`.
+    let extra: Vec<String> = args
+        .iter()
+        .filter(|a| a.starts_with("--") && *a != "--bench")
+        .cloned()
         .collect();
     if std::process::Command::new("povray")
         .arg("--version")
@@ -534,7 +527,7 @@ fn main() {
         for (i, sc, dir, p) in prepared {
             let (s, k) = batch[i];
             let (outcomes, secs, render_secs) = match p {
-                Ok(p) => match measure_prepared(&sc, &p) {
+                Ok(p) => match measure_prepared_with(&sc, &p, &extra) {
                     Ok((o, t)) => (Ok(o), t, p.render_secs),
                     Err(e) => (Err(e), 0.0, p.render_secs),
                 },
@@ -564,7 +557,8 @@ fn main() {
     let mut rows: Vec<Stats> = vec![Stats::default(); settings.len()];
     let mut gross = Vec::new();
     let mut failures = Vec::new();
-    let mut flag_counts: Vec<(String, usize)> = Vec::new();
+    // Buildings carrying each flag, per sun elevation (the flags that matter depend on it).
+    let mut flag_counts: Vec<((u32, String), usize)> = Vec::new();
     let mut render_secs = 0.0;
     for r in &results {
         let st = &mut rows[r.setting];
@@ -595,9 +589,10 @@ fn main() {
                 for (j, o) in out.iter().enumerate() {
                     st.buildings += 1;
                     for f in &o.flags {
-                        match flag_counts.iter_mut().find(|(n, _)| n == f) {
+                        let key = (set.elev as u32, f.clone());
+                        match flag_counts.iter_mut().find(|(k, _)| *k == key) {
                             Some((_, c)) => *c += 1,
-                            None => flag_counts.push((f.clone(), 1)),
+                            None => flag_counts.push((key, 1)),
                         }
                     }
                     let flagged = o.flagged() || o.roof_z.is_none();
@@ -751,18 +746,33 @@ fn main() {
     }
 
     flag_counts.sort();
-    println!(
-        "\nFlags seen (buildings carrying each): {}",
-        if flag_counts.is_empty() {
-            "none".to_string()
-        } else {
-            flag_counts
-                .iter()
-                .map(|(f, c)| format!("{f} {c}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        }
-    );
+    println!("\nFlags seen, by sun elevation (buildings carrying each):\n");
+    println!("| sun elevation | buildings | flags |");
+    println!("|---|---|---|");
+    let mut elevs: Vec<u32> = settings.iter().map(|s| s.elev as u32).collect();
+    elevs.sort();
+    elevs.dedup();
+    for e in elevs {
+        let n: usize = settings
+            .iter()
+            .zip(&rows)
+            .filter(|(s, _)| s.elev as u32 == e)
+            .map(|(_, st)| st.buildings)
+            .sum();
+        let seen: Vec<String> = flag_counts
+            .iter()
+            .filter(|((el, _), _)| *el == e)
+            .map(|((_, f), c)| format!("{f} {c}"))
+            .collect();
+        println!(
+            "| {e}° | {n} | {} |",
+            if seen.is_empty() {
+                "none".to_string()
+            } else {
+                seen.join(", ")
+            }
+        );
+    }
 
     println!(
         "\nSilent gross errors (unflagged, |error| > {GROSS_CELLS} cells): {}\n",
@@ -820,6 +830,9 @@ fn main() {
         },
         if quick { "quick" } else { "full run" }
     );
+    if !extra.is_empty() {
+        println!("dbms shadow-height options: {}", extra.join(" "));
+    }
     if !keep && gross.is_empty() && failures.is_empty() {
         let _ = std::fs::remove_dir_all(&root);
     } else {

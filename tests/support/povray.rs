@@ -477,6 +477,11 @@ impl Rng {
             .wrapping_add(1442695040888963407);
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
+
+    /// The next number in [`lo`, `hi`).
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
 }
 
 /// `n × n` isolated flat-roofed buildings 60 m apart (shadows never meet), the first centred
