@@ -539,7 +539,7 @@ impl Shared<'_> {
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
-                pitched_roof: self.looks_pitched(fp, cells, lean),
+                pitched_roof: self.looks_pitched(id, fp, cells, lean, &win),
                 ..Flags::default()
             },
         };
@@ -627,7 +627,34 @@ impl Shared<'_> {
 
     /// Whether the roof of `fp` (own cells `cells`) looks pitched where the photo shows it: over
     /// the footprint moved by its `lean` (metres) in a perspective photo.
-    fn looks_pitched(&self, fp: &Footprint, cells: &[usize], lean: (f64, f64)) -> bool {
+    /// Roof cells in a taller neighbour's shadow (second pass: at this building's first-pass
+    /// roof) are left out: a roof half in a neighbour's shadow is two brightnesses with a
+    /// straight boundary too (`dbms sample`'s adjacent pairs).
+    fn looks_pitched(
+        &self,
+        id: u32,
+        fp: &Footprint,
+        cells: &[usize],
+        lean: (f64, f64),
+        win: &crate::grid::Window,
+    ) -> bool {
+        let unshaded: Vec<usize>;
+        let cells = match self.roofs[id as usize - 1] {
+            Some(own) => {
+                let neighbours = self.shading_neighbours(id, win);
+                let w = self.grid.width;
+                unshaded = cells
+                    .iter()
+                    .copied()
+                    .filter(|&i| {
+                        let p = self.grid.cell_centre(i % w, i / w);
+                        !self.in_shadow_of(&neighbours, p, own)
+                    })
+                    .collect();
+                &unshaded[..]
+            }
+            None => cells,
+        };
         if lean == (0.0, 0.0) {
             return roof::looks_pitched(fp, self.inputs.colour, cells);
         }
