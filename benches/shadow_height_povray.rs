@@ -6,8 +6,8 @@
 //! file, an ASCII DEM and GeoJSON footprints, through the `dbms ingest` and `dbms shadow-height`
 //! commands (the release binary). The truth is the roof height written into the scene.
 //!
-//! `cargo bench --bench shadow_height_povray` (all rows, ~15 min on 2 cores) or `-- quick`
-//! (a subset, ~2 min); `-- keep` keeps every scene's directory (otherwise only those with a
+//! `cargo bench --bench shadow_height_povray` (all rows, ~13 min on 2 cores) or `-- quick`
+//! (a subset, ~2.5 min); `-- keep` keeps every scene's directory (otherwise only those with a
 //! silent gross error are kept, under the temporary directory printed at the start); any other
 //! word runs only the settings whose label contains it (`-- quick keep "el 8° ·"`), and options
 //! starting with `--` go to `dbms shadow-height` (`-- "el 80°" --max-shift=0`).
