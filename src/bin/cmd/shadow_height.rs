@@ -89,7 +89,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     }
     let camera = args.camera.as_deref().map(parse_camera).transpose()?;
     let (registration, valid) = if args.max_shift > 0.0 {
-        sh::register_footprints(&colour, &given, args.max_shift, camera.as_ref())
+        sh::register_footprints(&colour, &given, &sun, args.max_shift, camera.as_ref())
     } else {
         (sh::Registration::none(given.len()), given)
     };

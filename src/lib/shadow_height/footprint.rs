@@ -111,6 +111,17 @@ impl Footprint {
         )
     }
 
+    /// Whether `(x, y)` is inside (even-odd rule over every ring's edges).
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        self.edges()
+            .filter(|&(a, b)| {
+                (a.1 > y) != (b.1 > y) && x < (b.0 - a.0) * (y - a.1) / (b.1 - a.1) + a.0
+            })
+            .count()
+            % 2
+            == 1
+    }
+
     /// Every edge `(a, b)` of every ring.
     pub fn edges(&self) -> impl Iterator<Item = ((f64, f64), (f64, f64))> + '_ {
         self.rings
@@ -225,6 +236,8 @@ mod tests {
         assert_eq!(f.area, 96.0);
         assert_eq!(f.rings.len(), 2);
         assert_eq!(f.rings[0].len(), 4);
+        assert!(f.contains(1.0, 1.0) && f.contains(9.5, 5.0));
+        assert!(!f.contains(3.0, 3.0) && !f.contains(-0.5, 5.0) && !f.contains(5.0, 10.5));
     }
 
     #[test]

@@ -228,20 +228,22 @@ impl Registration {
     }
 }
 
-/// Estimate every footprint's shift onto its roof in `colour` (within ±`max_shift_m` metres),
-/// then the scene's shift: the median of the clear estimates for an orthophoto, or, with the
+/// Estimate every footprint's shift onto its roof in `colour` lit by `sun` (within
+/// ±`max_shift_m` metres), then the scene's shift: the median of the clear estimates for an orthophoto, or, with the
 /// `camera` of a perspective photo, the shift that leaves only radial leans
 /// ([`register::with_camera`]). Returns the registration and the footprints moved by the
 /// scene's shift.
 pub fn register_footprints(
     colour: &Colour,
     footprints: &[Footprint],
+    sun: &Sun,
     max_shift_m: f64,
     camera: Option<&register::Camera>,
 ) -> (Registration, Vec<Footprint>) {
+    let (e, n) = sun.direction();
     let buildings: Vec<Option<register::Shift>> = footprints
         .par_iter()
-        .map(|f| register::estimate(f, colour, max_shift_m))
+        .map(|f| register::estimate(f, colour, (-e, -n), max_shift_m))
         .collect();
     let (scene, leans) = match camera {
         None => (

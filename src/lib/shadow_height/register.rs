@@ -6,10 +6,18 @@
 //! the height is wrong or refused.
 //!
 //! Invariant: a footprint's outline fits the photo where the brightness changes most across
-//! it. The *contrast* of a shift `(dx, dy)` is the mean, over points every half cell along every
-//! edge of the moved outline, of `|Y(p + n·c) − Y(p − n·c)|` (Rec. 601 luminance, bilinear; `n`
-//! the edge normal, `c` = 0.75 cell): roof against lit ground on the sunny sides, roof against its
-//! shadow on the others — both strong where the outline is right, whatever the roof's colour.
+//! it, *in the sense the sun allows*. The *contrast* of a shift `(dx, dy)` is the mean, over
+//! points every half cell along every edge of the moved outline, of the step from outside to
+//! inside, `Y(p − n·c)` against `Y(p + n·c)` (Rec. 601 luminance, bilinear; `n` the edge's
+//! outward normal, `c` = ½ cell, [`ACROSS`]):
+//! - on an edge facing away from the sun (`n·u > 0`, `u` the shadow direction) the outside is
+//!   the building's own shadow, so only a roof *brighter* inside counts: `max(0, Y_in − Y_out)`.
+//!   The shadow's own outer boundary is a copy of these edges moved along `u`, with shadow
+//!   inside and lit ground outside — the strongest edge in the scene, and the wrong one. Read
+//!   unsigned, a thin shadow (a high sun) pulled outlines onto it by the shadow's width;
+//!   signed, it scores nothing;
+//! - on the other edges, roof against lit ground, either may be the brighter: `|Y_in − Y_out|`.
+//!
 //! The shift is searched on a grid of half cells within ±`max_shift_m`, then refined to an
 //! eighth of a cell around the best. A building's estimate counts only when its best contrast
 //! stands clear of its search's typical one ([`MIN_PEAK_RATIO`]); the scene's shift is the
@@ -22,6 +30,13 @@ use crate::raster::Colour;
 /// A building's best contrast must be at least this many times the median contrast over its
 /// search for its estimate to count.
 pub const MIN_PEAK_RATIO: f64 = 1.5;
+
+/// How far either side of the outline (pixels) the contrast is read. A sharp edge between two
+/// pixels is a one-pixel ramp in the bilinear luminance, so its contrast read at ±`ACROSS`
+/// peaks where the outline is on the edge: at ±½ a single point, at any wider spacing a plateau
+/// `2·ACROSS − 1` wide along which every shift scores the same (at ±¾ the first of them was
+/// taken, ¼ pixel off — at an 80° sun, 1.4 pixels of height).
+const ACROSS: f64 = 0.75;
 
 /// One footprint's estimated shift onto the photo.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,9 +79,20 @@ fn luminance(colour: &Colour, px: f64, py: f64) -> Option<f64> {
     Some((1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * c + fx * d))
 }
 
-/// Sample points of `fp`'s outline: every half cell along every edge, with the edge's unit
-/// normal, in pixel coordinates of `colour`'s grid (pixels per metre `1 / cell`).
-fn outline_samples(fp: &Footprint, colour: &Colour) -> Vec<((f64, f64), (f64, f64))> {
+/// One point on a footprint's outline, in pixel coordinates of the photo's grid.
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    /// The point.
+    at: (f64, f64),
+    /// Unit outward normal.
+    out: (f64, f64),
+    /// Whether the edge faces away from the sun, so that its outside is the building's shadow.
+    faces_shadow: bool,
+}
+
+/// Sample points of `fp`'s outline: every half cell along every edge. `away` is the shadow
+/// direction (world east, north; any length).
+fn outline_samples(fp: &Footprint, colour: &Colour, away: (f64, f64)) -> Vec<Sample> {
     let t = &colour.grid.transform;
     let mut out = Vec::new();
     for (a, b) in fp.edges() {
@@ -76,33 +102,51 @@ fn outline_samples(fp: &Footprint, colour: &Colour) -> Vec<((f64, f64), (f64, f6
         if len == 0.0 {
             continue;
         }
-        let n = (-dy / len, dx / len);
+        // World outward normal: the side of the edge's midpoint that is outside.
+        let (ex, ey) = (b.0 - a.0, b.1 - a.1);
+        let (mx, my) = ((a.0 + b.0) / 2.0, (a.1 + b.1) / 2.0);
+        let eps = 1e-6;
+        let mut world = (ey, -ex);
+        if fp.contains(mx + eps * world.0, my + eps * world.1) {
+            world = (-world.0, -world.1);
+        }
+        // The pixel normal on the same side (the grid's transform may flip orientation).
+        let (qx, qy) = t.world_to_pixel(mx + eps * world.0, my + eps * world.1);
+        let (mpx, mpy) = ((pa.0 + pb.0) / 2.0, (pa.1 + pb.1) / 2.0);
+        let mut n = (-dy / len, dx / len);
+        if n.0 * (qx - mpx) + n.1 * (qy - mpy) < 0.0 {
+            n = (-n.0, -n.1);
+        }
+        let faces_shadow = world.0 * away.0 + world.1 * away.1 > 0.0;
         let k = (len * 2.0).ceil().max(1.0) as usize;
         for i in 0..k {
             let s = (i as f64 + 0.5) / k as f64;
-            out.push(((pa.0 + s * dx, pa.1 + s * dy), n));
+            out.push(Sample {
+                at: (pa.0 + s * dx, pa.1 + s * dy),
+                out: n,
+                faces_shadow,
+            });
         }
     }
     out
 }
 
-/// Mean contrast across the outline moved by `(sx, sy)` pixels; `None` when under half the
-/// samples can be read.
-fn contrast(
-    colour: &Colour,
-    samples: &[((f64, f64), (f64, f64))],
-    sx: f64,
-    sy: f64,
-) -> Option<f64> {
-    const ACROSS: f64 = 0.75;
+/// Mean contrast across the outline moved by `(sx, sy)` pixels (the module's invariant);
+/// `None` when under half the samples can be read.
+fn contrast(colour: &Colour, samples: &[Sample], sx: f64, sy: f64) -> Option<f64> {
     let (mut sum, mut n) = (0.0, 0usize);
-    for &((x, y), (nx, ny)) in samples {
-        let (x, y) = (x + sx, y + sy);
-        if let (Some(a), Some(b)) = (
+    for s in samples {
+        let (x, y) = (s.at.0 + sx, s.at.1 + sy);
+        let (nx, ny) = s.out;
+        if let (Some(outside), Some(inside)) = (
             luminance(colour, x + nx * ACROSS, y + ny * ACROSS),
             luminance(colour, x - nx * ACROSS, y - ny * ACROSS),
         ) {
-            sum += (a - b).abs();
+            sum += if s.faces_shadow {
+                (inside - outside).max(0.0)
+            } else {
+                (inside - outside).abs()
+            };
             n += 1;
         }
     }
@@ -110,9 +154,15 @@ fn contrast(
 }
 
 /// The shift (within ±`max_shift_m` metres on each axis) that best fits `fp` to its roof in
-/// `colour`; `None` when the outline is mostly off the grid or on nodata.
-pub fn estimate(fp: &Footprint, colour: &Colour, max_shift_m: f64) -> Option<Shift> {
-    let samples = outline_samples(fp, colour);
+/// `colour` with shadows cast along `away` (world east, north, away from the sun); `None` when
+/// the outline is mostly off the grid or on nodata.
+pub fn estimate(
+    fp: &Footprint,
+    colour: &Colour,
+    away: (f64, f64),
+    max_shift_m: f64,
+) -> Option<Shift> {
+    let samples = outline_samples(fp, colour, away);
     let t = &colour.grid.transform;
     let (cx, cy) = (t.cell_x, t.cell_y); // metres per pixel (cy < 0 for north-up)
     let reach = (max_shift_m / cx.abs().max(cy.abs())).max(0.0); // pixels
@@ -131,19 +181,25 @@ pub fn estimate(fp: &Footprint, colour: &Colour, max_shift_m: f64) -> Option<Shi
         }
     }
     let (mut s0, mut bx, mut by) = best?;
-    // Refine to an eighth of a pixel within half a pixel of the best.
-    let (gx, gy) = (bx, by);
-    for j in -4..=4 {
-        for i in -4..=4 {
-            let (sx, sy) = (gx + i as f64 / 8.0, gy + j as f64 / 8.0);
-            if let Some(s) = contrast(colour, &samples, sx, sy) {
-                if s > s0 {
-                    (s0, bx, by) = (s, sx, sy);
-                }
-            }
-        }
-    }
     let median = super::scan::median(&scores)?;
+    // Refine to an eighth of a pixel within ¾ pixel of the best, then take the centre of the
+    // top: every shift scoring within PLATEAU of the peak (over the search's median). A sharp
+    // edge's contrast is flat for ±¼ pixel around it ([`ACROSS`]); the first maximum found
+    // there sat at the plateau's west or north end, ¼ pixel off.
+    const PLATEAU: f64 = 0.02;
+    let (gx, gy) = (bx, by);
+    let fine: Vec<(f64, f64, f64)> = (-6..=6)
+        .flat_map(|j| (-6..=6).map(move |i| (gx + i as f64 / 8.0, gy + j as f64 / 8.0)))
+        .filter_map(|(sx, sy)| Some((contrast(colour, &samples, sx, sy)?, sx, sy)))
+        .collect();
+    s0 = fine.iter().fold(s0, |m, f| m.max(f.0));
+    let floor = s0 - PLATEAU * (s0 - median).max(0.0);
+    let top: Vec<&(f64, f64, f64)> = fine.iter().filter(|f| f.0 >= floor).collect();
+    if !top.is_empty() {
+        let k = top.len() as f64;
+        bx = top.iter().map(|f| f.1).sum::<f64>() / k;
+        by = top.iter().map(|f| f.2).sum::<f64>() / k;
+    }
     Some(Shift {
         east_m: bx * cx,
         north_m: by * cy,
@@ -275,16 +331,24 @@ mod tests {
     use crate::grid::Grid;
     use crate::raster::Raster;
 
-    /// 60 × 60 m of 0.5 m cells: grass 90, a 10 × 8 m roof 170 at x 20..30, y 30..38 with its
-    /// shadow (35) 4 m to the north; the roof's edges blurred over a cell as a photo's are.
+    /// Shadows fall to the north.
+    const NORTH: (f64, f64) = (0.0, 1.0);
+
+    /// 60 × 60 m of 0.5 m cells: grass 90–102, a 10 × 8 m roof 170 at x 20..30, y 30..38 with
+    /// its shadow (35) 4 m to the north.
     fn photo() -> Colour {
+        photo_with(170, 4.0)
+    }
+
+    /// [`photo`] with a roof of grey `roof` and a shadow `shadow_m` metres long.
+    fn photo_with(roof: u8, shadow_m: f64) -> Colour {
         let g = Grid::north_up(0.0, 60.0, 0.5, 120, 120, Crs::epsg(32632));
         let data = (0..g.len())
             .map(|i| {
                 let (x, y) = g.cell_centre(i % 120, i / 120);
                 let v = if (20.0..30.0).contains(&x) && (30.0..38.0).contains(&y) {
-                    170
-                } else if (20.0..30.0).contains(&x) && (38.0..42.0).contains(&y) {
+                    roof
+                } else if (20.0..30.0).contains(&x) && (38.0..38.0 + shadow_m).contains(&y) {
                     35
                 } else {
                     90 + ((i * 7919) % 13) as u8
@@ -309,12 +373,29 @@ mod tests {
     fn a_footprint_two_metres_off_is_moved_onto_its_roof() {
         let p = photo();
         for (dx, dy) in [(0.0, 0.0), (2.0, -1.5), (-2.7, 2.2), (1.25, 0.0)] {
-            let s = estimate(&square(20.0 + dx, 30.0 + dy), &p, 3.0).unwrap();
+            let s = estimate(&square(20.0 + dx, 30.0 + dy), &p, NORTH, 3.0).unwrap();
             assert!(
                 (s.east_m + dx).abs() <= 0.25 && (s.north_m + dy).abs() <= 0.25,
                 "off by ({dx}, {dy}): {s:?}"
             );
             assert!(s.counts(), "{s:?}");
+        }
+    }
+
+    /// A high sun's thin shadow has the strongest edge in the scene on its far side, a copy of
+    /// the roof's north edge; a roof the tone of the grass around it gives its own outline
+    /// little contrast. The outline stays on the roof, not on the shadow's far edge.
+    #[test]
+    fn a_thin_shadow_does_not_pull_the_outline_onto_its_far_edge() {
+        for roof in [96, 80, 120] {
+            let p = photo_with(roof, 1.5);
+            for (dx, dy) in [(0.0, 0.0), (0.0, -1.0), (1.0, 1.0)] {
+                let s = estimate(&square(20.0 + dx, 30.0 + dy), &p, NORTH, 3.0).unwrap();
+                assert!(
+                    (s.east_m + dx).abs() <= 0.25 && (s.north_m + dy).abs() <= 0.25,
+                    "roof {roof}, off by ({dx}, {dy}): {s:?}"
+                );
+            }
         }
     }
 
