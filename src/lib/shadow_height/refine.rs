@@ -7,7 +7,9 @@
 //! `z` first meets the footprint's walls `t` metres away, so the point is in the shadow of a roof
 //! at `ground_z + Z` exactly when `Z > z + t·tan(elevation) − ground_z`, the point's *threshold*.
 //! (Cells the bare terrain shadows are unusable, so nothing else blocks the ray.) Each open cell
-//! holds `sub × sub` points (`Options::sub_points`), so the synthetic shadow covers it in fractions. A prism's shadow only
+//! holds `sub × sub` points (`Options::sub_points`, laid out as a lattice with one point in each
+//! row and each column of `sub²`: [`lattice`]), so the synthetic shadow covers it in fractions.
+//! A prism's shadow only
 //! grows with its height; the *corridor* is the kept cells with a point whose threshold is up to
 //! `z_hi`. The observed shadow is the corridor's shadow cells connected to the footprint (shadow
 //! beyond lit ground belongs to something else) and the cells touching them, each as the
@@ -48,6 +50,7 @@ pub fn refine(
 ) -> Option<Refined> {
     let w = local.grid.width;
     let n_sub = sub * sub;
+    let offsets = lattice(n_sub);
     let toward_sun = (-u.0, -u.1);
     let t = &local.grid.transform;
     // Per open kept cell, the thresholds of its sub × sub points (NaN: never shadowed).
@@ -58,11 +61,7 @@ pub fn refine(
             }
             let (c, r) = ((i % w) as f64, (i / w) as f64);
             let mut th = vec![f64::NAN; n_sub];
-            for (k, v) in th.iter_mut().enumerate() {
-                let (fx, fy) = (
-                    ((k % sub) as f64 + 0.5) / sub as f64,
-                    ((k / sub) as f64 + 0.5) / sub as f64,
-                );
+            for (v, &(fx, fy)) in th.iter_mut().zip(&offsets) {
                 let p = t.pixel_to_world(c + fx, r + fy);
                 if let Some(d) = first_wall(fp, p, toward_sun) {
                     *v = (terrain_at(local, c + fx, r + fy) + d * tan_e - ground_z).max(0.0);
@@ -129,6 +128,49 @@ fn best_interval(
         height_m: (lo + hi) / 2.0,
         overlap: overlap.clamp(0.0, 1.0),
     })
+}
+
+/// `n` points in the unit cell, a rank-1 lattice: point `k` at `((k + ½)/n, ((k·g) mod n + ½)/n)`
+/// with the generator `g` (coprime to `n`) that spreads them farthest apart (the largest
+/// smallest distance, wrapping around the cell; the smallest such `g` on ties).
+///
+/// Invariant: the points take `n` distinct values on each axis, one in each `1/n` of the cell.
+/// So an edge parallel to a grid axis moving across the cell covers them one at a time — the
+/// synthetic shadow's length steps by `1/n` cell, not by the `1/√n` of a square grid of
+/// points, whose whole rows enter together. An axis-aligned footprint at an 80° sun on 1 m
+/// cells is the case: with 4 × 4 points in a square grid, heights came only in steps of
+/// 1.4 m.
+fn lattice(n: usize) -> Vec<(f64, f64)> {
+    let gcd = |mut a: usize, mut b: usize| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    // The lattice is a group, so its smallest distance is that from point 0 to the others.
+    let spread = |g: usize| {
+        (1..n)
+            .map(|k| {
+                let wrap = |v: usize| v.min(n - v) as f64;
+                wrap(k).hypot(wrap(k * g % n))
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let g = (1..n.max(2))
+        .filter(|&g| gcd(g, n) == 1)
+        .fold((1, f64::NEG_INFINITY), |best, g| {
+            let s = spread(g);
+            if s > best.1 {
+                (g, s)
+            } else {
+                best
+            }
+        })
+        .0;
+    let nf = n as f64;
+    (0..n)
+        .map(|k| ((k as f64 + 0.5) / nf, ((k * g % n) as f64 + 0.5) / nf))
+        .collect()
 }
 
 /// Terrain height (metres) at pixel coordinates `(px, py)` of `local`: bilinear between the
@@ -375,6 +417,30 @@ mod tests {
         l.heights = (0..1600).map(|i| (i % 40) as f32).collect(); // rises 1 m per column
         assert!((terrain_at(&l, 10.75, 5.5) - 10.25).abs() < 1e-9);
         assert_eq!(terrain_at(&l, 0.25, 5.5), 0.0); // west of the first centre: nearest
+    }
+
+    #[test]
+    fn lattice_points_take_every_row_and_column_once() {
+        for n in [1, 4, 9, 16, 25, 64, 225] {
+            let pts = lattice(n);
+            assert_eq!(pts.len(), n);
+            for axis in [0, 1] {
+                let mut v: Vec<usize> = pts
+                    .iter()
+                    .map(|p| ((if axis == 0 { p.0 } else { p.1 }) * n as f64) as usize)
+                    .collect();
+                v.sort();
+                assert_eq!(v, (0..n).collect::<Vec<_>>(), "n {n} axis {axis}");
+            }
+        }
+        // Spread over the cell, not along a line: 16 points nearly a square grid's spacing
+        // (¼) apart — the best 16-point rank-1 lattice has √10/16 ≈ 0.198.
+        let p = lattice(16);
+        let min = (0..16)
+            .flat_map(|i| (0..i).map(move |j| (i, j)))
+            .map(|(i, j)| (p[i].0 - p[j].0).hypot(p[i].1 - p[j].1))
+            .fold(f64::INFINITY, f64::min);
+        assert!(min >= 0.19, "{min}");
     }
 
     #[test]
