@@ -8,6 +8,10 @@
 /// The dark class's mean index must be below this fraction of the bright class's mean for the
 /// split to count as shadow versus lit (cast shadows keep roughly 20–60 % of the light).
 pub const MAX_DARK_RATIO: f64 = 0.75;
+/// A split with a dark class mean below this fraction of the bright class's (but not below
+/// [`MAX_DARK_RATIO`]) is a *weak* split ([`weak_threshold`]): a low sun, or a hazy sky, leaves
+/// its shadow only 10–25 % darker than the lit ground — as little as ground texture varies.
+pub const WEAK_DARK_RATIO: f64 = 0.9;
 /// The dark class must hold at least this fraction of the cells.
 pub const MIN_DARK_FRACTION: f64 = 0.002;
 
@@ -53,6 +57,23 @@ pub fn index_bin(index: f64) -> usize {
 /// bright third class: light roofs over grass split as roof versus ground (ratio ~0.55, clear),
 /// putting the ground in the dark class; the ground is most of the cells, the shadow is not.
 pub fn otsu_threshold_of(hist: &[u64; 256], max_dark_fraction: f64) -> Option<f64> {
+    split_below(hist, max_dark_fraction, MAX_DARK_RATIO)
+}
+
+/// [`otsu_threshold`] accepting a split whose classes are as close as [`WEAK_DARK_RATIO`]. Such
+/// a split may be the ground's own texture: the caller must show the dark class lies where a
+/// shadow can fall and nowhere else before taking it for shadow.
+pub fn weak_threshold(indices: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut hist = [0u64; 256];
+    for v in indices {
+        hist[index_bin(v)] += 1;
+    }
+    split_below(&hist, 1.0, WEAK_DARK_RATIO)
+}
+
+/// Otsu's split of `hist`, retried on its dark side until the dark mean is below
+/// `max_ratio` × the bright mean and the dark class at most `max_dark_fraction` of the cells.
+fn split_below(hist: &[u64; 256], max_dark_fraction: f64, max_ratio: f64) -> Option<f64> {
     let n: u64 = hist.iter().sum();
     if n < 16 {
         return None;
@@ -65,7 +86,7 @@ pub fn otsu_threshold_of(hist: &[u64; 256], max_dark_fraction: f64) -> Option<f6
         if (dark as f64) < min_dark {
             return None;
         }
-        if m0 < MAX_DARK_RATIO * m1 && dark as f64 <= max_dark_fraction * n as f64 {
+        if m0 < max_ratio * m1 && dark as f64 <= max_dark_fraction * n as f64 {
             return Some(split as f64 + 0.5);
         }
         top = split + 1;
@@ -126,6 +147,26 @@ mod tests {
         let one = (0..1000).map(|i| 140.0 + (i % 30) as f64);
         assert_eq!(otsu_threshold(one), None);
         assert_eq!(otsu_threshold([10.0, 200.0].into_iter()), None);
+    }
+
+    #[test]
+    fn a_weak_split_is_found_by_the_weak_threshold_only() {
+        // Shadow 22 against lit ground 29 (a sun at 8° under a bright sky): ratio 0.76.
+        let low_sun = || {
+            (0..1000).map(|i| {
+                if i % 8 == 0 {
+                    21.0 + (i % 3) as f64
+                } else {
+                    28.0 + (i % 3) as f64
+                }
+            })
+        };
+        assert_eq!(otsu_threshold(low_sun()), None);
+        let t = weak_threshold(low_sun()).unwrap();
+        assert!(t > 23.0 && t < 28.0, "{t}");
+        // Texture alone, 0.93 apart, is not even a weak split.
+        let texture = (0..1000).map(|i| if i % 2 == 0 { 140.0 } else { 150.0 });
+        assert_eq!(weak_threshold(texture), None);
     }
 
     #[test]

@@ -8,7 +8,10 @@
 //!    worth of shadow along the sun azimuth) are classified ([`local::Class`]): own footprint,
 //!    other footprints, unusable (nodata colour or elevation, or shadowed by the bare terrain
 //!    itself), and open ground lit or in shadow — from a given mask, or from Otsu's threshold on
-//!    the [`detect::shadow_index`] of the window's open-ground cells (a local threshold).
+//!    the [`detect::shadow_index`] of the window's open-ground cells (a local threshold). A
+//!    weak split (a low sun or a bright sky: shadow only 10–25 % darker than lit ground) counts
+//!    only where its dark cells lie in the footprint's possible shadow and hardly anywhere no
+//!    building's shadow can fall ([`WEAK_MAX_STRAY`], [`WEAK_MIN_PLACED`]).
 //! 2. **Measure.** [`scan::scan`]: parallel lines from the sun-far edges; the median valid
 //!    length `L` (metres).
 //! 3. **First estimate.** `Z0 = L · tan(elevation)`: the formula, exact on flat ground.
@@ -40,6 +43,13 @@ use crate::shadow::{cast_shadows, Sun, SHADOW};
 use crate::walk::{Corner, Walk};
 use local::{Class, Local};
 use rayon::prelude::*;
+
+/// A weak shadow split ([`detect::weak_threshold`]) is taken only when at most this fraction
+/// of the open cells where the footprint's shadow cannot fall are dark.
+pub const WEAK_MAX_STRAY: f64 = 0.01;
+/// … and when its dark cells where the shadow can fall outnumber those elsewhere this many
+/// times.
+pub const WEAK_MIN_PLACED: f64 = 10.0;
 
 /// Sun elevations below this (degrees) are flagged `low_sun`: long shadows leave the scene and
 /// cross other objects.
@@ -523,7 +533,7 @@ impl Shared<'_> {
         let cell = cx.max(cy);
         let (dx, dy) = self.sun.direction();
         let u = (-dx, -dy);
-        let max_len = (self.opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cell);
+        let max_len = self.reach();
         let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
         let lean = self.inputs.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
         let (local, threshold) = self.classify(id, fp, lean, win);
@@ -672,32 +682,74 @@ impl Shared<'_> {
         roof::looks_pitched(&seen, self.inputs.colour, &cells)
     }
 
+    /// The longest shadow sought, metres: that of a `max_height_m` building, at most
+    /// [`MAX_SHADOW_CELLS`] cells.
+    fn reach(&self) -> f64 {
+        let tan_e = self.sun.elevation_deg.to_radians().tan();
+        let (cx, cy) = self.grid.cell_size();
+        (self.opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cx.max(cy))
+    }
+
+    /// A [`detect::weak_threshold`] for footprint `fp`'s open ground (`open`: window offset and
+    /// shadow index of each open cell; `centre`: a window offset's world centre), taken only
+    /// when its dark cells lie where `fp`'s shadow can fall (a ray toward the sun meets `fp`
+    /// within [`Self::reach`]) and hardly anywhere else: at most [`WEAK_MAX_STRAY`] of the open
+    /// cells that no building's shadow can reach (`others`: the other footprints near) dark,
+    /// and [`WEAK_MIN_PLACED`] times as many dark cells where the shadow can be as there.
+    fn placed_weak_threshold(
+        &self,
+        fp: &Footprint,
+        others: &[&Footprint],
+        open: &[(usize, f64)],
+        centre: impl Fn(usize) -> (f64, f64),
+    ) -> Option<f64> {
+        let t = detect::weak_threshold(open.iter().map(|o| o.1))?;
+        let (toward, reach) = (self.sun.direction(), self.reach());
+        let reached_by =
+            |f: &Footprint, p| refine::first_wall(f, p, toward).is_some_and(|d| d <= reach);
+        let (mut dark_in, mut dark_out, mut out) = (0usize, 0usize, 0usize);
+        for &(k, v) in open {
+            let p = centre(k);
+            let dark = v < t;
+            if reached_by(fp, p) {
+                dark_in += dark as usize;
+            } else if !others.iter().any(|f| reached_by(f, p)) {
+                out += 1;
+                dark_out += dark as usize;
+            }
+        }
+        let stray_ok = dark_out as f64 <= WEAK_MAX_STRAY * out as f64;
+        (stray_ok && dark_in > 0 && dark_in as f64 >= WEAK_MIN_PLACED * dark_out as f64)
+            .then_some(t)
+    }
+
     /// The other footprints with a roof whose shadow can reach window `win` of footprint `id`:
     /// their box swept toward the shadow over the longest shadow sought meets the window's.
     fn shading_neighbours(&self, id: u32, win: &crate::grid::Window) -> Vec<(&Footprint, f64)> {
+        self.reaching(id, win)
+            .filter_map(|j| Some((&self.footprints[j], self.roofs[j]?)))
+            .collect()
+    }
+
+    /// The indices of the other footprints whose shadow could reach window `win` of footprint
+    /// `id` at any height up to `max_height_m`: their box swept toward the shadow over
+    /// [`Self::reach`] meets the window's.
+    fn reaching(&self, id: u32, win: &crate::grid::Window) -> impl Iterator<Item = usize> + '_ {
         let t = &self.grid.transform;
         let (ax, ay) = t.pixel_to_world(win.col as f64, win.row as f64);
         let (bx, by) =
             t.pixel_to_world((win.col + win.width) as f64, (win.row + win.height) as f64);
         let (wx0, wx1, wy0, wy1) = (ax.min(bx), ax.max(bx), ay.min(by), ay.max(by));
-        let tan_e = self.sun.elevation_deg.to_radians().tan();
         let (dx, dy) = self.sun.direction();
-        let (cx, cy) = self.grid.cell_size();
-        let reach = (self.opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cx.max(cy));
-        self.footprints
-            .iter()
-            .zip(self.roofs)
-            .enumerate()
-            .filter(|&(j, _)| j as u32 + 1 != id)
-            .filter_map(|(_, (f, r))| Some((f, (*r)?)))
-            .filter(|(f, _)| {
-                let b = f.bbox();
-                let (sx, sy) = (-dx * reach, -dy * reach);
+        let (sx, sy) = (-dx * self.reach(), -dy * self.reach());
+        (0..self.footprints.len())
+            .filter(move |&j| j as u32 + 1 != id)
+            .filter(move |&j| {
+                let b = self.footprints[j].bbox();
                 let (x0, x1) = (b.0.min(b.0 + sx), b.2.max(b.2 + sx));
                 let (y0, y1) = (b.1.min(b.1 + sy), b.3.max(b.3 + sy));
                 x0 <= wx1 && x1 >= wx0 && y0 <= wy1 && y1 >= wy0
             })
-            .collect()
     }
 
     /// Whether ground point `p` at terrain height `z` (metres) is in the shadow of one of the
@@ -746,10 +798,22 @@ impl Shared<'_> {
             match self.inputs.mask {
                 Some(mask) => (Box::new(move |i| mask.data[i] != 0), None),
                 None => {
-                    let open = (0..n)
+                    let open: Vec<(usize, f64)> = (0..n)
                         .filter(|&k| base[k].is_none())
-                        .map(|k| detect::shadow_index(self.inputs.colour.data[index(k)]));
-                    match detect::otsu_threshold(open) {
+                        .map(|k| (k, detect::shadow_index(self.inputs.colour.data[index(k)])))
+                        .collect();
+                    let threshold =
+                        detect::otsu_threshold(open.iter().map(|o| o.1)).or_else(|| {
+                            let others: Vec<&Footprint> = self
+                                .reaching(id, &win)
+                                .map(|j| &self.footprints[j])
+                                .collect();
+                            self.placed_weak_threshold(fp, &others, &open, |k| {
+                                let i = index(k);
+                                self.grid.cell_centre(i % w, i / w)
+                            })
+                        });
+                    match threshold {
                         Some(t) => (
                             Box::new(move |i| detect::shadow_index(self.inputs.colour.data[i]) < t),
                             Some(t),
@@ -850,6 +914,54 @@ mod tests {
                 m
             })
             .collect()
+    }
+
+    /// Measure `s` with its photo under a bright sky: every channel `v → v/4 + 60`, so shadow
+    /// (0.45 of the light) keeps about 0.8 of the lit ground's index, a weak split. `patch`
+    /// darkens cells to the shadow's tone where no shadow can fall.
+    fn run_hazy(
+        s: &SynthSpec,
+        patch: impl Fn(f64, f64) -> bool,
+    ) -> Vec<std::result::Result<Measurement, String>> {
+        let mut scene = synth_scene(s);
+        let g = scene.colour.grid.clone();
+        for (i, p) in scene.colour.data.iter_mut().enumerate() {
+            let (x, y) = g.cell_centre(i % g.width, i / g.width);
+            let f = if patch(x, y) {
+                synth::SHADOW_FACTOR
+            } else {
+                1.0
+            };
+            for c in &mut p[..3] {
+                *c = (*c as f64 * f / 4.0 + 60.0).round() as u8;
+            }
+        }
+        let inputs = Inputs {
+            terrain: &scene.terrain,
+            colour: &scene.colour,
+            mask: None,
+            leans: None,
+        };
+        measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap()
+    }
+
+    /// A weak split is shadow when its dark cells lie where the building's shadow can fall,
+    /// and refused when as dark a texture lies where no shadow can.
+    #[test]
+    fn hard_case_weak_shadow_contrast_is_measured_only_where_a_shadow_can_fall() {
+        let s = spec(30.0, 135.0, (0.0, 0.0), vec![building(40.0, 60.0, 12.0)]);
+        let hazy = run_hazy(&s, |_, _| false);
+        let m = hazy[0].as_ref().unwrap();
+        assert!(
+            (m.height_m.expect("measured") - 12.0).abs() <= 0.5 && m.flags.names().is_empty(),
+            "{m:?}"
+        );
+        // A dark field beside the shadow's path (north-east of it, inside the window searched):
+        // the building's shadow, cast north-west, reaches (x + y)/√2 ≤ 7.4 m from its centre.
+        let (cx, cy) = (synth::ORIGIN_X + 40.0, synth::ORIGIN_Y + 60.0);
+        let with_field = run_hazy(&s, |x, y| (x - cx) + (y - cy) > 13.0);
+        let m = with_field[0].as_ref().unwrap();
+        assert!(m.height_m.is_none() && m.flags.no_shadow, "{m:?}");
     }
 
     #[test]
