@@ -109,19 +109,9 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         line_spacing_cells: args.line_spacing,
         sub_points: args.sub_points,
     };
-    let cell = {
-        let (cx, cy) = db.grid().cell_size();
-        cx.max(cy)
-    };
-    let mut measured = sh::measure(&inputs, &valid, &sun, &opts)?
-        .into_iter()
-        .enumerate()
-        .map(|(k, r)| {
-            r.map(|mut m| {
-                m.flags.footprint_off_photo = registration.off_photo(k, cell);
-                m
-            })
-        });
+    let mut measured = sh::measure(&inputs, &valid, &sun, &opts)?;
+    registration.flag_off_photo(&mut measured, db.grid());
+    let mut measured = measured.into_iter();
     let results: Vec<Result<sh::Measurement, String>> = features
         .iter()
         .map(|f| {
@@ -186,23 +176,19 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
 
 /// `EAST,NORTH,Z` metres.
 fn parse_camera(text: &str) -> dbms::Result<sh::register::Camera> {
+    let bad = || {
+        Error::msg(format!("--camera {text}: not three numbers"))
+            .fix("give the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250")
+    };
     let v: Vec<f64> = text
         .split(',')
         .map(|x| x.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|_| {
-            Error::msg(format!("--camera {text}: not three numbers")).fix(
-                "give the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250",
-            )
-        })?;
+        .map_err(|_| bad())?;
     match v[..] {
         [east, north, z] if v.iter().all(|x| x.is_finite()) => {
             Ok(sh::register::Camera { east, north, z })
         }
-        _ => Err(
-            Error::msg(format!("--camera {text}: not three numbers")).fix(
-                "give the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250",
-            ),
-        ),
+        _ => Err(bad()),
     }
 }

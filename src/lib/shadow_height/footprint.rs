@@ -5,11 +5,13 @@
 //! and its area (outer rings minus holes, square CRS units) is positive. Inside is decided by
 //! the even-odd rule over all rings, so holes and MultiPolygon parts need no bookkeeping.
 //!
-//! A whole-file problem (not JSON, not a FeatureCollection) is an [`Error`]; a bad feature is a
+//! A whole-file problem (not JSON, not a FeatureCollection) is an [`Error`](crate::error::Error); a bad feature is a
 //! per-feature message, so one bad footprint does not stop the others.
 
 use crate::error::Result;
 use crate::geojson;
+use crate::grid::Grid;
+use crate::pyramid::raised::{rasterise_prisms, Prism};
 use std::path::Path;
 
 /// A validated footprint: polygon rings in the database CRS (metres).
@@ -109,6 +111,19 @@ impl Footprint {
             ),
             |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
         )
+    }
+
+    /// Row-major indices of the cells of `grid` whose centre is inside (the database's
+    /// rasterisation rule, as `gdal_rasterize`'s).
+    pub fn cells(&self, grid: &Grid) -> Vec<usize> {
+        let prism = Prism {
+            rings: self.rings.clone(),
+            roof_z: 0.0,
+        };
+        rasterise_prisms(grid, &[prism])
+            .into_iter()
+            .map(|c| c.index)
+            .collect()
     }
 
     /// Whether `(x, y)` is inside (even-odd rule over every ring's edges).

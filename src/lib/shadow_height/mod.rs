@@ -37,7 +37,6 @@ pub use footprint::{read_footprints, Footprint, InputFeature};
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::pyramid::raised::{rasterise_prisms, Prism};
 use crate::raster::{Colour, Elevation, Raster};
 use crate::shadow::{cast_shadows, Sun, SHADOW};
 use crate::walk::{Corner, Walk};
@@ -108,7 +107,7 @@ pub struct Inputs<'a> {
     pub mask: Option<&'a Raster<u8>>,
     /// Per footprint, how far its roof appears moved from its base in the photo, metres (east,
     /// north): the relief displacement of a perspective photo rectified on the bare ground
-    /// ([`register::leans`]). The cells between the base and the moved roof show roof and
+    /// ([`register::with_camera`]). The cells between the base and the moved roof show roof and
     /// walls, not ground: they are [`Class::Edge`]. `None`: a true orthophoto.
     pub leans: Option<&'a [(f64, f64)]>,
 }
@@ -228,6 +227,21 @@ impl Registration {
         self.scene.map_or((0.0, 0.0), |(e, n, _)| (e, n))
     }
 
+    /// Set `footprint_off_photo` on every measurement (one per registered footprint, in order)
+    /// whose footprint is [`Self::off_photo`] by more than a cell of `grid`.
+    pub fn flag_off_photo(
+        &self,
+        measured: &mut [std::result::Result<Measurement, String>],
+        grid: &Grid,
+    ) {
+        let (cx, cy) = grid.cell_size();
+        for (k, m) in measured.iter_mut().enumerate() {
+            if let Ok(m) = m {
+                m.flags.footprint_off_photo = self.off_photo(k, cx.max(cy));
+            }
+        }
+    }
+
     /// Whether footprint `k`'s own clear estimate is more than `cell` metres from the applied
     /// shift plus its lean.
     pub fn off_photo(&self, k: usize, cell: f64) -> bool {
@@ -239,10 +253,10 @@ impl Registration {
 }
 
 /// Estimate every footprint's shift onto its roof in `colour` lit by `sun` (within
-/// ±`max_shift_m` metres), then the scene's shift: the median of the clear estimates for an orthophoto, or, with the
-/// `camera` of a perspective photo, the shift that leaves only radial leans
-/// ([`register::with_camera`]). Returns the registration and the footprints moved by the
-/// scene's shift.
+/// ±`max_shift_m` metres), then the scene's shift: the median of the clear estimates for an
+/// orthophoto, or, with the `camera` of a perspective photo, the shift that leaves only radial
+/// leans ([`register::with_camera`]). Returns the registration and the footprints moved by
+/// the scene's shift.
 pub fn register_footprints(
     colour: &Colour,
     footprints: &[Footprint],
@@ -317,21 +331,7 @@ pub fn measure(
     }
     // Shadows of the bare terrain: where a building's shadow cannot be told from the hill's.
     let terrain_shadow = cast_shadows(inputs.terrain, sun.elevation_deg, sun.azimuth_deg)?;
-    let own_cells: Vec<Vec<usize>> = footprints
-        .par_iter()
-        .map(|f| {
-            rasterise_prisms(
-                grid,
-                &[Prism {
-                    rings: f.rings.clone(),
-                    roof_z: 0.0,
-                }],
-            )
-            .into_iter()
-            .map(|c| c.index)
-            .collect()
-        })
-        .collect();
+    let own_cells: Vec<Vec<usize>> = footprints.par_iter().map(|f| f.cells(grid)).collect();
     let mut owner = vec![0u32; grid.len()];
     for (k, cells) in own_cells.iter().enumerate() {
         for &i in cells {
@@ -474,17 +474,8 @@ fn own_edge(
             }
         }
         if s > 0 {
-            for cell in rasterise_prisms(
-                grid,
-                &[Prism {
-                    rings: moved.rings.clone(),
-                    roof_z: 0.0,
-                }],
-            ) {
-                mark(
-                    (cell.index % grid.width) as i64,
-                    (cell.index / grid.width) as i64,
-                );
+            for i in moved.cells(grid) {
+                mark((i % grid.width) as i64, (i / grid.width) as i64);
             }
         }
     }
@@ -536,7 +527,8 @@ impl Shared<'_> {
         let max_len = self.reach();
         let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
         let lean = self.inputs.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
-        let (local, threshold) = self.classify(id, fp, lean, win);
+        let neighbours = self.shading_neighbours(id, &win);
+        let (local, threshold) = self.classify(id, fp, lean, win, &neighbours);
         let mut m = Measurement {
             height_m: None,
             roof_z: None,
@@ -551,7 +543,7 @@ impl Shared<'_> {
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
-                pitched_roof: self.looks_pitched(id, fp, cells, lean, &win),
+                pitched_roof: self.looks_pitched(id, fp, cells, lean, &neighbours),
                 ..Flags::default()
             },
         };
@@ -648,19 +640,18 @@ impl Shared<'_> {
         fp: &Footprint,
         cells: &[usize],
         lean: (f64, f64),
-        win: &crate::grid::Window,
+        neighbours: &[(&Footprint, f64)],
     ) -> bool {
         let unshaded: Vec<usize>;
         let cells = match self.roofs[id as usize - 1] {
             Some(own) => {
-                let neighbours = self.shading_neighbours(id, win);
                 let w = self.grid.width;
                 unshaded = cells
                     .iter()
                     .copied()
                     .filter(|&i| {
                         let p = self.grid.cell_centre(i % w, i / w);
-                        !self.in_shadow_of(&neighbours, p, own)
+                        !self.in_shadow_of(neighbours, p, own)
                     })
                     .collect();
                 &unshaded[..]
@@ -671,15 +662,7 @@ impl Shared<'_> {
             return roof::looks_pitched(fp, self.inputs.colour, cells);
         }
         let seen = register::moved(fp, lean.0, lean.1);
-        let prism = Prism {
-            rings: seen.rings.clone(),
-            roof_z: 0.0,
-        };
-        let cells: Vec<usize> = rasterise_prisms(self.grid, &[prism])
-            .into_iter()
-            .map(|c| c.index)
-            .collect();
-        roof::looks_pitched(&seen, self.inputs.colour, &cells)
+        roof::looks_pitched(&seen, self.inputs.colour, &seen.cells(self.grid))
     }
 
     /// The longest shadow sought, metres: that of a `max_height_m` building, at most
@@ -770,12 +753,12 @@ impl Shared<'_> {
         fp: &Footprint,
         lean: (f64, f64),
         win: crate::grid::Window,
+        neighbours: &[(&Footprint, f64)],
     ) -> (Local, Option<f64>) {
         let w = self.grid.width;
         let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
         let n = win.width * win.height;
         let heights: Vec<f32> = (0..n).map(|k| self.inputs.terrain.data[index(k)]).collect();
-        let neighbours = self.shading_neighbours(id, &win);
         let base: Vec<Option<Class>> = (0..n)
             .map(|k| {
                 let i = index(k);
@@ -834,7 +817,7 @@ impl Shared<'_> {
         let shaded = |k: usize| {
             let i = index(k);
             let p = self.grid.cell_centre(i % w, i / w);
-            self.in_shadow_of(&neighbours, p, heights[k] as f64)
+            self.in_shadow_of(neighbours, p, heights[k] as f64)
         };
         let class = (0..n)
             .map(|k| {
@@ -1205,14 +1188,8 @@ mod tests {
         // A blank photo: detection finds nothing; the mask (the caster's shadow) is what counts.
         let blank = Raster::filled(scene.terrain.grid.clone(), [120u8, 120, 120, 255]);
         let mut raised = scene.terrain.clone();
-        for c in rasterise_prisms(
-            &raised.grid,
-            &[Prism {
-                rings: scene.footprints[0].rings.clone(),
-                roof_z: scene.roof_z[0],
-            }],
-        ) {
-            raised.data[c.index] = c.top_z;
+        for i in scene.footprints[0].cells(&raised.grid) {
+            raised.data[i] = scene.roof_z[0] as f32;
         }
         let mask = cast_shadows(&raised, 40.0, 150.0).unwrap();
         let with = Inputs {

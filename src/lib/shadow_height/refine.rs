@@ -8,10 +8,9 @@
 //! at `ground_z + Z` exactly when `Z > z + t·tan(elevation) − ground_z`, the point's *threshold*.
 //! (Cells the bare terrain shadows are unusable, so nothing else blocks the ray.) Each open cell
 //! holds `sub × sub` points (`Options::sub_points`, laid out as a lattice with one point in each
-//! row and each column of `sub²`: [`lattice`]), so the synthetic shadow covers it in fractions.
-//! A prism's shadow only
-//! grows with its height; the *corridor* is the kept cells with a point whose threshold is up to
-//! `z_hi`. The observed shadow is the corridor's shadow cells connected to the footprint (shadow
+//! row and each column of `sub²`: `lattice`), so the synthetic shadow covers it in fractions.
+//! A prism's shadow only grows with its height; the *corridor* is the kept cells with a point
+//! whose threshold is up to `z_hi`. The observed shadow is the corridor's shadow cells connected to the footprint (shadow
 //! beyond lit ground belongs to something else) and the cells touching them, each as the
 //! fraction of shadow its brightness says. The score of `Z` is the IoU of the two fractions over
 //! the corridor; it changes only at thresholds, so every height in `(0, z_hi]` is scored by one
@@ -88,10 +87,9 @@ pub fn refine(
     best_interval(&events, &observed, z_hi, n_sub)
 }
 
-/// The best score over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`, `per_cell`
-/// sub-points to a cell,
-/// sorted by `Z` (a sub-point is in the synthetic shadow when `Z` is above it), `observed[i]`
-/// the observed shadow fraction of cell `i`. The score is the IoU of fractions,
+/// The best score over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`,
+/// `per_cell` sub-points to a cell, sorted by `Z` (a sub-point is in the synthetic shadow when
+/// `Z` is above it), `observed[i]` the observed shadow fraction of cell `i`. The score is the IoU of fractions,
 /// `Σ min(s, o) / Σ max(s, o)` with `s` the cell's synthetic fraction; the answer is the middle
 /// of the first interval reaching the best.
 fn best_interval(

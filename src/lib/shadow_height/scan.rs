@@ -1,16 +1,16 @@
 //! Shadow length along the sun azimuth, over parallel scan lines.
 //!
 //! Invariant: scan lines run along the shadow direction `u` (away from the sun), spaced
-//! `spacing` apart across the footprint (half a cell by default), keeping one cell clear of its two extreme tangents (where the
-//! raster edge is ragged). Each line starts where it last leaves the polygon (its sun-far edge)
-//! and walks the cells it crosses ([`crate::walk`], through corners diagonally); cells its own
-//! roof covers in part ([`Class::Edge`]) do not end it; it ends, valid, at the first lit cell. A line is dropped
-//! ("cut") when it leaves the window or its shadow ends in or within a cell of unusable cells
-//! (passing through them, e.g. under another building's shadow, it goes on), and dropped as
-//! meeting another footprint when it enters one or its shadow ends on a lit cell touching one
-//! (or with one within a cell further along): that cell may read lit only because the other
-//! building's sunlit roof covers part of it. For a prism on flat
-//! ground every valid line's length is exactly `H / tan(elevation)`, whatever the footprint's
+//! `spacing` apart across the footprint (half a cell by default), keeping one cell clear of
+//! its two extreme tangents (where the raster edge is ragged). Each line starts where it last
+//! leaves the polygon (its sun-far edge) and walks the cells it crosses ([`crate::walk`],
+//! through corners diagonally); cells its own roof covers in part ([`Class::Edge`]) do not end
+//! it; it ends, valid, at the first lit cell. A line is dropped ("cut") when it leaves the
+//! window or its shadow ends in or within a cell of unusable cells (passing through them, e.g.
+//! under another building's shadow, it goes on), and dropped as meeting another footprint when
+//! it enters one or its shadow ends on a lit cell touching one (or with one within a cell
+//! further along): that cell may read lit only because the other building's sunlit roof covers
+//! part of it. For a prism on flat ground every valid line's length is exactly `H / tan(elevation)`, whatever the footprint's
 //! shape, so the median over lines is a robust length.
 
 use super::footprint::Footprint;
