@@ -296,8 +296,8 @@ impl<const N: usize> Iterator for Walk<N> {
             }
             self.pending_t = t_out;
         }
-        for a in 0..N {
-            if tied[a] {
+        for (a, &t) in tied.iter().enumerate() {
+            if t {
                 self.cell[a] += self.step[a];
             }
         }
