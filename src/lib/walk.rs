@@ -94,8 +94,9 @@ pub fn cell_at(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> i64 {
     if d == 0.0 || !d.is_finite() {
         return (o.floor() as i64).div_euclid(scale);
     }
+    // Start from the position's cell (right but for rounding), else from the guess.
     let est = (o + t * d).floor();
-    let mut k = if est.is_finite() && (est - (guess * scale) as f64).abs() > 2.0 * scale as f64 {
+    let mut k = if est.is_finite() && est.abs() < 9.0e15 {
         (est as i64).div_euclid(scale)
     } else {
         guess
@@ -193,12 +194,23 @@ impl<const N: usize> Walk<N> {
         cell: [i64; N],
         t: f64,
     ) -> Walk<N> {
-        assert!(scale >= 1, "a walk's cells are at least one cell wide");
         let mut w = Walk::new(start, dir, corner);
-        w.scale = scale;
-        w.cell = cell;
-        w.t_in = t;
+        w.restart(scale, cell, t);
         w
+    }
+
+    /// Take the same ray up again, as [`Walk::resume`] with this walk's start, direction and
+    /// corner rule, without building a new walk (the renderer does this on every change of
+    /// level).
+    #[inline]
+    pub fn restart(&mut self, scale: i64, cell: [i64; N], t: f64) {
+        assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        self.scale = scale;
+        self.cell = cell;
+        self.t_in = t;
+        self.stepped = [false; N];
+        self.n_pending = 0;
+        self.done = false;
     }
 
     /// The cell the walk is in now and the time it entered it: the next visit's cell and

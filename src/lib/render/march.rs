@@ -185,9 +185,6 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
         Traversal::Level0 => 0,
     };
     let (o, d) = ([ray.u.o, ray.v.o], [ray.u.d, ray.v.d]);
-    let walk = |l: usize, cell: [i64; 2], t: f64| {
-        Walk::resume(o, d, Corner::Exact, plan.scales[l], cell, t)
-    };
     let cell_at = |l: usize, t: f64, guess: [i64; 2]| -> [i64; 2] {
         let s = plan.scales[l];
         [
@@ -201,7 +198,14 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
         (o[0].floor() as i64).div_euclid(s_top),
         (o[1].floor() as i64).div_euclid(s_top),
     ];
-    let mut w = walk(top, cell_at(top, span.t0, guess), span.t0);
+    let mut w = Walk::resume(
+        o,
+        d,
+        Corner::Exact,
+        s_top,
+        cell_at(top, span.t0, guess),
+        span.t0,
+    );
     let mut face = Face::Top;
     let mut steps = 0u64;
     loop {
@@ -259,7 +263,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
             // Descend at the same t, into the child holding the ray then.
             let f = plan.scales[l] / plan.scales[l - 1];
             l -= 1;
-            w = walk(l, cell_at(l, t, [cc * f, rr * f]), t);
+            w.restart(plan.scales[l], cell_at(l, t, [cc * f, rr * f]), t);
             continue;
         }
         if t_exit >= span.t1 {
@@ -283,7 +287,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
             l += 1;
         }
         if l != l0 {
-            w = walk(l, new, t_exit);
+            w.restart(plan.scales[l], new, t_exit);
         }
     }
 }
