@@ -1,9 +1,14 @@
 //! Grid traversal: the cells a ray crosses, in order, with an explicit corner rule.
 //!
 //! One traversal for every place that walks a line across cells (shadow-height's scan lines,
-//! the reference shadow march, the voxel-colour visibility ray): a line in continuous cell
-//! coordinates — cell `k` of an axis spans `[k, k + 1)` — from `start`, moving `dir` cells per
-//! unit of the caller's parameter `t` (metres, or cells).
+//! the reference shadow march, the voxel-colour visibility ray, the renderer's stepping through
+//! every level of its max-Z hierarchy): a line in continuous cell coordinates — cell `k` of an
+//! axis spans `[k, k + 1)` — from `start`, moving `dir` cells per unit of the caller's parameter
+//! `t` (metres, or cells).
+//!
+//! A walk may also run over a coarser grid whose cells are `scale` cells wide ([`Walk::resume`]):
+//! its boundary `K` is the fine boundary `K · scale`, and its crossing time is
+//! `cross(start, dir, K · scale)`, the same f64 as the fine walk's for that boundary.
 //!
 //! # Invariants
 //! * **Crossing times are one pure function.** The ray crosses boundary `b` of axis `a` at
@@ -20,6 +25,17 @@
 //!   - [`Corner::Touching`]: the side cells are visited too, each with zero length
 //!     (`t_in == t_out`), before the diagonal cell: the *supercover* of the line, every cell the
 //!     closed line touches — for marking the cells a polygon edge covers in part.
+//!   - [`Corner::Exact`]: no tolerance. A corner is where the crossing times of two axes are the
+//!     same f64; there the ray steps straight into the diagonal cell, as `Diagonal` does. A ray
+//!     a few ulps off a diagonal visits the side cell it clips, for the (tiny, positive) time it
+//!     spends there. In exchange the walk has no memory: the cell it is in at `t` is
+//!     [`cell_at`] on each axis (every boundary crossed at or before `t`), whatever path led
+//!     there. So a walk resumed at `(cell_at(t), t)` continues exactly as one that stepped
+//!     there, and a walk over `scale`-wide cells is in the floor-division by `scale` of the fine
+//!     walk's cell at every `t`, entering and leaving it at bit-identical times (the renderer's
+//!     hierarchy relies on both). The tolerant rules cannot promise this: a ray grazing a
+//!     boundary line within `CORNER_EPS` is stepped across it at the first crossing of another
+//!     axis, which depends on which boundaries the walk visits.
 //! * **Visits.** Each [`Visit`] holds the cell and the times the ray enters and leaves it. In
 //!   `Diagonal` mode the visits tile the ray: each `t_in` is the previous `t_out`, and every
 //!   visit has positive length (but the start cell's, when `start` sits on its exit boundary).
@@ -41,6 +57,9 @@ pub enum Corner {
     Diagonal,
     /// Also visit the side cells, with zero length (every cell the line touches).
     Touching,
+    /// A corner only where two crossing times are equal (no tolerance), then the diagonal cell:
+    /// the cell at `t` is a pure function of `t` ([`cell_at`]).
+    Exact,
 }
 
 /// One cell of a walk and the parameter interval the ray spends in it.
@@ -65,14 +84,55 @@ pub fn cross(o: f64, d: f64, b: i64) -> f64 {
     }
 }
 
+/// The index of the `scale`-wide cell holding the ray `o + t·d` (cells) at `t` on one axis under
+/// [`Corner::Exact`]: every boundary `K · scale` whose crossing time [`cross`] is at or before
+/// `t` is behind the ray (so a boundary crossed at exactly `t` is). At `t = 0` this is
+/// [`Walk::new`]'s start cell. `scale >= 1`; `guess` is any nearby index (the answer does not
+/// depend on it, only the time taken to find it).
+#[inline]
+pub fn cell_at(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> i64 {
+    if d == 0.0 || !d.is_finite() {
+        return (o.floor() as i64).div_euclid(scale);
+    }
+    // Start from the position's cell (right but for rounding), else from the guess.
+    let est = (o + t * d).floor();
+    let mut k = if est.is_finite() && est.abs() < 9.0e15 {
+        (est as i64).div_euclid(scale)
+    } else {
+        guess
+    };
+    if d > 0.0 {
+        // the largest k whose boundary is crossed
+        while cross(o, d, k * scale) > t {
+            k -= 1;
+        }
+        while cross(o, d, (k + 1) * scale) <= t {
+            k += 1;
+        }
+    } else {
+        // boundary k + 1 crossed, boundary k not
+        while cross(o, d, (k + 1) * scale) > t {
+            k += 1;
+        }
+        while cross(o, d, k * scale) <= t {
+            k -= 1;
+        }
+    }
+    k
+}
+
 /// The cells a ray crosses; see the module doc. `N` is 2 (raster cells) or 3 (voxels).
 #[derive(Debug, Clone)]
 pub struct Walk<const N: usize> {
     start: [f64; N],
     dir: [f64; N],
     corner: Corner,
+    /// Width of a cell in the caller's cells (1, or `f^k` for a coarse level).
+    scale: i64,
     cell: [i64; N],
     step: [i64; N],
+    /// The axes crossed to enter `cell` (none at the start).
+    stepped: [bool; N],
     /// Parameter at which the ray entered `cell`.
     t_in: f64,
     /// Side cells still to visit at a corner (Touching), and how many.
@@ -99,7 +159,9 @@ impl<const N: usize> Walk<N> {
             start,
             dir,
             corner,
+            scale: 1,
             cell,
+            stepped: [false; N],
             step: dir.map(|d| {
                 if d > 0.0 {
                     1
@@ -117,13 +179,61 @@ impl<const N: usize> Walk<N> {
         }
     }
 
-    /// The boundary the ray crosses next on axis `a`.
+    /// A walk over cells `scale` of the caller's cells wide (cell `K` spans
+    /// `[K · scale, (K + 1) · scale)`), taken up at time `t` in `cell`, for the same ray as
+    /// [`Walk::new`]`(start, dir, corner)`: crossing times are still `cross(start, dir, b)` of
+    /// the fine boundary `b = K · scale`, so they agree bit for bit with a fine walk's. The
+    /// first visit is `cell` from `t`. `cell` must be the cell holding the ray at `t` under the
+    /// corner rule — under [`Corner::Exact`] that is [`cell_at`] on each axis, and the walk then
+    /// continues exactly as one that stepped there from `start`. `scale >= 1`.
+    pub fn resume(
+        start: [f64; N],
+        dir: [f64; N],
+        corner: Corner,
+        scale: i64,
+        cell: [i64; N],
+        t: f64,
+    ) -> Walk<N> {
+        let mut w = Walk::new(start, dir, corner);
+        w.restart(scale, cell, t);
+        w
+    }
+
+    /// Take the same ray up again, as [`Walk::resume`] with this walk's start, direction and
+    /// corner rule, without building a new walk (the renderer does this on every change of
+    /// level).
+    #[inline]
+    pub fn restart(&mut self, scale: i64, cell: [i64; N], t: f64) {
+        assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        self.scale = scale;
+        self.cell = cell;
+        self.t_in = t;
+        self.stepped = [false; N];
+        self.n_pending = 0;
+        self.done = false;
+    }
+
+    /// The cell the walk is in now and the time it entered it: the next visit's cell and
+    /// `t_in` (under [`Corner::Touching`], past the zero-length side cells still to visit).
+    #[inline]
+    pub fn position(&self) -> ([i64; N], f64) {
+        (self.cell, self.t_in)
+    }
+
+    /// The axes whose boundaries the walk crossed to enter the cell it is in now (several at a
+    /// corner; none for the cell it started or resumed in).
+    #[inline]
+    pub fn stepped(&self) -> [bool; N] {
+        self.stepped
+    }
+
+    /// The boundary the ray crosses next on axis `a`, in the caller's (fine) cells.
     #[inline]
     fn next_boundary(&self, a: usize) -> i64 {
         if self.step[a] > 0 {
-            self.cell[a] + 1
+            (self.cell[a] + 1) * self.scale
         } else {
-            self.cell[a]
+            self.cell[a] * self.scale
         }
     }
 }
@@ -168,8 +278,12 @@ impl<const N: usize> Iterator for Walk<N> {
         let tied: [bool; N] = std::array::from_fn(|a| {
             a == m
                 || (self.dir[a] != 0.0
-                    && (self.start[a] + t_out * self.dir[a] - self.next_boundary(a) as f64).abs()
-                        <= CORNER_EPS)
+                    && if self.corner == Corner::Exact {
+                        times[a] == t_out
+                    } else {
+                        (self.start[a] + t_out * self.dir[a] - self.next_boundary(a) as f64).abs()
+                            <= CORNER_EPS
+                    })
         });
         if self.corner == Corner::Touching {
             // Every proper, non-empty subset of the tied axes stepped: the side cells.
@@ -194,11 +308,12 @@ impl<const N: usize> Iterator for Walk<N> {
             }
             self.pending_t = t_out;
         }
-        for a in 0..N {
-            if tied[a] {
+        for (a, &t) in tied.iter().enumerate() {
+            if t {
                 self.cell[a] += self.step[a];
             }
         }
+        self.stepped = tied;
         self.t_in = t_out;
         Some(here)
     }
@@ -358,6 +473,100 @@ mod tests {
         );
     }
 
+    #[test]
+    fn hard_case_exact_rule_steps_diagonally_only_where_crossing_times_are_equal() {
+        // An exact diagonal: both crossings at the same f64, straight into the diagonal cell.
+        for d in [[0.5, 0.5], [-0.5, 0.5], [0.5, -0.5], [-0.5, -0.5]] {
+            let exact = cells(Walk::new([5.0, 5.0], d, Corner::Exact), 50);
+            assert_eq!(exact, cells(Walk::new([5.0, 5.0], d, Corner::Diagonal), 50));
+        }
+        // One ulp steeper: the row boundary is crossed first (1/off < 2), so the side cell is
+        // visited for the time the ray really spends in it; Diagonal steps over it.
+        let off = f64::from_bits(0.5f64.to_bits() + 1);
+        let v: Vec<Visit<2>> = Walk::new([10.0, 20.0], [0.5, off], Corner::Exact)
+            .take(3)
+            .collect();
+        assert_eq!(v[1].cell, [10, 21]);
+        assert!(v[1].t_out > v[1].t_in && v[1].t_out - v[1].t_in < 1e-12);
+        assert_eq!(v[2].cell, [11, 21]);
+        let d = cells(Walk::new([10.0, 20.0], [0.5, off], Corner::Diagonal), 2);
+        assert_eq!(d, [[10, 20], [11, 21]]);
+        // The walk's first step reports the axes it crossed.
+        let mut w = Walk::new([5.0, 5.0], [0.5, 0.5], Corner::Exact);
+        assert_eq!(w.stepped(), [false, false]);
+        w.next();
+        assert_eq!(w.stepped(), [true, true]);
+        assert_eq!(w.position(), ([6, 6], 2.0));
+    }
+
+    #[test]
+    fn hard_case_coarse_walk_from_a_utm_sized_start() {
+        // 4-wide cells 5·10⁶ cells out, a few ulps off the diagonal: the coarse walk is the fine
+        // walk's cells divided by 4, at the fine walk's times.
+        let o = [5.0e6 + 0.25, 5.3e6 + 0.25];
+        let d = [0.5, f64::from_bits(0.5f64.to_bits() + 2)];
+        let fine: Vec<Visit<2>> = Walk::new(o, d, Corner::Exact).take(400).collect();
+        let coarse = Walk::resume(o, d, Corner::Exact, 4, [1_250_000, 1_325_000], 0.0);
+        let want = group(&fine, 4);
+        let got: Vec<Visit<2>> = coarse.take(want.len() - 1).collect();
+        assert_eq!(got, want[..want.len() - 1]);
+    }
+
+    /// The fine visits grouped by their `scale`-wide cell: one visit per run of fine visits in
+    /// the same coarse cell, from the first one's `t_in` to the last one's `t_out`.
+    fn group(fine: &[Visit<2>], scale: i64) -> Vec<Visit<2>> {
+        let mut out: Vec<Visit<2>> = Vec::new();
+        for v in fine {
+            let c = v.cell.map(|k| k.div_euclid(scale));
+            match out.last_mut() {
+                Some(last) if last.cell == c => last.t_out = v.t_out,
+                _ => out.push(Visit { cell: c, ..*v }),
+            }
+        }
+        out
+    }
+
+    /// The exact walk by brute force: every boundary crossing in `(0, t_end)` of both axes,
+    /// sorted, equal times merged; from each one on, the cell is the start cell moved one cell
+    /// per crossing already passed on each axis. Returns each cell with the time it is entered.
+    fn brute_exact(start: [f64; 2], dir: [f64; 2], t_end: f64) -> Vec<([i64; 2], f64)> {
+        let mut crossings: Vec<(f64, usize)> = Vec::new();
+        for a in 0..2 {
+            if dir[a] == 0.0 {
+                continue;
+            }
+            let end = start[a] + dir[a] * t_end;
+            let (lo, hi) = (
+                start[a].min(end).floor() as i64 - 1,
+                start[a].max(end).ceil() as i64 + 1,
+            );
+            for b in lo..=hi {
+                let t = cross(start[a], dir[a], b);
+                if t > 0.0 && t < t_end {
+                    crossings.push((t, a));
+                }
+            }
+        }
+        crossings.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let first: [i64; 2] = std::array::from_fn(|a| {
+            if dir[a] < 0.0 {
+                start[a].ceil() as i64 - 1
+            } else {
+                start[a].floor() as i64
+            }
+        });
+        let mut out = vec![(first, 0.0)];
+        let mut cell = first;
+        for (k, &(t, a)) in crossings.iter().enumerate() {
+            cell[a] += if dir[a] > 0.0 { 1 } else { -1 };
+            if crossings.get(k + 1).is_some_and(|next| next.0 == t) {
+                continue; // a corner: the other axis steps at the same time
+            }
+            out.push((cell, t));
+        }
+        out
+    }
+
     /// A direction: arbitrary, or exactly on an axis or a diagonal, or a few ulps off one.
     fn direction() -> impl Strategy<Value = [f64; 2]> {
         let any = (-3.0f64..3.0, -3.0f64..3.0).prop_map(|(x, y)| [x, y]);
@@ -433,6 +642,65 @@ mod tests {
                     prop_assert_eq!(dist(v.cell, next.cell), 1);
                     prop_assert_eq!(dist(v.cell, prev.cell), 1);
                 }
+            }
+        }
+
+        #[test]
+        fn exact_walk_is_the_sorted_crossings_and_cell_at_of_its_times(o in start(), d in direction(), t_end in 0.5f64..40.0) {
+            let visits: Vec<Visit<2>> = Walk::new(o, d, Corner::Exact)
+                .take_while(|v| v.t_in < t_end)
+                .collect();
+            let got: Vec<([i64; 2], f64)> = visits.iter().map(|v| (v.cell, v.t_in)).collect();
+            prop_assert_eq!(got, brute_exact(o, d, t_end));
+            for w in visits.windows(2) {
+                prop_assert_eq!(w[1].t_in, w[0].t_out);
+                prop_assert!(w[0].t_out > w[0].t_in || w[0].t_in == 0.0);
+            }
+            for v in &visits {
+                for a in 0..2 {
+                    prop_assert_eq!(v.cell[a], cell_at(o[a], d[a], v.t_in, 1, 0));
+                }
+            }
+        }
+
+        #[test]
+        fn exact_walks_resumed_or_coarse_agree_with_the_fine_walk(
+            o in start(), d in direction(), k in 0usize..40, scale in 1i64..6
+        ) {
+            let fine: Vec<Visit<2>> = Walk::new(o, d, Corner::Exact).take(120).collect();
+            let k = k.min(fine.len() - 1);
+            let t = fine[k].t_in;
+            // Resumed at (cell_at(t), t), at any scale: the fine walk from visit k, grouped.
+            let cell = std::array::from_fn(|a| cell_at(o[a], d[a], t, scale, 0));
+            let want = group(&fine[k..], scale);
+            let got: Vec<Visit<2>> = Walk::resume(o, d, Corner::Exact, scale, cell, t)
+                .take(want.len() - 1)
+                .collect();
+            // (the last group may continue past the 120 fine visits taken)
+            prop_assert_eq!(&got[..], &want[..want.len() - 1]);
+            if scale == 1 {
+                prop_assert_eq!(cell, fine[k].cell);
+            }
+        }
+
+        #[test]
+        fn cell_at_is_the_cell_between_crossed_and_uncrossed_boundaries(
+            o in -50.0f64..50.0, d in -3.0f64..3.0, t in 0.0f64..100.0, guess in -400i64..400,
+            scale in 1i64..6
+        ) {
+            let k = cell_at(o, d, t, scale, guess);
+            prop_assert_eq!(k, cell_at(o, d, t, scale, 0));
+            let (lo, hi) = (cross(o, d, k * scale), cross(o, d, (k + 1) * scale));
+            if d > 0.0 {
+                prop_assert!(lo <= t && hi > t);
+            } else if d < 0.0 {
+                prop_assert!(hi <= t && lo > t);
+            } else {
+                prop_assert_eq!(k, (o.floor() as i64).div_euclid(scale));
+            }
+            // At t = 0 it is the walk's start cell.
+            if scale == 1 {
+                prop_assert_eq!(cell_at(o, d, 0.0, 1, guess), Walk::new([o], [d], Corner::Exact).position().0[0]);
             }
         }
 

@@ -12,8 +12,20 @@
 //!
 //! Hierarchical traversal starts at the coarsest level. A coarse cell whose `max_z` is below the
 //! ray over the whole crossing is skipped in one step; otherwise the ray descends a level at the
-//! same `t`; after a step it climbs back to the coarsest level whose cell changed. Level 0 uses
-//! the exact boundary crossings of [`super::ray`].
+//! same `t`; after a step it climbs back to the coarsest level whose cell changed.
+//!
+//! Stepping, at every level, is the crate's one grid walk, [`crate::walk::Walk`]: a level-`k`
+//! walk has cells `f^k` level-0 cells wide and crosses boundary `K` at
+//! `cross(o, d, K · f^k)` ([`crate::walk::cross`]), so a boundary shared by several levels is
+//! crossed at the same f64 on each. **Corner rule: [`Corner::Exact`].** Where the ray passes
+//! through a cell corner — its two crossing times are the same f64 — it steps straight into the
+//! diagonal cell, and the two side cells are not visited (they touch the ray at one point). A
+//! ray a few ulps off a corner visits the side cell it clips, for the tiny time it is in it;
+//! there is no [`crate::walk::CORNER_EPS`] tolerance, because the tolerant rules are
+//! path-dependent (a ray grazing a boundary line is stepped across it at the first crossing of
+//! another axis, and a coarse walk sees fewer crossings than a fine one). Under `Exact` the cell
+//! at `t` on each level is [`crate::walk::cell_at`], whatever the path, so descending and
+//! climbing at `t` land where a level-0 walk is at `t`.
 //!
 //! Invariant (exactness): the level-0 hit test is a pure function of the cell, and a coarse
 //! skip is conservative (a coarse `max_z` is the max of its block and `z(t)` is monotone, so the
@@ -26,6 +38,7 @@ use super::sampler::Sampler;
 use crate::error::Result;
 use crate::tiles::STATE_PARTIAL;
 use crate::voxel::columns::Run;
+use crate::walk::{self, Corner, Visit, Walk};
 
 /// How rays step through the levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -160,33 +173,58 @@ fn run_hit(
 }
 
 /// Step `ray` through `span` of the tile set behind `sampler`.
+///
+/// Every level is stepped by one [`Walk`] over that level's cells ([`Corner::Exact`]: crossing
+/// times `cross(o, d, K · f^k)`, the same f64 at every level; through a corner where both
+/// crossings are the same f64 the ray steps straight into the diagonal cell). Descending takes a
+/// finer walk up at the same `t` in [`walk::cell_at`]; climbing takes a coarser one up in the
+/// parent of the cell just entered, which is the cell `cell_at` gives there.
 pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Result<Marched> {
     let top = match plan.traversal {
         Traversal::Hierarchical => plan.top,
         Traversal::Level0 => 0,
     };
-    let mut t = span.t0;
-    let mut c = ray.u.cell_at(t, ray.u.o.floor() as i64);
-    let mut r = ray.v.cell_at(t, ray.v.o.floor() as i64);
+    let (o, d) = ([ray.u.o, ray.v.o], [ray.u.d, ray.v.d]);
+    let cell_at = |l: usize, t: f64, guess: [i64; 2]| -> [i64; 2] {
+        let s = plan.scales[l];
+        [
+            walk::cell_at(o[0], d[0], t, s, guess[0]),
+            walk::cell_at(o[1], d[1], t, s, guess[1]),
+        ]
+    };
     let mut l = top;
+    let s_top = plan.scales[top];
+    let guess = [
+        (o[0].floor() as i64).div_euclid(s_top),
+        (o[1].floor() as i64).div_euclid(s_top),
+    ];
+    let mut w = Walk::resume(
+        o,
+        d,
+        Corner::Exact,
+        s_top,
+        cell_at(top, span.t0, guess),
+        span.t0,
+    );
     let mut face = Face::Top;
     let mut steps = 0u64;
     loop {
         steps += 1;
-        let s = plan.scales[l];
-        let (cc, rr) = (c.div_euclid(s), r.div_euclid(s));
+        let Visit {
+            cell: [cc, rr],
+            t_in: t,
+            t_out: t_exit,
+        } = w.next().expect("a walk never ends by itself");
         let Some(cell) = sampler.cell(l, cc, rr)? else {
             return Ok((None, steps));
         };
-        let exit_u = ray.u.exit(cc, s);
-        let t_exit = exit_u.min(ray.v.exit(rr, s));
         if l == 0 {
             let runs = if cell.state == STATE_PARTIAL {
-                Some(sampler.column(c, r)?)
+                Some(sampler.column(cc, rr)?)
             } else {
                 None
             };
-            if let Some((t_hit, f, k)) = level0_hit(ray, span, c, r, cell.max_z, runs) {
+            if let Some((t_hit, f, k)) = level0_hit(ray, span, cc, rr, cell.max_z, runs) {
                 let colour = runs.map_or(cell.colour, |runs| runs[k].colour);
                 let hit = Hit {
                     t: t_hit,
@@ -194,7 +232,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     face: f,
                     level: 0,
                 };
-                return Ok((Some(coarse_colour(hit, c, r, sampler, plan)?), steps));
+                return Ok((Some(coarse_colour(hit, cc, rr, sampler, plan)?), steps));
             }
         } else if may_hit(ray, t, t_exit.min(span.t1), cell.max_z) {
             if let Some(th) = &plan.thresholds {
@@ -222,27 +260,34 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     ));
                 }
             }
+            // Descend at the same t, into the child holding the ray then.
+            let f = plan.scales[l] / plan.scales[l - 1];
             l -= 1;
+            w.restart(plan.scales[l], cell_at(l, t, [cc * f, rr * f]), t);
             continue;
         }
         if t_exit >= span.t1 {
             return Ok((None, steps));
         }
-        face = if exit_u == t_exit {
+        face = if w.stepped()[0] {
             Face::WallU
         } else {
             Face::WallV
         };
-        let (oc, or) = (c, r);
-        t = t_exit;
-        c = ray.u.cell_at(t, c);
-        r = ray.v.cell_at(t, r);
+        // Climb to the coarsest level whose cell changed with this step.
+        let (mut old, mut new) = ([cc, rr], w.position().0);
+        let l0 = l;
         while l < top {
-            let s2 = plan.scales[l + 1];
-            if oc.div_euclid(s2) == c.div_euclid(s2) && or.div_euclid(s2) == r.div_euclid(s2) {
+            let f = plan.scales[l + 1] / plan.scales[l];
+            let (po, pn) = (old.map(|k| k.div_euclid(f)), new.map(|k| k.div_euclid(f)));
+            if po == pn {
                 break;
             }
+            (old, new) = (po, pn);
             l += 1;
+        }
+        if l != l0 {
+            w.restart(plan.scales[l], new, t_exit);
         }
     }
 }

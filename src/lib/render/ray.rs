@@ -7,10 +7,12 @@
 //!
 //! Invariant: the time the ray crosses a cell boundary `b` is one pure function,
 //! [`Axis::cross`] (which is [`crate::walk::cross`]), used by every traversal and every level
-//! (a level-`k` boundary is the level-0 boundary `K · f^k`), and the cell the ray is in at time
-//! `t` is a pure function of `t` ([`Axis::cell_at`]: a boundary crossed at exactly `t` counts as
-//! crossed). So any two traversals that visit a cell agree bit for bit on its entry and exit
-//! times.
+//! (a level-`k` boundary is the level-0 boundary `K · f^k`). The stepping itself is the crate's
+//! one grid walk, [`crate::walk::Walk`], under [`crate::walk::Corner::Exact`] (see
+//! [`super::march`]): the cell the ray is in at time `t` is a pure function of `t`
+//! ([`crate::walk::cell_at`]: a boundary crossed at exactly `t` counts as crossed; through a
+//! corner both crossings are, and the ray is in the diagonal cell). So any two traversals that
+//! visit a cell agree bit for bit on its entry and exit times.
 
 /// One horizontal axis of a ray: origin and rate of change in cells (per metre of range).
 #[derive(Debug, Clone, Copy)]
@@ -34,39 +36,6 @@ impl Axis {
     #[inline]
     pub fn cross(&self, b: i64) -> f64 {
         crate::walk::cross(self.o, self.d, b)
-    }
-
-    /// Index of the cell holding the ray at time `t` (a boundary crossed at exactly `t` is
-    /// behind the ray). `guess` is any nearby index; the answer does not depend on it.
-    #[inline]
-    pub fn cell_at(&self, t: f64, guess: i64) -> i64 {
-        if self.d == 0.0 {
-            return self.o.floor() as i64;
-        }
-        let est = (self.o + t * self.d).floor();
-        let mut k = if est.is_finite() && (est - guess as f64).abs() > 2.0 {
-            est as i64
-        } else {
-            guess
-        };
-        if self.d > 0.0 {
-            // the largest k whose boundary is crossed
-            while self.cross(k) > t {
-                k -= 1;
-            }
-            while self.cross(k + 1) <= t {
-                k += 1;
-            }
-        } else {
-            // boundary k + 1 crossed, boundary k not
-            while self.cross(k + 1) > t {
-                k += 1;
-            }
-            while self.cross(k) <= t {
-                k -= 1;
-            }
-        }
-        k
     }
 
     /// Time the ray enters level-0 cell `k` on this axis (`-inf` if parallel).
@@ -139,11 +108,15 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    fn cell_at(a: Axis, t: f64) -> i64 {
+        crate::walk::cell_at(a.o, a.d, t, 1, 0)
+    }
+
     #[test]
     fn eye_on_a_boundary_starts_in_the_cell_it_looks_into() {
-        assert_eq!(Axis::new(3.0, 0.5).cell_at(0.0, 0), 3);
-        assert_eq!(Axis::new(3.0, -0.5).cell_at(0.0, 0), 2);
-        assert_eq!(Axis::new(3.0, 0.0).cell_at(0.0, 0), 3);
+        assert_eq!(cell_at(Axis::new(3.0, 0.5), 0.0), 3);
+        assert_eq!(cell_at(Axis::new(3.0, -0.5), 0.0), 2);
+        assert_eq!(cell_at(Axis::new(3.0, 0.0), 0.0), 3);
     }
 
     #[test]
@@ -158,19 +131,16 @@ mod tests {
 
     proptest! {
         #[test]
-        fn cell_at_is_the_cell_between_crossed_and_uncrossed_boundaries(
-            o in -50.0f64..50.0, d in -3.0f64..3.0, t in 0.0f64..100.0, guess in -400i64..400
+        fn entry_and_exit_bracket_the_time_in_the_cell_the_walk_is_in(
+            o in -50.0f64..50.0, d in -3.0f64..3.0, t in 0.0f64..100.0
         ) {
             let a = Axis::new(o, d);
-            let k = a.cell_at(t, guess);
-            prop_assert_eq!(k, a.cell_at(t, 0));
-            if d > 0.0 {
-                prop_assert!(a.cross(k) <= t && a.cross(k + 1) > t);
-            } else if d < 0.0 {
-                prop_assert!(a.cross(k + 1) <= t && a.cross(k) > t);
-            }
-            // the cell's entry/exit times bracket t
+            let k = cell_at(a, t);
             prop_assert!(a.entry(k) <= t && t < a.exit(k, 1) || d == 0.0);
+            // a coarse exit is the exit of the coarse cell's last level-0 cell on the way
+            let kk = k.div_euclid(4);
+            let last = if d > 0.0 { kk * 4 + 3 } else { kk * 4 };
+            prop_assert_eq!(a.exit(kk, 4), a.exit(last, 1));
         }
     }
 }

@@ -803,3 +803,153 @@ proptest! {
         prop_assert_eq!(bits(&h.range), bits(&l.range));
     }
 }
+
+/// The level-0 hit of `ray` over `span` by brute force, sharing no code with the walk: every
+/// column and row boundary crossing in `(0, t1)` sorted (equal times are one corner, crossed
+/// together), the cell from the eye's cell moved one cell per crossing passed, and each cell's
+/// column (from `height`, not the tile set) tested over the times the ray is in it.
+fn brute_force_hit<F>(
+    ray: &Ray,
+    span: Span,
+    w: i64,
+    h: i64,
+    height: F,
+) -> Option<(f64, [u8; 4], Face)>
+where
+    F: Fn(usize, usize) -> (f32, [u8; 4]),
+{
+    let mut crossings: Vec<(f64, usize)> = Vec::new();
+    for (a, axis, n) in [(0, ray.u, w), (1, ray.v, h)] {
+        for b in -1..=n + 1 {
+            let t = axis.cross(b);
+            if t > 0.0 && t < span.t1 {
+                crossings.push((t, a));
+            }
+        }
+    }
+    crossings.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let start = |a: Axis| {
+        if a.d < 0.0 {
+            a.o.ceil() as i64 - 1
+        } else {
+            a.o.floor() as i64
+        }
+    };
+    let step = |a: Axis| if a.d > 0.0 { 1 } else { -1 };
+    let mut cell = [start(ray.u), start(ray.v)];
+    // (time entered, axes crossed to enter) of the current cell
+    let (mut ta, mut by) = (0.0, [false, false]);
+    let mut k = 0;
+    loop {
+        // the crossings at the next time: the cell's exit
+        let tb = crossings.get(k).map_or(span.t1, |c| c.0);
+        let mut next = cell;
+        let mut next_by = [false, false];
+        while k < crossings.len() && crossings[k].0 == tb {
+            let a = crossings[k].1;
+            next[a] += step([ray.u, ray.v][a]);
+            next_by[a] = true;
+            k += 1;
+        }
+        let tb = tb.min(span.t1);
+        if tb > span.t0 && (0..w).contains(&cell[0]) && (0..h).contains(&cell[1]) {
+            let (max_z, colour) = height(cell[0] as usize, cell[1] as usize);
+            let (t_in, face) = if ta >= span.t0 {
+                (ta, if by[0] { Face::WallU } else { Face::WallV })
+            } else {
+                (span.t0, Face::Top)
+            };
+            let mz = max_z as f64;
+            if !max_z.is_nan() && ray.z(t_in).min(ray.z(tb)) <= mz {
+                return Some(if ray.z(t_in) <= mz {
+                    (t_in, colour, face)
+                } else {
+                    let t = ray.time_at_height(mz).unwrap().max(t_in).min(tb);
+                    (t, colour, Face::Top)
+                });
+            }
+        }
+        if tb >= span.t1 {
+            return None;
+        }
+        (cell, ta, by) = (next, tb, next_by);
+    }
+}
+
+#[test]
+fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_force_hits() {
+    // Rough terrain (spikes, nodata holes) on a UTM grid; every level of a factor-2 hierarchy.
+    let (x0, y0) = (500_000.0, 5_300_150.0);
+    let (_d, r) = tiles(x0, y0, 200, 150, 16, 2, rough);
+    let scene = Scene::of(&r).unwrap();
+    let plan = |traversal| Plan {
+        traversal,
+        top: scene.top(false),
+        scales: scene.scales.clone(),
+        thresholds: None,
+    };
+    let cache = ColumnCache::default();
+    let mut sampler = Sampler::new(&r, false, &cache);
+    let nudge = |x: f64, ulps: i64| {
+        if x == 0.0 {
+            // 2 ulps off zero: the smallest subnormals, either side
+            ulps.signum() as f64 * f64::from_bits(ulps.unsigned_abs())
+        } else {
+            f64::from_bits((x.to_bits() as i64 + ulps) as u64)
+        }
+    };
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let (mut rays, mut spans, mut hits, mut corners) = (0, 0, 0, 0);
+    // On a cell corner, at a cell centre, anywhere; UTM-sized world coordinates.
+    for (ex, ey) in [(37.0, 41.0), (120.5, 99.5), (63.318_77, 12.904_41)] {
+        let (u0, v0) = scene.local(x0 + ex, y0 - ey);
+        for (du, dv) in [
+            (1.0, 0.0),
+            (0.0, 1.0),
+            (-1.0, 0.0),
+            (0.0, -1.0),
+            (s, s),
+            (-s, s),
+            (s, -s),
+            (-s, -s),
+        ] {
+            for (nu, nv) in [(0, 0), (2, 0), (-2, 0), (0, 2), (0, -2), (2, -2), (-2, 2)] {
+                for (z0, dz) in [(40.0, -0.3), (45.0, -0.15), (36.0, -0.6)] {
+                    let ray = Ray {
+                        u: Axis::new(u0, nudge(du, nu)),
+                        v: Axis::new(v0, nudge(dv, nv)),
+                        z0,
+                        dz,
+                    };
+                    rays += 1;
+                    let Some(span) = scene.span(&ray, false, f64::INFINITY) else {
+                        continue; // passes over the box above its highest column
+                    };
+                    let want = brute_force_hit(&ray, span, 200, 150, rough);
+                    for traversal in [Traversal::Hierarchical, Traversal::Level0] {
+                        let (got, _) =
+                            march::march(&ray, span, &mut sampler, &plan(traversal)).unwrap();
+                        let got = got.map(|h| (h.t, h.colour, h.face));
+                        assert_eq!(
+                            got.map(|g| (g.0.to_bits(), g.1, g.2)),
+                            want.map(|g| (g.0.to_bits(), g.1, g.2)),
+                            "{traversal:?}: eye ({ex}, {ey}, {z0}), direction ({}, {}, {dz}): got {got:?}, brute force {want:?}",
+                            ray.u.d,
+                            ray.v.d
+                        );
+                    }
+                    spans += 1;
+                    hits += want.is_some() as u32;
+                    // rays through cell corners: both crossings of some time the same f64
+                    corners += ((ray.u.d.abs() == ray.v.d.abs()) && ex == 37.0) as u32;
+                }
+            }
+        }
+    }
+    // Most rays meet the box and hit (the brute force is not vacuous); some pass over the box
+    // or run off its edge.
+    assert_eq!(rays, 3 * 8 * 7 * 3);
+    assert!(spans > rays * 2 / 3, "{spans} of {rays}");
+    assert!(hits > spans / 2, "{hits} of {spans}");
+    assert!(corners > 0);
+}
