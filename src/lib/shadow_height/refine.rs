@@ -219,7 +219,17 @@ fn observed_fraction(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec
             .collect();
         super::scan::median(&v)
     };
-    let shadow = level(&|i| attached[i]);
+    // The shadow's own tone: the lower quartile of the attached cells, not their median. A
+    // shadow a cell or two wide (a high sun) is mostly cells it covers in part, whose median
+    // reads lighter than shadow and made every partial cell count as more shadow than it is:
+    // at an 80° sun on 1 m cells, heights 2 cells too high.
+    let shadow = {
+        let v: Vec<f64> = (0..corridor.len())
+            .filter(|&i| attached[i])
+            .map(|i| local.index[i] as f64)
+            .collect();
+        super::scan::quantile(&v, 0.25)
+    };
     let lit = level(&|i| corridor[i] && !attached[i] && !edge[i] && local.class[i] == Class::Lit);
     (0..corridor.len())
         .map(|i| match (shadow, lit) {

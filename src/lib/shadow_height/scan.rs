@@ -187,6 +187,15 @@ fn cells_along(
     })
 }
 
+/// The `q`-quantile (0 ≤ q < 1) of the finite values: the value at sorted index
+/// `⌊q · n⌋`; `None` when there is none.
+pub fn quantile(values: &[f64], q: f64) -> Option<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    let k = ((q * v.len() as f64) as usize).min(v.len().checked_sub(1)?);
+    Some(v[k])
+}
+
 /// Median of finite values, `None` when there are none.
 pub fn median(values: &[f64]) -> Option<f64> {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
@@ -308,5 +317,14 @@ mod tests {
     fn median_ignores_nan_and_averages_the_middle_pair() {
         assert_eq!(median(&[3.0, f64::NAN, 1.0, 2.0, 10.0]), Some(2.5));
         assert_eq!(median(&[f64::NAN]), None);
+    }
+
+    #[test]
+    fn quantile_is_the_value_at_its_sorted_index() {
+        let v = [5.0, 1.0, f64::NAN, 4.0, 2.0, 3.0, 8.0, 7.0, 6.0];
+        assert_eq!(quantile(&v, 0.25), Some(3.0)); // 8 finite: index 2
+        assert_eq!(quantile(&v, 0.0), Some(1.0));
+        assert_eq!(quantile(&v, 0.999), Some(8.0));
+        assert_eq!(quantile(&[f64::NAN], 0.25), None);
     }
 }
