@@ -80,3 +80,19 @@ impl SunArgs {
         }
     }
 }
+
+/// Parse three comma-separated numbers given to option `name` (`what` says what they are, for
+/// the error's fix).
+pub fn triple(name: &str, s: &str, what: &str) -> dbms::Result<[f64; 3]> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .unwrap_or_default();
+    v.try_into().map_err(|_| {
+        dbms::Error::msg(format!(
+            "{name} {s}: expected three comma-separated numbers"
+        ))
+        .fix(format!("give {what}"))
+    })
+}

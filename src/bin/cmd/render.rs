@@ -70,21 +70,6 @@ enum TraversalArg {
     Level0,
 }
 
-/// Parse three comma-separated numbers for option `name`.
-fn triple(name: &str, s: &str, what: &str) -> dbms::Result<[f64; 3]> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .unwrap_or_default();
-    v.try_into().map_err(|_| {
-        Error::msg(format!(
-            "{name} {s}: expected three comma-separated numbers"
-        ))
-        .fix(format!("give {what}"))
-    })
-}
-
 /// Parse `WxH`.
 fn size(s: &str) -> dbms::Result<(usize, usize)> {
     s.split_once(['x', 'X'])
@@ -111,12 +96,13 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         };
         render::render_top(&reader, w, h, !args.no_lod)?
     } else {
-        let eye = triple(
+        let eye = super::triple(
             "--eye",
             args.eye.as_deref().unwrap_or_default(),
             "X,Y,Z in the database's CRS units and metres",
         )?;
-        let [roll, pitch, yaw] = triple("--attitude", &args.attitude, "ROLL,PITCH,YAW in degrees")?;
+        let [roll, pitch, yaw] =
+            super::triple("--attitude", &args.attitude, "ROLL,PITCH,YAW in degrees")?;
         let (width, height) = size(args.size.as_deref().unwrap_or("640x480"))?;
         let camera = Camera {
             eye,

@@ -176,19 +176,12 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
 
 /// `EAST,NORTH,Z` metres.
 fn parse_camera(text: &str) -> dbms::Result<sh::register::Camera> {
-    let bad = || {
-        Error::msg(format!("--camera {text}: not three numbers"))
-            .fix("give the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250")
-    };
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| bad())?;
-    match v[..] {
-        [east, north, z] if v.iter().all(|x| x.is_finite()) => {
-            Ok(sh::register::Camera { east, north, z })
-        }
-        _ => Err(bad()),
+    const WHAT: &str = "the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250";
+    let [east, north, z] = super::triple("--camera", text, WHAT)?;
+    if ![east, north, z].iter().all(|x| x.is_finite()) {
+        return Err(
+            Error::msg(format!("--camera {text}: not finite numbers")).fix(format!("give {WHAT}"))
+        );
     }
+    Ok(sh::register::Camera { east, north, z })
 }

@@ -37,11 +37,16 @@ pub fn shadow_index(rgb: [u8; 4]) -> f64 {
 /// unclear split is retried on its dark side — shadow sits below the darker texture — down to
 /// [`MIN_DARK_FRACTION`] of all cells.
 pub fn otsu_threshold(indices: impl Iterator<Item = f64>) -> Option<f64> {
+    otsu_threshold_of(&histogram(indices), 1.0)
+}
+
+/// The histogram of shadow indices: bin `k` counts those whose [`index_bin`] is `k`.
+fn histogram(indices: impl Iterator<Item = f64>) -> [u64; 256] {
     let mut hist = [0u64; 256];
     for v in indices {
         hist[index_bin(v)] += 1;
     }
-    otsu_threshold_of(&hist, 1.0)
+    hist
 }
 
 /// The histogram bin of a shadow index: the index rounded, at most 255 (what
@@ -64,11 +69,7 @@ pub fn otsu_threshold_of(hist: &[u64; 256], max_dark_fraction: f64) -> Option<f6
 /// a split may be the ground's own texture: the caller must show the dark class lies where a
 /// shadow can fall and nowhere else before taking it for shadow.
 pub fn weak_threshold(indices: impl Iterator<Item = f64>) -> Option<f64> {
-    let mut hist = [0u64; 256];
-    for v in indices {
-        hist[index_bin(v)] += 1;
-    }
-    split_below(&hist, 1.0, WEAK_DARK_RATIO)
+    split_below(&histogram(indices), 1.0, WEAK_DARK_RATIO)
 }
 
 /// Otsu's split of `hist`, retried on its dark side until the dark mean is below

@@ -5,8 +5,9 @@
 //! and its area (outer rings minus holes, square CRS units) is positive. Inside is decided by
 //! the even-odd rule over all rings, so holes and MultiPolygon parts need no bookkeeping.
 //!
-//! A whole-file problem (not JSON, not a FeatureCollection) is an [`Error`](crate::error::Error); a bad feature is a
-//! per-feature message, so one bad footprint does not stop the others.
+//! A whole-file problem (not JSON, not a FeatureCollection) is an
+//! [`Error`](crate::error::Error); a bad feature is a per-feature message, so one bad footprint
+//! does not stop the others.
 
 use crate::error::Result;
 use crate::geojson;

@@ -630,10 +630,10 @@ impl Shared<'_> {
     }
 
     /// Whether the roof of `fp` (own cells `cells`) looks pitched where the photo shows it: over
-    /// the footprint moved by its `lean` (metres) in a perspective photo.
-    /// Roof cells in a taller neighbour's shadow (second pass: at this building's first-pass
-    /// roof) are left out: a roof half in a neighbour's shadow is two brightnesses with a
-    /// straight boundary too (`dbms sample`'s adjacent pairs).
+    /// the footprint moved by its `lean` (metres) in a perspective photo. Without a lean, roof
+    /// cells in a taller neighbour's shadow (second pass: at this building's first-pass roof)
+    /// are left out: a roof half in a neighbour's shadow is two brightnesses with a straight
+    /// boundary too (`dbms sample`'s adjacent pairs). A leaning roof is read whole.
     fn looks_pitched(
         &self,
         id: u32,
@@ -642,6 +642,10 @@ impl Shared<'_> {
         lean: (f64, f64),
         neighbours: &[(&Footprint, f64)],
     ) -> bool {
+        if lean != (0.0, 0.0) {
+            let seen = register::moved(fp, lean.0, lean.1);
+            return roof::looks_pitched(&seen, self.inputs.colour, &seen.cells(self.grid));
+        }
         let unshaded: Vec<usize>;
         let cells = match self.roofs[id as usize - 1] {
             Some(own) => {
@@ -658,11 +662,7 @@ impl Shared<'_> {
             }
             None => cells,
         };
-        if lean == (0.0, 0.0) {
-            return roof::looks_pitched(fp, self.inputs.colour, cells);
-        }
-        let seen = register::moved(fp, lean.0, lean.1);
-        roof::looks_pitched(&seen, self.inputs.colour, &seen.cells(self.grid))
+        roof::looks_pitched(fp, self.inputs.colour, cells)
     }
 
     /// The longest shadow sought, metres: that of a `max_height_m` building, at most

@@ -212,25 +212,20 @@ fn observed_fraction(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec
                 })
         })
         .collect();
-    let level = |pick: &dyn Fn(usize) -> bool| {
-        let v: Vec<f64> = (0..corridor.len())
+    let indices = |pick: &dyn Fn(usize) -> bool| -> Vec<f64> {
+        (0..corridor.len())
             .filter(|&i| pick(i))
             .map(|i| local.index[i] as f64)
-            .collect();
-        super::scan::median(&v)
+            .collect()
     };
     // The shadow's own tone: the lower quartile of the attached cells, not their median. A
     // shadow a cell or two wide (a high sun) is mostly cells it covers in part, whose median
     // reads lighter than shadow and made every partial cell count as more shadow than it is:
     // at an 80° sun on 1 m cells, heights 2 cells too high.
-    let shadow = {
-        let v: Vec<f64> = (0..corridor.len())
-            .filter(|&i| attached[i])
-            .map(|i| local.index[i] as f64)
-            .collect();
-        super::scan::quantile(&v, 0.25)
-    };
-    let lit = level(&|i| corridor[i] && !attached[i] && !edge[i] && local.class[i] == Class::Lit);
+    let shadow = super::scan::quantile(&indices(&|i| attached[i]), 0.25);
+    let lit = super::scan::median(&indices(&|i| {
+        corridor[i] && !attached[i] && !edge[i] && local.class[i] == Class::Lit
+    }));
     (0..corridor.len())
         .map(|i| match (shadow, lit) {
             (Some(s), Some(l)) if l > s && (attached[i] || edge[i]) => {

@@ -180,26 +180,24 @@ pub fn estimate(
             }
         }
     }
-    let (mut s0, mut bx, mut by) = best?;
+    let (_, gx, gy) = best?;
     let median = super::scan::median(&scores)?;
     // Refine to an eighth of a pixel within ¾ pixel of the best, then take the centre of the
     // top: every shift scoring within PLATEAU of the peak (over the search's median). A sharp
     // edge's contrast is flat for ±¼ pixel around it ([`ACROSS`]); the first maximum found
     // there sat at the plateau's west or north end, ¼ pixel off.
     const PLATEAU: f64 = 0.02;
-    let (gx, gy) = (bx, by);
     let fine: Vec<(f64, f64, f64)> = (-6..=6)
         .flat_map(|j| (-6..=6).map(move |i| (gx + i as f64 / 8.0, gy + j as f64 / 8.0)))
         .filter_map(|(sx, sy)| Some((contrast(colour, &samples, sx, sy)?, sx, sy)))
         .collect();
-    s0 = fine.iter().fold(s0, |m, f| m.max(f.0));
+    // The coarse best is the fine grid's centre, so the top holds at least it.
+    let s0 = fine.iter().fold(f64::NEG_INFINITY, |m, f| m.max(f.0));
     let floor = s0 - PLATEAU * (s0 - median).max(0.0);
     let top: Vec<&(f64, f64, f64)> = fine.iter().filter(|f| f.0 >= floor).collect();
-    if !top.is_empty() {
-        let k = top.len() as f64;
-        bx = top.iter().map(|f| f.1).sum::<f64>() / k;
-        by = top.iter().map(|f| f.2).sum::<f64>() / k;
-    }
+    let k = top.len() as f64;
+    let bx = top.iter().map(|f| f.1).sum::<f64>() / k;
+    let by = top.iter().map(|f| f.2).sum::<f64>() / k;
     Some(Shift {
         east_m: bx * cx,
         north_m: by * cy,

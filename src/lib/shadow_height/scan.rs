@@ -10,8 +10,9 @@
 //! under another building's shadow, it goes on), and dropped as meeting another footprint when
 //! it enters one or its shadow ends on a lit cell touching one (or with one within a cell
 //! further along): that cell may read lit only because the other building's sunlit roof covers
-//! part of it. For a prism on flat ground every valid line's length is exactly `H / tan(elevation)`, whatever the footprint's
-//! shape, so the median over lines is a robust length.
+//! part of it. For a prism on flat ground every valid line's length is exactly
+//! `H / tan(elevation)`, whatever the footprint's shape, so the median over lines is a robust
+//! length.
 
 use super::footprint::Footprint;
 use super::local::{Class, Local};
@@ -187,22 +188,27 @@ fn cells_along(
     })
 }
 
+/// The finite values, in ascending order.
+fn sorted_finite(values: &[f64]) -> Vec<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    v
+}
+
 /// The `q`-quantile (0 ≤ q < 1) of the finite values: the value at sorted index
 /// `⌊q · n⌋`; `None` when there is none.
 pub fn quantile(values: &[f64], q: f64) -> Option<f64> {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    v.sort_by(f64::total_cmp);
+    let v = sorted_finite(values);
     let k = ((q * v.len() as f64) as usize).min(v.len().checked_sub(1)?);
     Some(v[k])
 }
 
 /// Median of finite values, `None` when there are none.
 pub fn median(values: &[f64]) -> Option<f64> {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    let v = sorted_finite(values);
     if v.is_empty() {
         return None;
     }
-    v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
     Some(if v.len() % 2 == 1 {
         v[m]
