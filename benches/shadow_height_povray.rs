@@ -24,7 +24,7 @@
 //! building's shadow can be seen there). Footprints axis-aligned (rotation 0) or rotated at
 //! random (0–90°); buildings' centres continuous, so every sub-cell phase occurs. Footprints
 //! exactly on the roofs (no misregistration), true orthophotos, 3 × 3 anti-aliasing samples per
-//! pixel. Each setting has [`LAYOUTS`] random layouts ([`LAYOUTS_FINE`] at 0.25 m cells, one in
+//! pixel (9 × 9 from a 60° sun up: [`povray::antialias_for`]). Each setting has [`LAYOUTS`] random layouts ([`LAYOUTS_FINE`] at 0.25 m cells, one in
 //! `quick`), drawn from a seed made of the setting's label, so `quick`'s rows are the same
 //! scenes as the full run's first layouts.
 //!
@@ -341,7 +341,7 @@ fn scene(s: &Setting, k: usize) -> Scene {
         clutter: vec![],
         footprint_shift: (0.0, 0.0),
         camera: Camera::Ortho,
-        antialias: 3,
+        antialias: povray::antialias_for(s.elev),
     }
 }
 

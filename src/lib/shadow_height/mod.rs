@@ -17,7 +17,9 @@
 //! 3. **First estimate.** `Z0 = L · tan(elevation)`: the formula, exact on flat ground.
 //! 4. **Refine.** [`refine::refine`]: the footprint polygon raised over the real DEM, its
 //!    shadow cast with exact rays from every open cell and compared with the observed one (the
-//!    shadow attached to the footprint); the height of best IoU wins, every height scored.
+//!    shadow attached to the footprint); every height is scored by how well the photo's
+//!    brightness is a lit and a shadow level mixed in its synthetic shadow's fractions (a
+//!    least-squares fit), and the best wins.
 //!
 //! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
 //! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is

@@ -10,10 +10,13 @@
 //! holds `sub × sub` points (`Options::sub_points`, laid out as a lattice with one point in each
 //! row and each column of `sub²`: `lattice`), so the synthetic shadow covers it in fractions.
 //! A prism's shadow only grows with its height; the *corridor* is the kept cells with a point
-//! whose threshold is up to `z_hi`. The observed shadow is the corridor's shadow cells connected to the footprint (shadow
-//! beyond lit ground belongs to something else) and the cells touching them, each as the
-//! fraction of shadow its brightness says. The score of `Z` is the IoU of the two fractions over
-//! the corridor; it changes only at thresholds, so every height in `(0, z_hi]` is scored by one
+//! whose threshold is up to `z_hi`. The observed shadow is the corridor's shadow cells
+//! connected to the footprint (shadow beyond lit ground belongs to something else) and the
+//! cells touching them. The score of `Z` is how well the photo's brightness over the corridor
+//! is a mix of two levels in the synthetic fractions — the R² of the least-squares line
+//! `b ≈ lit + (shadow − lit)·s`, darker in shadow — with both levels fitted, not estimated
+//! beforehand: a shadow a cell or two wide (a high sun) has no cell of pure shadow to read its
+//! level from. It changes only at thresholds, so every height in `(0, z_hi]` is scored by one
 //! sweep over the sorted thresholds, and the answer is the middle of the first best interval
 //! (the unbiased choice). Exact polygons and fractions make the answer finer than a cell of
 //! shadow length, which matters most where a cell of shadow is metres of height (high sun,
@@ -36,7 +39,8 @@ pub struct Refined {
 /// whose cells are [`Class::Own`] in `local`. `u` is the unit shadow direction (east, north),
 /// `tan_e` the tangent of the sun elevation. Only cells with `keep[i]` can be in the corridor
 /// (the caller drops the bands of scan lines that met other buildings or disagreed with the
-/// median length). `None` when the corridor holds no observed shadow.
+/// median length). `None` when the corridor holds no observed shadow, or no height's synthetic
+/// shadow falls where the photo is darker.
 pub fn refine(
     local: &Local,
     fp: &Footprint,
@@ -71,7 +75,16 @@ pub fn refine(
         .collect();
     let corridor: Vec<bool> = points.iter().map(Option::is_some).collect();
     let attached = attached_shadow(local, &corridor, keep);
-    let observed = observed_fraction(local, &corridor, &attached);
+    let touching = touching(local, &corridor, &attached);
+    // The local lit level: the median of the corridor's lit cells away from the shadow.
+    let lit = super::scan::median(
+        &(0..corridor.len())
+            .filter(|&i| corridor[i] && !touching[i] && local.class[i] == Class::Lit)
+            .map(|i| local.index[i] as f64)
+            .collect::<Vec<_>>(),
+    );
+    let observed = observed_fraction(local, &attached, &touching, lit);
+    let brightness = fitted_brightness(local, &corridor, &touching, lit);
     let mut events: Vec<(f64, usize)> = points
         .iter()
         .enumerate()
@@ -84,47 +97,115 @@ pub fn refine(
         })
         .collect();
     events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    best_interval(&events, &observed, z_hi, n_sub)
+    best_fit(&events, &brightness, &observed, z_hi, n_sub)
 }
 
-/// The best score over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`,
+/// The corridor cells that are attached shadow or touch it (8-neighbours): the shadow and its
+/// mixed edge.
+fn touching(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec<bool> {
+    let (w, h) = (local.grid.width, local.grid.height);
+    (0..corridor.len())
+        .map(|i| {
+            let (c, r) = (i % w, i / w);
+            corridor[i]
+                && (r.saturating_sub(1)..=(r + 1).min(h - 1)).any(|rr| {
+                    (c.saturating_sub(1)..=(c + 1).min(w - 1)).any(|cc| attached[rr * w + cc])
+                })
+        })
+        .collect()
+}
+
+/// The brightness (shadow index) each corridor cell is fitted with, NaN outside the corridor:
+/// the photo's on the attached shadow, its mixed edge (`touching`) and lit ground; elsewhere
+/// (shadow not attached to this footprint is someone else's: this one casts none there) the
+/// `lit` level, where there is one.
+fn fitted_brightness(
+    local: &Local,
+    corridor: &[bool],
+    touching: &[bool],
+    lit: Option<f64>,
+) -> Vec<f64> {
+    (0..corridor.len())
+        .map(|i| {
+            let own = touching[i] || local.class[i] == Class::Lit;
+            match (corridor[i], own, lit) {
+                (false, _, _) => f64::NAN,
+                (true, false, Some(l)) => l,
+                _ => local.index[i] as f64,
+            }
+        })
+        .collect()
+}
+
+/// The best fit over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`,
 /// `per_cell` sub-points to a cell, sorted by `Z` (a sub-point is in the synthetic shadow when
-/// `Z` is above it), `observed[i]` the observed shadow fraction of cell `i`. The score is the IoU of fractions,
-/// `Σ min(s, o) / Σ max(s, o)` with `s` the cell's synthetic fraction; the answer is the middle
-/// of the first interval reaching the best.
-fn best_interval(
+/// `Z` is above it); `brightness[i]` is cell `i`'s (NaN: not compared). The score is the R² of
+/// the least-squares line through the cells' (synthetic fraction, brightness), 0 unless it falls
+/// (shadow darker than lit); the answer is the middle of the first interval reaching the best,
+/// with the IoU of its synthetic fractions and `observed` as the overlap. `None` without
+/// observed shadow, without any spread of brightness, or when no height fits at all.
+fn best_fit(
     events: &[(f64, usize)],
+    brightness: &[f64],
     observed: &[f64],
     z_hi: f64,
     per_cell: usize,
 ) -> Option<Refined> {
     let step = 1.0 / per_cell as f64;
-    let (mut num, mut den): (f64, f64) = (0.0, observed.iter().sum());
-    if den == 0.0 {
+    if observed.iter().sum::<f64>() == 0.0 {
         return None;
     }
-    let mut covered = vec![0u8; observed.len()];
-    let mut best: Option<(f64, usize)> = None; // (score, index of the interval's next event)
+    let cells: Vec<f64> = brightness
+        .iter()
+        .copied()
+        .filter(|b| b.is_finite())
+        .collect();
+    let n = cells.len() as f64;
+    let sb: f64 = cells.iter().sum();
+    let syy = cells.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
+    if syy.is_nan() || syy <= 0.0 {
+        return None;
+    }
+    let (mut ss, mut sss, mut ssb) = (0.0, 0.0, 0.0);
+    let mut covered = vec![0u32; brightness.len()];
+    let mut best: Option<(f64, usize)> = None;
     for (k, &(_, i)) in events.iter().enumerate() {
-        let (o, before) = (observed[i], covered[i] as f64 * step);
+        let before = covered[i] as f64 * step;
         let after = before + step;
-        num += after.min(o) - before.min(o);
-        den += after.max(o) - before.max(o);
         covered[i] += 1;
+        ss += step;
+        sss += after * after - before * before;
+        ssb += step * brightness[i];
         if events.get(k + 1).is_some_and(|e| e.0 == events[k].0) {
             continue;
         }
-        let score = num / den;
+        let sxx = sss - ss * ss / n;
+        let sxy = ssb - ss * sb / n;
+        let score = if sxy < 0.0 && sxx > 0.0 {
+            sxy * sxy / (sxx * syy)
+        } else {
+            0.0
+        };
         if best.is_none_or(|b| score > b.0 + 1e-12) {
             best = Some((score, k + 1));
         }
     }
-    let (overlap, next) = best?;
+    let (score, next) = best?;
+    if score <= 0.0 {
+        return None;
+    }
     let lo = events[next - 1].0;
     let hi = events.get(next).map_or(z_hi, |e| e.0).max(lo);
+    // The IoU of the fractions at the answer.
+    let mut s = vec![0.0; observed.len()];
+    for &(_, i) in &events[..next] {
+        s[i] += step;
+    }
+    let num: f64 = s.iter().zip(observed).map(|(a, b)| a.min(*b)).sum();
+    let den: f64 = s.iter().zip(observed).map(|(a, b)| a.max(*b)).sum();
     Some(Refined {
         height_m: (lo + hi) / 2.0,
-        overlap: overlap.clamp(0.0, 1.0),
+        overlap: (num / den).clamp(0.0, 1.0),
     })
 }
 
@@ -194,41 +275,29 @@ fn terrain_at(local: &Local, px: f64, py: f64) -> f64 {
     }
 }
 
-/// How much of each corridor cell the photo shows in this footprint's shadow, in [0, 1]: the
-/// attached shadow cells and the cells touching them (the shadow's mixed edge) read their shadow
-/// index between the local lit level (median of the other corridor lit cells) and shadow level
-/// (median of the attached cells); every other cell is 0. Without both levels, the attached
-/// cells are 1.
-fn observed_fraction(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec<f64> {
-    let w = local.grid.width;
-    let h = local.grid.height;
-    let edge: Vec<bool> = (0..corridor.len())
-        .map(|i| {
-            let (c, r) = (i % w, i / w);
-            corridor[i]
-                && !attached[i]
-                && (r.saturating_sub(1)..=(r + 1).min(h - 1)).any(|rr| {
-                    (c.saturating_sub(1)..=(c + 1).min(w - 1)).any(|cc| attached[rr * w + cc])
-                })
-        })
-        .collect();
-    let indices = |pick: &dyn Fn(usize) -> bool| -> Vec<f64> {
-        (0..corridor.len())
-            .filter(|&i| pick(i))
-            .map(|i| local.index[i] as f64)
-            .collect()
-    };
+/// How much of each corridor cell the photo shows in this footprint's shadow, in [0, 1] (for
+/// the reported overlap): the attached shadow cells and the cells touching them (the shadow's
+/// mixed edge) read their shadow index between the `lit` level and the shadow level; every
+/// other cell is 0. Without both levels, the attached cells are 1.
+fn observed_fraction(
+    local: &Local,
+    attached: &[bool],
+    touching: &[bool],
+    lit: Option<f64>,
+) -> Vec<f64> {
     // The shadow's own tone: the lower quartile of the attached cells, not their median. A
     // shadow a cell or two wide (a high sun) is mostly cells it covers in part, whose median
-    // reads lighter than shadow and made every partial cell count as more shadow than it is:
-    // at an 80° sun on 1 m cells, heights 2 cells too high.
-    let shadow = super::scan::quantile(&indices(&|i| attached[i]), 0.25);
-    let lit = super::scan::median(&indices(&|i| {
-        corridor[i] && !attached[i] && !edge[i] && local.class[i] == Class::Lit
-    }));
-    (0..corridor.len())
+    // reads lighter than shadow.
+    let shadow = super::scan::quantile(
+        &(0..attached.len())
+            .filter(|&i| attached[i])
+            .map(|i| local.index[i] as f64)
+            .collect::<Vec<_>>(),
+        0.25,
+    );
+    (0..attached.len())
         .map(|i| match (shadow, lit) {
-            (Some(s), Some(l)) if l > s && (attached[i] || edge[i]) => {
+            (Some(s), Some(l)) if l > s && touching[i] => {
                 ((l - local.index[i] as f64) / (l - s)).clamp(0.0, 1.0)
             }
             _ => attached[i] as u8 as f64,
@@ -398,19 +467,25 @@ mod tests {
     }
 
     #[test]
-    fn best_interval_scores_fractions_and_takes_the_middle_of_the_first_best() {
-        // Cell 0 observed fully in shadow, cell 1 half. Sixteen sub-points each: cell 0's at
-        // 1.0, cell 1's at 2.0 (all at once). Above 1: 1 / 1.5; above 2: 1.5 / 2 = 0.75 (best).
-        let mut ev: Vec<(f64, usize)> = (0..16).map(|_| (1.0, 0)).collect();
-        ev.extend((0..16).map(|_| (2.0, 1)));
-        let r = best_interval(&ev, &[1.0, 0.5], 4.0, 16).unwrap();
-        assert_eq!((r.height_m, r.overlap), (3.0, 0.75));
-        // Half of cell 1's sub-points at 2, half at 3: exactly its observed half above 2.
+    fn best_fit_fits_both_tones_and_takes_the_middle_of_the_first_best() {
+        // Cell 0 all shadow, cell 1 half, cells 2 and 3 lit: b = 70 − 50·s exactly when cell 0
+        // is covered and half of cell 1 — heights in (2, 3]; any lit and shadow level fits as
+        // well (the levels are fitted, not given).
         let mut ev: Vec<(f64, usize)> = (0..16).map(|_| (1.0, 0)).collect();
         ev.extend((0..16).map(|k| (2.0 + (k / 8) as f64, 1)));
-        let r = best_interval(&ev, &[1.0, 0.5], 4.0, 16).unwrap();
-        assert_eq!((r.height_m, r.overlap), (2.5, 1.0));
-        assert_eq!(best_interval(&ev, &[0.0, 0.0], 4.0, 16), None);
+        ev.extend((0..16).map(|_| (4.0, 2)));
+        let observed = [1.0, 0.5, 0.0, 0.0];
+        for (lit, shadow) in [(70.0, 20.0), (200.0, 190.0), (1.0, 0.0)] {
+            let b: Vec<f64> = observed.iter().map(|o| lit + (shadow - lit) * o).collect();
+            let r = best_fit(&ev, &b, &observed, 5.0, 16).unwrap();
+            assert_eq!((r.height_m, r.overlap), (2.5, 1.0), "{lit} {shadow}");
+        }
+        // Brighter wherever the synthetic shadow falls is no fit, however straight the line.
+        let b = [70.0, 45.0, 20.0, 20.0];
+        assert_eq!(best_fit(&ev, &b, &observed, 5.0, 16), None);
+        // No observed shadow, or no spread of brightness: nothing to fit.
+        assert_eq!(best_fit(&ev, &b, &[0.0; 4], 5.0, 16), None);
+        assert_eq!(best_fit(&ev, &[50.0; 4], &observed, 5.0, 16), None);
     }
 
     #[test]
