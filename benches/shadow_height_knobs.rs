@@ -33,7 +33,7 @@ fn scene(seed: u64, az: f64, el: f64, ground: (f64, f64, f64), shift: (f64, f64)
         clutter: vec![],
         footprint_shift: shift,
         camera: Camera::Ortho,
-        antialias: 3,
+        antialias: povray::antialias_for(el),
     }
 }
 

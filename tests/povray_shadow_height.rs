@@ -46,7 +46,7 @@ fn scene(cell: f64, az: f64, el: f64, buildings: Vec<Building>) -> Scene {
         clutter: vec![],
         footprint_shift: (0.0, 0.0),
         camera: Camera::Ortho,
-        antialias: 3,
+        antialias: povray::antialias_for(el),
     }
 }
 
@@ -137,7 +137,7 @@ fn slice_scene(
         clutter: vec![],
         footprint_shift: (0.0, 0.0),
         camera: Camera::Ortho,
-        antialias: 3,
+        antialias: povray::antialias_for(el),
     }
 }
 
