@@ -13,7 +13,7 @@ mod povray;
 mod shadow_truth;
 
 use povray::{isolated_layout, Building, Camera, Rng, Roof, Scene};
-use shadow_truth::{measure_scene, Outcome};
+use shadow_truth::{measure_prepared, measure_scene, prepare_scene, Outcome};
 
 fn have_povray() -> bool {
     let ok = std::process::Command::new("povray")
@@ -251,6 +251,53 @@ fn tally(name: &str, s: &Scene) -> (usize, usize, usize) {
         "{name}: silent gross errors: {silent:#?}"
     );
     (out.len(), flagged, silent.len())
+}
+
+#[test]
+fn a_perspective_photo_without_its_camera_is_measured_or_flagged() {
+    if !have_povray() {
+        return;
+    }
+    // Frame photos rectified on the ground, and dbms not told where they were taken: from
+    // 3000 m with the nadir 500 m off (leans ~1–2.5 m, nearly parallel: a shift alone would
+    // pass them for misregistration, as it did, with an unflagged roof 2.2 cells low), from
+    // 2000 m north of the buildings and from 1000 m over them (leans every way). The leans'
+    // growth with height gives the camera away: every roof within a cell, none flagged, and
+    // the camera found near where it was.
+    let flat_ground = (250.0, 0.0, 0.0);
+    for (h, nadir, seed) in [
+        (3000.0, (499_700.0, 5_299_800.0), 5),
+        (2000.0, (500_100.0, 5_300_400.0), 11),
+        (1000.0, (500_100.0, 5_300_100.0), 7),
+    ] {
+        let name = format!("perspective from {h} m, not told");
+        let mut s = slice_scene(0.5, 135.0, 40.0, flat_ground, true, seed);
+        s.camera = Camera::Perspective { nadir, height_m: h };
+        let dir = tempfile::tempdir().unwrap();
+        let p = prepare_scene(&s, dir.path()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let untold = Scene {
+            camera: Camera::Ortho,
+            ..s.clone()
+        };
+        let (out, _) = measure_prepared(&untold, &p).unwrap_or_else(|e| panic!("{name}: {e}"));
+        for o in &out {
+            let e = o.error_m().unwrap_or(f64::NAN);
+            assert!(!o.flagged() && e.abs() <= s.cell, "{name}: {o:?}");
+        }
+        let v: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("heights.geojson")).unwrap(),
+        )
+        .unwrap();
+        let c = &v["camera"];
+        let (e, n, z) = (
+            c["east"].as_f64().unwrap_or(f64::NAN),
+            c["north"].as_f64().unwrap_or(f64::NAN),
+            c["z"].as_f64().unwrap_or(f64::NAN),
+        );
+        assert_eq!(c["estimated"], true, "{name}: {c}");
+        assert!((e - nadir.0).hypot(n - nadir.1) < 0.1 * h, "{name}: {c}");
+        assert!((z - 250.0 - h).abs() < 0.1 * h, "{name}: {c}");
+    }
 }
 
 #[test]

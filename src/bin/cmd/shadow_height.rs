@@ -88,29 +88,36 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .fix("give 0 (footprints as given) or the largest misregistration, e.g. 3"));
     }
     let camera = args.camera.as_deref().map(parse_camera).transpose()?;
-    let (registration, valid) = if args.max_shift > 0.0 {
-        sh::register_footprints(&colour, &given, &sun, args.max_shift, camera.as_ref())
-    } else {
-        (sh::Registration::none(given.len()), given)
-    };
-    if let Some((e, n, k)) = registration.scene {
-        ctx.log(format!(
-            "footprints moved {e:+.2} m east, {n:+.2} m north onto the photo (median of {k} buildings)"
-        ));
-    }
     let inputs = sh::Inputs {
         terrain: &terrain,
         colour: &colour,
         mask: mask.as_ref(),
-        leans: camera.is_some().then_some(&registration.leans[..]),
+        leans: None,
     };
     let opts = sh::Options {
         max_height_m: args.max_height,
         line_spacing_cells: args.line_spacing,
         sub_points: args.sub_points,
     };
-    let mut measured = sh::measure(&inputs, &valid, &sun, &opts)?;
-    registration.flag_off_photo(&mut measured, db.grid());
+    let (registration, measured) = sh::register_and_measure(
+        &inputs,
+        &given,
+        &sun,
+        &opts,
+        args.max_shift,
+        camera.as_ref(),
+    )?;
+    if let Some((e, n, k)) = registration.scene {
+        ctx.log(format!(
+            "footprints moved {e:+.2} m east, {n:+.2} m north onto the photo (median of {k} buildings)"
+        ));
+    }
+    if let Some((c, true)) = registration.camera {
+        ctx.log(format!(
+            "the buildings lean as in a perspective photo taken from {:.0} m east, {:.0} m north, {:.0} m high (estimated; give --camera if known)",
+            c.east, c.north, c.z
+        ));
+    }
     let mut measured = measured.into_iter();
     let results: Vec<Result<sh::Measurement, String>> = features
         .iter()
@@ -151,6 +158,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
                 "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
                 "max_shift_m": args.max_shift, "camera": args.camera,
+                "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
                 "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
             }),
         ));

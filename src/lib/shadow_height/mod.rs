@@ -100,6 +100,7 @@ impl Default for Options {
 
 /// What a run looks at: the database's terrain and colour on one grid, and optionally a given
 /// shadow mask on the same grid (0 = lit, 255 = nodata, anything else = shadow).
+#[derive(Clone, Copy)]
 pub struct Inputs<'a> {
     /// Bare-earth elevation, metres, NaN = nodata.
     pub terrain: &'a Elevation,
@@ -212,6 +213,9 @@ pub struct Registration {
     /// Each footprint's roof lean in a perspective photo, metres (east, north); zeros for an
     /// orthophoto.
     pub leans: Vec<(f64, f64)>,
+    /// The perspective centre the leans are toward, with whether it was estimated
+    /// ([`register::estimate_camera`]) rather than given; `None` for an orthophoto.
+    pub camera: Option<(register::Camera, bool)>,
 }
 
 impl Registration {
@@ -221,6 +225,7 @@ impl Registration {
             scene: None,
             buildings: vec![None; n],
             leans: vec![(0.0, 0.0); n],
+            camera: None,
         }
     }
 
@@ -285,6 +290,7 @@ pub fn register_footprints(
         scene,
         buildings,
         leans,
+        camera: camera.map(|c| (*c, false)),
     };
     let (e, n) = reg.applied();
     let moved = footprints
@@ -292,6 +298,76 @@ pub fn register_footprints(
         .map(|f| register::moved(f, e, n))
         .collect();
     (reg, moved)
+}
+
+/// The whole stage for footprints as given: register them to the photo (unless
+/// `max_shift_m` is 0), measure them, and flag those off the photo. Returns the registration
+/// and one result per footprint.
+///
+/// Without a `camera`, a photo whose buildings' own shifts disagree with the scene's (at least
+/// [`register::MIN_CAMERA_BUILDINGS`] of them off it by more than a cell: no single shift puts
+/// them all on their roofs) may be a perspective one. Then the footprints are measured as
+/// given, a perspective centre is sought that explains the shifts by those heights
+/// ([`register::estimate_camera`]), and, when one does, the footprints are registered and
+/// measured again as with that camera (recorded as estimated). An orthophoto pays nothing.
+pub fn register_and_measure(
+    inputs: &Inputs,
+    given: &[Footprint],
+    sun: &Sun,
+    opts: &Options,
+    max_shift_m: f64,
+    camera: Option<&register::Camera>,
+) -> Result<(Registration, Vec<std::result::Result<Measurement, String>>)> {
+    let grid = &inputs.terrain.grid;
+    let (cx, cy) = grid.cell_size();
+    let cell = cx.max(cy);
+    let run = |reg: Registration, moved: Vec<Footprint>| -> Result<_> {
+        let leaned = Inputs {
+            leans: reg.camera.is_some().then_some(&reg.leans[..]),
+            ..*inputs
+        };
+        let mut measured = measure(&leaned, &moved, sun, opts)?;
+        reg.flag_off_photo(&mut measured, grid);
+        Ok((reg, measured))
+    };
+    if max_shift_m <= 0.0 {
+        return run(Registration::none(given.len()), given.to_vec());
+    }
+    let (reg, moved) = register_footprints(inputs.colour, given, sun, max_shift_m, camera);
+    let off = (0..given.len()).filter(|&k| reg.off_photo(k, cell)).count();
+    if camera.is_some() || off < register::MIN_CAMERA_BUILDINGS {
+        return run(reg, moved);
+    }
+    let as_given = measure(inputs, given, sun, opts)?;
+    let trusted = |m: &Measurement| {
+        let f = &m.flags;
+        !(f.no_shadow || f.lines_disagree || f.estimates_disagree || f.poor_shadow_match)
+    };
+    let heights: Vec<Option<f64>> = as_given
+        .iter()
+        .map(|m| {
+            m.as_ref()
+                .ok()
+                .filter(|m| trusted(m))
+                .and_then(|m| m.height_m)
+        })
+        .collect();
+    let grounds: Vec<f64> = as_given
+        .iter()
+        .filter_map(|m| m.as_ref().ok().map(|m| m.ground_z))
+        .collect();
+    let estimated = scan::median(&grounds).and_then(|ground_z| {
+        register::estimate_camera(given, &reg.buildings, &heights, ground_z, cell)
+    });
+    match estimated {
+        None => run(reg, moved),
+        Some(cam) => {
+            let (mut reg, moved) =
+                register_footprints(inputs.colour, given, sun, max_shift_m, Some(&cam));
+            reg.camera = Some((cam, true));
+            run(reg, moved)
+        }
+    }
 }
 
 /// Measure every footprint. The outer error is for the whole run (grids that differ, a grid in

@@ -73,6 +73,7 @@ pub fn heights_geojson(
         "name": "heights",
         "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg },
         "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
+        "camera": registration.camera.map(|(c, estimated)| json!({ "east": c.east, "north": c.north, "z": c.z, "estimated": estimated })),
         "features": out,
     });
     if let Some(code) = epsg {

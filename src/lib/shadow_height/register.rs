@@ -310,6 +310,148 @@ pub fn with_camera(
     (Some((g.0, g.1, kept.len())), leans)
 }
 
+/// The perspective centre of a frame photo, estimated from the buildings themselves: their own
+/// shift estimates `shifts` and their heights above the ground `heights` (metres, measured with
+/// the footprints as given: a photo rectified on the ground has the bases, and so the shadows'
+/// tips, in place). A roof `h` above the ground at `p` is seen moved by the scene's
+/// misregistration `g` plus its lean `h·(p − N)/(Z − h)`, which for `h ≪ Z` is linear in the
+/// unknowns: `s = g + a·h·p − h·m`, `a = 1/Z`, `m = N/Z` (positions from the buildings' mean,
+/// for conditioning). Least squares over the buildings with a clear estimate and a height,
+/// solved again without those more than `cell` off the first solution.
+///
+/// The photo is taken for a perspective one only when the leans explain the estimates: at
+/// least [`MIN_CAMERA_BUILDINGS`] buildings kept (and two thirds of those tried), a camera
+/// above twice the tallest roof, the leans' model leaving at most a quarter of the estimates'
+/// scatter about their mean, and some lean over a cell (smaller leans change no height).
+/// `None` otherwise. `ground_z` (absolute metres) turns `Z` into the returned camera's height.
+pub fn estimate_camera(
+    footprints: &[Footprint],
+    shifts: &[Option<Shift>],
+    heights: &[Option<f64>],
+    ground_z: f64,
+    cell: f64,
+) -> Option<Camera> {
+    let centre = |f: &Footprint| {
+        let b = f.bbox();
+        ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0)
+    };
+    let tried: Vec<(usize, f64)> = (0..footprints.len())
+        .filter_map(|k| match (shifts[k], heights[k]) {
+            (Some(s), Some(h)) if s.counts() && h > 0.0 => Some((k, h)),
+            _ => None,
+        })
+        .collect();
+    if tried.len() < MIN_CAMERA_BUILDINGS {
+        return None;
+    }
+    let n = tried.len() as f64;
+    let origin = tried.iter().fold((0.0, 0.0), |o, &(k, _)| {
+        let c = centre(&footprints[k]);
+        (o.0 + c.0 / n, o.1 + c.1 / n)
+    });
+    // The two rows of building k: (coefficients of [gx, gy, a, mx, my], observed shift).
+    let rows = |k: usize, h: f64| {
+        let (cx, cy) = centre(&footprints[k]);
+        let (px, py) = (cx - origin.0, cy - origin.1);
+        let s = shifts[k].unwrap();
+        [
+            ([1.0, 0.0, h * px, -h, 0.0], s.east_m),
+            ([0.0, 1.0, h * py, 0.0, -h], s.north_m),
+        ]
+    };
+    let solve = |use_: &[(usize, f64)]| -> Option<[f64; 5]> {
+        let mut ata = [[0.0; 5]; 5];
+        let mut atb = [0.0; 5];
+        for &(k, h) in use_ {
+            for (a, b) in rows(k, h) {
+                for i in 0..5 {
+                    atb[i] += a[i] * b;
+                    for j in 0..5 {
+                        ata[i][j] += a[i] * a[j];
+                    }
+                }
+            }
+        }
+        solve5(ata, atb)
+    };
+    let residual = |x: &[f64; 5], k: usize, h: f64| {
+        let r = rows(k, h).map(|(a, b)| (0..5).map(|i| a[i] * x[i]).sum::<f64>() - b);
+        r[0].hypot(r[1])
+    };
+    let first = solve(&tried)?;
+    let kept: Vec<(usize, f64)> = tried
+        .iter()
+        .copied()
+        .filter(|&(k, h)| residual(&first, k, h) <= cell)
+        .collect();
+    if kept.len() < MIN_CAMERA_BUILDINGS || 3 * kept.len() < 2 * tried.len() {
+        return None;
+    }
+    let x = solve(&kept)?;
+    let (a, m) = (x[2], (x[3], x[4]));
+    let tallest = kept.iter().map(|&(_, h)| h).fold(0.0, f64::max);
+    if a.is_nan() || a <= 0.0 || 1.0 / a <= 2.0 * tallest {
+        return None;
+    }
+    let mean = kept.iter().fold((0.0, 0.0), |o, &(k, _)| {
+        let s = shifts[k].unwrap();
+        let n = kept.len() as f64;
+        (o.0 + s.east_m / n, o.1 + s.north_m / n)
+    });
+    let scatter: f64 = kept
+        .iter()
+        .map(|&(k, _)| {
+            let s = shifts[k].unwrap();
+            (s.east_m - mean.0).powi(2) + (s.north_m - mean.1).powi(2)
+        })
+        .sum();
+    let unexplained: f64 = kept.iter().map(|&(k, h)| residual(&x, k, h).powi(2)).sum();
+    let largest_lean = kept
+        .iter()
+        .map(|&(k, h)| {
+            let (cx, cy) = centre(&footprints[k]);
+            let (px, py) = (cx - origin.0, cy - origin.1);
+            (a * h * px - h * m.0).hypot(a * h * py - h * m.1)
+        })
+        .fold(0.0, f64::max);
+    (unexplained <= 0.25 * scatter && largest_lean > cell).then(|| Camera {
+        east: origin.0 + m.0 / a,
+        north: origin.1 + m.1 / a,
+        z: ground_z + 1.0 / a,
+    })
+}
+
+/// Fewest buildings [`estimate_camera`] rests a perspective centre on (five unknowns, two
+/// equations a building, and one more building than the bare minimum to show a misfit).
+pub const MIN_CAMERA_BUILDINGS: usize = 4;
+
+/// The solution of the 5 × 5 system `a·x = b` by Gaussian elimination with partial pivoting;
+/// `None` when `a` is singular (relative pivot below 1e-12).
+fn solve5(mut a: [[f64; 5]; 5], mut b: [f64; 5]) -> Option<[f64; 5]> {
+    let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    for col in 0..5 {
+        let piv = (col..5).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[piv][col].is_nan() || a[piv][col].abs() <= 1e-12 * scale {
+            return None;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for r in col + 1..5 {
+            let f = a[r][col] / a[col][col];
+            for c in col..5 {
+                a[r][c] -= f * a[col][c];
+            }
+            b[r] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; 5];
+    for r in (0..5).rev() {
+        let s: f64 = (r + 1..5).map(|c| a[r][c] * x[c]).sum();
+        x[r] = (b[r] - s) / a[r][r];
+    }
+    Some(x)
+}
+
 /// `fp` moved by `(east_m, north_m)`.
 pub fn moved(fp: &Footprint, east_m: f64, north_m: f64) -> Footprint {
     Footprint {
@@ -395,6 +537,105 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Nine buildings on a 3 × 3 lattice 60 m apart around (1000, 2000), heights 6–22 m, seen
+    /// from `camera` with the whole scene misregistered by `g`: each one's shift is `g` plus
+    /// its exact lean `h·(p − N)/(Z − h)` (the estimate models `h ≪ Z`), plus `noise(k)`.
+    fn leaning(
+        camera: Camera,
+        g: (f64, f64),
+        noise: impl Fn(usize) -> (f64, f64),
+    ) -> (Vec<Footprint>, Vec<Option<Shift>>, Vec<Option<f64>>) {
+        let mut fps = Vec::new();
+        let mut shifts = Vec::new();
+        let mut heights = Vec::new();
+        for k in 0..9 {
+            let (x0, y0) = (
+                940.0 + 60.0 * (k % 3) as f64,
+                1940.0 + 60.0 * (k / 3) as f64,
+            );
+            let fp = square(x0, y0);
+            let (cx, cy) = (x0 + 5.0, y0 + 4.0);
+            let h = 6.0 + 2.0 * k as f64;
+            let l = h / (camera.z - 100.0 - h);
+            let (ne, nn) = noise(k);
+            shifts.push(Some(Shift {
+                east_m: g.0 + l * (cx - camera.east) + ne,
+                north_m: g.1 + l * (cy - camera.north) + nn,
+                peak_ratio: 10.0,
+            }));
+            fps.push(fp);
+            heights.push(Some(h));
+        }
+        (fps, shifts, heights)
+    }
+
+    #[test]
+    fn a_perspective_centre_is_found_from_leans_and_heights() {
+        // From 1500 m over ground at 100 m, nadir 300 m south-west of the buildings, the scene
+        // 0.8 m off: leans of 1–4 m, all nearly one way — a shift alone cannot explain them,
+        // their growth with height does.
+        let truth = Camera {
+            east: 780.0,
+            north: 1790.0,
+            z: 1600.0,
+        };
+        let (fps, shifts, heights) = leaning(truth, (0.8, -0.3), |_| (0.0, 0.0));
+        let c = estimate_camera(&fps, &shifts, &heights, 100.0, 0.5).unwrap();
+        assert!(
+            (c.east - truth.east).hypot(c.north - truth.north) < 20.0,
+            "{c:?}"
+        );
+        assert!((c.z - truth.z).abs() < 40.0, "{c:?}");
+        // Estimates a quarter metre off at random still find it, less exactly.
+        let jitter = |k: usize| {
+            let r = |s: usize| ((k * 7919 + s * 104729) % 1000) as f64 / 1000.0 - 0.5;
+            (0.5 * r(1), 0.5 * r(2))
+        };
+        let (fps, shifts, heights) = leaning(truth, (0.8, -0.3), jitter);
+        let c = estimate_camera(&fps, &shifts, &heights, 100.0, 0.5).unwrap();
+        assert!(
+            (c.east - truth.east).hypot(c.north - truth.north) < 150.0,
+            "{c:?}"
+        );
+        assert!((c.z - truth.z).abs() < 300.0, "{c:?}");
+    }
+
+    #[test]
+    fn an_orthophoto_has_no_perspective_centre() {
+        // Every building off by the same shift and a little noise: nothing leans.
+        let far = Camera {
+            east: 0.0,
+            north: 0.0,
+            z: 1e9,
+        };
+        let jitter = |k: usize| (0.1 * ((k % 3) as f64 - 1.0), 0.1 * ((k / 3) as f64 - 1.0));
+        let (fps, shifts, heights) = leaning(far, (1.5, 0.7), jitter);
+        assert_eq!(estimate_camera(&fps, &shifts, &heights, 100.0, 0.5), None);
+        // Leans under a cell change no height: not worth a camera either (from 30 km up).
+        let high = Camera {
+            east: 780.0,
+            north: 1790.0,
+            z: 30_000.0,
+        };
+        let (fps, shifts, heights) = leaning(high, (0.0, 0.0), |_| (0.0, 0.0));
+        assert_eq!(estimate_camera(&fps, &shifts, &heights, 100.0, 0.5), None);
+        // Too few buildings with a height to tell.
+        let (fps, shifts, mut heights) = leaning(
+            Camera {
+                east: 780.0,
+                north: 1790.0,
+                z: 1600.0,
+            },
+            (0.0, 0.0),
+            |_| (0.0, 0.0),
+        );
+        heights
+            .iter_mut()
+            .skip(MIN_CAMERA_BUILDINGS - 1)
+            .for_each(|h| *h = None);
+        assert_eq!(estimate_camera(&fps, &shifts, &heights, 100.0, 0.5), None);
     }
 
     #[test]
