@@ -181,6 +181,29 @@ fn each_degenerate_footprint_fails_alone_with_its_reason() {
                 [x, y]
             ]),
         ),
+        // Issue 14: one stray vertex made the run abort allocating by the footprint's extent.
+        poly(
+            "stray vertex at 1e15",
+            json!([
+                [x, y],
+                [x + 5.0, y],
+                [1e15, 1e15],
+                [x + 5.0, y + 5.0],
+                [x, y + 5.0],
+                [x, y]
+            ]),
+        ),
+        poly(
+            "stray vertex at the origin",
+            json!([
+                [x, y],
+                [x + 5.0, y],
+                [0, 0],
+                [x + 5.0, y + 5.0],
+                [x, y + 5.0],
+                [x, y]
+            ]),
+        ),
     ];
     std::fs::write(
         t.path().join("bad.geojson"),
@@ -207,12 +230,14 @@ fn each_degenerate_footprint_fails_alone_with_its_reason() {
     let h = read_json(&t.path().join("h.geojson"));
     assert_schema(&h);
     let fs = h["features"].as_array().unwrap();
-    assert_eq!(fs.len(), 5);
+    assert_eq!(fs.len(), 7);
     for (k, reason) in [
         (0, "fewer than 3"),
         (1, "zero area"),
         (3, "geometry"),
         (4, "self-intersecting"),
+        (5, "stray vertex"),
+        (6, "stray vertex"),
     ] {
         let p = &fs[k]["properties"];
         assert_eq!(p["height_m"], Value::Null, "{p}");

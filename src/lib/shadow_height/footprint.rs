@@ -15,6 +15,12 @@ use crate::grid::Grid;
 use crate::pyramid::raised::{rasterise_prisms, Prism};
 use std::path::Path;
 
+/// The widest footprint taken for a building, metres (east–west or north–south). The largest
+/// buildings on Earth are about 1 km across; a footprint spanning more is a data error — most
+/// often one stray vertex (`[0, 0]`, or a coordinate in the wrong unit) — and measuring it
+/// would cost memory and time by its extent, not by the building's.
+pub const MAX_SPAN_M: f64 = 5000.0;
+
 /// A validated footprint: polygon rings in the database CRS (metres).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Footprint {
@@ -90,6 +96,14 @@ impl Footprint {
                 rings.push(ring);
             }
         }
+        let b = bbox_of(&rings);
+        let span = (b.2 - b.0).max(b.3 - b.1);
+        if span.is_nan() || span > MAX_SPAN_M {
+            return Err(format!(
+                "spans {span:.0} m, and no building is over {MAX_SPAN_M:.0} m across: a stray vertex? (vertices from ({:.1}, {:.1}) to ({:.1}, {:.1}); fix or drop it)",
+                b.0, b.1, b.2, b.3
+            ));
+        }
         if let Some((i, j)) = first_crossing(&rings) {
             return Err(format!(
                 "self-intersecting (edges {i} and {j} touch or cross)"
@@ -103,15 +117,7 @@ impl Footprint {
 
     /// Bounding box `(min_x, min_y, max_x, max_y)`.
     pub fn bbox(&self) -> (f64, f64, f64, f64) {
-        self.rings.iter().flatten().fold(
-            (
-                f64::INFINITY,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::NEG_INFINITY,
-            ),
-            |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
-        )
+        bbox_of(&self.rings)
     }
 
     /// Row-major indices of the cells of `grid` whose centre is inside (the database's
@@ -144,6 +150,19 @@ impl Footprint {
             .iter()
             .flat_map(|r| (0..r.len()).map(move |k| (r[k], r[(k + 1) % r.len()])))
     }
+}
+
+/// Bounding box `(min_x, min_y, max_x, max_y)` of `rings`' vertices.
+fn bbox_of(rings: &[Vec<(f64, f64)>]) -> (f64, f64, f64, f64) {
+    rings.iter().flatten().fold(
+        (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ),
+        |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
+    )
 }
 
 /// Drop consecutive repeats and the closing vertex.
@@ -269,6 +288,34 @@ mod tests {
         ]]))
         .unwrap();
         assert_eq!(f.area, 64.0);
+    }
+
+    #[test]
+    fn hard_case_a_stray_vertex_is_refused_before_anything_is_sized_by_it() {
+        // A 10 m building at UTM coordinates with one vertex at [0, 0] or near 1e15 m (issue
+        // 14: shadow-height aborted allocating 1.8e17 bytes by such a footprint's extent).
+        let (x, y) = (500_000.0, 5_300_000.0);
+        for stray in [json!([0, 0]), json!([1e15, 1e15]), json!([x + 5001.0, y])] {
+            let e = poly(json!([[
+                [x, y],
+                [x + 10.0, y],
+                stray,
+                [x + 10.0, y + 10.0],
+                [x, y + 10.0],
+                [x, y]
+            ]]))
+            .unwrap_err();
+            assert!(e.contains("stray vertex"), "{e}");
+        }
+        // The widest building accepted: 5 km.
+        assert!(poly(json!([[
+            [x, y],
+            [x + 5000.0, y],
+            [x + 5000.0, y + 10.0],
+            [x, y + 10.0],
+            [x, y]
+        ]]))
+        .is_ok());
     }
 
     #[test]
