@@ -80,8 +80,15 @@ fn ingest_builds_a_database_and_info_describes_it() {
     assert_eq!(v["grid"]["width"], 80);
     assert_eq!(v["grid"]["height"], 60);
     assert_eq!(v["elevation"]["nodata_cells"], 0);
-    for f in ["manifest.json", "elevation.tif", "colour.tif"] {
-        assert!(db.join(f).is_file(), "{f} missing");
+    // Layers are named by their content (docs/database.md): a change never overwrites a file
+    // the committed manifest names.
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(db.join("manifest.json")).unwrap()).unwrap();
+    for (layer, ext) in [("elevation", "tif"), ("colour", "tif")] {
+        let l = &manifest["layers"][layer];
+        let sha = l["sha256"].as_str().unwrap();
+        assert_eq!(l["file"], format!("{layer}-{}.{ext}", &sha[..12]));
+        assert!(db.join(l["file"].as_str().unwrap()).is_file(), "{l}");
     }
     // The photo is copied 1:1 at its own resolution.
     let colour = dbms::db::Database::open(&db)
@@ -110,7 +117,10 @@ fn ingest_builds_a_database_and_info_describes_it() {
     let info_json: serde_json::Value =
         serde_json::from_slice(&dbms(&["info", s(&db), "--json"]).stdout).unwrap();
     assert_eq!(info_json["provenance"]["inputs"][0]["role"], "dem");
-    assert_eq!(info_json["layers"]["elevation"]["file"], "elevation.tif");
+    assert_eq!(
+        info_json["layers"]["elevation"]["file"],
+        manifest["layers"]["elevation"]["file"]
+    );
     assert!(info_json["centre"]["latitude_deg"].as_f64().unwrap() > 47.0);
 }
 
@@ -138,11 +148,21 @@ fn same_inputs_give_byte_identical_databases() {
         assert!(out.status.success(), "{}", stderr(&out));
         std::fs::rename(t.path().join("out"), db).unwrap();
     }
-    for f in ["manifest.json", "elevation.tif", "colour.tif"] {
+    let files = |d: &std::path::Path| {
+        let mut v: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(files(&a), files(&b));
+    assert_eq!(files(&a).len(), 4, "{:?}", files(&a)); // manifest, 2 layers, the lock file
+    for f in files(&a) {
         assert_eq!(
-            std::fs::read(a.join(f)).unwrap(),
-            std::fs::read(b.join(f)).unwrap(),
-            "{f} differs"
+            std::fs::read(a.join(&f)).unwrap(),
+            std::fs::read(b.join(&f)).unwrap(),
+            "{f:?} differs"
         );
     }
 }

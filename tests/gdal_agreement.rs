@@ -81,22 +81,30 @@ fn compare(ours: &[f64], theirs: &[f64]) -> (f64, usize) {
     ((sum / n.max(1) as f64).sqrt(), mismatched)
 }
 
+/// The file of `db`'s layer `name` (named by its content: docs/database.md).
+fn layer(db: &Path, name: &str) -> std::path::PathBuf {
+    dbms::db::Database::open(db)
+        .unwrap()
+        .layer_path(name)
+        .unwrap()
+}
+
 /// Ingest at `cell` and compare with gdalwarp; returns (elevation RMS m, colour RMS grey levels).
 /// GDAL opens the database's two layers with the grid's georeference, CRS and nodata.
 fn gdal_sees_the_database_grid(db: &Path, g: &Grid) {
     let t = &g.transform;
     let geo = serde_json::json!([t.origin_x, t.cell_x, 0.0, t.origin_y, 0.0, t.cell_y]);
     for (file, types, interp) in [
-        ("elevation.tif", &["Float32"][..], &["Gray"][..]),
+        ("elevation", &["Float32"][..], &["Gray"][..]),
         (
-            "colour.tif",
+            "colour",
             &["Byte"; 4][..],
             &["Red", "Green", "Blue", "Alpha"][..],
         ),
     ] {
         let out = Command::new("gdalinfo")
             .arg("-json")
-            .arg(db.join(file))
+            .arg(layer(db, file))
             .output()
             .expect("gdalinfo comes with gdalwarp");
         assert!(out.status.success(), "gdalinfo rejected {file}");
@@ -140,7 +148,7 @@ fn agreement(dir: &Path, cell: f64) -> (f64, f64) {
         .arg(&dem)
         .arg("--ortho")
         .arg(&ortho));
-    let elev = read_raster(&db.join("elevation.tif"))
+    let elev = read_raster(&layer(&db, "elevation"))
         .unwrap()
         .to_elevation()
         .unwrap();
@@ -171,7 +179,7 @@ fn agreement(dir: &Path, cell: f64) -> (f64, f64) {
     println!("cell {cell}: elevation RMS vs gdalwarp -r bilinear = {elev_rms:.3e} m, nodata mismatches = {mismatched}");
     assert_eq!(mismatched, 0, "nodata cells differ from gdalwarp");
 
-    let ours = read_raster(&db.join("colour.tif"))
+    let ours = read_raster(&layer(&db, "colour"))
         .unwrap()
         .to_colour()
         .unwrap();

@@ -15,6 +15,10 @@ struct Cli {
     /// Print a machine-readable JSON summary on stdout.
     #[arg(long, global = true)]
     json: bool,
+    /// Seconds to wait for another dbms changing the same database (one writer at a time) before
+    /// giving up with an error.
+    #[arg(long, global = true, value_name = "SECONDS", default_value = "60", value_parser = parse_wait)]
+    wait: std::time::Duration,
     #[command(subcommand)]
     command: Command,
 }
@@ -47,12 +51,23 @@ enum Command {
     Tiles(cmd::tiles::Args),
 }
 
+/// `--wait SECONDS`: a number of seconds ≥ 0 (`inf`: wait as long as it takes).
+fn parse_wait(s: &str) -> Result<std::time::Duration, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v == f64::INFINITY => Ok(std::time::Duration::MAX),
+        Ok(v) => std::time::Duration::try_from_secs_f64(v)
+            .map_err(|_| format!("{s} is not a number of seconds ≥ 0")),
+        Err(_) => Err(format!("{s} is not a number of seconds")),
+    }
+}
+
 fn main() -> ExitCode {
     keep_freed_memory();
     let cli = Cli::parse();
     let ctx = cmd::Ctx {
         quiet: cli.quiet,
         json: cli.json,
+        wait: cli.wait,
     };
     let result: dbms::Result<()> = match cli.command {
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),

@@ -7,9 +7,13 @@
 //!   stages that have run, in order.
 //! * `elevation.tif` (float32 GeoTIFF, nodata −9999) and `colour.tif` (RGBA8 GeoTIFF, alpha = mask).
 //!
-//! Invariant: every file the manifest names exists with the recorded SHA-256, and the manifest is
-//! rewritten atomically after the files it names are in place, so a killed stage leaves the
-//! previous consistent database.
+//! Invariant: every file the manifest names exists with the recorded SHA-256, and the manifest
+//! names only files inside the directory and carries the SHA-256 of its own content. A change
+//! ([`Change`], from [`Database::begin`]) holds the database's write lock, reads the manifest
+//! under it, writes every new layer under a new content-derived name, and commits by renaming
+//! the new manifest into place — the one commit point — before removing the files it replaced.
+//! So a change killed at any instant leaves either the old database or the new one, and two
+//! changes never lose each other's updates. See docs/database.md.
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
@@ -57,6 +61,34 @@ pub struct Manifest {
     pub provenance: Provenance,
     /// Stages that have run, in order (ingest first).
     pub stages: Vec<Stage>,
+    /// Lower-case hex SHA-256 of this manifest written without this member
+    /// ([`Manifest::content_sha256`]); absent in manifests of dbms before 0.x's transactions.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub checksum: Option<String>,
+}
+
+impl Manifest {
+    /// The manifest's text as saved: pretty JSON with a final newline.
+    fn text(&self) -> String {
+        let mut text = serde_json::to_string_pretty(self).expect("manifest serialises");
+        text.push('\n');
+        text
+    }
+
+    /// SHA-256 of the manifest's text without its `checksum` member.
+    pub fn content_sha256(&self) -> String {
+        let bare = Manifest {
+            checksum: None,
+            ..self.clone()
+        };
+        hex(&Sha256::digest(bare.text().as_bytes()))
+    }
+
+    /// Every file the manifest names (layers, then objects), relative to the directory.
+    fn files(&self) -> impl Iterator<Item = (&String, &String)> {
+        let layers = self.layers.values().map(|l| (&l.file, &l.sha256));
+        layers.chain(self.objects.iter().map(|o| (&o.file, &o.sha256)))
+    }
 }
 
 /// Units of a database.
@@ -193,6 +225,7 @@ impl Database {
                 dbms_version: env!("CARGO_PKG_VERSION").to_string(),
             },
             stages: Vec::new(),
+            checksum: None,
         };
         Ok(Database {
             dir: dir.to_path_buf(),
@@ -233,6 +266,22 @@ impl Database {
                 ),
             )
             .fix("upgrade dbms"));
+        }
+        if let Some(sum) = &manifest.checksum {
+            if *sum != manifest.content_sha256() {
+                return Err(Error::file(
+                    &path,
+                    "was changed outside dbms or is corrupt: its checksum does not match its content",
+                )
+                .fix("undo the edit, or re-create the database with `dbms ingest`"));
+            }
+        }
+        if let Some((file, _)) = manifest.files().find(|(f, _)| !inside(f)) {
+            return Err(Error::file(
+                &path,
+                format!("names {file:?}, a file outside the database directory"),
+            )
+            .fix("re-create the database with `dbms ingest`"));
         }
         Ok(Database {
             dir: dir.to_path_buf(),
@@ -380,18 +429,21 @@ impl Database {
             .collect()
     }
 
-    /// Write `manifest.json` atomically.
-    pub fn save(&self) -> Result<()> {
-        let mut text = serde_json::to_string_pretty(&self.manifest).expect("manifest serialises");
-        text.push('\n');
-        write_bytes_atomic(&self.dir.join(MANIFEST_FILE), text.as_bytes())
+    /// Write `manifest.json` atomically, with its checksum. Stages change a database through a
+    /// [`Change`] ([`Database::begin`]), which locks it and calls this as its commit; a
+    /// database built by hand (tests) may call it directly.
+    pub fn save(&mut self) -> Result<()> {
+        self.manifest.checksum = Some(self.manifest.content_sha256());
+        write_bytes_atomic(
+            &self.dir.join(MANIFEST_FILE),
+            self.manifest.text().as_bytes(),
+        )
     }
 
-    /// Check every layer and object file against its recorded SHA-256; the first mismatch is an error.
+    /// Check every layer and object file against its recorded SHA-256; the first mismatch is an
+    /// error. (The manifest's own checksum and file names were checked by [`Database::open`].)
     pub fn verify(&self) -> Result<()> {
-        let files = self.manifest.layers.values().map(|l| (&l.file, &l.sha256));
-        let objects = self.manifest.objects.iter().map(|o| (&o.file, &o.sha256));
-        for (file, sha) in files.chain(objects) {
+        for (file, sha) in self.manifest.files() {
             let path = self.dir.join(file);
             if &sha256_file(&path)? != sha {
                 return Err(Error::file(
@@ -402,6 +454,229 @@ impl Database {
             }
         }
         Ok(())
+    }
+}
+
+/// The lock file in a database directory. A [`Change`] holds an exclusive advisory lock
+/// (`flock`) on it; it is never removed (removing it would let two writers lock two files).
+pub const LOCK_FILE: &str = ".dbms.lock";
+
+/// Prefix of the files a [`Change`] is still writing: what a killed change leaves behind, and
+/// the next change removes.
+const STAGING_PREFIX: &str = ".dbms-stage-";
+
+/// A change to a database under its write lock: read the manifest, write layers, commit.
+///
+/// Invariant: until [`Change::commit`] the database on disk is the one the change began from:
+/// new layers go to new files, named by their content (`buildings-1a2b3c4d5e6f.geojson`); the
+/// commit renames the new manifest into place and only then removes the files it no longer
+/// names. Dropped without a commit (an error), it removes what it wrote.
+pub struct Change {
+    /// The database as read under the lock, changed by the caller and saved by the commit.
+    pub db: Database,
+    /// The files the manifest named when the change began.
+    before: Vec<String>,
+    /// Files this change created (removed if it is dropped uncommitted).
+    written: Vec<PathBuf>,
+    committed: bool,
+    _lock: std::fs::File,
+}
+
+impl Database {
+    /// Begin a change to the database in `dir`: wait up to `wait` for its write lock, clear
+    /// what killed changes left, and read the manifest as it is now.
+    pub fn begin(dir: &Path, wait: std::time::Duration) -> Result<Change> {
+        if !dir.is_dir() {
+            Database::open(dir)?; // the one-line error for a missing directory or a file
+        }
+        let lock = lock(dir, wait)?;
+        Change::new(Database::open(dir)?, lock)
+    }
+
+    /// Begin a change that creates the database in `dir` (made if missing) for `grid`, or
+    /// replaces the one there: the change's `db` is the database there when there is one, else
+    /// a new one with no layers. The caller decides what to keep.
+    pub fn begin_create(
+        dir: &Path,
+        grid: Grid,
+        inputs: Vec<InputFile>,
+        wait: std::time::Duration,
+    ) -> Result<(Change, Option<Manifest>)> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
+        let lock = lock(dir, wait)?;
+        let old = dir
+            .join(MANIFEST_FILE)
+            .exists()
+            .then(|| Database::open(dir))
+            .transpose()?;
+        let db = Database::create(dir, grid, inputs)?;
+        if let Some(old) = &old {
+            // The files of the database being replaced are removed by the commit unless kept.
+            let mut change = Change::new(old.clone(), lock)?;
+            change.db = db;
+            return Ok((change, Some(old.manifest.clone())));
+        }
+        Ok((Change::new(db, lock)?, None))
+    }
+}
+
+/// Take `dir`'s write lock, retrying every 50 ms for up to `wait`.
+fn lock(dir: &Path, wait: std::time::Duration) -> Result<std::fs::File> {
+    let path = dir.join(LOCK_FILE);
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(|e| Error::io(&path, e).fix("check that the database directory is writable"))?;
+    let start = std::time::Instant::now();
+    loop {
+        match file.try_lock() {
+            Ok(()) => return Ok(file),
+            Err(std::fs::TryLockError::WouldBlock) if start.elapsed() < wait => {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+            }
+            Err(std::fs::TryLockError::WouldBlock) => {
+                return Err(Error::file(
+                    dir,
+                    format!(
+                        "another dbms is changing this database (waited {:.0} s for its lock)",
+                        wait.as_secs_f64()
+                    ),
+                )
+                .fix("wait for it to finish, or give a longer --wait SECONDS"))
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&path, e)),
+        }
+    }
+}
+
+impl Change {
+    fn new(db: Database, lock: std::fs::File) -> Result<Change> {
+        let before: Vec<String> = db.manifest.files().map(|(f, _)| f.clone()).collect();
+        clear_leftovers(&db.dir)?;
+        Ok(Change {
+            db,
+            before,
+            written: Vec::new(),
+            committed: false,
+            _lock: lock,
+        })
+    }
+
+    /// Write layer `name` (`kind` as [`Layer::kind`]) with `fill`, which writes the whole file
+    /// at the path it is given and returns its nodata cells (raster layers), and record it
+    /// under a name made of `name`, its content's SHA-256 and `ext` (e.g.
+    /// `elevation-1a2b3c4d5e6f.tif`).
+    pub fn write_layer(
+        &mut self,
+        name: &str,
+        kind: &str,
+        ext: &str,
+        fill: impl FnOnce(&Path) -> Result<Option<u64>>,
+    ) -> Result<()> {
+        let dir = self.db.dir.clone();
+        let staging = dir.join(format!(
+            "{STAGING_PREFIX}{}-{name}.{ext}",
+            std::process::id()
+        ));
+        self.written.push(staging.clone());
+        let nodata_cells = fill(&staging)?;
+        fault_point("layer-written");
+        let sha256 = sha256_file(&staging)?;
+        let file = format!("{name}-{}.{ext}", &sha256[..12]);
+        let dest = dir.join(&file);
+        std::fs::rename(&staging, &dest).map_err(|e| Error::io(&dest, e))?;
+        if !self.before.contains(&file) {
+            self.written.push(dest);
+        }
+        fault_point("layer-renamed");
+        self.db.manifest.layers.insert(
+            name.to_string(),
+            Layer {
+                file,
+                kind: kind.to_string(),
+                sha256,
+                nodata_cells,
+            },
+        );
+        Ok(())
+    }
+
+    /// Note a file this change created in the directory (relative to it) by other means, so
+    /// that an uncommitted change removes it.
+    pub fn wrote(&mut self, file: &str) {
+        if !self.before.iter().any(|f| f == file) {
+            self.written.push(self.db.dir.join(file));
+        }
+    }
+
+    /// Commit: save the manifest (the rename that switches the database to the new state),
+    /// then remove the files the old state named and the new one does not.
+    pub fn commit(mut self) -> Result<()> {
+        fault_point("before-commit");
+        self.db.save()?;
+        self.committed = true;
+        fault_point("after-commit");
+        let now: Vec<&String> = self.db.manifest.files().map(|(f, _)| f).collect();
+        for f in self.before.iter().filter(|f| !now.contains(f)) {
+            let _ = std::fs::remove_file(self.db.dir.join(f));
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Change {
+    fn drop(&mut self) {
+        if !self.committed {
+            for f in &self.written {
+                let _ = std::fs::remove_file(f);
+            }
+        }
+    }
+}
+
+/// Remove what killed changes left in `dir` (under its lock, so nobody is writing them): the
+/// staging files of layers, and layer files no manifest names — written and renamed by a
+/// change killed before its commit.
+fn clear_leftovers(dir: &Path) -> Result<()> {
+    let named: Vec<String> = match Database::open(dir) {
+        Ok(db) => db.manifest.files().map(|(f, _)| f.clone()).collect(),
+        Err(_) if !dir.join(MANIFEST_FILE).exists() => Vec::new(),
+        Err(e) => return Err(e),
+    };
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with(STAGING_PREFIX)
+            || (content_named(&name) && !named.iter().any(|f| *f == name))
+        {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+    Ok(())
+}
+
+/// Whether `file` has the form of a layer file a [`Change`] writes: `name-<12 hex>.ext`.
+fn content_named(file: &str) -> bool {
+    let Some((stem, _ext)) = file.rsplit_once('.') else {
+        return false;
+    };
+    stem.rsplit_once('-').is_some_and(|(name, sha)| {
+        !name.is_empty()
+            && sha.len() == 12
+            && sha
+                .bytes()
+                .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+    })
+}
+
+/// Abort the process here when `DBMS_FAULT` names this point: how the tests kill a change at
+/// each step of its protocol (no effect otherwise).
+pub fn fault_point(name: &str) {
+    if std::env::var_os("DBMS_FAULT").is_some_and(|v| v == name) {
+        std::process::abort();
     }
 }
 
@@ -459,11 +734,21 @@ pub fn sha256_file(path: &Path) -> Result<String> {
         }
         hasher.update(&buf[..n]);
     }
-    Ok(hasher
-        .finalize()
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect())
+    Ok(hex(&hasher.finalize()))
+}
+
+/// Lower-case hex of `bytes`.
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Whether `file` (as a manifest names it) is a relative path of plain names: inside the
+/// database directory.
+fn inside(file: &str) -> bool {
+    let p = Path::new(file);
+    !file.is_empty()
+        && p.components()
+            .all(|c| matches!(c, std::path::Component::Normal(_)))
 }
 
 #[cfg(test)]

@@ -36,9 +36,14 @@ pub struct Args {
     /// reprojected with GDAL. Needs a build with --features gdal.
     #[arg(long, value_name = "SRS")]
     t_srs: Option<String>,
-    /// Output database directory.
+    /// Output database directory. A database there on the same grid keeps what later stages
+    /// added (buildings, placed objects); on another grid see --overwrite.
     #[arg(short, long, value_name = "DB")]
     output: PathBuf,
+    /// Start over a database on another grid in the output directory, dropping its buildings
+    /// layer and placed objects.
+    #[arg(long)]
+    overwrite: bool,
 }
 
 fn parse_bounds(s: &str) -> Result<Bounds, String> {
@@ -56,6 +61,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         max_cells: args.max_cells,
         photo_time: args.photo_time,
         t_srs: args.t_srs,
+        wait: ctx.wait,
+        overwrite: args.overwrite,
     };
     let progress = ctx.progress(6, "ingest");
     let s = ingest::ingest(&opts, &args.output, &progress)?;

@@ -25,6 +25,8 @@ pub struct Ctx {
     pub quiet: bool,
     /// `--json`: print a JSON summary on stdout instead of human text.
     pub json: bool,
+    /// `--wait`: how long a change to a database waits for another's lock.
+    pub wait: std::time::Duration,
 }
 
 impl Ctx {

@@ -1,7 +1,6 @@
 //! `dbms place`: put a voxel object into a database.
 
 use super::Ctx;
-use dbms::db::Database;
 use dbms::voxel::place::place;
 use std::path::PathBuf;
 
@@ -34,9 +33,9 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             dbms::Error::msg(format!("--at {}: expected X,Y or X,Y,Z", args.at))
                 .fix("e.g. --at 500120.5,5000340,0")
         })?;
-    let mut db = Database::open(&args.db)?;
     let p = place(
-        &mut db,
+        &args.db,
+        ctx.wait,
         &args.object,
         v[0],
         v[1],

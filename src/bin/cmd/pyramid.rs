@@ -41,7 +41,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
-    let mut db = Database::open(&args.db)?;
+    let db = Database::open(&args.db)?;
     // No sun given: no shadow or shading work at all.
     let sun = args.sun.resolve(&db)?;
     let opts = PyramidOptions {
@@ -54,7 +54,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         export_levels: args.export_levels,
     };
     let progress = ctx.progress(0, "pyramid");
-    let s = build_pyramid(&mut db, &args.output, &opts, &progress)?;
+    let s = build_pyramid(&db, ctx.wait, &args.output, &opts, &progress)?;
 
     let mut human = String::new();
     let sizes: Vec<String> = s.levels.iter().map(|(w, h)| format!("{w}×{h}")).collect();

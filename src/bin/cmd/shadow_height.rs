@@ -3,9 +3,10 @@
 use super::Ctx;
 use dbms::db::{Database, Stage};
 use dbms::error::Error;
-use dbms::io::atomic::write_bytes_atomic;
+use dbms::io::atomic::{write_bytes_atomic, AtomicFile};
 use dbms::shadow_height::{self as sh, output};
 use serde_json::json;
+use std::io::Write;
 use std::path::PathBuf;
 
 /// Measure building heights from their shadows (first estimate L·tan(elevation), refined by
@@ -56,7 +57,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
-    let mut db = Database::open(&args.db)?;
+    let db = Database::open(&args.db)?;
     // Default: the photo's own sun, from the time ingest recorded.
     let sun = match args.sun.resolve(&db)? {
         Some(sun) => sun,
@@ -138,7 +139,13 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     }
 
     let doc = output::heights_geojson(&features, &results, &registration, &sun, db.grid().crs.epsg);
-    write_bytes_atomic(&args.output, output::to_text(&doc).as_bytes())?;
+    // Written now, renamed into place only after --apply's change committed: a failed apply
+    // leaves no heights file for `make` to take as up to date.
+    let mut heights_file = AtomicFile::create(&args.output)?;
+    heights_file
+        .writer()
+        .write_all(output::to_text(&doc).as_bytes())
+        .map_err(|e| Error::io(&args.output, e))?;
     let count = |f: &dyn Fn(&sh::Measurement) -> bool| {
         results.iter().filter(|r| r.as_ref().is_ok_and(f)).count()
     };
@@ -146,12 +153,24 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let flagged = count(&|m| !m.flags.names().is_empty());
     let failed = results.iter().filter(|r| r.is_err()).count();
     if args.apply {
-        write_bytes_atomic(
-            &db.dir.join("buildings.geojson"),
-            output::to_text(&output::buildings_layer(&doc)).as_bytes(),
-        )?;
-        db.set_layer("buildings", "buildings", "buildings.geojson", None)?;
-        db.record_stage(Stage::now(
+        // One change under the database's lock, from the manifest as it is now: changes made
+        // while the heights were measured are kept — unless they replaced the layers measured.
+        let mut change = Database::begin(&db.dir, ctx.wait)?;
+        for layer in [dbms::db::ELEVATION, dbms::db::COLOUR] {
+            if change.db.manifest.layers.get(layer) != db.manifest.layers.get(layer) {
+                return Err(Error::file(
+                    &db.dir,
+                    format!("its {layer} layer was replaced while the heights were measured"),
+                )
+                .fix("run shadow-height again"));
+            }
+        }
+        let layer = output::to_text(&output::buildings_layer(&doc));
+        change.write_layer("buildings", "buildings", "geojson", |path| {
+            write_bytes_atomic(path, layer.as_bytes())?;
+            Ok(None)
+        })?;
+        change.db.record_stage(Stage::now(
             "shadow-height",
             json!({
                 "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
@@ -162,8 +181,9 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
             }),
         ));
-        db.save()?;
+        change.commit()?;
     }
+    heights_file.commit()?;
     ctx.report(
         format!(
             "{}: {} footprints, {heights} heights measured, {flagged} flagged, {failed} bad; sun elevation {:.3}°, azimuth {:.3}°{}",
@@ -171,7 +191,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             results.len(),
             sun.elevation_deg,
             sun.azimuth_deg,
-            if args.apply { format!("; {heights} buildings written to {}", db.dir.join("buildings.geojson").display()) } else { String::new() }
+            if args.apply { format!("; {heights} buildings written to the database's buildings layer in {}", db.dir.display()) } else { String::new() }
         ),
         json!({
             "output": args.output,

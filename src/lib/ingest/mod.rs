@@ -49,6 +49,11 @@ pub struct IngestOptions {
     pub photo_time: Option<String>,
     /// The database CRS (`EPSG:NNNN`, WKT or PROJ), when not the DEM's; needs feature `gdal`.
     pub t_srs: Option<String>,
+    /// How long to wait for another dbms changing the database ([`Database::begin_create`]).
+    pub wait: std::time::Duration,
+    /// Replace a database on another grid in `out`, dropping what later stages added to it;
+    /// without it that is an error. (On the same grid they are kept.)
+    pub overwrite: bool,
 }
 
 /// What ingest produced, for the summary and `--json`.
@@ -102,43 +107,18 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     dem.grid().crs.require_metric_heights(&opts.dem)?;
     let grid = plan_grid(&dem, &ortho, opts, &target)?;
 
-    let created = !out.exists();
-    std::fs::create_dir_all(out)
-        .map_err(|e| Error::io(out, e).fix("choose a writable output directory"))?;
-    let layers = write_layers(&dem, &ortho, &grid, opts, out, progress);
-    let (elevation, colour_nodata) = match layers {
-        Ok(l) => l,
-        Err(e) => {
-            // The layers' temporary files are gone; leave no empty directory behind either.
-            if created {
-                let _ = std::fs::remove_dir(out);
-            }
-            return Err(e);
-        }
-    };
-
     let inputs = vec![
         input_file("dem", &opts.dem)?,
         input_file("ortho", &opts.ortho)?,
     ];
-    let mut database = Database::create(out, grid.clone(), inputs)?;
-    database.set_layer(
-        db::ELEVATION,
-        "elevation",
-        "elevation.tif",
-        Some(elevation.nodata_cells),
-    )?;
-    database.set_layer(db::COLOUR, "colour", "colour.tif", Some(colour_nodata))?;
-    database.record_stage(Stage::now(
-        "ingest",
-        serde_json::json!({
-            "dem": opts.dem, "ortho": opts.ortho, "cell": opts.cell, "bounds": opts.bounds,
-            "dem_resampling": opts.dem_resampling, "fill_voids": opts.fill_voids,
-            "photo_time": opts.photo_time, "t_srs": opts.t_srs,
-            "dem_format": dem.meta().format, "dem_pixel_is_point": dem.meta().pixel_is_point,
-        }),
-    ));
-    database.save()?;
+    let created = !out.exists();
+    let written = write_database(&dem, &ortho, &grid, opts, out, inputs, progress);
+    if written.is_err() && created {
+        // Leave no directory behind either (the change removed what it wrote).
+        let _ = std::fs::remove_file(out.join(db::LOCK_FILE));
+        let _ = std::fs::remove_dir(out);
+    }
+    let (elevation, colour_nodata) = written?;
     progress.inc(1);
     progress.finish();
     Ok(IngestSummary {
@@ -156,25 +136,85 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
 /// Rows of the database grid resampled and written per band: about 4 M cells.
 const BAND_CELLS: usize = 1 << 22;
 
-/// Resample (or warp) both layers onto `grid` and write `elevation.tif` and `colour.tif` in
-/// `out`, band by band: memory is a band of the grid and the source rows it reads, except with
-/// `--fill-voids` (the elevation is filled whole) and for inputs read whole
-/// ([`RasterInput`]) or warped by GDAL. Both files appear only once both are complete.
-/// Returns the elevation's summary and the colour's nodata cells.
-fn write_layers(
+/// Write the database in `out` as one change ([`Database::begin_create`]): both layers, then
+/// the manifest. Re-ingest into a database on the same grid keeps what later stages added to
+/// it (layers, placed objects, stages); on another grid that is an error unless
+/// `opts.overwrite`. Returns the elevation's summary and the colour's nodata cells.
+fn write_database(
     dem: &RasterInput,
     ortho: &RasterInput,
     grid: &Grid,
     opts: &IngestOptions,
     out: &Path,
+    inputs: Vec<db::InputFile>,
     progress: &Progress,
 ) -> Result<(LayerSummary, u64)> {
-    let band = (BAND_CELLS / grid.width.max(1)).max(1);
-    let bands = (0..grid.height)
-        .step_by(band)
-        .map(move |r0| r0..(r0 + band).min(grid.height));
+    let (mut change, old) = Database::begin_create(out, grid.clone(), inputs, opts.wait)?;
+    if let Some(old) = old {
+        let added = old.layers.len().saturating_sub(2) + old.objects.len();
+        if old.grid == *grid {
+            let m = &mut change.db.manifest;
+            m.layers = old.layers;
+            m.objects = old.objects;
+            m.stages = old.stages;
+        } else if !opts.overwrite && added > 0 {
+            return Err(Error::file(
+                out,
+                format!(
+                    "holds a database on another grid with {} more layer(s) and {} placed object(s), which re-ingest would drop",
+                    old.layers.len().saturating_sub(2),
+                    old.objects.len()
+                ),
+            )
+            .fix("give --overwrite to start it over, or ingest into a new directory"));
+        }
+    }
+    let mut z = None;
+    change.write_layer(db::ELEVATION, "elevation", "tif", |path| {
+        let s = write_elevation(dem, grid, opts, path)?;
+        let nodata = s.nodata_cells;
+        z = Some(s);
+        Ok(Some(nodata))
+    })?;
+    progress.inc(1);
+    let mut colour_nodata = 0;
+    change.write_layer(db::COLOUR, "colour", "tif", |path| {
+        colour_nodata = write_colour(dem, ortho, grid, opts, path)?;
+        Ok(Some(colour_nodata))
+    })?;
+    progress.inc(2);
+    change.db.record_stage(Stage::now(
+        "ingest",
+        serde_json::json!({
+            "dem": opts.dem, "ortho": opts.ortho, "cell": opts.cell, "bounds": opts.bounds,
+            "dem_resampling": opts.dem_resampling, "fill_voids": opts.fill_voids,
+            "photo_time": opts.photo_time, "t_srs": opts.t_srs,
+            "dem_format": dem.meta().format, "dem_pixel_is_point": dem.meta().pixel_is_point,
+        }),
+    ));
+    change.commit()?;
+    Ok((z.expect("elevation written"), colour_nodata))
+}
 
-    let mut z_file = io::geotiff::GeoTiffWriter::create_f32(&out.join("elevation.tif"), grid)?;
+/// The rows of `grid` in bands of about [`BAND_CELLS`].
+fn bands(grid: &Grid) -> impl Iterator<Item = std::ops::Range<usize>> + Clone + '_ {
+    let band = (BAND_CELLS / grid.width.max(1)).max(1);
+    (0..grid.height)
+        .step_by(band)
+        .map(move |r0| r0..(r0 + band).min(grid.height))
+}
+
+/// Resample (or warp) the DEM onto `grid` and write it to `path` (float32 GeoTIFF), band by
+/// band: memory is a band of the grid and the source rows it reads, except with
+/// `--fill-voids` (the elevation is filled whole) and for inputs read whole ([`RasterInput`])
+/// or warped by GDAL.
+fn write_elevation(
+    dem: &RasterInput,
+    grid: &Grid,
+    opts: &IngestOptions,
+    path: &Path,
+) -> Result<LayerSummary> {
+    let mut z_file = io::geotiff::GeoTiffWriter::create_f32(path, grid)?;
     let mut z_stats = ElevationStats::default();
     let mut whole = opts.fill_voids.then(Vec::new);
     let mut put = |z: Vec<f32>| -> Result<()> {
@@ -189,7 +229,7 @@ fn write_layers(
     };
     if dem.grid().crs.same_as(&grid.crs) {
         let r = Resampler::new(opts.dem_resampling, dem.grid(), grid);
-        for rows in bands.clone() {
+        for rows in bands(grid) {
             let src = r.source_rows(rows.clone());
             let s = dem.rows(src.clone())?.to_elevation_band()?;
             put(r.elevation(&s.data, src.start, rows))?;
@@ -216,9 +256,24 @@ fn write_layers(
         )
         .fix("check --bounds, or the DEM's nodata value and extent")
     })?;
-    progress.inc(1);
+    z_file.finish()?;
+    Ok(LayerSummary {
+        nodata_cells: z_stats.nodata,
+        filled_cells: filled,
+        range_m: Some(range_m),
+    })
+}
 
-    let mut c_file = io::geotiff::GeoTiffWriter::create_rgba8(&out.join("colour.tif"), grid)?;
+/// Resample (or warp) the orthophoto onto `grid` and write it to `path` (RGBA8 GeoTIFF), band
+/// by band as [`write_elevation`]; returns its nodata cells.
+fn write_colour(
+    dem: &RasterInput,
+    ortho: &RasterInput,
+    grid: &Grid,
+    opts: &IngestOptions,
+    path: &Path,
+) -> Result<u64> {
+    let mut c_file = io::geotiff::GeoTiffWriter::create_rgba8(path, grid)?;
     let mut c_nodata = 0u64;
     let mut put = |c: Vec<[u8; 4]>| -> Result<()> {
         c_nodata += c.iter().filter(|p| p[3] == 0).count() as u64;
@@ -226,7 +281,7 @@ fn write_layers(
     };
     if ortho.grid().crs.same_as(&grid.crs) {
         let r = Resampler::colour(ortho.grid(), grid);
-        for rows in bands {
+        for rows in bands(grid) {
             let src = r.source_rows(rows.clone());
             let s = ortho.rows(src.clone())?.to_colour()?;
             put(r.colours(&s.data, src.start, rows))?;
@@ -245,18 +300,8 @@ fn write_layers(
         );
         put(warp(&opts.ortho, grid, method)?.to_colour()?.data)?;
     }
-    progress.inc(1);
-    z_file.finish()?;
     c_file.finish()?;
-    progress.inc(1);
-    Ok((
-        LayerSummary {
-            nodata_cells: z_stats.nodata,
-            filled_cells: filled,
-            range_m: Some(range_m),
-        },
-        c_nodata,
-    ))
+    Ok(c_nodata)
 }
 
 /// Nodata count and valid range of elevation cells seen so far.

@@ -106,9 +106,12 @@ pub struct Timings {
     pub finish: f64,
 }
 
-/// Build the tile file `out` for the database `db` and record a `pyramid` stage in its manifest.
+/// Build the tile file `out` for the database `db` and record a `pyramid` stage in its manifest
+/// (one change at the end, waiting up to `wait` for the database's lock: changes made while the
+/// pyramid was built are kept).
 pub fn build_pyramid(
-    db: &mut Database,
+    db: &Database,
+    wait: std::time::Duration,
     out: &Path,
     opts: &PyramidOptions,
     progress: &Progress,
@@ -211,7 +214,8 @@ pub fn build_pyramid(
         exported,
         seconds,
     };
-    db.record_stage(Stage::now(
+    let mut change = Database::begin(&db.dir, wait)?;
+    change.db.record_stage(Stage::now(
         "pyramid",
         serde_json::json!({
             "tiles": out, "factor": opts.factor, "page_size": opts.page_size, "levels": summary.levels,
@@ -221,7 +225,7 @@ pub fn build_pyramid(
             "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
         }),
     ));
-    db.save()?;
+    change.commit()?;
     Ok(summary)
 }
 

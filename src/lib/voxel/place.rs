@@ -34,10 +34,13 @@ pub fn ground_height(dem: &Elevation, x: f64, y: f64) -> Option<f64> {
     (!z.is_nan()).then_some(z)
 }
 
-/// Place the object at `object_path` in `db` with its anchor at `(x, y)` and height `z`
-/// (absolute metres, or the ground's when `None`), turned by `heading_deg`; saves the manifest.
+/// Place the object at `object_path` in the database in `dir` with its anchor at `(x, y)` and
+/// height `z` (absolute metres, or the ground's when `None`), turned by `heading_deg`: one
+/// change under the database's lock (waiting up to `wait` for it), so placements made at the
+/// same time are all kept.
 pub fn place(
-    db: &mut Database,
+    dir: &Path,
+    wait: std::time::Duration,
     object_path: &Path,
     x: f64,
     y: f64,
@@ -48,6 +51,8 @@ pub fn place(
     {
         return Err(Error::msg("--at and --heading must be finite numbers"));
     }
+    let mut change = Database::begin(dir, wait)?;
+    let db = &mut change.db;
     if db.grid().crs.geographic {
         return Err(Error::file(
             &db.dir,
@@ -84,7 +89,9 @@ pub fn place(
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
         let bytes = std::fs::read(object_path).map_err(|e| Error::io(object_path, e))?;
         crate::io::atomic::write_bytes_atomic(&dest, &bytes)?;
+        change.wrote(&file);
     }
+    let db = &mut change.db;
     let placed = PlacedObject {
         file,
         sha256,
@@ -98,7 +105,7 @@ pub fn place(
         "place",
         serde_json::json!({ "object": placed.file, "x": x, "y": y, "z": z, "heading_deg": placed.heading_deg, "voxels": obj.len() }),
     ));
-    db.save()?;
+    change.commit()?;
     Ok(placed)
 }
 

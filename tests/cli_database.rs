@@ -1,0 +1,354 @@
+//! The database as a transaction target (issue 14): one writer at a time, changes that never
+//! lose each other, a kill at any step of the commit protocol leaving a database that
+//! verifies, a manifest that cannot be edited or point outside its directory unnoticed, and
+//! re-ingest that keeps what later stages added. See docs/database.md.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn dbms(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+fn ok(dir: &Path, args: &[&str]) -> Output {
+    let out = dbms(dir, args);
+    assert!(
+        out.status.success(),
+        "dbms {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn manifest(db: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(db.join("manifest.json")).unwrap()).unwrap()
+}
+
+/// The names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// A small sample scene ingested into `db`, a cone object `tree.dvox`, and a place inside it.
+struct Scene {
+    dir: tempfile::TempDir,
+    at: (f64, f64),
+}
+
+impl Scene {
+    fn new() -> Scene {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        ok(d, &["-q", "sample", "--size", "160", "-o", "s"]);
+        ok(
+            d,
+            &[
+                "-q",
+                "ingest",
+                "--dem",
+                "s/dem.tif",
+                "--ortho",
+                "s/ortho.tif",
+                "-o",
+                "db",
+            ],
+        );
+        ok(
+            d,
+            &[
+                "-q",
+                "object",
+                "cone",
+                "--height",
+                "6",
+                "--radius",
+                "2",
+                "--voxel",
+                "0.5",
+                "-o",
+                "tree.dvox",
+            ],
+        );
+        let g = &manifest(&d.join("db"))["grid"];
+        let t = &g["transform"];
+        let at = (
+            t["origin_x"].as_f64().unwrap() + 20.0,
+            t["origin_y"].as_f64().unwrap() - 20.0,
+        );
+        Scene { dir, at }
+    }
+
+    fn path(&self) -> &Path {
+        self.dir.path()
+    }
+
+    fn db(&self) -> PathBuf {
+        self.path().join("db")
+    }
+
+    /// `dbms place` argv for the tree at the scene's place plus `dx` metres east.
+    fn place_args(&self, dx: f64) -> Vec<String> {
+        ["-q", "place", "--db", "db", "--object", "tree.dvox", "--at"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain([format!("{},{}", self.at.0 + dx, self.at.1)])
+            .collect()
+    }
+
+    fn verify(&self) {
+        ok(self.path(), &["-q", "info", "db", "--verify"]);
+    }
+}
+
+#[test]
+fn twenty_parallel_places_keep_all_twenty() {
+    let s = Scene::new();
+    let children: Vec<_> = (0..20)
+        .map(|k| {
+            Command::new(env!("CARGO_BIN_EXE_dbms"))
+                .args(s.place_args(k as f64))
+                .current_dir(s.path())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for c in children {
+        let out = c.wait_with_output().unwrap();
+        assert!(out.status.success());
+    }
+    let m = manifest(&s.db());
+    let xs: Vec<f64> = m["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["x"].as_f64().unwrap() - s.at.0)
+        .collect();
+    assert_eq!(xs.len(), 20, "placements lost: {xs:?}");
+    s.verify();
+}
+
+#[test]
+fn a_writer_waits_for_the_lock_or_says_who_holds_it() {
+    let s = Scene::new();
+    let lock = std::fs::OpenOptions::new()
+        .write(true)
+        .open(s.db().join(".dbms.lock"))
+        .unwrap();
+    lock.lock().unwrap();
+    let out = dbms(
+        s.path(),
+        &[
+            &["--wait", "0.2"][..],
+            &s.place_args(0.0)
+                .iter()
+                .map(String::as_str)
+                .collect::<Vec<_>>(),
+        ]
+        .concat(),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("another dbms is changing this database") && err.contains("--wait"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    lock.unlock().unwrap();
+    ok(
+        s.path(),
+        &s.place_args(0.0)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+}
+
+#[test]
+fn a_kill_at_any_step_of_a_change_leaves_a_database_that_verifies() {
+    // Each step of the protocol (docs/database.md): the new layer written, renamed to its
+    // content name, just before and just after the manifest's rename.
+    let s = Scene::new();
+    let apply = [
+        "-q",
+        "shadow-height",
+        "--db",
+        "db",
+        "--footprints",
+        "s/buildings.geojson",
+        "--sun-elevation",
+        "40",
+        "--sun-azimuth",
+        "135",
+        "--apply",
+        "-o",
+        "h.geojson",
+    ];
+    for point in [
+        "layer-written",
+        "layer-renamed",
+        "before-commit",
+        "after-commit",
+    ] {
+        let before = manifest(&s.db());
+        let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+            .args(apply)
+            .current_dir(s.path())
+            .env("DBMS_FAULT", point)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{point}: the fault did not fire");
+        s.verify();
+        let after = manifest(&s.db());
+        if point == "after-commit" {
+            assert!(after["layers"]["buildings"].is_object(), "{point}");
+        } else {
+            assert_eq!(
+                after, before,
+                "{point}: the database changed without its commit"
+            );
+            assert!(
+                !s.path().join("h.geojson").exists(),
+                "{point}: the heights file was left"
+            );
+        }
+    }
+    // The next change clears what the killed ones left: no staging file, no unnamed layer.
+    ok(
+        s.path(),
+        &s.place_args(0.0)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    s.verify();
+    let m = manifest(&s.db());
+    let named: Vec<&str> = m["layers"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|l| l["file"].as_str().unwrap())
+        .chain(["manifest.json", ".dbms.lock", "objects"])
+        .collect();
+    for f in names(&s.db()) {
+        assert!(named.contains(&f.as_str()), "left behind: {f}");
+    }
+}
+
+#[test]
+fn place_killed_at_its_commit_loses_nothing_else() {
+    let s = Scene::new();
+    ok(
+        s.path(),
+        &s.place_args(0.0)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    let before = manifest(&s.db());
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(s.place_args(5.0))
+        .current_dir(s.path())
+        .env("DBMS_FAULT", "before-commit")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    s.verify();
+    assert_eq!(manifest(&s.db()), before);
+}
+
+#[test]
+fn a_manifest_edited_by_hand_or_naming_files_outside_is_refused() {
+    let s = Scene::new();
+    let path = s.db().join("manifest.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    // One character of the origin: the next pyramid would put the tile set 100 km off.
+    let edited = text.replacen("\"origin_x\": 5", "\"origin_x\": 6", 1);
+    assert_ne!(edited, text);
+    std::fs::write(&path, &edited).unwrap();
+    let out = dbms(s.path(), &["info", "db", "--verify"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("checksum"), "{err}");
+    // A layer path leading out of the directory, with the checksum made to match.
+    let mut m: Value = serde_json::from_str(&text).unwrap();
+    m["layers"]["colour"]["file"] = "../../etc/passwd".into();
+    m.as_object_mut().unwrap().remove("checksum");
+    std::fs::write(&path, serde_json::to_string_pretty(&m).unwrap() + "\n").unwrap();
+    let out = dbms(s.path(), &["info", "db", "--verify"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("outside the database directory"),
+        "{err}"
+    );
+}
+
+#[test]
+fn re_ingest_keeps_placements_and_buildings_on_the_same_grid() {
+    let s = Scene::new();
+    ok(
+        s.path(),
+        &s.place_args(0.0)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    ok(
+        s.path(),
+        &[
+            "-q",
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            "s/buildings.geojson",
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "135",
+            "--apply",
+            "-o",
+            "h.geojson",
+        ],
+    );
+    let before = manifest(&s.db());
+    let ingest = [
+        "-q",
+        "ingest",
+        "--dem",
+        "s/dem.tif",
+        "--ortho",
+        "s/ortho.tif",
+        "-o",
+        "db",
+    ];
+    ok(s.path(), &ingest);
+    let after = manifest(&s.db());
+    assert_eq!(after["objects"], before["objects"]);
+    assert_eq!(after["layers"]["buildings"], before["layers"]["buildings"]);
+    s.verify();
+    // On another grid (a 2 m cell) it would drop them: refused, unless --overwrite.
+    let coarse = [&ingest[..], &["--cell", "2"]].concat();
+    let out = dbms(s.path(), &coarse);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--overwrite"),
+        "{err}"
+    );
+    assert_eq!(manifest(&s.db()), after);
+    ok(s.path(), &[&coarse[..], &["--overwrite"]].concat());
+    let m = manifest(&s.db());
+    assert!(m["objects"].as_array().unwrap().is_empty() && m["layers"]["buildings"].is_null());
+    s.verify();
+    // Their files went with them.
+    let buildings = before["layers"]["buildings"]["file"].as_str().unwrap();
+    assert!(!s.db().join(buildings).exists());
+}
