@@ -352,3 +352,70 @@ fn re_ingest_keeps_placements_and_buildings_on_the_same_grid() {
     let buildings = before["layers"]["buildings"]["file"].as_str().unwrap();
     assert!(!s.db().join(buildings).exists());
 }
+
+/// Outputs never alias inputs or special files (issue 14, defect 4): each refused in one line,
+/// with what was there left as it was.
+#[test]
+fn outputs_that_would_destroy_something_are_refused() {
+    let s = Scene::new();
+    let d = s.path();
+    ok(d, &["-q", "pyramid", "--db", "db", "-o", "t.dbt"]);
+    let tiles = std::fs::read(d.join("t.dbt")).unwrap();
+    let m = manifest(&s.db());
+    let elevation = format!("db/{}", m["layers"]["elevation"]["file"].as_str().unwrap());
+    std::fs::write(d.join("real.png"), b"keep").unwrap();
+    std::os::unix::fs::symlink("real.png", d.join("link.png")).unwrap();
+    assert!(Command::new("mkfifo")
+        .arg(d.join("fifo.png"))
+        .status()
+        .unwrap()
+        .success());
+    let render = [
+        "-q", "render", "--tiles", "t.dbt", "--top", "--size", "32x32",
+    ];
+    for (args, says) in [
+        (vec!["-o", "t.dbt"], "also an input"),
+        (vec!["-o", "v.png", "--range-out", "v.png"], "two outputs"),
+        (vec!["-o", "link.png"], "symbolic link"),
+        (vec!["-o", "fifo.png"], "device, FIFO"),
+        (vec!["-o", "db/manifest.json"], "file of the database"),
+    ] {
+        let out = dbms(d, &[&render[..], &args[..]].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(says),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+    for args in [
+        vec!["pyramid", "--db", "db", "-o", "db/manifest.json"],
+        vec![
+            "shadows",
+            "--db",
+            "db",
+            "--sun-elevation",
+            "30",
+            "--sun-azimuth",
+            "200",
+            "-o",
+            &elevation,
+        ],
+    ] {
+        let out = dbms(d, &args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains("file of the database"),
+            "{args:?}: {err}"
+        );
+    }
+    s.verify();
+    assert_eq!(manifest(&s.db()), m);
+    assert_eq!(std::fs::read(d.join("t.dbt")).unwrap(), tiles);
+    assert_eq!(std::fs::read(d.join("link.png")).unwrap(), b"keep");
+    assert!(std::fs::symlink_metadata(d.join("link.png"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(!d.join("v.png").exists());
+}

@@ -17,7 +17,7 @@
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::io::atomic::write_bytes_atomic;
+use crate::io::atomic::write_database_file;
 use crate::io::SourceRaster;
 use crate::raster::{Colour, Elevation, Raster, RowSource};
 use serde::{Deserialize, Serialize};
@@ -434,10 +434,16 @@ impl Database {
     /// database built by hand (tests) may call it directly.
     pub fn save(&mut self) -> Result<()> {
         self.manifest.checksum = Some(self.manifest.content_sha256());
-        write_bytes_atomic(
+        write_database_file(
             &self.dir.join(MANIFEST_FILE),
             self.manifest.text().as_bytes(),
         )
+    }
+
+    /// Whether `name` (a file name in the database directory) is one of the database's own
+    /// files: its manifest, its lock, or a file the manifest names.
+    pub fn owns(&self, name: &str) -> bool {
+        name == MANIFEST_FILE || name == LOCK_FILE || self.manifest.files().any(|(f, _)| f == name)
     }
 
     /// Check every layer and object file against its recorded SHA-256; the first mismatch is an

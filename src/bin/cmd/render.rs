@@ -81,6 +81,10 @@ fn size(s: &str) -> dbms::Result<(usize, usize)> {
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let outputs: Vec<&std::path::Path> = std::iter::once(args.output.as_path())
+        .chain(args.range_out.as_deref())
+        .collect();
+    dbms::io::atomic::check_outputs(&outputs, &[&args.tiles])?;
     let reader = TileReader::open(&args.tiles, args.cache_pages)?;
     let frame = if args.top {
         let g = &reader.info().grid;
@@ -123,10 +127,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         };
         render::render_view(&reader, &camera, &opts)?
     };
-    frame.write_png(&args.output)?;
-    if let Some(p) = &args.range_out {
-        frame.write_range_exr(p)?;
-    }
+    frame.write(&args.output, args.range_out.as_deref())?;
     let s = &frame.stats;
     ctx.report(
         format!(

@@ -69,6 +69,10 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             .fix("give --time or --sun-elevation and --sun-azimuth")
         })?,
     };
+    let inputs: Vec<&std::path::Path> = std::iter::once(args.footprints.as_path())
+        .chain(args.shadow_mask.as_deref())
+        .collect();
+    dbms::io::atomic::check_outputs(&[&args.output], &inputs)?;
     let features = sh::read_footprints(&args.footprints)?;
     let terrain = db.read_elevation()?;
     let colour = db.read_colour()?;

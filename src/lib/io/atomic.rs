@@ -18,8 +18,16 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
-    /// Start writing `path` (its directory must exist).
+    /// Start writing `path` (its directory must exist), after [`check_output`]: a device, a
+    /// FIFO, a symlink, a directory or a database's own file is refused, never replaced.
     pub fn create(path: &Path) -> Result<AtomicFile> {
+        check_output(path)?;
+        Self::create_unchecked(path)
+    }
+
+    /// [`AtomicFile::create`] without [`check_output`], for the database's own files, which
+    /// only a [`crate::db::Change`] writes.
+    pub(crate) fn create_unchecked(path: &Path) -> Result<AtomicFile> {
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
@@ -84,6 +92,82 @@ where
 /// Write bytes to `path` atomically.
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |w| w.write_all(bytes).map_err(|e| Error::io(path, e)))
+}
+
+/// [`write_bytes_atomic`] for a database's own file (its manifest), by a
+/// [`crate::db::Change`].
+pub(crate) fn write_database_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut out = AtomicFile::create_unchecked(path)?;
+    out.writer()
+        .write_all(bytes)
+        .map_err(|e| Error::io(path, e))?;
+    out.commit()
+}
+
+/// Refuse to write `path` when that would destroy something rather than replace a file: it is
+/// a symlink (the link would be replaced, not its target), a device, a FIFO, a socket or a
+/// directory, or a file of a database directory (its manifest, lock or a file the manifest
+/// names: a database changes only through its own commit protocol, docs/database.md).
+pub fn check_output(path: &Path) -> Result<()> {
+    if let Ok(m) = std::fs::symlink_metadata(path) {
+        let t = m.file_type();
+        let what = if t.is_symlink() {
+            Some("a symbolic link")
+        } else if t.is_dir() {
+            Some("a directory")
+        } else if !t.is_file() {
+            Some("a device, FIFO or socket, not a regular file")
+        } else {
+            None
+        };
+        if let Some(what) = what {
+            return Err(Error::file(path, format!("the output is {what}"))
+                .fix("give the path of a regular file to write"));
+        }
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if dir.join(crate::db::MANIFEST_FILE).is_file() {
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+        let owned = match crate::db::Database::open(dir) {
+            Ok(db) => db.owns(name.as_deref().unwrap_or("")),
+            Err(_) => true,
+        };
+        if owned {
+            return Err(Error::file(
+                path,
+                "the output is a file of the database in its directory",
+            )
+            .fix("write outputs outside the database directory, or to a name it does not use"));
+        }
+    }
+    Ok(())
+}
+
+/// Refuse a run's `outputs` that [`check_output`] refuses, that name the same file twice, or
+/// that are one of its `inputs` (the run would overwrite what it reads).
+pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
+    let same = |a: &Path, b: &Path| match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    };
+    for (k, &out) in outputs.iter().enumerate() {
+        check_output(out)?;
+        if let Some(other) = outputs[..k].iter().find(|&&o| same(o, out)) {
+            return Err(Error::file(
+                out,
+                format!("is given as two outputs (also as {})", other.display()),
+            )
+            .fix("give each output its own path"));
+        }
+        if inputs.iter().any(|&i| same(i, out)) {
+            return Err(Error::file(out, "the output is also an input of this run")
+                .fix("write the output to another path"));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -116,6 +116,8 @@ pub fn build_pyramid(
     opts: &PyramidOptions,
     progress: &Progress,
 ) -> Result<PyramidSummary> {
+    // Before any work: the tile file must not be a special file or one of the database's.
+    crate::io::atomic::check_output(out)?;
     if !(opts.shadow_factor > 0.0 && opts.shadow_factor <= 1.0) {
         return Err(Error::msg(format!(
             "--shadow-factor {}: must be in (0, 1]",

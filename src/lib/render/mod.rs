@@ -481,14 +481,31 @@ impl Frame {
         Ok(out)
     }
 
-    /// Write the frame as a PNG file, atomically.
-    pub fn write_png(&self, path: &Path) -> Result<()> {
-        write_bytes_atomic(path, &self.png()?)
+    /// Write the frame as a PNG file at `png` and, when `range` is given, its range image as
+    /// [`Frame::write_range_exr`] does: both encoded first, then renamed into place together
+    /// — a run that fails leaves neither (nor replaces either).
+    pub fn write(&self, png: &Path, range: Option<&Path>) -> Result<()> {
+        let mut files = vec![(png, self.png()?)];
+        if let Some(r) = range {
+            files.push((r, self.range_exr(r)?));
+        }
+        let mut staged = Vec::new();
+        for (path, bytes) in files {
+            let mut f = crate::io::atomic::AtomicFile::create(path)?;
+            std::io::Write::write_all(f.writer(), &bytes).map_err(|e| crate::Error::io(path, e))?;
+            staged.push(f);
+        }
+        staged.into_iter().try_for_each(|f| f.commit())
     }
 
     /// Write the range image as a one-channel (`Z`) f32 OpenEXR file (ZIP-compressed scan
     /// lines, increasing order), atomically: metres per pixel, `+inf` where the ray saw the sky.
     pub fn write_range_exr(&self, path: &Path) -> Result<()> {
+        write_bytes_atomic(path, &self.range_exr(path)?)
+    }
+
+    /// The range image encoded as [`Frame::write_range_exr`] writes it (`path` for errors).
+    fn range_exr(&self, path: &Path) -> Result<Vec<u8>> {
         use exr::prelude::*;
         let channel = AnyChannel::new("Z", FlatSamples::F32(self.range.clone()));
         // Scan lines in increasing order, compressed on one thread: blocks land in a fixed order,
@@ -506,7 +523,7 @@ impl Frame {
             .non_parallel()
             .to_buffered(&mut buf)
             .map_err(|e| crate::Error::file(path, format!("encoding the EXR failed: {e}")))?;
-        write_bytes_atomic(path, &buf.into_inner())
+        Ok(buf.into_inner())
     }
 }
 

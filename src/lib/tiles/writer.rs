@@ -221,6 +221,7 @@ impl TileWriter {
                 "this dbms writes only the standard layers max_z, colour, state",
             ));
         }
+        crate::io::atomic::check_output(path)?;
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
