@@ -32,8 +32,9 @@ impl AtomicFile {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
+        clear_stale_temps(dir);
         let tmp = tempfile::Builder::new()
-            .prefix(".dbms-")
+            .prefix(&temp_prefix())
             .suffix(".tmp")
             .tempfile_in(dir)
             .map_err(|e| {
@@ -92,6 +93,46 @@ where
 /// Write bytes to `path` atomically.
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |w| w.write_all(bytes).map_err(|e| Error::io(path, e)))
+}
+
+/// The name prefix of this process's temporary outputs: `.dbms-<host>-<pid>-`, so that a
+/// later run can tell a killed run's leftovers (same host, no such process) from a running
+/// one's — also on a disk shared between machines.
+pub(crate) fn temp_prefix() -> String {
+    format!(".dbms-{}-{}-", host(), std::process::id())
+}
+
+/// This machine's host name (Linux; empty elsewhere, where nothing is ever cleared).
+fn host() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().replace(['-', '/'], "_"))
+        .unwrap_or_default()
+}
+
+/// Remove the temporary outputs in `dir` that runs killed on this machine left behind
+/// ([`temp_prefix`] with a process id that no longer runs). Best effort: errors are ignored.
+pub(crate) fn clear_stale_temps(dir: &Path) {
+    let host = host();
+    if host.is_empty() || !Path::new("/proc/self").exists() {
+        return;
+    }
+    let mine = format!(".dbms-{host}-");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let pid = name
+            .strip_prefix(&mine)
+            .filter(|_| name.ends_with(".tmp"))
+            .and_then(|rest| rest.split('-').next())
+            .and_then(|p| p.parse::<u32>().ok());
+        if let Some(pid) = pid {
+            if !Path::new(&format!("/proc/{pid}")).exists() {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
 }
 
 /// [`write_bytes_atomic`] for a database's own file (its manifest), by a
@@ -190,6 +231,30 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names.len(), 1, "temp file left behind: {names:?}");
+    }
+
+    #[test]
+    fn a_killed_runs_temporary_files_are_cleared_by_the_next_run_but_not_a_running_ones() {
+        if !Path::new("/proc/sys/kernel/hostname").exists() {
+            return; // Linux only
+        }
+        let dir = tempfile::tempdir().unwrap();
+        // A process that has ended: its pid names no running process (issue 14: eight killed
+        // pyramids left 1.5 GB of such files).
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let dead = child.id();
+        child.wait().unwrap();
+        let stale = dir
+            .path()
+            .join(format!(".dbms-{}-{dead}-AbC123.tmp", host()));
+        let running = dir.path().join(format!("{}XyZ789.tmp", temp_prefix()));
+        let other_host = dir.path().join(format!(".dbms-elsewhere-{dead}-q.tmp"));
+        for f in [&stale, &running, &other_host] {
+            std::fs::write(f, b"partial").unwrap();
+        }
+        write_bytes_atomic(&dir.path().join("out.bin"), b"x").unwrap();
+        assert!(!stale.exists());
+        assert!(running.exists() && other_host.exists());
     }
 
     #[cfg(unix)]

@@ -235,8 +235,9 @@ impl TileWriter {
             Compression::None => {
                 let fixed = layout.fixed_len as u64;
                 let (plan, end) = place(&info, index_end, |_| fixed);
+                crate::io::atomic::clear_stale_temps(dir);
                 let tmp = tempfile::Builder::new()
-                    .prefix(".dbms-")
+                    .prefix(&crate::io::atomic::temp_prefix())
                     .suffix(".tmp")
                     .tempfile_in(dir)
                     .map_err(cannot)?;
