@@ -25,6 +25,35 @@ fn ok(dir: &Path, args: &[&str]) -> Output {
     out
 }
 
+/// `ingest` of the scene into `db`.
+const INGEST: &[&str] = &[
+    "-q",
+    "ingest",
+    "--dem",
+    "s/dem.tif",
+    "--ortho",
+    "s/ortho.tif",
+    "-o",
+    "db",
+];
+
+/// `shadow-height --apply` of the scene's footprints into `db`.
+const APPLY: &[&str] = &[
+    "-q",
+    "shadow-height",
+    "--db",
+    "db",
+    "--footprints",
+    "s/buildings.geojson",
+    "--sun-elevation",
+    "40",
+    "--sun-azimuth",
+    "135",
+    "--apply",
+    "-o",
+    "h.geojson",
+];
+
 fn manifest(db: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(db.join("manifest.json")).unwrap()).unwrap()
 }
@@ -50,19 +79,7 @@ impl Scene {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         ok(d, &["-q", "sample", "--size", "160", "-o", "s"]);
-        ok(
-            d,
-            &[
-                "-q",
-                "ingest",
-                "--dem",
-                "s/dem.tif",
-                "--ortho",
-                "s/ortho.tif",
-                "-o",
-                "db",
-            ],
-        );
+        ok(d, INGEST);
         ok(
             d,
             &[
@@ -105,6 +122,20 @@ impl Scene {
             .collect()
     }
 
+    /// Place the tree `dx` metres east of the scene's place.
+    fn place(&self, dx: f64) {
+        let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+            .args(self.place_args(dx))
+            .current_dir(self.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+
     fn verify(&self) {
         ok(self.path(), &["-q", "info", "db", "--verify"]);
     }
@@ -145,17 +176,16 @@ fn a_writer_waits_for_the_lock_or_says_who_holds_it() {
         .open(s.db().join(".dbms.lock"))
         .unwrap();
     lock.lock().unwrap();
-    let out = dbms(
-        s.path(),
-        &[
-            &["--wait", "0.2"][..],
-            &s.place_args(0.0)
-                .iter()
-                .map(String::as_str)
-                .collect::<Vec<_>>(),
-        ]
-        .concat(),
-    );
+    let args: Vec<String> = ["--wait", "0.2"]
+        .iter()
+        .map(|a| a.to_string())
+        .chain(s.place_args(0.0))
+        .collect();
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(&args)
+        .current_dir(s.path())
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -164,13 +194,7 @@ fn a_writer_waits_for_the_lock_or_says_who_holds_it() {
     );
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     lock.unlock().unwrap();
-    ok(
-        s.path(),
-        &s.place_args(0.0)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    s.place(0.0);
 }
 
 #[test]
@@ -178,21 +202,6 @@ fn a_kill_at_any_step_of_a_change_leaves_a_database_that_verifies() {
     // Each step of the protocol (docs/database.md): the new layer written, renamed to its
     // content name, just before and just after the manifest's rename.
     let s = Scene::new();
-    let apply = [
-        "-q",
-        "shadow-height",
-        "--db",
-        "db",
-        "--footprints",
-        "s/buildings.geojson",
-        "--sun-elevation",
-        "40",
-        "--sun-azimuth",
-        "135",
-        "--apply",
-        "-o",
-        "h.geojson",
-    ];
     for point in [
         "layer-written",
         "layer-renamed",
@@ -201,7 +210,7 @@ fn a_kill_at_any_step_of_a_change_leaves_a_database_that_verifies() {
     ] {
         let before = manifest(&s.db());
         let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
-            .args(apply)
+            .args(APPLY)
             .current_dir(s.path())
             .env("DBMS_FAULT", point)
             .output()
@@ -223,13 +232,7 @@ fn a_kill_at_any_step_of_a_change_leaves_a_database_that_verifies() {
         }
     }
     // The next change clears what the killed ones left: no staging file, no unnamed layer.
-    ok(
-        s.path(),
-        &s.place_args(0.0)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    s.place(0.0);
     s.verify();
     let m = manifest(&s.db());
     let named: Vec<&str> = m["layers"]
@@ -247,13 +250,7 @@ fn a_kill_at_any_step_of_a_change_leaves_a_database_that_verifies() {
 #[test]
 fn place_killed_at_its_commit_loses_nothing_else() {
     let s = Scene::new();
-    ok(
-        s.path(),
-        &s.place_args(0.0)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
+    s.place(0.0);
     let before = manifest(&s.db());
     let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
         .args(s.place_args(5.0))
@@ -294,43 +291,11 @@ fn a_manifest_edited_by_hand_or_naming_files_outside_is_refused() {
 #[test]
 fn re_ingest_keeps_placements_and_buildings_on_the_same_grid() {
     let s = Scene::new();
-    ok(
-        s.path(),
-        &s.place_args(0.0)
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
-    );
-    ok(
-        s.path(),
-        &[
-            "-q",
-            "shadow-height",
-            "--db",
-            "db",
-            "--footprints",
-            "s/buildings.geojson",
-            "--sun-elevation",
-            "40",
-            "--sun-azimuth",
-            "135",
-            "--apply",
-            "-o",
-            "h.geojson",
-        ],
-    );
+    s.place(0.0);
+    ok(s.path(), APPLY);
     let before = manifest(&s.db());
-    let ingest = [
-        "-q",
-        "ingest",
-        "--dem",
-        "s/dem.tif",
-        "--ortho",
-        "s/ortho.tif",
-        "-o",
-        "db",
-    ];
-    ok(s.path(), &ingest);
+    let ingest = INGEST;
+    ok(s.path(), ingest);
     let after = manifest(&s.db());
     assert_eq!(after["objects"], before["objects"]);
     assert_eq!(after["layers"]["buildings"], before["layers"]["buildings"]);
