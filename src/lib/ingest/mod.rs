@@ -86,6 +86,10 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
             ..e
         })?;
     }
+    if out.exists() && !out.is_dir() {
+        return Err(Error::file(out, "is a file, not a database directory")
+            .fix("give -o a new or existing database directory"));
+    }
     progress.phase(6, "ingest");
     let dem = RasterInput::open(&opts.dem)?;
     require_one_band(dem.meta())?;
