@@ -69,6 +69,12 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         })?,
     };
     let features = sh::read_footprints(&args.footprints)?;
+    let vertices = features.iter().filter_map(|f| f.footprint.as_ref().ok());
+    dbms::geojson::require_grid_crs(
+        &args.footprints,
+        db.grid(),
+        vertices.flat_map(|f| f.rings.iter().flatten().copied()),
+    )?;
     let terrain = db.read_elevation()?;
     let colour = db.read_colour()?;
     let mask = args
