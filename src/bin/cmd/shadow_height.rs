@@ -134,14 +134,12 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 .and_then(|_| measured.next().expect("one result per valid footprint"))
         })
         .collect();
-    for (k, r) in results.iter().enumerate() {
-        if let Err(e) = r {
-            eprintln!(
-                "dbms: warning: {}: feature {k}: {e}; skipped, the others go on",
-                args.footprints.display()
-            );
-        }
-    }
+    let file = args.footprints.display();
+    let skipped: Vec<String> = (results.iter().enumerate())
+        .filter_map(|(k, r)| r.as_ref().err().map(|e| (k, e)))
+        .map(|(k, e)| format!("{file}: feature {k}: {e}; skipped, the others go on"))
+        .collect();
+    ctx.warn_all(&skipped);
 
     let doc = output::heights_geojson(&features, &results, &registration, &sun, db.grid().crs.epsg);
     write_bytes_atomic(&args.output, output::to_text(&doc).as_bytes())?;
