@@ -110,15 +110,22 @@ fn argument_errors_are_one_line_with_exit_status_2() {
 fn io_errors_and_a_file_as_database_say_what_and_how_to_fix() {
     let t = tempfile::tempdir().unwrap();
     let dir = t.path();
-    std::fs::create_dir(dir.join("out")).unwrap();
-    let cone = [
-        "object", "cone", "--height", "6", "--radius", "2", "--voxel", "0.5",
+    // An input that is a directory (outputs that are directories are refused before writing).
+    std::fs::create_dir(dir.join("fp")).unwrap();
+    let extrude = [
+        "object",
+        "extrude",
+        "--footprints",
+        "fp",
+        "--voxel",
+        "1",
+        "-o",
+        "x.dvox",
     ];
-    let o = dbms(&[&cone[..], &["-o", "out"]].concat(), dir);
     assert_one_line(
-        &o,
+        &dbms(&extrude, dir),
         1,
-        "out: is a directory, not a file; give the path of a file",
+        "fp: is a directory, not a file; give the path of a file",
     );
     std::fs::write(dir.join("file"), "x").unwrap();
     assert_one_line(
