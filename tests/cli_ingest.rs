@@ -399,6 +399,45 @@ fn bad_inputs_fail_cleanly_with_one_line() {
     assert!(left.is_empty(), "temporary files left: {left:?}");
 }
 
+/// A photo given as the DEM would make the terrain its red band; a DEM without a CRS would
+/// silently take the photo's (and a photo without one the DEM's). All three are refused, each
+/// naming the file and the fix (issue 14, defect 7).
+#[test]
+fn a_photo_as_dem_and_an_input_without_crs_are_refused() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    let (_, o) = write_inputs(dir, Crs::epsg(32632), Crs::epsg(32632));
+    let db = dir.join("db");
+    let ingest = |dem: &Path, ortho: &Path| {
+        dbms(&["ingest", "--dem", s(dem), "--ortho", s(ortho), "-o", s(&db)])
+    };
+    let e = ingest(&o, &o);
+    assert_clean_failure(&e, "ortho.tif: has 4 bands of Byte samples");
+    assert!(stderr(&e).contains("gdal_translate -b 1"), "{}", stderr(&e));
+
+    for (dem_crs, photo_crs, unnamed, named) in [
+        (Crs::unknown(), Crs::epsg(32632), "dem.tif", "orthophoto"),
+        (Crs::epsg(32632), Crs::unknown(), "ortho.tif", "DEM"),
+    ] {
+        let sub = tempfile::tempdir_in(dir).unwrap();
+        let (d, o) = write_inputs(sub.path(), dem_crs, photo_crs);
+        let e = ingest(&d, &o);
+        assert_clean_failure(&e, &format!("{unnamed}: has no CRS"));
+        let msg = stderr(&e);
+        assert!(
+            msg.contains(&format!("the {named} is in EPSG:32632")),
+            "{msg}"
+        );
+        assert!(msg.contains("gdalsrsinfo -o wkt1 EPSG:32632 >"), "{msg}");
+    }
+    // Both without a CRS: nothing is assumed, the database has none either.
+    let sub = dir.join("none");
+    std::fs::create_dir(&sub).unwrap();
+    let (d0, o0) = write_inputs(&sub, Crs::unknown(), Crs::unknown());
+    let ok = ingest(&d0, &o0);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+}
+
 #[test]
 fn nan_cells_in_a_dem_are_nodata() {
     let t = tempfile::tempdir().unwrap();
@@ -583,6 +622,7 @@ fn a_dem_in_feet_is_refused_with_the_unit_named() {
         ),
     )
     .unwrap();
+    std::fs::copy(t.path().join("dem.prj"), t.path().join("ortho.prj")).unwrap();
     let out = dbms(&[
         "ingest",
         "--dem",

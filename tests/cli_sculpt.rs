@@ -701,3 +701,47 @@ fn place_records_objects_in_the_manifest() {
         serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
     assert_eq!(m2["objects"].as_array().unwrap().len(), 2);
 }
+
+/// A placement far from the terrain (a unit slip, `1e8`) or not a number is refused before
+/// anything is written: it would otherwise make every later pyramid fail (issue 14, defect 9).
+#[test]
+fn place_refuses_a_height_far_from_the_terrain_before_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = database(dir.path());
+    let tree = dir.path().join("tree.dvox");
+    let t = tree.to_str().unwrap();
+    let cone = ["object", "cone", "--height", "6", "--radius", "2"];
+    assert!(dbms(&[&cone[..], &["--voxel", "0.5", "-o", t]].concat()).0);
+    let manifest = std::fs::read(db.join("manifest.json")).unwrap();
+    let place = |at: &str| {
+        dbms(&[
+            "place",
+            "--db",
+            db.to_str().unwrap(),
+            "--object",
+            t,
+            "--at",
+            at,
+        ])
+    };
+    for at in [
+        "500005,5299995,1e8",
+        "500005,5299995,-5000",
+        "500005,5299995,NaN",
+    ] {
+        let (ok, _, err) = place(at);
+        assert!(!ok, "--at {at} was accepted");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.starts_with("dbms: error: --at"), "{err}");
+    }
+    let (_, _, err) = place("500005,5299995,1e8");
+    assert!(
+        err.contains("more than 1000 m outside the terrain's range"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(db.join("manifest.json")).unwrap(), manifest);
+    assert!(!db.join("objects").exists(), "the object was copied in");
+    // Within a kilometre of the terrain is a placement (an object on a tall roof).
+    let (ok, _, err) = place("500005,5299995,900");
+    assert!(ok, "{err}");
+}

@@ -331,7 +331,7 @@ fn bad_values_are_one_line_errors() {
     }
 }
 
-/// Usage mistakes are clap's (exit code 2, with usage): both places, or half of one.
+/// Usage mistakes are clap's (exit code 2, one line): both places, or half of one.
 #[test]
 fn place_is_lat_lon_or_db() {
     let t = "2026-06-21T10:00:00Z";

@@ -105,6 +105,33 @@ fn uint16_tiled_lzw() {
     assert_eq!(s.nodata, None);
 }
 
+/// GDAL's sparse files (`SPARSE_OK=TRUE`): a tile or strip of offset 0 and byte count 0 holds
+/// no data and reads as the nodata value, or 0 without one, as `gdallocationinfo` reads it
+/// (issue 14, defect 15). Read whole and by rows (the band-by-band path ingest uses).
+#[test]
+fn sparse_chunks_read_as_nodata_or_zero_like_gdal() {
+    let tiled = read("sparse_tiled_nodata.tif");
+    assert_utm(&tiled);
+    assert_eq!(tiled.nodata, Some(-32768.0));
+    let strips = read("sparse_strips_zero.tif");
+    assert_utm(&strips);
+    assert_eq!(strips.nodata, None);
+    for (c, r) in cells() {
+        let want_tiled = if c >= 16 { -32768 } else { e(c, r) };
+        let want_strips = if r >= 8 { 0 } else { e(c, r) };
+        assert_eq!(tiled.sample(r * W + c, 0) as i32, want_tiled, "({c}, {r})");
+        assert_eq!(
+            strips.sample(r * W + c, 0) as i32,
+            want_strips,
+            "({c}, {r})"
+        );
+    }
+    let el = tiled.to_elevation().unwrap();
+    assert_eq!(el.nodata_count(), 4 * H);
+    let rows = dbms::io::geotiff::read_rows(&data("sparse_strips_zero.tif"), 6..13).unwrap();
+    assert_eq!(rows.samples, strips.samples.slice(6 * W..13 * W));
+}
+
 #[test]
 fn int32_deflate_horizontal_predictor() {
     let s = read("int32_deflate_pred2.tif");

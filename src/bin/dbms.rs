@@ -12,6 +12,9 @@ struct Cli {
     /// Print nothing but errors.
     #[arg(long, short, global = true)]
     quiet: bool,
+    /// List every warning (by default a run prints a count and the first few of a kind).
+    #[arg(long, short, global = true, conflicts_with = "quiet")]
+    verbose: bool,
     /// Print a machine-readable JSON summary on stdout.
     #[arg(long, global = true)]
     json: bool,
@@ -63,9 +66,13 @@ fn parse_wait(s: &str) -> Result<std::time::Duration, String> {
 
 fn main() -> ExitCode {
     keep_freed_memory();
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(e),
+    };
     let ctx = cmd::Ctx {
         quiet: cli.quiet,
+        verbose: cli.verbose,
         json: cli.json,
         wait: cli.wait,
     };
@@ -92,6 +99,67 @@ fn main() -> ExitCode {
     }
 }
 
+/// Exit status of a usage error (arguments that do not parse); 1 is every other failure.
+const EXIT_USAGE: u8 = 2;
+
+/// The arguments did not parse. `--help` and `--version` print as clap prints them (exit 0);
+/// every other outcome is an error in the one-line form of all dbms errors, exit status 2:
+/// `dbms: error: <clap's message>; <its tip>; see `dbms <command> --help``.
+fn usage_error(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        let _ = e.print();
+        return ExitCode::SUCCESS;
+    }
+    let text = e.render().to_string();
+    let problem = match e.kind() {
+        // Clap renders the whole help here: say what is missing instead.
+        ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => "no command given".to_string(),
+        _ => usage_problem(&text),
+    };
+    eprintln!("dbms: error: {problem}; see `{} --help`", usage_command());
+    ExitCode::from(EXIT_USAGE)
+}
+
+/// Clap's message as one line: its `error:` line with the indented lines under it (a list of
+/// missing arguments) joined by commas, then its tips, without the usage and help lines.
+fn usage_problem(text: &str) -> String {
+    let mut head = String::new();
+    let mut list = Vec::new();
+    let mut tips = Vec::new();
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        match (line.strip_prefix("error:"), line.strip_prefix("tip:")) {
+            (Some(e), _) => head = e.trim().to_string(),
+            (_, Some(t)) => tips.push(t.trim()),
+            _ => list.push(line),
+        }
+    }
+    if !list.is_empty() {
+        head = format!("{head} {}", list.join(", "));
+    }
+    std::iter::once(head.as_str())
+        .chain(tips)
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// The command whose `--help` applies: `dbms` and the subcommands named on the command line
+/// (`dbms object cone`), found by walking clap's command tree.
+fn usage_command() -> String {
+    let mut cmd = <Cli as clap::CommandFactory>::command();
+    let mut path = vec!["dbms".to_string()];
+    for arg in std::env::args().skip(1) {
+        if let Some(sub) = cmd.find_subcommand(&arg).cloned() {
+            path.push(arg);
+            cmd = sub;
+        }
+    }
+    path.join(" ")
+}
+
 /// Let the allocator keep memory it gets back, up to 1 GiB, and serve blocks up to 32 MiB from
 /// its heap. The stages stream rasters band by band, allocating and freeing the same few large
 /// buffers (8 MB a band and layer on an 8192-wide grid) hundreds of times; by default glibc
@@ -109,3 +177,12 @@ fn keep_freed_memory() {
 
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 fn keep_freed_memory() {}
+
+#[cfg(test)]
+mod tests {
+    /// Clap's own consistency checks (duplicate short flags, bad defaults, ...) over every command.
+    #[test]
+    fn the_command_line_is_consistent() {
+        <super::Cli as clap::CommandFactory>::command().debug_assert();
+    }
+}

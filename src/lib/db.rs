@@ -236,6 +236,10 @@ impl Database {
     /// Open an existing database, checking its manifest's format and version.
     pub fn open(dir: &Path) -> Result<Database> {
         let path = dir.join(MANIFEST_FILE);
+        if dir.exists() && !dir.is_dir() {
+            return Err(Error::file(dir, "is a file, not a database directory")
+                .fix("give the directory `dbms ingest -o DIR` made"));
+        }
         if !dir.is_dir() {
             return Err(Error::file(dir, "no such database directory")
                 .fix("create it with `dbms ingest ... -o DIR`"));

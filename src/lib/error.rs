@@ -55,32 +55,48 @@ impl Error {
         self
     }
 
-    /// An I/O error while reading or writing `path`.
+    /// An I/O error while reading or writing `path`: the common kinds in words, with a fix;
+    /// others as std words them.
     pub fn io(path: impl AsRef<Path>, err: std::io::Error) -> Error {
-        let fix = match err.kind() {
-            std::io::ErrorKind::NotFound => Some("check the path".to_string()),
-            std::io::ErrorKind::PermissionDenied => {
-                Some("check the file's permissions".to_string())
-            }
-            _ => None,
-        };
-        Error {
-            path: Some(path.as_ref().to_path_buf()),
-            problem: io_problem(&err),
-            fix,
-        }
-    }
-}
-
-fn io_problem(err: &std::io::Error) -> String {
-    match err.kind() {
-        std::io::ErrorKind::NotFound => "no such file or directory".to_string(),
-        std::io::ErrorKind::UnexpectedEof => "file ends early (truncated?)".to_string(),
-        _ => {
+        use std::io::ErrorKind as K;
+        let (problem, fix) = match err.kind() {
+            K::NotFound => ("no such file or directory", "check the path"),
+            K::PermissionDenied => ("permission denied", "check the file's permissions"),
+            K::UnexpectedEof => (
+                "file ends early (truncated?)",
+                "re-create or re-download it",
+            ),
+            K::IsADirectory => (
+                "is a directory, not a file",
+                "give the path of a file (a directory is not replaced or read as one)",
+            ),
+            K::NotADirectory => (
+                "a part of the path is a file, not a directory",
+                "check the path",
+            ),
+            K::AlreadyExists => ("already exists", "remove it or choose another path"),
+            K::StorageFull => (
+                "no space left on the device",
+                "free some space or write to another disk, then run again",
+            ),
+            K::QuotaExceeded => (
+                "disk quota exceeded",
+                "free some space or write to another disk, then run again",
+            ),
+            K::ReadOnlyFilesystem => (
+                "the file system is read-only",
+                "write to a writable location",
+            ),
             // std's message carries " (os error N)"; keep it, it helps.
-            let s = err.to_string();
-            s.replace('\n', " ")
-        }
+            _ => {
+                return Error {
+                    path: Some(path.as_ref().to_path_buf()),
+                    problem: err.to_string(),
+                    fix: None,
+                }
+            }
+        };
+        Error::file(path, problem).fix(fix)
     }
 }
 
@@ -149,5 +165,23 @@ mod tests {
             "x.tif: no such file or directory; check the path"
         );
         assert!(!io.to_string().contains('\n'));
+    }
+
+    /// The raw "os error 21/17/28" of a directory, an existing file and a full disk become words
+    /// with a fix (issue 14, defect 13).
+    #[test]
+    fn common_io_errors_are_words_with_a_fix() {
+        for (code, want) in [
+            (
+                21,
+                "out: is a directory, not a file; give the path of a file",
+            ),
+            (17, "out: already exists; remove it or choose another path"),
+            (28, "out: no space left on the device; free some space"),
+        ] {
+            let e = Error::io("out", std::io::Error::from_raw_os_error(code)).to_string();
+            assert!(e.starts_with(want), "{code}: {e}");
+            assert!(!e.contains("os error"), "{e}");
+        }
     }
 }

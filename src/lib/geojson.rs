@@ -6,6 +6,7 @@
 //! to the caller, which knows what it needs.
 
 use crate::error::{Error, Result};
+use crate::grid::{Bounds, Grid};
 use serde_json::Value;
 use std::path::Path;
 
@@ -13,8 +14,9 @@ use std::path::Path;
 pub type Ring = Vec<(f64, f64)>;
 
 /// The features of a GeoJSON FeatureCollection file; `fix` is the advice when the file is not one.
+/// A leading UTF-8 byte order mark is skipped ([`crate::io::read_text`]).
 pub fn read_features(path: &Path, fix: &str) -> Result<Vec<Value>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::read_text(path)?;
     let doc: Value = serde_json::from_str(&text)
         .map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix(fix))?;
     match doc.get("features").and_then(Value::as_array) {
@@ -23,6 +25,49 @@ pub fn read_features(path: &Path, fix: &str) -> Result<Vec<Value>> {
             Err(Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix(fix))
         }
     }
+}
+
+/// Refuse the vertices `points` of the vector file `path` when they look like longitude and
+/// latitude on a projected `grid`: all within ±180, ±90 while the grid lies wholly outside
+/// that range (a UTM grid's coordinates are hundreds of thousands of metres). GeoJSON is
+/// lon/lat by its standard (RFC 7946), so this is the usual mistake, and without this check
+/// every feature would fail on its own as outside the grid. No points: nothing to check.
+pub fn require_grid_crs(
+    path: &Path,
+    grid: &Grid,
+    points: impl IntoIterator<Item = (f64, f64)>,
+) -> Result<()> {
+    let degrees = Bounds {
+        min_x: -180.0,
+        min_y: -90.0,
+        max_x: 180.0,
+        max_y: 90.0,
+    };
+    let inside = |b: &Bounds, (x, y): (f64, f64)| {
+        (b.min_x..=b.max_x).contains(&x) && (b.min_y..=b.max_y).contains(&y)
+    };
+    let db = grid.bounds();
+    let mut points = points.into_iter().peekable();
+    let some = points.peek().is_some();
+    if grid.crs.geographic
+        || db.intersection(&degrees).is_some()
+        || !(some && points.all(|p| inside(&degrees, p)))
+    {
+        return Ok(());
+    }
+    let crs = grid.crs.name();
+    Err(Error::file(
+        path,
+        format!(
+            "coordinates look like longitude/latitude degrees (all within ±180, ±90), but the database is in {crs}, extent [{}, {}, {}, {}]",
+            db.min_x, db.min_y, db.max_x, db.max_y
+        ),
+    )
+    .fix(format!(
+        "reproject the file to the database's CRS: ogr2ogr -t_srs {} out.geojson {}",
+        grid.crs.epsg.map_or("<the database's CRS>".to_string(), |c| format!("EPSG:{c}")),
+        path.display()
+    )))
 }
 
 /// The polygons of a Polygon or MultiPolygon geometry, each as its rings; or why it has none.
@@ -86,6 +131,47 @@ mod tests {
         assert_eq!(p[0][1][1], (1.0, 0.5));
         let m = polygons(&json!({"type": "MultiPolygon", "coordinates": [sq, sq]})).unwrap();
         assert_eq!(m.len(), 2);
+    }
+
+    /// Lon/lat vertices on a UTM grid are one CRS error; on a geographic grid, or a local grid
+    /// near the origin, they are not (issue 14, defect 13).
+    #[test]
+    fn lon_lat_on_a_projected_grid_is_a_crs_error() {
+        use crate::crs::Crs;
+        let utm = Grid::north_up(500_000.0, 5_300_000.0, 1.0, 100, 100, Crs::epsg(32632));
+        let lon_lat = [(9.0, 47.85), (9.001, 47.85), (9.001, 47.851)];
+        let e = require_grid_crs(Path::new("f.geojson"), &utm, lon_lat)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("f.geojson: coordinates look like longitude/latitude degrees"),
+            "{e}"
+        );
+        assert!(
+            e.contains("EPSG:32632") && e.contains("ogr2ogr -t_srs EPSG:32632"),
+            "{e}"
+        );
+        let geo = Grid::north_up(9.0, 48.0, 0.001, 100, 100, Crs::epsg(4326));
+        let local = Grid::north_up(0.0, 100.0, 1.0, 100, 100, Crs::unknown());
+        for g in [&geo, &local] {
+            assert!(require_grid_crs(Path::new("f"), g, lon_lat).is_ok());
+        }
+        let metres = [(500_010.0, 5_299_990.0), (5.0, 5.0)];
+        assert!(require_grid_crs(Path::new("f"), &utm, metres).is_ok());
+        assert!(require_grid_crs(Path::new("f"), &utm, []).is_ok());
+    }
+
+    /// A file that starts with a UTF-8 byte order mark reads like one without (issue 14, defect 13).
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bom.geojson");
+        std::fs::write(
+            &p,
+            "\u{feff}{\"type\": \"FeatureCollection\", \"features\": [{}]}",
+        )
+        .unwrap();
+        assert_eq!(read_features(&p, "fix").unwrap().len(), 1);
     }
 
     #[test]

@@ -40,6 +40,9 @@ write("red", "B", "Byte", [10 * c + 5 for c, r in cells])
 write("green", "B", "Byte", [15 * r + 3 for c, r in cells])
 write("blue", "B", "Byte", [(7 * c + 11 * r) % 256 for c, r in cells])
 write("alpha", "B", "Byte", [0 if (c + r) % 5 == 0 else 255 for c, r in cells])
+# Sparse files (GDAL SPARSE_OK=TRUE): columns 16.. nodata (one whole tile), rows 8.. zero (two strips).
+write("e_sparse_nd", "h", "Int16", [-32768 if c >= 16 else e(c, r) for c, r in cells])
+write("e_sparse_zero", "h", "Int16", [0 if r >= 8 else e(c, r) for c, r in cells])
 # South-up (positive cell height): GDAL writes ModelTransformation. Rotated: a rotation term.
 write("south_up", "h", "Int16", [e(c, r) for c, r in cells], (500000.0, 30.0, 0.0, 4999550.0, 0.0, 30.0))
 write("rotated", "h", "Int16", [e(c, r) for c, r in cells], (500000.0, 30.0, 5.0, 5000000.0, 0.0, -30.0))
@@ -58,6 +61,8 @@ $t $utm -ot UInt16 -co TILED=YES -co BLOCKXSIZE=16 -co BLOCKYSIZE=16 -co COMPRES
 $t $utm -co COMPRESS=DEFLATE -co PREDICTOR=2 "$tmp/e_i32.vrt" int32_deflate_pred2.tif
 $t $utm -a_nodata nan -co TILED=YES -co BLOCKXSIZE=16 -co BLOCKYSIZE=16 -co COMPRESS=DEFLATE -co PREDICTOR=3 "$tmp/e_f32.vrt" float32_tiled_deflate_pred3_nan.tif
 $t $utm -co COMPRESS=LZW "$tmp/e_f64.vrt" float64_lzw.tif
+$t $utm -a_nodata -32768 -co TILED=YES -co BLOCKXSIZE=16 -co BLOCKYSIZE=16 -co COMPRESS=DEFLATE -co SPARSE_OK=TRUE "$tmp/e_sparse_nd.vrt" sparse_tiled_nodata.tif
+$t $utm -co BLOCKYSIZE=4 -co SPARSE_OK=TRUE "$tmp/e_sparse_zero.vrt" sparse_strips_zero.tif
 $t $utm -mo AREA_OR_POINT=Point "$tmp/e.vrt" pixel_is_point.tif
 $t -a_srs EPSG:32614 "$tmp/south_up.vrt" model_transformation.tif
 $t -a_srs EPSG:32614 "$tmp/rotated.vrt" rotated.tif

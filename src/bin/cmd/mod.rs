@@ -23,6 +23,8 @@ use std::fmt::Display;
 pub struct Ctx {
     /// `--quiet`: print nothing but errors.
     pub quiet: bool,
+    /// `--verbose`: list every warning, not a count and the first few.
+    pub verbose: bool,
     /// `--json`: print a JSON summary on stdout instead of human text.
     pub json: bool,
     /// `--wait`: how long a change to a database waits for another's lock.
@@ -49,11 +51,37 @@ impl Ctx {
         }
     }
 
+    /// Warnings of one kind on stderr, `dbms: warning: <line>`: every one with `--verbose`, else
+    /// the first [`WARNINGS_SHOWN`] and a line counting the rest (a city's footprint file can
+    /// skip thousands of features). Nothing with `--quiet`, which prints errors only.
+    pub fn warn_all(&self, warnings: &[String]) {
+        if self.quiet {
+            return;
+        }
+        let shown = if self.verbose {
+            warnings.len()
+        } else {
+            WARNINGS_SHOWN.min(warnings.len())
+        };
+        for w in &warnings[..shown] {
+            eprintln!("dbms: warning: {w}");
+        }
+        if shown < warnings.len() {
+            eprintln!(
+                "dbms: warning: {} more like these (--verbose lists them all)",
+                warnings.len() - shown
+            );
+        }
+    }
+
     /// A progress bar on stderr (drawn only on a terminal, never with `--quiet` or `--json`).
     pub fn progress(&self, total: u64, what: &str) -> Progress {
         Progress::new(total, what, !self.quiet && !self.json)
     }
 }
+
+/// Warnings of one kind printed without `--verbose` before the rest are counted.
+pub const WARNINGS_SHOWN: usize = 5;
 
 /// The sun, as the stages that shade or cast shadows take it: a UTC time (the sun over the
 /// database centre, NREL SPA) or both angles. Each command decides what giving neither means.

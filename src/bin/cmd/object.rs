@@ -160,7 +160,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 out.voxel,
                 parse_rgb(&colour)?,
                 parse_rgb(&roof_colour)?,
-            )?;
+            )
+            .map_err(|e| e.in_file(&footprints))?;
             let n = fp.len();
             (
                 obj,

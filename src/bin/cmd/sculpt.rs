@@ -47,9 +47,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         fill: parse_rgb(&args.fill)?,
     };
     let (obj, report) = sculpt(&args.views, &opts)?;
-    for w in &report.warnings {
-        ctx.log(format!("dbms: warning: {w}"));
-    }
+    ctx.warn_all(&report.warnings);
     let planned = check_exports(&args.output, &obj, &args.export)?;
     format::write(
         &args.output,

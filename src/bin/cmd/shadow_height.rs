@@ -74,6 +74,12 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .collect();
     dbms::io::atomic::check_outputs(&[&args.output], &inputs)?;
     let features = sh::read_footprints(&args.footprints)?;
+    let vertices = features.iter().filter_map(|f| f.footprint.as_ref().ok());
+    dbms::geojson::require_grid_crs(
+        &args.footprints,
+        db.grid(),
+        vertices.flat_map(|f| f.rings.iter().flatten().copied()),
+    )?;
     let terrain = db.read_elevation()?;
     let colour = db.read_colour()?;
     let mask = args
@@ -133,14 +139,12 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 .and_then(|_| measured.next().expect("one result per valid footprint"))
         })
         .collect();
-    for (k, r) in results.iter().enumerate() {
-        if let Err(e) = r {
-            eprintln!(
-                "dbms: warning: {}: feature {k}: {e}; skipped, the others go on",
-                args.footprints.display()
-            );
-        }
-    }
+    let file = args.footprints.display();
+    let skipped: Vec<String> = (results.iter().enumerate())
+        .filter_map(|(k, r)| r.as_ref().err().map(|e| (k, e)))
+        .map(|(k, e)| format!("{file}: feature {k}: {e}; skipped, the others go on"))
+        .collect();
+    ctx.warn_all(&skipped);
 
     let doc = output::heights_geojson(&features, &results, &registration, &sun, db.grid().crs.epsg);
     // Written now, renamed into place only after --apply's change committed: a failed apply

@@ -91,17 +91,21 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
             ..e
         })?;
     }
+    if out.exists() && !out.is_dir() {
+        return Err(Error::file(out, "is a file, not a database directory")
+            .fix("give -o a new or existing database directory"));
+    }
     progress.phase(6, "ingest");
     let dem = RasterInput::open(&opts.dem)?;
+    require_one_band(dem.meta())?;
     progress.inc(1);
     let ortho = RasterInput::open(&opts.ortho)?;
     progress.inc(1);
     let target = target_crs(opts, dem.grid(), ortho.grid())?;
     // dbms works in metres: a State Plane grid in feet, or heights in feet, would be read wrong.
-    let target_from = match (&opts.t_srs, dem.grid().crs.is_unknown()) {
-        (Some(_), _) => Path::new("--t-srs"),
-        (None, true) => opts.ortho.as_path(),
-        (None, false) => opts.dem.as_path(),
+    let target_from = match &opts.t_srs {
+        Some(_) => Path::new("--t-srs"),
+        None => opts.dem.as_path(),
     };
     target.require_metric_coordinates(target_from)?;
     dem.grid().crs.require_metric_heights(&opts.dem)?;
@@ -333,7 +337,30 @@ fn input_file(role: &str, path: &Path) -> Result<InputFile> {
     })
 }
 
-/// The database CRS: `--t-srs` (GDAL builds), else the DEM's, else (DEM without CRS) the photo's.
+/// A DEM has one band of heights. A raster of several (an RGB or RGBA photo, grey + alpha)
+/// given as the DEM is refused: reading its first band as heights would make the terrain the
+/// photo's red channel, silently.
+fn require_one_band(dem: &SourceRaster) -> Result<()> {
+    if dem.bands == 1 {
+        return Ok(());
+    }
+    let p = dem.path.display();
+    Err(Error::file(
+        &dem.path,
+        format!(
+            "has {} bands of {} samples (an image?), but a DEM has one band of heights",
+            dem.bands,
+            dem.samples.type_name()
+        ),
+    )
+    .fix(format!(
+        "give the elevation raster as --dem and the photo as --ortho, or select the height band: gdal_translate -b 1 {p} dem.tif"
+    )))
+}
+
+/// The database CRS: `--t-srs` (GDAL builds), else the DEM's. An input without a CRS is never
+/// assumed to be in the other's: when only one of the two has a CRS, that is an error naming the
+/// one without (both without: the database has no CRS, and nothing was assumed).
 fn target_crs(opts: &IngestOptions, dem: &Grid, ortho: &Grid) -> Result<Crs> {
     if let Some(def) = &opts.t_srs {
         #[cfg(feature = "gdal")]
@@ -344,11 +371,27 @@ fn target_crs(opts: &IngestOptions, dem: &Grid, ortho: &Grid) -> Result<Crs> {
         ))
         .fix("build dbms with --features gdal, or reproject the inputs with gdalwarp -t_srs"));
     }
-    Ok(if dem.crs.is_unknown() {
-        ortho.crs.clone()
-    } else {
-        dem.crs.clone()
-    })
+    let no_crs = |path: &Path, other: &str, crs: &Crs| {
+        let prj = path.with_extension("prj");
+        Error::file(
+            path,
+            format!(
+                "has no CRS (no GeoKeys, no .prj beside it) while the {other} is in {}",
+                crs.name()
+            ),
+        )
+        .fix(format!(
+            "if it is in that CRS too, say so beside it: gdalsrsinfo -o wkt1 {} > {}",
+            crs.epsg
+                .map_or("EPSG:CODE".to_string(), |c| format!("EPSG:{c}")),
+            prj.display()
+        ))
+    };
+    match (dem.crs.is_unknown(), ortho.crs.is_unknown()) {
+        (true, false) => Err(no_crs(&opts.dem, "orthophoto", &ortho.crs)),
+        (false, true) => Err(no_crs(&opts.ortho, "DEM", &dem.crs)),
+        _ => Ok(dem.crs.clone()),
+    }
 }
 
 /// The extent of an input in the database CRS: its own, or (GDAL builds) carried across CRSs.

@@ -2,11 +2,15 @@
 //!
 //! Invariant: for every layout [`plan`] accepts, [`decode`] returns exactly the samples the
 //! `tiff` crate's serial `read_image_to_buffer` returns (same variant, same values, same plane
-//! order); layouts it does not accept (other compressions, float16, sub-byte samples, mixed
+//! order), except in sparse chunks (below), which that crate reads from offset 0; layouts it does not accept (other compressions, float16, sub-byte samples, mixed
 //! sample formats) return `None` from [`plan`] and are left to the `tiff` crate. Each chunk's
 //! compressed bytes are read by offset and byte count (positioned reads, no shared cursor),
 //! inflated (Deflate by libdeflate, adler-32 checked; LZW by `weezl`) and un-predicted on a
 //! rayon thread, then copied into the image.
+//!
+//! Sparse files: a chunk of byte count 0 (GDAL's `SPARSE_OK=TRUE` writes offset 0 and byte
+//! count 0 for a block that is all nodata, or all zero without nodata) holds no data and reads
+//! as the fill value ([`Plan::with_fill`]): the file's nodata value, else 0, as GDAL reads it.
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -41,6 +45,8 @@ pub(crate) struct Plan {
     chunk_h: usize,
     offsets: Vec<u64>,
     counts: Vec<u64>,
+    /// The bits of the sample a sparse chunk (byte count 0) reads as, in the sample's type.
+    fill: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -130,10 +136,25 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
         chunk_h,
         offsets,
         counts,
+        fill: 0,
     }))
 }
 
 impl Plan {
+    /// This plan with sparse chunks (byte count 0) read as `nodata` (the file's declared value,
+    /// in the sample's type as GDAL converts it), or as 0 when the file declares none.
+    pub(crate) fn with_fill(self, nodata: Option<f64>) -> Plan {
+        let v = nodata.unwrap_or(0.0);
+        let fill = match (self.format, self.bytes) {
+            (3, 4) => (v as f32).to_bits() as u64,
+            (3, _) => v.to_bits(),
+            // Two's complement: the word's low bytes are the signed value's.
+            (2, _) => v as i64 as u64,
+            _ => v as u64,
+        };
+        Plan { fill, ..self }
+    }
+
     /// Planes of chunks: one per sample if planar, else one.
     pub(crate) fn planes(&self) -> usize {
         if self.planar {
@@ -362,11 +383,12 @@ fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> 
         }
     }
     let chunk_row_bytes = plan.chunk_w * spp * W::BYTES;
+    let fill = W::from_be_bytes(&plan.fill.to_be_bytes()[8 - W::BYTES..]);
     parts
         .into_par_iter()
         .try_for_each(|(plane, cy, skip, part)| {
             let n_rows = part.len() / row_len;
-            let decoded: Vec<Vec<u8>> = (0..across)
+            let decoded: Vec<Option<Vec<u8>>> = (0..across)
                 .into_par_iter()
                 .map(|cx| {
                     let index = (plane * down + cy) * across + cx;
@@ -381,8 +403,14 @@ fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> 
                     for (cx, c) in decoded.iter().enumerate() {
                         let x0 = cx * plan.chunk_w;
                         let n = (plan.chunk_w.min(plan.width - x0)) * spp;
-                        let bytes = &c[(skip + r) * chunk_row_bytes..][..chunk_row_bytes];
-                        chunk_row(plan, bytes, &mut row[x0 * spp..][..n], scratch);
+                        let out = &mut row[x0 * spp..][..n];
+                        match c {
+                            Some(c) => {
+                                let bytes = &c[(skip + r) * chunk_row_bytes..][..chunk_row_bytes];
+                                chunk_row(plan, bytes, out, scratch);
+                            }
+                            None => out.fill(fill),
+                        }
                     }
                 },
             );
@@ -437,7 +465,7 @@ fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Ve
 }
 
 /// The first `rows` rows of chunk `index` as stored bytes, inflated (rows of samples of `word`
-/// bytes).
+/// bytes); `None` for a sparse chunk (byte count 0), which holds no bytes.
 fn chunk_bytes(
     path: &Path,
     file: &File,
@@ -445,7 +473,7 @@ fn chunk_bytes(
     index: usize,
     rows: usize,
     word: usize,
-) -> Result<Vec<u8>> {
+) -> Result<Option<Vec<u8>>> {
     let corrupt = |what: String| {
         Error::file(
             path,
@@ -460,6 +488,9 @@ fn chunk_bytes(
     let whole = plan.chunk_h * row_bytes;
     let count =
         usize::try_from(plan.counts[index]).map_err(|_| corrupt("byte count too large".into()))?;
+    if count == 0 {
+        return Ok(None);
+    }
     let mut stored = vec![0u8; count];
     file.read_exact_at(&mut stored, plan.offsets[index])
         .map_err(|e| match e.kind() {
@@ -485,7 +516,7 @@ fn chunk_bytes(
         )));
     }
     raw.truncate(want);
-    Ok(raw)
+    Ok(Some(raw))
 }
 
 #[cfg(test)]
@@ -622,6 +653,11 @@ mod tests {
             else {
                 continue;
             };
+            // Sparse chunks (byte count 0): the tiff crate reads bytes at offset 0, the file's
+            // header; we read GDAL's fill (tests/io_formats.rs checks those files' values).
+            if matches!(plan(&mut dec), Ok(Some(p)) if p.counts.contains(&0)) {
+                continue;
+            }
             let mut serial = DecodingResult::U8(Vec::new());
             if dec.read_image_to_buffer(&mut serial).is_err() {
                 continue;

@@ -177,7 +177,9 @@ fn read_impl(path: &Path, window: Option<std::ops::Range<usize>>) -> Result<Sour
         )
         .fix("ask for rows within the image"));
     }
-    let (buf, planes, whole) = match super::chunks::plan(&mut dec).map_err(err)? {
+    let nodata = tags.nodata(path)?;
+    let planned = super::chunks::plan(&mut dec).map_err(err)?;
+    let (buf, planes, whole) = match planned.map(|p| p.with_fill(nodata)) {
         Some(plan) if plan.decoded_bytes() > MAX_DECODED_BYTES as u64 => {
             return Err(corrupt(path, TiffError::LimitsExceeded))
         }
@@ -277,7 +279,7 @@ fn read_impl(path: &Path, window: Option<std::ops::Range<usize>>) -> Result<Sour
         grid,
         bands,
         samples,
-        nodata: tags.nodata(path)?,
+        nodata,
         alpha_band,
         pixel_is_point,
         format: "GTiff",

@@ -404,6 +404,16 @@ pub fn read_raster(path: &Path) -> Result<SourceRaster> {
 
 /// What kind of raster a file is, by its first bytes, and how many of those were there (< 64
 /// only for a tiny file).
+/// A text input (JSON: footprints, views) as a string, without the UTF-8 byte order mark that
+/// Windows editors and some GIS exports put first (JSON parsers refuse it).
+pub fn read_text(path: &Path) -> Result<String> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
+}
+
 fn kind_of(path: &Path) -> Result<(Kind, usize)> {
     let mut head = [0u8; 64];
     let n = {

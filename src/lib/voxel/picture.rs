@@ -9,6 +9,26 @@
 use crate::error::{Error, Result};
 use std::path::Path;
 
+/// Largest view image decoded, pixels: 100 million, a 100-megapixel camera's frame. A view is
+/// held as RGBA8 (4 bytes a pixel) beside its silhouette, so this bounds a view's memory near
+/// 1 GB. The size is read from the header and checked before anything is decoded: a small,
+/// highly compressed file (a 389 KB PNG of 20000²) cannot make us allocate gigabytes.
+pub const MAX_PIXELS: u64 = 100_000_000;
+
+/// Refuse an image of more than [`MAX_PIXELS`], before it is decoded.
+fn within_budget(width: u32, height: u32) -> Result<()> {
+    let pixels = width as u64 * height as u64;
+    if pixels <= MAX_PIXELS {
+        return Ok(());
+    }
+    Err(Error::msg(format!(
+        "is {width} x {height} pixels ({} megapixels), more than the {}-megapixel budget of a view image",
+        pixels.div_ceil(1_000_000),
+        MAX_PIXELS / 1_000_000
+    ))
+    .fix("downscale it, and its camera (fx, fy, cx, cy or scale) by the same factor: gdal_translate -outsize 50% 50% in.png out.png"))
+}
+
 /// An RGBA8 image.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Picture {
@@ -35,12 +55,18 @@ impl Picture {
                 read_tiff(&bytes).map_err(|e| e.in_file(path))
             }
             Some([0x89, b'P', b'N', b'G']) | Some([0xff, 0xd8, 0xff, _]) => {
-                let img = image::load_from_memory(&bytes)
-                    .map_err(|e| {
-                        Error::file(path, format!("cannot decode the image: {e}"))
-                            .fix("give a valid PNG, JPEG or TIFF")
-                    })?
-                    .to_rgba8();
+                let bad = |e: image::ImageError| {
+                    Error::file(path, format!("cannot decode the image: {e}"))
+                        .fix("give a valid PNG, JPEG or TIFF")
+                };
+                let reader = || {
+                    image::ImageReader::new(std::io::Cursor::new(&bytes))
+                        .with_guessed_format()
+                        .map_err(|e| Error::io(path, e))
+                };
+                let (w, h) = reader()?.into_dimensions().map_err(bad)?;
+                within_budget(w, h).map_err(|e| e.in_file(path))?;
+                let img = reader()?.decode().map_err(bad)?.to_rgba8();
                 let (width, height) = img.dimensions();
                 Ok(Picture {
                     width,
@@ -66,6 +92,7 @@ fn read_tiff(bytes: &[u8]) -> Result<Picture> {
     };
     let mut dec = Decoder::new(std::io::Cursor::new(bytes)).map_err(bad)?;
     let (width, height) = dec.dimensions().map_err(bad)?;
+    within_budget(width, height)?;
     let channels = match dec.colortype().map_err(bad)? {
         ColorType::Gray(8 | 16) => 1,
         ColorType::GrayA(8 | 16) => 2,
@@ -137,5 +164,57 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("magic"));
+    }
+
+    /// A small file declaring a huge image is refused from its header, before any decoding
+    /// allocates for it (issue 14, defect 14).
+    #[test]
+    fn an_image_over_the_pixel_budget_is_refused_before_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        // A PNG whose header says 20000 x 20000 grey pixels: signature, IHDR, the start of a
+        // zlib stream in IDAT, IEND.
+        let chunk = |kind: &[u8], data: &[u8]| {
+            let mut c = (data.len() as u32).to_be_bytes().to_vec();
+            c.extend_from_slice(kind);
+            c.extend_from_slice(data);
+            let crc = crc32fast::hash(&c[4..]);
+            c.extend_from_slice(&crc.to_be_bytes());
+            c
+        };
+        let mut ihdr = [20_000u32.to_be_bytes(), 20_000u32.to_be_bytes()].concat();
+        ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        png.extend(chunk(b"IHDR", &ihdr));
+        png.extend(chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00]));
+        png.extend(chunk(b"IEND", &[]));
+        let big_png = dir.path().join("big.png");
+        std::fs::write(&big_png, png).unwrap();
+        // A 1 x 1 TIFF whose width and height tags are patched to 20000.
+        let mut tif = std::io::Cursor::new(Vec::new());
+        tiff::encoder::TiffEncoder::new(&mut tif)
+            .unwrap()
+            .write_image::<tiff::encoder::colortype::Gray8>(1, 1, &[0])
+            .unwrap();
+        let mut tif = tif.into_inner();
+        let ifd = u32::from_le_bytes(tif[4..8].try_into().unwrap()) as usize;
+        let n = u16::from_le_bytes(tif[ifd..ifd + 2].try_into().unwrap()) as usize;
+        for e in (0..n).map(|k| ifd + 2 + 12 * k) {
+            let tag = u16::from_le_bytes(tif[e..e + 2].try_into().unwrap());
+            if tag == 256 || tag == 257 {
+                tif[e + 8..e + 12].copy_from_slice(&20_000u32.to_le_bytes());
+            }
+        }
+        let big_tif = dir.path().join("big.tif");
+        std::fs::write(&big_tif, tif).unwrap();
+        for p in [big_png, big_tif] {
+            let e = Picture::read(&p).unwrap_err().to_string();
+            assert!(
+                e.contains(
+                    "is 20000 x 20000 pixels (400 megapixels), more than the 100-megapixel budget"
+                ),
+                "{e}"
+            );
+            assert!(e.starts_with(p.to_str().unwrap()), "{e}");
+        }
     }
 }

@@ -6,6 +6,10 @@
 //!   `heading` degrees clockwise seen from above (0 = the object's +y stays north).
 //! * `z` is the given absolute height, or else the terrain height at `(x, y)`: bilinear between
 //!   the four nearest elevation cell centres (clamped at the grid edge); nodata there is an error.
+//! * A given `z` must lie within [`Z_MARGIN_M`] of the terrain's range (its lowest and highest
+//!   valid cell): room for any structure on a roof or a bridge, or sunk in a pit, while a unit
+//!   slip or a missing decimal point (`1e8`) is refused before anything is written. Heights are
+//!   `f32` in the tile set; far from the terrain they would lose the voxels' resolution.
 //! * The object file is copied into `DB/objects/` under a content-addressed name
 //!   (`<stem>-<first 12 hex of its SHA-256>.dvox`), so placing one tree many times stores it once,
 //!   and the placement is appended to the manifest's `objects` with a `place` stage record.
@@ -14,8 +18,12 @@ use super::format;
 use super::object::VoxelObject;
 use crate::db::{sha256_file, Database, PlacedObject, Stage};
 use crate::error::{Error, Result};
-use crate::raster::Elevation;
+use crate::raster::{Elevation, RowSource};
 use std::path::Path;
+
+/// How far (metres) a placement's given height may lie below the lowest or above the highest
+/// terrain of the database: a kilometre, more than any structure is tall.
+pub const Z_MARGIN_M: f64 = 1000.0;
 
 /// Terrain height (metres) at world `(x, y)`, bilinear on cell centres; `None` outside the grid
 /// or where a contributing cell is nodata.
@@ -49,7 +57,8 @@ pub fn place(
 ) -> Result<PlacedObject> {
     if !(x.is_finite() && y.is_finite() && z.is_none_or(f64::is_finite) && heading_deg.is_finite())
     {
-        return Err(Error::msg("--at and --heading must be finite numbers"));
+        return Err(Error::msg("--at and --heading must be finite numbers")
+            .fix("e.g. --at 500120.5,5000340,0 --heading 30"));
     }
     let mut change = Database::begin(dir, wait)?;
     let db = &mut change.db;
@@ -71,7 +80,7 @@ pub fn place(
         .fix("give a position inside the database"));
     }
     let z = match z {
-        Some(z) => z,
+        Some(z) => require_near_terrain(db, z)?,
         None => ground_height(&db.read_elevation()?, x, y).ok_or_else(|| {
             Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)"))
                 .fix("give the height as --at X,Y,Z")
@@ -107,6 +116,29 @@ pub fn place(
     ));
     change.commit()?;
     Ok(placed)
+}
+
+/// `z` (absolute metres), when within [`Z_MARGIN_M`] of the terrain's range in `db`.
+fn require_near_terrain(db: &Database, z: f64) -> Result<f64> {
+    let rows = db.elevation_rows()?;
+    let (w, h) = (db.grid().width, db.grid().height);
+    let band = ((1 << 22) / w.max(1)).max(1);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for r0 in (0..h).step_by(band) {
+        for &v in rows.read_rows(r0, band.min(h - r0))?.iter() {
+            if !v.is_nan() {
+                lo = lo.min(v as f64);
+                hi = hi.max(v as f64);
+            }
+        }
+    }
+    if lo - Z_MARGIN_M <= z && z <= hi + Z_MARGIN_M {
+        return Ok(z);
+    }
+    Err(Error::msg(format!(
+        "--at height {z} m is more than {Z_MARGIN_M} m outside the terrain's range, {lo} to {hi} m"
+    ))
+    .fix("give Z in metres on the elevation layer's datum, or leave it out to stand the object on the ground"))
 }
 
 #[cfg(test)]

@@ -60,9 +60,22 @@ pub fn revolve(profile: &[[f64; 2]], voxel: f64, colour: [u8; 3]) -> Result<Voxe
     ring.extend_from_slice(profile);
     ring.push([0.0, profile[profile.len() - 1][1]]);
     let grid = local_grid(rmax, zmax, voxel)?;
-    Ok(VoxelObject::from_fn(grid, |p, _| {
+    solid(VoxelObject::from_fn(grid, |p, _| {
         inside_ring(&ring, [p[0].hypot(p[1]), p[2]]).then_some(colour)
     }))
+}
+
+/// `obj`, refused when no voxel is solid: an object smaller than a voxel (no voxel centre inside
+/// it) would be written as an empty object that places and renders as nothing, silently.
+fn solid(obj: VoxelObject) -> Result<VoxelObject> {
+    if obj.is_empty() {
+        return Err(Error::msg(format!(
+            "no voxel is solid: no voxel centre of the {} m grid falls inside the object",
+            obj.grid.voxel_size
+        ))
+        .fix("use a smaller --voxel: the object is smaller than one voxel"));
+    }
+    Ok(obj)
 }
 
 /// Even-odd point-in-polygon for a closed ring of 2-D points.
@@ -159,7 +172,7 @@ pub fn cone_tree(p: &TreeParams, voxel: f64) -> Result<(VoxelObject, f64)> {
             None
         }
     });
-    Ok((obj, h))
+    Ok((solid(obj)?, h))
 }
 
 /// A footprint: polygon rings (outer ring first, then holes; x, y world units) and a height.
@@ -267,7 +280,7 @@ pub fn extrude(
         })
         .collect();
     let s = grid.voxel_size;
-    Ok(VoxelObject::from_fn(grid, |p, index| {
+    solid(VoxelObject::from_fn(grid, |p, index| {
         let [x, y, _] = grid.coords(index);
         let h = heights[y as usize * nx + x as usize];
         (p[2] <= h).then(|| if p[2] + s > h { roof } else { wall })
@@ -373,5 +386,34 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("feature 0: no positive number in property \"height\""));
+    }
+
+    /// An object smaller than a voxel is refused, never written empty (issue 14, defect 8).
+    #[test]
+    fn an_object_smaller_than_a_voxel_is_refused() {
+        let tree = TreeParams {
+            height: 12.0,
+            radius: 3.0,
+            trunk_fraction: 0.25,
+            trunk_radius: 0.2,
+            vary: 0.2,
+            crown: [40, 100, 40],
+            trunk: [90, 60, 30],
+            seed: 1,
+        };
+        let footprint = Footprint {
+            rings: vec![vec![[0.2, 0.2], [0.8, 0.2], [0.8, 0.8], [0.2, 0.8]]],
+            height: 6.0,
+        };
+        let errors = [
+            cone_tree(&tree, 100.0).map(|_| ()),
+            revolve(&[[2.0, 0.0], [2.0, 3.0]], 50.0, [1; 3]).map(|_| ()),
+            extrude(&[footprint], 2.0, [1; 3], [2; 3]).map(|_| ()),
+        ];
+        for e in errors {
+            let e = e.unwrap_err().to_string();
+            assert!(e.starts_with("no voxel is solid"), "{e}");
+            assert!(e.contains("use a smaller --voxel"), "{e}");
+        }
     }
 }

@@ -159,9 +159,10 @@ impl CameraSpec {
 }
 
 impl ViewsFile {
-    /// Parse a `VIEWS.json` file: an object `{"views": [...], "bounds": [...]}` or just the list.
+    /// Parse a `VIEWS.json` file: an object `{"views": [...], "bounds": [...]}` or just the list
+    /// (a leading UTF-8 byte order mark is skipped).
     pub fn read(path: &Path) -> Result<ViewsFile> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         let parsed = if text.trim_start().starts_with('[') {
             serde_json::from_str::<Vec<ViewSpec>>(&text).map(|views| ViewsFile {
                 views,

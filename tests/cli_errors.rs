@@ -1,0 +1,201 @@
+//! The one-line error contract across commands (issue 14, defect 13): argument errors, I/O
+//! errors, a file given as a database, GeoJSON with a byte order mark or in lon/lat, and
+//! warnings summarised rather than one line per skipped feature.
+
+use dbms::crs::Crs;
+use dbms::grid::Grid;
+use dbms::io::geotiff;
+use dbms::raster::Raster;
+use serde_json::json;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn dbms(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Failed with `status`, one `dbms: error:` line on stderr containing `needle`, nothing on stdout.
+fn assert_one_line(o: &Output, status: i32, needle: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(status), "{err}");
+    assert_eq!(err.lines().count(), 1, "want one line: {err}");
+    assert!(err.starts_with("dbms: error: "), "{err}");
+    assert!(err.contains(needle), "want {needle:?} in: {err}");
+    assert!(!err.contains("os error"), "{err}");
+    assert!(o.stdout.is_empty());
+}
+
+/// A flat 40 × 40 m database of 0.5 m cells at UTM 32N (500 000, 5 300 000).
+fn database(dir: &Path) {
+    let g = Grid::north_up(500_000.0, 5_300_040.0, 0.5, 80, 80, Crs::epsg(32632));
+    geotiff::write_f32(&dir.join("dem.tif"), &Raster::filled(g.clone(), 100.0f32)).unwrap();
+    geotiff::write_rgba8(
+        &dir.join("ortho.tif"),
+        &Raster::filled(g, [90, 90, 90, 255]),
+    )
+    .unwrap();
+    let o = dbms(
+        &[
+            "ingest",
+            "-q",
+            "--dem",
+            "dem.tif",
+            "--ortho",
+            "ortho.tif",
+            "-o",
+            "db",
+        ],
+        dir,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+fn square(x: f64, y: f64, side: f64) -> serde_json::Value {
+    let ring = [
+        [x, y],
+        [x + side, y],
+        [x + side, y + side],
+        [x, y + side],
+        [x, y],
+    ];
+    json!({"type": "Feature", "properties": {}, "geometry": {"type": "Polygon", "coordinates": [ring]}})
+}
+
+#[test]
+fn argument_errors_are_one_line_with_exit_status_2() {
+    let t = tempfile::tempdir().unwrap();
+    for (args, needle) in [
+        (&[][..], "no command given; see `dbms --help`"),
+        (&["object"][..], "see `dbms object --help`"),
+        (&["ingest"][..], "--dem <DEM>, --ortho <ORTHO>"),
+        (
+            &["ingest", "--dem", "a", "--bogus"][..],
+            "unexpected argument '--bogus'",
+        ),
+        (
+            &["object", "cone", "--height", "x"][..],
+            "see `dbms object cone --help`",
+        ),
+        (&["ingset"][..], "a similar subcommand exists: 'ingest'"),
+        (
+            &["--quiet", "--verbose", "info", "db"][..],
+            "cannot be used with",
+        ),
+    ] {
+        let o = dbms(args, t.path());
+        assert_one_line(&o, 2, needle);
+        assert!(!stderr(&o).contains("Usage:"), "{args:?}");
+    }
+    // Help and version are not errors.
+    for args in [
+        &["--help"][..],
+        &["ingest", "--help"][..],
+        &["--version"][..],
+    ] {
+        let o = dbms(args, t.path());
+        assert_eq!(o.status.code(), Some(0), "{args:?}");
+        assert!(!o.stdout.is_empty() && o.stderr.is_empty(), "{args:?}");
+    }
+}
+
+#[test]
+fn io_errors_and_a_file_as_database_say_what_and_how_to_fix() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    // An input that is a directory (outputs that are directories are refused before writing).
+    std::fs::create_dir(dir.join("fp")).unwrap();
+    let extrude = [
+        "object",
+        "extrude",
+        "--footprints",
+        "fp",
+        "--voxel",
+        "1",
+        "-o",
+        "x.dvox",
+    ];
+    assert_one_line(
+        &dbms(&extrude, dir),
+        1,
+        "fp: is a directory, not a file; give the path of a file",
+    );
+    std::fs::write(dir.join("file"), "x").unwrap();
+    assert_one_line(
+        &dbms(&["info", "file"], dir),
+        1,
+        "file: is a file, not a database directory",
+    );
+    assert_one_line(
+        &dbms(&["ingest", "--dem", "a", "--ortho", "b", "-o", "file"], dir),
+        1,
+        "file: is a file, not a database directory",
+    );
+}
+
+#[test]
+fn footprints_with_a_bom_in_lon_lat_and_many_bad_features() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    database(dir);
+    let run = |file: &str, extra: &[&str]| {
+        let mut a = vec![
+            "shadow-height",
+            "--db",
+            "db",
+            "--footprints",
+            file,
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "135",
+            "-o",
+            "h.geojson",
+        ];
+        a.extend_from_slice(extra);
+        dbms(&a, dir)
+    };
+    // Lon/lat footprints on the UTM database: one CRS error, not one failure per feature.
+    let lon_lat: Vec<_> = (0..3)
+        .map(|k| square(9.0 + k as f64 * 1e-4, 47.85, 5e-5))
+        .collect();
+    let doc = json!({"type": "FeatureCollection", "features": lon_lat}).to_string();
+    std::fs::write(dir.join("lonlat.geojson"), &doc).unwrap();
+    assert_one_line(
+        &run("lonlat.geojson", &[]),
+        1,
+        "lonlat.geojson: coordinates look like longitude/latitude degrees",
+    );
+    // One good footprint and twelve outside the grid, in a file that starts with a UTF-8 BOM.
+    let mut features = vec![square(500_010.0, 5_300_010.0, 8.0)];
+    features.extend((0..12).map(|k| square(600_000.0 + 20.0 * k as f64, 5_300_010.0, 8.0)));
+    let doc = json!({"type": "FeatureCollection", "features": features}).to_string();
+    std::fs::write(dir.join("bom.geojson"), format!("\u{feff}{doc}")).unwrap();
+    let o = run("bom.geojson", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let warnings: Vec<String> = stderr(&o)
+        .lines()
+        .filter(|l| l.starts_with("dbms: warning: "))
+        .map(str::to_string)
+        .collect();
+    assert_eq!(warnings.len(), 6, "five and a count: {warnings:#?}");
+    assert!(warnings[0].contains("bom.geojson: feature 1: covers no cell centre"));
+    assert_eq!(
+        warnings[5],
+        "dbms: warning: 7 more like these (--verbose lists them all)"
+    );
+    let verbose = run("bom.geojson", &["--verbose"]);
+    let all = stderr(&verbose)
+        .lines()
+        .filter(|l| l.contains("skipped"))
+        .count();
+    assert_eq!(all, 12);
+    assert!(run("bom.geojson", &["-q"]).stderr.is_empty());
+}
