@@ -212,6 +212,7 @@ fn each_degenerate_footprint_fails_alone_with_its_reason() {
     .unwrap();
     let out = ok(
         &[
+            "--verbose", // every warning, not the first five
             "shadow-height",
             "--db",
             "db",
