@@ -196,12 +196,15 @@ pub fn build_pyramid(
         },
     )?;
     seconds.levels = lap();
-    writer.finish()?;
-    progress.finish();
+    // The exported levels first: when they fail, the tile file (the make target) is not left
+    // behind to look up to date. (A tile file that fails after them leaves them; they are
+    // not what make waits for.)
     let exported = match exporter {
         Some(x) => x.finish()?,
         None => Vec::new(),
     };
+    writer.finish()?;
+    progress.finish();
     seconds.finish = lap();
 
     let summary = PyramidSummary {
