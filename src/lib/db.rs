@@ -565,7 +565,7 @@ fn lock(dir: &Path, wait: std::time::Duration) -> Result<std::fs::File> {
 impl Change {
     fn new(db: Database, lock: std::fs::File) -> Result<Change> {
         let before: Vec<String> = db.manifest.files().map(|(f, _)| f.clone()).collect();
-        clear_leftovers(&db.dir)?;
+        clear_leftovers(&db.dir, &before)?;
         Ok(Change {
             db,
             before,
@@ -648,14 +648,9 @@ impl Drop for Change {
 }
 
 /// Remove what killed changes left in `dir` (under its lock, so nobody is writing them): the
-/// staging files of layers, and layer files no manifest names — written and renamed by a
-/// change killed before its commit.
-fn clear_leftovers(dir: &Path) -> Result<()> {
-    let named: Vec<String> = match Database::open(dir) {
-        Ok(db) => db.manifest.files().map(|(f, _)| f.clone()).collect(),
-        Err(_) if !dir.join(MANIFEST_FILE).exists() => Vec::new(),
-        Err(e) => return Err(e),
-    };
+/// staging files of layers, and layer files the committed manifest does not name (`named`,
+/// the files it does) — written and renamed by a change killed before its commit.
+fn clear_leftovers(dir: &Path, named: &[String]) -> Result<()> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
