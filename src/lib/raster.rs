@@ -80,6 +80,15 @@ impl<T> Raster<T> {
     }
 }
 
+/// Cells in a band of a layer read at once by the stages that stream one ([`band_rows`]).
+const BAND_CELLS: usize = 1 << 22;
+
+/// Rows in a band of about 4 M cells of a grid `width` cells wide (at least 1): how many rows
+/// the stages that stream a layer read at a time.
+pub fn band_rows(width: usize) -> usize {
+    (BAND_CELLS / width.max(1)).max(1)
+}
+
 /// Rows of a layer on demand: a raster held in memory, or a file decoded band by band, so a
 /// stage can stream a grid larger than memory. Shared between threads.
 pub trait RowSource<T: Clone>: Sync {
@@ -104,6 +113,75 @@ impl<T: Clone + Sync> RowSource<T> for Raster<T> {
         );
         let w = self.grid.width;
         Ok(Cow::Borrowed(&self.data[row0 * w..(row0 + rows) * w]))
+    }
+}
+
+/// Rows `rows` of a raster on `grid`, held in memory while a band-by-band stage works on
+/// them, addressed by the *whole* grid's cell index and column/row (so code written for the
+/// whole raster reads a band unchanged, with the same coordinates to the last bit).
+///
+/// Invariant: `data` holds exactly the rows `rows` (`rows.len() × grid.width` values); reading
+/// a cell outside them panics (a programming error: the band was planned too small).
+pub struct RowBand<'a, T: Clone> {
+    /// The whole grid the band is part of.
+    pub grid: &'a Grid,
+    rows: std::ops::Range<usize>,
+    data: Cow<'a, [T]>,
+}
+
+impl<'a, T: Clone> RowBand<'a, T> {
+    /// Rows `rows` of `src` (borrowed when it is held in memory).
+    pub fn read(src: &'a dyn RowSource<T>, rows: std::ops::Range<usize>) -> Result<Self> {
+        let data = src.read_rows(rows.start, rows.len())?;
+        Ok(RowBand {
+            grid: src.grid(),
+            rows,
+            data,
+        })
+    }
+
+    /// Rows `rows` of `grid` from their values, row-major.
+    pub fn new(grid: &'a Grid, rows: std::ops::Range<usize>, data: Vec<T>) -> Self {
+        assert_eq!(data.len(), rows.len() * grid.width, "one value per cell");
+        RowBand {
+            grid,
+            rows,
+            data: Cow::Owned(data),
+        }
+    }
+
+    /// All of `raster`, borrowed.
+    pub fn whole(raster: &'a Raster<T>) -> Self {
+        RowBand {
+            grid: &raster.grid,
+            rows: 0..raster.grid.height,
+            data: Cow::Borrowed(&raster.data),
+        }
+    }
+
+    /// The grid rows held.
+    pub fn rows(&self) -> std::ops::Range<usize> {
+        self.rows.clone()
+    }
+
+    /// The value of cell `i` (row-major index in the whole grid).
+    pub fn at(&self, i: usize) -> &T {
+        &self.data[i - self.rows.start * self.grid.width]
+    }
+
+    /// The value at column `col`, row `row` of the whole grid.
+    pub fn get(&self, col: usize, row: usize) -> &T {
+        self.at(row * self.grid.width + col)
+    }
+
+    /// Whether grid row `row` is held.
+    pub fn holds_row(&self, row: usize) -> bool {
+        self.rows.contains(&row)
+    }
+
+    /// The values held, row-major from the first row held.
+    pub fn values(&self) -> &[T] {
+        &self.data
     }
 }
 

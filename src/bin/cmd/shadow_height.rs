@@ -4,6 +4,7 @@ use super::Ctx;
 use dbms::db::{Database, Stage};
 use dbms::error::Error;
 use dbms::io::atomic::{write_bytes_atomic, AtomicFile};
+use dbms::raster::RowSource;
 use dbms::shadow_height::{self as sh, output};
 use serde_json::json;
 use std::io::Write;
@@ -80,8 +81,9 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         db.grid(),
         vertices.flat_map(|f| f.rings.iter().flatten().copied()),
     )?;
-    let terrain = db.read_elevation()?;
-    let colour = db.read_colour()?;
+    // Read band by band while measuring: a city's grid need not fit in memory.
+    let terrain = db.elevation_rows()?;
+    let colour = db.colour_rows()?;
     let mask = args
         .shadow_mask
         .as_deref()
@@ -102,13 +104,14 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let inputs = sh::Inputs {
         terrain: &terrain,
         colour: &colour,
-        mask: mask.as_ref(),
+        mask: mask.as_ref().map(|m| m as &dyn RowSource<u8>),
         leans: None,
     };
     let opts = sh::Options {
         max_height_m: args.max_height,
         line_spacing_cells: args.line_spacing,
         sub_points: args.sub_points,
+        ..sh::Options::default()
     };
     let (registration, measured) = sh::register_and_measure(
         &inputs,

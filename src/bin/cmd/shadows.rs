@@ -78,7 +78,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let progress = ctx.progress(1 + grid.height.div_ceil(band) as u64, "shadows");
     let cast = match args.rule {
         Rule::Geometric => Cast::Bits(
-            ShadowBits::cast(&terrain, raised, &sun).map_err(|e| e.in_file(&elevation_path))?,
+            ShadowBits::cast(&terrain, &sun, |s, row| raised.lay_over(s, row))
+                .map_err(|e| e.in_file(&elevation_path))?,
         ),
         Rule::Sunmask => {
             let mut heights = terrain.read_rows(0, grid.height)?.into_owned();

@@ -282,6 +282,14 @@ impl Raised {
         &self.cells[a..b]
     }
 
+    /// Lay the raised cells of the row starting at cell `start` over its terrain `heights`
+    /// (their tops replace the terrain): the overlay of [`crate::shadow::ShadowBits::cast`].
+    pub fn lay_over(&self, start: usize, heights: &mut [f32]) {
+        for c in self.range(start, start + heights.len()) {
+            heights[c.index - start] = c.top_z;
+        }
+    }
+
     /// The raised cell at `index`, if any.
     pub fn get(&self, index: usize) -> Option<&RaisedCell> {
         self.range(index, index + 1).first()

@@ -32,14 +32,16 @@
 //! terrain with the raised cells laid over it, built for a band of rows with a one-row apron
 //! (normals need the rows either side), and the cast shadows are kept as one bit per cell, cast
 //! with [`RowSweep`] from bands read in the sun's order. Memory: 2 bits a cell for the two
-//! masks (3 with the detected one), plus a few bands of `BAND_CELLS` cells.
+//! masks (3 with the detected one), plus a few bands of [`band_rows`] rows.
 
 mod detected;
 
 use super::raised::Raised;
 use crate::error::{Error, Result};
+pub use crate::raster::band_rows;
 use crate::raster::RowSource;
-use crate::shadow::{RowSweep, Sun, SHADOW};
+pub use crate::shadow::ShadowBits;
+use crate::shadow::Sun;
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -54,10 +56,6 @@ pub const G_MAX: f64 = 2.0;
 
 /// Two sun directions closer than this (degrees, in elevation and azimuth) are the same sun.
 pub const SAME_SUN_DEG: f64 = 0.01;
-
-/// Cells in a band of terrain read at once by the shadow casts and the wall count (the bands
-/// of [`Effects::shade_band`] are its caller's).
-const BAND_CELLS: usize = 1 << 22;
 
 /// Cell classes for normals and walls.
 const TERRAIN: u8 = 0;
@@ -128,10 +126,13 @@ pub fn prepare<'a>(
     // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
     let photo_cast = photo_sun.filter(|_| !same_sun || photo_apart);
     let (new_shadow, photo_shadow) = rayon::join(
-        || ShadowBits::cast(terrain, all, &sun),
+        || ShadowBits::cast(terrain, &sun, |start, row| all.lay_over(start, row)),
         || {
             photo_cast
-                .map(|p| ShadowBits::cast(terrain, if photo_apart { buildings } else { all }, &p))
+                .map(|p| {
+                    let laid = if photo_apart { buildings } else { all };
+                    ShadowBits::cast(terrain, &p, |start, row| laid.lay_over(start, row))
+                })
                 .transpose()
         },
     );
@@ -192,12 +193,6 @@ pub fn lit(mut colour: [u8; 4], factor: f64) -> [u8; 4] {
     colour
 }
 
-/// Rows in a band of about 4 M cells (`BAND_CELLS`) of a grid `width` cells wide (at least 1):
-/// how many rows the stages that stream the terrain read at a time.
-pub fn band_rows(width: usize) -> usize {
-    (BAND_CELLS / width.max(1)).max(1)
-}
-
 /// The effects record for the tile header and the manifest when no sun was given or nothing
 /// was needed: which sun, and an empty list of applied effects.
 pub fn record_none(
@@ -230,65 +225,6 @@ fn same(a: &Sun, b: &Sun) -> bool {
 fn enu(s: &Sun) -> [f64; 3] {
     let (e, a) = (s.elevation_deg.to_radians(), s.azimuth_deg.to_radians());
     [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()]
-}
-
-/// A cast-shadow mask, one bit per cell, row-major: set = in cast shadow (nodata cells are
-/// never set). `W · H / 8` bytes: the only whole-grid state of a streamed cast.
-pub struct ShadowBits {
-    bits: Vec<u64>,
-}
-
-impl ShadowBits {
-    /// Cast `sun` over the terrain with `raised` laid over it. The sweep takes rows in the sun's
-    /// order, so the terrain is read in bands in that order (down the grid or up it).
-    pub fn cast(terrain: &dyn RowSource<f32>, raised: &Raised, sun: &Sun) -> Result<ShadowBits> {
-        let g = terrain.grid();
-        let (w, h) = (g.width, g.height);
-        let mut bits = vec![0u64; (w * h).div_ceil(64)];
-        let mut sweep = RowSweep::new(g, sun)?;
-        let upward = h > 1 && sweep.next_row() == Some(h - 1);
-        let per_band = band_rows(w);
-        let (mut heights, mut mask) = (vec![0f32; w], vec![0u8; w]);
-        let mut band: (usize, Vec<f32>) = (0, Vec::new());
-        while let Some(r) = sweep.next_row() {
-            let (b0, data) = &band;
-            if !(r >= *b0 && (r - b0) * w < data.len()) {
-                let b0 = if upward {
-                    (r + 1).saturating_sub(per_band)
-                } else {
-                    r
-                };
-                let n = if upward {
-                    r + 1 - b0
-                } else {
-                    per_band.min(h - r)
-                };
-                band = (b0, terrain.read_rows(b0, n)?.into_owned());
-            }
-            let (b0, data) = &band;
-            let start = r * w;
-            heights.copy_from_slice(&data[(r - b0) * w..(r - b0 + 1) * w]);
-            for c in raised.range(start, start + w) {
-                heights[c.index - start] = c.top_z;
-            }
-            sweep.push(&heights, &mut mask);
-            for (k, _) in mask.iter().enumerate().filter(|(_, &m)| m == SHADOW) {
-                let i = start + k;
-                bits[i / 64] |= 1 << (i % 64);
-            }
-        }
-        Ok(ShadowBits { bits })
-    }
-
-    /// Whether cell `i` (row-major index) is in cast shadow.
-    pub fn get(&self, i: usize) -> bool {
-        self.bits[i / 64] >> (i % 64) & 1 == 1
-    }
-
-    /// Cells in cast shadow.
-    pub fn count(&self) -> usize {
-        self.bits.iter().map(|b| b.count_ones() as usize).sum()
-    }
 }
 
 /// The surfaces over a band of rows `first..first + n` (the rows shaded plus a one-row apron
@@ -714,7 +650,7 @@ mod tests {
     /// An orthophoto of textured ground (index 90–130) taken under `photo_sun`: the cells in the
     /// cast shadow of the terrain with `seen` laid over it are darkened by `f`.
     fn photo_of(t: &Elevation, seen: &Raised, photo_sun: &Sun, f: f64) -> Colour {
-        let shadow = ShadowBits::cast(t, seen, photo_sun).unwrap();
+        let shadow = ShadowBits::cast(t, photo_sun, |s, row| seen.lay_over(s, row)).unwrap();
         let data = (0..t.grid.len())
             .map(|i| {
                 let v = 90.0 + ((i * 7919) % 41) as f64;

@@ -39,10 +39,12 @@
 //! sun, elevation above the horizon in (0, 90]. A sun at or below the horizon is an error: the
 //! whole grid would be in night shadow, which is almost always a wrong `--time`.
 
+mod bits;
 mod reference;
 mod sunmask;
 mod sweep;
 
+pub use bits::ShadowBits;
 pub use reference::cast_shadows_reference;
 pub use sunmask::{cast_shadows_sunmask, cast_shadows_sunmask_slice};
 pub use sweep::RowSweep;

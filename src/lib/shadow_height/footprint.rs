@@ -144,12 +144,73 @@ impl Footprint {
             == 1
     }
 
+    /// The convex hull (counter-clockwise) of the vertices and the same moved by `along`
+    /// (metres east, north): it holds every point of the polygon swept along `along`.
+    pub fn swept_hull(&self, along: (f64, f64)) -> Vec<(f64, f64)> {
+        let mut pts: Vec<(f64, f64)> = self
+            .rings
+            .iter()
+            .flatten()
+            .flat_map(|&(x, y)| [(x, y), (x + along.0, y + along.1)])
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        pts.dedup();
+        if pts.len() < 3 {
+            return pts;
+        }
+        let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+            (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+        };
+        // Andrew's monotone chain.
+        let mut hull: Vec<(f64, f64)> = Vec::with_capacity(2 * pts.len());
+        for pass in 0..2 {
+            let start = hull.len();
+            let it: Box<dyn Iterator<Item = &(f64, f64)>> = if pass == 0 {
+                Box::new(pts.iter())
+            } else {
+                Box::new(pts.iter().rev())
+            };
+            for &p in it {
+                while hull.len() >= start + 2
+                    && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+                {
+                    hull.pop();
+                }
+                hull.push(p);
+            }
+            hull.pop();
+        }
+        hull
+    }
+
     /// Every edge `(a, b)` of every ring.
     pub fn edges(&self) -> impl Iterator<Item = ((f64, f64), (f64, f64))> + '_ {
         self.rings
             .iter()
             .flat_map(|r| (0..r.len()).map(move |k| (r[k], r[(k + 1) % r.len()])))
     }
+}
+
+/// The x range a convex polygon (`hull`, from [`Footprint::swept_hull`]) covers at height `y`,
+/// `None` when it does not reach `y`.
+pub fn hull_span(hull: &[(f64, f64)], y: f64) -> Option<(f64, f64)> {
+    let n = hull.len();
+    let mut span: Option<(f64, f64)> = None;
+    let mut take = |x: f64| {
+        span = Some(span.map_or((x, x), |(a, b)| (a.min(x), b.max(x))));
+    };
+    for k in 0..n {
+        let (a, b) = (hull[k], hull[(k + 1) % n]);
+        if (a.1 <= y && y <= b.1) || (b.1 <= y && y <= a.1) {
+            if a.1 == b.1 {
+                take(a.0);
+                take(b.0);
+            } else {
+                take(a.0 + (b.0 - a.0) * (y - a.1) / (b.1 - a.1));
+            }
+        }
+    }
+    span
 }
 
 /// Bounding box `(min_x, min_y, max_x, max_y)` of `rings`' vertices.

@@ -27,6 +27,7 @@
 
 pub mod detect;
 pub mod footprint;
+pub mod index;
 pub mod local;
 pub mod output;
 pub mod refine;
@@ -39,11 +40,13 @@ pub use footprint::{read_footprints, Footprint, InputFeature};
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::raster::{Colour, Elevation, Raster};
-use crate::shadow::{cast_shadows, Sun, SHADOW};
+use crate::raster::{Raster, RowBand, RowSource};
+use crate::shadow::{ShadowBits, Sun};
 use crate::walk::{Corner, Walk};
+use index::{swept, Box2, BoxIndex};
 use local::{Class, Local};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// A weak shadow split ([`detect::weak_threshold`]) is taken only when at most this fraction
 /// of the open cells where the footprint's shadow cannot fall are dark.
@@ -86,7 +89,15 @@ pub struct Options {
     /// Refinement points per cell side (1..=15; default 4: a cell's synthetic shadow in
     /// sixteenths).
     pub sub_points: usize,
+    /// Cells of the layers held at once (rows × grid width; default [`BAND_CELLS`]): the
+    /// footprints are measured band of rows by band of rows, each band read with the rows
+    /// its footprints' windows reach. A band is never smaller than one footprint's window.
+    pub band_cells: usize,
 }
+
+/// See [`Options::band_cells`]: 32 M cells, about 14 bytes each while a band is measured
+/// (terrain, colour, mask, owners, neighbours' shadows), so under half a gigabyte.
+pub const BAND_CELLS: usize = 1 << 25;
 
 impl Default for Options {
     fn default() -> Options {
@@ -94,20 +105,22 @@ impl Default for Options {
             max_height_m: 150.0,
             line_spacing_cells: 0.5,
             sub_points: 4,
+            band_cells: BAND_CELLS,
         }
     }
 }
 
 /// What a run looks at: the database's terrain and colour on one grid, and optionally a given
-/// shadow mask on the same grid (0 = lit, 255 = nodata, anything else = shadow).
+/// shadow mask on the same grid (0 = lit, 255 = nodata, anything else = shadow), each read
+/// band by band (a [`Raster`] in memory serves as well as a layer file).
 #[derive(Clone, Copy)]
 pub struct Inputs<'a> {
     /// Bare-earth elevation, metres, NaN = nodata.
-    pub terrain: &'a Elevation,
+    pub terrain: &'a dyn RowSource<f32>,
     /// Orthophoto colour, alpha 0 = nodata.
-    pub colour: &'a Colour,
+    pub colour: &'a dyn RowSource<[u8; 4]>,
     /// Observed shadow mask replacing the automatic detection.
-    pub mask: Option<&'a Raster<u8>>,
+    pub mask: Option<&'a dyn RowSource<u8>>,
     /// Per footprint, how far its roof appears moved from its base in the photo, metres (east,
     /// north): the relief displacement of a perspective photo rectified on the bare ground
     /// ([`register::with_camera`]). The cells between the base and the moved roof show roof and
@@ -265,26 +278,36 @@ impl Registration {
 /// leans ([`register::with_camera`]). Returns the registration and the footprints moved by
 /// the scene's shift.
 pub fn register_footprints(
-    colour: &Colour,
+    colour: &dyn RowSource<[u8; 4]>,
     footprints: &[Footprint],
     sun: &Sun,
     max_shift_m: f64,
     camera: Option<&register::Camera>,
-) -> (Registration, Vec<Footprint>) {
+    band_cells: usize,
+) -> Result<(Registration, Vec<Footprint>)> {
+    let grid = colour.grid();
     let (e, n) = sun.direction();
-    let buildings: Vec<Option<register::Shift>> = footprints
-        .par_iter()
-        .map(|f| register::estimate(f, colour, (-e, -n), max_shift_m))
+    let (cx, cy) = grid.cell_size();
+    // The search reads the photo up to the largest shift away, plus the fine search's ¾ pixel,
+    // the samples' offset across the outline and the bilinear neighbour: 4 cells more.
+    let margin = max_shift_m.max(0.0) / cy.abs().min(cx.abs()) + 4.0;
+    let needs: Vec<Range<usize>> = footprints
+        .iter()
+        .map(|f| box_rows(grid, f.bbox(), margin))
         .collect();
+    let buildings = in_bands(&needs, rows_per_band(grid, band_cells), |rows, members| {
+        let band = RowBand::read(colour, rows)?;
+        Ok(members
+            .par_iter()
+            .map(|&k| register::estimate(&footprints[k], &band, (-e, -n), max_shift_m))
+            .collect())
+    })?;
     let (scene, leans) = match camera {
         None => (
             register::scene_shift(&buildings),
             vec![(0.0, 0.0); footprints.len()],
         ),
-        Some(cam) => {
-            let (cx, cy) = colour.grid.cell_size();
-            register::with_camera(footprints, &buildings, cam, cx.max(cy))
-        }
+        Some(cam) => register::with_camera(footprints, &buildings, cam, cx.max(cy)),
     };
     let reg = Registration {
         scene,
@@ -297,7 +320,7 @@ pub fn register_footprints(
         .iter()
         .map(|f| register::moved(f, e, n))
         .collect();
-    (reg, moved)
+    Ok((reg, moved))
 }
 
 /// The whole stage for footprints as given: register them to the photo (unless
@@ -318,7 +341,7 @@ pub fn register_and_measure(
     max_shift_m: f64,
     camera: Option<&register::Camera>,
 ) -> Result<(Registration, Vec<std::result::Result<Measurement, String>>)> {
-    let grid = &inputs.terrain.grid;
+    let grid = inputs.terrain.grid();
     let (cx, cy) = grid.cell_size();
     let cell = cx.max(cy);
     let run = |reg: Registration, moved: Vec<Footprint>| -> Result<_> {
@@ -333,7 +356,14 @@ pub fn register_and_measure(
     if max_shift_m <= 0.0 {
         return run(Registration::none(given.len()), given.to_vec());
     }
-    let (reg, moved) = register_footprints(inputs.colour, given, sun, max_shift_m, camera);
+    let (reg, moved) = register_footprints(
+        inputs.colour,
+        given,
+        sun,
+        max_shift_m,
+        camera,
+        opts.band_cells,
+    )?;
     let off = (0..given.len()).filter(|&k| reg.off_photo(k, cell)).count();
     if camera.is_some() || off < register::MIN_CAMERA_BUILDINGS {
         return run(reg, moved);
@@ -362,8 +392,14 @@ pub fn register_and_measure(
     match estimated {
         None => run(reg, moved),
         Some(cam) => {
-            let (mut reg, moved) =
-                register_footprints(inputs.colour, given, sun, max_shift_m, Some(&cam));
+            let (mut reg, moved) = register_footprints(
+                inputs.colour,
+                given,
+                sun,
+                max_shift_m,
+                Some(&cam),
+                opts.band_cells,
+            )?;
             reg.camera = Some((cam, true));
             run(reg, moved)
         }
@@ -372,20 +408,25 @@ pub fn register_and_measure(
 
 /// Measure every footprint. The outer error is for the whole run (grids that differ, a grid in
 /// degrees); the inner one is a one-line reason a footprint could not be measured.
+///
+/// The layers are read band of rows by band of rows ([`Options::band_cells`]), each band with
+/// the rows its footprints' windows reach, twice (one band sweep a pass); the whole-grid state
+/// is the bare terrain's cast shadow (a bit a cell) and the footprints. Results do not depend
+/// on the band size: every footprint reads the same cells with the same coordinates.
 pub fn measure(
     inputs: &Inputs,
     footprints: &[Footprint],
     sun: &Sun,
     opts: &Options,
 ) -> Result<Vec<std::result::Result<Measurement, String>>> {
-    let grid = &inputs.terrain.grid;
-    if inputs.colour.grid != *grid {
+    let grid = inputs.terrain.grid();
+    if inputs.colour.grid() != grid {
         return Err(
             Error::msg("the colour and elevation layers are on different grids")
                 .fix("re-run `dbms ingest`"),
         );
     }
-    if inputs.mask.is_some_and(|m| m.grid != *grid) {
+    if inputs.mask.is_some_and(|m| m.grid() != grid) {
         return Err(Error::msg("the shadow mask is not on the database grid")
             .fix("make it on the database grid (same size, origin and cell size as the database layers)"));
     }
@@ -408,37 +449,72 @@ pub fn measure(
         )));
     }
     // Shadows of the bare terrain: where a building's shadow cannot be told from the hill's.
-    let terrain_shadow = cast_shadows(inputs.terrain, sun.elevation_deg, sun.azimuth_deg)?;
-    let own_cells: Vec<Vec<usize>> = footprints.par_iter().map(|f| f.cells(grid)).collect();
-    let mut owner = vec![0u32; grid.len()];
-    for (k, cells) in own_cells.iter().enumerate() {
-        for &i in cells {
-            owner[i] = k as u32 + 1;
-        }
-    }
-    let no_roofs = vec![None; footprints.len()];
-    let mut shared = Shared {
-        inputs,
-        grid,
-        owner: &owner,
-        terrain_shadow: &terrain_shadow.data,
-        sun,
-        opts,
-        footprints,
-        roofs: &no_roofs,
-    };
-    let run = |shared: &Shared| -> Vec<std::result::Result<Measurement, String>> {
-        footprints
-            .par_iter()
-            .zip(&own_cells)
-            .enumerate()
-            .map(|(k, (f, cells))| shared.one(k as u32 + 1, f, cells))
-            .collect()
+    let terrain_shadow = ShadowBits::cast(inputs.terrain, sun, |_, _| ())?;
+    let reach = reach(grid, sun, opts);
+    let (dx, dy) = sun.direction();
+    let away = (-dx * reach, -dy * reach);
+    let extent = grid_box(grid, 0..grid.height);
+    let (cx, cy) = grid.cell_size();
+    let bucket = (reach / 2.0).max(32.0 * cx.max(cy));
+    let boxes: Vec<Box2> = footprints.iter().map(|f| f.bbox()).collect();
+    let shadows = BoxIndex::new(
+        boxes.iter().map(|&b| swept(b, away)).collect(),
+        swept(extent, away),
+        bucket,
+    );
+    let outlines = BoxIndex::new(boxes, extent, 32.0 * cx.max(cy));
+    let needs: Vec<Range<usize>> = footprints
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let win = local::window_for(grid, f.bbox(), (-dx, -dy), reach, 3);
+            let lean = inputs.leans.map_or((0.0, 0.0), |l| l[k]);
+            let seen = box_rows(grid, register::moved(f, lean.0, lean.1).bbox(), 1.0);
+            let rows = [win.row..win.row + win.height, seen];
+            let rows: Vec<&Range<usize>> = rows.iter().filter(|r| !r.is_empty()).collect();
+            match (
+                rows.iter().map(|r| r.start).min(),
+                rows.iter().map(|r| r.end).max(),
+            ) {
+                (Some(a), Some(b)) => a..b,
+                _ => 0..0,
+            }
+        })
+        .collect();
+    let pass = |roofs: &[Option<f64>]| {
+        in_bands(
+            &needs,
+            rows_per_band(grid, opts.band_cells),
+            |rows, members| {
+                let band = Band::read(inputs, rows, footprints, &outlines)?;
+                let shaders = roofs.iter().any(Option::is_some).then(|| {
+                    neighbour_shadows(&band.terrain, footprints, roofs, &shadows, sun, reach)
+                });
+                let shared = Shared {
+                    grid,
+                    band: &band,
+                    shaders: shaders.as_ref(),
+                    leans: inputs.leans,
+                    terrain_shadow: &terrain_shadow,
+                    sun,
+                    opts,
+                    reach,
+                    footprints,
+                    roofs,
+                    shadows: &shadows,
+                };
+                Ok(members
+                    .par_iter()
+                    .map(|&k| shared.one(k as u32 + 1, &footprints[k], band.cells_of(k)))
+                    .collect())
+            },
+        )
     };
     // Pass 1 measures every building on its own; pass 2 again, with the ground the others'
     // shadows cover at their pass-1 roofs (plus their uncertainty) unusable: a shadow merging
     // into a taller neighbour's would otherwise be measured to the end of the neighbour's.
-    let first = run(&shared);
+    let no_roofs = vec![None; footprints.len()];
+    let first = pass(&no_roofs)?;
     let roofs: Vec<Option<f64>> = first
         .iter()
         .map(|m| {
@@ -450,9 +526,221 @@ pub fn measure(
     if roofs.iter().filter(|r| r.is_some()).count() < 2 {
         return Ok(first);
     }
-    shared.roofs = &roofs;
-    Ok(run(&shared))
+    pass(&roofs)
 }
+
+/// The longest shadow sought, metres: that of a `max_height_m` building, at most
+/// [`MAX_SHADOW_CELLS`] cells.
+fn reach(grid: &Grid, sun: &Sun, opts: &Options) -> f64 {
+    let tan_e = sun.elevation_deg.to_radians().tan();
+    let (cx, cy) = grid.cell_size();
+    (opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cx.max(cy))
+}
+
+/// Rows of `grid` in a band of `band_cells` cells (at least one).
+fn rows_per_band(grid: &Grid, band_cells: usize) -> usize {
+    (band_cells / grid.width.max(1)).max(1)
+}
+
+/// The rows of `grid` the world box `b` covers, `margin` rows more each side, clipped to the
+/// grid (empty for a box off it).
+fn box_rows(grid: &Grid, b: Box2, margin: f64) -> Range<usize> {
+    let t = &grid.transform;
+    let (_, ya) = t.world_to_pixel(b.0, b.1);
+    let (_, yb) = t.world_to_pixel(b.2, b.3);
+    let h = grid.height as f64;
+    let lo = (ya.min(yb) - margin).floor().clamp(0.0, h) as usize;
+    let hi = (ya.max(yb) + margin).ceil().clamp(0.0, h) as usize;
+    lo..hi.max(lo)
+}
+
+/// The world box of rows `rows` of `grid` (its whole width).
+fn grid_box(grid: &Grid, rows: Range<usize>) -> Box2 {
+    let t = &grid.transform;
+    let (ax, ay) = t.pixel_to_world(0.0, rows.start as f64);
+    let (bx, by) = t.pixel_to_world(grid.width as f64, rows.end as f64);
+    (ax.min(bx), ay.min(by), ax.max(bx), ay.max(by))
+}
+
+/// Run `run(rows, members)` over bands of at most `max_rows` grid rows (more when one item's
+/// own rows are more): items in order of the first row they need (`needs[k]`), a band holding
+/// the rows every member needs. Returns one result per item, in item order.
+fn in_bands<T>(
+    needs: &[Range<usize>],
+    max_rows: usize,
+    mut run: impl FnMut(Range<usize>, &[usize]) -> Result<Vec<T>>,
+) -> Result<Vec<T>> {
+    let mut order: Vec<usize> = (0..needs.len()).collect();
+    order.sort_by_key(|&k| (needs[k].start, k));
+    let mut out: Vec<Option<T>> = (0..needs.len()).map(|_| None).collect();
+    let mut i = 0;
+    while i < order.len() {
+        let start = needs[order[i]].start;
+        let mut end = needs[order[i]].end;
+        let mut j = i + 1;
+        while let Some(&k) = order.get(j) {
+            let e = end.max(needs[k].end);
+            if e - start > max_rows {
+                break;
+            }
+            end = e;
+            j += 1;
+        }
+        let members = &order[i..j];
+        for (&k, v) in members.iter().zip(run(start..end, members)?) {
+            out[k] = Some(v);
+        }
+        i = j;
+    }
+    Ok(out
+        .into_iter()
+        .map(|v| v.expect("every item is in a band"))
+        .collect())
+}
+
+/// The layers' rows of one band, and which footprint owns each of its cells.
+struct Band<'a> {
+    terrain: RowBand<'a, f32>,
+    colour: RowBand<'a, [u8; 4]>,
+    mask: Option<RowBand<'a, u8>>,
+    /// Per cell, the footprint (id = index + 1) whose polygon holds its centre (the last one
+    /// when several do), 0 for none.
+    owner: RowBand<'a, u32>,
+    /// The footprints with a cell in the band, ascending, and their cells (whole-grid indices).
+    cells: Vec<(usize, Vec<usize>)>,
+}
+
+impl<'a> Band<'a> {
+    fn read(
+        inputs: &Inputs<'a>,
+        rows: Range<usize>,
+        footprints: &[Footprint],
+        outlines: &BoxIndex,
+    ) -> Result<Band<'a>> {
+        let terrain = RowBand::read(inputs.terrain, rows.clone())?;
+        let colour = RowBand::read(inputs.colour, rows.clone())?;
+        let mask = inputs
+            .mask
+            .map(|m| RowBand::read(m, rows.clone()))
+            .transpose()?;
+        let grid = terrain.grid;
+        let near = outlines.meeting(grid_box(grid, rows.clone()));
+        let cells: Vec<(usize, Vec<usize>)> = near
+            .into_par_iter()
+            .map(|k| (k, footprints[k].cells(grid)))
+            .collect();
+        let (w, first) = (grid.width, rows.start * grid.width);
+        let mut owner = vec![0u32; rows.len() * w];
+        for (k, cs) in &cells {
+            for &i in cs {
+                if rows.contains(&(i / w)) {
+                    owner[i - first] = *k as u32 + 1;
+                }
+            }
+        }
+        Ok(Band {
+            owner: RowBand::new(grid, rows, owner),
+            terrain,
+            colour,
+            mask,
+            cells,
+        })
+    }
+
+    /// The cells of footprint `k`, a member of the band (whose rows hold all its cells):
+    /// none when it is off the grid.
+    fn cells_of(&self, k: usize) -> &[usize] {
+        self.cells
+            .binary_search_by_key(&k, |c| c.0)
+            .map_or(&[], |at| &self.cells[at].1)
+    }
+}
+
+/// Per cell of `terrain`'s band: which footprint's shadow at its roof (`roofs`, absolute
+/// metres) covers the ground there — the footprint's id (index + 1), [`MANY_SHADOWS`] for
+/// more than one, 0 for none. A footprint shades ground point `p` at terrain height `z` when
+/// the ray from `p` toward the sun meets its walls within [`reach`] metres (`t`) below its roof:
+/// `z + t · tan e < roof` ([`refine::first_wall`]). Each footprint is tried on the cells of its
+/// outline swept toward the shadow as far as its roof's shadow can reach over the band's
+/// lowest ground: the work is the shadows' area, not footprints × window.
+fn neighbour_shadows<'a>(
+    terrain: &RowBand<'a, f32>,
+    footprints: &[Footprint],
+    roofs: &[Option<f64>],
+    shadows: &BoxIndex,
+    sun: &Sun,
+    reach: f64,
+) -> RowBand<'a, u32> {
+    let grid = terrain.grid;
+    let rows = terrain.rows();
+    let (w, first) = (grid.width, rows.start * grid.width);
+    let z_min = terrain
+        .values()
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .fold(f32::INFINITY, f32::min) as f64;
+    let tan_e = sun.elevation_deg.to_radians().tan();
+    let toward = sun.direction();
+    let t = &grid.transform;
+    let band_box = grid_box(grid, rows.clone());
+    let shaded: Vec<(u32, Vec<usize>)> = shadows
+        .meeting(band_box)
+        .into_par_iter()
+        .filter_map(|k| {
+            let roof = roofs[k]?;
+            let len = ((roof - z_min) / tan_e).min(reach);
+            // NaN (no valid ground in the band) or nothing to reach: no shadow here.
+            if len.is_nan() || len <= 0.0 {
+                return None;
+            }
+            let f = &footprints[k];
+            let along = (-toward.0 * len, -toward.1 * len);
+            let hull = f.swept_hull(along);
+            let b = swept(f.bbox(), along);
+            let lo = box_rows(grid, b, 1.0);
+            let (r0, r1) = (lo.start.max(rows.start), lo.end.min(rows.end));
+            let mut out = Vec::new();
+            for r in r0..r1 {
+                let (_, y) = grid.cell_centre(0, r);
+                let Some((x0, x1)) = footprint::hull_span(&hull, y) else {
+                    continue;
+                };
+                let (c0, _) = t.world_to_pixel(x0, y);
+                let (c1, _) = t.world_to_pixel(x1, y);
+                let wf = w as f64;
+                let (c0, c1) = (c0.min(c1), c0.max(c1));
+                let c0 = (c0 - 1.0).floor().clamp(0.0, wf) as usize;
+                let c1 = (c1 + 1.0).ceil().clamp(0.0, wf) as usize;
+                for c in c0..c1 {
+                    let i = r * w + c;
+                    let z = *terrain.at(i) as f64;
+                    let p = grid.cell_centre(c, r);
+                    let under = refine::first_wall(f, p, toward)
+                        .is_some_and(|d| d <= reach && z + d * tan_e < roof);
+                    if under {
+                        out.push(i - first);
+                    }
+                }
+            }
+            Some((k as u32 + 1, out))
+        })
+        .collect();
+    let mut by = vec![0u32; rows.len() * w];
+    for (id, cells) in &shaded {
+        for &i in cells {
+            by[i] = match by[i] {
+                0 => *id,
+                v if v == *id => v,
+                _ => MANY_SHADOWS,
+            };
+        }
+    }
+    RowBand::new(grid, rows, by)
+}
+
+/// See [`neighbour_shadows`]: a cell more than one footprint's shadow covers.
+const MANY_SHADOWS: u32 = u32::MAX;
 
 /// Read a shadow mask: a one-band 8-bit raster on exactly `grid` (same size and geotransform),
 /// 0 = lit, 255 or the declared nodata = nodata, anything else = shadow (`dbms shadows` writes
@@ -562,12 +850,20 @@ fn own_edge(
 
 /// What every footprint's measurement reads.
 struct Shared<'a> {
-    inputs: &'a Inputs<'a>,
     grid: &'a Grid,
-    owner: &'a [u32],
-    terrain_shadow: &'a [u8],
+    /// The rows of the layers the footprints measured now read.
+    band: &'a Band<'a>,
+    /// Second pass: whose shadow covers each cell of the band ([`neighbour_shadows`]).
+    shaders: Option<&'a RowBand<'a, u32>>,
+    /// See [`Inputs::leans`].
+    leans: Option<&'a [(f64, f64)]>,
+    terrain_shadow: &'a ShadowBits,
     sun: &'a Sun,
     opts: &'a Options,
+    /// The longest shadow sought, metres ([`reach`]).
+    reach: f64,
+    /// Every footprint's box swept over [`Self::reach`] away from the sun.
+    shadows: &'a BoxIndex,
     /// Every footprint, by id − 1.
     footprints: &'a [Footprint],
     /// Per footprint, the roof (absolute metres) whose shadow makes ground unusable for the
@@ -590,7 +886,7 @@ impl Shared<'_> {
         }
         let ground_z = cells
             .iter()
-            .map(|&i| self.inputs.terrain.data[i] as f64)
+            .map(|&i| *self.band.terrain.at(i) as f64)
             .filter(|z| z.is_finite())
             .fold(f64::NAN, f64::max);
         if ground_z.is_nan() {
@@ -602,11 +898,11 @@ impl Shared<'_> {
         let cell = cx.max(cy);
         let (dx, dy) = self.sun.direction();
         let u = (-dx, -dy);
-        let max_len = self.reach();
+        let max_len = self.reach;
         let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
-        let lean = self.inputs.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
+        let lean = self.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
         let neighbours = self.shading_neighbours(id, &win);
-        let (local, threshold) = self.classify(id, fp, lean, win, &neighbours);
+        let (local, threshold) = self.classify(id, fp, lean, win);
         let mut m = Measurement {
             height_m: None,
             roof_z: None,
@@ -722,7 +1018,7 @@ impl Shared<'_> {
     ) -> bool {
         if lean != (0.0, 0.0) {
             let seen = register::moved(fp, lean.0, lean.1);
-            return roof::looks_pitched(&seen, self.inputs.colour, &seen.cells(self.grid));
+            return roof::looks_pitched(&seen, &self.band.colour, &seen.cells(self.grid));
         }
         let unshaded: Vec<usize>;
         let cells = match self.roofs[id as usize - 1] {
@@ -740,15 +1036,7 @@ impl Shared<'_> {
             }
             None => cells,
         };
-        roof::looks_pitched(fp, self.inputs.colour, cells)
-    }
-
-    /// The longest shadow sought, metres: that of a `max_height_m` building, at most
-    /// [`MAX_SHADOW_CELLS`] cells.
-    fn reach(&self) -> f64 {
-        let tan_e = self.sun.elevation_deg.to_radians().tan();
-        let (cx, cy) = self.grid.cell_size();
-        (self.opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cx.max(cy))
+        roof::looks_pitched(fp, &self.band.colour, cells)
     }
 
     /// A [`detect::weak_threshold`] for footprint `fp`'s open ground (`open`: window offset and
@@ -765,7 +1053,7 @@ impl Shared<'_> {
         centre: impl Fn(usize) -> (f64, f64),
     ) -> Option<f64> {
         let t = detect::weak_threshold(open.iter().map(|o| o.1))?;
-        let (toward, reach) = (self.sun.direction(), self.reach());
+        let (toward, reach) = (self.sun.direction(), self.reach);
         let reached_by =
             |f: &Footprint, p| refine::first_wall(f, p, toward).is_some_and(|d| d <= reach);
         let (mut dark_in, mut dark_out, mut out) = (0usize, 0usize, 0usize);
@@ -800,26 +1088,22 @@ impl Shared<'_> {
         let (ax, ay) = t.pixel_to_world(win.col as f64, win.row as f64);
         let (bx, by) =
             t.pixel_to_world((win.col + win.width) as f64, (win.row + win.height) as f64);
-        let (wx0, wx1, wy0, wy1) = (ax.min(bx), ax.max(bx), ay.min(by), ay.max(by));
-        let (dx, dy) = self.sun.direction();
-        let (sx, sy) = (-dx * self.reach(), -dy * self.reach());
-        (0..self.footprints.len())
+        let b = (ax.min(bx), ay.min(by), ax.max(bx), ay.max(by));
+        self.shadows
+            .meeting(b)
+            .into_iter()
             .filter(move |&j| j as u32 + 1 != id)
-            .filter(move |&j| {
-                let b = self.footprints[j].bbox();
-                let (x0, x1) = (b.0.min(b.0 + sx), b.2.max(b.2 + sx));
-                let (y0, y1) = (b.1.min(b.1 + sy), b.3.max(b.3 + sy));
-                x0 <= wx1 && x1 >= wx0 && y0 <= wy1 && y1 >= wy0
-            })
     }
 
     /// Whether ground point `p` at terrain height `z` (metres) is in the shadow of one of the
-    /// `neighbours` (footprint, roof): its ray toward the sun meets the walls below the roof.
+    /// `neighbours` (footprint, roof): its ray toward the sun meets the walls below the roof
+    /// within [`Self::reach`] (as [`neighbour_shadows`] decides it for the ground).
     fn in_shadow_of(&self, neighbours: &[(&Footprint, f64)], p: (f64, f64), z: f64) -> bool {
         let tan_e = self.sun.elevation_deg.to_radians().tan();
         let toward_sun = self.sun.direction();
         neighbours.iter().any(|&(f, roof)| {
-            refine::first_wall(f, p, toward_sun).is_some_and(|t| z + t * tan_e < roof)
+            refine::first_wall(f, p, toward_sun)
+                .is_some_and(|t| t <= self.reach && z + t * tan_e < roof)
         })
     }
 
@@ -831,22 +1115,21 @@ impl Shared<'_> {
         fp: &Footprint,
         lean: (f64, f64),
         win: crate::grid::Window,
-        neighbours: &[(&Footprint, f64)],
     ) -> (Local, Option<f64>) {
         let w = self.grid.width;
         let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
         let n = win.width * win.height;
-        let heights: Vec<f32> = (0..n).map(|k| self.inputs.terrain.data[index(k)]).collect();
+        let heights: Vec<f32> = (0..n).map(|k| *self.band.terrain.at(index(k))).collect();
         let base: Vec<Option<Class>> = (0..n)
             .map(|k| {
                 let i = index(k);
-                match self.owner[i] {
+                match *self.band.owner.at(i) {
                     o if o == id => Some(Class::Own),
                     0 => {
-                        let nodata = self.inputs.colour.data[i][3] == 0
+                        let nodata = self.band.colour.at(i)[3] == 0
                             || heights[k].is_nan()
-                            || self.terrain_shadow[i] == SHADOW;
-                        let masked = self.inputs.mask.is_some_and(|m| m.data[i] == 255);
+                            || self.terrain_shadow.get(i);
+                        let masked = self.band.mask.as_ref().is_some_and(|m| *m.at(i) == 255);
                         (nodata || masked).then_some(Class::Unusable)
                     }
                     _ => Some(Class::Other),
@@ -856,12 +1139,12 @@ impl Shared<'_> {
         let base = own_edge(base, fp, lean, &self.grid.window_grid(&win));
         // Open ground: from the mask, or below the local threshold of the shadow index.
         let (is_shadow, threshold): (Box<dyn Fn(usize) -> bool>, Option<f64>) =
-            match self.inputs.mask {
-                Some(mask) => (Box::new(move |i| mask.data[i] != 0), None),
+            match self.band.mask.as_ref() {
+                Some(mask) => (Box::new(move |i| *mask.at(i) != 0), None),
                 None => {
                     let open: Vec<(usize, f64)> = (0..n)
                         .filter(|&k| base[k].is_none())
-                        .map(|k| (k, detect::shadow_index(self.inputs.colour.data[index(k)])))
+                        .map(|k| (k, detect::shadow_index(*self.band.colour.at(index(k)))))
                         .collect();
                     let threshold =
                         detect::otsu_threshold(open.iter().map(|o| o.1)).or_else(|| {
@@ -876,7 +1159,7 @@ impl Shared<'_> {
                         });
                     match threshold {
                         Some(t) => (
-                            Box::new(move |i| detect::shadow_index(self.inputs.colour.data[i]) < t),
+                            Box::new(move |i| detect::shadow_index(*self.band.colour.at(i)) < t),
                             Some(t),
                         ),
                         None => (Box::new(|_| false), None),
@@ -884,18 +1167,17 @@ impl Shared<'_> {
                 }
             };
         let shade: Vec<f32> = (0..n)
-            .map(|k| match self.inputs.mask {
-                Some(mask) if mask.data[index(k)] != 0 => 0.0,
+            .map(|k| match self.band.mask.as_ref() {
+                Some(mask) if *mask.at(index(k)) != 0 => 0.0,
                 Some(_) => 255.0,
-                None => detect::shadow_index(self.inputs.colour.data[index(k)]) as f32,
+                None => detect::shadow_index(*self.band.colour.at(index(k))) as f32,
             })
             .collect();
         // Ground in a neighbour's shadow (second pass) is unusable; it still counted above for
         // the threshold, where it is shadow like any other.
         let shaded = |k: usize| {
-            let i = index(k);
-            let p = self.grid.cell_centre(i % w, i / w);
-            self.in_shadow_of(neighbours, p, heights[k] as f64)
+            self.shaders
+                .is_some_and(|s| matches!(*s.at(index(k)), v if v != 0 && v != id))
         };
         let class = (0..n)
             .map(|k| {
@@ -928,6 +1210,7 @@ impl Shared<'_> {
 mod tests {
     use super::synth::{synth_scene, SynthBuilding, SynthSpec};
     use super::*;
+    use crate::shadow::cast_shadows;
 
     fn building(x: f64, y: f64, h: f64) -> SynthBuilding {
         SynthBuilding {
@@ -1237,6 +1520,117 @@ mod tests {
             m.flags.shadow_cut_by_edge_or_nodata && m.height_m.is_none(),
             "{m:?}"
         );
+    }
+
+    /// Bands of rows change nothing: a scene of nine buildings, shadows falling on neighbours,
+    /// footprints off their roofs (registration searched), measured in the smallest bands (one
+    /// footprint's rows each) equals the scene measured in one band, to the last bit.
+    #[test]
+    fn measuring_in_bands_of_rows_is_measuring_the_whole() {
+        let mut buildings = Vec::new();
+        for (k, (i, j)) in (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).enumerate() {
+            let mut b = building(35.0 + 40.0 * i as f64, 35.0 + 40.0 * j as f64, 0.0);
+            b.height_m = 12.0 + 4.0 * k as f64;
+            b.rotation_deg = 10.0 * k as f64;
+            buildings.push(b);
+        }
+        let mut s = spec(30.0, 150.0, (0.05, -0.1), buildings);
+        s.size = (300, 300);
+        let scene = synth_scene(&s);
+        let off: Vec<Footprint> = scene
+            .footprints
+            .iter()
+            .map(|f| register::moved(f, 1.0, -0.5))
+            .collect();
+        let inputs = Inputs {
+            terrain: &scene.terrain,
+            colour: &scene.colour,
+            mask: None,
+            leans: None,
+        };
+        let whole = Options::default();
+        let thin = Options {
+            band_cells: 300,
+            ..whole
+        };
+        let a = register_and_measure(&inputs, &off, &s.sun, &whole, 3.0, None).unwrap();
+        let b = register_and_measure(&inputs, &off, &s.sun, &thin, 3.0, None).unwrap();
+        assert!(a.0.scene.is_some(), "the shift was searched");
+        assert!(
+            a.1.iter()
+                .filter(|m| m.as_ref().is_ok_and(|m| m.flags.shadow_on_other_building))
+                .count()
+                > 0,
+            "shadows reach neighbours"
+        );
+        assert_eq!(a, b);
+    }
+
+    /// The neighbours' shadow raster is the brute-force rule cell by cell: for every cell,
+    /// the footprints whose walls a ray toward the sun meets within the reach below their
+    /// roof (none, one id, or more than one), at the axes, a diagonal and a few ulps off it.
+    #[test]
+    fn neighbour_shadows_are_the_rule_cell_by_cell() {
+        for az in [0.0, 90.0, 135.0, 135.0 + 1e-12, 150.0, 270.0] {
+            let mut s = spec(35.0, az, (0.05, -0.1), Vec::new());
+            s.size = (160, 140);
+            let scene = synth_scene(&s);
+            let grid = &scene.terrain.grid;
+            let origin = (grid.bounds().min_x, grid.bounds().min_y);
+            let fps: Vec<Footprint> = (0..6)
+                .map(|k| {
+                    let (x, y) = (
+                        origin.0 + 12.0 + 11.0 * k as f64,
+                        origin.1 + 20.0 + 7.0 * (k % 3) as f64,
+                    );
+                    let ring = vec![
+                        (x, y),
+                        (x + 8.0, y + 1.0),
+                        (x + 7.0, y + 9.0),
+                        (x - 1.0, y + 7.0),
+                    ];
+                    Footprint::new(vec![vec![ring]]).unwrap()
+                })
+                .collect();
+            let roofs: Vec<Option<f64>> = (0..6)
+                .map(|k| (k != 2).then_some(400.0 + 4.0 * k as f64))
+                .collect();
+            let reach = 60.0;
+            let away = {
+                let (e, n) = s.sun.direction();
+                (-e * reach, -n * reach)
+            };
+            let index = BoxIndex::new(
+                fps.iter().map(|f| swept(f.bbox(), away)).collect(),
+                swept(grid_box(grid, 0..grid.height), away),
+                16.0,
+            );
+            let terrain = RowBand::whole(&scene.terrain);
+            let raster = neighbour_shadows(&terrain, &fps, &roofs, &index, &s.sun, reach);
+            let tan_e = s.sun.elevation_deg.to_radians().tan();
+            let mut shaded = 0;
+            for i in 0..grid.len() {
+                let p = grid.cell_centre(i % grid.width, i / grid.width);
+                let z = scene.terrain.data[i] as f64;
+                let by: Vec<u32> = (0..fps.len())
+                    .filter(|&k| {
+                        roofs[k].is_some_and(|roof| {
+                            refine::first_wall(&fps[k], p, s.sun.direction())
+                                .is_some_and(|t| t <= reach && z + t * tan_e < roof)
+                        })
+                    })
+                    .map(|k| k as u32 + 1)
+                    .collect();
+                let want = match by[..] {
+                    [] => 0,
+                    [id] => id,
+                    _ => MANY_SHADOWS,
+                };
+                shaded += (want != 0) as usize;
+                assert_eq!(*raster.at(i), want, "cell {i} at {az}°");
+            }
+            assert!(shaded > 500, "{shaded} cells shaded at {az}°");
+        }
     }
 
     #[test]

@@ -16,7 +16,7 @@
 
 use super::detect::{index_bin, otsu_split, otsu_threshold_of};
 use super::footprint::Footprint;
-use crate::raster::Colour;
+use crate::raster::RowBand;
 
 /// Each face class must hold at least this fraction of the roof cells.
 pub const MIN_FACE: f64 = 0.15;
@@ -29,7 +29,7 @@ const MIN_CELLS: usize = 24;
 
 /// Whether the roof of `fp` looks pitched in `colour` (see the module doc); `cells` are the
 /// footprint's own cells (centre inside), as indices of `colour`'s grid.
-pub fn looks_pitched(fp: &Footprint, colour: &Colour, cells: &[usize]) -> bool {
+pub fn looks_pitched(fp: &Footprint, colour: &RowBand<[u8; 4]>, cells: &[usize]) -> bool {
     let grid = &colour.grid;
     let (cx, cy) = grid.cell_size();
     let cell = cx.max(cy);
@@ -39,14 +39,14 @@ pub fn looks_pitched(fp: &Footprint, colour: &Colour, cells: &[usize]) -> bool {
         .copied()
         .filter(|&i| {
             let p = grid.cell_centre(i % w, i / w);
-            colour.data[i][3] != 0 && distance_to_outline(fp, p) >= cell
+            colour.at(i)[3] != 0 && distance_to_outline(fp, p) >= cell
         })
         .collect();
     if inner.len() < MIN_CELLS {
         return false;
     }
     let y = |i: usize| {
-        let p = colour.data[i];
+        let p = *colour.at(i);
         0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64
     };
     let mut hist = [0u64; 256];
@@ -112,6 +112,7 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::Grid;
+    use crate::raster::Colour;
     use crate::raster::Raster;
 
     /// A 12 × 8 m roof at x 10..22, y 10..18 on 0.5 m cells; `value(x, y)` its brightness.
@@ -143,14 +144,14 @@ mod tests {
     fn a_gable_looks_pitched_a_flat_textured_roof_does_not() {
         let noise = |i: usize| ((i * 7919) % 17) as u8;
         let (fp, c, cells) = roof(|_, y, i| if y < 14.0 { 170 } else { 120 } + noise(i));
-        assert!(looks_pitched(&fp, &c, &cells));
+        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells));
         let (fp, c, cells) = roof(|_, _, i| 130 + 3 * noise(i));
         assert!(
-            !looks_pitched(&fp, &c, &cells),
+            !looks_pitched(&fp, &RowBand::whole(&c), &cells),
             "speckled texture is not faces"
         );
         let (fp, c, cells) = roof(|_, _, i| 150 + noise(i) / 2);
-        assert!(!looks_pitched(&fp, &c, &cells));
+        assert!(!looks_pitched(&fp, &RowBand::whole(&c), &cells));
     }
 
     #[test]
@@ -165,6 +166,6 @@ mod tests {
                 140
             }
         });
-        assert!(looks_pitched(&fp, &c, &cells));
+        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells));
     }
 }

@@ -75,7 +75,7 @@ pub fn detect(colour: &dyn RowSource<[u8; 4]>, skip: &Raised) -> Result<ShadowBi
             bits[i / 64] |= 1 << (i % 64);
         }
     }
-    Ok(ShadowBits { bits })
+    Ok(ShadowBits::from_bits(bits))
 }
 
 /// One threshold (shadow index) per block, or none.
@@ -257,7 +257,7 @@ mod tests {
             };
             let every: Vec<Prism> = scene.buildings.iter().map(|b| prism(b, 0.0)).collect();
             let roofs = Raised::new(rasterise_prisms(&grid, &every), &t);
-            let truth = ShadowBits::cast(&t, &roofs, &scene.sun).unwrap();
+            let truth = ShadowBits::cast(&t, &scene.sun, |s, row| roofs.lay_over(s, row)).unwrap();
             for (drop_every, dz) in [(0usize, 0.0), (4, 0.5), (3, 0.5), (2, 1.0)] {
                 // Every `drop_every`-th building missing, the others `dz` metres too high or
                 // too low, alternately.
@@ -269,7 +269,8 @@ mod tests {
                     .map(|(k, b)| prism(b, if k % 2 == 0 { dz } else { -dz }))
                     .collect();
                 let raised = Raised::new(rasterise_prisms(&grid, &db), &t);
-                let cast = ShadowBits::cast(&t, &raised, &scene.sun).unwrap();
+                let cast =
+                    ShadowBits::cast(&t, &scene.sun, |s, row| raised.lay_over(s, row)).unwrap();
                 let found = detect(&scene.ortho, &raised).unwrap();
                 let th = Thresholds::compute(&scene.ortho, &raised).unwrap();
                 let darkish = |i: usize| {
