@@ -403,6 +403,36 @@ fn export_levels_are_georeferenced_geotiffs() {
 /// Bands of the layers are read one page-row at a time: a page-row that is all nodata (a void
 /// or the corner of a rotated footprint across the whole width) is nodata in the tiles, not an
 /// error, with or without a sun.
+/// Issue 14, defect 11: `--export-levels` failing (here a full disk when a level's GeoTIFF is
+/// finished, injected by `DBMS_FAULT`) fails the run in one line and leaves no tile file — the
+/// make target — to look up to date, and no pyramid stage in the manifest.
+#[test]
+fn a_failed_level_export_leaves_no_tile_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = make_db(dir.path(), None);
+    let manifest = || std::fs::read(db.dir.join("manifest.json")).unwrap();
+    let before = manifest();
+    let out = dir.path().join("t.dbt");
+    let exp = dir.path().join("levels");
+    let o = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(["pyramid", "--db", db.dir.to_str().unwrap(), "--page", "32"])
+        .args(["--factor", "2", "--levels", "3", "--export-levels"])
+        .args([exp.to_str().unwrap(), "-o", out.to_str().unwrap()])
+        .env("DBMS_FAULT", "enospc:level1_colour.tif")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("dbms: error: ")
+            && err.contains("level1_colour.tif: no space left on the device")
+            && err.lines().count() == 1,
+        "{err}"
+    );
+    assert!(!out.exists(), "the tile file was left behind");
+    assert_eq!(manifest(), before, "a pyramid stage was recorded");
+}
+
 #[test]
 fn a_page_row_of_nodata_is_nodata_not_an_error() {
     let dir = tempfile::tempdir().unwrap();
