@@ -197,6 +197,31 @@ fn a_writer_waits_for_the_lock_or_says_who_holds_it() {
     s.place(0.0);
 }
 
+/// Issue 14, defect 11: the heights file is written in full before `--apply` changes the
+/// database. When it cannot be (a full disk, injected by `DBMS_FAULT`), the run fails in one line
+/// with the database unchanged — not buildings applied and no heights file.
+#[test]
+fn a_heights_file_that_cannot_be_written_stops_the_apply() {
+    let s = Scene::new();
+    let before = manifest(&s.db());
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(APPLY)
+        .current_dir(s.path())
+        .env("DBMS_FAULT", "enospc:h.geojson")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("dbms: error: h.geojson: no space left on the device")
+            && err.trim_end().lines().count() == 1,
+        "{err}"
+    );
+    assert_eq!(manifest(&s.db()), before, "the apply went ahead");
+    assert!(!s.path().join("h.geojson").exists());
+    s.verify();
+}
+
 #[test]
 fn a_kill_at_any_step_of_a_change_leaves_a_database_that_verifies() {
     // Each step of the protocol (docs/database.md): the new layer written, renamed to its

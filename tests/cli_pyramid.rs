@@ -403,6 +403,99 @@ fn export_levels_are_georeferenced_geotiffs() {
 /// Bands of the layers are read one page-row at a time: a page-row that is all nodata (a void
 /// or the corner of a rotated footprint across the whole width) is nodata in the tiles, not an
 /// error, with or without a sun.
+/// Issue 14, defect 11: the tile file and `--export-levels`' GeoTIFFs are renamed into place
+/// together, after the manifest recorded the stage. A level that fails (a full disk as it is
+/// finished, injected by `DBMS_FAULT`), the tile file failing after the levels, or the database's
+/// lock held past `--wait`: the run fails in one line and leaves no tile file — the make target
+/// — to look up to date, no level, and no pyramid stage in the manifest.
+#[test]
+fn a_failed_level_export_leaves_no_tile_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = make_db(dir.path(), None);
+    let manifest = || std::fs::read(db.dir.join("manifest.json")).unwrap();
+    let before = manifest();
+    let out = dir.path().join("t.dbt");
+    let exp = dir.path().join("levels");
+    let run = |extra: &[&str], fault: &str| {
+        Command::new(env!("CARGO_BIN_EXE_dbms"))
+            .args(extra)
+            .args(["pyramid", "--db", db.dir.to_str().unwrap(), "--page", "32"])
+            .args(["--factor", "2", "--levels", "3", "--export-levels"])
+            .args([exp.to_str().unwrap(), "-o", out.to_str().unwrap()])
+            .env("DBMS_FAULT", fault)
+            .output()
+            .unwrap()
+    };
+    let lock = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(db.dir.join(".dbms.lock"))
+        .unwrap();
+    for (extra, fault, says) in [
+        (
+            &[][..],
+            "enospc:level1_colour.tif",
+            "level1_colour.tif: no space left on the device",
+        ),
+        (&[], "enospc:t.dbt", "t.dbt: no space left on the device"),
+        (
+            &["--wait", "0.1"],
+            "",
+            "another dbms is changing this database",
+        ),
+    ] {
+        if fault.is_empty() {
+            lock.lock().unwrap();
+        }
+        let o = run(extra, fault);
+        lock.unlock().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.starts_with("dbms: error: ")
+                && err.contains(says)
+                && err.trim_end().lines().count() == 1,
+            "{says}: {err}"
+        );
+        assert!(!out.exists(), "{says}: the tile file was left behind");
+        let left: Vec<_> = std::fs::read_dir(&exp).unwrap().collect();
+        assert!(
+            left.is_empty(),
+            "{says}: levels or temporaries left: {left:?}"
+        );
+        assert_eq!(manifest(), before, "{says}: a pyramid stage was recorded");
+    }
+    let s = pyramid(
+        &db.dir,
+        &out,
+        &[
+            "--factor",
+            "2",
+            "--levels",
+            "3",
+            "--export-levels",
+            exp.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(s["exported"].as_array().unwrap().len(), 6);
+    // A level's file is an output too: it may not be the tile file.
+    let o = dbms(&[
+        "pyramid",
+        "--db",
+        db.dir.to_str().unwrap(),
+        "--export-levels",
+        exp.to_str().unwrap(),
+        "-o",
+        exp.join("level0_maxz.tif").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("level0_maxz.tif: is given as two outputs"),
+        "{err}"
+    );
+}
+
 #[test]
 fn a_page_row_of_nodata_is_nodata_not_an_error() {
     let dir = tempfile::tempdir().unwrap();

@@ -137,6 +137,52 @@ fn range_exr_holds_metres_and_inf_for_sky() {
     assert!(last > 40.0 && last < 1000.0, "{last}");
 }
 
+/// Issue 14, defect 11: the view and its range image are renamed into place together. The range
+/// image failing as it is finished (a full disk, injected by `DBMS_FAULT`) fails the run in one
+/// line and leaves no new view: none where there was none, the old one where there was one.
+#[test]
+fn a_failed_range_image_leaves_no_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let (png, exr) = (out.join("v.png"), out.join("v.exr"));
+    let run = |fov: &str| {
+        let mut args = vec!["render", "--tiles", tiles.to_str().unwrap()];
+        args.extend(&VIEW[..4]);
+        args.extend(["--fov", fov, "--size", "96x64"]);
+        args.extend(["--range-out", exr.to_str().unwrap()]);
+        args.extend(["-o", png.to_str().unwrap()]);
+        Command::new(env!("CARGO_BIN_EXE_dbms"))
+            .args(&args)
+            .env("DBMS_FAULT", "enospc:v.exr")
+            .output()
+            .unwrap()
+    };
+    let failed = |o: std::process::Output| {
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.starts_with("dbms: error: ")
+                && err.contains("v.exr: no space left on the device")
+                && err.trim_end().lines().count() == 1,
+            "{err}"
+        );
+    };
+    failed(run("70"));
+    let left: Vec<_> = std::fs::read_dir(&out).unwrap().collect();
+    assert!(left.is_empty(), "left: {left:?}");
+    render(&tiles, &png, &VIEW);
+    let before = std::fs::read(&png).unwrap();
+    failed(run("40"));
+    assert_eq!(
+        std::fs::read(&png).unwrap(),
+        before,
+        "the view was replaced"
+    );
+    assert!(!exr.exists());
+}
+
 #[test]
 fn same_command_gives_byte_identical_files() {
     let dir = tempfile::tempdir().unwrap();

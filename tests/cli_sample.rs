@@ -110,3 +110,29 @@ fn bad_size_is_a_one_line_error_and_writes_nothing() {
     );
     assert!(!out.exists());
 }
+
+/// Issue 14, defect 11: the scene's files are renamed into place together at the end,
+/// scene.json (the make target) last. One failing as it is finished (a full disk, injected by
+/// `DBMS_FAULT`) fails the run in one line and leaves none of them.
+#[test]
+fn a_failed_file_leaves_no_scene_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene");
+    for file in ["truth.json", "ortho.tif"] {
+        let o = Command::new(env!("CARGO_BIN_EXE_dbms"))
+            .args(["sample", "-o", out.to_str().unwrap(), "--size", "160"])
+            .env("DBMS_FAULT", format!("enospc:{file}"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            o.status.code() == Some(1)
+                && err.starts_with("dbms: error: ")
+                && err.contains(&format!("{file}: no space left on the device"))
+                && err.trim_end().lines().count() == 1,
+            "{err}"
+        );
+        let left: Vec<_> = std::fs::read_dir(&out).unwrap().collect();
+        assert!(left.is_empty(), "{file}: left {left:?}");
+    }
+}

@@ -745,3 +745,175 @@ fn place_refuses_a_height_far_from_the_terrain_before_writing() {
     let (ok, _, err) = place("500005,5299995,900");
     assert!(ok, "{err}");
 }
+
+/// `dbms ARGS` with `DBMS_FAULT` set to `fault`: its exit status and stderr.
+fn dbms_fault(fault: &str, args: &[&str]) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .env("DBMS_FAULT", fault)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    (out.status.code(), err)
+}
+
+/// The names in `dir`, sorted (temporary files included).
+fn names(dir: &Path) -> Vec<String> {
+    let mut n: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    n.sort();
+    n
+}
+
+/// Issue 14, defect 11: an object and its exports are renamed into place together at the end.
+/// One that fails (a full disk as it is finished, injected by `DBMS_FAULT`) fails the run in one
+/// line and leaves no `.dvox` — the make target — nor any export, and an earlier run's files
+/// stay as they were.
+#[test]
+fn a_failed_export_leaves_no_object_and_no_other_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let objects = dir.path().join("objects");
+    std::fs::create_dir(&objects).unwrap();
+    let t = objects.join("tree.dvox");
+    let t = t.to_str().unwrap();
+    let cone = |seed| {
+        let exports = ["--export", "ply", "--export", "vox"];
+        let args = ["object", "cone", "--height", "6", "--radius", "2"];
+        [
+            &args[..],
+            &["--voxel", "0.5", "--seed", seed, "-o", t],
+            &exports,
+        ]
+        .concat()
+    };
+    let failed = |(code, err): (Option<i32>, String), file: &str| {
+        assert_eq!(code, Some(1), "{err}");
+        assert!(
+            err.starts_with("dbms: error: ")
+                && err.contains(&format!("{file}: no space left on the device"))
+                && err.trim_end().lines().count() == 1,
+            "{err}"
+        );
+    };
+    for file in ["tree.vox", "tree.ply", "tree.dvox"] {
+        failed(dbms_fault(&format!("enospc:{file}"), &cone("1")), file);
+        assert!(names(&objects).is_empty(), "{file}: {:?}", names(&objects));
+    }
+    let (ok, _, err) = dbms(&cone("1"));
+    assert!(ok, "{err}");
+    let read = |n: &str| std::fs::read(objects.join(n)).unwrap();
+    let before = ["tree.dvox", "tree.ply", "tree.vox"].map(read);
+    failed(dbms_fault("enospc:tree.vox", &cone("2")), "tree.vox");
+    assert_eq!(names(&objects), ["tree.dvox", "tree.ply", "tree.vox"]);
+    assert_eq!(["tree.dvox", "tree.ply", "tree.vox"].map(read), before);
+
+    // sculpt commits the same way.
+    let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
+    let obj = objects.join("obj.dvox");
+    let args = [
+        "sculpt",
+        "--views",
+        views.to_str().unwrap(),
+        "--voxel",
+        "0.1",
+        "--export",
+        "ply",
+        "-o",
+        obj.to_str().unwrap(),
+    ];
+    failed(dbms_fault("enospc:obj.ply", &args), "obj.ply");
+    assert!(!obj.exists() && !objects.join("obj.ply").exists());
+    assert_eq!(names(&objects), ["tree.dvox", "tree.ply", "tree.vox"]);
+}
+
+/// Issue 14, defect 4 for `object` and `sculpt`: an output that would destroy something — an
+/// export that is a directory or a FIFO, an object or export that is one of the run's inputs
+/// (the footprints, the views file, a view's image) — is refused in one line before anything is
+/// written; the same export asked twice is one file.
+#[test]
+fn object_and_sculpt_outputs_that_would_destroy_something_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
+    let refused = |args: &[&str], says: &str| {
+        let (ok, _, err) = dbms(args);
+        assert!(!ok && err.contains(says), "{args:?}: {err}");
+        assert!(err.starts_with("dbms: error: "), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    };
+    std::fs::create_dir(d("tree.ply")).unwrap();
+    assert!(Command::new("mkfifo")
+        .arg(d("tree.vox"))
+        .status()
+        .unwrap()
+        .success());
+    let cone = [
+        "object", "cone", "--height", "6", "--radius", "2", "--voxel", "0.5",
+    ];
+    let tree = d("tree.dvox");
+    refused(
+        &[&cone[..], &["-o", &tree, "--export", "ply"]].concat(),
+        "tree.ply: the output is a directory",
+    );
+    refused(
+        &[&cone[..], &["-o", &tree, "--export", "vox"]].concat(),
+        "tree.vox: the output is a device, FIFO",
+    );
+    assert!(!dir.path().join("tree.dvox").exists());
+
+    // Footprints that happen to be named like the export, or given as the object.
+    let footprints = r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"height":7.5},"geometry":{"type":"Polygon","coordinates":[[[10,20],[18,20],[18,26],[10,26],[10,20]]]}}]}"#;
+    std::fs::write(d("b.ply"), footprints).unwrap();
+    let extrude = [
+        "object",
+        "extrude",
+        "--footprints",
+        &d("b.ply"),
+        "--voxel",
+        "0.5",
+    ];
+    refused(
+        &[&extrude[..], &["-o", &d("b.dvox"), "--export", "ply"]].concat(),
+        "b.ply: the output is also an input",
+    );
+    refused(
+        &[&extrude[..], &["-o", &d("b.ply")]].concat(),
+        "the output is also an input",
+    );
+    assert_eq!(std::fs::read_to_string(d("b.ply")).unwrap(), footprints);
+    assert!(!dir.path().join("b.dvox").exists());
+
+    // The views file, or one of its images, as the object.
+    let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
+    let view0 = std::fs::read(d("view0.png")).unwrap();
+    let sculpt = [
+        "sculpt",
+        "--views",
+        views.to_str().unwrap(),
+        "--voxel",
+        "0.1",
+    ];
+    for o in ["views.json", "view0.png", "mask2.png"] {
+        refused(
+            &[&sculpt[..], &["-o", &d(o)]].concat(),
+            &format!("{o}: the output is also an input"),
+        );
+    }
+    assert_eq!(std::fs::read(d("view0.png")).unwrap(), view0);
+    assert!(
+        serde_json::from_slice::<Value>(&std::fs::read(&views).unwrap()).is_ok(),
+        "the views file was overwritten"
+    );
+
+    // The same export twice is one export, not two outputs of one path.
+    let (ok, _, err) = dbms(
+        &[
+            &sculpt[..],
+            &["-o", &d("s.dvox"), "--export", "ply", "--export", "ply"],
+        ]
+        .concat(),
+    );
+    assert!(ok, "{err}");
+    assert!(dir.path().join("s.ply").exists());
+}

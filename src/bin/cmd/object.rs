@@ -1,10 +1,10 @@
 //! `dbms object`: synthetic voxel objects (tanks, trees, extruded buildings).
 
 use super::Ctx;
-use dbms::voxel::export::{check_exports, write_exports, Export};
+use dbms::voxel::export::{check_exports, plan_exports, write_with_exports, Export};
 use dbms::voxel::object::{parse_rgb, VoxelObject};
-use dbms::voxel::{format, synth};
-use std::path::PathBuf;
+use dbms::voxel::synth;
+use std::path::{Path, PathBuf};
 
 /// Make a synthetic voxel object (docs/voxel-object.md).
 #[derive(clap::Args)]
@@ -104,6 +104,14 @@ fn parse_profile(s: &str) -> dbms::Result<Vec<[f64; 2]>> {
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    // Before any work: no output may be a special file, a database's, or an input.
+    let (out, inputs): (&Out, Vec<&Path>) = match &args.kind {
+        Kind::Revolve { out, .. } | Kind::Cone { out, .. } => (out, vec![]),
+        Kind::Extrude {
+            out, footprints, ..
+        } => (out, vec![footprints]),
+    };
+    let planned = plan_exports(&out.output, &out.export, &inputs)?;
     let (obj, out, source, extra): (VoxelObject, Out, String, serde_json::Value) = match args.kind {
         Kind::Revolve {
             profile,
@@ -171,9 +179,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             )
         }
     };
-    let planned = check_exports(&out.output, &obj, &out.export)?;
-    format::write(&out.output, &obj, &source)?;
-    write_exports(&obj, &planned)?;
+    check_exports(&obj, &planned)?;
+    write_with_exports(&out.output, &obj, &source, &planned)?;
     let exports: Vec<&PathBuf> = planned.iter().map(|(_, p)| p).collect();
     let d = obj.grid.dims;
     let a = obj.anchor();

@@ -2,10 +2,11 @@
 
 use super::Ctx;
 use dbms::voxel::carve::{CarveOptions, Unseen};
-use dbms::voxel::export::{check_exports, write_exports, Export};
+use dbms::voxel::export::{check_exports, plan_exports, write_with_exports, Export};
 use dbms::voxel::sculpt::{sculpt, SculptOptions};
-use dbms::voxel::{format, grid::parse_box, object::parse_rgb};
-use std::path::PathBuf;
+use dbms::voxel::views::ViewsFile;
+use dbms::voxel::{grid::parse_box, object::parse_rgb};
+use std::path::{Path, PathBuf};
 
 /// Carve the visual hull of an object from calibrated views and colour it (docs/sculpt.md).
 #[derive(clap::Args)]
@@ -46,15 +47,19 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         },
         fill: parse_rgb(&args.fill)?,
     };
+    // Before any work: no output may be a special file, a database's, or an input.
+    let inputs = ViewsFile::read(&args.views)?.files(&args.views);
+    let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let planned = plan_exports(&args.output, &args.export, &inputs)?;
     let (obj, report) = sculpt(&args.views, &opts)?;
     ctx.warn_all(&report.warnings);
-    let planned = check_exports(&args.output, &obj, &args.export)?;
-    format::write(
+    check_exports(&obj, &planned)?;
+    write_with_exports(
         &args.output,
         &obj,
         &format!("dbms sculpt --voxel {}", args.voxel),
+        &planned,
     )?;
-    write_exports(&obj, &planned)?;
     let exports: Vec<&PathBuf> = planned.iter().map(|(_, p)| p).collect();
     let d = report.dims;
     let c = report.colour;

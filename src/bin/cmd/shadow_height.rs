@@ -150,13 +150,15 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     ctx.warn_all(&skipped);
 
     let doc = output::heights_geojson(&features, &results, &registration, &sun, db.grid().crs.epsg);
-    // Written now, renamed into place only after --apply's change committed: a failed apply
-    // leaves no heights file for `make` to take as up to date.
+    // Written and synced now (a full disk fails here, before the database changes), renamed
+    // into place only after --apply's change committed: a failed apply leaves no heights file
+    // for `make` to take as up to date.
     let mut heights_file = AtomicFile::create(&args.output)?;
     heights_file
         .writer()
         .write_all(output::to_text(&doc).as_bytes())
         .map_err(|e| Error::io(&args.output, e))?;
+    let heights_file = heights_file.stage()?;
     let count = |f: &dyn Fn(&sh::Measurement) -> bool| {
         results.iter().filter(|r| r.as_ref().is_ok_and(f)).count()
     };

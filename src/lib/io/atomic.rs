@@ -60,11 +60,19 @@ impl AtomicFile {
 
     /// Flush, make the file world-readable, sync it to disk and rename it over the destination.
     pub fn commit(self) -> Result<()> {
+        self.stage()?.commit()
+    }
+
+    /// Flush, make the file world-readable and sync it to disk, but leave it under its
+    /// temporary name: a run with several outputs stages every one, then renames them all with
+    /// [`commit_all`], so a failure while writing any of them leaves none.
+    pub fn stage(self) -> Result<Staged> {
         let path = self.path;
         let file = self
             .file
             .into_inner()
             .map_err(|e| Error::io(&path, e.into_error()))?;
+        injected_full_disk(&path)?;
         // tempfile creates 0600; outputs are ordinary files other users and tools may read.
         #[cfg(unix)]
         {
@@ -73,10 +81,68 @@ impl AtomicFile {
                 .map_err(|e| Error::io(&path, e))?;
         }
         file.sync_all().map_err(|e| Error::io(&path, e))?;
+        Ok(Staged {
+            path,
+            tmp: self.tmp,
+        })
+    }
+}
+
+/// An output written in full and synced under its temporary name, waiting to be renamed over
+/// its destination ([`Staged::commit`], or [`commit_all`] for a run's outputs together).
+/// Dropped without a commit (another output failed), it is removed and the destination is
+/// untouched.
+pub struct Staged {
+    path: PathBuf,
+    tmp: TempPath,
+}
+
+impl Staged {
+    /// A temporary file its writer has already written, made readable and synced: renamed to
+    /// `path` by [`Staged::commit`].
+    pub(crate) fn new(path: &Path, tmp: TempPath) -> Result<Staged> {
+        injected_full_disk(path)?;
+        Ok(Staged {
+            path: path.to_path_buf(),
+            tmp,
+        })
+    }
+
+    /// The destination path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Rename the file over its destination.
+    pub fn commit(self) -> Result<()> {
         self.tmp
-            .persist(&path)
-            .map_err(|e| Error::io(&path, e.error))?;
-        Ok(())
+            .persist(&self.path)
+            .map_err(|e| Error::io(&self.path, e.error))
+    }
+}
+
+/// Rename a run's staged outputs into place, in order: give the one `make` waits for (the
+/// run's main output) last, so that if a rename fails, that one is not left looking up to date.
+/// All the writing is done before (a full disk fails [`AtomicFile::stage`], not this); a rename
+/// within one directory fails only when something replaced the destination in the meantime.
+pub fn commit_all(staged: Vec<Staged>) -> Result<()> {
+    staged.into_iter().try_for_each(Staged::commit)
+}
+
+/// Fail as a full disk would when `DBMS_FAULT` is `enospc:NAME` and `path`'s file name is NAME:
+/// how the tests make one output of a run fail after others were written (no effect otherwise).
+fn injected_full_disk(path: &Path) -> Result<()> {
+    let name = path.file_name().map(|n| n.to_string_lossy());
+    let fault = std::env::var_os("DBMS_FAULT");
+    let fault = fault
+        .as_ref()
+        .and_then(|f| f.to_str()?.strip_prefix("enospc:"));
+    match (fault, name) {
+        (Some(f), Some(n)) if f == n => Err(Error::io(
+            path,
+            std::io::Error::from(std::io::ErrorKind::StorageFull),
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -231,6 +297,43 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names.len(), 1, "temp file left behind: {names:?}");
+    }
+
+    #[test]
+    fn staged_outputs_appear_together_at_commit_and_not_at_all_when_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.ply"), dir.path().join("a.dvox"));
+        let stage = |p: &Path, bytes: &[u8]| {
+            let mut f = AtomicFile::create(p).unwrap();
+            f.writer().write_all(bytes).unwrap();
+            f.stage().unwrap()
+        };
+        let names = || {
+            let mut n: Vec<String> = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            n.sort();
+            n
+        };
+        // Staged, then dropped (a later output failed): nothing appears, no temporary stays.
+        drop(vec![stage(&a, b"export"), stage(&b, b"object")]);
+        assert!(names().is_empty(), "{:?}", names());
+        // Committed: both.
+        let staged = vec![stage(&a, b"export"), stage(&b, b"object")];
+        assert!(!a.exists() && !b.exists(), "nothing before the commit");
+        commit_all(staged).unwrap();
+        assert_eq!(names(), ["a.dvox", "a.ply"]);
+        assert_eq!(std::fs::read(&b).unwrap(), b"object");
+        // A rename that fails (its destination replaced by a directory after the checks) stops
+        // the commit: the outputs after it, the main one last, keep their old content.
+        let staged = vec![stage(&a, b"export 2"), stage(&b, b"object 2")];
+        std::fs::remove_file(&a).unwrap();
+        std::fs::create_dir(&a).unwrap();
+        std::fs::write(a.join("x"), b"").unwrap();
+        assert!(commit_all(staged).is_err());
+        assert_eq!(std::fs::read(&b).unwrap(), b"object");
+        assert_eq!(names(), ["a.dvox", "a.ply"], "no temporary left");
     }
 
     #[test]

@@ -9,7 +9,7 @@
 //! identical rasters: Deflate tiles, no timestamps, georeference and CRS from the [`Grid`];
 //! [`GeoTiffWriter`] writes them band by band, so no raster has to be whole in memory.
 
-use super::atomic::AtomicFile;
+use super::atomic::{AtomicFile, Staged};
 use super::{crs_from_wkt, image_world, Samples, SourceRaster};
 use crate::crs::Crs;
 use crate::error::{Error, Result};
@@ -1085,7 +1085,13 @@ impl<T: TiffSample> GeoTiffWriter<T> {
 
     /// Write the last tiles and the directory, then move the file into place. Every row of the
     /// grid must have been pushed.
-    pub fn finish(mut self) -> Result<()> {
+    pub fn finish(self) -> Result<()> {
+        self.stage()?.commit()
+    }
+
+    /// [`finish`](Self::finish) but leave the file under its temporary name, for a run that
+    /// renames all its outputs together ([`crate::io::atomic::commit_all`]).
+    pub fn stage(mut self) -> Result<Staged> {
         let (w, h) = (self.grid.width, self.grid.height);
         if self.rows_done != h {
             return Err(Error::file(
@@ -1130,7 +1136,7 @@ impl<T: TiffSample> GeoTiffWriter<T> {
         } else {
             out.write_all(&(pos as u32).to_le_bytes()).map_err(io)?;
         }
-        self.out.commit()
+        self.out.stage()
     }
 }
 

@@ -10,6 +10,7 @@
 //! (22 MB for W = 8192, P = 256, f = 4), whatever the grid's height.
 
 use crate::error::{Error, Result};
+use crate::io::atomic::Staged;
 use crate::io::geotiff::GeoTiffWriter;
 use crate::tiles::{Page, TileSetInfo};
 use std::path::{Path, PathBuf};
@@ -18,7 +19,6 @@ use std::sync::Mutex;
 /// Writes every level of a pyramid as GeoTIFFs while its pages are emitted.
 pub struct LevelExporter {
     info: TileSetInfo,
-    dir: PathBuf,
     levels: Vec<Mutex<LevelOut>>,
 }
 
@@ -36,7 +36,7 @@ struct LevelOut {
 impl LevelExporter {
     /// Start `level<N>_maxz.tif` (float32, nodata −9999) and `level<N>_colour.tif` (RGB8 with a
     /// TIFF internal mask from the alpha: 0 = nodata) for every level of `info` in `dir` (created if missing). Nothing appears
-    /// in `dir` until [`finish`](Self::finish).
+    /// in `dir` until the files [`stage`](Self::stage) returns are committed.
     pub fn create(info: &TileSetInfo, dir: &Path) -> Result<LevelExporter> {
         std::fs::create_dir_all(dir)
             .map_err(|e| Error::io(dir, e).fix("choose a writable --export-levels directory"))?;
@@ -55,9 +55,19 @@ impl LevelExporter {
             .collect::<Result<_>>()?;
         Ok(LevelExporter {
             info: info.clone(),
-            dir: dir.to_path_buf(),
             levels,
         })
+    }
+
+    /// Every file [`create`](Self::create) would write for `info` in `dir`, finest level
+    /// first: what the run's other outputs must not be.
+    pub fn paths(info: &TileSetInfo, dir: &Path) -> Vec<PathBuf> {
+        (0..info.levels.len())
+            .flat_map(|k| {
+                let (z, c) = Self::files(dir, k);
+                [z, c]
+            })
+            .collect()
     }
 
     /// The two files of level `k` in `dir`.
@@ -108,15 +118,15 @@ impl LevelExporter {
         Ok(())
     }
 
-    /// Finish every file and move it into place. Returns the files written, finest level first.
-    pub fn finish(self) -> Result<Vec<PathBuf>> {
+    /// Finish every file, still under its temporary name: the caller renames them into place
+    /// with the run's other outputs ([`commit_all`](crate::io::atomic::commit_all)). Returns
+    /// them finest level first.
+    pub fn stage(self) -> Result<Vec<Staged>> {
         let mut files = Vec::new();
-        for (k, l) in self.levels.into_iter().enumerate() {
+        for l in self.levels {
             let l = l.into_inner().expect("no panics while holding the lock");
-            l.z_file.finish()?;
-            l.colour_file.finish()?;
-            let (z, c) = Self::files(&self.dir, k);
-            files.extend([z, c]);
+            files.push(l.z_file.stage()?);
+            files.push(l.colour_file.stage()?);
         }
         Ok(files)
     }
@@ -166,8 +176,14 @@ mod tests {
             &mut |l, ty| exporter.page_row_done(l, ty),
         )
         .unwrap();
-        let files = exporter.finish().unwrap();
-        assert_eq!(files.len(), 2 * info.levels.len());
+        let staged = exporter.stage().unwrap();
+        let files: Vec<PathBuf> = staged.iter().map(|s| s.path().to_path_buf()).collect();
+        assert_eq!(files, LevelExporter::paths(&info, &out));
+        assert!(
+            !files.iter().any(|f| f.exists()),
+            "staged, not yet in place"
+        );
+        crate::io::atomic::commit_all(staged).unwrap();
         let pages = pages.into_inner().unwrap();
         let p = info.page_size;
         for k in 0..info.levels.len() {

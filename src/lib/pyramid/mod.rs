@@ -101,8 +101,8 @@ pub struct Timings {
     /// The hierarchy: level-0 bands (the layers decoded band by band), reductions, pages encoded
     /// and written by the tile writer.
     pub levels: f64,
-    /// The tile writer's finish (index, fsync and rename; a copy into canonical order only with
-    /// lz4 or bricks) and the export.
+    /// The tile writer's finish (index and fsync; a copy into canonical order only with lz4 or
+    /// bricks) and the export's (the renames come after the manifest's change).
     pub finish: f64,
 }
 
@@ -138,6 +138,14 @@ pub fn build_pyramid(
     let mut seconds = Timings::default();
     let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
     info.compression = opts.compression;
+    if let Some(dir) = &opts.export_levels {
+        // The levels' files are outputs too: none may be the tile file, or a special file.
+        let levels = export::LevelExporter::paths(&info, dir);
+        let outputs: Vec<&Path> = std::iter::once(out)
+            .chain(levels.iter().map(PathBuf::as_path))
+            .collect();
+        crate::io::atomic::check_outputs(&outputs, &[])?;
+    }
     // The layers are read band by band (each band's tiles decoded in parallel), never whole.
     let (terrain, colour) = (db.elevation_rows()?, db.colour_rows()?);
     seconds.read = lap();
@@ -196,14 +204,15 @@ pub fn build_pyramid(
         },
     )?;
     seconds.levels = lap();
-    // The exported levels first: when they fail, the tile file (the make target) is not left
-    // behind to look up to date. (A tile file that fails after them leaves them; they are
-    // not what make waits for.)
-    let exported = match exporter {
-        Some(x) => x.finish()?,
+    // Every output is finished under its temporary name, and all are renamed together once the
+    // database has recorded the stage: a run that fails at any point leaves no tile file (the
+    // make target) to look up to date, no level, and no stage.
+    let mut staged = match exporter {
+        Some(x) => x.stage()?,
         None => Vec::new(),
     };
-    writer.finish()?;
+    let exported: Vec<PathBuf> = staged.iter().map(|s| s.path().to_path_buf()).collect();
+    staged.push(writer.stage()?);
     progress.finish();
     seconds.finish = lap();
 
@@ -231,6 +240,8 @@ pub fn build_pyramid(
         }),
     ));
     change.commit()?;
+    // The tile file last: a rename that fails leaves it out, not the levels without it.
+    crate::io::atomic::commit_all(staged)?;
     Ok(summary)
 }
 

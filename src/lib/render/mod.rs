@@ -482,20 +482,21 @@ impl Frame {
     }
 
     /// Write the frame as a PNG file at `png` and, when `range` is given, its range image as
-    /// [`Frame::write_range_exr`] does: both encoded first, then renamed into place together
-    /// — a run that fails leaves neither (nor replaces either).
+    /// [`Frame::write_range_exr`] does: both encoded, written and synced first, then renamed
+    /// into place together, the PNG last — a run that fails leaves neither (nor replaces either).
     pub fn write(&self, png: &Path, range: Option<&Path>) -> Result<()> {
-        let mut files = vec![(png, self.png()?)];
+        let mut files = Vec::new();
         if let Some(r) = range {
             files.push((r, self.range_exr(r)?));
         }
+        files.push((png, self.png()?));
         let mut staged = Vec::new();
         for (path, bytes) in files {
             let mut f = crate::io::atomic::AtomicFile::create(path)?;
             std::io::Write::write_all(f.writer(), &bytes).map_err(|e| crate::Error::io(path, e))?;
-            staged.push(f);
+            staged.push(f.stage()?);
         }
-        staged.into_iter().try_for_each(|f| f.commit())
+        crate::io::atomic::commit_all(staged)
     }
 
     /// Write the range image as a one-channel (`Z`) f32 OpenEXR file (ZIP-compressed scan

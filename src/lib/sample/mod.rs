@@ -24,8 +24,8 @@ pub use layout::Shape;
 use crate::crs::Crs;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::io::atomic::write_bytes_atomic;
-use crate::io::geotiff;
+use crate::io::atomic::{commit_all, AtomicFile, Staged};
+use crate::io::geotiff::GeoTiffWriter;
 use crate::pyramid::raised::{rasterise_prisms, Prism};
 use crate::raster::{Colour, Elevation, Raster};
 use crate::shadow::{cast_shadows_slice, Sun, SHADOW};
@@ -34,6 +34,7 @@ use noise::{mix, octaves};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The scene's CRS: WGS 84 / UTM zone 32N.
@@ -225,24 +226,36 @@ pub const FILES: [&str; 5] = [
     "scene.json",
 ];
 
-/// Write a scene's files ([`FILES`]) into `dir` (created if missing), each atomically.
-/// Returns their paths.
+/// Write a scene's files ([`FILES`]) into `dir` (created if missing), all or none: each is
+/// written and synced under a temporary name, then all are renamed into place, scene.json (what
+/// `make` waits for) last. Returns their paths.
 pub fn write(scene: &Scene, dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
     let paths: Vec<PathBuf> = FILES.iter().map(|f| dir.join(f)).collect();
-    geotiff::write_f32(&paths[0], &scene.dem)?;
-    geotiff::write_rgba8(&paths[1], &scene.ortho)?;
-    write_json(&paths[2], &footprints_geojson(&scene.buildings))?;
-    write_json(&paths[3], &truth_json(scene))?;
-    write_json(&paths[4], &scene_json(scene))?;
+    let mut dem = GeoTiffWriter::create_f32(&paths[0], &scene.dem.grid)?;
+    dem.push_rows(&scene.dem.data)?;
+    let mut ortho = GeoTiffWriter::create_rgba8(&paths[1], &scene.ortho.grid)?;
+    ortho.push_rows(&scene.ortho.data)?;
+    let staged = vec![
+        dem.stage()?,
+        ortho.stage()?,
+        stage_json(&paths[2], &footprints_geojson(&scene.buildings))?,
+        stage_json(&paths[3], &truth_json(scene))?,
+        stage_json(&paths[4], &scene_json(scene))?,
+    ];
+    commit_all(staged)?;
     Ok(paths)
 }
 
-fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+fn stage_json(path: &Path, value: &serde_json::Value) -> Result<Staged> {
     let mut text = serde_json::to_string_pretty(value).expect("JSON value serialises");
     text.push('\n');
-    write_bytes_atomic(path, text.as_bytes())
+    let mut out = AtomicFile::create(path)?;
+    out.writer()
+        .write_all(text.as_bytes())
+        .map_err(|e| Error::io(path, e))?;
+    out.stage()
 }
 
 /// The scene's sun as scene.json, truth.json and `dbms sample --json` state it: the azimuth

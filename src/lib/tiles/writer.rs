@@ -18,7 +18,7 @@ use super::layout::{
 };
 use super::page::{self, Layout, Page, StoredBytes, MEMORY_ALIGN};
 use crate::error::{Error, Result};
-use crate::io::atomic::write_atomic;
+use crate::io::atomic::{AtomicFile, Staged};
 use std::fs::File;
 use std::io::Write;
 use std::os::unix::fs::FileExt;
@@ -322,7 +322,13 @@ impl TileWriter {
 
     /// Check every page was written, then finish the file in canonical order and rename it
     /// into place. Errors name the first missing page.
-    pub fn finish(mut self) -> Result<()> {
+    pub fn finish(self) -> Result<()> {
+        self.stage()?.commit()
+    }
+
+    /// [`finish`](Self::finish) but leave the file under its temporary name, for a run that
+    /// renames all its outputs together ([`crate::io::atomic::commit_all`]).
+    pub fn stage(mut self) -> Result<Staged> {
         self.io.close().map_err(|e| {
             Error::io(&self.path, e).fix("check the free space in the output's directory")
         })?;
@@ -386,10 +392,11 @@ impl TileWriter {
                 f.set_permissions(std::fs::Permissions::from_mode(0o644))
                     .map_err(io)?;
                 f.sync_all().map_err(io)?;
-                tmp.persist(path).map_err(|e| io(e.error))?;
-                Ok(())
+                Staged::new(path, tmp.into_temp_path())
             }
-            target => write_atomic(path, |w| {
+            target => {
+                let mut out = AtomicFile::create(path)?;
+                let w = out.writer();
                 let io = |e| Error::io(path, e);
                 w.write_all(&front).map_err(io)?;
                 let (mut at, mut buf) = (index_end, Vec::new());
@@ -406,8 +413,8 @@ impl TileWriter {
                     at = offsets[pos] + p.stored_len as u64;
                 }
                 debug_assert_eq!(at, end);
-                Ok(())
-            }),
+                out.stage()
+            }
         }
     }
 }

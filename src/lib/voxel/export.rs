@@ -9,12 +9,13 @@
 //!   has at most 255 distinct colours (sorted, so deterministic); otherwise each colour is
 //!   quantised to the nearest level of a fixed 6 × 7 × 6 RGB cube.
 
+use super::format;
 use super::object::VoxelObject;
 use crate::error::{Error, Result};
-use crate::io::atomic::write_atomic;
+use crate::io::atomic::{check_outputs, commit_all, AtomicFile, Staged};
 use std::collections::BTreeMap;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// An export format for ordinary tools.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -35,49 +36,86 @@ impl Export {
     }
 }
 
-/// An export [`check_exports`] found writable: its kind and the path it goes to.
-pub type PlannedExport = (Export, std::path::PathBuf);
+/// An export [`plan_exports`] planned: its kind and the path it goes to.
+pub type PlannedExport = (Export, PathBuf);
 
-/// Where `obj`'s exports of `kinds` go beside `object_path` (same stem, the export's
-/// extension), after checking every one can be written: none would overwrite the object, and
-/// the object fits a `.vox`. Callers check before writing the object, so a refused export
-/// leaves no output at all, then write the plan with [`write_exports`].
-pub fn check_exports(
+/// Where the exports of `kinds` go beside `object_path` (same stem, the export's extension; a
+/// kind given twice is one export), after checking the run's outputs, the object and these
+/// ([`check_outputs`]): none is a special file or a database's file, none would overwrite
+/// another (the object: name it `*.dvox`) or one of the run's `inputs`. Callers plan before any
+/// work, check the object fits with [`check_exports`], then write all with
+/// [`write_with_exports`].
+pub fn plan_exports(
     object_path: &Path,
-    obj: &VoxelObject,
     kinds: &[Export],
+    inputs: &[&Path],
 ) -> Result<Vec<PlannedExport>> {
-    kinds
-        .iter()
-        .map(|&k| {
-            let p = object_path.with_extension(k.extension());
-            if p == object_path {
-                return Err(Error::file(
-                    object_path,
-                    format!(
-                        "the object file would be overwritten by its {} export",
-                        k.extension()
-                    ),
-                )
-                .fix("name the object *.dvox"));
-            }
-            if k == Export::Vox {
-                vox_fits(obj).map_err(|e| e.in_file(&p))?;
-            }
-            Ok((k, p))
-        })
-        .collect()
+    let mut planned: Vec<PlannedExport> = Vec::new();
+    for &k in kinds {
+        if planned.iter().any(|&(p, _)| p == k) {
+            continue;
+        }
+        let p = object_path.with_extension(k.extension());
+        if p == object_path {
+            return Err(Error::file(
+                object_path,
+                format!(
+                    "the object file would be overwritten by its {} export",
+                    k.extension()
+                ),
+            )
+            .fix("name the object *.dvox"));
+        }
+        planned.push((k, p));
+    }
+    let outputs: Vec<&Path> = std::iter::once(object_path)
+        .chain(planned.iter().map(|(_, p)| p.as_path()))
+        .collect();
+    check_outputs(&outputs, inputs)?;
+    Ok(planned)
 }
 
-/// Write `obj` as each export of a plan from [`check_exports`].
-pub fn write_exports(obj: &VoxelObject, planned: &[PlannedExport]) -> Result<()> {
+/// Check `obj` can be written as every export of `planned`: it fits a `.vox` (at most
+/// [`VOX_MAX_DIM`] voxels an axis). Called before writing, so a refused export leaves no output
+/// at all.
+pub fn check_exports(obj: &VoxelObject, planned: &[PlannedExport]) -> Result<()> {
     for (k, p) in planned {
-        match k {
-            Export::Ply => write_ply(p, obj)?,
-            Export::Vox => write_vox(p, obj)?,
+        if *k == Export::Vox {
+            vox_fits(obj).map_err(|e| e.in_file(p))?;
         }
     }
     Ok(())
+}
+
+/// Write `obj` to `object_path` (`.dvox`, [`format`], with `source`) and as each export of
+/// `planned`, all or none: every file is written and synced under a temporary name first, then
+/// all are renamed into place, the object last — it is what `make` waits for. A run that fails
+/// leaves no output and replaces none.
+pub fn write_with_exports(
+    object_path: &Path,
+    obj: &VoxelObject,
+    source: &str,
+    planned: &[PlannedExport],
+) -> Result<()> {
+    let object = stage_bytes(object_path, &format::encode(obj, source))?;
+    let mut staged = planned
+        .iter()
+        .map(|(k, p)| match k {
+            Export::Ply => stage_ply(p, obj),
+            Export::Vox => stage_bytes(p, &encode_vox(obj)?),
+        })
+        .collect::<Result<Vec<Staged>>>()?;
+    staged.push(object);
+    commit_all(staged)
+}
+
+/// `bytes` written to a temporary file for `path`, staged.
+fn stage_bytes(path: &Path, bytes: &[u8]) -> Result<Staged> {
+    let mut out = AtomicFile::create(path)?;
+    out.writer()
+        .write_all(bytes)
+        .map_err(|e| Error::io(path, e))?;
+    out.stage()
 }
 
 /// Largest number of voxels per axis a MagicaVoxel model holds.
@@ -85,24 +123,29 @@ pub const VOX_MAX_DIM: u32 = 256;
 
 /// Write `obj` as a binary PLY of coloured voxel centres (world metres).
 pub fn write_ply(path: &Path, obj: &VoxelObject) -> Result<()> {
-    write_atomic(path, |w| {
-        let io = |e| Error::io(path, e);
-        write!(
-            w,
-            "ply\nformat binary_little_endian 1.0\ncomment dbms voxel object: solid voxel centres, world metres\n\
-             element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
-             property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
-            obj.len()
-        )
-        .map_err(io)?;
-        for ([x, y, z], c) in obj.voxels() {
-            for v in obj.grid.centre(x, y, z) {
-                w.write_all(&v.to_le_bytes()).map_err(io)?;
-            }
-            w.write_all(&c).map_err(io)?;
+    stage_ply(path, obj)?.commit()
+}
+
+/// [`write_ply`], staged.
+fn stage_ply(path: &Path, obj: &VoxelObject) -> Result<Staged> {
+    let mut out = AtomicFile::create(path)?;
+    let w = out.writer();
+    let io = |e| Error::io(path, e);
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment dbms voxel object: solid voxel centres, world metres\n\
+         element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+        obj.len()
+    )
+    .map_err(io)?;
+    for ([x, y, z], c) in obj.voxels() {
+        for v in obj.grid.centre(x, y, z) {
+            w.write_all(&v.to_le_bytes()).map_err(io)?;
         }
-        Ok(())
-    })
+        w.write_all(&c).map_err(io)?;
+    }
+    out.stage()
 }
 
 /// Errors when a dimension of `obj` exceeds [`VOX_MAX_DIM`].
@@ -156,8 +199,7 @@ pub fn encode_vox(obj: &VoxelObject) -> Result<Vec<u8>> {
 
 /// Write `obj` as a MagicaVoxel `.vox` file.
 pub fn write_vox(path: &Path, obj: &VoxelObject) -> Result<()> {
-    let bytes = encode_vox(obj)?;
-    crate::io::atomic::write_bytes_atomic(path, &bytes)
+    stage_bytes(path, &encode_vox(obj)?)?.commit()
 }
 
 /// Maps a voxel colour to its palette index (1..=255).

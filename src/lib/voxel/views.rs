@@ -181,6 +181,17 @@ impl ViewsFile {
         }
         Ok(file)
     }
+
+    /// Every file a run reads through this views file (read from `path`): `path` itself and
+    /// each view's image and mask, as [`load`] resolves them — what its outputs must not be.
+    pub fn files(&self, path: &Path) -> Vec<PathBuf> {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        std::iter::once(path.to_path_buf())
+            .chain(self.views.iter().flat_map(|v| {
+                std::iter::once(dir.join(&v.image)).chain(v.mask.as_ref().map(|m| dir.join(m)))
+            }))
+            .collect()
+    }
 }
 
 /// A loaded view: camera, silhouette and the colour image.
