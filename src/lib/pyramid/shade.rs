@@ -31,7 +31,7 @@
 //! The terrain is read through a [`RowSource`] band by band, never whole: the surfaces are the
 //! terrain with the raised cells laid over it, built for a band of rows with a one-row apron
 //! (normals need the rows either side), and the cast shadows are kept as one bit per cell, cast
-//! with [`RowSweep`] from bands read in the sun's order. Memory: 2 bits a cell for the two
+//! with [`crate::shadow::RowSweep`] from bands read in the sun's order. Memory: 2 bits a cell for the two
 //! masks (3 with the detected one), plus a few bands of [`band_rows`] rows.
 
 mod detected;

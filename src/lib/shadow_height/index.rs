@@ -9,7 +9,7 @@
 pub type Box2 = (f64, f64, f64, f64);
 
 /// Most buckets along a side (bounds the index's memory for a vast extent).
-const MAX_BUCKETS: usize = 1024;
+pub const MAX_BUCKETS: usize = 1024;
 
 /// Footprint boxes bucketed on a uniform grid.
 pub struct BoxIndex {
