@@ -18,8 +18,8 @@
 //!   signed, it scores nothing;
 //! - on the other edges, roof against lit ground, either may be the brighter: `|Y_in − Y_out|`.
 //!
-//! The shift is searched on a grid of half cells within ±`max_shift_m`, then refined to an
-//! eighth of a cell around the best. A building's estimate counts only when its best contrast
+//! The shift is searched on a grid of whole cells within ±`max_shift_m`, then on the half
+//! cells around the best, then refined to an eighth of a cell around that. A building's estimate counts only when its best contrast
 //! stands clear of its search's typical one ([`MIN_PEAK_RATIO`]); the scene's shift is the
 //! component-wise median over the buildings that count, so a few wrong estimates (a roof the
 //! colour of its ground, a neighbour's edge) do not move it.
@@ -171,18 +171,36 @@ pub fn estimate(
     let t = &colour.grid.transform;
     let (cx, cy) = (t.cell_x, t.cell_y); // metres per pixel (cy < 0 for north-up)
     let reach = (max_shift_m / cx.abs().max(cy.abs())).max(0.0); // pixels
-    let steps = (reach * 2.0).floor() as i64; // half-pixel steps each way
+                                                                 // Whole pixels first (their scores are the search's background, whose median the peak is
+                                                                 // judged against), then the half pixels around the best: a quarter of the evaluations of a
+                                                                 // half-pixel grid, and the contrast (read ACROSS = ¾ pixel each side of the outline) is
+                                                                 // more than a pixel wide, so the whole-pixel best lies beside the peak.
+    let whole = reach.floor() as i64;
+    let half = (reach * 2.0).floor() / 2.0; // the largest half-pixel shift searched
     let mut scores = Vec::new();
     let mut best: Option<(f64, f64, f64)> = None; // (score, sx, sy) in pixels
-    for j in -steps..=steps {
-        for i in -steps..=steps {
-            let (sx, sy) = (i as f64 / 2.0, j as f64 / 2.0);
+    let consider = |best: &mut Option<(f64, f64, f64)>, s: f64, sx: f64, sy: f64| {
+        if best.is_none_or(|b| s > b.0 || (s == b.0 && sx.hypot(sy) < b.1.hypot(b.2))) {
+            *best = Some((s, sx, sy));
+        }
+    };
+    for j in -whole..=whole {
+        for i in -whole..=whole {
+            let (sx, sy) = (i as f64, j as f64);
             if let Some(s) = contrast(colour, &samples, sx, sy) {
                 scores.push(s);
-                if best.is_none_or(|b| s > b.0 || (s == b.0 && sx.hypot(sy) < b.1.hypot(b.2))) {
-                    best = Some((s, sx, sy));
-                }
+                consider(&mut best, s, sx, sy);
             }
+        }
+    }
+    let (_, wx, wy) = best?;
+    for (i, j) in (-1..=1).flat_map(|j| (-1..=1).map(move |i| (i, j))) {
+        let (sx, sy) = (wx + i as f64 / 2.0, wy + j as f64 / 2.0);
+        if (i, j) == (0, 0) || sx.abs() > half || sy.abs() > half {
+            continue;
+        }
+        if let Some(s) = contrast(colour, &samples, sx, sy) {
+            consider(&mut best, s, sx, sy);
         }
     }
     let (_, gx, gy) = best?;
