@@ -337,8 +337,9 @@ pub fn register_footprints(
 /// and one result per footprint.
 ///
 /// Without a `camera`, a photo whose buildings' own shifts disagree with the scene's (at least
-/// [`register::MIN_CAMERA_BUILDINGS`] of them off it by more than a cell: no single shift puts
-/// them all on their roofs) may be a perspective one. Then the footprints are measured as
+/// [`register::MIN_CAMERA_BUILDINGS`] of them, and [`register::MIN_CAMERA_FRACTION`] of those
+/// with a clear estimate, off it by more than a cell: no single shift puts them all on their
+/// roofs) may be a perspective one. Then the footprints are measured as
 /// given, a perspective centre is sought that explains the shifts by those heights
 /// ([`register::estimate_camera`]), and, when one does, the footprints are registered and
 /// measured again as with that camera (recorded as estimated). An orthophoto pays nothing.
@@ -374,7 +375,16 @@ pub fn register_and_measure(
         opts.band_cells,
     )?;
     let off = (0..given.len()).filter(|&k| reg.off_photo(k, cell)).count();
-    if camera.is_some() || off < register::MIN_CAMERA_BUILDINGS {
+    let clear = reg
+        .buildings
+        .iter()
+        .flatten()
+        .filter(|s| s.counts())
+        .count();
+    if camera.is_some()
+        || off < register::MIN_CAMERA_BUILDINGS
+        || (off as f64) < register::MIN_CAMERA_FRACTION * clear as f64
+    {
         return run(reg, moved);
     }
     let as_given = measure(inputs, given, sun, opts)?;
