@@ -353,7 +353,19 @@ fn extrude_grid(footprints: &[Footprint], voxel: f64) -> Result<VoxelGrid> {
         }
     }
     let top = footprints.iter().map(|f| f.height).fold(0.0, f64::max);
-    VoxelGrid::covering([lo[0], lo[1], 0.0], [hi[0], hi[1], top], voxel)
+    VoxelGrid::covering([lo[0], lo[1], 0.0], [hi[0], hi[1], top], voxel).map_err(|e| {
+        if !(voxel.is_finite() && voxel > 0.0) {
+            e
+        } else if (0..2).all(|a| lo[a] < hi[a]) {
+            // One object spans every footprint: a city at a fine voxel is over the grid limits.
+            e.fix(
+                "use a larger --voxel, or split the footprints into several files and extrude each",
+            )
+        } else {
+            Error::msg("the footprints have no area (every vertex on one line)")
+                .fix("give footprints as polygons with an area")
+        }
+    })
 }
 
 /// For each band of [`BAND_ROWS`] rows of `grid`, the indices of the prisms whose rows meet it.
@@ -697,5 +709,28 @@ mod tests {
             assert!(e.starts_with("no voxel is solid"), "{e}");
             assert!(e.contains("use a smaller --voxel"), "{e}");
         }
+    }
+
+    /// A footprint file too large for one object at this voxel says how to split it, not
+    /// `--bounds` (an option extrude does not have).
+    #[test]
+    fn a_city_too_large_for_one_object_says_how_to_split_it() {
+        let fp = |x: f64, y: f64| Footprint {
+            rings: vec![rect(x, y, 10.0, 10.0)],
+            height: 8.0,
+        };
+        let e = extrude(&[fp(0.0, 0.0), fp(20_000.0, 20_000.0)], 0.1, [1; 3], [2; 3])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("too large"), "{e}");
+        assert!(e.contains("split the footprints"), "{e}");
+        let flat = Footprint {
+            rings: vec![vec![[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]]],
+            height: 8.0,
+        };
+        let e = extrude(&[flat], 1.0, [1; 3], [2; 3])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no area"), "{e}");
     }
 }
