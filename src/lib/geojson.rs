@@ -17,13 +17,12 @@ pub type Ring = Vec<(f64, f64)>;
 /// A leading UTF-8 byte order mark is skipped ([`crate::io::read_text`]).
 pub fn read_features(path: &Path, fix: &str) -> Result<Vec<Value>> {
     let text = crate::io::read_text(path)?;
-    let doc: Value = serde_json::from_str(&text)
+    let mut doc: Value = serde_json::from_str(&text)
         .map_err(|e| Error::file(path, format!("not valid JSON ({e})")).fix(fix))?;
-    match doc.get("features").and_then(Value::as_array) {
-        Some(features) => Ok(features.clone()),
-        None => {
-            Err(Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix(fix))
-        }
+    // Moved out, not cloned: a city's footprints are hundreds of MB as JSON values.
+    match doc.get_mut("features").map(Value::take) {
+        Some(Value::Array(features)) => Ok(features),
+        _ => Err(Error::file(path, "not a GeoJSON FeatureCollection (no features array)").fix(fix)),
     }
 }
 
