@@ -86,7 +86,13 @@ const BAND_CELLS: usize = 1 << 22;
 /// Rows in a band of about 4 M cells of a grid `width` cells wide (at least 1): how many rows
 /// the stages that stream a layer read at a time.
 pub fn band_rows(width: usize) -> usize {
-    (BAND_CELLS / width.max(1)).max(1)
+    rows_in(BAND_CELLS, width)
+}
+
+/// Whole rows of a grid `width` cells wide in `cells` cells (at least 1): the rows of a band
+/// with that budget.
+pub fn rows_in(cells: usize, width: usize) -> usize {
+    (cells / width.max(1)).max(1)
 }
 
 /// Rows of a layer on demand: a raster held in memory, or a file decoded band by band, so a

@@ -161,25 +161,21 @@ impl Footprint {
         let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| {
             (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
         };
-        // Andrew's monotone chain.
-        let mut hull: Vec<(f64, f64)> = Vec::with_capacity(2 * pts.len());
-        for pass in 0..2 {
-            let start = hull.len();
-            let it: Box<dyn Iterator<Item = &(f64, f64)>> = if pass == 0 {
-                Box::new(pts.iter())
-            } else {
-                Box::new(pts.iter().rev())
-            };
-            for &p in it {
-                while hull.len() >= start + 2
-                    && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
-                {
-                    hull.pop();
+        // Andrew's monotone chain: the lower chain left to right, the upper right to left,
+        // each without its last point (the other chain's first).
+        let chain = |points: &mut dyn Iterator<Item = &(f64, f64)>| {
+            let mut c: Vec<(f64, f64)> = Vec::new();
+            for &p in points {
+                while c.len() >= 2 && cross(c[c.len() - 2], c[c.len() - 1], p) <= 0.0 {
+                    c.pop();
                 }
-                hull.push(p);
+                c.push(p);
             }
-            hull.pop();
-        }
+            c.pop();
+            c
+        };
+        let mut hull = chain(&mut pts.iter());
+        hull.extend(chain(&mut pts.iter().rev()));
         hull
     }
 

@@ -49,7 +49,7 @@ pub use footprint::{read_footprints, Footprint, InputFeature};
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::raster::{Raster, RowBand, RowSource};
+use crate::raster::{rows_in, Raster, RowBand, RowSource};
 use crate::shadow::{ShadowBits, Sun};
 use crate::walk::{Corner, Walk};
 use index::{swept, Box2, BoxIndex};
@@ -304,7 +304,7 @@ pub fn register_footprints(
         .iter()
         .map(|f| box_rows(grid, f.bbox(), margin))
         .collect();
-    let buildings = in_bands(&needs, rows_per_band(grid, band_cells), |rows, members| {
+    let buildings = in_bands(&needs, rows_in(band_cells, grid.width), |rows, members| {
         let band = RowBand::read(colour, rows)?;
         Ok(members
             .par_iter()
@@ -489,21 +489,18 @@ pub fn measure(
             let win = local::window_for(grid, f.bbox(), (-dx, -dy), reach, 3);
             let lean = inputs.leans.map_or((0.0, 0.0), |l| l[k]);
             let seen = box_rows(grid, register::moved(f, lean.0, lean.1).bbox(), 1.0);
-            let rows = [win.row..win.row + win.height, seen];
-            let rows: Vec<&Range<usize>> = rows.iter().filter(|r| !r.is_empty()).collect();
-            match (
-                rows.iter().map(|r| r.start).min(),
-                rows.iter().map(|r| r.end).max(),
-            ) {
-                (Some(a), Some(b)) => a..b,
-                _ => 0..0,
+            let classified = win.row..win.row + win.height;
+            match (classified.is_empty(), seen.is_empty()) {
+                (true, _) => seen,
+                (_, true) => classified,
+                _ => classified.start.min(seen.start)..classified.end.max(seen.end),
             }
         })
         .collect();
     let pass = |roofs: &[Option<f64>]| {
         in_bands(
             &needs,
-            rows_per_band(grid, opts.band_cells),
+            rows_in(opts.band_cells, grid.width),
             |rows, members| {
                 let band = Band::read(inputs, rows, footprints, &outlines)?;
                 let shaders = roofs.iter().any(Option::is_some).then(|| {
@@ -554,11 +551,6 @@ fn reach(grid: &Grid, sun: &Sun, opts: &Options) -> f64 {
     let tan_e = sun.elevation_deg.to_radians().tan();
     let (cx, cy) = grid.cell_size();
     (opts.max_height_m / tan_e).min(MAX_SHADOW_CELLS * cx.max(cy))
-}
-
-/// Rows of `grid` in a band of `band_cells` cells (at least one).
-fn rows_per_band(grid: &Grid, band_cells: usize) -> usize {
-    (band_cells / grid.width.max(1)).max(1)
 }
 
 /// The rows of `grid` the world box `b` covers, `margin` rows more each side, clipped to the
