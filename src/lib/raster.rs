@@ -175,6 +175,12 @@ impl<'a, T: Clone> RowBand<'a, T> {
         &self.data[i - self.rows.start * self.grid.width]
     }
 
+    /// The `len` values from cell `i` on (row-major index in the whole grid).
+    pub fn span(&self, i: usize, len: usize) -> &[T] {
+        let at = i - self.rows.start * self.grid.width;
+        &self.data[at..at + len]
+    }
+
     /// The value at column `col`, row `row` of the whole grid.
     pub fn get(&self, col: usize, row: usize) -> &T {
         self.at(row * self.grid.width + col)

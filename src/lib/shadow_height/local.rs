@@ -44,6 +44,8 @@ pub struct Local {
     pub heights: Vec<f32>,
     /// Shadow index per window cell ([`super::detect::shadow_index`], lower = darker; from a
     /// given mask 0 where it says shadow and 255 where lit): how much of a cell is shadow.
+    /// Empty in a window classified for the scan lines, which read only the classes; the
+    /// refinement's crop has it.
     pub index: Vec<f32>,
 }
 
@@ -70,7 +72,9 @@ impl Local {
             let start = (r + dr) * self.win.width + dc;
             class.extend_from_slice(&self.class[start..start + w.width]);
             heights.extend_from_slice(&self.heights[start..start + w.width]);
-            index.extend_from_slice(&self.index[start..start + w.width]);
+            if !self.index.is_empty() {
+                index.extend_from_slice(&self.index[start..start + w.width]);
+            }
         }
         Local {
             win: w,

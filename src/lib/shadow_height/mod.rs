@@ -502,7 +502,7 @@ pub fn measure(
             &needs,
             rows_in(opts.band_cells, grid.width),
             |rows, members| {
-                let band = Band::read(inputs, rows, footprints, &outlines)?;
+                let band = Band::read(inputs, rows, footprints, &outlines, &terrain_shadow)?;
                 let shaders = roofs.iter().any(Option::is_some).then(|| {
                     neighbour_shadows(&band.terrain, footprints, roofs, &shadows, sun, reach)
                 });
@@ -511,7 +511,6 @@ pub fn measure(
                     band: &band,
                     shaders: shaders.as_ref(),
                     leans: inputs.leans,
-                    terrain_shadow: &terrain_shadow,
                     sun,
                     opts,
                     reach,
@@ -619,7 +618,15 @@ struct Band<'a> {
     owner: RowBand<'a, u32>,
     /// The footprints with a cell in the band, ascending, and their cells (whole-grid indices).
     cells: Vec<(usize, Vec<usize>)>,
+    /// Per cell, what it is as open ground, whoever's window it is in: [`UNUSABLE_GROUND`]
+    /// (nodata colour or elevation, shadowed by the bare terrain, nodata in the mask), else the
+    /// histogram bin of its shadow index ([`detect::index_bin`]; from a mask 0 for shadow, 255
+    /// for lit).
+    ground: RowBand<'a, u16>,
 }
+
+/// See [`Band::ground`]: a cell whose reading cannot be trusted.
+const UNUSABLE_GROUND: u16 = u16::MAX;
 
 impl<'a> Band<'a> {
     fn read(
@@ -627,6 +634,7 @@ impl<'a> Band<'a> {
         rows: Range<usize>,
         footprints: &[Footprint],
         outlines: &BoxIndex,
+        terrain_shadow: &ShadowBits,
     ) -> Result<Band<'a>> {
         let terrain = RowBand::read(inputs.terrain, rows.clone())?;
         let colour = RowBand::read(inputs.colour, rows.clone())?;
@@ -649,8 +657,30 @@ impl<'a> Band<'a> {
                 }
             }
         }
+        let first_cell = rows.start * w;
+        let ground: Vec<u16> = (0..rows.len() * w)
+            .into_par_iter()
+            .map(|k| {
+                let i = first_cell + k;
+                let c = colour.at(i);
+                let in_mask = mask.as_ref().map(|m| *m.at(i));
+                if c[3] == 0
+                    || terrain.at(i).is_nan()
+                    || terrain_shadow.get(i)
+                    || in_mask == Some(255)
+                {
+                    return UNUSABLE_GROUND;
+                }
+                match in_mask {
+                    Some(0) => 255,
+                    Some(_) => 0,
+                    None => detect::index_bin(detect::shadow_index(*c)) as u16,
+                }
+            })
+            .collect();
         Ok(Band {
-            owner: RowBand::new(grid, rows, owner),
+            owner: RowBand::new(grid, rows.clone(), owner),
+            ground: RowBand::new(grid, rows, ground),
             terrain,
             colour,
             mask,
@@ -671,7 +701,7 @@ impl<'a> Band<'a> {
 /// metres) covers the ground there — the footprint's id (index + 1), [`MANY_SHADOWS`] for
 /// more than one, 0 for none. A footprint shades ground point `p` at terrain height `z` when
 /// the ray from `p` toward the sun meets its walls within [`reach`] metres (`t`) below its roof:
-/// `z + t · tan e < roof` ([`refine::first_wall`]). Each footprint is tried on the cells of its
+/// `z + t · tan e < roof` ([`refine::Walls::first`]). Each footprint is tried on the cells of its
 /// outline swept toward the shadow as far as its roof's shadow can reach over the band's
 /// lowest ground: the work is the shadows' area, not footprints × window.
 fn neighbour_shadows<'a>(
@@ -706,6 +736,7 @@ fn neighbour_shadows<'a>(
                 return None;
             }
             let f = &footprints[k];
+            let walls = refine::Walls::new(f, toward);
             let along = (-toward.0 * len, -toward.1 * len);
             let hull = f.swept_hull(along);
             let b = swept(f.bbox(), along);
@@ -727,7 +758,8 @@ fn neighbour_shadows<'a>(
                     let i = r * w + c;
                     let z = *terrain.at(i) as f64;
                     let p = grid.cell_centre(c, r);
-                    let under = refine::first_wall(f, p, toward)
+                    let under = walls
+                        .first(p)
                         .is_some_and(|d| d <= reach && z + d * tan_e < roof);
                     if under {
                         out.push(i - first);
@@ -868,7 +900,6 @@ struct Shared<'a> {
     shaders: Option<&'a RowBand<'a, u32>>,
     /// See [`Inputs::leans`].
     leans: Option<&'a [(f64, f64)]>,
-    terrain_shadow: &'a ShadowBits,
     sun: &'a Sun,
     opts: &'a Options,
     /// The longest shadow sought, metres ([`reach`]).
@@ -912,7 +943,6 @@ impl Shared<'_> {
         let max_len = self.reach;
         let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
         let lean = self.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
-        let neighbours = self.shading_neighbours(id, &win);
         let (local, threshold) = self.classify(id, fp, lean, win);
         let mut m = Measurement {
             height_m: None,
@@ -928,7 +958,7 @@ impl Shared<'_> {
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
-                pitched_roof: self.looks_pitched(id, fp, cells, lean, &neighbours),
+                pitched_roof: self.looks_pitched(id, fp, cells, lean, &win),
                 ..Flags::default()
             },
         };
@@ -964,10 +994,11 @@ impl Shared<'_> {
             .max(1.5 * z_ray)
             .max(z0 + 4.0 * cell * tan_e)
             .min(self.opts.max_height_m.max(z0 + cell * tan_e));
-        let sub = local.crop(
+        let mut sub = local.crop(
             local::window_for(self.grid, fp.bbox(), u, z_hi / tan_e + cell, 3),
             self.grid,
         );
+        sub.index = self.shade(&sub.win);
         let keep = inlier_bands(&sub, &s, len, (-u.1, u.0), cell);
         m.shadow_length_m = Some(len);
         m.initial_height_m = Some(z0);
@@ -1025,7 +1056,7 @@ impl Shared<'_> {
         fp: &Footprint,
         cells: &[usize],
         lean: (f64, f64),
-        neighbours: &[(&Footprint, f64)],
+        win: &crate::grid::Window,
     ) -> bool {
         if lean != (0.0, 0.0) {
             let seen = register::moved(fp, lean.0, lean.1);
@@ -1035,12 +1066,13 @@ impl Shared<'_> {
         let cells = match self.roofs[id as usize - 1] {
             Some(own) => {
                 let w = self.grid.width;
+                let taller = self.shading_neighbours(id, win, own);
                 unshaded = cells
                     .iter()
                     .copied()
                     .filter(|&i| {
                         let p = self.grid.cell_centre(i % w, i / w);
-                        !self.in_shadow_of(neighbours, p, own)
+                        !self.in_shadow_of(&taller, p, own)
                     })
                     .collect();
                 &unshaded[..]
@@ -1065,13 +1097,17 @@ impl Shared<'_> {
     ) -> Option<f64> {
         let t = detect::weak_threshold(open.iter().map(|o| o.1))?;
         let (toward, reach) = (self.sun.direction(), self.reach);
-        let reached_by =
-            |f: &Footprint, p| refine::first_wall(f, p, toward).is_some_and(|d| d <= reach);
+        let reached_by = |f: &refine::Walls, p| f.first(p).is_some_and(|d| d <= reach);
+        let own = refine::Walls::new(fp, toward);
+        let others: Vec<refine::Walls> = others
+            .iter()
+            .map(|f| refine::Walls::new(f, toward))
+            .collect();
         let (mut dark_in, mut dark_out, mut out) = (0usize, 0usize, 0usize);
         for &(k, v) in open {
             let p = centre(k);
             let dark = v < t;
-            if reached_by(fp, p) {
+            if reached_by(&own, p) {
                 dark_in += dark as usize;
             } else if !others.iter().any(|f| reached_by(f, p)) {
                 out += 1;
@@ -1083,11 +1119,22 @@ impl Shared<'_> {
             .then_some(t)
     }
 
-    /// The other footprints with a roof whose shadow can reach window `win` of footprint `id`:
-    /// their box swept toward the shadow over the longest shadow sought meets the window's.
-    fn shading_neighbours(&self, id: u32, win: &crate::grid::Window) -> Vec<(&Footprint, f64)> {
+    /// The walls (toward the sun) and roofs of the other footprints whose shadow can reach
+    /// window `win` of footprint `id` and whose roof is above `z` metres (only those can shade
+    /// a point there): their box swept toward the shadow over the longest shadow sought meets
+    /// the window's.
+    fn shading_neighbours(
+        &self,
+        id: u32,
+        win: &crate::grid::Window,
+        z: f64,
+    ) -> Vec<(refine::Walls, f64)> {
+        let toward_sun = self.sun.direction();
         self.reaching(id, win)
-            .filter_map(|j| Some((&self.footprints[j], self.roofs[j]?)))
+            .filter_map(|j| {
+                let roof = self.roofs[j].filter(|&r| r > z)?;
+                Some((refine::Walls::new(&self.footprints[j], toward_sun), roof))
+            })
             .collect()
     }
 
@@ -1107,14 +1154,14 @@ impl Shared<'_> {
     }
 
     /// Whether ground point `p` at terrain height `z` (metres) is in the shadow of one of the
-    /// `neighbours` (footprint, roof): its ray toward the sun meets the walls below the roof
-    /// within [`Self::reach`] (as [`neighbour_shadows`] decides it for the ground).
-    fn in_shadow_of(&self, neighbours: &[(&Footprint, f64)], p: (f64, f64), z: f64) -> bool {
+    /// `neighbours` (walls toward the sun, roof): its ray toward the sun meets the walls below
+    /// the roof within [`Self::reach`] (as [`neighbour_shadows`] decides it for the ground).
+    fn in_shadow_of(&self, neighbours: &[(refine::Walls, f64)], p: (f64, f64), z: f64) -> bool {
         let tan_e = self.sun.elevation_deg.to_radians().tan();
-        let toward_sun = self.sun.direction();
-        neighbours.iter().any(|&(f, roof)| {
-            refine::first_wall(f, p, toward_sun)
-                .is_some_and(|t| t <= self.reach && z + t * tan_e < roof)
+        neighbours.iter().any(|(walls, roof)| {
+            walls
+                .first(p)
+                .is_some_and(|t| t <= self.reach && z + t * tan_e < *roof)
         })
     }
 
@@ -1128,75 +1175,71 @@ impl Shared<'_> {
         win: crate::grid::Window,
     ) -> (Local, Option<f64>) {
         let w = self.grid.width;
-        let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
+        let band = self.band;
         let n = win.width * win.height;
-        let heights: Vec<f32> = (0..n).map(|k| *self.band.terrain.at(index(k))).collect();
-        let base: Vec<Option<Class>> = (0..n)
-            .map(|k| {
-                let i = index(k);
-                match *self.band.owner.at(i) {
+        let (mut heights, mut ground, mut base) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        for r in win.row..win.row + win.height {
+            let i = r * w + win.col;
+            heights.extend_from_slice(band.terrain.span(i, win.width));
+            let grounds = band.ground.span(i, win.width);
+            ground.extend_from_slice(grounds);
+            base.extend(band.owner.span(i, win.width).iter().zip(grounds).map(
+                |(&o, &g)| match o {
                     o if o == id => Some(Class::Own),
-                    0 => {
-                        let nodata = self.band.colour.at(i)[3] == 0
-                            || heights[k].is_nan()
-                            || self.terrain_shadow.get(i);
-                        let masked = self.band.mask.as_ref().is_some_and(|m| *m.at(i) == 255);
-                        (nodata || masked).then_some(Class::Unusable)
-                    }
+                    0 => (g == UNUSABLE_GROUND).then_some(Class::Unusable),
                     _ => Some(Class::Other),
-                }
-            })
-            .collect();
+                },
+            ));
+        }
         let base = own_edge(base, fp, lean, &self.grid.window_grid(&win));
-        // Open ground: from the mask, or below the local threshold of the shadow index.
-        let (is_shadow, threshold): (Box<dyn Fn(usize) -> bool>, Option<f64>) =
-            match self.band.mask.as_ref() {
-                Some(mask) => (Box::new(move |i| *mask.at(i) != 0), None),
-                None => {
+        // Open ground: from the mask, or below the local threshold of the shadow index. Either
+        // way a cell is shadow when its ground bin is below `cut` (a mask's shadow is bin 0, its
+        // lit ground 255; a threshold is a bin boundary, `split + ½`, so comparing bins is
+        // comparing indices).
+        let (cut, threshold) = match band.mask {
+            Some(_) => (0.5, None),
+            None => {
+                let mut hist = [0u64; 256];
+                for k in (0..n).filter(|&k| base[k].is_none()) {
+                    hist[ground[k] as usize] += 1;
+                }
+                let threshold = detect::otsu_threshold_of(&hist, 1.0).or_else(|| {
+                    let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
                     let open: Vec<(usize, f64)> = (0..n)
                         .filter(|&k| base[k].is_none())
-                        .map(|k| (k, detect::shadow_index(*self.band.colour.at(index(k)))))
+                        .map(|k| (k, detect::shadow_index(*band.colour.at(index(k)))))
                         .collect();
-                    let threshold =
-                        detect::otsu_threshold(open.iter().map(|o| o.1)).or_else(|| {
-                            let others: Vec<&Footprint> = self
-                                .reaching(id, &win)
-                                .map(|j| &self.footprints[j])
-                                .collect();
-                            self.placed_weak_threshold(fp, &others, &open, |k| {
-                                let i = index(k);
-                                self.grid.cell_centre(i % w, i / w)
-                            })
-                        });
-                    match threshold {
-                        Some(t) => (
-                            Box::new(move |i| detect::shadow_index(*self.band.colour.at(i)) < t),
-                            Some(t),
-                        ),
-                        None => (Box::new(|_| false), None),
-                    }
-                }
-            };
-        let shade: Vec<f32> = (0..n)
-            .map(|k| match self.band.mask.as_ref() {
-                Some(mask) if *mask.at(index(k)) != 0 => 0.0,
-                Some(_) => 255.0,
-                None => detect::shadow_index(*self.band.colour.at(index(k))) as f32,
-            })
-            .collect();
+                    let others: Vec<&Footprint> = self
+                        .reaching(id, &win)
+                        .map(|j| &self.footprints[j])
+                        .collect();
+                    self.placed_weak_threshold(fp, &others, &open, |k| {
+                        let i = index(k);
+                        self.grid.cell_centre(i % w, i / w)
+                    })
+                });
+                (threshold.unwrap_or(f64::NEG_INFINITY), threshold)
+            }
+        };
         // Ground in a neighbour's shadow (second pass) is unusable; it still counted above for
         // the threshold, where it is shadow like any other.
-        let shaded = |k: usize| {
-            self.shaders
-                .is_some_and(|s| matches!(*s.at(index(k)), v if v != 0 && v != id))
+        let shaders: Vec<u32> = match self.shaders {
+            Some(s) => (win.row..win.row + win.height)
+                .flat_map(|r| s.span(r * w + win.col, win.width).iter().copied())
+                .collect(),
+            None => Vec::new(),
         };
+        let shaded = |k: usize| shaders.get(k).is_some_and(|&v| v != 0 && v != id);
         let class = (0..n)
             .map(|k| {
                 base[k].unwrap_or_else(|| {
                     if shaded(k) {
-                        return Class::Unusable;
-                    }
-                    if is_shadow(index(k)) {
+                        Class::Unusable
+                    } else if (ground[k] as f64) < cut {
                         Class::Shadow
                     } else {
                         Class::Lit
@@ -1210,10 +1253,25 @@ impl Shared<'_> {
                 grid: self.grid.window_grid(&win),
                 class,
                 heights,
-                index: shade,
+                index: Vec::new(),
             },
             threshold,
         )
+    }
+
+    /// The shadow index of window `win`'s cells, row-major: [`detect::shadow_index`] of the
+    /// photo, or from a given mask 0 where it says shadow (or nodata) and 255 where lit.
+    fn shade(&self, win: &crate::grid::Window) -> Vec<f32> {
+        let w = self.grid.width;
+        let band = self.band;
+        (win.row..win.row + win.height)
+            .flat_map(|r| r * w + win.col..r * w + win.col + win.width)
+            .map(|i| match band.mask.as_ref() {
+                Some(mask) if *mask.at(i) != 0 => 0.0,
+                Some(_) => 255.0,
+                None => detect::shadow_index(*band.colour.at(i)) as f32,
+            })
+            .collect()
     }
 }
 
@@ -1626,7 +1684,8 @@ mod tests {
                 let by: Vec<u32> = (0..fps.len())
                     .filter(|&k| {
                         roofs[k].is_some_and(|roof| {
-                            refine::first_wall(&fps[k], p, s.sun.direction())
+                            refine::Walls::new(&fps[k], s.sun.direction())
+                                .first(p)
                                 .is_some_and(|t| t <= reach && z + t * tan_e < roof)
                         })
                     })

@@ -54,26 +54,30 @@ pub fn refine(
     let w = local.grid.width;
     let n_sub = sub * sub;
     let offsets = lattice(n_sub);
-    let toward_sun = (-u.0, -u.1);
+    let walls = Walls::new(fp, (-u.0, -u.1));
     let t = &local.grid.transform;
-    // Per open kept cell, the thresholds of its sub × sub points (NaN: never shadowed).
-    let points: Vec<Option<Vec<f64>>> = (0..local.class.len())
-        .map(|i| {
-            if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
-                return None;
-            }
-            let (c, r) = ((i % w) as f64, (i / w) as f64);
-            let mut th = vec![f64::NAN; n_sub];
-            for (v, &(fx, fy)) in th.iter_mut().zip(&offsets) {
-                let p = t.pixel_to_world(c + fx, r + fy);
-                if let Some(d) = first_wall(fp, p, toward_sun) {
-                    *v = (terrain_at(local, c + fx, r + fy) + d * tan_e - ground_z).max(0.0);
-                }
-            }
-            th.iter().any(|&v| v <= z_hi).then_some(th)
-        })
-        .collect();
-    let corridor: Vec<bool> = points.iter().map(Option::is_some).collect();
+    // The thresholds of the sub × sub points of each open kept cell (NaN: never shadowed),
+    // `n_sub` a cell in cell order; the corridor is the cells with one up to `z_hi`.
+    let mut corridor = vec![false; local.class.len()];
+    let mut thresholds: Vec<(usize, f64)> = Vec::new();
+    let mut th = vec![f64::NAN; n_sub];
+    for i in 0..local.class.len() {
+        if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
+            continue;
+        }
+        let (c, r) = ((i % w) as f64, (i / w) as f64);
+        for (v, &(fx, fy)) in th.iter_mut().zip(&offsets) {
+            let p = t.pixel_to_world(c + fx, r + fy);
+            *v = match walls.first(p) {
+                Some(d) => (terrain_at(local, c + fx, r + fy) + d * tan_e - ground_z).max(0.0),
+                None => f64::NAN,
+            };
+        }
+        if th.iter().any(|&v| v <= z_hi) {
+            corridor[i] = true;
+            thresholds.extend(th.iter().map(|&v| (i, v)));
+        }
+    }
     let attached = attached_shadow(local, &corridor, keep);
     let touching = touching(local, &corridor, &attached);
     // The local lit level: the median of the corridor's lit cells away from the shadow.
@@ -85,18 +89,13 @@ pub fn refine(
     );
     let observed = observed_fraction(local, &attached, &touching, lit);
     let brightness = fitted_brightness(local, &corridor, &touching, lit);
-    let mut events: Vec<(f64, usize)> = points
-        .iter()
-        .enumerate()
-        .filter_map(|(i, th)| th.as_ref().map(|th| (i, th)))
-        .flat_map(|(i, th)| {
-            th.iter()
-                .copied()
-                .filter(|&v| v <= z_hi)
-                .map(move |v| (v, i))
-        })
+    let mut events: Vec<(f64, usize)> = thresholds
+        .into_iter()
+        .filter(|&(_, v)| v <= z_hi)
+        .map(|(i, v)| (v, i))
         .collect();
-    events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    // Whole pairs compared: equal elements are identical, so an unstable sort is as good.
+    events.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     best_fit(&events, &brightness, &observed, z_hi, n_sub)
 }
 
@@ -305,22 +304,46 @@ fn observed_fraction(
         .collect()
 }
 
-/// Distance (metres) from `p` along the unit vector `d` to the first edge of the footprint,
-/// `None` when the ray misses it.
-pub(super) fn first_wall(fp: &Footprint, p: (f64, f64), d: (f64, f64)) -> Option<f64> {
-    let cross = |a: (f64, f64), b: (f64, f64)| a.0 * b.1 - a.1 * b.0;
-    fp.edges()
-        .filter_map(|(a, b)| {
-            let e = (b.0 - a.0, b.1 - a.1);
-            let den = cross(d, e);
-            if den == 0.0 {
-                return None;
-            }
-            let ap = (a.0 - p.0, a.1 - p.1);
-            let (t, s) = (cross(ap, e) / den, cross(ap, d) / den);
-            (t >= 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
-        })
-        .min_by(f64::total_cmp)
+/// A footprint's walls as rays in one direction meet them: per edge its start, its vector and
+/// the direction's cross product with it, computed once for the many rays cast.
+pub(super) struct Walls {
+    d: (f64, f64),
+    /// (start, edge vector, cross(d, edge)); edges parallel to `d` left out (a ray meets them
+    /// nowhere or along their length, never first at one point).
+    edges: Vec<((f64, f64), (f64, f64), f64)>,
+}
+
+impl Walls {
+    /// The walls of `fp` for rays along the unit vector `d` (east, north).
+    pub(super) fn new(fp: &Footprint, d: (f64, f64)) -> Walls {
+        let edges = fp
+            .edges()
+            .filter_map(|(a, b)| {
+                let e = (b.0 - a.0, b.1 - a.1);
+                let den = cross(d, e);
+                (den != 0.0).then_some((a, e, den))
+            })
+            .collect();
+        Walls { d, edges }
+    }
+
+    /// Distance (metres) from `p` along the direction to the first wall, `None` when the ray
+    /// misses the footprint.
+    pub(super) fn first(&self, p: (f64, f64)) -> Option<f64> {
+        let d = self.d;
+        self.edges
+            .iter()
+            .filter_map(|&(a, e, den)| {
+                let ap = (a.0 - p.0, a.1 - p.1);
+                let (t, s) = (cross(ap, e) / den, cross(ap, d) / den);
+                (t >= 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
+            })
+            .min_by(f64::total_cmp)
+    }
+}
+
+fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
+    a.0 * b.1 - a.1 * b.0
 }
 
 /// The observed shadow this footprint casts: the corridor's [`Class::Shadow`] cells connected
@@ -530,7 +553,8 @@ mod tests {
             (0.0, 4.0),
         ]]])
         .unwrap();
-        assert_eq!(first_wall(&fp, (2.0, 7.0), (0.0, -1.0)), Some(3.0));
-        assert_eq!(first_wall(&fp, (9.0, 7.0), (0.0, -1.0)), None);
+        let walls = Walls::new(&fp, (0.0, -1.0));
+        assert_eq!(walls.first((2.0, 7.0)), Some(3.0));
+        assert_eq!(walls.first((9.0, 7.0)), None);
     }
 }

@@ -56,32 +56,72 @@ impl Shift {
     }
 }
 
-/// Luminance at pixel coordinates `(px, py)` of `colour`, bilinear between cell centres;
-/// `None` off the grid or next to a nodata cell.
-fn luminance(colour: &RowBand<[u8; 4]>, px: f64, py: f64) -> Option<f64> {
-    let (x, y) = (px - 0.5, py - 0.5);
-    let (c0, r0) = (x.floor(), y.floor());
-    let (w, h) = (colour.grid.width as f64, colour.grid.height as f64);
-    if c0 < 0.0 || r0 < 0.0 || c0 + 1.0 >= w || r0 + 1.0 >= h {
-        return None;
+/// Rec. 601 luminance of the photo over a window of its pixels, computed once for a
+/// footprint's search (which reads each pixel hundreds of times). NaN marks nodata.
+///
+/// Invariant: the window is the pixels asked for clipped to the grid and to the band's rows,
+/// so [`Luma::at`] answers exactly as reading the band itself would.
+struct Luma {
+    /// The window's first column and row in the whole grid.
+    col0: i64,
+    row0: i64,
+    width: i64,
+    height: i64,
+    /// Row-major luminance, 0–255, NaN where the photo's alpha is 0.
+    values: Vec<f64>,
+}
+
+impl Luma {
+    /// The luminance of `colour`'s pixels in columns `cols` and rows `rows` (whole-grid
+    /// indices, clipped to the grid and the band).
+    fn new(colour: &RowBand<[u8; 4]>, cols: (i64, i64), rows: (i64, i64)) -> Luma {
+        let band = colour.rows();
+        let col0 = cols.0.max(0);
+        let col1 = cols.1.min(colour.grid.width as i64).max(col0);
+        let row0 = rows.0.max(band.start as i64);
+        let row1 = rows.1.min(band.end as i64).max(row0);
+        let mut values = Vec::with_capacity(((col1 - col0) * (row1 - row0)) as usize);
+        for r in row0..row1 {
+            for c in col0..col1 {
+                let p = colour.get(c as usize, r as usize);
+                values.push(if p[3] != 0 {
+                    0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64
+                } else {
+                    f64::NAN
+                });
+            }
+        }
+        Luma {
+            col0,
+            row0,
+            width: col1 - col0,
+            height: row1 - row0,
+            values,
+        }
     }
-    // A band too small for the search reads as off the photo (never: the bands are planned
-    // with the search's reach, and a test compares banded and whole reads).
-    if !(colour.holds_row(r0 as usize) && colour.holds_row(r0 as usize + 1)) {
-        return None;
+
+    /// Luminance at pixel coordinates `(px, py)` of the whole grid, bilinear between cell
+    /// centres; `None` outside the window or next to a nodata cell.
+    fn at(&self, px: f64, py: f64) -> Option<f64> {
+        let (x, y) = (px - 0.5, py - 0.5);
+        let (c0, r0) = (x.floor(), y.floor());
+        let (c, r) = (c0 as i64 - self.col0, r0 as i64 - self.row0);
+        if c0 < 0.0 || r0 < 0.0 || c < 0 || r < 0 || c + 1 >= self.width || r + 1 >= self.height {
+            return None;
+        }
+        let (fx, fy) = (x - c0, y - r0);
+        let i = (r * self.width + c) as usize;
+        let w = self.width as usize;
+        let (a, b, c, d) = (
+            self.values[i],
+            self.values[i + 1],
+            self.values[i + w],
+            self.values[i + w + 1],
+        );
+        let v = (1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * c + fx * d);
+        // A NaN corner (nodata) makes the whole blend NaN.
+        (!v.is_nan()).then_some(v)
     }
-    let (fx, fy) = (x - c0, y - r0);
-    let at = |c: f64, r: f64| {
-        let p = colour.get(c as usize, r as usize);
-        (p[3] != 0).then(|| 0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64)
-    };
-    let (a, b, c, d) = (
-        at(c0, r0)?,
-        at(c0 + 1.0, r0)?,
-        at(c0, r0 + 1.0)?,
-        at(c0 + 1.0, r0 + 1.0)?,
-    );
-    Some((1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * c + fx * d))
 }
 
 /// One point on a footprint's outline, in pixel coordinates of the photo's grid.
@@ -138,14 +178,14 @@ fn outline_samples(fp: &Footprint, colour: &RowBand<[u8; 4]>, away: (f64, f64)) 
 
 /// Mean contrast across the outline moved by `(sx, sy)` pixels (the module's invariant);
 /// `None` when under half the samples can be read.
-fn contrast(colour: &RowBand<[u8; 4]>, samples: &[Sample], sx: f64, sy: f64) -> Option<f64> {
+fn contrast(luma: &Luma, samples: &[Sample], sx: f64, sy: f64) -> Option<f64> {
     let (mut sum, mut n) = (0.0, 0usize);
     for s in samples {
         let (x, y) = (s.at.0 + sx, s.at.1 + sy);
         let (nx, ny) = s.out;
         if let (Some(outside), Some(inside)) = (
-            luminance(colour, x + nx * ACROSS, y + ny * ACROSS),
-            luminance(colour, x - nx * ACROSS, y - ny * ACROSS),
+            luma.at(x + nx * ACROSS, y + ny * ACROSS),
+            luma.at(x - nx * ACROSS, y - ny * ACROSS),
         ) {
             sum += if s.faces_shadow {
                 (inside - outside).max(0.0)
@@ -175,6 +215,30 @@ pub fn estimate(
                                                                  // judged against), then the half pixels around the best: a quarter of the evaluations of a
                                                                  // half-pixel grid, and the contrast (read ACROSS = ¾ pixel each side of the outline) is
                                                                  // more than a pixel wide, so the whole-pixel best lies beside the peak.
+                                                                 // Every pixel the search can read: the samples moved up to the reach and the fine search's
+                                                                 // ¾ pixel, read ¾ pixel across, with the bilinear neighbour.
+    let (x0, y0, x1, y1) = samples.iter().fold(
+        (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ),
+        |b, s| {
+            (
+                b.0.min(s.at.0),
+                b.1.min(s.at.1),
+                b.2.max(s.at.0),
+                b.3.max(s.at.1),
+            )
+        },
+    );
+    let m = reach + 4.0;
+    let luma = Luma::new(
+        colour,
+        ((x0 - m).floor() as i64, (x1 + m).ceil() as i64),
+        ((y0 - m).floor() as i64, (y1 + m).ceil() as i64),
+    );
     let whole = reach.floor() as i64;
     let half = (reach * 2.0).floor() / 2.0; // the largest half-pixel shift searched
     let mut scores = Vec::new();
@@ -187,7 +251,7 @@ pub fn estimate(
     for j in -whole..=whole {
         for i in -whole..=whole {
             let (sx, sy) = (i as f64, j as f64);
-            if let Some(s) = contrast(colour, &samples, sx, sy) {
+            if let Some(s) = contrast(&luma, &samples, sx, sy) {
                 scores.push(s);
                 consider(&mut best, s, sx, sy);
             }
@@ -199,7 +263,7 @@ pub fn estimate(
         if (i, j) == (0, 0) || sx.abs() > half || sy.abs() > half {
             continue;
         }
-        if let Some(s) = contrast(colour, &samples, sx, sy) {
+        if let Some(s) = contrast(&luma, &samples, sx, sy) {
             consider(&mut best, s, sx, sy);
         }
     }
@@ -212,7 +276,7 @@ pub fn estimate(
     const PLATEAU: f64 = 0.02;
     let fine: Vec<(f64, f64, f64)> = (-6..=6)
         .flat_map(|j| (-6..=6).map(move |i| (gx + i as f64 / 8.0, gy + j as f64 / 8.0)))
-        .filter_map(|(sx, sy)| Some((contrast(colour, &samples, sx, sy)?, sx, sy)))
+        .filter_map(|(sx, sy)| Some((contrast(&luma, &samples, sx, sy)?, sx, sy)))
         .collect();
     // The coarse best is the fine grid's centre, so the top holds at least it.
     let s0 = fine.iter().fold(f64::NEG_INFINITY, |m, f| m.max(f.0));
