@@ -24,6 +24,7 @@ pub mod geojson;
 pub mod grid;
 pub mod ingest;
 pub mod io;
+pub mod num;
 pub mod progress;
 pub mod pyramid;
 pub mod raster;

@@ -24,6 +24,7 @@
 
 use super::footprint::Footprint;
 use super::local::{Class, Local};
+use crate::num::floor_i64;
 
 /// The refined height above `ground_z` (metres) and its IoU with the observed shadow.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -89,14 +90,45 @@ pub fn refine(
     );
     let observed = observed_fraction(local, &attached, &touching, lit);
     let brightness = fitted_brightness(local, &corridor, &touching, lit);
-    let mut events: Vec<(f64, usize)> = thresholds
-        .into_iter()
-        .filter(|&(_, v)| v <= z_hi)
-        .map(|(i, v)| (v, i))
-        .collect();
-    // Whole pairs compared: equal elements are identical, so an unstable sort is as good.
-    events.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let events = sorted_events(
+        thresholds
+            .into_iter()
+            .filter(|&(_, v)| v <= z_hi)
+            .map(|(i, v)| (v, i))
+            .collect(),
+        z_hi,
+    );
     best_fit(&events, &brightness, &observed, z_hi, n_sub)
+}
+
+/// `events` (threshold in `[0, z_hi]` metres, cell) in ascending order of threshold, then cell.
+/// A bucket sort (tens of thousands of events a footprint, spread evenly over the range):
+/// buckets by a monotone function of the threshold, each bucket sorted, so the order is the
+/// full sort's.
+fn sorted_events(events: Vec<(f64, usize)>, z_hi: f64) -> Vec<(f64, usize)> {
+    let n = events.len();
+    let buckets = (n / 4).max(1);
+    let scale = buckets as f64 / z_hi;
+    let bucket = |v: f64| ((v * scale) as usize).min(buckets - 1);
+    let mut start = vec![0usize; buckets + 1];
+    for e in &events {
+        start[bucket(e.0) + 1] += 1;
+    }
+    for b in 0..buckets {
+        start[b + 1] += start[b];
+    }
+    let mut next = start.clone();
+    let mut out = vec![(0.0, 0); n];
+    for e in events {
+        let b = bucket(e.0);
+        out[next[b]] = e;
+        next[b] += 1;
+    }
+    for b in 0..buckets {
+        out[start[b]..start[b + 1]]
+            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    }
+    out
 }
 
 /// The corridor cells that are attached shadow or touch it (8-neighbours): the shadow and its
@@ -263,14 +295,14 @@ fn terrain_at(local: &Local, px: f64, py: f64) -> f64 {
         }
     };
     let (x, y) = (px - 0.5, py - 0.5);
-    let (c0, r0) = (x.floor() as i64, y.floor() as i64);
+    let (c0, r0) = (floor_i64(x), floor_i64(y));
     let (fx, fy) = (x - c0 as f64, y - r0 as f64);
     let z = (1.0 - fy) * ((1.0 - fx) * at(c0, r0) + fx * at(c0 + 1, r0))
         + fy * ((1.0 - fx) * at(c0, r0 + 1) + fx * at(c0 + 1, r0 + 1));
     if z.is_finite() {
         z
     } else {
-        at(px.floor() as i64, py.floor() as i64)
+        at(floor_i64(px), floor_i64(py))
     }
 }
 
@@ -518,6 +550,33 @@ mod tests {
         l.heights = (0..1600).map(|i| (i % 40) as f32).collect(); // rises 1 m per column
         assert!((terrain_at(&l, 10.75, 5.5) - 10.25).abs() < 1e-9);
         assert_eq!(terrain_at(&l, 0.25, 5.5), 0.0); // west of the first centre: nearest
+    }
+
+    #[test]
+    fn bucketed_events_are_in_the_full_sort_order() {
+        // Ties, both zeros, the range's ends and values crowded into one bucket.
+        let mut v: Vec<(f64, usize)> = (0..2000)
+            .map(|k| (((k * 7919) % 1000) as f64 / 999.0 * 30.0, k % 37))
+            .collect();
+        v.extend([
+            (0.0, 5),
+            (-0.0, 5),
+            (-0.0, 2),
+            (30.0, 1),
+            (30.0, 0),
+            (1e-300, 3),
+        ]);
+        v.extend((0..50).map(|k| (15.0 + k as f64 * 1e-13, 50 - k)));
+        let mut full = v.clone();
+        full.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let got = sorted_events(v, 30.0);
+        assert_eq!(
+            got.iter().map(|e| (e.0.to_bits(), e.1)).collect::<Vec<_>>(),
+            full.iter()
+                .map(|e| (e.0.to_bits(), e.1))
+                .collect::<Vec<_>>()
+        );
+        assert!(sorted_events(Vec::new(), 1.0).is_empty());
     }
 
     #[test]

@@ -25,6 +25,7 @@
 //! colour of its ground, a neighbour's edge) do not move it.
 
 use super::footprint::Footprint;
+use crate::num::floor_i64;
 use crate::raster::RowBand;
 
 /// A building's best contrast must be at least this many times the median contrast over its
@@ -104,11 +105,12 @@ impl Luma {
     /// centres; `None` outside the window or next to a nodata cell.
     fn at(&self, px: f64, py: f64) -> Option<f64> {
         let (x, y) = (px - 0.5, py - 0.5);
-        let (c0, r0) = (x.floor(), y.floor());
-        let (c, r) = (c0 as i64 - self.col0, r0 as i64 - self.row0);
-        if c0 < 0.0 || r0 < 0.0 || c < 0 || r < 0 || c + 1 >= self.width || r + 1 >= self.height {
+        let (ci, ri) = (floor_i64(x), floor_i64(y));
+        let (c, r) = (ci - self.col0, ri - self.row0);
+        if ci < 0 || ri < 0 || c < 0 || r < 0 || c + 1 >= self.width || r + 1 >= self.height {
             return None;
         }
+        let (c0, r0) = (ci as f64, ri as f64);
         let (fx, fy) = (x - c0, y - r0);
         let i = (r * self.width + c) as usize;
         let w = self.width as usize;
