@@ -618,15 +618,15 @@ struct Band<'a> {
     owner: RowBand<'a, u32>,
     /// The footprints with a cell in the band, ascending, and their cells (whole-grid indices).
     cells: Vec<(usize, Vec<usize>)>,
-    /// Per cell, what it is as open ground, whoever's window it is in: [`UNUSABLE_GROUND`]
-    /// (nodata colour or elevation, shadowed by the bare terrain, nodata in the mask), else the
-    /// histogram bin of its shadow index ([`detect::index_bin`]; from a mask 0 for shadow, 255
-    /// for lit).
+    /// Per cell, what it is as open ground, whoever's window it is in: [`NOT_OPEN`] under a
+    /// footprint or where the reading cannot be trusted (nodata colour or elevation, shadowed
+    /// by the bare terrain, nodata in the mask), else the histogram bin of its shadow index
+    /// ([`detect::index_bin`]; from a mask 0 for shadow, 255 for lit).
     ground: RowBand<'a, u16>,
 }
 
-/// See [`Band::ground`]: a cell whose reading cannot be trusted.
-const UNUSABLE_GROUND: u16 = u16::MAX;
+/// See [`Band::ground`]: a cell that is not open ground.
+const NOT_OPEN: u16 = u16::MAX;
 
 impl<'a> Band<'a> {
     fn read(
@@ -664,12 +664,13 @@ impl<'a> Band<'a> {
                 let i = first_cell + k;
                 let c = colour.at(i);
                 let in_mask = mask.as_ref().map(|m| *m.at(i));
-                if c[3] == 0
+                if owner[k] != 0
+                    || c[3] == 0
                     || terrain.at(i).is_nan()
                     || terrain_shadow.get(i)
                     || in_mask == Some(255)
                 {
-                    return UNUSABLE_GROUND;
+                    return NOT_OPEN;
                 }
                 match in_mask {
                     Some(0) => 255,
@@ -941,9 +942,24 @@ impl Shared<'_> {
         let (dx, dy) = self.sun.direction();
         let u = (-dx, -dy);
         let max_len = self.reach;
-        let win = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
         let lean = self.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
-        let (local, threshold) = self.classify(id, fp, lean, win);
+        // The window the shadow is sought in reaches `max_len` along it; the cells are
+        // classified in a part of it reaching `len`, grown while the scan lines reach its
+        // border (a building's shadow is mostly far shorter than the tallest sought). The
+        // threshold is always the whole window's. A leaning roof's cells may lie anywhere
+        // along its lean: classified whole.
+        let full = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
+        let open = self.open_histogram(&full);
+        let mut len = if lean == (0.0, 0.0) {
+            max_len / 4.0
+        } else {
+            max_len
+        };
+        let classified = |len: f64| {
+            let win = local::window_for(self.grid, fp.bbox(), u, len.min(max_len), 3);
+            self.classify(id, fp, lean, win, full, &open)
+        };
+        let (mut local, threshold) = classified(len);
         let mut m = Measurement {
             height_m: None,
             roof_z: None,
@@ -958,19 +974,27 @@ impl Shared<'_> {
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
-                pitched_roof: self.looks_pitched(id, fp, cells, lean, &win),
+                pitched_roof: self.looks_pitched(id, fp, cells, lean),
                 ..Flags::default()
             },
         };
-        let s = scan::scan(
-            fp,
-            &local,
-            u,
-            cell,
-            self.opts.line_spacing_cells * cell,
-            max_len,
-            tan_e,
-        );
+        let scanned = |local: &Local| {
+            scan::scan(
+                fp,
+                local,
+                u,
+                cell,
+                self.opts.line_spacing_cells * cell,
+                max_len,
+                tan_e,
+            )
+        };
+        let mut s = scanned(&local);
+        while s.at_window_edge && len < max_len {
+            len *= 2.0;
+            local = classified(len).0;
+            s = scanned(&local);
+        }
         m.lines_total = s.lines;
         m.lines_used = s.lengths.len();
         m.flags.shadow_cut_by_edge_or_nodata = s.cut > 0;
@@ -994,8 +1018,12 @@ impl Shared<'_> {
             .max(1.5 * z_ray)
             .max(z0 + 4.0 * cell * tan_e)
             .min(self.opts.max_height_m.max(z0 + cell * tan_e));
+        let sub_len = z_hi / tan_e + cell;
+        if sub_len > len && len < max_len {
+            local = classified(sub_len).0;
+        }
         let mut sub = local.crop(
-            local::window_for(self.grid, fp.bbox(), u, z_hi / tan_e + cell, 3),
+            local::window_for(self.grid, fp.bbox(), u, sub_len, 3),
             self.grid,
         );
         sub.index = self.shade(&sub.win);
@@ -1050,14 +1078,7 @@ impl Shared<'_> {
     /// cells in a taller neighbour's shadow (second pass: at this building's first-pass roof)
     /// are left out: a roof half in a neighbour's shadow is two brightnesses with a straight
     /// boundary too (`dbms sample`'s adjacent pairs). A leaning roof is read whole.
-    fn looks_pitched(
-        &self,
-        id: u32,
-        fp: &Footprint,
-        cells: &[usize],
-        lean: (f64, f64),
-        win: &crate::grid::Window,
-    ) -> bool {
+    fn looks_pitched(&self, id: u32, fp: &Footprint, cells: &[usize], lean: (f64, f64)) -> bool {
         if lean != (0.0, 0.0) {
             let seen = register::moved(fp, lean.0, lean.1);
             return roof::looks_pitched(&seen, &self.band.colour, &seen.cells(self.grid));
@@ -1066,7 +1087,7 @@ impl Shared<'_> {
         let cells = match self.roofs[id as usize - 1] {
             Some(own) => {
                 let w = self.grid.width;
-                let taller = self.shading_neighbours(id, win, own);
+                let taller = self.shading_neighbours(id, fp, own);
                 unshaded = cells
                     .iter()
                     .copied()
@@ -1120,17 +1141,15 @@ impl Shared<'_> {
     }
 
     /// The walls (toward the sun) and roofs of the other footprints whose shadow can reach
-    /// window `win` of footprint `id` and whose roof is above `z` metres (only those can shade
-    /// a point there): their box swept toward the shadow over the longest shadow sought meets
-    /// the window's.
-    fn shading_neighbours(
-        &self,
-        id: u32,
-        win: &crate::grid::Window,
-        z: f64,
-    ) -> Vec<(refine::Walls, f64)> {
+    /// footprint `fp` (id `id`) and whose roof is above `z` metres (only those can shade a
+    /// point of it at that height): their box swept toward the shadow over the longest shadow
+    /// sought meets `fp`'s.
+    fn shading_neighbours(&self, id: u32, fp: &Footprint, z: f64) -> Vec<(refine::Walls, f64)> {
         let toward_sun = self.sun.direction();
-        self.reaching(id, win)
+        self.shadows
+            .meeting(fp.bbox())
+            .into_iter()
+            .filter(|&j| j as u32 + 1 != id)
             .filter_map(|j| {
                 let roof = self.roofs[j].filter(|&r| r > z)?;
                 Some((refine::Walls::new(&self.footprints[j], toward_sun), roof))
@@ -1165,14 +1184,35 @@ impl Shared<'_> {
         })
     }
 
-    /// Classify the window's cells for footprint `id` (its roof seen `lean` metres from its
-    /// base); the detection threshold used, if any.
+    /// The histogram of ground bins ([`Band::ground`]) over the open cells of window `win`:
+    /// usable ground under no footprint.
+    fn open_histogram(&self, win: &crate::grid::Window) -> [u64; 256] {
+        let w = self.grid.width;
+        let mut hist = [0u64; 256];
+        for r in win.row..win.row + win.height {
+            let i = r * w + win.col;
+            for &g in self.band.ground.span(i, win.width) {
+                if g != NOT_OPEN {
+                    hist[g as usize] += 1;
+                }
+            }
+        }
+        hist
+    }
+
+    /// Classify the cells of window `win` for footprint `id` (its roof seen `lean` metres from
+    /// its base), with the detection threshold of the larger window `full` that holds it
+    /// (`open`: `full`'s [`Self::open_histogram`]); the threshold, if any. `win` must hold
+    /// every cell an edge of the footprint touches (any window of [`local::window_for`] with
+    /// its margin does, and with a lean `full` itself).
     fn classify(
         &self,
         id: u32,
         fp: &Footprint,
         lean: (f64, f64),
         win: crate::grid::Window,
+        full: crate::grid::Window,
+        open: &[u64; 256],
     ) -> (Local, Option<f64>) {
         let w = self.grid.width;
         let band = self.band;
@@ -1190,7 +1230,7 @@ impl Shared<'_> {
             base.extend(band.owner.span(i, win.width).iter().zip(grounds).map(
                 |(&o, &g)| match o {
                     o if o == id => Some(Class::Own),
-                    0 => (g == UNUSABLE_GROUND).then_some(Class::Unusable),
+                    0 => (g == NOT_OPEN).then_some(Class::Unusable),
                     _ => Some(Class::Other),
                 },
             ));
@@ -1203,18 +1243,27 @@ impl Shared<'_> {
         let (cut, threshold) = match band.mask {
             Some(_) => (0.5, None),
             None => {
-                let mut hist = [0u64; 256];
-                for k in (0..n).filter(|&k| base[k].is_none()) {
-                    hist[ground[k] as usize] += 1;
+                // The whole window's open cells but the footprint's edge cells.
+                let mut hist = *open;
+                let edges: Vec<usize> = (0..n)
+                    .filter(|&k| base[k] == Some(Class::Edge))
+                    .map(|k| (win.row + k / win.width) * w + win.col + k % win.width)
+                    .collect();
+                for &i in &edges {
+                    hist[*band.ground.at(i) as usize] -= 1;
                 }
                 let threshold = detect::otsu_threshold_of(&hist, 1.0).or_else(|| {
-                    let index = |k: usize| (win.row + k / win.width) * w + win.col + k % win.width;
-                    let open: Vec<(usize, f64)> = (0..n)
-                        .filter(|&k| base[k].is_none())
+                    let index =
+                        |k: usize| (full.row + k / full.width) * w + full.col + k % full.width;
+                    let open: Vec<(usize, f64)> = (0..full.width * full.height)
+                        .filter(|&k| {
+                            let i = index(k);
+                            *band.ground.at(i) != NOT_OPEN && edges.binary_search(&i).is_err()
+                        })
                         .map(|k| (k, detect::shadow_index(*band.colour.at(index(k)))))
                         .collect();
                     let others: Vec<&Footprint> = self
-                        .reaching(id, &win)
+                        .reaching(id, &full)
                         .map(|j| &self.footprints[j])
                         .collect();
                     self.placed_weak_threshold(fp, &others, &open, |k| {

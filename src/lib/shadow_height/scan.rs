@@ -39,6 +39,9 @@ pub struct Scan {
     pub cut: usize,
     /// Lines dropped: shadow reached another footprint or ended on a lit cell against one.
     pub on_other: usize,
+    /// Whether a line read a cell on the window's border or went past it: in a larger window
+    /// the lines could read differently (the caller classified a part of the window it may need).
+    pub at_window_edge: bool,
 }
 
 /// Scan the footprint's shadow in `local`. `u` is the unit shadow direction (east, north),
@@ -108,6 +111,7 @@ pub fn scan(
                 out.cut += 1;
                 break;
             }
+            out.at_window_edge |= on_border(local, cell_at);
             let class = cell_at.map(|(c, r)| {
                 let i = r * local.grid.width + c;
                 (i, local.class[i])
@@ -128,7 +132,13 @@ pub fn scan(
                 Some((i, Class::Lit)) => {
                     if x - unusable_until < cell {
                         out.cut += 1;
-                    } else if meets_other(local, cell_at.unwrap(), &mut walk, x + cell) {
+                    } else if meets_other(
+                        local,
+                        cell_at.unwrap(),
+                        &mut walk,
+                        x + cell,
+                        &mut out.at_window_edge,
+                    ) {
                         out.on_other += 1;
                     } else {
                         out.lengths.push(x);
@@ -147,21 +157,31 @@ pub fn scan(
 /// Whether the lit cell `at` ending a line's shadow is within a cell of another footprint: one
 /// of its 8 neighbours is [`Class::Other`], or the line enters such a cell before `until`
 /// metres. That cell may read lit only because the other building's sunlit roof covers part
-/// of it; the shadow met the building there rather than ending.
+/// of it; the shadow met the building there rather than ending. Sets `at_edge` when a cell
+/// read is on the window's border or past it ([`Scan::at_window_edge`]).
 fn meets_other(
     local: &Local,
     at: (usize, usize),
     walk: &mut impl Iterator<Item = (f64, f64, Option<(usize, usize)>)>,
     until: f64,
+    at_edge: &mut bool,
 ) -> bool {
     let (w, h) = (local.grid.width, local.grid.height);
     let (c, r) = at;
     let near = (r.saturating_sub(1)..=(r + 1).min(h - 1))
         .flat_map(|rr| (c.saturating_sub(1)..=(c + 1).min(w - 1)).map(move |cc| rr * w + cc))
         .any(|i| local.class[i] == Class::Other);
-    near || walk
-        .take_while(|&(x, _, _)| x <= until)
-        .any(|(_, _, a)| a.is_some_and(|(c, r)| local.class[r * w + c] == Class::Other))
+    near || walk.take_while(|&(x, _, _)| x <= until).any(|(_, _, a)| {
+        *at_edge |= on_border(local, a);
+        a.is_some_and(|(c, r)| local.class[r * w + c] == Class::Other)
+    })
+}
+
+/// Whether a cell a line reads (`None`: outside the window) is on the border of `local`'s
+/// window or outside it, where a larger window would show more.
+fn on_border(local: &Local, at: Option<(usize, usize)>) -> bool {
+    let (w, h) = (local.grid.width, local.grid.height);
+    at.is_none_or(|(c, r)| c == 0 || r == 0 || c + 1 == w || r + 1 == h)
 }
 
 /// The cells of `local` a scan line from `start` (world metres) along the unit vector `u` crosses
