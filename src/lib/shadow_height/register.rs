@@ -250,16 +250,21 @@ pub fn estimate(
             *best = Some((s, sx, sy));
         }
     };
+    // The whole pixels read every other sample (a sample a cell): they only seed the finer
+    // searches and give the background, and are most of the evaluations. The best of them is
+    // scored again on every sample before the finer ones are compared with it.
+    let sparse: Vec<Sample> = samples.iter().step_by(2).copied().collect();
     for j in -whole..=whole {
         for i in -whole..=whole {
             let (sx, sy) = (i as f64, j as f64);
-            if let Some(s) = contrast(&luma, &samples, sx, sy) {
+            if let Some(s) = contrast(&luma, &sparse, sx, sy) {
                 scores.push(s);
                 consider(&mut best, s, sx, sy);
             }
         }
     }
     let (_, wx, wy) = best?;
+    best = contrast(&luma, &samples, wx, wy).map(|s| (s, wx, wy));
     for (i, j) in (-1..=1).flat_map(|j| (-1..=1).map(move |i| (i, j))) {
         let (sx, sy) = (wx + i as f64 / 2.0, wy + j as f64 / 2.0);
         if (i, j) == (0, 0) || sx.abs() > half || sy.abs() > half {
