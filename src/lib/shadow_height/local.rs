@@ -45,7 +45,7 @@ pub struct Local {
     /// Shadow index per window cell ([`super::detect::shadow_index`], lower = darker; from a
     /// given mask 0 where it says shadow and 255 where lit): how much of a cell is shadow.
     /// Empty in a window classified for the scan lines, which read only the classes; the
-    /// refinement's crop has it.
+    /// refinement's crop has it for its open cells (NaN elsewhere: never read).
     pub index: Vec<f32>,
 }
 

@@ -820,7 +820,8 @@ pub fn read_mask(path: &std::path::Path, grid: &Grid) -> Result<Raster<u8>> {
     ))
 }
 
-/// Which cells of `local` lie in the band (half a cell either side) of an *inlier* scan line:
+/// Which open or unusable cells of `local` lie in the band (half a cell either side) of an
+/// *inlier* scan line (every other cell is false: the refinement reads the bands only there):
 /// a valid line whose length is within 30 % + 2 cells of the median `len`. Lines that met other
 /// buildings, left the grid, or ran on into a neighbour's shadow do not lead the refinement.
 fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f64) -> Vec<bool> {
@@ -836,6 +837,10 @@ fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f6
     let w = local.grid.width;
     (0..local.class.len())
         .map(|i| {
+            // Only open and unusable cells are read through the bands (the refinement's).
+            if !matches!(local.class[i], Class::Lit | Class::Shadow | Class::Unusable) {
+                return false;
+            }
             let (x, y) = local.grid.cell_centre(i % w, i / w);
             let t = (x - s.origin.0) * n.0 + (y - s.origin.1) * n.1;
             let k = ts.partition_point(|&v| v < t);
@@ -1029,7 +1034,7 @@ impl Shared<'_> {
             local::window_for(self.grid, fp.bbox(), u, sub_len, 3),
             self.grid,
         );
-        sub.index = self.shade(&sub.win);
+        sub.index = self.shade(&sub);
         let keep = inlier_bands(&sub, &s, len, (-u.1, u.0), cell);
         m.shadow_length_m = Some(len);
         m.initial_height_m = Some(z0);
@@ -1191,16 +1196,15 @@ impl Shared<'_> {
     /// usable ground under no footprint.
     fn open_histogram(&self, win: &crate::grid::Window) -> [u64; 256] {
         let w = self.grid.width;
-        let mut hist = [0u64; 256];
+        // Counted without a branch: every cell that is not open lands in bin 256, dropped.
+        let mut counts = [0u32; 257];
         for r in win.row..win.row + win.height {
             let i = r * w + win.col;
             for &g in self.band.ground.span(i, win.width) {
-                if g != NOT_OPEN {
-                    hist[g as usize] += 1;
-                }
+                counts[(g as usize).min(256)] += 1;
             }
         }
-        hist
+        std::array::from_fn(|k| counts[k] as u64)
     }
 
     /// Classify the cells of window `win` for footprint `id` (its roof seen `lean` metres from
@@ -1311,17 +1315,23 @@ impl Shared<'_> {
         )
     }
 
-    /// The shadow index of window `win`'s cells, row-major: [`detect::shadow_index`] of the
-    /// photo, or from a given mask 0 where it says shadow (or nodata) and 255 where lit.
-    fn shade(&self, win: &crate::grid::Window) -> Vec<f32> {
-        let w = self.grid.width;
+    /// The shadow index of `local`'s open cells ([`Class::Lit`], [`Class::Shadow`]: the only
+    /// ones the refinement reads it of), row-major, NaN for the others: [`detect::shadow_index`]
+    /// of the photo, or from a given mask 0 where it says shadow and 255 where lit.
+    fn shade(&self, local: &Local) -> Vec<f32> {
+        let (w, win) = (self.grid.width, &local.win);
         let band = self.band;
-        (win.row..win.row + win.height)
-            .flat_map(|r| r * w + win.col..r * w + win.col + win.width)
-            .map(|i| match band.mask.as_ref() {
-                Some(mask) if *mask.at(i) != 0 => 0.0,
-                Some(_) => 255.0,
-                None => detect::shadow_index(*band.colour.at(i)) as f32,
+        let cells = (win.row..win.row + win.height)
+            .flat_map(|r| r * w + win.col..r * w + win.col + win.width);
+        cells
+            .zip(&local.class)
+            .map(|(i, class)| match (class, band.mask.as_ref()) {
+                (Class::Lit | Class::Shadow, Some(mask)) if *mask.at(i) != 0 => 0.0,
+                (Class::Lit | Class::Shadow, Some(_)) => 255.0,
+                (Class::Lit | Class::Shadow, None) => {
+                    detect::shadow_index(*band.colour.at(i)) as f32
+                }
+                _ => f32::NAN,
             })
             .collect()
     }
