@@ -52,7 +52,8 @@ fn histogram(indices: impl Iterator<Item = f64>) -> [u64; 256] {
 /// The histogram bin of a shadow index: the index rounded, at most 255 (what
 /// [`otsu_threshold`] counts; for callers that build the histogram themselves).
 pub fn index_bin(index: f64) -> usize {
-    (index.round() as usize).min(255)
+    // The index is never negative; NaN (none is made) would land in bin 0 as before.
+    crate::num::round_i64(index).clamp(0, 255) as usize
 }
 
 /// [`otsu_threshold`] over a histogram of shadow indices already counted (bin `k` holds the
