@@ -104,8 +104,9 @@ pub struct Options {
     pub band_cells: usize,
 }
 
-/// See [`Options::band_cells`]: 32 M cells, about 14 bytes each while a band is measured
-/// (terrain, colour, mask, owners, neighbours' shadows), so under half a gigabyte.
+/// See [`Options::band_cells`]: 32 M cells, about 18 bytes each while a band is measured
+/// (terrain, colour, owners, ground bins, neighbours' shadows; a mask one more), so about
+/// 0.6 GB.
 pub const BAND_CELLS: usize = 1 << 25;
 
 impl Default for Options {

@@ -18,8 +18,9 @@
 //!   signed, it scores nothing;
 //! - on the other edges, roof against lit ground, either may be the brighter: `|Y_in − Y_out|`.
 //!
-//! The shift is searched on a grid of whole cells within ±`max_shift_m`, then on the half
-//! cells around the best, then refined to an eighth of a cell around that. A building's estimate counts only when its best contrast
+//! The shift is searched on a grid of whole cells within ±`max_shift_m` (reading every other
+//! sample, a sample a cell), then on the half cells around the best, then refined to an eighth
+//! of a cell around that. A building's estimate counts only when its best contrast
 //! stands clear of its search's typical one ([`MIN_PEAK_RATIO`]); the scene's shift is the
 //! component-wise median over the buildings that count, so a few wrong estimates (a roof the
 //! colour of its ground, a neighbour's edge) do not move it.
