@@ -280,16 +280,37 @@ pub fn estimate(
     // Refine to an eighth of a pixel within ¾ pixel of the best, then take the centre of the
     // top: every shift scoring within PLATEAU of the peak (over the search's median). A sharp
     // edge's contrast is flat for ±¼ pixel around it ([`ACROSS`]); the first maximum found
-    // there sat at the plateau's west or north end, ¼ pixel off.
+    // there sat at the plateau's west or north end, ¼ pixel off. The eighths are scored ring
+    // by ring out from the centre, and no further once a whole ring is below the top: the
+    // plateau around the best has ended (most are ±¼ pixel, three rings of six).
     const PLATEAU: f64 = 0.02;
-    let fine: Vec<(f64, f64, f64)> = (-6..=6)
-        .flat_map(|j| (-6..=6).map(move |i| (gx + i as f64 / 8.0, gy + j as f64 / 8.0)))
-        .filter_map(|(sx, sy)| Some((contrast(&luma, &samples, sx, sy)?, sx, sy)))
-        .collect();
-    // The coarse best is the fine grid's centre, so the top holds at least it.
-    let s0 = fine.iter().fold(f64::NEG_INFINITY, |m, f| m.max(f.0));
-    let floor = s0 - PLATEAU * (s0 - median).max(0.0);
-    let top: Vec<&(f64, f64, f64)> = fine.iter().filter(|f| f.0 >= floor).collect();
+    let floor_of = |s0: f64| s0 - PLATEAU * (s0 - median).max(0.0);
+    let mut fine: Vec<((i64, i64), (f64, f64, f64))> = Vec::new();
+    let mut s0 = f64::NEG_INFINITY;
+    for ring in 0..=6i64 {
+        let mut ring_best = f64::NEG_INFINITY;
+        for j in -ring..=ring {
+            for i in -ring..=ring {
+                if i.abs().max(j.abs()) != ring {
+                    continue;
+                }
+                let (sx, sy) = (gx + i as f64 / 8.0, gy + j as f64 / 8.0);
+                if let Some(s) = contrast(&luma, &samples, sx, sy) {
+                    ring_best = ring_best.max(s);
+                    fine.push(((j, i), (s, sx, sy)));
+                }
+            }
+        }
+        s0 = s0.max(ring_best);
+        if ring > 0 && ring_best < floor_of(s0) {
+            break;
+        }
+    }
+    // The coarse best is the fine grid's centre, so the top holds at least it. Summed in
+    // raster order, as the whole grid was.
+    fine.sort_by_key(|f| f.0);
+    let floor = floor_of(s0);
+    let top: Vec<&(f64, f64, f64)> = fine.iter().map(|f| &f.1).filter(|f| f.0 >= floor).collect();
     let k = top.len() as f64;
     let bx = top.iter().map(|f| f.1).sum::<f64>() / k;
     let by = top.iter().map(|f| f.2).sum::<f64>() / k;
