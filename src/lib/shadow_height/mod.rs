@@ -498,7 +498,7 @@ pub fn measure(
             }
         })
         .collect();
-    let pass = |roofs: &[Option<f64>], sketch: bool| {
+    let pass = |roofs: &[Option<f64>], sketch: bool, thresholds: Option<&[Option<f64>]>| {
         in_bands(
             &needs,
             rows_in(opts.band_cells, grid.width),
@@ -518,6 +518,7 @@ pub fn measure(
                     footprints,
                     roofs,
                     sketch,
+                    thresholds,
                     shadows: &shadows,
                 };
                 Ok(members
@@ -532,7 +533,7 @@ pub fn measure(
     // merging into a taller neighbour's would otherwise be measured to the end of the
     // neighbour's.
     let no_roofs = vec![None; footprints.len()];
-    let first = pass(&no_roofs, true)?;
+    let first = pass(&no_roofs, true, None)?;
     let roofs: Vec<Option<f64>> = first
         .iter()
         .map(|m| {
@@ -541,7 +542,11 @@ pub fn measure(
                 .and_then(|m| Some(m.roof_z? + m.uncertainty_m))
         })
         .collect();
-    pass(&roofs, false)
+    let thresholds: Vec<Option<f64>> = first
+        .iter()
+        .map(|m| m.as_ref().ok().and_then(|m| m.threshold))
+        .collect();
+    pass(&roofs, false, Some(&thresholds))
 }
 
 /// The longest shadow sought, metres: that of a `max_height_m` building, at most
@@ -897,6 +902,15 @@ fn own_edge(
     base
 }
 
+/// Where [`Shared::classify`] takes a footprint's detection threshold from.
+#[derive(Clone, Copy)]
+enum Threshold<'h> {
+    /// Found already (in the first pass).
+    Known(Option<f64>),
+    /// To be found: the histogram of the whole window's open cells.
+    Open(&'h [u64; 256]),
+}
+
 /// What every footprint's measurement reads.
 struct Shared<'a> {
     grid: &'a Grid,
@@ -917,6 +931,8 @@ struct Shared<'a> {
     /// Per footprint, the roof (absolute metres) whose shadow makes ground unusable for the
     /// others; `None` in the first pass and for unmeasured footprints.
     roofs: &'a [Option<f64>],
+    /// Second pass: each footprint's detection threshold from the first (`None` in the first).
+    thresholds: Option<&'a [Option<f64>]>,
     /// The first pass: only the roofs are wanted, to within their uncertainty (one cell of
     /// shadow), which is added to them. The refinement takes one point a cell (its worst error
     /// in the POV-Ray knobs table is 0.21 cells), and the roof is not checked for a pitch.
@@ -958,7 +974,14 @@ impl Shared<'_> {
         // threshold is always the whole window's. A leaning roof's cells may lie anywhere
         // along its lean: classified whole.
         let full = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
-        let open = self.open_histogram(&full);
+        // The threshold depends only on the window's cells: the second pass has the first's.
+        let known = self.thresholds.map(|t| t[id as usize - 1]);
+        let open = known.is_none().then(|| self.open_histogram(&full));
+        let source = match (known, &open) {
+            (Some(t), _) => Threshold::Known(t),
+            (None, Some(open)) => Threshold::Open(open),
+            (None, None) => unreachable!("counted when not known"),
+        };
         let mut len = if lean == (0.0, 0.0) {
             max_len / 4.0
         } else {
@@ -966,7 +989,7 @@ impl Shared<'_> {
         };
         let classified = |len: f64| {
             let win = local::window_for(self.grid, fp.bbox(), u, len.min(max_len), 3);
-            self.classify(id, fp, lean, win, full, &open)
+            self.classify(id, fp, lean, win, full, source)
         };
         let (mut local, threshold) = classified(len);
         let mut m = Measurement {
@@ -1210,7 +1233,7 @@ impl Shared<'_> {
 
     /// Classify the cells of window `win` for footprint `id` (its roof seen `lean` metres from
     /// its base), with the detection threshold of the larger window `full` that holds it
-    /// (`open`: `full`'s [`Self::open_histogram`]); the threshold, if any. `win` must hold
+    /// (known, or from `full`'s [`Self::open_histogram`]); the threshold, if any. `win` must hold
     /// every cell an edge of the footprint touches (any window of [`local::window_for`] with
     /// its margin does, and with a lean `full` itself).
     fn classify(
@@ -1220,7 +1243,7 @@ impl Shared<'_> {
         lean: (f64, f64),
         win: crate::grid::Window,
         full: crate::grid::Window,
-        open: &[u64; 256],
+        source: Threshold,
     ) -> (Local, Option<f64>) {
         let w = self.grid.width;
         let band = self.band;
@@ -1248,9 +1271,10 @@ impl Shared<'_> {
         // way a cell is shadow when its ground bin is below `cut` (a mask's shadow is bin 0, its
         // lit ground 255; a threshold is a bin boundary, `split + ½`, so comparing bins is
         // comparing indices).
-        let (cut, threshold) = match band.mask {
-            Some(_) => (0.5, None),
-            None => {
+        let (cut, threshold) = match (band.mask.as_ref(), source) {
+            (Some(_), _) => (0.5, None),
+            (None, Threshold::Known(t)) => (t.unwrap_or(f64::NEG_INFINITY), t),
+            (None, Threshold::Open(open)) => {
                 // The whole window's open cells but the footprint's edge cells.
                 let mut hist = *open;
                 let edges: Vec<usize> = (0..n)
