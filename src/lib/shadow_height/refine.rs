@@ -340,9 +340,19 @@ fn observed_fraction(
 /// the direction's cross product with it, computed once for the many rays cast.
 pub(super) struct Walls {
     d: (f64, f64),
-    /// (start, edge vector, cross(d, edge)); edges parallel to `d` left out (a ray meets them
-    /// nowhere or along their length, never first at one point).
-    edges: Vec<((f64, f64), (f64, f64), f64)>,
+    /// The edges not parallel to `d` (a ray meets those nowhere or along their length, never
+    /// first at one point).
+    edges: Vec<Wall>,
+}
+
+/// One edge of a footprint, for rays along one direction `d`.
+struct Wall {
+    /// The edge's first vertex (world metres).
+    start: (f64, f64),
+    /// From the first vertex to the second.
+    along: (f64, f64),
+    /// `cross(d, along)`, never 0.
+    den: f64,
 }
 
 impl Walls {
@@ -351,9 +361,13 @@ impl Walls {
         let edges = fp
             .edges()
             .filter_map(|(a, b)| {
-                let e = (b.0 - a.0, b.1 - a.1);
-                let den = cross(d, e);
-                (den != 0.0).then_some((a, e, den))
+                let along = (b.0 - a.0, b.1 - a.1);
+                let den = cross(d, along);
+                (den != 0.0).then_some(Wall {
+                    start: a,
+                    along,
+                    den,
+                })
             })
             .collect();
         Walls { d, edges }
@@ -365,9 +379,9 @@ impl Walls {
         let d = self.d;
         self.edges
             .iter()
-            .filter_map(|&(a, e, den)| {
-                let ap = (a.0 - p.0, a.1 - p.1);
-                let (t, s) = (cross(ap, e) / den, cross(ap, d) / den);
+            .filter_map(|w| {
+                let ap = (w.start.0 - p.0, w.start.1 - p.1);
+                let (t, s) = (cross(ap, w.along) / w.den, cross(ap, d) / w.den);
                 (t >= 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
             })
             .min_by(f64::total_cmp)

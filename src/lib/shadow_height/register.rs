@@ -285,7 +285,9 @@ pub fn estimate(
     // plateau around the best has ended (most are ±¼ pixel, three rings of six).
     const PLATEAU: f64 = 0.02;
     let floor_of = |s0: f64| s0 - PLATEAU * (s0 - median).max(0.0);
-    let mut fine: Vec<((i64, i64), (f64, f64, f64))> = Vec::new();
+    // ((row, column) on the eighths' grid, (score, sx, sy)).
+    type Scored = ((i64, i64), (f64, f64, f64));
+    let mut fine: Vec<Scored> = Vec::new();
     let mut s0 = f64::NEG_INFINITY;
     for ring in 0..=6i64 {
         let mut ring_best = f64::NEG_INFINITY;
