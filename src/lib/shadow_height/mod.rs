@@ -571,9 +571,20 @@ fn box_rows(grid: &Grid, b: Box2, margin: f64) -> Range<usize> {
 
 /// The world box of rows `rows` of `grid` (its whole width).
 fn grid_box(grid: &Grid, rows: Range<usize>) -> Box2 {
+    let whole_rows = crate::grid::Window {
+        col: 0,
+        row: rows.start,
+        width: grid.width,
+        height: rows.len(),
+    };
+    window_box(grid, &whole_rows)
+}
+
+/// The world box of window `win` of `grid`.
+fn window_box(grid: &Grid, win: &crate::grid::Window) -> Box2 {
     let t = &grid.transform;
-    let (ax, ay) = t.pixel_to_world(0.0, rows.start as f64);
-    let (bx, by) = t.pixel_to_world(grid.width as f64, rows.end as f64);
+    let (ax, ay) = t.pixel_to_world(win.col as f64, win.row as f64);
+    let (bx, by) = t.pixel_to_world((win.col + win.width) as f64, (win.row + win.height) as f64);
     (ax.min(bx), ay.min(by), ax.max(bx), ay.max(by))
 }
 
@@ -633,6 +644,16 @@ struct Band<'a> {
 /// See [`Band::ground`]: a cell that is not open ground.
 const NOT_OPEN: u16 = u16::MAX;
 
+/// The shadow index a given mask's cell stands for: 0 where it says shadow (or nodata), 255
+/// where lit (its ground bin too, so a threshold between them splits as the mask does).
+fn mask_index(mask: u8) -> u8 {
+    if mask != 0 {
+        0
+    } else {
+        255
+    }
+}
+
 impl<'a> Band<'a> {
     fn read(
         inputs: &Inputs<'a>,
@@ -678,8 +699,7 @@ impl<'a> Band<'a> {
                     return NOT_OPEN;
                 }
                 match in_mask {
-                    Some(0) => 255,
-                    Some(_) => 0,
+                    Some(m) => mask_index(m) as u16,
                     None => detect::index_bin(detect::shadow_index(*c)) as u16,
                 }
             })
@@ -969,20 +989,21 @@ impl Shared<'_> {
         let max_len = self.reach;
         let lean = self.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
         // The window the shadow is sought in reaches `max_len` along it; the cells are
-        // classified in a part of it reaching `len`, grown while the scan lines reach its
-        // border (a building's shadow is mostly far shorter than the tallest sought). The
-        // threshold is always the whole window's. A leaning roof's cells may lie anywhere
-        // along its lean: classified whole.
+        // classified in a part of it reaching `classified_len`, grown while the scan lines
+        // reach its border (a building's shadow is mostly far shorter than the tallest
+        // sought). The threshold is always the whole window's. A leaning roof's cells may lie
+        // anywhere along its lean: classified whole.
         let full = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
         // The threshold depends only on the window's cells: the second pass has the first's.
-        let known = self.thresholds.map(|t| t[id as usize - 1]);
-        let open = known.is_none().then(|| self.open_histogram(&full));
-        let source = match (known, &open) {
-            (Some(t), _) => Threshold::Known(t),
-            (None, Some(open)) => Threshold::Open(open),
-            (None, None) => unreachable!("counted when not known"),
+        let open;
+        let source = match self.thresholds {
+            Some(known) => Threshold::Known(known[id as usize - 1]),
+            None => {
+                open = self.open_histogram(&full);
+                Threshold::Open(&open)
+            }
         };
-        let mut len = if lean == (0.0, 0.0) {
+        let mut classified_len = if lean == (0.0, 0.0) {
             max_len / 4.0
         } else {
             max_len
@@ -991,7 +1012,7 @@ impl Shared<'_> {
             let win = local::window_for(self.grid, fp.bbox(), u, len.min(max_len), 3);
             self.classify(id, fp, lean, win, full, source)
         };
-        let (mut local, threshold) = classified(len);
+        let (mut local, threshold) = classified(classified_len);
         let mut m = Measurement {
             height_m: None,
             roof_z: None,
@@ -1022,9 +1043,9 @@ impl Shared<'_> {
             )
         };
         let mut s = scanned(&local);
-        while s.at_window_edge && len < max_len {
-            len *= 2.0;
-            local = classified(len).0;
+        while s.at_window_edge && classified_len < max_len {
+            classified_len *= 2.0;
+            local = classified(classified_len).0;
             s = scanned(&local);
         }
         m.lines_total = s.lines;
@@ -1051,7 +1072,7 @@ impl Shared<'_> {
             .max(z0 + 4.0 * cell * tan_e)
             .min(self.opts.max_height_m.max(z0 + cell * tan_e));
         let sub_len = z_hi / tan_e + cell;
-        if sub_len > len && len < max_len {
+        if sub_len > classified_len && classified_len < max_len {
             local = classified(sub_len).0;
         }
         let mut sub = local.crop(
@@ -1178,10 +1199,7 @@ impl Shared<'_> {
     /// sought meets `fp`'s.
     fn shading_neighbours(&self, id: u32, fp: &Footprint, z: f64) -> Vec<(refine::Walls, f64)> {
         let toward_sun = self.sun.direction();
-        self.shadows
-            .meeting(fp.bbox())
-            .into_iter()
-            .filter(|&j| j as u32 + 1 != id)
+        self.reaching(id, fp.bbox())
             .filter_map(|j| {
                 let roof = self.roofs[j].filter(|&r| r > z)?;
                 Some((refine::Walls::new(&self.footprints[j], toward_sun), roof))
@@ -1189,15 +1207,10 @@ impl Shared<'_> {
             .collect()
     }
 
-    /// The indices of the other footprints whose shadow could reach window `win` of footprint
-    /// `id` at any height up to `max_height_m`: their box swept toward the shadow over
-    /// [`Self::reach`] meets the window's.
-    fn reaching(&self, id: u32, win: &crate::grid::Window) -> impl Iterator<Item = usize> + '_ {
-        let t = &self.grid.transform;
-        let (ax, ay) = t.pixel_to_world(win.col as f64, win.row as f64);
-        let (bx, by) =
-            t.pixel_to_world((win.col + win.width) as f64, (win.row + win.height) as f64);
-        let b = (ax.min(bx), ay.min(by), ax.max(bx), ay.max(by));
+    /// The indices of the other footprints (than `id`) whose shadow could reach the world box
+    /// `b` at any height up to `max_height_m`: their box swept toward the shadow over
+    /// [`Self::reach`] meets `b`.
+    fn reaching(&self, id: u32, b: Box2) -> impl Iterator<Item = usize> + '_ {
         self.shadows
             .meeting(b)
             .into_iter()
@@ -1295,7 +1308,7 @@ impl Shared<'_> {
                         .map(|k| (k, detect::shadow_index(*band.colour.at(index(k)))))
                         .collect();
                     let others: Vec<&Footprint> = self
-                        .reaching(id, &full)
+                        .reaching(id, window_box(self.grid, &full))
                         .map(|j| &self.footprints[j])
                         .collect();
                     self.placed_weak_threshold(fp, &others, &open, |k| {
@@ -1351,8 +1364,7 @@ impl Shared<'_> {
         cells
             .zip(&local.class)
             .map(|(i, class)| match (class, band.mask.as_ref()) {
-                (Class::Lit | Class::Shadow, Some(mask)) if *mask.at(i) != 0 => 0.0,
-                (Class::Lit | Class::Shadow, Some(_)) => 255.0,
+                (Class::Lit | Class::Shadow, Some(mask)) => mask_index(*mask.at(i)) as f32,
                 (Class::Lit | Class::Shadow, None) => {
                     detect::shadow_index(*band.colour.at(i)) as f32
                 }

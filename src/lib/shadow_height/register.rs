@@ -107,21 +107,21 @@ impl Luma {
     fn at(&self, px: f64, py: f64) -> Option<f64> {
         let (x, y) = (px - 0.5, py - 0.5);
         let (ci, ri) = (floor_i64(x), floor_i64(y));
+        // The window starts at column and row 0 or later: off it is off the grid too.
         let (c, r) = (ci - self.col0, ri - self.row0);
-        if ci < 0 || ri < 0 || c < 0 || r < 0 || c + 1 >= self.width || r + 1 >= self.height {
+        if c < 0 || r < 0 || c + 1 >= self.width || r + 1 >= self.height {
             return None;
         }
-        let (c0, r0) = (ci as f64, ri as f64);
-        let (fx, fy) = (x - c0, y - r0);
+        let (fx, fy) = (x - ci as f64, y - ri as f64);
         let i = (r * self.width + c) as usize;
         let w = self.width as usize;
-        let (a, b, c, d) = (
+        let (a, b, cc, d) = (
             self.values[i],
             self.values[i + 1],
             self.values[i + w],
             self.values[i + w + 1],
         );
-        let v = (1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * c + fx * d);
+        let v = (1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * cc + fx * d);
         // A NaN corner (nodata) makes the whole blend NaN.
         (!v.is_nan()).then_some(v)
     }
