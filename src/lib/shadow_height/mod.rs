@@ -861,6 +861,9 @@ fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f6
         .collect();
     ts.sort_by(f64::total_cmp);
     let w = local.grid.width;
+    // `k` is `ts.partition_point(|&v| v < t)`, followed from cell to cell along a row (where
+    // `t` moves steadily) rather than searched for.
+    let mut k = 0;
     (0..local.class.len())
         .map(|i| {
             // Only open and unusable cells are read through the bands (the refinement's).
@@ -869,7 +872,12 @@ fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f6
             }
             let (x, y) = local.grid.cell_centre(i % w, i / w);
             let t = (x - s.origin.0) * n.0 + (y - s.origin.1) * n.1;
-            let k = ts.partition_point(|&v| v < t);
+            while k < ts.len() && ts[k] < t {
+                k += 1;
+            }
+            while k > 0 && ts[k - 1] >= t {
+                k -= 1;
+            }
             let near = |j: usize| ts.get(j).is_some_and(|&v| (v - t).abs() <= cell / 2.0);
             near(k) || (k > 0 && near(k - 1))
         })

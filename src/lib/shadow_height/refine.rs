@@ -24,7 +24,6 @@
 
 use super::footprint::Footprint;
 use super::local::{Class, Local};
-use crate::num::floor_i64;
 
 /// The refined height above `ground_z` (metres) and its IoU with the observed shadow.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,9 +53,10 @@ pub fn refine(
 ) -> Option<Refined> {
     let w = local.grid.width;
     let n_sub = sub * sub;
-    let offsets = lattice(n_sub);
-    let walls = Walls::new(fp, (-u.0, -u.1));
+    let points = SubPoints::new(n_sub);
     let t = &local.grid.transform;
+    let walls = Walls::new(fp, (-u.0, -u.1));
+    let mut rays = walls.from_cells((t.cell_x, 0.0), (0.0, t.cell_y));
     // The thresholds of the sub × sub points of each open kept cell (NaN: never shadowed),
     // `n_sub` a cell in cell order; the corridor is the cells with one up to `z_hi`.
     let mut corridor = vec![false; local.class.len()];
@@ -66,13 +66,13 @@ pub fn refine(
         if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
             continue;
         }
-        let (c, r) = ((i % w) as f64, (i / w) as f64);
-        for (v, &(fx, fy)) in th.iter_mut().zip(&offsets) {
-            let p = t.pixel_to_world(c + fx, r + fy);
-            *v = match walls.first(p) {
-                Some(d) => (terrain_at(local, c + fx, r + fy) + d * tan_e - ground_z).max(0.0),
-                None => f64::NAN,
-            };
+        let (c, r) = (i % w, i / w);
+        rays.first_each(t.pixel_to_world(c as f64, r as f64), &points.at, &mut th);
+        let around = heights_around(local, c, r);
+        for (k, v) in th.iter_mut().enumerate() {
+            if !v.is_nan() {
+                *v = (points.terrain(k, &around) + *v * tan_e - ground_z).max(0.0);
+            }
         }
         if th.iter().any(|&v| v <= z_hi) {
             corridor[i] = true;
@@ -283,27 +283,62 @@ fn lattice(n: usize) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Terrain height (metres) at pixel coordinates `(px, py)` of `local`: bilinear between the
-/// cell centres around it, the nearest centre where a neighbour is outside or nodata.
-fn terrain_at(local: &Local, px: f64, py: f64) -> f64 {
-    let (w, h) = (local.grid.width as i64, local.grid.height as i64);
-    let at = |c: i64, r: i64| -> f64 {
-        if c < 0 || r < 0 || c >= w || r >= h {
-            f64::NAN
-        } else {
-            local.heights[(r * w + c) as usize] as f64
-        }
-    };
-    let (x, y) = (px - 0.5, py - 0.5);
-    let (c0, r0) = (floor_i64(x), floor_i64(y));
-    let (fx, fy) = (x - c0 as f64, y - r0 as f64);
-    let z = (1.0 - fy) * ((1.0 - fx) * at(c0, r0) + fx * at(c0 + 1, r0))
-        + fy * ((1.0 - fx) * at(c0, r0 + 1) + fx * at(c0 + 1, r0 + 1));
-    if z.is_finite() {
-        z
-    } else {
-        at(floor_i64(px), floor_i64(py))
+/// The `n` points of a cell ([`lattice`]) and, for each, the terrain between the cell
+/// centres around it.
+///
+/// Invariant: [`SubPoints::terrain`] is the terrain at point `k` of a cell bilinear between
+/// the four cell centres around it, taken from the cell's 3 × 3 neighbourhood
+/// ([`heights_around`]); the cell's own height where one of the four is outside or nodata.
+struct SubPoints {
+    /// The points, as fractions of the cell (column, row) from its first corner.
+    at: Vec<(f64, f64)>,
+    /// Per point, the index into the 3 × 3 neighbourhood of the first of the four centres
+    /// around it, and the point's fractions from that centre (column, row).
+    bilinear: Vec<(usize, f64, f64)>,
+}
+
+impl SubPoints {
+    fn new(n: usize) -> SubPoints {
+        let at = lattice(n);
+        let bilinear = at
+            .iter()
+            .map(|&(fx, fy)| {
+                // From the cell's centre; the first centre around is this cell's or the one
+                // before it on each axis.
+                let (x, y) = (fx - 0.5, fy - 0.5);
+                let (c0, r0) = (x.floor(), y.floor());
+                let first = ((r0 + 1.0) * 3.0 + (c0 + 1.0)) as usize;
+                (first, x - c0, y - r0)
+            })
+            .collect();
+        SubPoints { at, bilinear }
     }
+
+    /// Terrain height (metres) at point `k` of the cell whose neighbourhood is `around`.
+    fn terrain(&self, k: usize, around: &[f64; 9]) -> f64 {
+        let (i, fx, fy) = self.bilinear[k];
+        let (a, b, c, d) = (around[i], around[i + 1], around[i + 3], around[i + 4]);
+        let z = (1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * c + fx * d);
+        if z.is_finite() {
+            z
+        } else {
+            around[4]
+        }
+    }
+}
+
+/// The terrain heights (metres) of cell `(c, r)` of `local` and its eight neighbours, row by
+/// row from the north-west; NaN off the window.
+fn heights_around(local: &Local, c: usize, r: usize) -> [f64; 9] {
+    let (w, h) = (local.grid.width, local.grid.height);
+    let mut out = [f64::NAN; 9];
+    for (k, v) in out.iter_mut().enumerate() {
+        let (cc, rr) = ((c + k % 3).wrapping_sub(1), (r + k / 3).wrapping_sub(1));
+        if cc < w && rr < h {
+            *v = local.heights[rr * w + cc] as f64;
+        }
+    }
+    out
 }
 
 /// How much of each corridor cell the photo shows in this footprint's shadow, in [0, 1] (for
@@ -388,6 +423,81 @@ impl Walls {
     }
 }
 
+impl Walls {
+    /// The walls for rays from the points of grid cells whose sides are the vectors `ex`
+    /// (from a cell's first corner to the next column's, metres east and north) and `ey` (to
+    /// the next row's).
+    pub(super) fn from_cells(&self, ex: (f64, f64), ey: (f64, f64)) -> CellRays<'_> {
+        let slopes = self
+            .edges
+            .iter()
+            .map(|w| {
+                // Moving the ray's start by `e` moves `start − p` by `−e`.
+                let along = |e: (f64, f64)| -cross(e, w.along) / w.den;
+                let across = |e: (f64, f64)| -cross(e, self.d) / w.den;
+                [along(ex), along(ey), across(ex), across(ey)]
+            })
+            .collect();
+        CellRays {
+            walls: self,
+            slopes,
+            near: Vec::new(),
+        }
+    }
+}
+
+/// A footprint's [`Walls`] as the rays from many points of one grid cell meet them.
+///
+/// Invariant: a wall's distance `t` and crossing `s` along it ([`Walls::first`]) are affine in
+/// the ray's start, so over a cell they are their values at its first corner plus the
+/// point's fractions times fixed slopes; a wall no point of the cell can meet (`s` outside
+/// [0, 1] or `t` below 0 over the whole cell) is not tried for its points.
+pub(super) struct CellRays<'a> {
+    walls: &'a Walls,
+    /// Per wall: `t` and `s` per cell of column and of row.
+    slopes: Vec<[f64; 4]>,
+    /// Scratch: the walls the current cell's rays may meet (`t`, `s` at its first corner,
+    /// wall).
+    near: Vec<(f64, f64, usize)>,
+}
+
+impl CellRays<'_> {
+    /// For each point `(fx, fy)` of `points` (fractions of the cell, in [0, 1]) of the cell
+    /// whose first corner is `corner` (world metres), the distance (metres) to the first wall
+    /// along the direction, NaN where the ray misses the footprint, into `out`.
+    pub(super) fn first_each(
+        &mut self,
+        corner: (f64, f64),
+        points: &[(f64, f64)],
+        out: &mut [f64],
+    ) {
+        self.near.clear();
+        let d = self.walls.d;
+        for (k, (w, sl)) in self.walls.edges.iter().zip(&self.slopes).enumerate() {
+            let ap = (w.start.0 - corner.0, w.start.1 - corner.1);
+            let (t, s) = (cross(ap, w.along) / w.den, cross(ap, d) / w.den);
+            let t_max = t + sl[0].max(0.0) + sl[1].max(0.0);
+            let s_min = s + sl[2].min(0.0) + sl[3].min(0.0);
+            let s_max = s + sl[2].max(0.0) + sl[3].max(0.0);
+            if t_max >= 0.0 && s_min <= 1.0 && s_max >= 0.0 {
+                self.near.push((t, s, k));
+            }
+        }
+        for (v, &(fx, fy)) in out.iter_mut().zip(points) {
+            *v = f64::NAN;
+            for &(t0, s0, k) in &self.near {
+                let sl = &self.slopes[k];
+                let t = t0 + fx * sl[0] + fy * sl[1];
+                let s = s0 + fx * sl[2] + fy * sl[3];
+                // NaN `*v` (none yet) compares false.
+                if t >= 0.0 && (0.0..=1.0).contains(&s) && !(t >= *v) {
+                    *v = t;
+                }
+            }
+        }
+    }
+}
+
 fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
     a.0 * b.1 - a.1 * b.0
 }
@@ -412,13 +522,21 @@ fn attached_shadow(local: &Local, corridor: &[bool], keep: &[bool]) -> Vec<bool>
     let through = |i: usize| {
         open(i) || local.class[i] == Class::Edge || (keep[i] && local.class[i] == Class::Unusable)
     };
+    // The seeds: the edge cells, and the cells to pass through beside the footprint's own.
     let mut seen = vec![false; corridor.len()];
-    let mut stack: Vec<usize> = (0..corridor.len())
-        .filter(|&i| through(i) && neighbours(i).any(|j| local.class[j] == Class::Own))
-        .chain((0..corridor.len()).filter(|&i| local.class[i] == Class::Edge))
-        .collect();
-    for &i in &stack {
-        seen[i] = true;
+    let mut stack = Vec::new();
+    for i in 0..corridor.len() {
+        let seeds: &mut dyn Iterator<Item = usize> = match local.class[i] {
+            Class::Edge => &mut std::iter::once(i),
+            Class::Own => &mut neighbours(i),
+            _ => continue,
+        };
+        for j in seeds {
+            if !seen[j] && through(j) {
+                seen[j] = true;
+                stack.push(j);
+            }
+        }
     }
     while let Some(i) = stack.pop() {
         for j in neighbours(i) {
@@ -561,9 +679,87 @@ mod tests {
     fn terrain_between_cell_centres_is_bilinear() {
         let sun = Sun::new(45.0, 180.0).unwrap();
         let (mut l, _) = scene(&sun, 106.5);
-        l.heights = (0..1600).map(|i| (i % 40) as f32).collect(); // rises 1 m per column
-        assert!((terrain_at(&l, 10.75, 5.5) - 10.25).abs() < 1e-9);
-        assert_eq!(terrain_at(&l, 0.25, 5.5), 0.0); // west of the first centre: nearest
+        // Rises 1 m per column and 0.25 m per row.
+        l.heights = (0..1600)
+            .map(|i| (i % 40) as f32 + 0.25 * (i / 40) as f32)
+            .collect();
+        let points = SubPoints::new(16);
+        for (c, r) in [(10, 5), (1, 1), (38, 38)] {
+            let around = heights_around(&l, c, r);
+            for (k, &(fx, fy)) in points.at.iter().enumerate() {
+                let want = (c as f64 + fx - 0.5) + 0.25 * (r as f64 + fy - 0.5);
+                assert!((points.terrain(k, &around) - want).abs() < 1e-9, "{c} {r} {k}");
+            }
+        }
+        // West of the first centre and south of the last: the cell's own height.
+        for (c, r) in [(0, 5), (39, 39)] {
+            let around = heights_around(&l, c, r);
+            let own = l.heights[r * 40 + c] as f64;
+            for (k, &(fx, fy)) in points.at.iter().enumerate() {
+                if (c == 0 && fx < 0.5) || (c == 39 && fx > 0.5) || (r == 39 && fy > 0.5) {
+                    assert_eq!(points.terrain(k, &around), own, "{c} {r} {k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rays_from_a_cells_points_meet_the_walls_single_rays_meet() {
+        // An L-shaped footprint (a ray can cross four walls) and a diagonal one, rays along
+        // the axes, the diagonals and a few ulps off them, from cells all around, on a grid of
+        // 0.7 × 0.4 m cells.
+        let l_shape = Footprint::new(vec![vec![vec![
+            (0.0, 0.0),
+            (6.0, 0.0),
+            (6.0, 2.0),
+            (2.0, 2.0),
+            (2.0, 6.0),
+            (0.0, 6.0),
+        ]]])
+        .unwrap();
+        let diamond = Footprint::new(vec![vec![vec![
+            (3.0, 0.0),
+            (6.0, 3.0),
+            (3.0, 6.0),
+            (0.0, 3.0),
+        ]]])
+        .unwrap();
+        let points = SubPoints::new(16).at;
+        let (ex, ey) = ((0.7, 0.0), (0.0, -0.4));
+        let off = f64::EPSILON * 4.0;
+        let directions = [
+            (1.0, 0.0),
+            (0.0, 1.0),
+            (-1.0, 0.0),
+            (0.0, -1.0),
+            (1.0, off),
+            (-off, 1.0),
+            (0.6, 0.8),
+            (-std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2),
+        ];
+        let mut met = 0;
+        for fp in [&l_shape, &diamond] {
+            for d in directions {
+                let walls = Walls::new(fp, d);
+                let mut rays = walls.from_cells(ex, ey);
+                let mut out = vec![0.0; points.len()];
+                for (c, r) in (0..20).flat_map(|c| (0..30).map(move |r| (c, r))) {
+                    let corner = (-4.0 + c as f64 * ex.0, 9.0 + r as f64 * ey.1);
+                    rays.first_each(corner, &points, &mut out);
+                    for (&(fx, fy), &got) in points.iter().zip(&out) {
+                        let p = (corner.0 + fx * ex.0, corner.1 + fy * ey.1);
+                        match walls.first(p) {
+                            Some(want) => {
+                                met += 1;
+                                assert!((got - want).abs() < 1e-9, "{d:?} {p:?}: {got} {want}")
+                            }
+                            None => assert!(got.is_nan(), "{d:?} {p:?}: {got}"),
+                        }
+                    }
+                }
+            }
+        }
+        assert!(met > 10_000, "{met}");
     }
 
     #[test]

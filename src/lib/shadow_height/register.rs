@@ -105,14 +105,25 @@ impl Luma {
     /// Luminance at pixel coordinates `(px, py)` of the whole grid, bilinear between cell
     /// centres; `None` outside the window or next to a nodata cell.
     fn at(&self, px: f64, py: f64) -> Option<f64> {
+        let (c, r, fx, fy) = self.centre_before(px, py);
+        self.blend(c, r, fx, fy)
+    }
+
+    /// The cell centre before pixel coordinates `(px, py)` of the whole grid on both axes
+    /// (column and row in the window, maybe off it) and the point's fractions from it.
+    fn centre_before(&self, px: f64, py: f64) -> (i64, i64, f64, f64) {
         let (x, y) = (px - 0.5, py - 0.5);
         let (ci, ri) = (floor_i64(x), floor_i64(y));
+        (ci - self.col0, ri - self.row0, x - ci as f64, y - ri as f64)
+    }
+
+    /// The luminance `(fx, fy)` from the centre of window cell `(c, r)` toward the next
+    /// column and row, bilinear; `None` when one of the four is off the window or nodata.
+    fn blend(&self, c: i64, r: i64, fx: f64, fy: f64) -> Option<f64> {
         // The window starts at column and row 0 or later: off it is off the grid too.
-        let (c, r) = (ci - self.col0, ri - self.row0);
         if c < 0 || r < 0 || c + 1 >= self.width || r + 1 >= self.height {
             return None;
         }
-        let (fx, fy) = (x - ci as f64, y - ri as f64);
         let i = (r * self.width + c) as usize;
         let w = self.width as usize;
         let (a, b, cc, d) = (
@@ -182,23 +193,77 @@ fn outline_samples(fp: &Footprint, colour: &RowBand<[u8; 4]>, away: (f64, f64)) 
 /// Mean contrast across the outline moved by `(sx, sy)` pixels (the module's invariant);
 /// `None` when under half the samples can be read.
 fn contrast(luma: &Luma, samples: &[Sample], sx: f64, sy: f64) -> Option<f64> {
+    mean_step(
+        samples.len(),
+        samples.iter().map(|s| {
+            let (x, y) = (s.at.0 + sx, s.at.1 + sy);
+            let (nx, ny) = s.out;
+            Some(step(
+                luma.at(x + nx * ACROSS, y + ny * ACROSS)?,
+                luma.at(x - nx * ACROSS, y - ny * ACROSS)?,
+                s.faces_shadow,
+            ))
+        }),
+    )
+}
+
+/// One sample's contrast, from the luminance `outside` to `inside` (the module's invariant).
+fn step(outside: f64, inside: f64, faces_shadow: bool) -> f64 {
+    if faces_shadow {
+        (inside - outside).max(0.0)
+    } else {
+        (inside - outside).abs()
+    }
+}
+
+/// The mean of `len` samples' contrasts (`None`: unread); `None` when under half are read.
+fn mean_step(len: usize, steps: impl Iterator<Item = Option<f64>>) -> Option<f64> {
     let (mut sum, mut n) = (0.0, 0usize);
-    for s in samples {
-        let (x, y) = (s.at.0 + sx, s.at.1 + sy);
-        let (nx, ny) = s.out;
-        if let (Some(outside), Some(inside)) = (
-            luma.at(x + nx * ACROSS, y + ny * ACROSS),
-            luma.at(x - nx * ACROSS, y - ny * ACROSS),
-        ) {
-            sum += if s.faces_shadow {
-                (inside - outside).max(0.0)
-            } else {
-                (inside - outside).abs()
-            };
-            n += 1;
+    for v in steps.flatten() {
+        sum += v;
+        n += 1;
+    }
+    (n * 2 >= len && n > 0).then(|| sum / n as f64)
+}
+
+/// The samples' reads for shifts by whole pixels, whose fractions between cell centres are
+/// those of no shift: per sample, the centre before each read point (outside, inside) with
+/// its fractions ([`Luma::centre_before`]), and whether it faces the shadow.
+struct WholeShifts<'a> {
+    luma: &'a Luma,
+    reads: Vec<[(i64, i64, f64, f64); 2]>,
+    faces_shadow: Vec<bool>,
+}
+
+impl<'a> WholeShifts<'a> {
+    fn new(luma: &'a Luma, samples: &[Sample]) -> WholeShifts<'a> {
+        let reads = samples
+            .iter()
+            .map(|s| {
+                let (nx, ny) = s.out;
+                [
+                    luma.centre_before(s.at.0 + nx * ACROSS, s.at.1 + ny * ACROSS),
+                    luma.centre_before(s.at.0 - nx * ACROSS, s.at.1 - ny * ACROSS),
+                ]
+            })
+            .collect();
+        WholeShifts {
+            luma,
+            reads,
+            faces_shadow: samples.iter().map(|s| s.faces_shadow).collect(),
         }
     }
-    (n * 2 >= samples.len() && n > 0).then(|| sum / n as f64)
+
+    /// [`contrast`] for the shift by `i` columns and `j` rows.
+    fn contrast(&self, i: i64, j: i64) -> Option<f64> {
+        let read = |&(c, r, fx, fy): &(i64, i64, f64, f64)| self.luma.blend(c + i, r + j, fx, fy);
+        mean_step(
+            self.reads.len(),
+            self.reads.iter().zip(&self.faces_shadow).map(|(rw, &f)| {
+                Some(step(read(&rw[0])?, read(&rw[1])?, f))
+            }),
+        )
+    }
 }
 
 /// The shift (within ±`max_shift_m` metres on each axis) that best fits `fp` to its roof in
@@ -255,12 +320,12 @@ pub fn estimate(
     // searches and give the background, and are most of the evaluations. The best of them is
     // scored again on every sample before the finer ones are compared with it.
     let sparse: Vec<Sample> = samples.iter().step_by(2).copied().collect();
+    let shifts = WholeShifts::new(&luma, &sparse);
     for j in -whole..=whole {
         for i in -whole..=whole {
-            let (sx, sy) = (i as f64, j as f64);
-            if let Some(s) = contrast(&luma, &sparse, sx, sy) {
+            if let Some(s) = shifts.contrast(i, j) {
                 scores.push(s);
-                consider(&mut best, s, sx, sy);
+                consider(&mut best, s, i as f64, j as f64);
             }
         }
     }
@@ -653,6 +718,44 @@ mod tests {
             );
             assert!(s.counts(), "{s:?}");
         }
+    }
+
+    #[test]
+    fn whole_pixel_shifts_read_what_moved_outlines_read() {
+        // A rotated outline whose samples fall between centres, on a photo with nodata, shifted
+        // up to the window's border and off it.
+        let mut p = photo();
+        for i in (0..p.data.len()).step_by(37) {
+            p.data[i][3] = 0;
+        }
+        let band = RowBand::whole(&p);
+        let fp = Footprint::new(vec![vec![vec![
+            (21.3, 30.2),
+            (29.1, 31.9),
+            (27.6, 38.7),
+            (19.9, 36.4),
+        ]]])
+        .unwrap();
+        let samples = outline_samples(&fp, &band, NORTH);
+        let luma = Luma::new(&band, (30, 90), (40, 100));
+        let shifts = WholeShifts::new(&luma, &samples);
+        let mut read = 0;
+        for j in -15..=15 {
+            for i in -15..=15 {
+                let (a, b) = (
+                    shifts.contrast(i, j),
+                    contrast(&luma, &samples, i as f64, j as f64),
+                );
+                match (a, b) {
+                    (Some(a), Some(b)) => {
+                        read += 1;
+                        assert!((a - b).abs() < 1e-9, "{i} {j}: {a} {b}")
+                    }
+                    _ => assert_eq!(a, b, "{i} {j}"),
+                }
+            }
+        }
+        assert!(read > 100 && read < 31 * 31, "{read}");
     }
 
     /// A high sun's thin shadow has the strongest edge in the scene on its far side, a copy of
