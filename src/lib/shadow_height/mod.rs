@@ -962,8 +962,9 @@ struct Shared<'a> {
     /// Second pass: each footprint's detection threshold from the first (`None` in the first).
     thresholds: Option<&'a [Option<f64>]>,
     /// The first pass: only the roofs are wanted, to within their uncertainty (one cell of
-    /// shadow), which is added to them. The refinement takes one point a cell (its worst error
-    /// in the POV-Ray knobs table is 0.21 cells), and the roof is not checked for a pitch.
+    /// shadow), which is added to them. The roof is the one the scan lines imply over the
+    /// real terrain (the median of their tips' terrain + length · tan e), not refined, and it
+    /// is not checked for a pitch.
     sketch: bool,
 }
 
@@ -1075,6 +1076,13 @@ impl Shared<'_> {
         }
         let z0 = len * tan_e;
         let z_ray = scan::median(&s.tip_roofs).map_or(z0, |r| r - ground_z);
+        m.shadow_length_m = Some(len);
+        m.initial_height_m = Some(z0);
+        if self.sketch {
+            m.height_m = Some(z_ray);
+            m.roof_z = Some(ground_z + z_ray);
+            return Ok(m);
+        }
         let z_hi = (2.0 * z0)
             .max(1.5 * z_ray)
             .max(z0 + 4.0 * cell * tan_e)
@@ -1089,8 +1097,6 @@ impl Shared<'_> {
         );
         sub.index = self.shade(&sub);
         let keep = inlier_bands(&sub, &s, len, (-u.1, u.0), cell);
-        m.shadow_length_m = Some(len);
-        m.initial_height_m = Some(z0);
         // Shadow seen by the lines but none of it attached to the footprint in the corridor:
         // nothing to refine against, and no height is better than an unchecked one.
         let Some(r) = refine::refine(
@@ -1101,7 +1107,7 @@ impl Shared<'_> {
             tan_e,
             ground_z,
             z_hi,
-            if self.sketch { 1 } else { self.opts.sub_points },
+            self.opts.sub_points,
         ) else {
             m.flags.no_shadow = true;
             return Ok(m);
