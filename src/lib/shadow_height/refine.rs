@@ -378,7 +378,15 @@ pub(super) struct Walls {
     /// The edges not parallel to `d` (a ray meets those nowhere or along their length, never
     /// first at one point).
     edges: Vec<Wall>,
+    /// A vertex, and the range of `cross(v − it, d)` over the vertices `v`, widened by
+    /// [`ACROSS_SLACK`]: a ray whose start is outside it passes beside the footprint.
+    across: ((f64, f64), f64, f64),
 }
+
+/// How far (metres) beside a footprint's outermost vertices, across the rays, [`Walls::first`]
+/// still tries its walls: far more than the rounding of the two ways of telling (1e-9 m at
+/// UTM coordinates), far less than a cell.
+const ACROSS_SLACK: f64 = 1e-6;
 
 /// One edge of a footprint, for rays along one direction `d`.
 struct Wall {
@@ -405,13 +413,27 @@ impl Walls {
                 })
             })
             .collect();
-        Walls { d, edges }
+        let o = fp.edges().next().map_or((0.0, 0.0), |e| e.0);
+        let (lo, hi) = fp.edges().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), e| {
+            let q = cross((e.0 .0 - o.0, e.0 .1 - o.1), d);
+            (lo.min(q), hi.max(q))
+        });
+        Walls {
+            d,
+            edges,
+            across: (o, lo - ACROSS_SLACK, hi + ACROSS_SLACK),
+        }
     }
 
     /// Distance (metres) from `p` along the direction to the first wall, `None` when the ray
     /// misses the footprint.
     pub(super) fn first(&self, p: (f64, f64)) -> Option<f64> {
         let d = self.d;
+        let (o, lo, hi) = self.across;
+        let q = cross((p.0 - o.0, p.1 - o.1), d);
+        if !(lo..=hi).contains(&q) {
+            return None;
+        }
         self.edges
             .iter()
             .filter_map(|w| {

@@ -102,19 +102,19 @@ impl Luma {
         }
     }
 
-    /// Luminance at pixel coordinates `(px, py)` of the whole grid, bilinear between cell
-    /// centres; `None` outside the window or next to a nodata cell.
-    fn at(&self, px: f64, py: f64) -> Option<f64> {
-        let (c, r, fx, fy) = self.centre_before(px, py);
-        self.blend(c, r, fx, fy)
+    /// The cell centre before pixel coordinate `px` of the whole grid along the columns
+    /// (a column of the window, maybe off it) and the point's fraction from it.
+    fn column_before(&self, px: f64) -> (i64, f64) {
+        let x = px - 0.5;
+        let c = floor_i64(x);
+        (c - self.col0, x - c as f64)
     }
 
-    /// The cell centre before pixel coordinates `(px, py)` of the whole grid on both axes
-    /// (column and row in the window, maybe off it) and the point's fractions from it.
-    fn centre_before(&self, px: f64, py: f64) -> (i64, i64, f64, f64) {
-        let (x, y) = (px - 0.5, py - 0.5);
-        let (ci, ri) = (floor_i64(x), floor_i64(y));
-        (ci - self.col0, ri - self.row0, x - ci as f64, y - ri as f64)
+    /// [`Self::column_before`] along the rows.
+    fn row_before(&self, py: f64) -> (i64, f64) {
+        let y = py - 0.5;
+        let r = floor_i64(y);
+        (r - self.row0, y - r as f64)
     }
 
     /// The luminance `(fx, fy)` from the centre of window cell `(c, r)` toward the next
@@ -190,23 +190,6 @@ fn outline_samples(fp: &Footprint, colour: &RowBand<[u8; 4]>, away: (f64, f64)) 
     out
 }
 
-/// Mean contrast across the outline moved by `(sx, sy)` pixels (the module's invariant);
-/// `None` when under half the samples can be read.
-fn contrast(luma: &Luma, samples: &[Sample], sx: f64, sy: f64) -> Option<f64> {
-    mean_step(
-        samples.len(),
-        samples.iter().map(|s| {
-            let (x, y) = (s.at.0 + sx, s.at.1 + sy);
-            let (nx, ny) = s.out;
-            Some(step(
-                luma.at(x + nx * ACROSS, y + ny * ACROSS)?,
-                luma.at(x - nx * ACROSS, y - ny * ACROSS)?,
-                s.faces_shadow,
-            ))
-        }),
-    )
-}
-
 /// One sample's contrast, from the luminance `outside` to `inside` (the module's invariant).
 fn step(outside: f64, inside: f64, faces_shadow: bool) -> f64 {
     if faces_shadow {
@@ -226,42 +209,73 @@ fn mean_step(len: usize, steps: impl Iterator<Item = Option<f64>>) -> Option<f64
     (n * 2 >= len && n > 0).then(|| sum / n as f64)
 }
 
-/// The samples' reads for shifts by whole pixels, whose fractions between cell centres are
-/// those of no shift: per sample, the centre before each read point (outside, inside) with
-/// its fractions ([`Luma::centre_before`]), and whether it faces the shadow.
-struct WholeShifts<'a> {
+/// The outline's contrast ([`step`]) for the shifts on a grid of columns `xs` and rows `ys`
+/// (pixels): where each read point falls between cell centres depends on the shift's column
+/// along one axis and its row along the other, so it is worked out once per column and per
+/// row for all the grid's shifts.
+///
+/// Invariant: [`Shifts::contrast`]`(i, j)` is the mean contrast across the outline moved by
+/// `(xs[i], ys[j])`, read at `p ± n·ACROSS` around each moved sample `p` (bilinear); `None`
+/// when under half the samples can be read (off the window, or next to nodata).
+struct Shifts<'a> {
     luma: &'a Luma,
-    reads: Vec<[(i64, i64, f64, f64); 2]>,
     faces_shadow: Vec<bool>,
+    /// Per column of the grid, per read (each sample's outside, then its inside): the window
+    /// column of the centre before it and the fraction from there.
+    cols: Vec<(i64, f64)>,
+    /// Per row of the grid, per read: as `cols`, along the rows.
+    rows: Vec<(i64, f64)>,
 }
 
-impl<'a> WholeShifts<'a> {
-    fn new(luma: &'a Luma, samples: &[Sample]) -> WholeShifts<'a> {
-        let reads = samples
+impl<'a> Shifts<'a> {
+    fn new(luma: &'a Luma, samples: &[Sample], xs: &[f64], ys: &[f64]) -> Shifts<'a> {
+        let sides = |s: &Sample, axis: usize| {
+            let (at, n) = if axis == 0 {
+                (s.at.0, s.out.0)
+            } else {
+                (s.at.1, s.out.1)
+            };
+            [n * ACROSS, -n * ACROSS].map(move |side| (at, side))
+        };
+        let cols = xs
             .iter()
-            .map(|s| {
-                let (nx, ny) = s.out;
-                [
-                    luma.centre_before(s.at.0 + nx * ACROSS, s.at.1 + ny * ACROSS),
-                    luma.centre_before(s.at.0 - nx * ACROSS, s.at.1 - ny * ACROSS),
-                ]
+            .flat_map(|&sx| {
+                samples
+                    .iter()
+                    .flat_map(move |s| sides(s, 0).map(|(at, side)| luma.column_before(at + sx + side)))
             })
             .collect();
-        WholeShifts {
+        let rows = ys
+            .iter()
+            .flat_map(|&sy| {
+                samples
+                    .iter()
+                    .flat_map(move |s| sides(s, 1).map(|(at, side)| luma.row_before(at + sy + side)))
+            })
+            .collect();
+        Shifts {
             luma,
-            reads,
             faces_shadow: samples.iter().map(|s| s.faces_shadow).collect(),
+            cols,
+            rows,
         }
     }
 
-    /// [`contrast`] for the shift by `i` columns and `j` rows.
-    fn contrast(&self, i: i64, j: i64) -> Option<f64> {
-        let read = |&(c, r, fx, fy): &(i64, i64, f64, f64)| self.luma.blend(c + i, r + j, fx, fy);
+    /// The mean contrast for the shift by column `i` and row `j` of the grid.
+    fn contrast(&self, i: usize, j: usize) -> Option<f64> {
+        let n = self.faces_shadow.len();
+        let cols = &self.cols[2 * n * i..2 * n * (i + 1)];
+        let rows = &self.rows[2 * n * j..2 * n * (j + 1)];
+        let read = |k: usize| {
+            let ((c, fx), (r, fy)) = (cols[k], rows[k]);
+            self.luma.blend(c, r, fx, fy)
+        };
         mean_step(
-            self.reads.len(),
-            self.reads.iter().zip(&self.faces_shadow).map(|(rw, &f)| {
-                Some(step(read(&rw[0])?, read(&rw[1])?, f))
-            }),
+            n,
+            self.faces_shadow
+                .iter()
+                .enumerate()
+                .map(|(k, &f)| Some(step(read(2 * k)?, read(2 * k + 1)?, f))),
         )
     }
 }
@@ -320,24 +334,29 @@ pub fn estimate(
     // searches and give the background, and are most of the evaluations. The best of them is
     // scored again on every sample before the finer ones are compared with it.
     let sparse: Vec<Sample> = samples.iter().step_by(2).copied().collect();
-    let shifts = WholeShifts::new(&luma, &sparse);
-    for j in -whole..=whole {
-        for i in -whole..=whole {
+    let pixels: Vec<f64> = (-whole..=whole).map(|i| i as f64).collect();
+    let shifts = Shifts::new(&luma, &sparse, &pixels, &pixels);
+    for (j, &sy) in pixels.iter().enumerate() {
+        for (i, &sx) in pixels.iter().enumerate() {
             if let Some(s) = shifts.contrast(i, j) {
                 scores.push(s);
-                consider(&mut best, s, i as f64, j as f64);
+                consider(&mut best, s, sx, sy);
             }
         }
     }
     let (_, wx, wy) = best?;
-    best = contrast(&luma, &samples, wx, wy).map(|s| (s, wx, wy));
-    for (i, j) in (-1..=1).flat_map(|j| (-1..=1).map(move |i| (i, j))) {
-        let (sx, sy) = (wx + i as f64 / 2.0, wy + j as f64 / 2.0);
-        if (i, j) == (0, 0) || sx.abs() > half || sy.abs() > half {
-            continue;
-        }
-        if let Some(s) = contrast(&luma, &samples, sx, sy) {
-            consider(&mut best, s, sx, sy);
+    let around = |c: f64, step: f64, k: i64| (-k..=k).map(|i| c + i as f64 * step).collect();
+    let (xs, ys): (Vec<f64>, Vec<f64>) = (around(wx, 0.5, 1), around(wy, 0.5, 1));
+    let halves = Shifts::new(&luma, &samples, &xs, &ys);
+    best = halves.contrast(1, 1).map(|s| (s, wx, wy));
+    for (j, &sy) in ys.iter().enumerate() {
+        for (i, &sx) in xs.iter().enumerate() {
+            if (i, j) == (1, 1) || sx.abs() > half || sy.abs() > half {
+                continue;
+            }
+            if let Some(s) = halves.contrast(i, j) {
+                consider(&mut best, s, sx, sy);
+            }
         }
     }
     let (_, gx, gy) = best?;
@@ -352,17 +371,21 @@ pub fn estimate(
     let floor_of = |s0: f64| s0 - PLATEAU * (s0 - median).max(0.0);
     // ((row, column) on the eighths' grid, (score, sx, sy)).
     type Scored = ((i64, i64), (f64, f64, f64));
+    const RINGS: i64 = 6;
+    let (xs, ys): (Vec<f64>, Vec<f64>) = (around(gx, 0.125, RINGS), around(gy, 0.125, RINGS));
+    let eighths = Shifts::new(&luma, &samples, &xs, &ys);
     let mut fine: Vec<Scored> = Vec::new();
     let mut s0 = f64::NEG_INFINITY;
-    for ring in 0..=6i64 {
+    for ring in 0..=RINGS {
         let mut ring_best = f64::NEG_INFINITY;
         for j in -ring..=ring {
             for i in -ring..=ring {
                 if i.abs().max(j.abs()) != ring {
                     continue;
                 }
-                let (sx, sy) = (gx + i as f64 / 8.0, gy + j as f64 / 8.0);
-                if let Some(s) = contrast(&luma, &samples, sx, sy) {
+                let (col, row) = ((i + RINGS) as usize, (j + RINGS) as usize);
+                let (sx, sy) = (xs[col], ys[row]);
+                if let Some(s) = eighths.contrast(col, row) {
                     ring_best = ring_best.max(s);
                     fine.push(((j, i), (s, sx, sy)));
                 }
@@ -720,10 +743,56 @@ mod tests {
         }
     }
 
+    /// The mean contrast across `samples` moved by `(sx, sy)` pixels, read from the photo's
+    /// pixels in columns `cols` and rows `rows` directly (bilinear between centres).
+    fn contrast_by_hand(
+        p: &Colour,
+        cols: std::ops::Range<i64>,
+        rows: std::ops::Range<i64>,
+        samples: &[Sample],
+        (sx, sy): (f64, f64),
+    ) -> Option<f64> {
+        let y = |c: i64, r: i64| {
+            let v = p.data[(r * p.grid.width as i64 + c) as usize];
+            (v[3] != 0).then(|| 0.299 * v[0] as f64 + 0.587 * v[1] as f64 + 0.114 * v[2] as f64)
+        };
+        let at = |x: f64, yy: f64| {
+            let (c, r) = ((x - 0.5).floor() as i64, (yy - 0.5).floor() as i64);
+            if !(cols.contains(&c) && cols.contains(&(c + 1))) {
+                return None;
+            }
+            if !(rows.contains(&r) && rows.contains(&(r + 1))) {
+                return None;
+            }
+            let (fx, fy) = (x - 0.5 - c as f64, yy - 0.5 - r as f64);
+            Some(
+                (1.0 - fy) * ((1.0 - fx) * y(c, r)? + fx * y(c + 1, r)?)
+                    + fy * ((1.0 - fx) * y(c, r + 1)? + fx * y(c + 1, r + 1)?),
+            )
+        };
+        let read: Vec<f64> = samples
+            .iter()
+            .filter_map(|s| {
+                let (x, yy) = (s.at.0 + sx, s.at.1 + sy);
+                let (o, i) = (
+                    at(x + s.out.0 * ACROSS, yy + s.out.1 * ACROSS)?,
+                    at(x - s.out.0 * ACROSS, yy - s.out.1 * ACROSS)?,
+                );
+                Some(if s.faces_shadow {
+                    (i - o).max(0.0)
+                } else {
+                    (i - o).abs()
+                })
+            })
+            .collect();
+        (read.len() * 2 >= samples.len() && !read.is_empty())
+            .then(|| read.iter().sum::<f64>() / read.len() as f64)
+    }
+
     #[test]
-    fn whole_pixel_shifts_read_what_moved_outlines_read() {
+    fn shifts_on_a_grid_read_what_the_moved_outline_reads() {
         // A rotated outline whose samples fall between centres, on a photo with nodata, shifted
-        // up to the window's border and off it.
+        // by whole pixels up to the window's border and off it, and by eighths.
         let mut p = photo();
         for i in (0..p.data.len()).step_by(37) {
             p.data[i][3] = 0;
@@ -738,24 +807,25 @@ mod tests {
         .unwrap();
         let samples = outline_samples(&fp, &band, NORTH);
         let luma = Luma::new(&band, (30, 90), (40, 100));
-        let shifts = WholeShifts::new(&luma, &samples);
+        let whole: Vec<f64> = (-15..=15).map(|i| i as f64).collect();
+        let eighths: Vec<f64> = (-6..=6).map(|i| 1.5 + i as f64 / 8.0).collect();
         let mut read = 0;
-        for j in -15..=15 {
-            for i in -15..=15 {
-                let (a, b) = (
-                    shifts.contrast(i, j),
-                    contrast(&luma, &samples, i as f64, j as f64),
-                );
-                match (a, b) {
-                    (Some(a), Some(b)) => {
-                        read += 1;
-                        assert!((a - b).abs() < 1e-9, "{i} {j}: {a} {b}")
+        for grid in [&whole, &eighths] {
+            let shifts = Shifts::new(&luma, &samples, grid, grid);
+            for (j, &sy) in grid.iter().enumerate() {
+                for (i, &sx) in grid.iter().enumerate() {
+                    let want = contrast_by_hand(&p, 30..90, 40..100, &samples, (sx, sy));
+                    match (shifts.contrast(i, j), want) {
+                        (Some(a), Some(b)) => {
+                            read += 1;
+                            assert!((a - b).abs() < 1e-9, "{sx} {sy}: {a} {b}")
+                        }
+                        (a, b) => assert_eq!(a, b, "{sx} {sy}"),
                     }
-                    _ => assert_eq!(a, b, "{i} {j}"),
                 }
             }
         }
-        assert!(read > 100 && read < 31 * 31, "{read}");
+        assert!(read > 100 && read < 31 * 31 + 13 * 13, "{read}");
     }
 
     /// A high sun's thin shadow has the strongest edge in the scene on its far side, a copy of
