@@ -1155,12 +1155,13 @@ impl Shared<'_> {
             Some(own) => {
                 let w = self.grid.width;
                 let taller = self.shading_neighbours(id, fp, own);
+                let tan_e = self.sun.elevation_deg.to_radians().tan();
                 unshaded = cells
                     .iter()
                     .copied()
                     .filter(|&i| {
                         let p = self.grid.cell_centre(i % w, i / w);
-                        !self.in_shadow_of(&taller, p, own)
+                        !self.in_shadow_of(&taller, p, own, tan_e)
                     })
                     .collect();
                 &unshaded[..]
@@ -1233,9 +1234,15 @@ impl Shared<'_> {
 
     /// Whether ground point `p` at terrain height `z` (metres) is in the shadow of one of the
     /// `neighbours` (walls toward the sun, roof): its ray toward the sun meets the walls below
-    /// the roof within [`Self::reach`] (as [`neighbour_shadows`] decides it for the ground).
-    fn in_shadow_of(&self, neighbours: &[(refine::Walls, f64)], p: (f64, f64), z: f64) -> bool {
-        let tan_e = self.sun.elevation_deg.to_radians().tan();
+    /// the roof within [`Self::reach`] (as [`neighbour_shadows`] decides it for the ground);
+    /// `tan_e` is the tangent of the sun's elevation.
+    fn in_shadow_of(
+        &self,
+        neighbours: &[(refine::Walls, f64)],
+        p: (f64, f64),
+        z: f64,
+        tan_e: f64,
+    ) -> bool {
         neighbours.iter().any(|(walls, roof)| {
             walls
                 .first(p)

@@ -56,11 +56,12 @@ pub fn refine(
     let points = SubPoints::new(n_sub);
     let t = &local.grid.transform;
     let walls = Walls::new(fp, (-u.0, -u.1));
-    let mut rays = walls.from_cells((t.cell_x, 0.0), (0.0, t.cell_y));
-    // The thresholds of the sub × sub points of each open kept cell (NaN: never shadowed),
-    // `n_sub` a cell in cell order; the corridor is the cells with one up to `z_hi`.
+    let mut rays = walls.for_cells((t.cell_x, 0.0), (0.0, t.cell_y));
+    // The corridor: the open kept cells with a point whose threshold is up to `z_hi`; the
+    // events: (threshold, cell) of those points. `th` holds a cell's points' thresholds (NaN:
+    // never shadowed).
     let mut corridor = vec![false; local.class.len()];
-    let mut thresholds: Vec<(usize, f64)> = Vec::new();
+    let mut events: Vec<(f64, usize)> = Vec::new();
     let mut th = vec![f64::NAN; n_sub];
     for i in 0..local.class.len() {
         if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
@@ -76,7 +77,7 @@ pub fn refine(
         }
         if th.iter().any(|&v| v <= z_hi) {
             corridor[i] = true;
-            thresholds.extend(th.iter().map(|&v| (i, v)));
+            events.extend(th.iter().filter(|&&v| v <= z_hi).map(|&v| (v, i)));
         }
     }
     let attached = attached_shadow(local, &corridor, keep);
@@ -90,14 +91,7 @@ pub fn refine(
     );
     let observed = observed_fraction(local, &attached, &touching, lit);
     let brightness = fitted_brightness(local, &corridor, &touching, lit);
-    let events = sorted_events(
-        thresholds
-            .into_iter()
-            .filter(|&(_, v)| v <= z_hi)
-            .map(|(i, v)| (v, i))
-            .collect(),
-        z_hi,
-    );
+    let events = sorted_events(events, z_hi);
     best_fit(&events, &brightness, &observed, z_hi, n_sub)
 }
 
@@ -449,7 +443,7 @@ impl Walls {
     /// The walls for rays from the points of grid cells whose sides are the vectors `ex`
     /// (from a cell's first corner to the next column's, metres east and north) and `ey` (to
     /// the next row's).
-    pub(super) fn from_cells(&self, ex: (f64, f64), ey: (f64, f64)) -> CellRays<'_> {
+    pub(super) fn for_cells(&self, ex: (f64, f64), ey: (f64, f64)) -> CellRays<'_> {
         let slopes = self
             .edges
             .iter()
@@ -511,8 +505,7 @@ impl CellRays<'_> {
                 let sl = &self.slopes[k];
                 let t = t0 + fx * sl[0] + fy * sl[1];
                 let s = s0 + fx * sl[2] + fy * sl[3];
-                // NaN `*v` (none yet) compares false.
-                if t >= 0.0 && (0.0..=1.0).contains(&s) && !(t >= *v) {
+                if t >= 0.0 && (0.0..=1.0).contains(&s) && (v.is_nan() || t < *v) {
                     *v = t;
                 }
             }
@@ -763,7 +756,7 @@ mod tests {
         for fp in [&l_shape, &diamond] {
             for d in directions {
                 let walls = Walls::new(fp, d);
-                let mut rays = walls.from_cells(ex, ey);
+                let mut rays = walls.for_cells(ex, ey);
                 let mut out = vec![0.0; points.len()];
                 for (c, r) in (0..20).flat_map(|c| (0..30).map(move |r| (c, r))) {
                     let corner = (-4.0 + c as f64 * ex.0, 9.0 + r as f64 * ey.1);

@@ -39,7 +39,7 @@ pub fn looks_pitched(fp: &Footprint, colour: &RowBand<[u8; 4]>, cells: &[usize])
         .copied()
         .filter(|&i| {
             let p = grid.cell_centre(i % w, i / w);
-            colour.at(i)[3] != 0 && distance_to_outline(fp, p) >= cell
+            colour.at(i)[3] != 0 && distance2_to_outline(fp, p) >= cell * cell
         })
         .collect();
     if inner.len() < MIN_CELLS {
@@ -91,8 +91,8 @@ pub fn looks_pitched(fp: &Footprint, colour: &RowBand<[u8; 4]>, cells: &[usize])
     pairs > 0 && same as f64 >= MIN_COHERENCE * pairs as f64
 }
 
-/// Distance (metres) from `p` to the nearest edge of `fp`.
-fn distance_to_outline(fp: &Footprint, p: (f64, f64)) -> f64 {
+/// Squared distance (square metres) from `p` to the nearest edge of `fp`.
+fn distance2_to_outline(fp: &Footprint, p: (f64, f64)) -> f64 {
     fp.edges()
         .map(|(a, b)| {
             let (ex, ey) = (b.0 - a.0, b.1 - a.1);
@@ -102,7 +102,8 @@ fn distance_to_outline(fp: &Footprint, p: (f64, f64)) -> f64 {
             } else {
                 (((p.0 - a.0) * ex + (p.1 - a.1) * ey) / l2).clamp(0.0, 1.0)
             };
-            (p.0 - a.0 - s * ex).hypot(p.1 - a.1 - s * ey)
+            let (dx, dy) = (p.0 - a.0 - s * ex, p.1 - a.1 - s * ey);
+            dx * dx + dy * dy
         })
         .fold(f64::INFINITY, f64::min)
 }
