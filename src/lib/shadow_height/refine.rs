@@ -61,7 +61,7 @@ pub fn refine(
     // events: (threshold, cell) of those points. `th` holds a cell's points' thresholds (NaN:
     // never shadowed).
     let mut corridor = vec![false; local.class.len()];
-    let mut events: Vec<(f64, usize)> = Vec::new();
+    let mut events: Vec<Event> = Vec::new();
     let mut th = vec![f64::NAN; n_sub];
     for i in 0..local.class.len() {
         if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
@@ -77,7 +77,7 @@ pub fn refine(
         }
         if th.iter().any(|&v| v <= z_hi) {
             corridor[i] = true;
-            events.extend(th.iter().filter(|&&v| v <= z_hi).map(|&v| (v, i)));
+            events.extend(th.iter().filter(|&&v| v <= z_hi).map(|&v| Event::new(v, i)));
         }
     }
     let attached = attached_shadow(local, &corridor, keep);
@@ -95,32 +95,57 @@ pub fn refine(
     best_fit(&events, &brightness, &observed, z_hi, n_sub)
 }
 
-/// `events` (threshold in `[0, z_hi]` metres, cell) in ascending order of threshold, then cell.
-/// A bucket sort (tens of thousands of events a footprint, spread evenly over the range):
-/// buckets by a monotone function of the threshold, each bucket sorted, so the order is the
-/// full sort's.
-fn sorted_events(events: Vec<(f64, usize)>, z_hi: f64) -> Vec<(f64, usize)> {
+/// A refinement point's threshold and cell as one sortable key: the threshold (metres, as
+/// an `f32`: micrometres at 100 m) in the high 32 bits, the cell in the low 32.
+///
+/// Invariant: the threshold is never negative, so the keys ascend with the thresholds, then
+/// the cells (the bits of non-negative floats ascend with their values).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Event(u64);
+
+impl Event {
+    /// The event of a point of `cell` (below 2³²: a window is at most
+    /// [`super::MAX_SHADOW_CELLS`] cells across and as wide) at `threshold` metres (≥ 0).
+    fn new(threshold: f64, cell: usize) -> Event {
+        // `+ 0.0` makes a −0 threshold +0, whose bits sort first.
+        let bits = (threshold as f32 + 0.0).to_bits();
+        Event((bits as u64) << 32 | cell as u32 as u64)
+    }
+
+    /// The threshold, metres.
+    fn threshold(self) -> f64 {
+        f32::from_bits((self.0 >> 32) as u32) as f64
+    }
+
+    fn cell(self) -> usize {
+        self.0 as u32 as usize
+    }
+}
+
+/// `events` (thresholds in `[0, z_hi]` metres) in ascending order. A bucket sort (tens of
+/// thousands of events a footprint, spread evenly over the range): buckets by a monotone
+/// function of the threshold, each bucket sorted, so the order is the full sort's.
+fn sorted_events(events: Vec<Event>, z_hi: f64) -> Vec<Event> {
     let n = events.len();
     let buckets = (n / 4).max(1);
     let scale = buckets as f64 / z_hi;
-    let bucket = |v: f64| ((v * scale) as usize).min(buckets - 1);
+    let bucket = |e: Event| ((e.threshold() * scale) as usize).min(buckets - 1);
     let mut start = vec![0usize; buckets + 1];
-    for e in &events {
-        start[bucket(e.0) + 1] += 1;
+    for &e in &events {
+        start[bucket(e) + 1] += 1;
     }
     for b in 0..buckets {
         start[b + 1] += start[b];
     }
     let mut next = start.clone();
-    let mut out = vec![(0.0, 0); n];
+    let mut out = vec![Event(0); n];
     for e in events {
-        let b = bucket(e.0);
+        let b = bucket(e);
         out[next[b]] = e;
         next[b] += 1;
     }
     for b in 0..buckets {
-        out[start[b]..start[b + 1]]
-            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        out[start[b]..start[b + 1]].sort_unstable();
     }
     out
 }
@@ -170,7 +195,7 @@ fn fitted_brightness(
 /// with the IoU of its synthetic fractions and `observed` as the overlap. `None` without
 /// observed shadow, without any spread of brightness, or when no height fits at all.
 fn best_fit(
-    events: &[(f64, usize)],
+    events: &[Event],
     brightness: &[f64],
     observed: &[f64],
     z_hi: f64,
@@ -194,14 +219,15 @@ fn best_fit(
     let (mut ss, mut sss, mut ssb) = (0.0, 0.0, 0.0);
     let mut covered = vec![0u32; brightness.len()];
     let mut best: Option<(f64, usize)> = None;
-    for (k, &(_, i)) in events.iter().enumerate() {
+    for (k, &e) in events.iter().enumerate() {
+        let i = e.cell();
         let before = covered[i] as f64 * step;
         let after = before + step;
         covered[i] += 1;
         ss += step;
         sss += after * after - before * before;
         ssb += step * brightness[i];
-        if events.get(k + 1).is_some_and(|e| e.0 == events[k].0) {
+        if events.get(k + 1).is_some_and(|f| f.0 >> 32 == e.0 >> 32) {
             continue;
         }
         let sxx = sss - ss * ss / n;
@@ -219,12 +245,12 @@ fn best_fit(
     if score <= 0.0 {
         return None;
     }
-    let lo = events[next - 1].0;
-    let hi = events.get(next).map_or(z_hi, |e| e.0).max(lo);
+    let lo = events[next - 1].threshold();
+    let hi = events.get(next).map_or(z_hi, |e| e.threshold()).max(lo);
     // The IoU of the fractions at the answer.
     let mut s = vec![0.0; observed.len()];
-    for &(_, i) in &events[..next] {
-        s[i] += step;
+    for e in &events[..next] {
+        s[e.cell()] += step;
     }
     let num: f64 = s.iter().zip(observed).map(|(a, b)| a.min(*b)).sum();
     let den: f64 = s.iter().zip(observed).map(|(a, b)| a.max(*b)).sum();
@@ -673,9 +699,9 @@ mod tests {
         // Cell 0 all shadow, cell 1 half, cells 2 and 3 lit: b = 70 − 50·s exactly when cell 0
         // is covered and half of cell 1 — heights in (2, 3]; any lit and shadow level fits as
         // well (the levels are fitted, not given).
-        let mut ev: Vec<(f64, usize)> = (0..16).map(|_| (1.0, 0)).collect();
-        ev.extend((0..16).map(|k| (2.0 + (k / 8) as f64, 1)));
-        ev.extend((0..16).map(|_| (4.0, 2)));
+        let mut ev: Vec<Event> = (0..16).map(|_| Event::new(1.0, 0)).collect();
+        ev.extend((0..16).map(|k| Event::new(2.0 + (k / 8) as f64, 1)));
+        ev.extend((0..16).map(|_| Event::new(4.0, 2)));
         let observed = [1.0, 0.5, 0.0, 0.0];
         for (lit, shadow) in [(70.0, 20.0), (200.0, 190.0), (1.0, 0.0)] {
             let b: Vec<f64> = observed.iter().map(|o| lit + (shadow - lit) * o).collect();
@@ -779,7 +805,8 @@ mod tests {
 
     #[test]
     fn bucketed_events_are_in_the_full_sort_order() {
-        // Ties, both zeros, the range's ends and values crowded into one bucket.
+        // Ties, both zeros, the range's ends, values crowded into one bucket and values one
+        // f32 ulp apart.
         let mut v: Vec<(f64, usize)> = (0..2000)
             .map(|k| (((k * 7919) % 1000) as f64 / 999.0 * 30.0, k % 37))
             .collect();
@@ -790,15 +817,21 @@ mod tests {
             (30.0, 1),
             (30.0, 0),
             (1e-300, 3),
+            (1e-30, 3),
         ]);
         v.extend((0..50).map(|k| (15.0 + k as f64 * 1e-13, 50 - k)));
-        let mut full = v.clone();
+        let ulp = |k: u32| f32::from_bits(15.0f32.to_bits() + k) as f64;
+        v.extend((0..50).map(|k| (ulp(k % 7), 3 * k as usize)));
+        // The full sort of the thresholds as kept (f32, −0 as +0), then cells.
+        let mut full: Vec<(f32, usize)> = v.iter().map(|&(t, c)| (t as f32 + 0.0, c)).collect();
         full.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let got = sorted_events(v, 30.0);
+        let got = sorted_events(v.iter().map(|&(t, c)| Event::new(t, c)).collect(), 30.0);
         assert_eq!(
-            got.iter().map(|e| (e.0.to_bits(), e.1)).collect::<Vec<_>>(),
+            got.iter()
+                .map(|e| (e.threshold().to_bits(), e.cell()))
+                .collect::<Vec<_>>(),
             full.iter()
-                .map(|e| (e.0.to_bits(), e.1))
+                .map(|e| ((e.0 as f64).to_bits(), e.1))
                 .collect::<Vec<_>>()
         );
         assert!(sorted_events(Vec::new(), 1.0).is_empty());

@@ -209,14 +209,16 @@ fn mean_step(len: usize, steps: impl Iterator<Item = Option<f64>>) -> Option<f64
     (n * 2 >= len && n > 0).then(|| sum / n as f64)
 }
 
-/// The outline's contrast ([`step`]) for the shifts on a grid of columns `xs` and rows `ys`
-/// (pixels): where each read point falls between cell centres depends on the shift's column
-/// along one axis and its row along the other, so it is worked out once per column and per
-/// row for all the grid's shifts.
+/// The outline's contrast ([`step`]) for the shifts on a square grid: `2k + 1` columns and
+/// rows `pitch` pixels apart around a centre. Where each read point falls between cell
+/// centres depends on the shift's column along one axis and its row along the other, so it is
+/// worked out once per column and per row for all the grid's shifts (on a grid of whole
+/// pixels, once: the fractions stay, the cells move by whole pixels).
 ///
 /// Invariant: [`Shifts::contrast`]`(i, j)` is the mean contrast across the outline moved by
-/// `(xs[i], ys[j])`, read at `p ± n·ACROSS` around each moved sample `p` (bilinear); `None`
-/// when under half the samples can be read (off the window, or next to nodata).
+/// column `i` and row `j` of the grid, read at `p ± n·ACROSS` around each moved sample `p`
+/// (bilinear); `None` when under half the samples can be read (off the window, or next to
+/// nodata).
 struct Shifts<'a> {
     luma: &'a Luma,
     faces_shadow: Vec<bool>,
@@ -228,36 +230,53 @@ struct Shifts<'a> {
 }
 
 impl<'a> Shifts<'a> {
-    fn new(luma: &'a Luma, samples: &[Sample], xs: &[f64], ys: &[f64]) -> Shifts<'a> {
-        let sides = |s: &Sample, axis: usize| {
-            let (at, n) = if axis == 0 {
-                (s.at.0, s.out.0)
-            } else {
-                (s.at.1, s.out.1)
-            };
-            [n * ACROSS, -n * ACROSS].map(move |side| (at, side))
+    /// The grid around `centre` (pixels, column and row): `2k + 1` shifts `pitch` pixels apart
+    /// on each axis.
+    fn new(
+        luma: &'a Luma,
+        samples: &[Sample],
+        centre: (f64, f64),
+        pitch: f64,
+        k: usize,
+    ) -> Shifts<'a> {
+        let first = (
+            centre.0 - k as f64 * pitch,
+            centre.1 - k as f64 * pitch,
+        );
+        // Per read, where it falls on the axis (column or row) with the first shift.
+        let reads = |axis: fn(&Luma, f64) -> (i64, f64), at: &dyn Fn(&Sample) -> (f64, f64)| {
+            let mut out = Vec::with_capacity(2 * samples.len());
+            for s in samples {
+                let (p, n) = at(s);
+                out.push(axis(luma, p + n * ACROSS));
+                out.push(axis(luma, p - n * ACROSS));
+            }
+            out
         };
-        let cols = xs
-            .iter()
-            .flat_map(|&sx| {
-                samples
-                    .iter()
-                    .flat_map(move |s| sides(s, 0).map(|(at, side)| luma.column_before(at + sx + side)))
-            })
-            .collect();
-        let rows = ys
-            .iter()
-            .flat_map(|&sy| {
-                samples
-                    .iter()
-                    .flat_map(move |s| sides(s, 1).map(|(at, side)| luma.row_before(at + sy + side)))
-            })
-            .collect();
+        let x0 = reads(Luma::column_before, &|s| (s.at.0 + first.0, s.out.0));
+        let y0 = reads(Luma::row_before, &|s| (s.at.1 + first.1, s.out.1));
+        // The other shifts move each read by whole cells plus a part of one.
+        let along = |start: &[(i64, f64)]| {
+            let mut out = Vec::with_capacity(start.len() * (2 * k + 1));
+            for i in 0..=2 * k {
+                let moved = i as f64 * pitch;
+                out.extend(start.iter().map(|&(c, f)| {
+                    if pitch == 1.0 {
+                        (c + i as i64, f)
+                    } else {
+                        let v = f + moved;
+                        let whole = floor_i64(v);
+                        (c + whole, v - whole as f64)
+                    }
+                }));
+            }
+            out
+        };
         Shifts {
             luma,
             faces_shadow: samples.iter().map(|s| s.faces_shadow).collect(),
-            cols,
-            rows,
+            cols: along(&x0),
+            rows: along(&y0),
         }
     }
 
@@ -334,27 +353,26 @@ pub fn estimate(
     // searches and give the background, and are most of the evaluations. The best of them is
     // scored again on every sample before the finer ones are compared with it.
     let sparse: Vec<Sample> = samples.iter().step_by(2).copied().collect();
-    let pixels: Vec<f64> = (-whole..=whole).map(|i| i as f64).collect();
-    let shifts = Shifts::new(&luma, &sparse, &pixels, &pixels);
-    for (j, &sy) in pixels.iter().enumerate() {
-        for (i, &sx) in pixels.iter().enumerate() {
-            if let Some(s) = shifts.contrast(i, j) {
+    let pixels = Shifts::new(&luma, &sparse, (0.0, 0.0), 1.0, whole as usize);
+    for j in -whole..=whole {
+        for i in -whole..=whole {
+            let at = ((i + whole) as usize, (j + whole) as usize);
+            if let Some(s) = pixels.contrast(at.0, at.1) {
                 scores.push(s);
-                consider(&mut best, s, sx, sy);
+                consider(&mut best, s, i as f64, j as f64);
             }
         }
     }
     let (_, wx, wy) = best?;
-    let around = |c: f64, step: f64, k: i64| (-k..=k).map(|i| c + i as f64 * step).collect();
-    let (xs, ys): (Vec<f64>, Vec<f64>) = (around(wx, 0.5, 1), around(wy, 0.5, 1));
-    let halves = Shifts::new(&luma, &samples, &xs, &ys);
+    let halves = Shifts::new(&luma, &samples, (wx, wy), 0.5, 1);
     best = halves.contrast(1, 1).map(|s| (s, wx, wy));
-    for (j, &sy) in ys.iter().enumerate() {
-        for (i, &sx) in xs.iter().enumerate() {
-            if (i, j) == (1, 1) || sx.abs() > half || sy.abs() > half {
+    for j in -1..=1 {
+        for i in -1..=1 {
+            let (sx, sy) = (wx + i as f64 / 2.0, wy + j as f64 / 2.0);
+            if (i, j) == (0, 0) || sx.abs() > half || sy.abs() > half {
                 continue;
             }
-            if let Some(s) = halves.contrast(i, j) {
+            if let Some(s) = halves.contrast((i + 1) as usize, (j + 1) as usize) {
                 consider(&mut best, s, sx, sy);
             }
         }
@@ -371,21 +389,25 @@ pub fn estimate(
     let floor_of = |s0: f64| s0 - PLATEAU * (s0 - median).max(0.0);
     // ((row, column) on the eighths' grid, (score, sx, sy)).
     type Scored = ((i64, i64), (f64, f64, f64));
+    // The grid of eighths is made for the usual three rings first, for all six when needed.
     const RINGS: i64 = 6;
-    let (xs, ys): (Vec<f64>, Vec<f64>) = (around(gx, 0.125, RINGS), around(gy, 0.125, RINGS));
-    let eighths = Shifts::new(&luma, &samples, &xs, &ys);
+    let eighths = |k: i64| (k, Shifts::new(&luma, &samples, (gx, gy), 0.125, k as usize));
+    let mut grid = eighths(3);
     let mut fine: Vec<Scored> = Vec::new();
     let mut s0 = f64::NEG_INFINITY;
     for ring in 0..=RINGS {
+        if ring > grid.0 {
+            grid = eighths(RINGS);
+        }
         let mut ring_best = f64::NEG_INFINITY;
         for j in -ring..=ring {
             for i in -ring..=ring {
                 if i.abs().max(j.abs()) != ring {
                     continue;
                 }
-                let (col, row) = ((i + RINGS) as usize, (j + RINGS) as usize);
-                let (sx, sy) = (xs[col], ys[row]);
-                if let Some(s) = eighths.contrast(col, row) {
+                let (sx, sy) = (gx + i as f64 / 8.0, gy + j as f64 / 8.0);
+                let (col, row) = ((i + grid.0) as usize, (j + grid.0) as usize);
+                if let Some(s) = grid.1.contrast(col, row) {
                     ring_best = ring_best.max(s);
                     fine.push(((j, i), (s, sx, sy)));
                 }
@@ -807,13 +829,13 @@ mod tests {
         .unwrap();
         let samples = outline_samples(&fp, &band, NORTH);
         let luma = Luma::new(&band, (30, 90), (40, 100));
-        let whole: Vec<f64> = (-15..=15).map(|i| i as f64).collect();
-        let eighths: Vec<f64> = (-6..=6).map(|i| 1.5 + i as f64 / 8.0).collect();
         let mut read = 0;
-        for grid in [&whole, &eighths] {
-            let shifts = Shifts::new(&luma, &samples, grid, grid);
-            for (j, &sy) in grid.iter().enumerate() {
-                for (i, &sx) in grid.iter().enumerate() {
+        for (centre, pitch, k) in [((0.0, 0.0), 1.0, 15), ((1.5, -0.5), 0.125, 6)] {
+            let shifts = Shifts::new(&luma, &samples, centre, pitch, k);
+            let at = |i: usize, c: f64| c + (i as f64 - k as f64) * pitch;
+            for j in 0..=2 * k {
+                for i in 0..=2 * k {
+                    let (sx, sy) = (at(i, centre.0), at(j, centre.1));
                     let want = contrast_by_hand(&p, 30..90, 40..100, &samples, (sx, sy));
                     match (shifts.contrast(i, j), want) {
                         (Some(a), Some(b)) => {
