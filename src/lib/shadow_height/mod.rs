@@ -723,6 +723,20 @@ impl<'a> Band<'a> {
     }
 }
 
+/// A footprint whose shadow can reach a band ([`neighbour_shadows`]).
+struct Caster {
+    /// The footprint's id (index + 1).
+    id: u32,
+    /// Its roof, absolute metres.
+    roof: f64,
+    /// Its walls, for rays toward the sun.
+    walls: refine::Walls,
+    /// Its outline swept as far as the roof's shadow reaches over the band's lowest ground.
+    hull: Vec<(f64, f64)>,
+    /// The band's rows the swept outline covers.
+    rows: Range<usize>,
+}
+
 /// Per cell of `terrain`'s band: which footprint's shadow at its roof (`roofs`, absolute
 /// metres) covers the ground there — the footprint's id (index + 1), [`MANY_SHADOWS`] for
 /// more than one, 0 for none. A footprint shades ground point `p` at terrain height `z` when
@@ -740,7 +754,7 @@ fn neighbour_shadows<'a>(
 ) -> RowBand<'a, u32> {
     let grid = terrain.grid;
     let rows = terrain.rows();
-    let (w, first) = (grid.width, rows.start * grid.width);
+    let w = grid.width;
     let z_min = terrain
         .values()
         .iter()
@@ -751,7 +765,7 @@ fn neighbour_shadows<'a>(
     let toward = sun.direction();
     let t = &grid.transform;
     let band_box = grid_box(grid, rows.clone());
-    let shaded: Vec<(u32, Vec<usize>)> = shadows
+    let casters: Vec<Caster> = shadows
         .meeting(band_box)
         .into_par_iter()
         .filter_map(|k| {
@@ -762,49 +776,63 @@ fn neighbour_shadows<'a>(
                 return None;
             }
             let f = &footprints[k];
-            let walls = refine::Walls::new(f, toward);
             let along = (-toward.0 * len, -toward.1 * len);
-            let hull = f.swept_hull(along);
-            let b = swept(f.bbox(), along);
-            let lo = box_rows(grid, b, 1.0);
-            let (r0, r1) = (lo.start.max(rows.start), lo.end.min(rows.end));
-            let mut out = Vec::new();
-            for r in r0..r1 {
-                let (_, y) = grid.cell_centre(0, r);
-                let Some((x0, x1)) = footprint::hull_span(&hull, y) else {
-                    continue;
-                };
-                let (c0, _) = t.world_to_pixel(x0, y);
-                let (c1, _) = t.world_to_pixel(x1, y);
-                let wf = w as f64;
-                let (c0, c1) = (c0.min(c1), c0.max(c1));
-                let c0 = (c0 - 1.0).floor().clamp(0.0, wf) as usize;
-                let c1 = (c1 + 1.0).ceil().clamp(0.0, wf) as usize;
-                for c in c0..c1 {
-                    let i = r * w + c;
-                    let z = *terrain.at(i) as f64;
-                    let p = grid.cell_centre(c, r);
-                    let under = walls
-                        .first(p)
-                        .is_some_and(|d| d <= reach && z + d * tan_e < roof);
-                    if under {
-                        out.push(i - first);
+            let lo = box_rows(grid, swept(f.bbox(), along), 1.0);
+            let span = lo.start.max(rows.start)..lo.end.min(rows.end);
+            Some(Caster {
+                id: k as u32 + 1,
+                roof,
+                walls: refine::Walls::new(f, toward),
+                hull: f.swept_hull(along),
+                rows: span,
+            })
+        })
+        .collect();
+    // Marked in chunks of rows, in parallel: a cell's mark does not depend on the order its
+    // shadows are cast in.
+    const CHUNK_ROWS: usize = 32;
+    let mut by = vec![0u32; rows.len() * w];
+    by.par_chunks_mut(CHUNK_ROWS * w)
+        .enumerate()
+        .for_each(|(n, chunk)| {
+            let start = rows.start + n * CHUNK_ROWS;
+            let end = start + chunk.len() / w;
+            for caster in &casters {
+                let Caster {
+                    id,
+                    roof,
+                    walls,
+                    hull,
+                    rows: covered,
+                } = caster;
+                for r in covered.start.max(start)..covered.end.min(end) {
+                    let (_, y) = grid.cell_centre(0, r);
+                    let Some((x0, x1)) = footprint::hull_span(hull, y) else {
+                        continue;
+                    };
+                    let (c0, _) = t.world_to_pixel(x0, y);
+                    let (c1, _) = t.world_to_pixel(x1, y);
+                    let wf = w as f64;
+                    let (c0, c1) = (c0.min(c1), c0.max(c1));
+                    let c0 = (c0 - 1.0).floor().clamp(0.0, wf) as usize;
+                    let c1 = (c1 + 1.0).ceil().clamp(0.0, wf) as usize;
+                    for c in c0..c1 {
+                        let z = *terrain.at(r * w + c) as f64;
+                        let under = walls
+                            .first(grid.cell_centre(c, r))
+                            .is_some_and(|d| d <= reach && z + d * tan_e < *roof);
+                        if under {
+                            let v = &mut chunk[(r - start) * w + c];
+                            *v = match *v {
+                                0 => *id,
+                                v if v == *id => v,
+                                _ => MANY_SHADOWS,
+                            };
+                        }
                     }
                 }
             }
-            Some((k as u32 + 1, out))
-        })
-        .collect();
-    let mut by = vec![0u32; rows.len() * w];
-    for (id, cells) in &shaded {
-        for &i in cells {
-            by[i] = match by[i] {
-                0 => *id,
-                v if v == *id => v,
-                _ => MANY_SHADOWS,
-            };
-        }
-    }
+        });
     RowBand::new(grid, rows, by)
 }
 

@@ -156,11 +156,11 @@ fn touching(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec<bool> {
     let (w, h) = (local.grid.width, local.grid.height);
     (0..corridor.len())
         .map(|i| {
-            let (c, r) = (i % w, i / w);
-            corridor[i]
-                && (r.saturating_sub(1)..=(r + 1).min(h - 1)).any(|rr| {
-                    (c.saturating_sub(1)..=(c + 1).min(w - 1)).any(|cc| attached[rr * w + cc])
-                })
+            let mut near = false;
+            if corridor[i] {
+                around(i, w, h, |j| near |= attached[j]);
+            }
+            near
         })
         .collect()
 }
@@ -396,7 +396,7 @@ fn observed_fraction(
 pub(super) struct Walls {
     d: (f64, f64),
     /// The edges not parallel to `d` (a ray meets those nowhere or along their length, never
-    /// first at one point).
+    /// first at one point), nor so close to parallel that `1 / cross(d, along)` overflows.
     edges: Vec<Wall>,
     /// A vertex, and the range of `cross(v − it, d)` over the vertices `v`, widened by
     /// [`ACROSS_SLACK`]: a ray whose start is outside it passes beside the footprint.
@@ -414,8 +414,8 @@ struct Wall {
     start: (f64, f64),
     /// From the first vertex to the second.
     along: (f64, f64),
-    /// `cross(d, along)`, never 0.
-    den: f64,
+    /// `1 / cross(d, along)`, finite.
+    inv_den: f64,
 }
 
 impl Walls {
@@ -425,11 +425,11 @@ impl Walls {
             .edges()
             .filter_map(|(a, b)| {
                 let along = (b.0 - a.0, b.1 - a.1);
-                let den = cross(d, along);
-                (den != 0.0).then_some(Wall {
+                let inv_den = 1.0 / cross(d, along);
+                inv_den.is_finite().then_some(Wall {
                     start: a,
                     along,
-                    den,
+                    inv_den,
                 })
             })
             .collect();
@@ -458,7 +458,7 @@ impl Walls {
             .iter()
             .filter_map(|w| {
                 let ap = (w.start.0 - p.0, w.start.1 - p.1);
-                let (t, s) = (cross(ap, w.along) / w.den, cross(ap, d) / w.den);
+                let (t, s) = (cross(ap, w.along) * w.inv_den, cross(ap, d) * w.inv_den);
                 (t >= 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
             })
             .min_by(f64::total_cmp)
@@ -475,8 +475,8 @@ impl Walls {
             .iter()
             .map(|w| {
                 // Moving the ray's start by `e` moves `start − p` by `−e`.
-                let along = |e: (f64, f64)| -cross(e, w.along) / w.den;
-                let across = |e: (f64, f64)| -cross(e, self.d) / w.den;
+                let along = |e: (f64, f64)| -cross(e, w.along) * w.inv_den;
+                let across = |e: (f64, f64)| -cross(e, self.d) * w.inv_den;
                 [along(ex), along(ey), across(ex), across(ey)]
             })
             .collect();
@@ -517,7 +517,7 @@ impl CellRays<'_> {
         let d = self.walls.d;
         for (k, (w, sl)) in self.walls.edges.iter().zip(&self.slopes).enumerate() {
             let ap = (w.start.0 - corner.0, w.start.1 - corner.1);
-            let (t, s) = (cross(ap, w.along) / w.den, cross(ap, d) / w.den);
+            let (t, s) = (cross(ap, w.along) * w.inv_den, cross(ap, d) * w.inv_den);
             let t_max = t + sl[0].max(0.0) + sl[1].max(0.0);
             let s_min = s + sl[2].min(0.0) + sl[3].min(0.0);
             let s_max = s + sl[2].max(0.0) + sl[3].max(0.0);
@@ -551,43 +551,45 @@ fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
 /// they hide the shadow, they do not end it.
 fn attached_shadow(local: &Local, corridor: &[bool], keep: &[bool]) -> Vec<bool> {
     let (w, h) = (local.grid.width, local.grid.height);
-    let neighbours = |i: usize| {
-        let (c, r) = ((i % w) as i64, (i / w) as i64);
-        (-1i64..=1)
-            .flat_map(move |dr| (-1i64..=1).map(move |dc| (c + dc, r + dr)))
-            .filter(move |&(x, y)| x >= 0 && y >= 0 && x < w as i64 && y < h as i64)
-            .map(move |(x, y)| y as usize * w + x as usize)
-    };
     let open = |i: usize| corridor[i] && local.class[i] == Class::Shadow;
     // Unusable cells hide the shadow; the footprint's edge cells mix it with the roof.
-    let through = |i: usize| {
-        open(i) || local.class[i] == Class::Edge || (keep[i] && local.class[i] == Class::Unusable)
-    };
-    // The seeds: the edge cells, and the cells to pass through beside the footprint's own.
+    let through: Vec<bool> = (0..corridor.len())
+        .map(|i| {
+            open(i)
+                || local.class[i] == Class::Edge
+                || (keep[i] && local.class[i] == Class::Unusable)
+        })
+        .collect();
     let mut seen = vec![false; corridor.len()];
     let mut stack = Vec::new();
+    let reach = |j: usize, seen: &mut [bool], stack: &mut Vec<usize>| {
+        if through[j] && !seen[j] {
+            seen[j] = true;
+            stack.push(j);
+        }
+    };
+    // The seeds: the edge cells, and the cells to pass through beside the footprint's own.
     for i in 0..corridor.len() {
-        let seeds: &mut dyn Iterator<Item = usize> = match local.class[i] {
-            Class::Edge => &mut std::iter::once(i),
-            Class::Own => &mut neighbours(i),
-            _ => continue,
-        };
-        for j in seeds {
-            if !seen[j] && through(j) {
-                seen[j] = true;
-                stack.push(j);
-            }
+        match local.class[i] {
+            Class::Edge => reach(i, &mut seen, &mut stack),
+            Class::Own => around(i, w, h, |j| reach(j, &mut seen, &mut stack)),
+            _ => {}
         }
     }
     while let Some(i) = stack.pop() {
-        for j in neighbours(i) {
-            if !seen[j] && through(j) {
-                seen[j] = true;
-                stack.push(j);
-            }
-        }
+        around(i, w, h, |j| reach(j, &mut seen, &mut stack));
     }
     (0..seen.len()).map(|i| seen[i] && open(i)).collect()
+}
+
+/// Call `f` with cell `i` of a `w` × `h` window and each of its 8 neighbours in the window.
+fn around(i: usize, w: usize, h: usize, mut f: impl FnMut(usize)) {
+    let (c, r) = (i % w, i / w);
+    for rr in r.saturating_sub(1)..=(r + 1).min(h - 1) {
+        for cc in c.saturating_sub(1)..=(c + 1).min(w - 1) {
+            f(rr * w + cc);
+        }
+    }
 }
 
 #[cfg(test)]
