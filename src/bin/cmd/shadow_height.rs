@@ -7,7 +7,6 @@ use dbms::io::atomic::{write_bytes_atomic, AtomicFile};
 use dbms::raster::RowSource;
 use dbms::shadow_height::{self as sh, output};
 use serde_json::json;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Measure building heights from their shadows (first estimate L·tan(elevation), refined by
@@ -154,10 +153,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     // into place only after --apply's change committed: a failed apply leaves no heights file
     // for `make` to take as up to date.
     let mut heights_file = AtomicFile::create(&args.output)?;
-    heights_file
-        .writer()
-        .write_all(output::to_text(&doc).as_bytes())
-        .map_err(|e| Error::io(&args.output, e))?;
+    output::write_text(&doc, heights_file.writer()).map_err(|e| Error::io(&args.output, e))?;
     let heights_file = heights_file.stage()?;
     let count = |f: &dyn Fn(&sh::Measurement) -> bool| {
         results.iter().filter(|r| r.as_ref().is_ok_and(f)).count()

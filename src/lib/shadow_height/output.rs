@@ -114,6 +114,12 @@ pub fn buildings_layer(heights: &Value) -> Value {
     doc
 }
 
+/// Write `doc` to `out` as [`to_text`] makes it, without holding the text.
+pub fn write_text(doc: &Value, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    serde_json::to_writer_pretty(&mut *out, doc)?;
+    out.write_all(b"\n")
+}
+
 /// Pretty JSON text with a final newline (what the files hold).
 pub fn to_text(doc: &Value) -> String {
     let mut s = serde_json::to_string_pretty(doc).expect("JSON value serialises");

@@ -57,10 +57,11 @@ pub fn refine(
     let t = &local.grid.transform;
     let walls = Walls::new(fp, (-u.0, -u.1));
     let mut rays = walls.for_cells((t.cell_x, 0.0), (0.0, t.cell_y));
-    // The corridor: the open kept cells with a point whose threshold is up to `z_hi`; the
-    // events: (threshold, cell) of those points. `th` holds a cell's points' thresholds (NaN:
-    // never shadowed).
+    // The corridor: the open kept cells with a point whose threshold is up to `z_hi` (also
+    // listed in `members`, in cell order); the events: (threshold, member) of those points.
+    // `th` holds a cell's points' thresholds (NaN: never shadowed).
     let mut corridor = vec![false; local.class.len()];
+    let mut members: Vec<usize> = Vec::new();
     let mut events: Vec<Event> = Vec::new();
     let mut th = vec![f64::NAN; n_sub];
     for i in 0..local.class.len() {
@@ -77,7 +78,9 @@ pub fn refine(
         }
         if th.iter().any(|&v| v <= z_hi) {
             corridor[i] = true;
-            events.extend(th.iter().filter(|&&v| v <= z_hi).map(|&v| Event::new(v, i)));
+            let member = members.len();
+            members.push(i);
+            events.extend(th.iter().filter(|&&v| v <= z_hi).map(|&v| Event::new(v, member)));
         }
     }
     let attached = attached_shadow(local, &corridor, keep);
@@ -91,8 +94,17 @@ pub fn refine(
     );
     let observed = observed_fraction(local, &attached, &touching, lit);
     let brightness = fitted_brightness(local, &corridor, &touching, lit);
+    // Only the corridor is compared (its brightness is the finite one, its cells all there
+    // is observed), so the fit runs over the members: a few thousand cells, not the window.
+    let of_members = |v: &[f64]| members.iter().map(|&i| v[i]).collect::<Vec<_>>();
     let events = sorted_events(events, z_hi);
-    best_fit(&events, &brightness, &observed, z_hi, n_sub)
+    best_fit(
+        &events,
+        &of_members(&brightness),
+        &of_members(&observed),
+        z_hi,
+        n_sub,
+    )
 }
 
 /// A refinement point's threshold and cell as one sortable key: the threshold (metres, as
