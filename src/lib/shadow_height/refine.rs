@@ -80,7 +80,11 @@ pub fn refine(
             corridor[i] = true;
             let member = members.len();
             members.push(i);
-            events.extend(th.iter().filter(|&&v| v <= z_hi).map(|&v| Event::new(v, member)));
+            events.extend(
+                th.iter()
+                    .filter(|&&v| v <= z_hi)
+                    .map(|&v| Event::new(v, member)),
+            );
         }
     }
     let attached = attached_shadow(local, &corridor, keep);
@@ -446,10 +450,12 @@ impl Walls {
             })
             .collect();
         let o = fp.edges().next().map_or((0.0, 0.0), |e| e.0);
-        let (lo, hi) = fp.edges().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), e| {
-            let q = cross((e.0 .0 - o.0, e.0 .1 - o.1), d);
-            (lo.min(q), hi.max(q))
-        });
+        let (lo, hi) = fp
+            .edges()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), e| {
+                let q = cross((e.0 .0 - o.0, e.0 .1 - o.1), d);
+                (lo.min(q), hi.max(q))
+            });
         Walls {
             d,
             edges,
@@ -743,7 +749,10 @@ mod tests {
             let around = heights_around(&l, c, r);
             for (k, &(fx, fy)) in points.at.iter().enumerate() {
                 let want = (c as f64 + fx - 0.5) + 0.25 * (r as f64 + fy - 0.5);
-                assert!((points.terrain(k, &around) - want).abs() < 1e-9, "{c} {r} {k}");
+                assert!(
+                    (points.terrain(k, &around) - want).abs() < 1e-9,
+                    "{c} {r} {k}"
+                );
             }
         }
         // West of the first centre and south of the last: the cell's own height.
@@ -790,7 +799,10 @@ mod tests {
             (1.0, off),
             (-off, 1.0),
             (0.6, 0.8),
-            (-std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2),
+            (
+                -std::f64::consts::FRAC_1_SQRT_2,
+                std::f64::consts::FRAC_1_SQRT_2,
+            ),
         ];
         let mut met = 0;
         for fp in [&l_shape, &diamond] {

@@ -239,10 +239,7 @@ impl<'a> Shifts<'a> {
         pitch: f64,
         k: usize,
     ) -> Shifts<'a> {
-        let first = (
-            centre.0 - k as f64 * pitch,
-            centre.1 - k as f64 * pitch,
-        );
+        let first = (centre.0 - k as f64 * pitch, centre.1 - k as f64 * pitch);
         // Per read, where it falls on the axis (column or row) with the first shift.
         let reads = |axis: fn(&Luma, f64) -> (i64, f64), at: &dyn Fn(&Sample) -> (f64, f64)| {
             let mut out = Vec::with_capacity(2 * samples.len());
