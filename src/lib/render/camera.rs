@@ -122,8 +122,14 @@ impl Basis {
     /// Unit world direction through the centre of pixel `(i, j)` (column, row from the top).
     #[inline]
     pub fn direction(&self, i: usize, j: usize) -> [f64; 3] {
-        let x = (2.0 * (i as f64 + 0.5) / self.width - 1.0) * self.half_w;
-        let y = (1.0 - 2.0 * (j as f64 + 0.5) / self.height) * self.half_h;
+        self.direction_at(i as f64 + 0.5, j as f64 + 0.5)
+    }
+
+    /// Unit world direction through image point `(x, y)`, in pixels from the image's top-left
+    /// corner (pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`; its centre is `(i + ½, j + ½)`).
+    pub fn direction_at(&self, x: f64, y: f64) -> [f64; 3] {
+        let x = (2.0 * x / self.width - 1.0) * self.half_w;
+        let y = (1.0 - 2.0 * y / self.height) * self.half_h;
         let d: [f64; 3] =
             std::array::from_fn(|k| self.forward[k] + x * self.right[k] + y * self.up[k]);
         let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();

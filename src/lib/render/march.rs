@@ -60,6 +60,9 @@ pub enum Face {
     WallV,
     /// The underside of a floating voxel run (a ray rising under an overhang).
     Bottom,
+    /// The side of a column that rises less than one cell width above the neighbour the ray
+    /// came from: the stair step of a sampled slope, not a wall (drawn like a top).
+    Step,
 }
 
 /// Where a ray stopped.
@@ -95,6 +98,9 @@ pub struct Plan {
     pub scales: Vec<i64>,
     /// Range thresholds `TH_k` per level, metres (`None`: no level of detail).
     pub thresholds: Option<Vec<f64>>,
+    /// Width of a level-0 cell along the column and row axes, metres: a column side that rises
+    /// less than its cell's width above the neighbour the ray came from is a [`Face::Step`].
+    pub cell_m: [f64; 2],
 }
 
 /// Result of one ray: the hit, if any, and the number of cells visited.
@@ -225,11 +231,19 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                 None
             };
             if let Some((t_hit, f, k)) = level0_hit(ray, span, cc, rr, cell.max_z, runs) {
-                let colour = runs.map_or(cell.colour, |runs| runs[k].colour);
+                let (colour, top) = match runs {
+                    Some(runs) => (runs[k].colour, runs[k].top),
+                    None => (cell.colour, cell.max_z),
+                };
+                // Only the ground run of a voxel column can be a step; floating runs are objects.
+                let face = match k {
+                    0 => step_or_wall(f, ray, 0, [cc, rr], top, sampler, plan)?,
+                    _ => f,
+                };
                 let hit = Hit {
                     t: t_hit,
                     colour,
-                    face: f,
+                    face,
                     level: 0,
                 };
                 return Ok((Some(coarse_colour(hit, cc, rr, sampler, plan)?), steps));
@@ -249,11 +263,12 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     )
                 };
                 if tc > th[l] {
+                    let face = step_or_wall(fc, ray, l, [cc, rr], cell.max_z, sampler, plan)?;
                     return Ok((
                         Some(Hit {
                             t: tc,
                             colour: cell.colour,
-                            face: fc,
+                            face,
                             level: l,
                         }),
                         steps,
@@ -290,6 +305,31 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
             w.restart(plan.scales[l], new, t_exit);
         }
     }
+}
+
+/// A wall hit on the side of level-`level` cell `cell`, whose column top there is `top` metres,
+/// as drawn: [`Face::Step`] when the top rises less than one cell width (along the wall's axis)
+/// above the neighbour the ray entered from, else the wall. A neighbour outside the database or
+/// without data leaves a wall (the database's cut edge). Other faces are returned unchanged.
+fn step_or_wall(
+    face: Face,
+    ray: &Ray,
+    level: usize,
+    [c, r]: [i64; 2],
+    top: f32,
+    sampler: &mut Sampler,
+    plan: &Plan,
+) -> Result<Face> {
+    let (from, width) = match face {
+        Face::WallU => ([c - ray.u.d.signum() as i64, r], plan.cell_m[0]),
+        Face::WallV => ([c, r - ray.v.d.signum() as i64], plan.cell_m[1]),
+        _ => return Ok(face),
+    };
+    let width = width * plan.scales[level] as f64;
+    Ok(match sampler.cell(level, from[0], from[1])? {
+        Some(n) if (top as f64 - n.max_z as f64) < width => Face::Step,
+        _ => face,
+    })
 }
 
 /// Under level-0 traversal with range thresholds, recolour a level-0 hit with the coarsest

@@ -240,6 +240,7 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
                 .map(|&s| s as f64 * cell_m / per_pixel)
                 .collect()
         }),
+        cell_m: scene.cell.map(f64::abs),
     };
     let max_range = opts.max_range.unwrap_or(if opts.repeat {
         REPEAT_RANGE_DIAGONALS * scene.diagonal_m()
@@ -528,5 +529,7 @@ impl Frame {
     }
 }
 
+#[cfg(test)]
+mod image_tests;
 #[cfg(test)]
 mod tests;

@@ -27,7 +27,7 @@ pub fn sky(dz: f64) -> [u8; 3] {
 /// Brightness factor of a face, so that walls read against the tops they stand under.
 pub fn face_factor(face: Face) -> f64 {
     match face {
-        Face::Top => 1.0,
+        Face::Top | Face::Step => 1.0,
         Face::WallU => 0.8,
         Face::WallV => 0.65,
         Face::Bottom => 0.5,

@@ -861,6 +861,21 @@ where
             };
             let mz = max_z as f64;
             if !max_z.is_nan() && ray.z(t_in).min(ray.z(tb)) <= mz {
+                // A side less than a cell (1 m) above the cell behind it is a slope's step.
+                let behind = match face {
+                    Face::WallU => Some([cell[0] - step(ray.u), cell[1]]),
+                    Face::WallV => Some([cell[0], cell[1] - step(ray.v)]),
+                    _ => None,
+                };
+                let face = match behind {
+                    Some([c, r]) if (0..w).contains(&c) && (0..h).contains(&r) => {
+                        match mz - height(c as usize, r as usize).0 as f64 {
+                            rise if rise < 1.0 => Face::Step,
+                            _ => face,
+                        }
+                    }
+                    _ => face,
+                };
                 return Some(if ray.z(t_in) <= mz {
                     (t_in, colour, face)
                 } else {
@@ -887,6 +902,7 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
         top: scene.top(false),
         scales: scene.scales.clone(),
         thresholds: None,
+        cell_m: scene.cell.map(f64::abs),
     };
     let cache = ColumnCache::default();
     let mut sampler = Sampler::new(&r, false, &cache);
@@ -900,6 +916,7 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
     };
     let s = std::f64::consts::FRAC_1_SQRT_2;
     let (mut rays, mut spans, mut hits, mut corners) = (0, 0, 0, 0);
+    let (mut walls, mut steps) = (0, 0);
     // On a cell corner, at a cell centre, anywhere; UTM-sized world coordinates.
     for (ex, ey) in [(37.0, 41.0), (120.5, 99.5), (63.318_77, 12.904_41)] {
         let (u0, v0) = scene.local(x0 + ex, y0 - ey);
@@ -940,6 +957,9 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
                     }
                     spans += 1;
                     hits += want.is_some() as u32;
+                    let face = want.map(|w| w.2);
+                    walls += matches!(face, Some(Face::WallU | Face::WallV)) as u32;
+                    steps += (face == Some(Face::Step)) as u32;
                     // rays through cell corners: both crossings of some time the same f64
                     corners += ((ray.u.d.abs() == ray.v.d.abs()) && ex == 37.0) as u32;
                 }
@@ -952,4 +972,5 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
     assert!(spans > rays * 2 / 3, "{spans} of {rays}");
     assert!(hits > spans / 2, "{hits} of {spans}");
     assert!(corners > 0);
+    assert!(walls > 0 && steps > 0, "{walls} walls, {steps} steps");
 }
