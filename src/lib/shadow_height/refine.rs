@@ -101,15 +101,20 @@ pub fn refine(
     // Only the corridor is compared (its brightness is the finite one, its cells all there
     // is observed), so the fit runs over the members: a few thousand cells, not the window.
     let of_members = |v: &[f64]| members.iter().map(|&i| v[i]).collect::<Vec<_>>();
-    let events = sorted_events(events, z_hi);
     best_fit(
-        &events,
+        &mut Buckets::new(events, z_hi),
         &of_members(&brightness),
         &of_members(&observed),
         z_hi,
         n_sub,
     )
 }
+
+/// How much more than the best so far a score must be to count as better ([`best_fit`]).
+const SCORE_TIE: f64 = 1e-12;
+/// How far below the best score at a bucket's end a bucket's bound must be for [`best_fit`]
+/// to skip it: far more than the sums' rounding and [`SCORE_TIE`], far less than a score.
+const SCORE_SKIP: f64 = 1e-9;
 
 /// A refinement point's threshold and cell as one sortable key: the threshold (metres, as
 /// an `f32`: micrometres at 100 m) in the high 32 bits, the cell in the low 32.
@@ -138,32 +143,42 @@ impl Event {
     }
 }
 
-/// `events` (thresholds in `[0, z_hi]` metres) in ascending order. A bucket sort (tens of
-/// thousands of events a footprint, spread evenly over the range): buckets by a monotone
-/// function of the threshold, each bucket sorted, so the order is the full sort's.
-fn sorted_events(events: Vec<Event>, z_hi: f64) -> Vec<Event> {
-    let n = events.len();
-    let buckets = (n / 4).max(1);
-    let scale = buckets as f64 / z_hi;
-    let bucket = |e: Event| ((e.threshold() * scale) as usize).min(buckets - 1);
-    let mut start = vec![0usize; buckets + 1];
-    for &e in &events {
-        start[bucket(e) + 1] += 1;
+/// Events grouped by threshold: bucket `b` holds `events[start[b]..start[b + 1]]`, every
+/// threshold in it below every threshold of the buckets after it (buckets by a monotone
+/// function of the threshold, spread evenly over `[0, z_hi]`), in no order within. Events
+/// with one threshold share a bucket.
+struct Buckets {
+    events: Vec<Event>,
+    start: Vec<usize>,
+}
+
+impl Buckets {
+    /// `events` (thresholds in `[0, z_hi]` metres) in about four events a bucket.
+    fn new(events: Vec<Event>, z_hi: f64) -> Buckets {
+        let n = events.len();
+        let buckets = (n / 4).max(1);
+        let scale = buckets as f64 / z_hi;
+        let bucket = |e: Event| ((e.threshold() * scale) as usize).min(buckets - 1);
+        let mut start = vec![0usize; buckets + 1];
+        for &e in &events {
+            start[bucket(e) + 1] += 1;
+        }
+        for b in 0..buckets {
+            start[b + 1] += start[b];
+        }
+        let mut next = start.clone();
+        let mut out = vec![Event(0); n];
+        for e in events {
+            let b = bucket(e);
+            out[next[b]] = e;
+            next[b] += 1;
+        }
+        Buckets { events: out, start }
     }
-    for b in 0..buckets {
-        start[b + 1] += start[b];
+
+    fn of(&self, b: usize) -> std::ops::Range<usize> {
+        self.start[b]..self.start[b + 1]
     }
-    let mut next = start.clone();
-    let mut out = vec![Event(0); n];
-    for e in events {
-        let b = bucket(e);
-        out[next[b]] = e;
-        next[b] += 1;
-    }
-    for b in 0..buckets {
-        out[start[b]..start[b + 1]].sort_unstable();
-    }
-    out
 }
 
 /// The corridor cells that are attached shadow or touch it (8-neighbours): the shadow and its
@@ -203,15 +218,22 @@ fn fitted_brightness(
         .collect()
 }
 
-/// The best fit over `Z` in `(0, z_hi]`: `events` are sub-point thresholds `(Z, cell)`,
-/// `per_cell` sub-points to a cell, sorted by `Z` (a sub-point is in the synthetic shadow when
-/// `Z` is above it); `brightness[i]` is cell `i`'s (NaN: not compared). The score is the R² of
-/// the least-squares line through the cells' (synthetic fraction, brightness), 0 unless it falls
-/// (shadow darker than lit); the answer is the middle of the first interval reaching the best,
-/// with the IoU of its synthetic fractions and `observed` as the overlap. `None` without
-/// observed shadow, without any spread of brightness, or when no height fits at all.
+/// The best fit over `Z` in `(0, z_hi]`: `buckets` hold sub-point thresholds `(Z, cell)`,
+/// `per_cell` sub-points to a cell (a sub-point is in the synthetic shadow when `Z` is above
+/// it); `brightness[i]` is cell `i`'s. The score is the R² of the least-squares line through
+/// the cells' (synthetic fraction, brightness), 0 unless it falls (shadow darker than lit);
+/// the answer is the middle of the first interval reaching the best (a score counts as better
+/// only by more than [`SCORE_TIE`]), with the IoU of its synthetic fractions and `observed`
+/// as the overlap. `None` without observed shadow, without any spread of brightness, or when
+/// no height fits at all.
+///
+/// The answer is that of sweeping every threshold in ascending order, but only the buckets
+/// that can hold it are sorted and swept: a first sweep takes the sums at each bucket's end
+/// (exact scores there, in any order within) and, from the sums at both ends, a bound on the
+/// score inside; a bucket whose bound is below the best end score by more than
+/// [`SCORE_SKIP`] cannot hold the answer, nor change which earlier score is taken.
 fn best_fit(
-    events: &[Event],
+    buckets: &mut Buckets,
     brightness: &[f64],
     observed: &[f64],
     z_hi: f64,
@@ -221,48 +243,109 @@ fn best_fit(
     if observed.iter().sum::<f64>() == 0.0 {
         return None;
     }
-    let cells: Vec<f64> = brightness
-        .iter()
-        .copied()
-        .filter(|b| b.is_finite())
-        .collect();
-    let n = cells.len() as f64;
-    let sb: f64 = cells.iter().sum();
-    let syy = cells.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
+    let n = brightness.len() as f64;
+    let sb: f64 = brightness.iter().sum();
+    let syy = brightness.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
     if syy.is_nan() || syy <= 0.0 {
         return None;
     }
-    let (mut ss, mut sss, mut ssb) = (0.0, 0.0, 0.0);
-    let mut covered = vec![0u32; brightness.len()];
-    let mut best: Option<(f64, usize)> = None;
-    for (k, &e) in events.iter().enumerate() {
-        let i = e.cell();
-        let before = covered[i] as f64 * step;
-        let after = before + step;
-        covered[i] += 1;
-        ss += step;
-        sss += after * after - before * before;
-        ssb += step * brightness[i];
-        if events.get(k + 1).is_some_and(|f| f.0 >> 32 == e.0 >> 32) {
-            continue;
-        }
-        let sxx = sss - ss * ss / n;
-        let sxy = ssb - ss * sb / n;
-        let score = if sxy < 0.0 && sxx > 0.0 {
+    // The sums over the covered sub-points: of fractions, squared fractions (per cell), and
+    // fraction × brightness.
+    #[derive(Clone, Copy, Default)]
+    struct Sums {
+        s: f64,
+        ss: f64,
+        sb: f64,
+    }
+    let score = |m: &Sums| {
+        let sxx = m.ss - m.s * m.s / n;
+        let sxy = m.sb - m.s * sb / n;
+        if sxy < 0.0 && sxx > 0.0 {
             sxy * sxy / (sxx * syy)
         } else {
             0.0
-        };
-        if best.is_none_or(|b| score > b.0 + 1e-12) {
-            best = Some((score, k + 1));
+        }
+    };
+    let add = |m: &mut Sums, covered: &mut [u32], i: usize| {
+        let before = covered[i] as f64 * step;
+        let after = before + step;
+        covered[i] += 1;
+        m.s += step;
+        m.ss += after * after - before * before;
+        m.sb += step * brightness[i];
+    };
+    let count = buckets.start.len() - 1;
+    // First sweep: the sums at each bucket's start, and the best score at a bucket's end.
+    let mut covered = vec![0u32; brightness.len()];
+    let mut at_start = Vec::with_capacity(count + 1);
+    let mut sums = Sums::default();
+    let mut floor = 0.0f64;
+    for b in 0..count {
+        at_start.push(sums);
+        for k in buckets.of(b) {
+            add(&mut sums, &mut covered, buckets.events[k].cell());
+        }
+        if !buckets.of(b).is_empty() {
+            floor = floor.max(score(&sums));
+        }
+    }
+    at_start.push(sums);
+    // Inside a bucket every sum lies between its values at the two ends (they only grow),
+    // so the score is at most the largest |sxy|² over the smallest sxx.
+    let bound = |a: &Sums, z: &Sums| {
+        let sxy = a.sb - z.s * sb / n;
+        let sxx = a.ss - z.s * z.s / n;
+        if sxy >= 0.0 {
+            0.0
+        } else if sxx <= 0.0 {
+            f64::INFINITY
+        } else {
+            sxy * sxy / (sxx * syy) * (1.0 + 1e-9)
+        }
+    };
+    // Second sweep: the buckets that may hold the answer sorted and scored event by event.
+    covered.fill(0);
+    let mut best: Option<(f64, usize)> = None; // (score, events before the answer's end)
+    for b in 0..count {
+        let range = buckets.of(b);
+        if bound(&at_start[b], &at_start[b + 1]) < floor - SCORE_SKIP {
+            for k in range {
+                covered[buckets.events[k].cell()] += 1;
+            }
+            continue;
+        }
+        buckets.events[range.clone()].sort_unstable();
+        let mut sums = at_start[b];
+        for k in range.clone() {
+            let e = buckets.events[k];
+            add(&mut sums, &mut covered, e.cell());
+            if k + 1 < range.end && buckets.events[k + 1].0 >> 32 == e.0 >> 32 {
+                continue;
+            }
+            let s = score(&sums);
+            if best.is_none_or(|b| s > b.0 + SCORE_TIE) {
+                best = Some((s, k + 1));
+            }
         }
     }
     let (score, next) = best?;
     if score <= 0.0 {
         return None;
     }
+    let events = &buckets.events;
     let lo = events[next - 1].threshold();
-    let hi = events.get(next).map_or(z_hi, |e| e.threshold()).max(lo);
+    // The next threshold: the smallest after the answer in its bucket (sorted: the next
+    // event), or in the next bucket with events (maybe unsorted) when the answer ended its own.
+    let hi = if next == events.len() {
+        z_hi
+    } else {
+        let b = buckets.start.partition_point(|&s| s <= next) - 1;
+        events[next..buckets.start[b + 1]]
+            .iter()
+            .map(|e| e.threshold())
+            .fold(f64::INFINITY, f64::min)
+    }
+    .max(lo);
     // The IoU of the fractions at the answer.
     let mut s = vec![0.0; observed.len()];
     for e in &events[..next] {
@@ -723,17 +806,136 @@ mod tests {
         ev.extend((0..16).map(|k| Event::new(2.0 + (k / 8) as f64, 1)));
         ev.extend((0..16).map(|_| Event::new(4.0, 2)));
         let observed = [1.0, 0.5, 0.0, 0.0];
+        let fit =
+            |b: &[f64], o: &[f64]| best_fit(&mut Buckets::new(ev.clone(), 5.0), b, o, 5.0, 16);
         for (lit, shadow) in [(70.0, 20.0), (200.0, 190.0), (1.0, 0.0)] {
             let b: Vec<f64> = observed.iter().map(|o| lit + (shadow - lit) * o).collect();
-            let r = best_fit(&ev, &b, &observed, 5.0, 16).unwrap();
+            let r = fit(&b, &observed).unwrap();
             assert_eq!((r.height_m, r.overlap), (2.5, 1.0), "{lit} {shadow}");
         }
         // Brighter wherever the synthetic shadow falls is no fit, however straight the line.
         let b = [70.0, 45.0, 20.0, 20.0];
-        assert_eq!(best_fit(&ev, &b, &observed, 5.0, 16), None);
+        assert_eq!(fit(&b, &observed), None);
         // No observed shadow, or no spread of brightness: nothing to fit.
-        assert_eq!(best_fit(&ev, &b, &[0.0; 4], 5.0, 16), None);
-        assert_eq!(best_fit(&ev, &[50.0; 4], &observed, 5.0, 16), None);
+        assert_eq!(fit(&b, &[0.0; 4]), None);
+        assert_eq!(fit(&[50.0; 4], &observed), None);
+    }
+
+    /// [`best_fit`] the plain way: every threshold swept in ascending order, scored at each.
+    fn best_fit_by_full_sweep(
+        events: &[Event],
+        brightness: &[f64],
+        observed: &[f64],
+        z_hi: f64,
+        per_cell: usize,
+    ) -> Option<Refined> {
+        let mut events = events.to_vec();
+        events.sort_unstable();
+        let step = 1.0 / per_cell as f64;
+        let n = brightness.len() as f64;
+        let sb: f64 = brightness.iter().sum();
+        let syy = brightness.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
+        if observed.iter().sum::<f64>() == 0.0 || syy.is_nan() || syy <= 0.0 {
+            return None;
+        }
+        let (mut s, mut ss, mut sxb) = (0.0, 0.0, 0.0);
+        let mut covered = vec![0u32; brightness.len()];
+        let mut best: Option<(f64, usize)> = None;
+        for (k, e) in events.iter().enumerate() {
+            let i = e.cell();
+            let before = covered[i] as f64 * step;
+            covered[i] += 1;
+            s += step;
+            ss += (before + step) * (before + step) - before * before;
+            sxb += step * brightness[i];
+            if events.get(k + 1).is_some_and(|f| f.0 >> 32 == e.0 >> 32) {
+                continue;
+            }
+            let (sxx, sxy) = (ss - s * s / n, sxb - s * sb / n);
+            let score = if sxy < 0.0 && sxx > 0.0 {
+                sxy * sxy / (sxx * syy)
+            } else {
+                0.0
+            };
+            if best.is_none_or(|b| score > b.0 + SCORE_TIE) {
+                best = Some((score, k + 1));
+            }
+        }
+        let (score, next) = best?;
+        if score <= 0.0 {
+            return None;
+        }
+        let lo = events[next - 1].threshold();
+        let hi = events.get(next).map_or(z_hi, |e| e.threshold()).max(lo);
+        let mut f = vec![0.0; observed.len()];
+        for e in &events[..next] {
+            f[e.cell()] += step;
+        }
+        let num: f64 = f.iter().zip(observed).map(|(a, b)| a.min(*b)).sum();
+        let den: f64 = f.iter().zip(observed).map(|(a, b)| a.max(*b)).sum();
+        Some(Refined {
+            height_m: (lo + hi) / 2.0,
+            overlap: (num / den).clamp(0.0, 1.0),
+        })
+    }
+
+    #[test]
+    fn the_bucketed_fit_is_the_full_sweeps() {
+        // Shadows of a building of height h over cells of a strip, seen with noise; points
+        // per cell at thresholds spread around the cell's; ties and zeros too.
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut answered = 0;
+        for case in 0..200 {
+            let cells = 20 + case % 60;
+            let per_cell = [1, 4, 9, 16][case % 4];
+            let z_hi = 10.0 + 30.0 * rnd();
+            let h = z_hi * (0.2 + 0.6 * rnd());
+            let mut events = Vec::new();
+            let mut brightness = Vec::new();
+            let mut observed = Vec::new();
+            for i in 0..cells {
+                let at = z_hi * i as f64 / cells as f64;
+                for k in 0..per_cell {
+                    let t = if case % 7 == 0 {
+                        (at / 2.0).round() * 2.0 // many ties
+                    } else {
+                        (at + (k as f64 / per_cell as f64 - 0.5) * z_hi / cells as f64).max(0.0)
+                    };
+                    if t <= z_hi {
+                        events.push(Event::new(t, i));
+                    }
+                }
+                let shadowed = (at < h) as u8 as f64;
+                observed.push(shadowed);
+                brightness.push(150.0 - 100.0 * shadowed + 20.0 * rnd());
+            }
+            let want = best_fit_by_full_sweep(&events, &brightness, &observed, z_hi, per_cell);
+            let got = best_fit(
+                &mut Buckets::new(events, z_hi),
+                &brightness,
+                &observed,
+                z_hi,
+                per_cell,
+            );
+            match (got, want) {
+                (Some(g), Some(w)) => {
+                    answered += 1;
+                    assert!(
+                        (g.height_m - w.height_m).abs() < 1e-9,
+                        "{case}: {g:?} {w:?}"
+                    );
+                    assert!((g.overlap - w.overlap).abs() < 1e-9, "{case}: {g:?} {w:?}");
+                }
+                (g, w) => assert_eq!(g, w, "{case}"),
+            }
+        }
+        assert!(answered > 150, "{answered}");
     }
 
     #[test]
@@ -830,7 +1032,7 @@ mod tests {
     }
 
     #[test]
-    fn bucketed_events_are_in_the_full_sort_order() {
+    fn buckets_sorted_each_are_the_full_sort() {
         // Ties, both zeros, the range's ends, values crowded into one bucket and values one
         // f32 ulp apart.
         let mut v: Vec<(f64, usize)> = (0..2000)
@@ -851,16 +1053,24 @@ mod tests {
         // The full sort of the thresholds as kept (f32, −0 as +0), then cells.
         let mut full: Vec<(f32, usize)> = v.iter().map(|&(t, c)| (t as f32 + 0.0, c)).collect();
         full.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let got = sorted_events(v.iter().map(|&(t, c)| Event::new(t, c)).collect(), 30.0);
-        assert_eq!(
-            got.iter()
-                .map(|e| (e.threshold().to_bits(), e.cell()))
-                .collect::<Vec<_>>(),
-            full.iter()
-                .map(|e| ((e.0 as f64).to_bits(), e.1))
-                .collect::<Vec<_>>()
-        );
-        assert!(sorted_events(Vec::new(), 1.0).is_empty());
+        let mut buckets = Buckets::new(v.iter().map(|&(t, c)| Event::new(t, c)).collect(), 30.0);
+        for b in 0..buckets.start.len() - 1 {
+            let range = buckets.of(b);
+            buckets.events[range].sort_unstable();
+        }
+        let got: Vec<(f32, usize)> = buckets
+            .events
+            .iter()
+            .map(|e| (e.threshold() as f32, e.cell()))
+            .collect();
+        assert_eq!(got.len(), full.len());
+        for (k, (g, f)) in got.iter().zip(&full).enumerate() {
+            assert!(
+                g.0.to_bits() == f.0.to_bits() && g.1 == f.1,
+                "event {k}: {g:?}, the full sort has {f:?}"
+            );
+        }
+        assert!(Buckets::new(Vec::new(), 1.0).events.is_empty());
     }
 
     #[test]
