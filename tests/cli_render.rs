@@ -196,6 +196,34 @@ fn same_command_gives_byte_identical_files() {
 }
 
 #[test]
+fn supersampled_blended_views_cast_the_extra_rays_and_keep_the_range_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let (plain, smooth) = (dir.path().join("a.png"), dir.path().join("b.png"));
+    let with_range = |png: &Path, exr: &str, extra: &[&str]| {
+        let exr = dir.path().join(exr);
+        let mut args = VIEW.to_vec();
+        args.extend(["--range-out", exr.to_str().unwrap()]);
+        args.extend(extra);
+        let json = render(&tiles, png, &args);
+        (json, std::fs::read(exr).unwrap())
+    };
+    let (a, range_a) = with_range(&plain, "a.exr", &[]);
+    let (b, range_b) = with_range(&smooth, "b.exr", &["--samples", "9"]);
+    assert_eq!(a["stats"]["rays"], 96 * 64);
+    assert_eq!(b["stats"]["rays"], 96 * 64 * 10);
+    assert!(range_a == range_b, "the range image is the centre rays'");
+    assert!(std::fs::read(&plain).unwrap() != std::fs::read(&smooth).unwrap());
+    // Blending may stop rays at a finer level, so it may change ranges: only the count here.
+    let (c, _) = with_range(
+        &dir.path().join("c.png"),
+        "c.exr",
+        &["--samples", "4", "--blend"],
+    );
+    assert_eq!(c["stats"]["rays"], 96 * 64 * 5);
+}
+
+#[test]
 fn top_view_maps_the_whole_database() {
     let dir = tempfile::tempdir().unwrap();
     let tiles = hills(dir.path());
@@ -258,6 +286,14 @@ fn bad_options_name_the_option() {
         (
             vec!["--eye", "431020,4581620,140", "--haze", "-5"],
             "--haze -5",
+        ),
+        (
+            vec!["--eye", "431020,4581620,140", "--samples", "3"],
+            "--samples 3: rays per pixel must be a square",
+        ),
+        (
+            vec!["--eye", "431020,4581620,140", "--blend", "--no-lod"],
+            "cannot be used with",
         ),
     ] {
         let mut a = vec!["render", "--tiles", t, "-o", "/nonexistent/x.png"];

@@ -53,8 +53,16 @@ pub struct Args {
     /// Stop looking beyond this range, metres.
     #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     max_range: Option<f64>,
+    /// Rays per pixel, a square (1, 4, 9, 16, …): stratified supersampling, the pixel's colour
+    /// their mean; the range image stays the centre ray's.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    samples: usize,
+    /// Blend two levels' colours across a band around each range threshold (no seam where a
+    /// moving view switches level).
+    #[arg(long, conflicts_with = "no_lod")]
+    blend: bool,
     /// Orthographic top-down map of the whole database instead of a perspective view.
-    #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal"])]
+    #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal", "samples", "blend"])]
     top: bool,
     /// Pages kept in the reader's cache (each 9·P² bytes: 590 kB at P = 256).
     #[arg(long, default_value_t = 512)]
@@ -124,6 +132,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             repeat: args.repeat,
             visibility: args.haze,
             max_range: args.max_range,
+            samples: args.samples,
+            blend: args.blend,
         };
         render::render_view(&reader, &camera, &opts)?
     };

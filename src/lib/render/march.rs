@@ -98,6 +98,9 @@ pub struct Plan {
     pub scales: Vec<i64>,
     /// Range thresholds `TH_k` per level, metres (`None`: no level of detail).
     pub thresholds: Option<Vec<f64>>,
+    /// Blend the colours of two levels around each range threshold (Cohen-Or's soft
+    /// transition, see [`blend_weight`]) instead of switching at it.
+    pub blend: bool,
     /// Width of a level-0 cell along the column and row axes, metres: a column side that rises
     /// less than its cell's width above the neighbour the ray came from is a [`Face::Step`].
     pub cell_m: [f64; 2],
@@ -246,7 +249,8 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     face,
                     level: 0,
                 };
-                return Ok((Some(coarse_colour(hit, cc, rr, sampler, plan)?), steps));
+                let hit = coarse_colour(hit, cc, rr, sampler, plan)?;
+                return Ok((Some(blend_parent(hit, cc, rr, sampler, plan)?), steps));
             }
         } else if may_hit(ray, t, t_exit.min(span.t1), cell.max_z) {
             if let Some(th) = &plan.thresholds {
@@ -262,15 +266,17 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                         Face::Top,
                     )
                 };
-                if tc > th[l] {
+                if blend_weight(tc, th[l], plan.blend) == 1.0 {
                     let face = step_or_wall(fc, ray, l, [cc, rr], cell.max_z, sampler, plan)?;
+                    let s = plan.scales[l];
+                    let hit = Hit {
+                        t: tc,
+                        colour: cell.colour,
+                        face,
+                        level: l,
+                    };
                     return Ok((
-                        Some(Hit {
-                            t: tc,
-                            colour: cell.colour,
-                            face,
-                            level: l,
-                        }),
+                        Some(blend_parent(hit, cc * s, rr * s, sampler, plan)?),
                         steps,
                     ));
                 }
@@ -332,13 +338,60 @@ fn step_or_wall(
     })
 }
 
+/// Blend band half-width around a range threshold, as a factor: level `k`'s colour takes over
+/// from level `k − 1`'s between `TH_k / BLEND_BAND` and `TH_k · BLEND_BAND`.
+pub const BLEND_BAND: f64 = std::f64::consts::SQRT_2;
+
+/// How much of a level's colour a hit at range `t` takes against the finer level's, for the
+/// level's range threshold `th`: without `blend` a switch at `th` (0 up to it, 1 beyond); with
+/// it, linear in `log t` across `[th / BLEND_BAND, th · BLEND_BAND]` (½ at `th`, so the mean
+/// switch stays where the pixel footprint puts it), 0 before and 1 after.
+pub fn blend_weight(t: f64, th: f64, blend: bool) -> f64 {
+    match blend {
+        false => f64::from(u8::from(t > th)),
+        true => (0.5 + (t / th).ln() / (2.0 * BLEND_BAND.ln())).clamp(0.0, 1.0),
+    }
+}
+
+/// With blending, mix a hit's colour with its cell's parent's (level `hit.level + 1`) by
+/// [`blend_weight`] of the parent's threshold; `(c, r)` is a level-0 cell under the hit's cell.
+/// The face and range stay the hit's.
+fn blend_parent(hit: Hit, c: i64, r: i64, sampler: &mut Sampler, plan: &Plan) -> Result<Hit> {
+    let (true, Some(th)) = (plan.blend, &plan.thresholds) else {
+        return Ok(hit);
+    };
+    let up = hit.level + 1;
+    if up > plan.top {
+        return Ok(hit);
+    }
+    let w = blend_weight(hit.t, th[up], true);
+    if w == 0.0 {
+        return Ok(hit);
+    }
+    let s = plan.scales[up];
+    Ok(match sampler.cell(up, c.div_euclid(s), r.div_euclid(s))? {
+        Some(parent) if parent.colour[3] > 0 => Hit {
+            colour: std::array::from_fn(|k| {
+                let (a, b) = (hit.colour[k] as f64, parent.colour[k] as f64);
+                (a + (b - a) * w).round() as u8
+            }),
+            ..hit
+        },
+        _ => hit,
+    })
+}
+
 /// Under level-0 traversal with range thresholds, recolour a level-0 hit with the coarsest
-/// level whose threshold its range exceeds (the hierarchical traversal stops at that level).
+/// level whose colour it takes whole ([`blend_weight`] 1; the hierarchical traversal stops at
+/// that level).
 fn coarse_colour(hit: Hit, c: i64, r: i64, sampler: &mut Sampler, plan: &Plan) -> Result<Hit> {
     let (Traversal::Level0, Some(th)) = (plan.traversal, &plan.thresholds) else {
         return Ok(hit);
     };
-    let Some(l) = (1..=plan.top).rev().find(|&l| hit.t > th[l]) else {
+    let Some(l) = (1..=plan.top)
+        .rev()
+        .find(|&l| blend_weight(hit.t, th[l], plan.blend) == 1.0)
+    else {
         return Ok(hit);
     };
     let s = plan.scales[l];

@@ -58,6 +58,13 @@ pub struct ViewOptions {
     /// Stop looking beyond this range, metres (`None`: the database's edge, or
     /// [`REPEAT_RANGE_DIAGONALS`] diagonals with `repeat`).
     pub max_range: Option<f64>,
+    /// Rays per pixel, a square `n²` (1, 4, 9, 16, …): one per cell of an `n × n` grid over the
+    /// pixel, each at a fixed pseudo-random point of its cell; the pixel's colour is their mean.
+    /// 1 casts the one ray through the pixel's centre.
+    pub samples: usize,
+    /// Blend two levels' colours around each range threshold instead of switching
+    /// ([`march::blend_weight`]).
+    pub blend: bool,
 }
 
 impl Default for ViewOptions {
@@ -68,14 +75,47 @@ impl Default for ViewOptions {
             repeat: false,
             visibility: None,
             max_range: None,
+            samples: 1,
+            blend: false,
         }
     }
+}
+
+/// Most rays per pixel `--samples` takes (a 16 × 16 grid).
+pub const MAX_SAMPLES: usize = 256;
+
+/// The side `n` of the `n × n` grid of `samples` rays per pixel, or an error naming the fix.
+pub fn sample_grid(samples: usize) -> Result<usize> {
+    let n = (samples as f64).sqrt().round() as usize;
+    if samples == 0 || samples > MAX_SAMPLES || n * n != samples {
+        return Err(Error::msg(format!(
+            "--samples {samples}: rays per pixel must be a square from 1 to {MAX_SAMPLES}"
+        ))
+        .fix("use 1, 4, 9, 16, 25, 36, 49 or 64 (an n × n grid over each pixel)"));
+    }
+    Ok(n)
+}
+
+/// Where in its cell of the `n × n` grid sample `s` of pixel `p` looks: a fixed pseudo-random
+/// point of `[0, 1)²` (two SplitMix64 draws seeded by the pair), so frames are reproducible to
+/// the byte.
+fn jitter(p: usize, s: usize) -> (f64, f64) {
+    let mix = |x: u64| {
+        let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    let unit = |bits: u64| (bits >> 11) as f64 / (1u64 << 53) as f64;
+    let a = mix((p as u64) << 16 | s as u64);
+    (unit(a), unit(mix(a)))
 }
 
 /// What rendering a frame did (for `--json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct RenderStats {
-    /// Rays cast (pixels).
+    /// Rays cast: one per pixel, plus `samples` per pixel when supersampling (the centre ray
+    /// then gives only the range).
     pub rays: u64,
     /// Rays that hit the database.
     pub hits: u64,
@@ -213,6 +253,7 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
             "--max-range {r}: must be a positive number of metres"
         )));
     }
+    let n = sample_grid(opts.samples)?;
     let start = Instant::now();
     let before = reader.stats();
     let scene = Scene::of(reader)?;
@@ -240,6 +281,7 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
                 .map(|&s| s as f64 * cell_m / per_pixel)
                 .collect()
         }),
+        blend: opts.blend,
         cell_m: scene.cell.map(f64::abs),
     };
     let max_range = opts.max_range.unwrap_or(if opts.repeat {
@@ -254,8 +296,7 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
         .map(|j| {
             let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
             let mut row = Row::new(camera.width);
-            for i in 0..camera.width {
-                let d = basis.direction(i, j);
+            let mut cast = |d: [f64; 3], row: &mut Row| -> Result<(Option<Hit>, [u8; 3])> {
                 let ray = Ray {
                     u: Axis::new(u0, d[0] / scene.cell[0]),
                     v: Axis::new(v0, d[1] / scene.cell[1]),
@@ -270,7 +311,28 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
                     }
                     None => None,
                 };
-                row.put(hit, d[2], opts.visibility);
+                row.rays += 1;
+                row.hits += u64::from(hit.is_some());
+                Ok((hit, colour(hit, d[2], opts.visibility)))
+            };
+            for i in 0..camera.width {
+                // The range is always the centre ray's, so the range image does not depend on
+                // the sampling.
+                let (centre, mut rgb) = cast(basis.direction(i, j), &mut row)?;
+                if n > 1 {
+                    let mut sum = [0u32; 3];
+                    for s in 0..n * n {
+                        let (a, b) = jitter(j * camera.width + i, s);
+                        let x = i as f64 + ((s % n) as f64 + a) / n as f64;
+                        let y = j as f64 + ((s / n) as f64 + b) / n as f64;
+                        let (_, c) = cast(basis.direction_at(x, y), &mut row)?;
+                        (0..3).for_each(|k| sum[k] += u32::from(c[k]));
+                    }
+                    let m = (n * n) as u32;
+                    rgb = sum.map(|v| ((v + m / 2) / m) as u8);
+                }
+                row.rgb.push(rgb);
+                row.range.push(centre.map_or(f32::INFINITY, |h| h.t as f32));
             }
             row.touched = sampler.touched;
             Ok(row)
@@ -340,6 +402,7 @@ fn check_eye_above_terrain(
 struct Row {
     rgb: Vec<[u8; 3]>,
     range: Vec<f32>,
+    rays: u64,
     steps: u64,
     hits: u64,
     touched: BTreeSet<(usize, usize, usize)>,
@@ -350,24 +413,19 @@ impl Row {
         Row {
             rgb: Vec::with_capacity(width),
             range: Vec::with_capacity(width),
+            rays: 0,
             steps: 0,
             hits: 0,
             touched: BTreeSet::new(),
         }
     }
+}
 
-    fn put(&mut self, hit: Option<Hit>, dz: f64, visibility: Option<f64>) {
-        match hit {
-            Some(h) => {
-                self.hits += 1;
-                self.rgb.push(sky::shade(h.colour, h.face, h.t, visibility));
-                self.range.push(h.t as f32);
-            }
-            None => {
-                self.rgb.push(sky::sky(dz));
-                self.range.push(f32::INFINITY);
-            }
-        }
+/// What a ray with vertical component `dz` shows: its hit, shaded and hazed, or the sky.
+fn colour(hit: Option<Hit>, dz: f64, visibility: Option<f64>) -> [u8; 3] {
+    match hit {
+        Some(h) => sky::shade(h.colour, h.face, h.t, visibility),
+        None => sky::sky(dz),
     }
 }
 
@@ -381,17 +439,17 @@ fn assemble(
 ) -> Frame {
     let mut frame_rgb = Vec::with_capacity(width * height);
     let mut frame_range = Vec::with_capacity(width * height);
-    let (mut steps, mut hits, mut touched) = (0, 0, BTreeSet::new());
+    let (mut rays, mut steps, mut hits, mut touched) = (0, 0, 0, BTreeSet::new());
     for row in rows {
         frame_rgb.extend(row.rgb);
         frame_range.extend(row.range);
+        rays += row.rays;
         steps += row.steps;
         hits += row.hits;
         touched.extend(row.touched);
     }
     let after = reader.stats();
     let seconds = start.elapsed().as_secs_f64();
-    let rays = (width * height) as u64;
     Frame {
         width,
         height,
@@ -444,6 +502,7 @@ pub fn render_top(reader: &TileReader, width: usize, height: usize, lod: bool) -
             let r = (((j as f64 + 0.5) * sy).floor() as i64).div_euclid(s);
             for i in 0..width {
                 let c = (((i as f64 + 0.5) * sx).floor() as i64).div_euclid(s);
+                row.rays += 1;
                 row.steps += 1;
                 match sampler.cell(level, c, r)? {
                     Some(cell) if !cell.max_z.is_nan() => {

@@ -902,6 +902,7 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
         top: scene.top(false),
         scales: scene.scales.clone(),
         thresholds: None,
+        blend: false,
         cell_m: scene.cell.map(f64::abs),
     };
     let cache = ColumnCache::default();
@@ -973,4 +974,114 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
     assert!(hits > spans / 2, "{hits} of {spans}");
     assert!(corners > 0);
     assert!(walls > 0 && steps > 0, "{walls} walls, {steps} steps");
+}
+
+#[test]
+fn supersampling_converges_on_the_many_sample_image_and_leaves_the_range_alone() {
+    // The checkerboard without range thresholds aliases badly in the distance: 1 ray per pixel
+    // picks black or white at random, 64 average them.
+    let (_d, r) = checkerboard();
+    let cam = camera([256.0, 0.5, 3.0], 0.0, -1.0, 0.0, 64, 48);
+    let frame = |samples| {
+        let opts = ViewOptions {
+            samples,
+            ..no_lod(Traversal::Hierarchical)
+        };
+        render_view(&r, &cam, &opts).unwrap()
+    };
+    let reference = frame(64);
+    let error = |f: &Frame| {
+        f.rgb
+            .iter()
+            .zip(&reference.rgb)
+            .map(|(a, b)| {
+                (0..3)
+                    .map(|k| (a[k] as f64 - b[k] as f64).abs())
+                    .sum::<f64>()
+                    / 3.0
+            })
+            .sum::<f64>()
+            / f.rgb.len() as f64
+    };
+    let frames: Vec<Frame> = [1, 4, 16].into_iter().map(frame).collect();
+    let errors: Vec<f64> = frames.iter().map(error).collect();
+    assert!(
+        errors[0] > 1.5 * errors[1] && errors[1] > 1.5 * errors[2] && errors[0] > 20.0,
+        "mean error against 64 rays per pixel for 1, 4, 16: {errors:?}"
+    );
+    for (f, n) in frames.iter().zip([1u64, 4, 16]) {
+        assert_eq!(bits(&f.range), bits(&reference.range), "{n} samples");
+        let extra = if n > 1 { n } else { 0 };
+        assert_eq!(f.stats.rays, 64 * 48 * (1 + extra));
+    }
+    assert_eq!(frame(16).rgb, frames[2].rgb, "reproducible");
+}
+
+#[test]
+fn samples_must_be_a_square_in_range() {
+    for n in [1, 4, 9, 64, 256] {
+        assert_eq!(sample_grid(n).unwrap().pow(2), n);
+    }
+    for n in [0, 2, 3, 8, 63, 289] {
+        let e = sample_grid(n).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("--samples {n}")) && e.contains("square"),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn blend_weight_switches_without_blending_and_ramps_in_log_range_with_it() {
+    assert_eq!(march::blend_weight(99.9, 100.0, false), 0.0);
+    assert_eq!(march::blend_weight(100.0, 100.0, false), 0.0);
+    assert_eq!(march::blend_weight(100.1, 100.0, false), 1.0);
+    let b = march::BLEND_BAND;
+    assert_eq!(march::blend_weight(100.0 / b / 1.001, 100.0, true), 0.0);
+    assert!((march::blend_weight(100.0 / b, 100.0, true)).abs() < 1e-12);
+    assert!((march::blend_weight(100.0, 100.0, true) - 0.5).abs() < 1e-12);
+    assert!((march::blend_weight(100.0 * b, 100.0, true) - 1.0).abs() < 1e-12);
+    assert_eq!(march::blend_weight(100.0 * b * 1.001, 100.0, true), 1.0);
+    let (w1, w2) = (
+        march::blend_weight(90.0, 100.0, true),
+        march::blend_weight(110.0, 100.0, true),
+    );
+    assert!(0.0 < w1 && w1 < 0.5 && 0.5 < w2 && w2 < 1.0);
+}
+
+#[test]
+fn blending_mixes_level_0_and_level_1_by_range_across_the_threshold_band() {
+    // Level 0 is black or white, level 1 grey: inside [TH_1 / √2, TH_1 · √2] a hit shows
+    // lerp(its cell's black or white, grey, w(range)), outside it the one level's colour.
+    let (_d, r) = checkerboard();
+    let cam = camera([256.0, 0.5, 3.0], 0.0, -1.0, 0.0, 64, 48);
+    let th1 = 2.0 * 64.0 / 60f64.to_radians();
+    let b = march::BLEND_BAND;
+    let grey = {
+        let cache = ColumnCache::default();
+        Sampler::new(&r, false, &cache)
+            .cell(1, 0, 0)
+            .unwrap()
+            .unwrap()
+            .colour[0] as f64
+    };
+    for traversal in [Traversal::Hierarchical, Traversal::Level0] {
+        let opts = ViewOptions {
+            traversal,
+            blend: true,
+            ..ViewOptions::default()
+        };
+        let f = render_view(&r, &cam, &opts).unwrap();
+        let mut inside = 0;
+        for (k, &t) in f.range.iter().enumerate().filter(|(_, t)| t.is_finite()) {
+            let (t, v) = (t as f64, f.rgb[k][0] as f64);
+            let w = march::blend_weight(t, th1, true);
+            let fits = [0.0, 255.0]
+                .iter()
+                .any(|&c| (v - (c + (grey - c) * w)).abs() <= 1.0);
+            assert!(fits, "{traversal:?} pixel {k} at {t} m: {v}, weight {w}");
+            inside += (t > th1 / b * 1.01 && t < th1 * b * 0.99) as u32;
+        }
+        assert!(inside > 30, "{inside} hits inside the band");
+    }
 }
