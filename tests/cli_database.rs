@@ -343,6 +343,23 @@ fn re_ingest_keeps_placements_and_buildings_on_the_same_grid() {
     assert!(!s.db().join(buildings).exists());
 }
 
+/// `--overwrite` starts over on the same grid too: the sample Makefile re-ingests that way when
+/// dbms is rebuilt, so the stages after it (which place objects again) do not add duplicates.
+#[test]
+fn re_ingest_with_overwrite_on_the_same_grid_starts_over() {
+    let s = Scene::new();
+    s.place(0.0);
+    ok(s.path(), APPLY);
+    let before = manifest(&s.db());
+    assert_eq!(before["objects"].as_array().unwrap().len(), 1);
+    ok(s.path(), &[&INGEST[..], &["--overwrite"]].concat());
+    let m = manifest(&s.db());
+    assert!(m["objects"].as_array().unwrap().is_empty() && m["layers"]["buildings"].is_null());
+    s.verify();
+    s.place(0.0);
+    assert_eq!(manifest(&s.db())["objects"].as_array().unwrap().len(), 1);
+}
+
 /// Outputs never alias inputs or special files (issue 14, defect 4): each refused in one line,
 /// with what was there left as it was.
 #[test]

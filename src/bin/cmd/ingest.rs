@@ -37,11 +37,11 @@ pub struct Args {
     #[arg(long, value_name = "SRS")]
     t_srs: Option<String>,
     /// Output database directory. A database there on the same grid keeps what later stages
-    /// added (buildings, placed objects); on another grid see --overwrite.
+    /// added (buildings, placed objects), unless --overwrite; on another grid see --overwrite.
     #[arg(short, long, value_name = "DB")]
     output: PathBuf,
-    /// Start over a database on another grid in the output directory, dropping its buildings
-    /// layer and placed objects.
+    /// Start over the database in the output directory (on any grid), dropping its buildings
+    /// layer, placed objects and stage records.
     #[arg(long)]
     overwrite: bool,
 }

@@ -156,7 +156,7 @@ fn write_database(
     let (mut change, old) = Database::begin_create(out, grid.clone(), inputs, opts.wait)?;
     if let Some(old) = old {
         let added = old.layers.len().saturating_sub(2) + old.objects.len();
-        if old.grid == *grid {
+        if old.grid == *grid && !opts.overwrite {
             let m = &mut change.db.manifest;
             m.layers = old.layers;
             m.objects = old.objects;
