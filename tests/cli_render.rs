@@ -412,3 +412,105 @@ fn rays_pass_through_an_arch_and_its_range_is_on_the_face_hit() {
         "{err}"
     );
 }
+
+/// The frame count and loop of an animated PNG, from its `acTL` chunk.
+fn apng_frames(bytes: &[u8]) -> Option<(u32, u32)> {
+    let mut i = 8;
+    while i + 8 <= bytes.len() {
+        let n = u32::from_be_bytes(bytes[i..i + 4].try_into().unwrap()) as usize;
+        if &bytes[i + 4..i + 8] == b"acTL" {
+            let word = |k: usize| u32::from_be_bytes(bytes[k..k + 4].try_into().unwrap());
+            return Some((word(i + 8), word(i + 12)));
+        }
+        i += 12 + n;
+    }
+    None
+}
+
+#[test]
+fn a_flight_renders_every_frame_and_an_animation_the_same_on_every_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let path = dir.path().join("flight.csv");
+    // 515 m at 100 m/s: frames at 0, 0.25, …, 5 s.
+    std::fs::write(&path, "x,y,z\n431050,4581650,200\n431500,4581900,200\n").unwrap();
+    let (frames, anim) = (dir.path().join("frames"), dir.path().join("flight.png"));
+    let fly = |fps: &str| {
+        render(
+            &tiles,
+            &frames,
+            &[
+                "--path",
+                path.to_str().unwrap(),
+                "--speed",
+                "100",
+                "--fps",
+                fps,
+                "--size",
+                "48x32",
+                "--attitude",
+                "0,-10,0",
+                "--animation",
+                anim.to_str().unwrap(),
+            ],
+        )
+    };
+    let json = fly("4");
+    assert_eq!(json["stats"]["frames"], 21);
+    assert!(json["stats"]["frames_per_second"].as_f64().unwrap() > 0.0);
+    assert!(json["stats"]["pages_read_max"].as_u64().unwrap() > 0);
+    let read = |k: usize| std::fs::read(frames.join(format!("frame-{k:05}.png"))).unwrap();
+    let (first, last) = (read(0), read(20));
+    assert_ne!(first, last, "the eye moved");
+    let animation = std::fs::read(&anim).unwrap();
+    assert_eq!(apng_frames(&animation), Some((21, 0)));
+    // Same bytes again; a shorter flight into the same directory leaves no stale frames.
+    fly("4");
+    assert!(read(0) == first && read(20) == last && std::fs::read(&anim).unwrap() == animation);
+    fly("2");
+    let left = std::fs::read_dir(&frames).unwrap().count();
+    assert_eq!(left, 11);
+    assert_eq!(apng_frames(&std::fs::read(&anim).unwrap()), Some((11, 0)));
+}
+
+#[test]
+fn a_flight_without_times_or_speed_or_with_a_bad_path_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let t = tiles.to_str().unwrap();
+    let path = dir.path().join("p.csv");
+    std::fs::write(&path, "x,y,z\n431050,4581650,200\n431500,4581900,200\n").unwrap();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "x,y,z\n431050,4581650\n").unwrap();
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let p = path.to_str().unwrap();
+    for (args, expect) in [
+        (vec!["--path", p], "give --speed"),
+        (
+            vec!["--path", bad.to_str().unwrap(), "--speed", "5"],
+            "bad.csv",
+        ),
+        (vec!["--path", p, "--speed", "5", "--fps", "0"], "--fps 0"),
+        (
+            vec!["--path", p, "--speed", "50", "-o", file.to_str().unwrap()],
+            "not a directory",
+        ),
+        (
+            vec!["--path", p, "--speed", "50", "--top"],
+            "cannot be used with",
+        ),
+    ] {
+        let mut a = vec!["render", "--tiles", t];
+        if !args.contains(&"-o") {
+            a.extend(["-o", "/tmp/never-written-frames"]);
+        }
+        a.extend(args);
+        let o = dbms(&a);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(expect) && err.trim().lines().count() <= 2,
+            "{expect}: {err}"
+        );
+    }
+}

@@ -17,7 +17,7 @@ pub struct Args {
     #[arg(
         long,
         value_name = "X,Y,Z",
-        required_unless_present = "top",
+        required_unless_present_any = ["top", "path"],
         allow_hyphen_values = true
     )]
     eye: Option<String>,
@@ -62,12 +62,39 @@ pub struct Args {
     #[arg(long, conflicts_with = "no_lod")]
     blend: bool,
     /// Orthographic top-down map of the whole database instead of a perspective view.
-    #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal", "samples", "blend"])]
+    #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal", "samples", "blend", "path"])]
     top: bool,
+    /// Fly: render a frame every 1/--fps s along this path (.csv with a header x,y,z[,t], or a
+    /// .geojson LineString of [x, y, z], optional properties.times), PNG frames into the -o
+    /// directory. The view looks along the path (--fixed-heading: --attitude's yaw).
+    #[arg(long, value_name = "PATH", conflicts_with = "eye")]
+    path: Option<PathBuf>,
+    /// With --path: speed along the path, metres per second (for paths without times).
+    #[arg(
+        long,
+        value_name = "M/S",
+        requires = "path",
+        allow_negative_numbers = true
+    )]
+    speed: Option<f64>,
+    /// With --path: frames per second of flight time.
+    #[arg(
+        long,
+        default_value_t = 25.0,
+        requires = "path",
+        allow_negative_numbers = true
+    )]
+    fps: f64,
+    /// With --path: keep --attitude's yaw instead of looking along the path.
+    #[arg(long, requires = "path")]
+    fixed_heading: bool,
+    /// With --path: also write every frame into this animated PNG (APNG), 1/--fps s each.
+    #[arg(long, value_name = "FLIGHT.png", requires = "path")]
+    animation: Option<PathBuf>,
     /// Pages kept in the reader's cache (each 9·P² bytes: 590 kB at P = 256).
     #[arg(long, default_value_t = 512)]
     cache_pages: usize,
-    /// Output PNG.
+    /// Output PNG (with --path: the directory of frame-NNNNN.png files, created if missing).
     #[arg(short, long)]
     output: PathBuf,
 }
@@ -89,6 +116,9 @@ fn size(s: &str) -> dbms::Result<(usize, usize)> {
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    if args.path.is_some() {
+        return fly(args, ctx);
+    }
     let outputs: Vec<&std::path::Path> = std::iter::once(args.output.as_path())
         .chain(args.range_out.as_deref())
         .collect();
@@ -113,29 +143,15 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             args.eye.as_deref().unwrap_or_default(),
             "X,Y,Z in the database's CRS units and metres",
         )?;
-        let [roll, pitch, yaw] =
-            super::triple("--attitude", &args.attitude, "ROLL,PITCH,YAW in degrees")?;
         let (width, height) = size(args.size.as_deref().unwrap_or("640x480"))?;
         let camera = Camera {
             eye,
-            attitude: Attitude { roll, pitch, yaw },
+            attitude: attitude(&args)?,
             hfov: args.fov,
             width,
             height,
         };
-        let opts = ViewOptions {
-            traversal: match args.traversal {
-                TraversalArg::Hierarchical => Traversal::Hierarchical,
-                TraversalArg::Level0 => Traversal::Level0,
-            },
-            lod: !args.no_lod,
-            repeat: args.repeat,
-            visibility: args.haze,
-            max_range: args.max_range,
-            samples: args.samples,
-            blend: args.blend,
-        };
-        render::render_view(&reader, &camera, &opts)?
+        render::render_view(&reader, &camera, &view_options(&args))?
     };
     frame.write(&args.output, args.range_out.as_deref())?;
     let s = &frame.stats;
@@ -160,6 +176,81 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             "width": frame.width,
             "height": frame.height,
             "stats": s,
+        }),
+    );
+    Ok(())
+}
+
+fn attitude(args: &Args) -> dbms::Result<Attitude> {
+    let [roll, pitch, yaw] =
+        super::triple("--attitude", &args.attitude, "ROLL,PITCH,YAW in degrees")?;
+    Ok(Attitude { roll, pitch, yaw })
+}
+
+fn view_options(args: &Args) -> ViewOptions {
+    ViewOptions {
+        traversal: match args.traversal {
+            TraversalArg::Hierarchical => Traversal::Hierarchical,
+            TraversalArg::Level0 => Traversal::Level0,
+        },
+        lod: !args.no_lod,
+        repeat: args.repeat,
+        visibility: args.haze,
+        max_range: args.max_range,
+        samples: args.samples,
+        blend: args.blend,
+    }
+}
+
+/// `--path`: every frame of the flight, then the summary.
+fn fly(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let path = args.path.as_deref().expect("--path given");
+    if let Some(a) = &args.animation {
+        dbms::io::atomic::check_outputs(&[a], &[&args.tiles, path])?;
+    }
+    let waypoints = render::path::read(path)?;
+    let (width, height) = size(args.size.as_deref().unwrap_or("640x480"))?;
+    let flight = render::path::Flight {
+        fps: args.fps,
+        speed: args.speed,
+        attitude: attitude(&args)?,
+        fixed_heading: args.fixed_heading,
+    };
+    let cameras = render::path::cameras(&waypoints, &flight, args.fov, width, height)?;
+    let reader = TileReader::open(&args.tiles, args.cache_pages)?;
+    let progress = ctx.progress(cameras.len() as u64, "frames");
+    let stats = render::flight::fly(
+        &reader,
+        &cameras,
+        &view_options(&args),
+        &args.output,
+        args.animation.as_deref().map(|a| (a, args.fps)),
+        &progress,
+    )?;
+    progress.finish();
+    ctx.report(
+        format!(
+            "{}: {} frames {}×{}, {:.1} frames/s rendering ({:.2} s; {:.2} s with writing), {:.1} pages read per frame (most {}), {:.1} cells stepped per ray{}",
+            args.output.display(),
+            stats.frames,
+            width,
+            height,
+            stats.frames_per_second,
+            stats.render_seconds,
+            stats.total_seconds,
+            stats.pages_read_per_frame,
+            stats.pages_read_max,
+            stats.cells_stepped_per_ray,
+            args.animation
+                .as_ref()
+                .map_or(String::new(), |a| format!("; animation {}", a.display()))
+        ),
+        json!({
+            "output": args.output,
+            "animation": args.animation,
+            "width": width,
+            "height": height,
+            "stats": stats,
         }),
     );
     Ok(())

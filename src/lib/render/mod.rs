@@ -17,7 +17,9 @@
 //! Conventions and figures: `docs/render.md`.
 
 pub mod camera;
+pub mod flight;
 pub mod march;
+pub mod path;
 pub mod ray;
 pub mod sampler;
 pub mod sky;

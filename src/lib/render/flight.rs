@@ -1,0 +1,173 @@
+//! `dbms render --path`: every frame of a flight rendered in one process, the page cache warm
+//! from frame to frame, written as numbered PNG files and, for quick looks, one animated PNG.
+//!
+//! Invariant: each file is written atomically, frame by frame, and the animation last (its
+//! rename is the run's end: `make` may take it as the target); frames are the same bytes on
+//! every run, and frame files left from a longer earlier flight in the directory are removed.
+
+use super::{render_view, Camera, Frame, ViewOptions};
+use crate::error::{Error, Result};
+use crate::io::atomic::{check_output, AtomicFile};
+use crate::progress::Progress;
+use crate::tiles::TileReader;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What a flight took (for the summary and `--json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FlightStats {
+    /// Frames rendered.
+    pub frames: usize,
+    /// Seconds spent rendering (ray casting, page reads), all frames.
+    pub render_seconds: f64,
+    /// Frames per second of rendering alone.
+    pub frames_per_second: f64,
+    /// Seconds of the whole run, encoding and writing included.
+    pub total_seconds: f64,
+    /// Pages read from the tile file per frame: mean, and the most in one frame (the first
+    /// frame fills the cache).
+    pub pages_read_per_frame: f64,
+    /// The most pages one frame read.
+    pub pages_read_max: u64,
+    /// Level cells stepped per ray, mean over the flight.
+    pub cells_stepped_per_ray: f64,
+    /// The frame files, in order.
+    pub frame_files: Vec<PathBuf>,
+}
+
+/// The file of frame `k` in `dir`.
+pub fn frame_file(dir: &Path, k: usize) -> PathBuf {
+    dir.join(format!("frame-{k:05}.png"))
+}
+
+/// Render `cameras` over `reader` with `opts`: frame `k` into [`frame_file`]`(dir, k)` (the
+/// directory is created), and, given `animation`, every frame into one animated PNG there,
+/// shown `1 / fps` seconds each, looping.
+pub fn fly(
+    reader: &TileReader,
+    cameras: &[Camera],
+    opts: &ViewOptions,
+    dir: &Path,
+    animation: Option<(&Path, f64)>,
+    progress: &Progress,
+) -> Result<FlightStats> {
+    let start = Instant::now();
+    let (Some(first), false) = (cameras.first(), dir.as_os_str().is_empty()) else {
+        return Err(Error::msg(
+            "a flight needs at least one frame and an output directory",
+        ));
+    };
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::file(dir, "exists and is not a directory")
+            .fix("give -o a directory for the frames (created if missing)"));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut animated = match animation {
+        Some((path, fps)) => Some(Animation::create(path, first, cameras.len(), fps)?),
+        None => None,
+    };
+    let (mut render_seconds, mut pages, mut pages_max, mut steps, mut rays) = (0.0, 0, 0, 0, 0);
+    let mut frame_files = Vec::with_capacity(cameras.len());
+    for (k, camera) in cameras.iter().enumerate() {
+        let frame = render_view(reader, camera, opts)
+            .map_err(|e| Error::msg(format!("frame {k} (eye {:?}): {e}", camera.eye)))?;
+        let s = &frame.stats;
+        render_seconds += s.seconds;
+        pages += s.reader.pages_read;
+        pages_max = pages_max.max(s.reader.pages_read);
+        steps += s.cells_stepped;
+        rays += s.rays;
+        let file = frame_file(dir, k);
+        frame.write(&file, None)?;
+        if let Some(a) = animated.as_mut() {
+            a.push(&frame)?;
+        }
+        frame_files.push(file);
+        progress.inc(1);
+    }
+    remove_stale_frames(dir, cameras.len())?;
+    if let Some(a) = animated {
+        a.finish()?;
+    }
+    let frames = cameras.len();
+    Ok(FlightStats {
+        frames,
+        render_seconds,
+        frames_per_second: frames as f64 / render_seconds.max(1e-9),
+        total_seconds: start.elapsed().as_secs_f64(),
+        pages_read_per_frame: pages as f64 / frames as f64,
+        pages_read_max: pages_max,
+        cells_stepped_per_ray: steps as f64 / rays.max(1) as f64,
+        frame_files,
+    })
+}
+
+/// Remove `frame-NNNNN.png` files numbered `count` or more (left by a longer earlier flight).
+fn remove_stale_frames(dir: &Path, count: usize) -> Result<()> {
+    for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+        let path = entry.map_err(|e| Error::io(dir, e))?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        let index = name
+            .strip_prefix("frame-")
+            .and_then(|n| n.strip_suffix(".png"))
+            .filter(|n| n.len() == 5)
+            .and_then(|n| n.parse::<usize>().ok());
+        if index.is_some_and(|k| k >= count) {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// An animated PNG written frame by frame into a temporary file, renamed into place at the end.
+struct Animation {
+    writer: png::Writer<std::io::BufWriter<std::fs::File>>,
+    file: PathBuf,
+    staged: AtomicFile,
+}
+
+impl Animation {
+    fn create(path: &Path, first: &Camera, frames: usize, fps: f64) -> Result<Animation> {
+        check_output(path)?;
+        let mut staged = AtomicFile::create(path)?;
+        // The encoder writes through its own handle on the temporary file (the staged one's
+        // buffer stays empty); `finish` flushes it, then the commit syncs and renames the file.
+        let sink = staged
+            .writer()
+            .get_ref()
+            .try_clone()
+            .map_err(|e| Error::io(path, e))?;
+        let fail =
+            |e: png::EncodingError| Error::file(path, format!("encoding the APNG failed: {e}"));
+        let mut encoder = png::Encoder::new(
+            std::io::BufWriter::new(sink),
+            first.width as u32,
+            first.height as u32,
+        );
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        encoder.set_animated(frames as u32, 0).map_err(fail)?;
+        let delay_ms = (1000.0 / fps).round().clamp(1.0, u16::MAX as f64) as u16;
+        encoder.set_frame_delay(delay_ms, 1000).map_err(fail)?;
+        Ok(Animation {
+            writer: encoder.write_header().map_err(fail)?,
+            file: path.to_path_buf(),
+            staged,
+        })
+    }
+
+    fn push(&mut self, frame: &Frame) -> Result<()> {
+        let bytes: Vec<u8> = frame.rgb.iter().flatten().copied().collect();
+        self.writer
+            .write_image_data(&bytes)
+            .map_err(|e| Error::file(&self.file, format!("encoding the APNG failed: {e}")))
+    }
+
+    fn finish(self) -> Result<()> {
+        self.writer
+            .finish()
+            .map_err(|e| Error::file(&self.file, format!("encoding the APNG failed: {e}")))?;
+        self.staged.commit()
+    }
+}
