@@ -242,6 +242,25 @@ fn top_view_maps_the_whole_database() {
     );
     let s = render(&tiles, &out, &["--top", "--size", "75x50"]);
     assert_eq!(s["width"], 75);
+    // A window of 40 × 20 cells (2 m) from column 100, row 30: one pixel a cell by default.
+    let w = "431200,4581900,431280,4581940";
+    let s = render(&tiles, &out, &["--top", "--window", w]);
+    assert_eq!(
+        (s["width"].as_u64(), s["height"].as_u64()),
+        (Some(40), Some(20))
+    );
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.get_pixel(23, 15).0, [123, 45, 90]);
+    let o = dbms(&[
+        "render",
+        "--tiles",
+        tiles.to_str().unwrap(),
+        "--window",
+        w,
+        "-o",
+        "x.png",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--top"));
 }
 
 #[test]

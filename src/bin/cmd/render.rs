@@ -64,6 +64,15 @@ pub struct Args {
     /// Orthographic top-down map of the whole database instead of a perspective view.
     #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal", "samples", "blend", "path"])]
     top: bool,
+    /// With --top: map only this window, MINX,MINY,MAXX,MAXY in the tile set's CRS units (the
+    /// patent's god's-eye view of an area); default size its cells, at most 1024 on the long side.
+    #[arg(
+        long,
+        value_name = "MINX,MINY,MAXX,MAXY",
+        requires = "top",
+        allow_hyphen_values = true
+    )]
+    window: Option<String>,
     /// Fly: render a frame every 1/--fps s along this path (.csv with a header x,y,z[,t], or a
     /// .geojson LineString of [x, y, z], optional properties.times), PNG frames into the -o
     /// directory. The view looks along the path (--fixed-heading: --attitude's yaw).
@@ -126,17 +135,41 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let reader = TileReader::open(&args.tiles, args.cache_pages)?;
     let frame = if args.top {
         let g = &reader.info().grid;
+        let window = match &args.window {
+            Some(s) => {
+                let v: Vec<f64> = s
+                    .split(',')
+                    .map(|p| p.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .unwrap_or_default();
+                Some(<[f64; 4]>::try_from(v).map_err(|_| {
+                    Error::msg(format!(
+                        "--window {s}: expected four comma-separated numbers"
+                    ))
+                    .fix("give MINX,MINY,MAXX,MAXY in the tile set's CRS units")
+                })?)
+            }
+            None => None,
+        };
+        // The map's cells across and down: the grid's, or the window's.
+        let (cw, ch) = match window {
+            Some([x0, y0, x1, y1]) => (
+                ((x1 - x0) / g.transform.cell_x.abs()).abs(),
+                ((y1 - y0) / g.transform.cell_y.abs()).abs(),
+            ),
+            None => (g.width as f64, g.height as f64),
+        };
         let (w, h) = match &args.size {
             Some(s) => size(s)?,
             None => {
-                let k = (g.width.max(g.height) as f64 / 1024.0).max(1.0);
+                let k = (cw.max(ch) / 1024.0).max(1.0);
                 (
-                    ((g.width as f64 / k).round() as usize).max(1),
-                    ((g.height as f64 / k).round() as usize).max(1),
+                    ((cw / k).round() as usize).clamp(1, 16384),
+                    ((ch / k).round() as usize).clamp(1, 16384),
                 )
             }
         };
-        render::render_top(&reader, w, h, !args.no_lod)?
+        render::render_top(&reader, w, h, !args.no_lod, window)?
     } else {
         let eye = super::triple(
             "--eye",

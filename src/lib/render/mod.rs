@@ -7,7 +7,7 @@
 //! `TH_k = L_k · N_pix / H_fov` (cell edge `L_k` in metres, field of view in radians) stop a ray
 //! at a coarse level's average colour at long range. Rays that leave the database take the
 //! [sky](sky::sky), or with `repeat` continue through copies of it (modulo arithmetic).
-//! [`render_top`] is the orthographic map of the whole database.
+//! [`render_top`] is the orthographic map of the whole database or of a window of it.
 //!
 //! Invariants: pages come only through [`TileReader`] (bounded cache, counted reads); the same
 //! tile set and camera give the same pixels whatever the thread count; without range thresholds
@@ -473,19 +473,62 @@ fn assemble(
     }
 }
 
-/// Render the orthographic map of the whole database, `width × height` pixels, looking straight
-/// down. Each pixel shows the cell under its centre; with `lod`, from the coarsest level whose
-/// cells are no wider than a pixel's footprint. Range is the depth below the database's highest
-/// point, metres (`+inf` over nodata, drawn black).
-pub fn render_top(reader: &TileReader, width: usize, height: usize, lod: bool) -> Result<Frame> {
+/// A rectangle of the world for [`render_top`]: `[min_x, min_y, max_x, max_y]` in the tile
+/// set's CRS units.
+pub type Window = [f64; 4];
+
+/// Render the orthographic map of `window` (`None`: the whole database), `width × height`
+/// pixels, looking straight down: the patent's god's-eye view. Each pixel shows the cell under
+/// its centre; with `lod`, from the coarsest level whose cells are no wider than a pixel's
+/// footprint. Range is the depth below the database's highest point, metres (`+inf` over
+/// nodata and outside the database, drawn black).
+pub fn render_top(
+    reader: &TileReader,
+    width: usize,
+    height: usize,
+    lod: bool,
+    window: Option<Window>,
+) -> Result<Frame> {
     camera::check_size(width, height)?;
     let start = Instant::now();
     let before = reader.stats();
     let scene = Scene::of(reader)?;
-    let (sx, sy) = (
-        scene.width as f64 / width as f64,
-        scene.height as f64 / height as f64,
-    );
+    // The window in level-0 cells: left column `u0`, top row `v0`, cells per pixel `sx`, `sy`.
+    let (u0, v0, sx, sy) = match window {
+        None => (
+            0.0,
+            0.0,
+            scene.width as f64 / width as f64,
+            scene.height as f64 / height as f64,
+        ),
+        Some(w) => {
+            let [x0, y0, x1, y1] = w;
+            if !w.iter().all(|c| c.is_finite()) || !(x1 > x0 && y1 > y0) {
+                return Err(Error::msg(format!(
+                    "--window {x0},{y0},{x1},{y1}: expected MINX,MINY,MAXX,MAXY with MINX < MAXX and MINY < MAXY"
+                )));
+            }
+            let (a, b) = (scene.local(x0, y1), scene.local(x1, y0));
+            let (umin, umax) = (a.0.min(b.0), a.0.max(b.0));
+            let (vmin, vmax) = (a.1.min(b.1), a.1.max(b.1));
+            if umax <= 0.0
+                || vmax <= 0.0
+                || umin >= scene.width as f64
+                || vmin >= scene.height as f64
+            {
+                return Err(Error::msg(format!(
+                    "--window {x0},{y0},{x1},{y1}: the window does not overlap the database"
+                ))
+                .fix("give it in the tile set's CRS (see `dbms tiles` for the extent)"));
+            }
+            (
+                umin,
+                vmin,
+                (umax - umin) / width as f64,
+                (vmax - vmin) / height as f64,
+            )
+        }
+    };
     let level = match lod {
         true => scene
             .scales
@@ -501,9 +544,9 @@ pub fn render_top(reader: &TileReader, width: usize, height: usize, lod: bool) -
             let no_columns = ColumnCache::default(); // the top view never looks inside a column
             let mut sampler = Sampler::new(reader, false, &no_columns);
             let mut row = Row::new(width);
-            let r = (((j as f64 + 0.5) * sy).floor() as i64).div_euclid(s);
+            let r = ((v0 + (j as f64 + 0.5) * sy).floor() as i64).div_euclid(s);
             for i in 0..width {
-                let c = (((i as f64 + 0.5) * sx).floor() as i64).div_euclid(s);
+                let c = ((u0 + (i as f64 + 0.5) * sx).floor() as i64).div_euclid(s);
                 row.rays += 1;
                 row.steps += 1;
                 match sampler.cell(level, c, r)? {

@@ -579,15 +579,54 @@ fn top_view_shows_each_cell_under_its_pixel() {
     let (_d, r) = tiles(0.0, 32.0, 32, 32, 16, 4, |c, r| {
         (c as f32, [c as u8 * 8, r as u8 * 8, 0, 255])
     });
-    let f = render_top(&r, 32, 32, true).unwrap();
+    let f = render_top(&r, 32, 32, true, None).unwrap();
     for k in 0..32 * 32 {
         assert_eq!(f.rgb[k], [(k % 32) as u8 * 8, (k / 32) as u8 * 8, 0]);
         assert_eq!(f.range[k], 31.0 - (k % 32) as f32);
     }
     // 8 × 8 pixels over 32 × 32 cells: one level-1 cell (4 × 4) per pixel, its average colour.
-    let small = render_top(&r, 8, 8, true).unwrap();
+    let small = render_top(&r, 8, 8, true, None).unwrap();
     assert_eq!(small.rgb[0], [12, 12, 0]);
-    assert_eq!(render_top(&r, 8, 8, false).unwrap().rgb[0], [16, 16, 0]);
+    assert_eq!(
+        render_top(&r, 8, 8, false, None).unwrap().rgb[0],
+        [16, 16, 0]
+    );
+}
+
+#[test]
+fn a_top_window_maps_just_its_cells_and_the_world_outside_black() {
+    // Grid corner (0, 32), 1 m cells: cell (c, r) spans x [c, c + 1], y [31 − r, 32 − r].
+    let (_d, r) = tiles(0.0, 32.0, 32, 32, 16, 4, |c, r| {
+        (c as f32, [c as u8 * 8, r as u8 * 8, 0, 255])
+    });
+    // x 8..16, y 20..24: columns 8..15, rows 8..11, one pixel a cell.
+    let f = render_top(&r, 8, 4, true, Some([8.0, 20.0, 16.0, 24.0])).unwrap();
+    for k in 0..8 * 4 {
+        let (c, row) = (8 + k % 8, 8 + k / 8);
+        assert_eq!(f.rgb[k], [c as u8 * 8, row as u8 * 8, 0], "pixel {k}");
+    }
+    // Two pixels a cell: each cell twice across; level 0 (a pixel is half a cell).
+    let fine = render_top(&r, 16, 8, true, Some([8.0, 20.0, 16.0, 24.0])).unwrap();
+    assert_eq!(fine.rgb[0], fine.rgb[1]);
+    assert_ne!(fine.rgb[1], fine.rgb[2]);
+    // Half the window off the west edge: those pixels black, the rest the cells.
+    let half = render_top(&r, 8, 1, false, Some([-4.0, 30.0, 4.0, 31.0])).unwrap();
+    assert!(half.rgb[..4].iter().all(|&p| p == [0, 0, 0]));
+    assert!(half.range[..4].iter().all(|r| r.is_infinite()));
+    assert_eq!(half.rgb[4], [0, 8, 0]);
+    // The whole grid as a window is the default map.
+    let whole = render_top(&r, 32, 32, true, Some([0.0, 0.0, 32.0, 32.0])).unwrap();
+    assert_eq!(whole.rgb, render_top(&r, 32, 32, true, None).unwrap().rgb);
+    for bad in [
+        [5.0, 0.0, 5.0, 1.0],
+        [0.0, 0.0, f64::NAN, 1.0],
+        [100.0, 0.0, 120.0, 8.0],
+    ] {
+        let e = render_top(&r, 8, 8, true, Some(bad))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--window"), "{e}");
+    }
 }
 
 #[test]
@@ -597,7 +636,7 @@ fn geographic_tile_sets_are_refused() {
     let grid = Grid::north_up(10.0, 50.0, 0.001, 8, 8, Crs::epsg(4326));
     synthetic::write_tiles(&path, grid, 8, 4, Compression::None, |_, _| (1.0, GREY)).unwrap();
     let r = TileReader::open(&path, 4).unwrap();
-    let e = render_top(&r, 8, 8, false).unwrap_err();
+    let e = render_top(&r, 8, 8, false, None).unwrap_err();
     assert!(e.to_string().contains("geographic"), "{e}");
 }
 
