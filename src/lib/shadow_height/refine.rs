@@ -346,17 +346,22 @@ fn best_fit(
             .fold(f64::INFINITY, f64::min)
     }
     .max(lo);
-    // The IoU of the fractions at the answer.
+    Some(refined(lo, hi, &events[..next], observed, step))
+}
+
+/// The answer between thresholds `lo` and `hi` (metres): their middle, with the IoU of the
+/// synthetic fractions the `covered` events give (each `step` of its cell) and `observed`.
+fn refined(lo: f64, hi: f64, covered: &[Event], observed: &[f64], step: f64) -> Refined {
     let mut s = vec![0.0; observed.len()];
-    for e in &events[..next] {
+    for e in covered {
         s[e.cell()] += step;
     }
     let num: f64 = s.iter().zip(observed).map(|(a, b)| a.min(*b)).sum();
     let den: f64 = s.iter().zip(observed).map(|(a, b)| a.max(*b)).sum();
-    Some(Refined {
+    Refined {
         height_m: (lo + hi) / 2.0,
         overlap: (num / den).clamp(0.0, 1.0),
-    })
+    }
 }
 
 /// `n` points in the unit cell, a rank-1 lattice: point `k` at `((k + ½)/n, ((k·g) mod n + ½)/n)`
@@ -867,16 +872,7 @@ mod tests {
         }
         let lo = events[next - 1].threshold();
         let hi = events.get(next).map_or(z_hi, |e| e.threshold()).max(lo);
-        let mut f = vec![0.0; observed.len()];
-        for e in &events[..next] {
-            f[e.cell()] += step;
-        }
-        let num: f64 = f.iter().zip(observed).map(|(a, b)| a.min(*b)).sum();
-        let den: f64 = f.iter().zip(observed).map(|(a, b)| a.max(*b)).sum();
-        Some(Refined {
-            height_m: (lo + hi) / 2.0,
-            overlap: (num / den).clamp(0.0, 1.0),
-        })
+        Some(refined(lo, hi, &events[..next], observed, step))
     }
 
     #[test]
