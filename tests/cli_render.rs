@@ -519,6 +519,10 @@ fn a_flight_without_times_or_speed_or_with_a_bad_path_is_a_one_line_error() {
             vec!["--path", p, "--speed", "50", "--top"],
             "cannot be used with",
         ),
+        (
+            vec!["--path", p, "--speed", "50", "--range-out", "r.exr"],
+            "cannot be used with",
+        ),
     ] {
         let mut a = vec!["render", "--tiles", t];
         if !args.contains(&"-o") {

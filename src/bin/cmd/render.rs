@@ -76,7 +76,7 @@ pub struct Args {
     /// Fly: render a frame every 1/--fps s along this path (.csv with a header x,y,z[,t], or a
     /// .geojson LineString of [x, y, z], optional properties.times), PNG frames into the -o
     /// directory. The view looks along the path (--fixed-heading: --attitude's yaw).
-    #[arg(long, value_name = "PATH", conflicts_with = "eye")]
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["eye", "range_out"])]
     path: Option<PathBuf>,
     /// With --path: speed along the path, metres per second (for paths without times).
     #[arg(
