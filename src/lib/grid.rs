@@ -98,34 +98,51 @@ impl Bounds {
 
     /// Parse `MINX,MINY,MAXX,MAXY` (the `--bounds` option).
     pub fn parse(s: &str) -> Result<Bounds> {
+        Bounds::parse_option("--bounds", s)
+    }
+
+    /// Parse `MINX,MINY,MAXX,MAXY` given to option `option` (named in the errors).
+    pub fn parse_option(option: &str, s: &str) -> Result<Bounds> {
+        let malformed = || {
+            Error::msg(format!(
+                "{option} {s}: expected four numbers MINX,MINY,MAXX,MAXY"
+            ))
+            .fix(format!("e.g. {option} 500000,5000000,501000,5001000"))
+        };
         let v: Vec<f64> = s
             .split(',')
             .map(|t| t.trim().parse::<f64>())
             .collect::<std::result::Result<_, _>>()
-            .map_err(|_| bounds_error(s))?;
-        if v.len() != 4 || v.iter().any(|x| !x.is_finite()) {
-            return Err(bounds_error(s));
+            .map_err(|_| malformed())?;
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(malformed());
         }
-        let b = Bounds {
-            min_x: v[0],
-            min_y: v[1],
-            max_x: v[2],
-            max_y: v[3],
-        };
-        if !(b.min_x < b.max_x && b.min_y < b.max_y) {
+        let [min_x, min_y, max_x, max_y] = <[f64; 4]>::try_from(v).map_err(|_| malformed())?;
+        Bounds {
+            min_x,
+            min_y,
+            max_x,
+            max_y,
+        }
+        .check(option, s)
+    }
+
+    /// `self` if its edges are finite and `min < max` on both axes, else an error naming
+    /// `option` and `shown` (the rectangle as given).
+    pub fn check(self, option: &str, shown: &str) -> Result<Bounds> {
+        let edges = [self.min_x, self.min_y, self.max_x, self.max_y];
+        if !edges.iter().all(|c| c.is_finite()) {
             return Err(Error::msg(format!(
-                "--bounds {s}: MINX must be below MAXX and MINY below MAXY"
+                "{option} {shown}: every edge must be a finite number"
             )));
         }
-        Ok(b)
+        if !(self.min_x < self.max_x && self.min_y < self.max_y) {
+            return Err(Error::msg(format!(
+                "{option} {shown}: MINX must be below MAXX and MINY below MAXY"
+            )));
+        }
+        Ok(self)
     }
-}
-
-fn bounds_error(s: &str) -> Error {
-    Error::msg(format!(
-        "--bounds {s}: expected four numbers MINX,MINY,MAXX,MAXY"
-    ))
-    .fix("e.g. --bounds 500000,5000000,501000,5001000")
 }
 
 /// A georeferenced grid: size, transform and CRS. Holds no data; see [`crate::raster::Raster`].

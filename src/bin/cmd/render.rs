@@ -1,6 +1,7 @@
 //! `dbms render`: a ray-cast preview of a tile set, perspective or top-down.
 
 use super::Ctx;
+use dbms::grid::Bounds;
 use dbms::render::{self, Attitude, Camera, Traversal, ViewOptions};
 use dbms::tiles::TileReader;
 use dbms::Error;
@@ -135,27 +136,16 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let reader = TileReader::open(&args.tiles, args.cache_pages)?;
     let frame = if args.top {
         let g = &reader.info().grid;
-        let window = match &args.window {
-            Some(s) => {
-                let v: Vec<f64> = s
-                    .split(',')
-                    .map(|p| p.trim().parse::<f64>())
-                    .collect::<Result<_, _>>()
-                    .unwrap_or_default();
-                Some(<[f64; 4]>::try_from(v).map_err(|_| {
-                    Error::msg(format!(
-                        "--window {s}: expected four comma-separated numbers"
-                    ))
-                    .fix("give MINX,MINY,MAXX,MAXY in the tile set's CRS units")
-                })?)
-            }
-            None => None,
-        };
+        let window = args
+            .window
+            .as_deref()
+            .map(|s| Bounds::parse_option("--window", s))
+            .transpose()?;
         // The map's cells across and down: the grid's, or the window's.
         let (cw, ch) = match window {
-            Some([x0, y0, x1, y1]) => (
-                ((x1 - x0) / g.transform.cell_x.abs()).abs(),
-                ((y1 - y0) / g.transform.cell_y.abs()).abs(),
+            Some(b) => (
+                b.width() / g.transform.cell_x.abs(),
+                b.height() / g.transform.cell_y.abs(),
             ),
             None => (g.width as f64, g.height as f64),
         };

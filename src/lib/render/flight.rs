@@ -7,7 +7,7 @@
 
 use super::{render_view, Camera, Frame, ViewOptions};
 use crate::error::{Error, Result};
-use crate::io::atomic::{check_output, AtomicFile};
+use crate::io::atomic::AtomicFile;
 use crate::progress::Progress;
 use crate::tiles::TileReader;
 use serde::Serialize;
@@ -32,8 +32,6 @@ pub struct FlightStats {
     pub pages_read_max: u64,
     /// Level cells stepped per ray, mean over the flight.
     pub cells_stepped_per_ray: f64,
-    /// The frame files, in order.
-    pub frame_files: Vec<PathBuf>,
 }
 
 /// The file of frame `k` in `dir`.
@@ -68,7 +66,6 @@ pub fn fly(
         None => None,
     };
     let (mut render_seconds, mut pages, mut pages_max, mut steps, mut rays) = (0.0, 0, 0, 0, 0);
-    let mut frame_files = Vec::with_capacity(cameras.len());
     for (k, camera) in cameras.iter().enumerate() {
         let frame = render_view(reader, camera, opts)
             .map_err(|e| Error::msg(format!("frame {k} (eye {:?}): {e}", camera.eye)))?;
@@ -78,12 +75,10 @@ pub fn fly(
         pages_max = pages_max.max(s.reader.pages_read);
         steps += s.cells_stepped;
         rays += s.rays;
-        let file = frame_file(dir, k);
-        frame.write(&file, None)?;
+        frame.write(&frame_file(dir, k), None)?;
         if let Some(a) = animated.as_mut() {
             a.push(&frame)?;
         }
-        frame_files.push(file);
         progress.inc(1);
     }
     remove_stale_frames(dir, cameras.len())?;
@@ -99,7 +94,6 @@ pub fn fly(
         pages_read_per_frame: pages as f64 / frames as f64,
         pages_read_max: pages_max,
         cells_stepped_per_ray: steps as f64 / rays.max(1) as f64,
-        frame_files,
     })
 }
 
@@ -123,13 +117,16 @@ fn remove_stale_frames(dir: &Path, count: usize) -> Result<()> {
 /// An animated PNG written frame by frame into a temporary file, renamed into place at the end.
 struct Animation {
     writer: png::Writer<std::io::BufWriter<std::fs::File>>,
-    file: PathBuf,
     staged: AtomicFile,
+}
+
+/// The error of encoding the animated PNG at `path`.
+fn apng_error(path: &Path, e: png::EncodingError) -> Error {
+    Error::file(path, format!("encoding the APNG failed: {e}"))
 }
 
 impl Animation {
     fn create(path: &Path, first: &Camera, frames: usize, fps: f64) -> Result<Animation> {
-        check_output(path)?;
         let mut staged = AtomicFile::create(path)?;
         // The encoder writes through its own handle on the temporary file (the staged one's
         // buffer stays empty); `finish` flushes it, then the commit syncs and renames the file.
@@ -138,8 +135,7 @@ impl Animation {
             .get_ref()
             .try_clone()
             .map_err(|e| Error::io(path, e))?;
-        let fail =
-            |e: png::EncodingError| Error::file(path, format!("encoding the APNG failed: {e}"));
+        let fail = |e| apng_error(path, e);
         let mut encoder = png::Encoder::new(
             std::io::BufWriter::new(sink),
             first.width as u32,
@@ -152,22 +148,19 @@ impl Animation {
         encoder.set_frame_delay(delay_ms, 1000).map_err(fail)?;
         Ok(Animation {
             writer: encoder.write_header().map_err(fail)?,
-            file: path.to_path_buf(),
             staged,
         })
     }
 
     fn push(&mut self, frame: &Frame) -> Result<()> {
-        let bytes: Vec<u8> = frame.rgb.iter().flatten().copied().collect();
         self.writer
-            .write_image_data(&bytes)
-            .map_err(|e| Error::file(&self.file, format!("encoding the APNG failed: {e}")))
+            .write_image_data(frame.rgb_bytes())
+            .map_err(|e| apng_error(self.staged.path(), e))
     }
 
     fn finish(self) -> Result<()> {
-        self.writer
-            .finish()
-            .map_err(|e| Error::file(&self.file, format!("encoding the APNG failed: {e}")))?;
-        self.staged.commit()
+        let Animation { writer, staged } = self;
+        writer.finish().map_err(|e| apng_error(staged.path(), e))?;
+        staged.commit()
     }
 }

@@ -29,6 +29,7 @@ pub use camera::{Attitude, Camera};
 pub use march::{Face, Hit, Plan, Span, Traversal};
 
 use crate::error::{Error, Result};
+use crate::grid::Bounds;
 use crate::io::atomic::write_bytes_atomic;
 use crate::tiles::{ReaderStats, TileReader, STATE_PARTIAL};
 use ray::{Axis, Ray};
@@ -473,10 +474,6 @@ fn assemble(
     }
 }
 
-/// A rectangle of the world for [`render_top`]: `[min_x, min_y, max_x, max_y]` in the tile
-/// set's CRS units.
-pub type Window = [f64; 4];
-
 /// Render the orthographic map of `window` (`None`: the whole database), `width × height`
 /// pixels, looking straight down: the patent's god's-eye view. Each pixel shows the cell under
 /// its centre; with `lod`, from the coarsest level whose cells are no wider than a pixel's
@@ -487,7 +484,7 @@ pub fn render_top(
     width: usize,
     height: usize,
     lod: bool,
-    window: Option<Window>,
+    window: Option<Bounds>,
 ) -> Result<Frame> {
     camera::check_size(width, height)?;
     let start = Instant::now();
@@ -502,25 +499,17 @@ pub fn render_top(
             scene.height as f64 / height as f64,
         ),
         Some(w) => {
-            let [x0, y0, x1, y1] = w;
-            if !w.iter().all(|c| c.is_finite()) || !(x1 > x0 && y1 > y0) {
+            let shown = format!("{},{},{},{}", w.min_x, w.min_y, w.max_x, w.max_y);
+            let w = w.check("--window", &shown)?;
+            if w.intersection(&reader.info().grid.bounds()).is_none() {
                 return Err(Error::msg(format!(
-                    "--window {x0},{y0},{x1},{y1}: expected MINX,MINY,MAXX,MAXY with MINX < MAXX and MINY < MAXY"
-                )));
-            }
-            let (a, b) = (scene.local(x0, y1), scene.local(x1, y0));
-            let (umin, umax) = (a.0.min(b.0), a.0.max(b.0));
-            let (vmin, vmax) = (a.1.min(b.1), a.1.max(b.1));
-            if umax <= 0.0
-                || vmax <= 0.0
-                || umin >= scene.width as f64
-                || vmin >= scene.height as f64
-            {
-                return Err(Error::msg(format!(
-                    "--window {x0},{y0},{x1},{y1}: the window does not overlap the database"
+                    "--window {shown}: the window does not overlap the database"
                 ))
                 .fix("give it in the tile set's CRS (see `dbms tiles` for the extent)"));
             }
+            let (a, b) = (scene.local(w.min_x, w.max_y), scene.local(w.max_x, w.min_y));
+            let (umin, umax) = (a.0.min(b.0), a.0.max(b.0));
+            let (vmin, vmax) = (a.1.min(b.1), a.1.max(b.1));
             (
                 umin,
                 vmin,
@@ -570,14 +559,18 @@ pub fn render_top(
 }
 
 impl Frame {
+    /// The pixels as bytes, `r, g, b` row-major from the top-left.
+    pub fn rgb_bytes(&self) -> &[u8] {
+        self.rgb.as_flattened()
+    }
+
     /// The frame as PNG bytes (8-bit RGB; deterministic).
     pub fn png(&self) -> Result<Vec<u8>> {
         use image::ImageEncoder;
         let mut out = Vec::new();
-        let bytes: Vec<u8> = self.rgb.iter().flatten().copied().collect();
         image::codecs::png::PngEncoder::new(&mut out)
             .write_image(
-                &bytes,
+                self.rgb_bytes(),
                 self.width as u32,
                 self.height as u32,
                 image::ExtendedColorType::Rgb8,

@@ -593,6 +593,15 @@ fn top_view_shows_each_cell_under_its_pixel() {
     );
 }
 
+fn window(min_x: f64, min_y: f64, max_x: f64, max_y: f64) -> Bounds {
+    Bounds {
+        min_x,
+        min_y,
+        max_x,
+        max_y,
+    }
+}
+
 #[test]
 fn a_top_window_maps_just_its_cells_and_the_world_outside_black() {
     // Grid corner (0, 32), 1 m cells: cell (c, r) spans x [c, c + 1], y [31 − r, 32 − r].
@@ -600,27 +609,27 @@ fn a_top_window_maps_just_its_cells_and_the_world_outside_black() {
         (c as f32, [c as u8 * 8, r as u8 * 8, 0, 255])
     });
     // x 8..16, y 20..24: columns 8..15, rows 8..11, one pixel a cell.
-    let f = render_top(&r, 8, 4, true, Some([8.0, 20.0, 16.0, 24.0])).unwrap();
+    let f = render_top(&r, 8, 4, true, Some(window(8.0, 20.0, 16.0, 24.0))).unwrap();
     for k in 0..8 * 4 {
         let (c, row) = (8 + k % 8, 8 + k / 8);
         assert_eq!(f.rgb[k], [c as u8 * 8, row as u8 * 8, 0], "pixel {k}");
     }
     // Two pixels a cell: each cell twice across; level 0 (a pixel is half a cell).
-    let fine = render_top(&r, 16, 8, true, Some([8.0, 20.0, 16.0, 24.0])).unwrap();
+    let fine = render_top(&r, 16, 8, true, Some(window(8.0, 20.0, 16.0, 24.0))).unwrap();
     assert_eq!(fine.rgb[0], fine.rgb[1]);
     assert_ne!(fine.rgb[1], fine.rgb[2]);
     // Half the window off the west edge: those pixels black, the rest the cells.
-    let half = render_top(&r, 8, 1, false, Some([-4.0, 30.0, 4.0, 31.0])).unwrap();
+    let half = render_top(&r, 8, 1, false, Some(window(-4.0, 30.0, 4.0, 31.0))).unwrap();
     assert!(half.rgb[..4].iter().all(|&p| p == [0, 0, 0]));
     assert!(half.range[..4].iter().all(|r| r.is_infinite()));
     assert_eq!(half.rgb[4], [0, 8, 0]);
     // The whole grid as a window is the default map.
-    let whole = render_top(&r, 32, 32, true, Some([0.0, 0.0, 32.0, 32.0])).unwrap();
+    let whole = render_top(&r, 32, 32, true, Some(window(0.0, 0.0, 32.0, 32.0))).unwrap();
     assert_eq!(whole.rgb, render_top(&r, 32, 32, true, None).unwrap().rgb);
     for bad in [
-        [5.0, 0.0, 5.0, 1.0],
-        [0.0, 0.0, f64::NAN, 1.0],
-        [100.0, 0.0, 120.0, 8.0],
+        window(5.0, 0.0, 5.0, 1.0),
+        window(0.0, 0.0, f64::NAN, 1.0),
+        window(100.0, 0.0, 120.0, 8.0),
     ] {
         let e = render_top(&r, 8, 8, true, Some(bad))
             .unwrap_err()
