@@ -114,15 +114,16 @@ pub fn buildings_layer(heights: &Value) -> Value {
     doc
 }
 
-/// Write `doc` to `out` as [`to_text`] makes it, without holding the text.
+/// Write `doc` to `out` as the files hold it: pretty JSON with a final newline, streamed
+/// (the text is never held whole).
 pub fn write_text(doc: &Value, out: &mut impl std::io::Write) -> std::io::Result<()> {
     serde_json::to_writer_pretty(&mut *out, doc)?;
     out.write_all(b"\n")
 }
 
-/// Pretty JSON text with a final newline (what the files hold).
+/// [`write_text`]'s text as a string.
 pub fn to_text(doc: &Value) -> String {
-    let mut s = serde_json::to_string_pretty(doc).expect("JSON value serialises");
-    s.push('\n');
-    s
+    let mut bytes = Vec::new();
+    write_text(doc, &mut bytes).expect("a Vec takes every write");
+    String::from_utf8(bytes).expect("serde_json writes UTF-8")
 }

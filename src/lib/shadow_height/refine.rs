@@ -563,15 +563,12 @@ impl Walls {
         self.edges
             .iter()
             .filter_map(|w| {
-                let ap = (w.start.0 - p.0, w.start.1 - p.1);
-                let (t, s) = (cross(ap, w.along) * w.inv_den, cross(ap, d) * w.inv_den);
+                let (t, s) = w.meet(p, d);
                 (t >= 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
             })
             .min_by(f64::total_cmp)
     }
-}
 
-impl Walls {
     /// The walls for rays from the points of grid cells whose sides are the vectors `ex`
     /// (from a cell's first corner to the next column's, metres east and north) and `ey` (to
     /// the next row's).
@@ -622,8 +619,7 @@ impl CellRays<'_> {
         self.near.clear();
         let d = self.walls.d;
         for (k, (w, sl)) in self.walls.edges.iter().zip(&self.slopes).enumerate() {
-            let ap = (w.start.0 - corner.0, w.start.1 - corner.1);
-            let (t, s) = (cross(ap, w.along) * w.inv_den, cross(ap, d) * w.inv_den);
+            let (t, s) = w.meet(corner, d);
             let t_max = t + sl[0].max(0.0) + sl[1].max(0.0);
             let s_min = s + sl[2].min(0.0) + sl[3].min(0.0);
             let s_max = s + sl[2].max(0.0) + sl[3].max(0.0);
@@ -642,6 +638,19 @@ impl CellRays<'_> {
                 }
             }
         }
+    }
+}
+
+impl Wall {
+    /// Where the ray from `p` along `d` meets the edge's line: the distance `t` along the ray
+    /// (metres) and the fraction `s` along the edge (in [0, 1] on it).
+    #[inline]
+    fn meet(&self, p: (f64, f64), d: (f64, f64)) -> (f64, f64) {
+        let ap = (self.start.0 - p.0, self.start.1 - p.1);
+        (
+            cross(ap, self.along) * self.inv_den,
+            cross(ap, d) * self.inv_den,
+        )
     }
 }
 
