@@ -46,7 +46,7 @@ pub struct Flight {
 /// feature of a FeatureCollection, `[x, y, z]` positions; optional `properties.times`, seconds,
 /// one per vertex).
 pub fn read(path: &Path) -> Result<Vec<Waypoint>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::read_text(path)?;
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -134,9 +134,10 @@ fn from_geojson(text: &str) -> std::result::Result<Vec<Waypoint>, String> {
         .iter()
         .enumerate()
         .map(|(k, c)| {
+            // Every element a number: a stray string is an error, never a dropped value.
             let p: Vec<f64> = c
                 .as_array()
-                .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+                .and_then(|a| a.iter().map(serde_json::Value::as_f64).collect())
                 .unwrap_or_default();
             if p.len() != 3 {
                 return Err(format!("position {k} is {c}, not [x, y, z] (z: metres)"));
@@ -376,6 +377,11 @@ mod tests {
         let a = read(&csv).unwrap();
         assert_eq!(a, read(&gj).unwrap());
         assert_eq!(a[1], wp(500010.0, 5300020.25, 431.0, Some(4.0)));
+        // A spreadsheet's byte order mark before the header is not part of it.
+        let bom = dir.path().join("bom.csv");
+        let text = std::fs::read_to_string(&csv).unwrap();
+        std::fs::write(&bom, format!("\u{feff}{text}")).unwrap();
+        assert_eq!(read(&bom).unwrap(), a);
         for (name, text, expect) in [
             ("a.csv", "x,y\n1,2\n3,4\n", "must name columns x, y and z"),
             ("b.csv", "x,y,z\n1,2,3\n4,five,6\n", "line 3"),
@@ -390,6 +396,11 @@ mod tests {
                 "not [x, y, z]",
             ),
             ("e.txt", "x,y,z\n", "unknown format"),
+            (
+                "g.geojson",
+                r#"{"type":"LineString","coordinates":[[1,2,3],[1,"a",2,3]]}"#,
+                "not [x, y, z]",
+            ),
             ("f.csv", "x,y,z,t\n1,2,3,0\n4,5,6,\n", "line 3"),
         ] {
             let p = dir.path().join(name);
