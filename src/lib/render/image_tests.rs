@@ -9,9 +9,6 @@
 //! reference's.
 
 use super::*;
-use crate::crs::Crs;
-use crate::grid::Grid;
-use crate::tiles::Compression;
 
 /// Grid side, cells of 1 m; the grid's north-west corner is at `(0, SIDE)`.
 const SIDE: usize = 512;
@@ -44,17 +41,11 @@ fn colour(col: usize, row: usize) -> [u8; 4] {
 }
 
 fn tile_set(relief: &Relief) -> (tempfile::TempDir, TileReader) {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("relief.dbt");
-    let grid = Grid::north_up(0.0, SIDE as f64, 1.0, SIDE, SIDE, Crs::epsg(32614));
     let z = relief.z;
-    synthetic::write_tiles(&path, grid, 64, 4, Compression::None, |c, r| {
+    super::tests::tiles(0.0, SIDE as f64, SIDE, SIDE, 64, 4, |c, r| {
         let (x, y) = (c as f64 + 0.5, SIDE as f64 - r as f64 - 0.5);
         (z(x, y) as f32, colour(c, r))
     })
-    .unwrap();
-    let reader = TileReader::open(&path, 256).unwrap();
-    (dir, reader)
 }
 
 /// The reference image: 4 × 4 stratified rays per pixel, each sphere-traced against the

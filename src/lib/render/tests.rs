@@ -11,7 +11,7 @@ use std::sync::OnceLock;
 const GREY: [u8; 4] = [120, 120, 120, 255];
 
 /// A tile set over a `w × h` grid of 1 m cells with its north-west corner at `(x0, y0)`.
-fn tiles<F>(
+pub(super) fn tiles<F>(
     x0: f64,
     y0: f64,
     w: usize,
