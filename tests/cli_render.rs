@@ -286,6 +286,16 @@ fn eye_below_the_terrain_is_a_one_line_error() {
     assert!(!out.exists());
 }
 
+/// Run dbms with `args`: it must fail, saying `expect` in an error of at most two lines.
+fn refused(args: &[&str], expect: &str) {
+    let o = dbms(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains(expect) && err.trim().lines().count() <= 2,
+        "{expect}: {err}"
+    );
+}
+
 #[test]
 fn bad_options_name_the_option() {
     let dir = tempfile::tempdir().unwrap();
@@ -317,12 +327,7 @@ fn bad_options_name_the_option() {
     ] {
         let mut a = vec!["render", "--tiles", t, "-o", "/nonexistent/x.png"];
         a.extend(args);
-        let o = dbms(&a);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(
-            !o.status.success() && err.contains(expect),
-            "{expect}: {err}"
-        );
+        refused(&a, expect);
     }
     let o = dbms(&[
         "render",
@@ -529,11 +534,6 @@ fn a_flight_without_times_or_speed_or_with_a_bad_path_is_a_one_line_error() {
             a.extend(["-o", "/tmp/never-written-frames"]);
         }
         a.extend(args);
-        let o = dbms(&a);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(
-            !o.status.success() && err.contains(expect) && err.trim().lines().count() <= 2,
-            "{expect}: {err}"
-        );
+        refused(&a, expect);
     }
 }
