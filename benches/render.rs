@@ -56,15 +56,16 @@ fn main() {
         );
     }
 
+    let sets = [("sample", &sample), ("generated", &generated)];
     if std::env::args().any(|a| a == "aa") {
-        anti_aliasing(&[("sample", &sample), ("generated", &generated)]);
+        anti_aliasing(&sets);
         return;
     }
 
     println!("\n| tile set | traversal | range thresholds | frames | time per frame (s) | rays/s | cells stepped per ray | pages touched per frame | speed-up vs level 0 |");
     println!("|---|---|---|---|---|---|---|---|---|");
     let mut lod_rows = Vec::new();
-    for (kind, path) in [("sample", &sample), ("generated", &generated)] {
+    for (kind, path) in sets {
         let reader = TileReader::open(path, 1024).expect("open tiles");
         let g = &reader.info().grid;
         let name = format!(
@@ -121,7 +122,7 @@ fn main() {
     for r in lod_rows {
         println!("{r}");
     }
-    anti_aliasing(&[("sample", &sample), ("generated", &generated)]);
+    anti_aliasing(&sets);
 }
 
 /// The anti-aliasing table: error against a 64-ray blended frame and time per frame for 1, 4
