@@ -105,3 +105,33 @@ fn sample_truth_and_scene_match_their_schemas() {
         assert_valid(&schema(name), &doc, file);
     }
 }
+
+/// A GeoJSON flight path that `dbms render --path` reads matches its schema, and what the
+/// schema refuses dbms refuses too.
+#[test]
+fn flight_paths_dbms_reads_match_their_schema() {
+    let v = schema("flight-path.schema.json");
+    let dir = tempfile::tempdir().unwrap();
+    let good = [
+        serde_json::json!({"type": "LineString", "coordinates": [[500000.5, 5300000, 430], [500010, 5300020, 431]]}),
+        serde_json::json!({"type": "FeatureCollection", "features": [{"type": "Feature",
+            "properties": {"times": [0, 4]},
+            "geometry": {"type": "LineString", "coordinates": [[1, 2, 3], [4, 5, 6]]}}]}),
+    ];
+    let bad = [
+        serde_json::json!({"type": "LineString", "coordinates": [[1, 2], [3, 4]]}),
+        serde_json::json!({"type": "Point", "coordinates": [1, 2, 3]}),
+        serde_json::json!({"type": "LineString", "coordinates": [[1, 2, 3]]}),
+    ];
+    for (k, doc) in good.iter().chain(&bad).enumerate() {
+        let path = dir.path().join(format!("p{k}.geojson"));
+        std::fs::write(&path, doc.to_string()).unwrap();
+        let read = dbms::render::path::read(&path);
+        if k < good.len() {
+            assert_valid(&v, doc, "a flight path");
+            assert!(read.is_ok(), "{doc}: {:?}", read.err());
+        } else {
+            assert!(!v.is_valid(doc) && read.is_err(), "{doc}");
+        }
+    }
+}
