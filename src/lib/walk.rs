@@ -135,6 +135,8 @@ pub struct Walk<const N: usize> {
     stepped: [bool; N],
     /// Parameter at which the ray entered `cell`.
     t_in: f64,
+    /// The crossing times of the next boundary on each axis, as the last step computed them.
+    last_times: [f64; N],
     /// Side cells still to visit at a corner (Touching), and how many.
     pending: [[i64; N]; 8],
     n_pending: usize,
@@ -172,6 +174,7 @@ impl<const N: usize> Walk<N> {
                 }
             }),
             t_in: 0.0,
+            last_times: [f64::INFINITY; N],
             pending: [[0; N]; 8],
             n_pending: 0,
             pending_t: 0.0,
@@ -209,6 +212,7 @@ impl<const N: usize> Walk<N> {
         self.cell = cell;
         self.t_in = t;
         self.stepped = [false; N];
+        self.last_times = [f64::INFINITY; N];
         self.n_pending = 0;
         self.done = false;
     }
@@ -225,6 +229,18 @@ impl<const N: usize> Walk<N> {
     #[inline]
     pub fn stepped(&self) -> [bool; N] {
         self.stepped
+    }
+
+    /// Whether the step into the cell the walk is in now passed within `rel` (relative, in
+    /// time) of a corner: it crossed several axes at once, or another axis' boundary is crossed
+    /// within `t · rel` after it. A ray whose direction differs from this one's by rounding may
+    /// take the corner the other way and visit a side cell this walk did not (false for the
+    /// start cell and after a restart).
+    #[inline]
+    pub fn near_corner(&self, rel: f64) -> bool {
+        let t = self.t_in;
+        (0..N).any(|a| !self.stepped[a] && self.last_times[a] - t <= t.abs() * rel)
+            || self.stepped.iter().filter(|&&s| s).count() > 1
     }
 
     /// The boundary the ray crosses next on axis `a`, in the caller's (fine) cells.
@@ -314,6 +330,7 @@ impl<const N: usize> Iterator for Walk<N> {
             }
         }
         self.stepped = tied;
+        self.last_times = times;
         self.t_in = t_out;
         Some(here)
     }

@@ -38,13 +38,14 @@ impl Axis {
         crate::walk::cross(self.o, self.d, b)
     }
 
-    /// Time the ray enters level-0 cell `k` on this axis (`-inf` if parallel).
+    /// Time the ray enters cell `kk` of a level whose cells are `s` level-0 cells wide on this
+    /// axis (`-inf` if parallel).
     #[inline]
-    pub fn entry(&self, k: i64) -> f64 {
+    pub fn entry(&self, kk: i64, s: i64) -> f64 {
         if self.d > 0.0 {
-            self.cross(k)
+            self.cross(kk * s)
         } else if self.d < 0.0 {
-            self.cross(k + 1)
+            self.cross((kk + 1) * s)
         } else {
             f64::NEG_INFINITY
         }
@@ -124,7 +125,7 @@ mod tests {
         let a = Axis::new(2.5, -0.0);
         assert_eq!(a.cross(7), f64::INFINITY);
         assert_eq!(a.exit(2, 1), f64::INFINITY);
-        assert_eq!(a.entry(2), f64::NEG_INFINITY);
+        assert_eq!(a.entry(2, 1), f64::NEG_INFINITY);
         assert_eq!(a.slab(4), (f64::NEG_INFINITY, f64::INFINITY));
         assert!(Axis::new(4.0, 0.0).slab(4).0 >= Axis::new(4.0, 0.0).slab(4).1);
     }
@@ -136,7 +137,7 @@ mod tests {
         ) {
             let a = Axis::new(o, d);
             let k = cell_at(a, t);
-            prop_assert!(a.entry(k) <= t && t < a.exit(k, 1) || d == 0.0);
+            prop_assert!(a.entry(k, 1) <= t && t < a.exit(k, 1) || d == 0.0);
             // a coarse exit is the exit of the coarse cell's last level-0 cell on the way
             let kk = k.div_euclid(4);
             let last = if d > 0.0 { kk * 4 + 3 } else { kk * 4 };

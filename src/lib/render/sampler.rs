@@ -30,6 +30,9 @@ pub struct ColumnCache {
 pub struct Sampler<'a> {
     reader: &'a TileReader,
     page_size: usize,
+    /// `log2(page_size)` when the page size is a power of two (shifts instead of divisions
+    /// in the per-step lookup).
+    page_shift: Option<u32>,
     sizes: Vec<(i64, i64)>,
     wrap: bool,
     memo: Vec<Option<(usize, usize, Arc<Page>)>>,
@@ -48,6 +51,10 @@ impl<'a> Sampler<'a> {
         Sampler {
             reader,
             page_size: info.page_size,
+            page_shift: info
+                .page_size
+                .is_power_of_two()
+                .then(|| info.page_size.trailing_zeros()),
             sizes: info
                 .levels
                 .iter()
@@ -74,7 +81,10 @@ impl<'a> Sampler<'a> {
         };
         let p = self.page_size;
         let (col, row) = (col as usize, row as usize);
-        let (tx, ty) = (col / p, row / p);
+        let ((tx, ty), (c, r)) = match self.page_shift {
+            Some(k) => ((col >> k, row >> k), (col & (p - 1), row & (p - 1))),
+            None => ((col / p, row / p), (col % p, row % p)),
+        };
         let page = match &self.memo[level] {
             Some((x, y, page)) if *x == tx && *y == ty => page,
             _ => {
@@ -83,7 +93,7 @@ impl<'a> Sampler<'a> {
                 &self.memo[level].insert((tx, ty, page)).2
             }
         };
-        Ok(Some(page.cell(p, col % p, row % p)))
+        Ok(Some(page.cell(p, c, r)))
     }
 
     /// The solid runs of level-0 cell `(col, row)`, which must be a partial cell (`state` 1)
