@@ -15,6 +15,10 @@
 //! Then anti-aliasing (`cargo bench --bench render -- aa` for this table alone): one flight frame
 //! of each tile set rendered with 1, 4 and 16 rays per pixel, level blending off and on, against
 //! a 64-ray blended reference: mean absolute error and time per frame.
+//!
+//! Then column coherence (`cargo bench --bench render -- coherence` alone): 24 frames of the
+//! same path flown level (zero pitch, where it applies), with and without it: frames per second
+//! and cells stepped per ray; the bench fails if a pixel differs.
 
 use dbms::crs::Crs;
 use dbms::grid::Grid;
@@ -61,6 +65,10 @@ fn main() {
         anti_aliasing(&sets);
         return;
     }
+    if std::env::args().any(|a| a == "coherence") {
+        coherence(&sets);
+        return;
+    }
 
     println!("\n| tile set | traversal | range thresholds | frames | time per frame (s) | rays/s | cells stepped per ray | pages touched per frame | speed-up vs level 0 |");
     println!("|---|---|---|---|---|---|---|---|---|");
@@ -72,7 +80,7 @@ fn main() {
             "{kind} ({}×{}, {} m cells)",
             g.width, g.height, g.transform.cell_x
         );
-        let path = flight(&reader, 6);
+        let path = flight(&reader, 6, -4.0);
         let run = |traversal, lod, frames: usize| {
             let opts = ViewOptions {
                 traversal,
@@ -123,6 +131,50 @@ fn main() {
         println!("{r}");
     }
     anti_aliasing(&sets);
+    coherence(&sets);
+}
+
+/// The column-coherence table: a level flight (zero roll and pitch, where image columns are
+/// vertical planes) rendered with and without coherence, range thresholds on: frames per
+/// second, cells stepped per ray; the frames must be identical.
+fn coherence(sets: &[(&str, &PathBuf)]) {
+    println!("\n| tile set | column coherence | frames | frames per second | time per frame (s) | cells stepped per ray | speed-up |");
+    println!("|---|---|---|---|---|---|---|");
+    for (kind, path) in sets {
+        let reader = TileReader::open(path, 1024).expect("open tiles");
+        let path = flight(&reader, 24, 0.0);
+        let run = |coherence| {
+            let opts = ViewOptions {
+                coherence,
+                ..ViewOptions::default()
+            };
+            let t = Instant::now();
+            let frames: Vec<Frame> = path
+                .iter()
+                .map(|cam| render_view(&reader, cam, &opts).expect("render"))
+                .collect();
+            (t.elapsed().as_secs_f64() / frames.len() as f64, frames)
+        };
+        run(true); // warm the page cache
+        let (off, on) = (run(false), run(true));
+        for (a, b) in off.1.iter().zip(&on.1) {
+            assert!(
+                a.rgb == b.rgb && a.range == b.range,
+                "coherent frames differ"
+            );
+        }
+        for (label, (secs, frames)) in [("off", &off), ("on", &on)] {
+            let rays: u64 = frames.iter().map(|f| f.stats.rays).sum();
+            let steps: u64 = frames.iter().map(|f| f.stats.cells_stepped).sum();
+            println!(
+                "| {kind} | {label} | {} | {:.1} | {secs:.4} | {:.1} | {:.2}× |",
+                frames.len(),
+                1.0 / secs,
+                steps as f64 / rays as f64,
+                off.0 / secs
+            );
+        }
+    }
 }
 
 /// The anti-aliasing table: error against a 64-ray blended frame and time per frame for 1, 4
@@ -132,7 +184,7 @@ fn anti_aliasing(sets: &[(&str, &PathBuf)]) {
     println!("|---|---|---|---|---|---|");
     for &(kind, path) in sets {
         let reader = TileReader::open(path, 1024).expect("open tiles");
-        let cam = &flight(&reader, 6)[0];
+        let cam = &flight(&reader, 6, -4.0)[0];
         let render = |samples, blend| {
             let opts = ViewOptions {
                 samples,
@@ -241,9 +293,9 @@ fn sample_tiles(work: &Path) -> PathBuf {
     out
 }
 
-/// `n` cameras along the database's diagonal band, 25 m over the ground, pitched 4° down,
-/// heading along the path.
-fn flight(reader: &TileReader, n: usize) -> Vec<Camera> {
+/// `n` cameras along the database's diagonal band, 25 m over the ground, pitched `pitch`
+/// degrees (up positive), heading along the path.
+fn flight(reader: &TileReader, n: usize, pitch: f64) -> Vec<Camera> {
     let g = &reader.info().grid;
     let t = &g.transform;
     (0..n)
@@ -264,7 +316,7 @@ fn flight(reader: &TileReader, n: usize) -> Vec<Camera> {
                 eye: [x, y, ground as f64 + 25.0],
                 attitude: Attitude {
                     roll: 0.0,
-                    pitch: -4.0,
+                    pitch,
                     yaw: 30.0,
                 },
                 hfov: 60.0,

@@ -62,8 +62,12 @@ pub struct Args {
     /// moving view switches level).
     #[arg(long, conflicts_with = "no_lod")]
     blend: bool,
+    /// Start every ray from the eye, without the column coherence used at zero roll and pitch
+    /// (same image, slower; for benchmarks and checks).
+    #[arg(long)]
+    no_coherence: bool,
     /// Orthographic top-down map of the whole database instead of a perspective view.
-    #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal", "samples", "blend", "path"])]
+    #[arg(long, conflicts_with_all = ["eye", "repeat", "haze", "max_range", "traversal", "samples", "blend", "no_coherence", "path"])]
     top: bool,
     /// With --top: map only this window, MINX,MINY,MAXX,MAXY in the tile set's CRS units (the
     /// patent's god's-eye view of an area); default size its cells, at most 1024 on the long side.
@@ -222,6 +226,7 @@ fn view_options(args: &Args) -> ViewOptions {
         max_range: args.max_range,
         samples: args.samples,
         blend: args.blend,
+        coherence: !args.no_coherence,
     }
 }
 

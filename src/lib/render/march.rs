@@ -33,6 +33,7 @@
 //! does). So without range thresholds the hierarchy finds exactly the hit of level-0 stepping,
 //! bit for bit ([`Traversal::Level0`] runs the same loop with one level).
 
+use super::coherence::{close_call, Coherence, Start, NEAR_CORNER};
 use super::ray::Ray;
 use super::sampler::Sampler;
 use crate::error::Result;
@@ -109,15 +110,23 @@ pub struct Plan {
 /// Result of one ray: the hit, if any, and the number of cells visited.
 pub type Marched = (Option<Hit>, u64);
 
+/// The lowest height of the ray over `[t, t_far]`, metres.
 #[inline]
-fn may_hit(ray: &Ray, t: f64, t_far: f64, max_z: f32) -> bool {
-    !max_z.is_nan() && ray.z(t).min(ray.z(t_far)) <= max_z as f64
+fn lowest(ray: &Ray, t: f64, t_far: f64) -> f64 {
+    ray.z(t).min(ray.z(t_far))
+}
+
+/// Whether a ray whose lowest height over a cell is `lo` metres may hit the cell's column.
+#[inline]
+fn may_hit(lo: f64, max_z: f32) -> bool {
+    !max_z.is_nan() && lo <= max_z as f64
 }
 
 /// The hit of level-0 cell `(c, r)` within `span`, if the ray hits its column: a solid column
 /// up to `max_z`, or for a partial cell the solid `runs` of its voxel column (ground run from
 /// `−inf` first). Returns the range, the face and the index of the run hit (0 for a solid
-/// column). A pure function of the cell.
+/// column), or without a hit the ray's lowest height over the cell. A pure function of the
+/// cell.
 #[inline]
 fn level0_hit(
     ray: &Ray,
@@ -126,8 +135,8 @@ fn level0_hit(
     r: i64,
     max_z: f32,
     runs: Option<&[Run]>,
-) -> Option<(f64, Face, usize)> {
-    let (eu, ev) = (ray.u.entry(c), ray.v.entry(r));
+) -> std::result::Result<(f64, Face, usize), f64> {
+    let (eu, ev) = (ray.u.entry(c, 1), ray.v.entry(r, 1));
     let (t_in, face) = if eu >= ev && eu >= span.t0 {
         (eu, Face::WallU)
     } else if ev >= span.t0 {
@@ -136,10 +145,11 @@ fn level0_hit(
         (span.t0, Face::Top)
     };
     let t_out = ray.u.exit(c, 1).min(ray.v.exit(r, 1)).min(span.t1);
-    if !may_hit(ray, t_in, t_out, max_z) {
-        return None;
+    let lo = lowest(ray, t_in, t_out);
+    if !may_hit(lo, max_z) {
+        return Err(lo);
     }
-    match runs {
+    let hit = match runs {
         None => {
             run_hit(ray, t_in, face, t_out, f64::NEG_INFINITY, max_z as f64).map(|(t, f)| (t, f, 0))
         }
@@ -152,7 +162,8 @@ fn level0_hit(
                     .map(|(t, f)| (t, f, k))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0)),
-    }
+    };
+    hit.ok_or(lo)
 }
 
 /// Where the ray, crossing a cell over `[t_in, t_out]` (entering through `face`), first meets
@@ -188,11 +199,29 @@ fn run_hit(
 /// crossings are the same f64 the ray steps straight into the diagonal cell). Descending takes a
 /// finer walk up at the same `t` in [`walk::cell_at`]; climbing takes a coarser one up in the
 /// parent of the cell just entered, which is the cell `cell_at` gives there.
-pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Result<Marched> {
+///
+/// With `coherence` (the record of the rays below this one in its image column, see
+/// [`super::coherence`]), the ray starts where that record allows and writes its own; the hit
+/// is the same as without.
+pub fn march(
+    ray: &Ray,
+    span: Span,
+    sampler: &mut Sampler,
+    plan: &Plan,
+    mut coherence: Option<&mut Coherence>,
+) -> Result<Marched> {
     let top = match plan.traversal {
         Traversal::Hierarchical => plan.top,
         Traversal::Level0 => 0,
     };
+    let (mut t_start, mut face, mut l) = (span.t0, Face::Top, top);
+    if let Some(c) = coherence.as_deref_mut() {
+        match c.start(ray, span, plan) {
+            Start::Span => {}
+            Start::At(t, f, level) => (t_start, face, l) = (t, f, level.min(top)),
+            Start::Nothing => return Ok((None, 0)),
+        }
+    }
     let (o, d) = ([ray.u.o, ray.v.o], [ray.u.d, ray.v.d]);
     let cell_at = |l: usize, t: f64, guess: [i64; 2]| -> [i64; 2] {
         let s = plan.scales[l];
@@ -201,22 +230,32 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
             walk::cell_at(o[1], d[1], t, s, guess[1]),
         ]
     };
-    let mut l = top;
-    let s_top = plan.scales[top];
+    let s_start = plan.scales[l];
     let guess = [
-        (o[0].floor() as i64).div_euclid(s_top),
-        (o[1].floor() as i64).div_euclid(s_top),
+        (o[0].floor() as i64).div_euclid(s_start),
+        (o[1].floor() as i64).div_euclid(s_start),
     ];
     let mut w = Walk::resume(
         o,
         d,
         Corner::Exact,
-        s_top,
-        cell_at(top, span.t0, guess),
-        span.t0,
+        s_start,
+        cell_at(l, t_start, guess),
+        t_start,
     );
-    let mut face = Face::Top;
     let mut steps = 0u64;
+    // The ray ends in cell `cell` of level `l`: the first cell it cannot vouch for, if none was.
+    fn end(
+        coherence: &mut Option<&mut Coherence>,
+        l: usize,
+        cell: [i64; 2],
+        marched: Marched,
+    ) -> Result<Marched> {
+        if let Some(c) = coherence.as_deref_mut() {
+            c.barrier(l, cell);
+        }
+        Ok(marched)
+    }
     loop {
         steps += 1;
         let Visit {
@@ -225,7 +264,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
             t_out: t_exit,
         } = w.next().expect("a walk never ends by itself");
         let Some(cell) = sampler.cell(l, cc, rr)? else {
-            return Ok((None, steps));
+            return end(&mut coherence, l, [cc, rr], (None, steps));
         };
         if l == 0 {
             let runs = if cell.state == STATE_PARTIAL {
@@ -233,62 +272,87 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
             } else {
                 None
             };
-            if let Some((t_hit, f, k)) = level0_hit(ray, span, cc, rr, cell.max_z, runs) {
-                let (colour, top) = match runs {
-                    Some(runs) => (runs[k].colour, runs[k].top),
-                    None => (cell.colour, cell.max_z),
-                };
-                // Only the ground run of a voxel column can be a step; floating runs are objects.
-                let face = match k {
-                    0 => step_or_wall(f, ray, 0, [cc, rr], top, sampler, plan)?,
-                    _ => f,
-                };
-                let hit = Hit {
-                    t: t_hit,
-                    colour,
-                    face,
-                    level: 0,
-                };
-                let hit = coarse_colour(hit, cc, rr, sampler, plan)?;
-                return Ok((Some(blend_parent(hit, cc, rr, sampler, plan)?), steps));
-            }
-        } else if may_hit(ray, t, t_exit.min(span.t1), cell.max_z) {
-            if let Some(th) = &plan.thresholds {
-                let mz = cell.max_z as f64;
-                let (tc, fc) = if ray.z(t) <= mz {
-                    (t, face)
-                } else {
-                    (
-                        ray.time_at_height(mz)
-                            .unwrap_or(t)
-                            .max(t)
-                            .min(t_exit.min(span.t1)),
-                        Face::Top,
-                    )
-                };
-                if blend_weight(tc, th[l], plan.blend) == 1.0 {
-                    let face = step_or_wall(fc, ray, l, [cc, rr], cell.max_z, sampler, plan)?;
-                    let s = plan.scales[l];
-                    let hit = Hit {
-                        t: tc,
-                        colour: cell.colour,
-                        face,
-                        level: l,
+            match level0_hit(ray, span, cc, rr, cell.max_z, runs) {
+                Ok((t_hit, f, k)) => {
+                    let (colour, top) = match runs {
+                        Some(runs) => (runs[k].colour, runs[k].top),
+                        None => (cell.colour, cell.max_z),
                     };
-                    return Ok((
-                        Some(blend_parent(hit, cc * s, rr * s, sampler, plan)?),
-                        steps,
-                    ));
+                    // Only the ground run of a voxel column can be a step; floating runs are
+                    // objects.
+                    let face = match k {
+                        0 => step_or_wall(f, ray, 0, [cc, rr], top, sampler, plan)?,
+                        _ => f,
+                    };
+                    let hit = Hit {
+                        t: t_hit,
+                        colour,
+                        face,
+                        level: 0,
+                    };
+                    let hit = coarse_colour(hit, cc, rr, sampler, plan)?;
+                    let hit = blend_parent(hit, cc, rr, sampler, plan)?;
+                    return end(&mut coherence, 0, [cc, rr], (Some(hit), steps));
+                }
+                // Passed under a floating run, through a gap, or only just over the top.
+                Err(lo) if close_call(ray, lo, cell.max_z) => {
+                    if let Some(c) = coherence.as_deref_mut() {
+                        c.barrier(0, [cc, rr]);
+                    }
+                }
+                Err(_) => {}
+            }
+        } else {
+            let lo = lowest(ray, t, t_exit.min(span.t1));
+            if may_hit(lo, cell.max_z) {
+                if let Some(th) = &plan.thresholds {
+                    let mz = cell.max_z as f64;
+                    let (tc, fc) = if ray.z(t) <= mz {
+                        (t, face)
+                    } else {
+                        (
+                            ray.time_at_height(mz)
+                                .unwrap_or(t)
+                                .max(t)
+                                .min(t_exit.min(span.t1)),
+                            Face::Top,
+                        )
+                    };
+                    if blend_weight(tc, th[l], plan.blend) == 1.0 {
+                        let face = step_or_wall(fc, ray, l, [cc, rr], cell.max_z, sampler, plan)?;
+                        let s = plan.scales[l];
+                        let hit = Hit {
+                            t: tc,
+                            colour: cell.colour,
+                            face,
+                            level: l,
+                        };
+                        let hit = blend_parent(hit, cc * s, rr * s, sampler, plan)?;
+                        return end(&mut coherence, l, [cc, rr], (Some(hit), steps));
+                    }
+                    if let Some(c) = coherence.as_deref_mut() {
+                        c.descended(l, [cc, rr]);
+                    }
+                }
+                // Descend at the same t, into the child holding the ray then.
+                let f = plan.scales[l] / plan.scales[l - 1];
+                l -= 1;
+                w.restart(plan.scales[l], cell_at(l, t, [cc * f, rr * f]), t);
+                continue;
+            }
+            if close_call(ray, lo, cell.max_z) {
+                if let Some(c) = coherence.as_deref_mut() {
+                    c.barrier(l, [cc, rr]);
                 }
             }
-            // Descend at the same t, into the child holding the ray then.
-            let f = plan.scales[l] / plan.scales[l - 1];
-            l -= 1;
-            w.restart(plan.scales[l], cell_at(l, t, [cc * f, rr * f]), t);
-            continue;
         }
         if t_exit >= span.t1 {
-            return Ok((None, steps));
+            return end(&mut coherence, l, [cc, rr], (None, steps));
+        }
+        if let Some(c) = coherence.as_deref_mut() {
+            if c.recording() && w.near_corner(NEAR_CORNER) {
+                c.barrier(l, [cc, rr]);
+            }
         }
         face = if w.stepped()[0] {
             Face::WallU

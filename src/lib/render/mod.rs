@@ -17,6 +17,7 @@
 //! Conventions and figures: `docs/render.md`.
 
 pub mod camera;
+pub mod coherence;
 pub mod flight;
 pub mod march;
 pub mod path;
@@ -32,6 +33,7 @@ use crate::error::{Error, Result};
 use crate::grid::Bounds;
 use crate::io::atomic::write_bytes_atomic;
 use crate::tiles::{ReaderStats, TileReader, STATE_PARTIAL};
+use coherence::Coherence;
 use ray::{Axis, Ray};
 use rayon::prelude::*;
 use sampler::{ColumnCache, Sampler};
@@ -68,6 +70,10 @@ pub struct ViewOptions {
     /// Blend two levels' colours around each range threshold instead of switching
     /// ([`march::blend_weight`]).
     pub blend: bool,
+    /// Start each ray where the rays below it in its image column allow (the patent's vertical
+    /// scan-line coherence, [`coherence`]); used only where image columns are vertical planes
+    /// (zero roll and pitch). The image is the same either way.
+    pub coherence: bool,
 }
 
 impl Default for ViewOptions {
@@ -80,6 +86,7 @@ impl Default for ViewOptions {
             max_range: None,
             samples: 1,
             blend: false,
+            coherence: true,
         }
     }
 }
@@ -294,61 +301,72 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     });
     let basis = camera.basis();
     let column_cache = ColumnCache::default();
-    let rows: Vec<Row> = (0..camera.height)
-        .into_par_iter()
-        .map(|j| {
-            let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
-            let mut row = Row::new(camera.width);
-            let mut cast = |d: [f64; 3], row: &mut Row| -> Result<(Option<Hit>, [u8; 3])> {
-                let ray = Ray {
-                    u: Axis::new(u0, d[0] / scene.cell[0]),
-                    v: Axis::new(v0, d[1] / scene.cell[1]),
-                    z0: ez,
-                    dz: d[2],
-                };
-                let hit = match scene.span(&ray, opts.repeat, max_range) {
-                    Some(span) => {
-                        let (hit, steps) = march::march(&ray, span, &mut sampler, &plan)?;
-                        row.steps += steps;
-                        hit
-                    }
-                    None => None,
-                };
-                row.rays += 1;
-                row.hits += u64::from(hit.is_some());
-                Ok((hit, colour(hit, d[2], opts.visibility)))
+    // Image columns are vertical half-planes through the eye only without roll and pitch.
+    let coherent = opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
+    let trace = |pixels: &mut dyn Iterator<Item = (usize, usize)>, len: usize| -> Result<Row> {
+        let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
+        let mut row = Row::new(len);
+        let mut coherence = coherent.then(Coherence::default);
+        let mut cast = |d: [f64; 3],
+                        coherence: Option<&mut Coherence>,
+                        row: &mut Row|
+         -> Result<(Option<Hit>, [u8; 3])> {
+            let ray = Ray {
+                u: Axis::new(u0, d[0] / scene.cell[0]),
+                v: Axis::new(v0, d[1] / scene.cell[1]),
+                z0: ez,
+                dz: d[2],
             };
-            for i in 0..camera.width {
-                // The range is always the centre ray's, so the range image does not depend on
-                // the sampling.
-                let (centre, mut rgb) = cast(basis.direction(i, j), &mut row)?;
-                if n > 1 {
-                    let mut sum = [0u32; 3];
-                    for s in 0..n * n {
-                        let (a, b) = jitter(j * camera.width + i, s);
-                        let x = i as f64 + ((s % n) as f64 + a) / n as f64;
-                        let y = j as f64 + ((s / n) as f64 + b) / n as f64;
-                        let (_, c) = cast(basis.direction_at(x, y), &mut row)?;
-                        (0..3).for_each(|k| sum[k] += u32::from(c[k]));
-                    }
-                    let m = (n * n) as u32;
-                    rgb = sum.map(|v| ((v + m / 2) / m) as u8);
+            let hit = match scene.span(&ray, opts.repeat, max_range) {
+                Some(span) => {
+                    let (hit, steps) = march::march(&ray, span, &mut sampler, &plan, coherence)?;
+                    row.steps += steps;
+                    hit
                 }
-                row.rgb.push(rgb);
-                row.range.push(centre.map_or(f32::INFINITY, |h| h.t as f32));
+                None => None,
+            };
+            row.rays += 1;
+            row.hits += u64::from(hit.is_some());
+            Ok((hit, colour(hit, d[2], opts.visibility)))
+        };
+        for (i, j) in pixels {
+            // The range is always the centre ray's, so the range image does not depend on the
+            // sampling; only centre rays are coherent (they lie in their column's plane).
+            let (centre, mut rgb) = cast(basis.direction(i, j), coherence.as_mut(), &mut row)?;
+            if n > 1 {
+                let mut sum = [0u32; 3];
+                for s in 0..n * n {
+                    let (a, b) = jitter(j * camera.width + i, s);
+                    let x = i as f64 + ((s % n) as f64 + a) / n as f64;
+                    let y = j as f64 + ((s / n) as f64 + b) / n as f64;
+                    let (_, c) = cast(basis.direction_at(x, y), None, &mut row)?;
+                    (0..3).for_each(|k| sum[k] += u32::from(c[k]));
+                }
+                let m = (n * n) as u32;
+                rgb = sum.map(|v| ((v + m / 2) / m) as u8);
             }
-            row.touched = sampler.touched;
-            Ok(row)
-        })
-        .collect::<Result<_>>()?;
-    Ok(assemble(
-        camera.width,
-        camera.height,
-        rows,
-        reader,
-        before,
-        start,
-    ))
+            row.rgb.push(rgb);
+            row.range.push(centre.map_or(f32::INFINITY, |h| h.t as f32));
+        }
+        row.touched = sampler.touched;
+        Ok(row)
+    };
+    let (w, h) = (camera.width, camera.height);
+    let (lines, order) = if coherent {
+        // Each column bottom-up: every ray starts where the rays below it allow.
+        let columns = (0..w)
+            .into_par_iter()
+            .map(|i| trace(&mut (0..h).rev().map(|j| (i, j)), h))
+            .collect::<Result<_>>()?;
+        (columns, Order::ColumnsUp)
+    } else {
+        let rows = (0..h)
+            .into_par_iter()
+            .map(|j| trace(&mut (0..w).map(|i| (i, j)), w))
+            .collect::<Result<_>>()?;
+        (rows, Order::Rows)
+    };
+    Ok(assemble(w, h, lines, order, reader, before, start))
 }
 
 /// Error if the eye is inside the solid part of any level-0 column whose closed cell contains
@@ -401,7 +419,16 @@ fn check_eye_above_terrain(
     Ok(())
 }
 
-/// One image row as a worker renders it.
+/// How the [`Row`]s a frame was traced in lie in the image.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Order {
+    /// Each line is an image row, left to right, rows top to bottom.
+    Rows,
+    /// Each line is an image column, bottom to top, columns left to right.
+    ColumnsUp,
+}
+
+/// One line of pixels (a row, or a column) as a worker renders it.
 struct Row {
     rgb: Vec<[u8; 3]>,
     range: Vec<f32>,
@@ -435,17 +462,23 @@ fn colour(hit: Option<Hit>, dz: f64, visibility: Option<f64>) -> [u8; 3] {
 fn assemble(
     width: usize,
     height: usize,
-    rows: Vec<Row>,
+    lines: Vec<Row>,
+    order: Order,
     reader: &TileReader,
     before: ReaderStats,
     start: Instant,
 ) -> Frame {
-    let mut frame_rgb = Vec::with_capacity(width * height);
-    let mut frame_range = Vec::with_capacity(width * height);
+    let mut frame_rgb = vec![[0u8; 3]; width * height];
+    let mut frame_range = vec![0f32; width * height];
     let (mut rays, mut steps, mut hits, mut touched) = (0, 0, 0, BTreeSet::new());
-    for row in rows {
-        frame_rgb.extend(row.rgb);
-        frame_range.extend(row.range);
+    for (k, row) in lines.into_iter().enumerate() {
+        for (m, (rgb, range)) in row.rgb.into_iter().zip(row.range).enumerate() {
+            let at = match order {
+                Order::Rows => k * width + m,
+                Order::ColumnsUp => (height - 1 - m) * width + k,
+            };
+            (frame_rgb[at], frame_range[at]) = (rgb, range);
+        }
         rays += row.rays;
         steps += row.steps;
         hits += row.hits;
@@ -555,7 +588,15 @@ pub fn render_top(
             Ok(row)
         })
         .collect::<Result<_>>()?;
-    Ok(assemble(width, height, rows, reader, before, start))
+    Ok(assemble(
+        width,
+        height,
+        rows,
+        Order::Rows,
+        reader,
+        before,
+        start,
+    ))
 }
 
 impl Frame {
