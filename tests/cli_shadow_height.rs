@@ -300,7 +300,7 @@ fn apply_writes_the_buildings_layer_that_shadows_and_pyramid_read() {
         2,
         "only measured buildings go in"
     );
-    let prisms = dbms::pyramid::raised::read_buildings(&buildings).unwrap();
+    let prisms = dbms::standing::read_buildings(&buildings).unwrap();
     assert_eq!(prisms.len(), 2);
     // The raised buildings now cast shadows in `dbms shadows`.
     let out = ok(

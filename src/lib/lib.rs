@@ -13,6 +13,9 @@
 //! * [`shadow_height`]: building heights from their shadows, refined over the terrain.
 //! * [`sample`]: the generated sample scene.
 //! * [`voxel`]: sculpted and synthetic voxel objects.
+//! * [`standing`]: what stands on the terrain (building prisms and placed voxel objects, and
+//!   the polygon fill that rasterises footprints), read by shadow-height, the shadows command
+//!   and the pyramid.
 //! * [`pyramid`] and [`tiles`]: the render database; [`render`]: the ray-casting preview.
 //!
 //! Shared by the stages: [`walk`], the one grid traversal (cells a ray crosses, explicit corner rule).
@@ -32,6 +35,7 @@ pub mod render;
 pub mod sample;
 pub mod shadow;
 pub mod shadow_height;
+pub mod standing;
 pub mod sun;
 pub mod tiles;
 pub mod voxel;

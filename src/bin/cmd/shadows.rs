@@ -3,10 +3,10 @@
 use super::Ctx;
 use dbms::db::{self, Database};
 use dbms::io::geotiff::GeoTiffWriter;
-use dbms::pyramid::raised::{Raised, Standing};
 use dbms::pyramid::shade::{band_rows, ShadowBits};
 use dbms::raster::RowSource;
 use dbms::shadow::{cast_shadows_sunmask_slice, LIT, NODATA, SHADOW};
+use dbms::standing::{Raised, Standing};
 use serde_json::json;
 use std::path::PathBuf;
 

@@ -3,18 +3,18 @@
 //! Invariant: a level-0 cell is valid exactly when its elevation is valid **and** its colour is
 //! (a surface with no colour, or a colour with no surface, cannot be drawn); otherwise it is
 //! nodata in all three layers (NaN, alpha 0, state empty). A valid cell is an opaque column
-//! (state 2) from the ground to its terrain height, or to its [`RaisedCell`](super::raised::RaisedCell)
+//! (state 2) from the ground to its terrain height, or to its [`RaisedCell`](crate::standing::RaisedCell)
 //! top with that cell's state and colour. A partial cell (state 1) also gets its voxel column
 //! ([`crate::voxel::columns`]): its runs, a run with no colour of its own (terrain, roof) taking
 //! the photo's. Effects then multiply the colour by the cell's factor (see [`super::shade`]), and
 //! every run of the cell's column by the same factor, so the top run's colour is the layer's.
 
 use super::cascade::Band;
-use super::raised::Raised;
 use super::reduce::BaseRows;
 use super::shade::{lit, Effects};
 use crate::error::Result;
 use crate::raster::RowSource;
+use crate::standing::Raised;
 use crate::tiles::{STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL};
 use crate::voxel::columns::Run;
 use rayon::prelude::*;
@@ -169,8 +169,8 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::Grid;
-    use crate::pyramid::raised::{PlacedVoxels, RaisedCell};
     use crate::raster::{Colour, Elevation};
+    use crate::standing::{PlacedVoxels, RaisedCell};
     use crate::tiles::STATE_EMPTY;
 
     #[test]

@@ -6,7 +6,8 @@
 //! byte-identical tile file. See `docs/pyramid.md`.
 //!
 //! The stages, each a module:
-//! * [`raised`]: buildings (GeoJSON prisms) and placed voxel objects standing on the terrain;
+//! * [`crate::standing`] (read here): buildings (GeoJSON prisms) and placed voxel objects
+//!   standing on the terrain;
 //! * [`shade`]: the sun effects prepared for the whole grid (shadow masks, what to apply);
 //! * [`base`]: level-0 bands with both merged in;
 //! * [`reduce`] and [`cascade`]: the coarser levels, streamed page-row by page-row to the
@@ -16,7 +17,6 @@
 pub mod base;
 pub mod cascade;
 pub mod export;
-pub mod raised;
 pub mod reduce;
 pub mod shade;
 
@@ -151,11 +151,11 @@ pub fn build_pyramid(
     seconds.read = lap();
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
-    let raised::Standing {
+    let crate::standing::Standing {
         buildings,
         objects,
         all,
-    } = raised::Standing::read(db, &terrain, opts.page_size)?;
+    } = crate::standing::Standing::read(db, &terrain, opts.page_size)?;
 
     // The photo's sun matters only against a requested one (a night-time photo_time must not
     // stop a build without a sun).

@@ -36,12 +36,12 @@
 
 mod detected;
 
-use super::raised::Raised;
 use crate::error::{Error, Result};
 pub use crate::raster::band_rows;
 use crate::raster::RowSource;
 pub use crate::shadow::ShadowBits;
 use crate::shadow::Sun;
+use crate::standing::Raised;
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -484,8 +484,8 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::Grid;
-    use crate::pyramid::raised::{rasterise_prisms, Prism, RaisedCell};
     use crate::raster::{Colour, Elevation};
+    use crate::standing::{rasterise_prisms, Prism, RaisedCell};
 
     fn terrain(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Elevation {
         let g = Grid::north_up(0.0, h as f64, 1.0, w, h, Crs::unknown());

@@ -1,4 +1,5 @@
-//! Cast-shadow masks over a height field for a sun direction.
+//! Cast-shadow masks over a height field for a sun direction, and shadows detected in a photo's
+//! colours ([`detect`]: the index and threshold shadow-height and the pyramid share).
 //!
 //! # Model (the invariant)
 //! The surface of each cell is the point at its centre, at its height. A valid cell is **in
@@ -40,6 +41,7 @@
 //! whole grid would be in night shadow, which is almost always a wrong `--time`.
 
 mod bits;
+pub mod detect;
 mod reference;
 mod sunmask;
 mod sweep;

@@ -12,7 +12,7 @@
 use crate::error::Result;
 use crate::geojson;
 use crate::grid::Grid;
-use crate::pyramid::raised::{rasterise_prisms, Prism};
+use crate::standing::{rasterise_prisms, Prism};
 use std::path::Path;
 
 /// The widest footprint taken for a building, metres (east–west or north–south). The largest

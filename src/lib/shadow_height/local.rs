@@ -42,7 +42,7 @@ pub struct Local {
     pub class: Vec<Class>,
     /// Terrain heights per window cell, metres.
     pub heights: Vec<f32>,
-    /// Shadow index per window cell ([`super::detect::shadow_index`], lower = darker; from a
+    /// Shadow index per window cell ([`crate::shadow::detect::shadow_index`], lower = darker; from a
     /// given mask 0 where it says shadow and 255 where lit): how much of a cell is shadow.
     /// Empty in a window classified for the scan lines, which read only the classes; the
     /// refinement's crop has it for its open cells (NaN elsewhere: never read).

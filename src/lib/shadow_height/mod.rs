@@ -34,7 +34,6 @@
 //! no result (a test measures in one-footprint bands and in one band). Measured on a generated
 //! city: `benches/shadow_height_city.rs`, figures in docs/shadow-height.md.
 
-pub mod detect;
 pub mod footprint;
 pub mod index;
 pub mod local;
@@ -50,7 +49,7 @@ pub use footprint::{read_footprints, Footprint, InputFeature};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::raster::{rows_in, Raster, RowBand, RowSource};
-use crate::shadow::{ShadowBits, Sun};
+use crate::shadow::{detect, ShadowBits, Sun};
 use crate::walk::{Corner, Walk};
 use index::{swept, Box2, BoxIndex};
 use local::{Class, Local};

@@ -4,7 +4,7 @@
 //! the registration shift that was applied (none: unchanged), input properties kept (ours
 //! replace same-named ones); the added properties are those of `schemas/heights.schema.json`.
 //! The `buildings` layer holds only the measured features, each with a numeric `roof_z` (what
-//! [`crate::pyramid::raised::read_buildings`] reads).
+//! [`crate::standing::read_buildings`] reads).
 
 use super::{InputFeature, Measurement, Registration};
 use crate::shadow::Sun;

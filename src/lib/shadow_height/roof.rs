@@ -14,9 +14,9 @@
 //! [`MAX_FACE_RATIO`] of the brighter, and the classes are *faces*, not texture: at least
 //! [`MIN_COHERENCE`] of the 4-neighbour pairs of roof cells are of the same class.
 
-use super::detect::{index_bin, otsu_split, otsu_threshold_of};
 use super::footprint::Footprint;
 use crate::raster::RowBand;
+use crate::shadow::detect::{index_bin, otsu_split, otsu_threshold_of};
 
 /// Each face class must hold at least this fraction of the roof cells.
 pub const MIN_FACE: f64 = 0.15;

@@ -11,9 +11,9 @@
 use super::footprint::Footprint;
 use crate::crs::Crs;
 use crate::grid::Grid;
-use crate::pyramid::raised::{rasterise_prisms, Prism};
 use crate::raster::{Colour, Elevation, Raster};
 use crate::shadow::Sun;
+use crate::standing::{rasterise_prisms, Prism};
 use rayon::prelude::*;
 
 /// West edge of generated scenes (a UTM-sized easting, to exercise f64 coordinates), metres.

@@ -1,5 +1,5 @@
 //! The photo's shadows as the photo shows them: a streamed, whole-grid run of the shadow
-//! detector of `dbms shadow-height` ([`crate::shadow_height::detect`]).
+//! detector of `dbms shadow-height` ([`crate::shadow::detect`]).
 //!
 //! # Method (the invariant)
 //! 1. Every cell gets the shadow index of its colour ([`shadow_index`], lower = darker). Cells
@@ -27,9 +27,9 @@
 
 use super::{band_rows, ShadowBits};
 use crate::error::Result;
-use crate::pyramid::raised::Raised;
 use crate::raster::RowSource;
-use crate::shadow_height::detect::{index_bin, otsu_threshold_of, shadow_index};
+use crate::shadow::detect::{index_bin, otsu_threshold_of, shadow_index};
+use crate::standing::Raised;
 use rayon::prelude::*;
 
 /// Edge of a threshold block, cells.
@@ -189,9 +189,9 @@ mod tests {
     use crate::crs::Crs;
     use crate::grid::Grid;
     use crate::ingest::resample::{resample_elevation, Resampling};
-    use crate::pyramid::raised::{rasterise_prisms, Prism, RaisedCell};
     use crate::raster::{Colour, Elevation};
     use crate::sample::{generate, Building, SampleOptions};
+    use crate::standing::{rasterise_prisms, Prism, RaisedCell};
 
     /// Grey of index `v` (a grey's shadow index is its value).
     fn grey(v: usize) -> [u8; 4] {

@@ -97,7 +97,7 @@ fn split_below(hist: &[u64; 256], max_dark_fraction: f64, max_ratio: f64) -> Opt
 
 /// Otsu's best split of a histogram (bins = index values): the last bin of the dark class and
 /// the two class means. `None` with fewer than two occupied bins.
-pub(super) fn otsu_split(hist: &[u64]) -> Option<(usize, f64, f64)> {
+pub(crate) fn otsu_split(hist: &[u64]) -> Option<(usize, f64, f64)> {
     let n: f64 = hist.iter().sum::<u64>() as f64;
     let total: f64 = hist
         .iter()
