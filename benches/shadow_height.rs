@@ -28,9 +28,9 @@
 //!
 //! `cargo bench --bench shadow_height` (all cases) or `-- quick` (0.5 m cells only).
 
-use dbms::shadow::Sun;
 use dbms::shadow_height::synth::{synth_scene, SynthBuilding, SynthSpec};
 use dbms::shadow_height::{measure, Inputs, Measurement, Options};
+use dbms::sun::Sun;
 use std::time::Instant;
 
 const TRIALS: usize = 4;

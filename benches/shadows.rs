@@ -14,9 +14,8 @@
 use dbms::crs::Crs;
 use dbms::grid::{Grid, Window};
 use dbms::raster::{Elevation, Raster};
-use dbms::shadow::{
-    cast_shadows, cast_shadows_reference, cast_shadows_sunmask, Sun, NODATA, SHADOW,
-};
+use dbms::shadow::{cast_shadows, cast_shadows_reference, cast_shadows_sunmask, NODATA, SHADOW};
+use dbms::sun::Sun;
 use rayon::prelude::*;
 use std::path::Path;
 use std::process::Command;

@@ -267,7 +267,7 @@ fn sunmask_rule_matches_the_library_off_the_axes() {
         "sunmask",
     ];
     let (_, out) = shadows(dir.path(), &args);
-    let sun = dbms::shadow::Sun::new(20.0, 33.0).unwrap();
+    let sun = dbms::sun::Sun::new(20.0, 33.0).unwrap();
     let expected = dbms::shadow::cast_shadows_sunmask(&e, &sun).unwrap().data;
     assert!(expected.contains(&1));
     assert_eq!(read_mask(&out).0, expected);

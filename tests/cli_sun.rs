@@ -200,7 +200,8 @@ fn db_reports_the_azimuth_from_grid_north() {
     let expect = (f(&v, "azimuth_deg") - gamma).rem_euclid(360.0);
     assert!((f(&v, "grid_azimuth_deg") - expect).abs() < 1e-12, "{v}");
     // The stages take the same sun for the same time.
-    let lib = dbms::pyramid::sun_at(&Database::open(dir.path()).unwrap(), "2026-06-21T18:00:00Z");
+    let lib =
+        dbms::sun::at_database_centre(&Database::open(dir.path()).unwrap(), "2026-06-21T18:00:00Z");
     assert!((lib.unwrap().azimuth_deg - expect).abs() < 1e-9);
     // Without a database there is no grid: no grid azimuth.
     let direct = json(&[

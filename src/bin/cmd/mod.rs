@@ -16,7 +16,7 @@ pub mod tiles;
 
 use dbms::db::Database;
 use dbms::progress::Progress;
-use dbms::shadow::Sun;
+use dbms::sun::Sun;
 use std::fmt::Display;
 
 /// What every subcommand needs from the global options.
@@ -104,7 +104,7 @@ impl SunArgs {
     /// The sun the options give for `db`, or `None` when neither a time nor angles were given.
     pub fn resolve(&self, db: &Database) -> dbms::Result<Option<Sun>> {
         match (&self.time, self.sun_elevation, self.sun_azimuth) {
-            (Some(t), _, _) => Ok(Some(dbms::pyramid::sun_at(db, t)?)),
+            (Some(t), _, _) => Ok(Some(dbms::sun::at_database_centre(db, t)?)),
             (None, Some(e), Some(a)) => Ok(Some(Sun::new(e, a)?)),
             _ => Ok(None),
         }

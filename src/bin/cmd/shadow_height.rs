@@ -61,7 +61,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     // Default: the photo's own sun, from the time ingest recorded.
     let sun = match args.sun.resolve(&db)? {
         Some(sun) => sun,
-        None => dbms::pyramid::photo_sun(&db)?.ok_or_else(|| {
+        None => dbms::sun::photo_sun(&db)?.ok_or_else(|| {
             Error::file(
                 &args.db,
                 "no sun given and the database records no photo time",

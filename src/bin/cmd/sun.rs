@@ -104,7 +104,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let delta_t_s = args.delta_t.unwrap_or_else(|| sun::delta_t_model_s(utc));
     let time = utc.to_rfc3339_opts(SecondsFormat::AutoSi, true);
 
-    let grid_azimuth_deg = convergence_deg.map(|g| (p.azimuth_deg - g).rem_euclid(360.0));
+    let grid_azimuth_deg = convergence_deg.map(|g| sun::grid_azimuth_deg(p.azimuth_deg, g));
     let mut human = format!(
         "sun at {time} seen from {latitude_deg:.6} N, {longitude_deg:.6} E, {} m ({}):\n  elevation {:11.6} deg\n  azimuth   {:11.6} deg (clockwise from true north)\n  zenith    {:11.6} deg",
         args.height,

@@ -282,7 +282,7 @@ mod tests {
             &t,
         );
         let all = block.union(&objects, &t);
-        let sun = crate::shadow::Sun::new(20.0, 90.0).unwrap();
+        let sun = crate::sun::Sun::new(20.0, 90.0).unwrap();
         let fx =
             crate::pyramid::shade::prepare(Some(sun), None, 0.5, &t, &c, &block, &objects, &all)
                 .unwrap()

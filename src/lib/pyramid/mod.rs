@@ -20,10 +20,10 @@ pub mod export;
 pub mod reduce;
 pub mod shade;
 
-use crate::db::{self, Database, Stage};
+use crate::db::{Database, Stage};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
-use crate::shadow::Sun;
+use crate::sun::Sun;
 use crate::tiles::{Compression, TileSetInfo, TileWriter};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -160,7 +160,7 @@ pub fn build_pyramid(
     // The photo's sun matters only against a requested one (a night-time photo_time must not
     // stop a build without a sun).
     let photo_sun = if opts.sun.is_some() {
-        photo_sun(db)?
+        crate::sun::photo_sun(db)?
     } else {
         None
     };
@@ -243,47 +243,4 @@ pub fn build_pyramid(
     // The tile file last: a rename that fails leaves it out, not the levels without it.
     crate::io::atomic::commit_all(staged)?;
     Ok(summary)
-}
-
-/// The orthophoto's own sun: from the last ingest stage's `photo_time` and the grid centre.
-/// `None` when the database does not record the photo's time.
-pub fn photo_sun(db: &Database) -> Result<Option<Sun>> {
-    let time = db
-        .manifest
-        .stages
-        .iter()
-        .rev()
-        .find(|s| s.name == "ingest")
-        .and_then(|s| s.params.get("photo_time"));
-    let Some(time) = time.and_then(|t| t.as_str()) else {
-        return Ok(None);
-    };
-    let sun = sun_at(db, time).map_err(|e| e.in_file(db.dir.join(db::MANIFEST_FILE)))?;
-    Ok(Some(sun))
-}
-
-/// The sun over the database centre at an RFC 3339 time (`--time`), with its azimuth turned from
-/// true north (NREL SPA's) to grid north by the meridian convergence at the centre
-/// ([`Database::centre_on_globe`]): shadows fall along the grid azimuth, and near a UTM zone's
-/// edge the two differ by 2° or more.
-pub fn sun_at(db: &Database, time: &str) -> Result<Sun> {
-    let utc = crate::sun::parse_time(time)?;
-    let (latitude_deg, longitude_deg, convergence_deg) = db.centre_on_globe().ok_or_else(|| {
-        Error::file(
-            &db.dir,
-            format!(
-                "cannot place the grid centre on the globe ({})",
-                db.grid().crs.name()
-            ),
-        )
-        .fix("give --sun-elevation and --sun-azimuth instead of a time")
-    })?;
-    let obs = crate::sun::Observer {
-        latitude_deg,
-        longitude_deg,
-        height_m: 0.0,
-    };
-    let pos = crate::sun::sun_position(&obs, utc, &crate::sun::SunOptions::default())?;
-    Sun::new(pos.elevation_deg, pos.azimuth_deg - convergence_deg)
-        .map_err(|e| Error::msg(format!("at {time}: {}", e.problem)).fix(e.fix.unwrap_or_default()))
 }

@@ -40,8 +40,8 @@ use crate::error::{Error, Result};
 pub use crate::raster::band_rows;
 use crate::raster::RowSource;
 pub use crate::shadow::ShadowBits;
-use crate::shadow::Sun;
 use crate::standing::Raised;
+use crate::sun::Sun;
 use rayon::prelude::*;
 use serde_json::json;
 

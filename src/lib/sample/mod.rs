@@ -27,8 +27,9 @@ use crate::grid::Grid;
 use crate::io::atomic::{commit_all, AtomicFile, Staged};
 use crate::io::geotiff::GeoTiffWriter;
 use crate::raster::{Colour, Elevation, Raster};
-use crate::shadow::{cast_shadows_slice, Sun, SHADOW};
+use crate::shadow::{cast_shadows_slice, SHADOW};
 use crate::standing::{rasterise_prisms, Prism};
+use crate::sun::Sun;
 use layout::{Plan, Road, ROAD_HALF_WIDTH};
 use noise::{mix, octaves};
 use rayon::prelude::*;
@@ -336,12 +337,11 @@ fn sun_at_time(latitude_deg: f64, longitude_deg: f64, grid_convergence_deg: f64)
         longitude_deg,
         height_m: BASE_Z,
     };
-    let pos = crate::sun::sun_position(
+    crate::sun::on_grid(
         &obs,
         crate::sun::parse_time(SUN_TIME)?,
-        &crate::sun::SunOptions::default(),
-    )?;
-    Sun::new(pos.elevation_deg, pos.azimuth_deg - grid_convergence_deg)
+        grid_convergence_deg,
+    )
 }
 
 /// Local ring (metres from the south-west corner) to scene CRS coordinates.

@@ -54,6 +54,7 @@ pub use sweep::RowSweep;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::raster::{Elevation, Raster};
+use crate::sun::Sun;
 
 /// Mask value of a lit cell.
 pub const LIT: u8 = 0;
@@ -61,61 +62,6 @@ pub const LIT: u8 = 0;
 pub const SHADOW: u8 = 1;
 /// Mask value of a nodata cell (nodata height).
 pub const NODATA: u8 = 255;
-
-/// A validated sun direction.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Sun {
-    /// Elevation above the horizon, degrees, in (0, 90].
-    pub elevation_deg: f64,
-    /// Azimuth toward the sun, degrees clockwise from grid north (the grid's +y axis), in
-    /// [0, 360). A sun model's azimuth is from true north: subtract the grid's meridian
-    /// convergence ([`crate::crs::Crs::grid_convergence_deg`]) first, as
-    /// [`crate::pyramid::sun_at`] does.
-    pub azimuth_deg: f64,
-}
-
-impl Sun {
-    /// Check and normalise a sun direction (degrees). Errors on non-finite angles, an elevation
-    /// at or below the horizon (night: everything would be shadow) or above 90°.
-    pub fn new(elevation_deg: f64, azimuth_deg: f64) -> Result<Sun> {
-        if !elevation_deg.is_finite() || !azimuth_deg.is_finite() {
-            return Err(Error::msg(format!(
-                "sun elevation {elevation_deg}° / azimuth {azimuth_deg}° is not a finite direction"
-            ))
-            .fix("give numbers in degrees"));
-        }
-        if elevation_deg <= 0.0 {
-            return Err(Error::msg(format!(
-                "sun elevation {elevation_deg:.3}° is at or below the horizon: the whole grid is in night shadow"
-            ))
-            .fix("choose a daytime --time or a --sun-elevation above 0"));
-        }
-        if elevation_deg > 90.0 {
-            return Err(
-                Error::msg(format!("sun elevation {elevation_deg}° is above 90°"))
-                    .fix("give an elevation in (0, 90]"),
-            );
-        }
-        Ok(Sun {
-            elevation_deg,
-            azimuth_deg: azimuth_deg.rem_euclid(360.0),
-        })
-    }
-
-    /// Horizontal length in metres of the shadow cast by a vertical edge `height_m` metres tall
-    /// on flat ground: `height / tan(elevation)`.
-    pub fn shadow_length(&self, height_m: f64) -> f64 {
-        height_m / self.elevation_deg.to_radians().tan()
-    }
-
-    /// Horizontal unit vector toward the sun, `(east, north)`. Components within 1e-12 of 0 are
-    /// snapped to 0 so azimuths 0, 90, 180 and 270 are exactly axis-aligned.
-    pub fn direction(&self) -> (f64, f64) {
-        let a = self.azimuth_deg.to_radians();
-        let snap = |v: f64| if v.abs() < 1e-12 { 0.0 } else { v };
-        (snap(a.sin()), snap(a.cos()))
-    }
-}
 
 /// Cast shadows over a height field (metres, NaN = nodata) for a sun at `sun_elevation_deg`
 /// above the horizon and `sun_azimuth_deg` clockwise from north (toward the sun). Returns a mask

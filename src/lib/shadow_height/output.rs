@@ -7,7 +7,7 @@
 //! [`crate::standing::read_buildings`] reads).
 
 use super::{InputFeature, Measurement, Registration};
-use crate::shadow::Sun;
+use crate::sun::Sun;
 use serde_json::{json, Map, Value};
 
 /// The output FeatureCollection. `results[k]` belongs to `features[k]`: a measurement, or why

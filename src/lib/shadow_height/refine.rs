@@ -713,7 +713,8 @@ mod tests {
     use crate::crs::Crs;
     use crate::grid::{Grid, Window};
     use crate::raster::Raster;
-    use crate::shadow::{cast_shadows_reference, Sun, SHADOW};
+    use crate::shadow::{cast_shadows_reference, SHADOW};
+    use crate::sun::Sun;
 
     /// 40 × 40 m of 1 m cells on flat ground at 100 m with a 6 × 6 m footprint at x, y 10..16,
     /// its shadow observed as a photo would show it for a roof at `roof_z` and `sun`: cast by the

@@ -12,8 +12,8 @@ use super::footprint::Footprint;
 use crate::crs::Crs;
 use crate::grid::Grid;
 use crate::raster::{Colour, Elevation, Raster};
-use crate::shadow::Sun;
 use crate::standing::{rasterise_prisms, Prism};
+use crate::sun::Sun;
 use rayon::prelude::*;
 
 /// West edge of generated scenes (a UTM-sized easting, to exercise f64 coordinates), metres.

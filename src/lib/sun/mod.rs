@@ -17,8 +17,122 @@ mod delta_t;
 mod spa;
 mod terms;
 
+use crate::db::Database;
 use crate::{Error, Result};
 use chrono::{DateTime, Datelike, Utc};
+
+/// A validated sun direction over a grid: what shadows and shading are cast for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sun {
+    /// Elevation above the horizon, degrees, in (0, 90].
+    pub elevation_deg: f64,
+    /// Azimuth toward the sun, degrees clockwise from grid north (the grid's +y axis), in
+    /// [0, 360). A sun model's azimuth is from true north: subtract the grid's meridian
+    /// convergence ([`crate::crs::Crs::grid_convergence_deg`]) first, as [`on_grid`] does.
+    pub azimuth_deg: f64,
+}
+
+impl Sun {
+    /// Check and normalise a sun direction (degrees). Errors on non-finite angles, an elevation
+    /// at or below the horizon (night: everything would be shadow) or above 90°.
+    pub fn new(elevation_deg: f64, azimuth_deg: f64) -> Result<Sun> {
+        if !elevation_deg.is_finite() || !azimuth_deg.is_finite() {
+            return Err(Error::msg(format!(
+                "sun elevation {elevation_deg}° / azimuth {azimuth_deg}° is not a finite direction"
+            ))
+            .fix("give numbers in degrees"));
+        }
+        if elevation_deg <= 0.0 {
+            return Err(Error::msg(format!(
+                "sun elevation {elevation_deg:.3}° is at or below the horizon: the whole grid is in night shadow"
+            ))
+            .fix("choose a daytime --time or a --sun-elevation above 0"));
+        }
+        if elevation_deg > 90.0 {
+            return Err(
+                Error::msg(format!("sun elevation {elevation_deg}° is above 90°"))
+                    .fix("give an elevation in (0, 90]"),
+            );
+        }
+        Ok(Sun {
+            elevation_deg,
+            azimuth_deg: azimuth_deg.rem_euclid(360.0),
+        })
+    }
+
+    /// Horizontal length in metres of the shadow cast by a vertical edge `height_m` metres tall
+    /// on flat ground: `height / tan(elevation)`.
+    pub fn shadow_length(&self, height_m: f64) -> f64 {
+        height_m / self.elevation_deg.to_radians().tan()
+    }
+
+    /// Horizontal unit vector toward the sun, `(east, north)`. Components within 1e-12 of 0 are
+    /// snapped to 0 so azimuths 0, 90, 180 and 270 are exactly axis-aligned.
+    pub fn direction(&self) -> (f64, f64) {
+        let a = self.azimuth_deg.to_radians();
+        let snap = |v: f64| if v.abs() < 1e-12 { 0.0 } else { v };
+        (snap(a.sin()), snap(a.cos()))
+    }
+}
+
+/// An azimuth from true north (a sun model's) turned to grid north, degrees in [0, 360):
+/// `convergence_deg` is grid north's angle clockwise from true north (the meridian convergence,
+/// [`crate::crs::Crs::grid_convergence_deg`]); near a UTM zone's edge it is 2° or more.
+pub fn grid_azimuth_deg(true_azimuth_deg: f64, convergence_deg: f64) -> f64 {
+    (true_azimuth_deg - convergence_deg).rem_euclid(360.0)
+}
+
+/// The sun `obs` sees at `utc` (NREL SPA, default options) as a grid direction: its azimuth
+/// turned to grid north ([`grid_azimuth_deg`]). Errors as [`Sun::new`] does (a sun at or below
+/// the horizon).
+pub fn on_grid(obs: &Observer, utc: DateTime<Utc>, convergence_deg: f64) -> Result<Sun> {
+    let pos = sun_position(obs, utc, &SunOptions::default())?;
+    Sun::new(
+        pos.elevation_deg,
+        grid_azimuth_deg(pos.azimuth_deg, convergence_deg),
+    )
+}
+
+/// The sun over the database centre at an RFC 3339 time (`--time`), on the grid ([`on_grid`],
+/// seen from height 0).
+pub fn at_database_centre(db: &Database, time: &str) -> Result<Sun> {
+    let utc = parse_time(time)?;
+    let (latitude_deg, longitude_deg, convergence_deg) = db.centre_on_globe().ok_or_else(|| {
+        Error::file(
+            &db.dir,
+            format!(
+                "cannot place the grid centre on the globe ({})",
+                db.grid().crs.name()
+            ),
+        )
+        .fix("give --sun-elevation and --sun-azimuth instead of a time")
+    })?;
+    let obs = Observer {
+        latitude_deg,
+        longitude_deg,
+        height_m: 0.0,
+    };
+    on_grid(&obs, utc, convergence_deg)
+        .map_err(|e| Error::msg(format!("at {time}: {}", e.problem)).fix(e.fix.unwrap_or_default()))
+}
+
+/// The orthophoto's own sun: from the last ingest stage's `photo_time` and the grid centre.
+/// `None` when the database does not record the photo's time.
+pub fn photo_sun(db: &Database) -> Result<Option<Sun>> {
+    let time = db
+        .manifest
+        .stages
+        .iter()
+        .rev()
+        .find(|s| s.name == "ingest")
+        .and_then(|s| s.params.get("photo_time"));
+    let Some(time) = time.and_then(|t| t.as_str()) else {
+        return Ok(None);
+    };
+    let sun = at_database_centre(db, time)
+        .map_err(|e| e.in_file(db.dir.join(crate::db::MANIFEST_FILE)))?;
+    Ok(Some(sun))
+}
 
 /// Where the sun is seen from.
 #[derive(Debug, Clone, Copy, PartialEq)]
