@@ -37,6 +37,9 @@ pub const FORMAT_VERSION: u32 = 1;
 pub const ELEVATION: &str = "elevation";
 /// The layer name of the orthophoto colour.
 pub const COLOUR: &str = "colour";
+/// The layer name of the raised buildings (GeoJSON prisms with `roof_z`, from
+/// `dbms shadow-height --apply`).
+pub const BUILDINGS: &str = "buildings";
 
 /// The contents of `manifest.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -321,7 +324,7 @@ impl Database {
             None => Err(
                 Error::file(&self.dir, format!("database has no {name} layer")).fix(match name {
                     ELEVATION | COLOUR => "re-create it with `dbms ingest`",
-                    "buildings" => "run `dbms shadow-height --apply` first",
+                    BUILDINGS => "run `dbms shadow-height --apply` first",
                     _ => "run the stage that makes it first",
                 }),
             ),

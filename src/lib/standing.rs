@@ -446,8 +446,11 @@ impl Standing {
     /// buildings layer or object file that cannot be read.
     pub fn read(db: &Database, terrain: &dyn RowSource<f32>, band_rows: usize) -> Result<Standing> {
         let grid = terrain.grid();
-        let prism_cells = match db.manifest.layers.contains_key("buildings") {
-            true => rasterise_prisms(grid, &read_buildings(&db.layer_path("buildings")?)?),
+        let prism_cells = match db.manifest.layers.contains_key(crate::db::BUILDINGS) {
+            true => rasterise_prisms(
+                grid,
+                &read_buildings(&db.layer_path(crate::db::BUILDINGS)?)?,
+            ),
             false => Vec::new(),
         };
         let mut placed = Vec::new();

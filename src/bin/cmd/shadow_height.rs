@@ -175,7 +175,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             }
         }
         let layer = output::to_text(&output::buildings_layer(&doc));
-        change.write_layer("buildings", "buildings", "geojson", |path| {
+        change.write_layer(dbms::db::BUILDINGS, "buildings", "geojson", |path| {
             write_bytes_atomic(path, layer.as_bytes())?;
             Ok(None)
         })?;

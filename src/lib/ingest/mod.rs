@@ -137,9 +137,6 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     })
 }
 
-/// Rows of the database grid resampled and written per band: about 4 M cells.
-const BAND_CELLS: usize = 1 << 22;
-
 /// Write the database in `out` as one change ([`Database::begin_create`]): both layers, then
 /// the manifest. Re-ingest into a database on the same grid keeps what later stages added to
 /// it (layers, placed objects, stages); on another grid that is an error unless
@@ -200,9 +197,10 @@ fn write_database(
     Ok((z.expect("elevation written"), colour_nodata))
 }
 
-/// The rows of `grid` in bands of about [`BAND_CELLS`].
+/// The rows of `grid` resampled and written per band: bands of [`crate::raster::band_rows`]
+/// (about 4 M cells), like every stage that streams a layer.
 fn bands(grid: &Grid) -> impl Iterator<Item = std::ops::Range<usize>> + Clone + '_ {
-    let band = (BAND_CELLS / grid.width.max(1)).max(1);
+    let band = crate::raster::band_rows(grid.width);
     (0..grid.height)
         .step_by(band)
         .map(move |r0| r0..(r0 + band).min(grid.height))

@@ -110,7 +110,7 @@ pub fn buildings_layer(heights: &Value) -> Value {
     if let Some(fs) = doc.get_mut("features").and_then(|f| f.as_array_mut()) {
         fs.retain(|f| f.pointer("/properties/roof_z").is_some_and(|z| z.is_f64()));
     }
-    doc["name"] = json!("buildings");
+    doc["name"] = json!(crate::db::BUILDINGS);
     doc
 }
 
