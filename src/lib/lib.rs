@@ -9,7 +9,8 @@
 //!
 //! Stages, each a module:
 //! * [`ingest`]: DEM + orthophoto onto one database grid ([`db`] holds the result).
-//! * [`sun`]: solar position; [`shadow`]: cast-shadow masks over a height field.
+//! * [`sun`]: solar position; [`shadow`]: cast-shadow masks over a height field;
+//!   [`shadow_mask`]: the `dbms shadows` stage (a database's mask as a GeoTIFF).
 //! * [`shadow_height`]: building heights from their shadows, refined over the terrain.
 //! * [`sample`]: the generated sample scene.
 //! * [`voxel`]: sculpted and synthetic voxel objects.
@@ -35,6 +36,7 @@ pub mod render;
 pub mod sample;
 pub mod shadow;
 pub mod shadow_height;
+pub mod shadow_mask;
 pub mod standing;
 pub mod sun;
 pub mod tiles;

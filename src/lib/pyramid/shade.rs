@@ -37,9 +37,9 @@
 mod detected;
 
 use crate::error::{Error, Result};
-pub use crate::raster::band_rows;
+use crate::raster::band_rows;
 use crate::raster::RowSource;
-pub use crate::shadow::ShadowBits;
+use crate::shadow::ShadowBits;
 use crate::standing::Raised;
 use crate::sun::Sun;
 use rayon::prelude::*;
