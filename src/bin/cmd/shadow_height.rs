@@ -1,9 +1,9 @@
 //! `dbms shadow-height`: building heights from their shadows in the database's orthophoto.
 
 use super::Ctx;
-use dbms::db::{Database, Stage};
+use dbms::db::Database;
 use dbms::error::Error;
-use dbms::io::atomic::{write_bytes_atomic, AtomicFile};
+use dbms::io::atomic::AtomicFile;
 use dbms::raster::RowSource;
 use dbms::shadow_height::{self as sh, output};
 use serde_json::json;
@@ -131,16 +131,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             c.east, c.north, c.z
         ));
     }
-    let mut measured = measured.into_iter();
-    let results: Vec<Result<sh::Measurement, String>> = features
-        .iter()
-        .map(|f| {
-            f.footprint
-                .as_ref()
-                .map_err(|e| e.clone())
-                .and_then(|_| measured.next().expect("one result per valid footprint"))
-        })
-        .collect();
+    let results = output::per_feature(&features, measured);
     let file = args.footprints.display();
     let skipped: Vec<String> = (results.iter().enumerate())
         .filter_map(|(k, r)| r.as_ref().err().map(|e| (k, e)))
@@ -162,35 +153,15 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let flagged = count(&|m| !m.flags.names().is_empty());
     let failed = results.iter().filter(|r| r.is_err()).count();
     if args.apply {
-        // One change under the database's lock, from the manifest as it is now: changes made
-        // while the heights were measured are kept — unless they replaced the layers measured.
-        let mut change = Database::begin(&db.dir, ctx.wait)?;
-        for layer in [dbms::db::ELEVATION, dbms::db::COLOUR] {
-            if change.db.manifest.layers.get(layer) != db.manifest.layers.get(layer) {
-                return Err(Error::file(
-                    &db.dir,
-                    format!("its {layer} layer was replaced while the heights were measured"),
-                )
-                .fix("run shadow-height again"));
-            }
-        }
-        let layer = output::to_text(&output::buildings_layer(&doc));
-        change.write_layer(dbms::db::BUILDINGS, "buildings", "geojson", |path| {
-            write_bytes_atomic(path, layer.as_bytes())?;
-            Ok(None)
-        })?;
-        change.db.record_stage(Stage::now(
-            "shadow-height",
-            json!({
-                "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
-                "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
-                "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
-                "max_shift_m": args.max_shift, "camera": args.camera,
-                "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
-                "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
-            }),
-        ));
-        change.commit()?;
+        let params = json!({
+            "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
+            "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
+            "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
+            "max_shift_m": args.max_shift, "camera": args.camera,
+            "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
+            "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
+        });
+        output::apply_buildings(&db, &doc, params, ctx.wait)?;
     }
     heights_file.commit()?;
     ctx.report(

@@ -7,6 +7,9 @@
 //! [`crate::standing::read_buildings`] reads).
 
 use super::{InputFeature, Measurement, Registration};
+use crate::db::{Database, Stage};
+use crate::error::{Error, Result};
+use crate::io::atomic::write_bytes_atomic;
 use crate::sun::Sun;
 use serde_json::{json, Map, Value};
 
@@ -112,6 +115,55 @@ pub fn buildings_layer(heights: &Value) -> Value {
     }
     doc["name"] = json!(crate::db::BUILDINGS);
     doc
+}
+
+/// One result per input feature, in input order: the measurement of each valid footprint
+/// (`measured` holds them in the order of the valid footprints), or the reason a feature's
+/// footprint is unusable.
+pub fn per_feature(
+    features: &[InputFeature],
+    measured: Vec<std::result::Result<Measurement, String>>,
+) -> Vec<std::result::Result<Measurement, String>> {
+    let mut measured = measured.into_iter();
+    features
+        .iter()
+        .map(|f| {
+            f.footprint
+                .as_ref()
+                .map_err(|e| e.clone())
+                .and_then(|_| measured.next().expect("one result per valid footprint"))
+        })
+        .collect()
+}
+
+/// Record measured buildings in the database at `measured_from.dir`: its `buildings` layer
+/// ([`buildings_layer`] of the heights document `heights`) and a `shadow-height` stage with
+/// `params`, as one change under the database's lock (waiting up to `wait`), from the manifest
+/// as it is now — changes made while the heights were measured are kept, unless they replaced
+/// the elevation or colour layer measured from (`measured_from`'s), which is an error.
+pub fn apply_buildings(
+    measured_from: &Database,
+    heights: &Value,
+    params: Value,
+    wait: std::time::Duration,
+) -> Result<()> {
+    let mut change = Database::begin(&measured_from.dir, wait)?;
+    for layer in [crate::db::ELEVATION, crate::db::COLOUR] {
+        if change.db.manifest.layers.get(layer) != measured_from.manifest.layers.get(layer) {
+            return Err(Error::file(
+                &measured_from.dir,
+                format!("its {layer} layer was replaced while the heights were measured"),
+            )
+            .fix("run shadow-height again"));
+        }
+    }
+    let layer = to_text(&buildings_layer(heights));
+    change.write_layer(crate::db::BUILDINGS, "buildings", "geojson", |path| {
+        write_bytes_atomic(path, layer.as_bytes())?;
+        Ok(None)
+    })?;
+    change.db.record_stage(Stage::now("shadow-height", params));
+    change.commit()
 }
 
 /// Write `doc` to `out` as the files hold it: pretty JSON with a final newline, streamed
