@@ -6,17 +6,12 @@
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn dbms(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms_in;
 
 fn ok(dir: &Path, args: &[&str]) -> Output {
-    let out = dbms(dir, args);
+    let out = dbms_in(dir, args);
     assert!(
         out.status.success(),
         "dbms {args:?}: {}",
@@ -297,7 +292,7 @@ fn a_manifest_edited_by_hand_or_naming_files_outside_is_refused() {
     let edited = text.replacen("\"origin_x\": 5", "\"origin_x\": 6", 1);
     assert_ne!(edited, text);
     std::fs::write(&path, &edited).unwrap();
-    let out = dbms(s.path(), &["info", "db", "--verify"]);
+    let out = dbms_in(s.path(), &["info", "db", "--verify"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("checksum"), "{err}");
     // A layer path leading out of the directory, with the checksum made to match.
@@ -305,7 +300,7 @@ fn a_manifest_edited_by_hand_or_naming_files_outside_is_refused() {
     m["layers"]["colour"]["file"] = "../../etc/passwd".into();
     m.as_object_mut().unwrap().remove("checksum");
     std::fs::write(&path, serde_json::to_string_pretty(&m).unwrap() + "\n").unwrap();
-    let out = dbms(s.path(), &["info", "db", "--verify"]);
+    let out = dbms_in(s.path(), &["info", "db", "--verify"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("outside the database directory"),
@@ -327,7 +322,7 @@ fn re_ingest_keeps_placements_and_buildings_on_the_same_grid() {
     s.verify();
     // On another grid (a 2 m cell) it would drop them: refused, unless --overwrite.
     let coarse = [&ingest[..], &["--cell", "2"]].concat();
-    let out = dbms(s.path(), &coarse);
+    let out = dbms_in(s.path(), &coarse);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("--overwrite"),
@@ -387,7 +382,7 @@ fn outputs_that_would_destroy_something_are_refused() {
         (vec!["-o", "fifo.png"], "device, FIFO"),
         (vec!["-o", "db/manifest.json"], "file of the database"),
     ] {
-        let out = dbms(d, &[&render[..], &args[..]].concat());
+        let out = dbms_in(d, &[&render[..], &args[..]].concat());
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success() && err.contains(says),
@@ -409,7 +404,7 @@ fn outputs_that_would_destroy_something_are_refused() {
             &elevation,
         ],
     ] {
-        let out = dbms(d, &args);
+        let out = dbms_in(d, &args);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success() && err.contains("file of the database"),

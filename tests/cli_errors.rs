@@ -8,15 +8,10 @@ use dbms::io::geotiff;
 use dbms::raster::Raster;
 use serde_json::json;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn dbms(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
+use std::process::Output;
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms_in;
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -42,7 +37,8 @@ fn database(dir: &Path) {
         &Raster::filled(g, [90, 90, 90, 255]),
     )
     .unwrap();
-    let o = dbms(
+    let o = dbms_in(
+        dir,
         &[
             "ingest",
             "-q",
@@ -53,7 +49,6 @@ fn database(dir: &Path) {
             "-o",
             "db",
         ],
-        dir,
     );
     assert!(o.status.success(), "{}", stderr(&o));
 }
@@ -90,7 +85,7 @@ fn argument_errors_are_one_line_with_exit_status_2() {
             "cannot be used with",
         ),
     ] {
-        let o = dbms(args, t.path());
+        let o = dbms_in(t.path(), args);
         assert_one_line(&o, 2, needle);
         assert!(!stderr(&o).contains("Usage:"), "{args:?}");
     }
@@ -100,7 +95,7 @@ fn argument_errors_are_one_line_with_exit_status_2() {
         &["ingest", "--help"][..],
         &["--version"][..],
     ] {
-        let o = dbms(args, t.path());
+        let o = dbms_in(t.path(), args);
         assert_eq!(o.status.code(), Some(0), "{args:?}");
         assert!(!o.stdout.is_empty() && o.stderr.is_empty(), "{args:?}");
     }
@@ -123,18 +118,18 @@ fn io_errors_and_a_file_as_database_say_what_and_how_to_fix() {
         "x.dvox",
     ];
     assert_one_line(
-        &dbms(&extrude, dir),
+        &dbms_in(dir, &extrude),
         1,
         "fp: is a directory, not a file; give the path of a file",
     );
     std::fs::write(dir.join("file"), "x").unwrap();
     assert_one_line(
-        &dbms(&["info", "file"], dir),
+        &dbms_in(dir, &["info", "file"]),
         1,
         "file: is a file, not a database directory",
     );
     assert_one_line(
-        &dbms(&["ingest", "--dem", "a", "--ortho", "b", "-o", "file"], dir),
+        &dbms_in(dir, &["ingest", "--dem", "a", "--ortho", "b", "-o", "file"]),
         1,
         "file: is a file, not a database directory",
     );
@@ -160,7 +155,7 @@ fn footprints_with_a_bom_in_lon_lat_and_many_bad_features() {
             "h.geojson",
         ];
         a.extend_from_slice(extra);
-        dbms(&a, dir)
+        dbms_in(dir, &a)
     };
     // Lon/lat footprints on the UTM database: one CRS error, not one failure per feature.
     let lon_lat: Vec<_> = (0..3)

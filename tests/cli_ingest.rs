@@ -8,16 +8,12 @@ use dbms::io::geotiff;
 use dbms::raster::Raster;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 const X0: f64 = 500_000.0;
 const Y0: f64 = 5_300_000.0;
-
-fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .expect("run dbms")
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

@@ -8,6 +8,9 @@ use dbms::tiles::{TileReader, STATE_OPAQUE, STATE_PARTIAL};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 const W: usize = 150;
 const H: usize = 110;
@@ -70,13 +73,6 @@ fn add_building(db: &mut Database) {
     db.set_layer("buildings", "buildings", "buildings.geojson", None)
         .unwrap();
     db.save().unwrap();
-}
-
-fn dbms(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 fn pyramid(db: &Path, out: &Path, extra: &[&str]) -> Value {

@@ -7,13 +7,9 @@ use dbms::tiles::Compression;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn dbms(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 /// Hills with a few tall columns, 2 m cells, UTM-sized origin; nodata in one corner.
 fn hills(dir: &Path) -> PathBuf {

@@ -1,14 +1,10 @@
 //! `dbms sample` end to end at a small size: files open, counts agree, output is deterministic.
 
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .expect("run dbms")
-}
+use std::process::Command;
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 const FILES: [&str; 5] = [
     "dem.tif",

@@ -8,14 +8,15 @@ use dbms::voxel::views::CameraSpec;
 use serde_json::{json, Value};
 use std::path::Path;
 use std::process::Command;
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 const SIZE: u32 = 128;
 
-fn dbms(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .unwrap();
+/// Run dbms: success, stdout, stderr.
+fn run(args: &[&str]) -> (bool, String, String) {
+    let out = dbms(args);
     (
         out.status.success(),
         String::from_utf8_lossy(&out.stdout).into_owned(),
@@ -128,7 +129,7 @@ fn sculpt(dir: &Path, views: &Path, extra: &[&str]) -> (bool, String, String) {
         out.to_str().unwrap(),
     ];
     args.extend_from_slice(extra);
-    dbms(&args)
+    run(&args)
 }
 
 #[test]
@@ -159,7 +160,7 @@ fn eight_pinhole_views_carve_and_colour_a_sphere_from_a_colour_key() {
         "-o",
         out.to_str().unwrap(),
     ];
-    let (ok, stdout, stderr) = dbms(&args);
+    let (ok, stdout, stderr) = run(&args);
     assert!(ok, "{stderr}");
     let j: Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(j["views"], 8);
@@ -179,7 +180,7 @@ fn eight_pinhole_views_carve_and_colour_a_sphere_from_a_colour_key() {
     );
     // Same inputs, same bytes.
     let first = std::fs::read(&out).unwrap();
-    assert!(dbms(&args).0);
+    assert!(run(&args).0);
     assert_eq!(first, std::fs::read(&out).unwrap());
 }
 
@@ -330,7 +331,7 @@ fn hard_case_voxel_larger_than_the_object() {
     let dir = tempfile::tempdir().unwrap();
     let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
     let out = dir.path().join("obj.dvox");
-    let (ok, stdout, stderr) = dbms(&[
+    let (ok, stdout, stderr) = run(&[
         "sculpt",
         "--views",
         views.to_str().unwrap(),
@@ -343,7 +344,7 @@ fn hard_case_voxel_larger_than_the_object() {
     assert!(stdout.contains("1 voxels in a 1x1x1 grid"), "{stdout}");
     // A 2 m voxel (wider than the 1.6 m sphere) whose centre (-0.8, -0.8, -0.8) is in every
     // image but outside every silhouette: a clear error, not an empty file.
-    let (ok, _, stderr) = dbms(&[
+    let (ok, _, stderr) = run(&[
         "sculpt",
         "--views",
         views.to_str().unwrap(),
@@ -381,7 +382,7 @@ fn hard_case_non_invertible_camera_is_an_error() {
 fn vox_export_of_an_oversized_object_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let views = write_views(dir.path(), &sphere(), &ortho3(), "mask");
-    let (ok, _, stderr) = dbms(&[
+    let (ok, _, stderr) = run(&[
         "sculpt",
         "--views",
         views.to_str().unwrap(),
@@ -487,7 +488,7 @@ fn views_files_and_object_headers_match_their_schemas() {
 fn object_revolve_cone_and_extrude() {
     let dir = tempfile::tempdir().unwrap();
     let d = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
-    let (ok, out, err) = dbms(&[
+    let (ok, out, err) = run(&[
         "object",
         "revolve",
         "--profile",
@@ -505,7 +506,7 @@ fn object_revolve_cone_and_extrude() {
     assert_eq!(tank.grid.dims, [21, 21, 18]);
     assert!(dir.path().join("tank.vox").exists());
     let tree = |seed: &str, name: &str| {
-        dbms(&[
+        run(&[
             "object",
             "cone",
             "--height",
@@ -529,7 +530,7 @@ fn object_revolve_cone_and_extrude() {
         r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"h":7.5},"geometry":{"type":"Polygon","coordinates":[[[10,20],[18,20],[18,26],[10,26],[10,20]]]}}]}"#,
     )
     .unwrap();
-    let (ok, _, err) = dbms(&[
+    let (ok, _, err) = run(&[
         "object",
         "extrude",
         "--footprints",
@@ -544,7 +545,7 @@ fn object_revolve_cone_and_extrude() {
     assert!(ok, "{err}");
     let (b, _) = format::read(&dir.path().join("b.dvox")).unwrap();
     assert_eq!(b.len(), 16 * 12 * 15);
-    let (ok, _, err) = dbms(&[
+    let (ok, _, err) = run(&[
         "object",
         "extrude",
         "--footprints",
@@ -558,7 +559,7 @@ fn object_revolve_cone_and_extrude() {
         !ok && err.contains("feature 0: no positive number in property \"height\""),
         "{err}"
     );
-    let (ok, _, err) = dbms(&[
+    let (ok, _, err) = run(&[
         "object",
         "revolve",
         "--profile",
@@ -586,7 +587,7 @@ fn database(dir: &Path) -> std::path::PathBuf {
     dbms::io::geotiff::write_f32(&dem, &Raster::new(g.clone(), plane)).unwrap();
     dbms::io::geotiff::write_rgba8(&ortho, &Raster::filled(g, [1, 2, 3, 255])).unwrap();
     let db = dir.join("db");
-    let (ok, _, err) = dbms(&[
+    let (ok, _, err) = run(&[
         "ingest",
         "-q",
         "--photo-time",
@@ -608,7 +609,7 @@ fn place_records_objects_in_the_manifest() {
     let db = database(dir.path());
     let tree = dir.path().join("tree.dvox");
     assert!(
-        dbms(&[
+        run(&[
             "object",
             "cone",
             "--height",
@@ -623,7 +624,7 @@ fn place_records_objects_in_the_manifest() {
         .0
     );
     let (dbs, ts) = (db.to_str().unwrap(), tree.to_str().unwrap());
-    let (ok, out, err) = dbms(&[
+    let (ok, out, err) = run(&[
         "--json",
         "place",
         "--db",
@@ -637,7 +638,7 @@ fn place_records_objects_in_the_manifest() {
     let p: Value = serde_json::from_str(&out).unwrap();
     // Between cell centres (5, 4) and (5, 5): the ground is interpolated, 3 + 2.5 + 1.125 m.
     assert_eq!(p["z"], 6.625, "z from the ground");
-    let (ok, _, err) = dbms(&[
+    let (ok, _, err) = run(&[
         "place",
         "--db",
         dbs,
@@ -674,10 +675,10 @@ fn place_records_objects_in_the_manifest() {
             .count()
             == 2
     );
-    let (ok, _, err) = dbms(&["info", "--verify", dbs]);
+    let (ok, _, err) = run(&["info", "--verify", dbs]);
     assert!(ok, "{err}");
     // Outside the database, and not an object: clear errors, manifest untouched.
-    let (ok, _, err) = dbms(&[
+    let (ok, _, err) = run(&[
         "place",
         "--db",
         dbs,
@@ -687,7 +688,7 @@ fn place_records_objects_in_the_manifest() {
         "400000,5299995",
     ]);
     assert!(!ok && err.contains("outside the database extent"), "{err}");
-    let (ok, _, err) = dbms(&[
+    let (ok, _, err) = run(&[
         "place",
         "--db",
         dbs,
@@ -711,10 +712,10 @@ fn place_refuses_a_height_far_from_the_terrain_before_writing() {
     let tree = dir.path().join("tree.dvox");
     let t = tree.to_str().unwrap();
     let cone = ["object", "cone", "--height", "6", "--radius", "2"];
-    assert!(dbms(&[&cone[..], &["--voxel", "0.5", "-o", t]].concat()).0);
+    assert!(run(&[&cone[..], &["--voxel", "0.5", "-o", t]].concat()).0);
     let manifest = std::fs::read(db.join("manifest.json")).unwrap();
     let place = |at: &str| {
-        dbms(&[
+        run(&[
             "place",
             "--db",
             db.to_str().unwrap(),
@@ -801,7 +802,7 @@ fn a_failed_export_leaves_no_object_and_no_other_export() {
         failed(dbms_fault(&format!("enospc:{file}"), &cone("1")), file);
         assert!(names(&objects).is_empty(), "{file}: {:?}", names(&objects));
     }
-    let (ok, _, err) = dbms(&cone("1"));
+    let (ok, _, err) = run(&cone("1"));
     assert!(ok, "{err}");
     let read = |n: &str| std::fs::read(objects.join(n)).unwrap();
     let before = ["tree.dvox", "tree.ply", "tree.vox"].map(read);
@@ -837,7 +838,7 @@ fn object_and_sculpt_outputs_that_would_destroy_something_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
     let refused = |args: &[&str], says: &str| {
-        let (ok, _, err) = dbms(args);
+        let (ok, _, err) = run(args);
         assert!(!ok && err.contains(says), "{args:?}: {err}");
         assert!(err.starts_with("dbms: error: "), "{err}");
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
@@ -907,13 +908,11 @@ fn object_and_sculpt_outputs_that_would_destroy_something_are_refused() {
     );
 
     // The same export twice is one export, not two outputs of one path.
-    let (ok, _, err) = dbms(
-        &[
-            &sculpt[..],
-            &["-o", &d("s.dvox"), "--export", "ply", "--export", "ply"],
-        ]
-        .concat(),
-    );
+    let (ok, _, err) = run(&[
+        &sculpt[..],
+        &["-o", &d("s.dvox"), "--export", "ply", "--export", "ply"],
+    ]
+    .concat());
     assert!(ok, "{err}");
     assert!(dir.path().join("s.ply").exists());
 }

@@ -6,18 +6,13 @@ use dbms::shadow_height::synth::{synth_scene, SynthBuilding, SynthSpec};
 use dbms::sun::Sun;
 use serde_json::{json, Value};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn dbms(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
+use std::process::Output;
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms_in;
 
 fn ok(args: &[&str], dir: &Path) -> Output {
-    let out = dbms(args, dir);
+    let out = dbms_in(dir, args);
     assert!(
         out.status.success(),
         "dbms {args:?} failed: {}",
@@ -326,7 +321,8 @@ fn apply_writes_the_buildings_layer_that_shadows_and_pyramid_read() {
 fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
     let t = tempfile::tempdir().unwrap();
     generated_db(t.path());
-    let out = dbms(
+    let out = dbms_in(
+        t.path(),
         &[
             "shadow-height",
             "--db",
@@ -340,7 +336,6 @@ fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
             "-o",
             "h.geojson",
         ],
-        t.path(),
     );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -349,7 +344,8 @@ fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
     );
     assert!(!t.path().join("h.geojson").exists());
     // Night at the database's place: an error too.
-    let out = dbms(
+    let out = dbms_in(
+        t.path(),
         &[
             "shadow-height",
             "--db",
@@ -361,14 +357,14 @@ fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
             "-o",
             "h.geojson",
         ],
-        t.path(),
     );
     assert!(
         !out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let out = dbms(
+    let out = dbms_in(
+        t.path(),
         &[
             "shadow-height",
             "--db",
@@ -378,14 +374,14 @@ fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
             "-o",
             "h.geojson",
         ],
-        t.path(),
     );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("records no photo time") && err.contains("--time"),
         "{err}"
     );
-    let out = dbms(
+    let out = dbms_in(
+        t.path(),
         &[
             "shadow-height",
             "--db",
@@ -399,11 +395,11 @@ fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
             "-o",
             "h.geojson",
         ],
-        t.path(),
     );
     assert!(String::from_utf8_lossy(&out.stderr).contains("nope.geojson: no such file"));
     std::fs::write(t.path().join("bad.geojson"), "{\"type\": \"Feature\"}").unwrap();
-    let out = dbms(
+    let out = dbms_in(
+        t.path(),
         &[
             "shadow-height",
             "--db",
@@ -417,7 +413,6 @@ fn sun_below_the_horizon_or_missing_is_an_error_for_the_run() {
             "-o",
             "h.geojson",
         ],
-        t.path(),
     );
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a GeoJSON FeatureCollection"));
 }
@@ -433,7 +428,8 @@ fn shadow_mask_on_another_grid_is_refused() {
         Some(255),
     )
     .unwrap();
-    let out = dbms(
+    let out = dbms_in(
+        t.path(),
         &[
             "shadow-height",
             "--db",
@@ -449,7 +445,6 @@ fn shadow_mask_on_another_grid_is_refused() {
             "-o",
             "h.geojson",
         ],
-        t.path(),
     );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -5,14 +5,10 @@ use dbms::db::{Database, ELEVATION};
 use dbms::grid::Grid;
 use dbms::raster::Elevation;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .expect("run dbms")
-}
+use std::process::Output;
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 /// A 60 × 40 database at 1 m cells in UTM 32N (about 47.9° N) with a 6 m wall along row 10
 /// and a nodata hole; `buildings` adds a `buildings` layer with one 20 m block.

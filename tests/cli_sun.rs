@@ -3,14 +3,9 @@
 use dbms::crs::Crs;
 use dbms::db::Database;
 use dbms::grid::Grid;
-use std::process::{Command, Output};
-
-fn dbms(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .expect("dbms runs")
-}
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 fn json(args: &[&str]) -> serde_json::Value {
     let mut all = vec!["--json"];
