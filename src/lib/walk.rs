@@ -95,9 +95,9 @@ pub fn cell_at(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> i64 {
         return (o.floor() as i64).div_euclid(scale);
     }
     // Start from the position's cell (right but for rounding), else from the guess.
-    let est = (o + t * d).floor();
+    let est = o + t * d;
     let mut k = if est.is_finite() && est.abs() < 9.0e15 {
-        (est as i64).div_euclid(scale)
+        crate::num::floor_i64(est).div_euclid(scale)
     } else {
         guess
     };

@@ -437,7 +437,7 @@ fn blend_parent(hit: Hit, c: i64, r: i64, sampler: &mut Sampler, plan: &Plan) ->
         Some(parent) if parent.colour[3] > 0 => Hit {
             colour: std::array::from_fn(|k| {
                 let (a, b) = (hit.colour[k] as f64, parent.colour[k] as f64);
-                (a + (b - a) * w).round() as u8
+                super::sky::channel(a + (b - a) * w)
             }),
             ..hit
         },

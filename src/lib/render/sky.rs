@@ -15,13 +15,20 @@ const HAZE_BAND_RAD: f64 = 0.12;
 /// Sky colour for a ray whose direction has vertical component `dz` (sine of its elevation):
 /// haze at and below the horizon blending into blue overhead.
 pub fn sky(dz: f64) -> [u8; 3] {
-    let elevation = dz.clamp(-1.0, 1.0).asin();
-    let w = if elevation > 0.0 {
-        1.0 - (-elevation / HAZE_BAND_RAD).exp()
+    // asin is positive exactly when dz is: below the horizon no arcsine is needed.
+    let w = if dz > 0.0 {
+        1.0 - (-dz.min(1.0).asin() / HAZE_BAND_RAD).exp()
     } else {
         0.0
     };
-    std::array::from_fn(|k| (HORIZON[k] + (ZENITH[k] - HORIZON[k]) * w).round() as u8)
+    std::array::from_fn(|k| channel(HORIZON[k] + (ZENITH[k] - HORIZON[k]) * w))
+}
+
+/// A colour channel: `x` rounded half away from zero into `0 ..= 255`, exactly
+/// `x.round().clamp(0.0, 255.0) as u8` without a library call ([`crate::num::round_i64`]).
+#[inline]
+pub fn channel(x: f64) -> u8 {
+    crate::num::round_i64(x).clamp(0, 255) as u8
 }
 
 /// Brightness factor of a face, so that walls read against the tops they stand under.
@@ -41,7 +48,7 @@ pub fn shade(colour: [u8; 4], face: Face, range: f64, visibility: Option<f64>) -
     let a = visibility.map_or(0.0, |v| 1.0 - (-range / v).exp());
     std::array::from_fn(|k| {
         let c = colour[k] as f64 * f;
-        (c + (HORIZON[k] - c) * a).round().clamp(0.0, 255.0) as u8
+        channel(c + (HORIZON[k] - c) * a)
     })
 }
 
@@ -55,6 +62,29 @@ mod tests {
         assert_eq!(sky(-0.5), sky(0.0));
         let up = sky(1.0);
         assert!(up[2] as i32 - up[0] as i32 > sky(0.1)[2] as i32 - sky(0.1)[0] as i32);
+    }
+
+    #[test]
+    fn channel_is_round_then_clamp() {
+        for x in [
+            -1.0,
+            -0.5,
+            -0.0,
+            0.0,
+            0.49999999999999994,
+            0.5,
+            1.5,
+            2.5,
+            254.49,
+            254.5,
+            255.0,
+            300.0,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ] {
+            assert_eq!(channel(x), x.round().clamp(0.0, 255.0) as u8, "{x}");
+        }
     }
 
     #[test]
