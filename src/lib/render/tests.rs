@@ -939,20 +939,26 @@ where
     }
 }
 
-#[test]
-fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_force_hits() {
-    // Rough terrain (spikes, nodata holes) on a UTM grid; every level of a factor-2 hierarchy.
-    let (x0, y0) = (500_000.0, 5_300_150.0);
-    let (_d, r) = tiles(x0, y0, 200, 150, 16, 2, rough);
-    let scene = Scene::of(&r).unwrap();
-    let plan = |traversal| Plan {
+/// The plan of `scene` without range thresholds (every level, no repeat): marching finds the
+/// exact level-0 hit.
+fn exact_plan(scene: &Scene, traversal: Traversal) -> Plan {
+    Plan {
         traversal,
         top: scene.top(false),
         scales: scene.scales.clone(),
         thresholds: None,
         blend: false,
         cell_m: scene.cell.map(f64::abs),
-    };
+    }
+}
+
+#[test]
+fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_force_hits() {
+    // Rough terrain (spikes, nodata holes) on a UTM grid; every level of a factor-2 hierarchy.
+    let (x0, y0) = (500_000.0, 5_300_150.0);
+    let (_d, r) = tiles(x0, y0, 200, 150, 16, 2, rough);
+    let scene = Scene::of(&r).unwrap();
+    let plan = |traversal| exact_plan(&scene, traversal);
     let cache = ColumnCache::default();
     let mut sampler = Sampler::new(&r, false, &cache);
     let nudge = |x: f64, ulps: i64| {
@@ -1237,14 +1243,7 @@ fn hard_case_a_ray_one_ulp_off_the_corner_the_ray_below_passed_through() {
     };
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 2, tall);
     let scene = Scene::of(&r).unwrap();
-    let plan = Plan {
-        traversal: Traversal::Hierarchical,
-        top: scene.top(false),
-        scales: scene.scales.clone(),
-        thresholds: None,
-        blend: false,
-        cell_m: scene.cell.map(f64::abs),
-    };
+    let plan = exact_plan(&scene, Traversal::Hierarchical);
     let cache = ColumnCache::default();
     let mut sampler = Sampler::new(&r, false, &cache);
     let ulp = |x: f64, n: i64| f64::from_bits((x.to_bits() as i64 + n) as u64);
