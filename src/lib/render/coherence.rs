@@ -144,14 +144,17 @@ impl Coherence {
         self.barrier.get_or_insert((level, cell));
     }
 
-    /// The ray being marched descended into coarse cell `cell` of `level` before its barrier.
+    /// The ray being marched descended into coarse cell `cell` of `level` before its barrier
+    /// (call only while [`Coherence::recording`]).
     #[inline]
     pub fn descended(&mut self, level: usize, cell: [i64; 2]) {
-        if self.recording() {
-            let cells = &mut self.descended[level];
-            if cells.last() != Some(&cell) {
-                cells.push(cell);
-            }
+        debug_assert!(
+            self.recording(),
+            "descents after the barrier are not needed"
+        );
+        let cells = &mut self.descended[level];
+        if cells.last() != Some(&cell) {
+            cells.push(cell);
         }
     }
 }

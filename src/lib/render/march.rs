@@ -244,6 +244,11 @@ pub fn march(
         t_start,
     );
     let mut steps = 0u64;
+    // The record while it still looks for this ray's barrier (none without coherence): only
+    // then are close calls and corners worth testing.
+    fn recording<'a>(coherence: &'a mut Option<&mut Coherence>) -> Option<&'a mut Coherence> {
+        coherence.as_deref_mut().filter(|c| c.recording())
+    }
     // The ray ends in cell `cell` of level `l`: the first cell it cannot vouch for, if none was.
     fn end(
         coherence: &mut Option<&mut Coherence>,
@@ -295,12 +300,13 @@ pub fn march(
                     return end(&mut coherence, 0, [cc, rr], (Some(hit), steps));
                 }
                 // Passed under a floating run, through a gap, or only just over the top.
-                Err(lo) if close_call(ray, lo, cell.max_z) => {
-                    if let Some(c) = coherence.as_deref_mut() {
-                        c.barrier(0, [cc, rr]);
+                Err(lo) => {
+                    if let Some(c) = recording(&mut coherence) {
+                        if close_call(ray, lo, cell.max_z) {
+                            c.barrier(0, [cc, rr]);
+                        }
                     }
                 }
-                Err(_) => {}
             }
         } else {
             let lo = lowest(ray, t, t_exit.min(span.t1));
@@ -330,7 +336,7 @@ pub fn march(
                         let hit = blend_parent(hit, cc * s, rr * s, sampler, plan)?;
                         return end(&mut coherence, l, [cc, rr], (Some(hit), steps));
                     }
-                    if let Some(c) = coherence.as_deref_mut() {
+                    if let Some(c) = recording(&mut coherence) {
                         c.descended(l, [cc, rr]);
                     }
                 }
@@ -340,8 +346,8 @@ pub fn march(
                 w.restart(plan.scales[l], cell_at(l, t, [cc * f, rr * f]), t);
                 continue;
             }
-            if close_call(ray, lo, cell.max_z) {
-                if let Some(c) = coherence.as_deref_mut() {
+            if let Some(c) = recording(&mut coherence) {
+                if close_call(ray, lo, cell.max_z) {
                     c.barrier(l, [cc, rr]);
                 }
             }
@@ -349,8 +355,8 @@ pub fn march(
         if t_exit >= span.t1 {
             return end(&mut coherence, l, [cc, rr], (None, steps));
         }
-        if let Some(c) = coherence.as_deref_mut() {
-            if c.recording() && w.near_corner(NEAR_CORNER) {
+        if let Some(c) = recording(&mut coherence) {
+            if w.near_corner(NEAR_CORNER) {
                 c.barrier(l, [cc, rr]);
             }
         }
