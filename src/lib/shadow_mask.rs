@@ -15,12 +15,10 @@ use crate::raster::{band_rows, RowSource};
 use crate::shadow::{cast_shadows_sunmask_slice, ShadowBits, LIT, NODATA, SHADOW};
 use crate::standing::{Raised, Standing};
 use crate::sun::Sun;
-use serde::Serialize;
 use std::path::Path;
 
 /// Which cells a ray tests, and at what distance (`docs/shadows.md`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Rule {
     /// Each crossed cell at the distance of the ray's point nearest its centre (streamed; the
     /// pyramid's rule).
@@ -29,8 +27,18 @@ pub enum Rule {
     Sunmask,
 }
 
+impl Rule {
+    /// The rule's name as `--rule` takes it and the summary reports it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Rule::Geometric => "geometric",
+            Rule::Sunmask => "sunmask",
+        }
+    }
+}
+
 /// What [`write_shadow_mask`] found, in cells of the database grid.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MaskCounts {
     /// Cells in cast shadow.
     pub shadow: usize,

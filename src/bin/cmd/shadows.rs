@@ -57,10 +57,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         object_cells,
     } = counts;
     let valid = (shadow + lit).max(1) as f64;
-    let rule = match rule {
-        Rule::Geometric => "geometric",
-        Rule::Sunmask => "sunmask",
-    };
+    let rule = rule.name();
     let standing_text = match (building_cells, object_cells) {
         (0, 0) => String::new(),
         (b, o) => format!(", {b} building and {o} object cells raised"),

@@ -303,13 +303,13 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     let column_cache = ColumnCache::default();
     // Image columns are vertical half-planes through the eye only without roll and pitch.
     let coherent = opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
-    let trace = |pixels: &mut dyn Iterator<Item = (usize, usize)>, len: usize| -> Result<Row> {
+    let trace = |pixels: &mut dyn Iterator<Item = (usize, usize)>, len: usize| -> Result<Line> {
         let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
-        let mut row = Row::new(len);
+        let mut line = Line::new(len);
         let mut coherence = coherent.then(Coherence::default);
         let mut cast = |d: [f64; 3],
                         coherence: Option<&mut Coherence>,
-                        row: &mut Row|
+                        line: &mut Line|
          -> Result<(Option<Hit>, [u8; 3])> {
             let ray = Ray {
                 u: Axis::new(u0, d[0] / scene.cell[0]),
@@ -320,36 +320,37 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
             let hit = match scene.span(&ray, opts.repeat, max_range) {
                 Some(span) => {
                     let (hit, steps) = march::march(&ray, span, &mut sampler, &plan, coherence)?;
-                    row.steps += steps;
+                    line.steps += steps;
                     hit
                 }
                 None => None,
             };
-            row.rays += 1;
-            row.hits += u64::from(hit.is_some());
+            line.rays += 1;
+            line.hits += u64::from(hit.is_some());
             Ok((hit, colour(hit, d[2], opts.visibility)))
         };
         for (i, j) in pixels {
             // The range is always the centre ray's, so the range image does not depend on the
             // sampling; only centre rays are coherent (they lie in their column's plane).
-            let (centre, mut rgb) = cast(basis.direction(i, j), coherence.as_mut(), &mut row)?;
+            let (centre, mut rgb) = cast(basis.direction(i, j), coherence.as_mut(), &mut line)?;
             if n > 1 {
                 let mut sum = [0u32; 3];
                 for s in 0..n * n {
                     let (a, b) = jitter(j * camera.width + i, s);
                     let x = i as f64 + ((s % n) as f64 + a) / n as f64;
                     let y = j as f64 + ((s / n) as f64 + b) / n as f64;
-                    let (_, c) = cast(basis.direction_at(x, y), None, &mut row)?;
+                    let (_, c) = cast(basis.direction_at(x, y), None, &mut line)?;
                     (0..3).for_each(|k| sum[k] += u32::from(c[k]));
                 }
                 let m = (n * n) as u32;
                 rgb = sum.map(|v| ((v + m / 2) / m) as u8);
             }
-            row.rgb.push(rgb);
-            row.range.push(centre.map_or(f32::INFINITY, |h| h.t as f32));
+            line.rgb.push(rgb);
+            line.range
+                .push(centre.map_or(f32::INFINITY, |h| h.t as f32));
         }
-        row.touched = sampler.touched;
-        Ok(row)
+        line.touched = sampler.touched;
+        Ok(line)
     };
     let (w, h) = (camera.width, camera.height);
     let (lines, order) = if coherent {
@@ -419,7 +420,7 @@ fn check_eye_above_terrain(
     Ok(())
 }
 
-/// How the [`Row`]s a frame was traced in lie in the image.
+/// How the [`Line`]s a frame was traced in lie in the image.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Order {
     /// Each line is an image row, left to right, rows top to bottom.
@@ -429,7 +430,7 @@ enum Order {
 }
 
 /// One line of pixels (a row, or a column) as a worker renders it.
-struct Row {
+struct Line {
     rgb: Vec<[u8; 3]>,
     range: Vec<f32>,
     rays: u64,
@@ -438,11 +439,11 @@ struct Row {
     touched: BTreeSet<(usize, usize, usize)>,
 }
 
-impl Row {
-    fn new(width: usize) -> Row {
-        Row {
-            rgb: Vec::with_capacity(width),
-            range: Vec::with_capacity(width),
+impl Line {
+    fn new(len: usize) -> Line {
+        Line {
+            rgb: Vec::with_capacity(len),
+            range: Vec::with_capacity(len),
             rays: 0,
             steps: 0,
             hits: 0,
@@ -462,7 +463,7 @@ fn colour(hit: Option<Hit>, dz: f64, visibility: Option<f64>) -> [u8; 3] {
 fn assemble(
     width: usize,
     height: usize,
-    lines: Vec<Row>,
+    lines: Vec<Line>,
     order: Order,
     reader: &TileReader,
     before: ReaderStats,
@@ -560,12 +561,12 @@ pub fn render_top(
         false => 0,
     };
     let s = scene.scales[level];
-    let rows: Vec<Row> = (0..height)
+    let rows: Vec<Line> = (0..height)
         .into_par_iter()
         .map(|j| {
             let no_columns = ColumnCache::default(); // the top view never looks inside a column
             let mut sampler = Sampler::new(reader, false, &no_columns);
-            let mut row = Row::new(width);
+            let mut row = Line::new(width);
             let r = ((v0 + (j as f64 + 0.5) * sy).floor() as i64).div_euclid(s);
             for i in 0..width {
                 let c = ((u0 + (i as f64 + 0.5) * sx).floor() as i64).div_euclid(s);
