@@ -135,8 +135,9 @@ pub struct Walk<const N: usize> {
     stepped: [bool; N],
     /// Parameter at which the ray entered `cell`.
     t_in: f64,
-    /// The crossing times of the next boundary on each axis, as the last step computed them.
-    last_times: [f64; N],
+    /// The crossing time of the next boundary on each axis from `cell` (only the axes a step
+    /// changes are computed again).
+    next_times: [f64; N],
     /// Side cells still to visit at a corner (Touching), and how many.
     pending: [[i64; N]; 8],
     n_pending: usize,
@@ -148,7 +149,6 @@ impl<const N: usize> Walk<N> {
     /// A walk from `start` (cell coordinates) moving `dir` cells per unit of `t`. Non-finite
     /// components of `dir` are taken as 0.
     pub fn new(start: [f64; N], dir: [f64; N], corner: Corner) -> Walk<N> {
-        assert!((1..=3).contains(&N), "walks are 1-, 2- or 3-dimensional");
         let dir = dir.map(|d| if d.is_finite() && d != 0.0 { d } else { 0.0 });
         let cell = std::array::from_fn(|a| {
             if dir[a] < 0.0 {
@@ -157,29 +157,7 @@ impl<const N: usize> Walk<N> {
                 start[a].floor() as i64
             }
         });
-        Walk {
-            start,
-            dir,
-            corner,
-            scale: 1,
-            cell,
-            stepped: [false; N],
-            step: dir.map(|d| {
-                if d > 0.0 {
-                    1
-                } else if d < 0.0 {
-                    -1
-                } else {
-                    0
-                }
-            }),
-            t_in: 0.0,
-            last_times: [f64::INFINITY; N],
-            pending: [[0; N]; 8],
-            n_pending: 0,
-            pending_t: 0.0,
-            done: false,
-        }
+        Walk::resume(start, dir, corner, 1, cell, 0.0)
     }
 
     /// A walk over cells `scale` of the caller's cells wide (cell `K` spans
@@ -197,7 +175,31 @@ impl<const N: usize> Walk<N> {
         cell: [i64; N],
         t: f64,
     ) -> Walk<N> {
-        let mut w = Walk::new(start, dir, corner);
+        assert!((1..=3).contains(&N), "walks are 1-, 2- or 3-dimensional");
+        let dir = dir.map(|d| if d.is_finite() && d != 0.0 { d } else { 0.0 });
+        let mut w = Walk {
+            start,
+            dir,
+            corner,
+            scale: 1,
+            cell,
+            stepped: [false; N],
+            step: dir.map(|d| {
+                if d > 0.0 {
+                    1
+                } else if d < 0.0 {
+                    -1
+                } else {
+                    0
+                }
+            }),
+            t_in: 0.0,
+            next_times: [f64::INFINITY; N],
+            pending: [[0; N]; 8],
+            n_pending: 0,
+            pending_t: 0.0,
+            done: false,
+        };
         w.restart(scale, cell, t);
         w
     }
@@ -212,7 +214,7 @@ impl<const N: usize> Walk<N> {
         self.cell = cell;
         self.t_in = t;
         self.stepped = [false; N];
-        self.last_times = [f64::INFINITY; N];
+        self.next_times = std::array::from_fn(|a| self.crossing(a));
         self.n_pending = 0;
         self.done = false;
     }
@@ -231,16 +233,10 @@ impl<const N: usize> Walk<N> {
         self.stepped
     }
 
-    /// Whether the step into the cell the walk is in now passed within `rel` (relative, in
-    /// time) of a corner: it crossed several axes at once, or another axis' boundary is crossed
-    /// within `t · rel` after it. A ray whose direction differs from this one's by rounding may
-    /// take the corner the other way and visit a side cell this walk did not (false for the
-    /// start cell and after a restart).
+    /// The time the ray crosses the next boundary on axis `a` from `cell`.
     #[inline]
-    pub fn near_corner(&self, rel: f64) -> bool {
-        let t = self.t_in;
-        (0..N).any(|a| !self.stepped[a] && self.last_times[a] - t <= t.abs() * rel)
-            || self.stepped.iter().filter(|&&s| s).count() > 1
+    fn crossing(&self, a: usize) -> f64 {
+        cross(self.start[a], self.dir[a], self.next_boundary(a))
     }
 
     /// The boundary the ray crosses next on axis `a`, in the caller's (fine) cells.
@@ -271,8 +267,7 @@ impl<const N: usize> Iterator for Walk<N> {
             return None;
         }
         // The nearest crossing, and every axis the ray meets a boundary of at that time.
-        let times: [f64; N] =
-            std::array::from_fn(|a| cross(self.start[a], self.dir[a], self.next_boundary(a)));
+        let times = self.next_times;
         let (m, t_out) =
             times
                 .iter()
@@ -330,7 +325,9 @@ impl<const N: usize> Iterator for Walk<N> {
             }
         }
         self.stepped = tied;
-        self.last_times = times;
+        for a in (0..N).filter(|&a| tied[a]) {
+            self.next_times[a] = self.crossing(a);
+        }
         self.t_in = t_out;
         Some(here)
     }

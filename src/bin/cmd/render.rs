@@ -62,8 +62,8 @@ pub struct Args {
     /// moving view switches level).
     #[arg(long, conflicts_with = "no_lod")]
     blend: bool,
-    /// Start every ray from the eye, without the column coherence used at zero roll and pitch
-    /// (same image, slower; for benchmarks and checks).
+    /// March every ray on its own, without the column coherence used at zero roll and pitch
+    /// (one walk per image column; same image, slower; for benchmarks and checks).
     #[arg(long)]
     no_coherence: bool,
     /// Orthographic top-down map of the whole database instead of a perspective view.

@@ -8,9 +8,11 @@
 //!   image's aspect ratio (square pixels).
 //!
 //! Pixel `(i, j)` (column, row from the top) looks through its centre `(i + 0.5, j + 0.5)`.
-//! Invariant: directions are unit vectors, and angles that are multiples of 90° give exact
-//! axis-aligned directions (sine and cosine of those angles are exact), so an odd-sized image
-//! looking due east has a centre ray with no north component at all.
+//! Invariant: angles that are multiples of 90° give exact axis-aligned directions (sine and
+//! cosine of those angles are exact), so an odd-sized image looking due east has a centre ray
+//! with no north component at all. [`Basis::through`] is the direction to the image point on a
+//! plane at unit distance (not a unit vector): with zero roll and pitch, the points of one image
+//! column share their horizontal components bit for bit.
 
 use crate::error::{Error, Result};
 
@@ -128,13 +130,20 @@ impl Basis {
     /// Unit world direction through image point `(x, y)`, in pixels from the image's top-left
     /// corner (pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`; its centre is `(i + ½, j + ½)`).
     pub fn direction_at(&self, x: f64, y: f64) -> [f64; 3] {
-        let x = (2.0 * x / self.width - 1.0) * self.half_w;
-        let y = (1.0 - 2.0 * y / self.height) * self.half_h;
-        let d: [f64; 3] =
-            std::array::from_fn(|k| self.forward[k] + x * self.right[k] + y * self.up[k]);
+        let d = self.through(x, y);
         let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         // An axis-aligned direction stays exact: dividing by a norm of exactly 1 is exact.
         d.map(|c| c / n)
+    }
+
+    /// World direction from the eye to image point `(x, y)` (pixels, as for
+    /// [`Basis::direction_at`]) on the image plane one unit ahead: `forward + x′·right + y′·up`,
+    /// not normalised. Its horizontal components depend on `x` alone when `up` is vertical.
+    #[inline]
+    pub fn through(&self, x: f64, y: f64) -> [f64; 3] {
+        let x = (2.0 * x / self.width - 1.0) * self.half_w;
+        let y = (1.0 - 2.0 * y / self.height) * self.half_h;
+        std::array::from_fn(|k| self.forward[k] + x * self.right[k] + y * self.up[k])
     }
 }
 

@@ -31,13 +31,16 @@
 //! skip is conservative (a coarse `max_z` is the max of its block and `z(t)` is monotone, so the
 //! coarse test over a crossing that contains a child's crossing passes whenever the child's
 //! does). So without range thresholds the hierarchy finds exactly the hit of level-0 stepping,
-//! bit for bit ([`Traversal::Level0`] runs the same loop with one level).
+//! bit for bit ([`Traversal::Level0`] runs the same loop with one level). A coarse cell's stop
+//! under range thresholds ([`coarse_test`]) is a pure function of the cell too (its entry face is
+//! the cell's own, not the finer walk's last step), so any traversal that tests a ray on the same
+//! cells finds the same hit: that is what lets [`super::column`] march a whole image column at
+//! once.
 
-use super::coherence::{close_call, Coherence, Start, NEAR_CORNER};
 use super::ray::Ray;
 use super::sampler::Sampler;
 use crate::error::Result;
-use crate::tiles::STATE_PARTIAL;
+use crate::tiles::{Cell, STATE_PARTIAL};
 use crate::voxel::columns::Run;
 use crate::walk::{self, Corner, Visit, Walk};
 
@@ -79,12 +82,12 @@ pub struct Hit {
     pub level: usize,
 }
 
-/// The part of the ray inside the database box: `[t0, t1)` metres.
+/// The part of the ray worth stepping: `τ ∈ [t0, t1)` (the ray's parameter, [`super::ray`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Span {
-    /// Range where the ray enters the box (0 when the eye is inside).
+    /// Where the ray enters the box (0 when the eye is inside).
     pub t0: f64,
-    /// Range where the ray leaves the box (or stops looking).
+    /// Where the ray leaves the box (or stops looking).
     pub t1: f64,
 }
 
@@ -112,19 +115,19 @@ pub type Marched = (Option<Hit>, u64);
 
 /// The lowest height of the ray over `[t, t_far]`, metres.
 #[inline]
-fn lowest(ray: &Ray, t: f64, t_far: f64) -> f64 {
+pub(super) fn lowest(ray: &Ray, t: f64, t_far: f64) -> f64 {
     ray.z(t).min(ray.z(t_far))
 }
 
 /// Whether a ray whose lowest height over a cell is `lo` metres may hit the cell's column.
 #[inline]
-fn may_hit(lo: f64, max_z: f32) -> bool {
+pub(super) fn may_hit(lo: f64, max_z: f32) -> bool {
     !max_z.is_nan() && lo <= max_z as f64
 }
 
 /// The hit of level-0 cell `(c, r)` within `span`, if the ray hits its column: a solid column
 /// up to `max_z`, or for a partial cell the solid `runs` of its voxel column (ground run from
-/// `−inf` first). Returns the range, the face and the index of the run hit (0 for a solid
+/// `−inf` first). Returns the time `τ` of the hit, the face and the index of the run hit (0 for a solid
 /// column), or without a hit the ray's lowest height over the cell. A pure function of the
 /// cell.
 #[inline]
@@ -136,14 +139,7 @@ fn level0_hit(
     max_z: f32,
     runs: Option<&[Run]>,
 ) -> std::result::Result<(f64, Face, usize), f64> {
-    let (eu, ev) = (ray.u.entry(c, 1), ray.v.entry(r, 1));
-    let (t_in, face) = if eu >= ev && eu >= span.t0 {
-        (eu, Face::WallU)
-    } else if ev >= span.t0 {
-        (ev, Face::WallV)
-    } else {
-        (span.t0, Face::Top)
-    };
+    let (t_in, face) = entry(ray, span, c, r, 1);
     let t_out = ray.u.exit(c, 1).min(ray.v.exit(r, 1)).min(span.t1);
     let lo = lowest(ray, t_in, t_out);
     if !may_hit(lo, max_z) {
@@ -192,75 +188,162 @@ fn run_hit(
     }
 }
 
+/// What a ray's test of one coarse cell decides.
+pub(super) enum Coarse {
+    /// The ray passes over the whole cell (its lowest height there is above the cell's top).
+    Skip,
+    /// The ray may hit the cell's column and needs the finer level.
+    Descend,
+    /// The ray stops on the cell's top or wall, taking its average colour (range thresholds).
+    Stop(Hit),
+}
+
+/// The entry of the ray into cell `(c, r)` of a level whose cells are `s` level-0 cells wide,
+/// within `span`: the time `τ` and the face it enters through (the later of its two entry
+/// crossings; [`Face::Top`] where the span starts inside the cell). A pure function of the cell.
+#[inline]
+fn entry(ray: &Ray, span: Span, c: i64, r: i64, s: i64) -> (f64, Face) {
+    let (eu, ev) = (ray.u.entry(c, s), ray.v.entry(r, s));
+    if eu >= ev && eu >= span.t0 {
+        (eu, Face::WallU)
+    } else if ev >= span.t0 {
+        (ev, Face::WallV)
+    } else {
+        (span.t0, Face::Top)
+    }
+}
+
+/// Test `ray` against coarse cell `cell` (`(cc, rr)` of level `l`), which a walk visits over
+/// `τ ∈ [t_in, t_out]`: skip, descend or (past the level's range threshold) stop. A pure
+/// function of the ray, its span and the cell: `t_in` is the cell's entry crossing or where a
+/// walk started in it, and the ray's own time there is `max(t_in, span.t0)`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn coarse_test(
+    ray: &Ray,
+    span: Span,
+    l: usize,
+    [cc, rr]: [i64; 2],
+    [t_in, t_out]: [f64; 2],
+    cell: &Cell,
+    sampler: &mut Sampler,
+    plan: &Plan,
+) -> Result<Coarse> {
+    let t = t_in.max(span.t0);
+    let t_far = t_out.min(span.t1);
+    if !may_hit(lowest(ray, t, t_far), cell.max_z) {
+        return Ok(Coarse::Skip);
+    }
+    let Some(th) = &plan.thresholds else {
+        return Ok(Coarse::Descend);
+    };
+    let s = plan.scales[l];
+    let mz = cell.max_z as f64;
+    let (te, fe) = entry(ray, span, cc, rr, s);
+    let (tc, fc) = if ray.z(te) <= mz {
+        (te, fe)
+    } else {
+        let at = ray.time_at_height(mz).unwrap_or(te);
+        (at.max(te).min(t_far), Face::Top)
+    };
+    let range = ray.range(tc);
+    if blend_weight(range, th[l], plan.blend) != 1.0 {
+        return Ok(Coarse::Descend);
+    }
+    let face = step_or_wall(fc, ray, l, [cc, rr], cell.max_z, sampler, plan)?;
+    let hit = Hit {
+        t: range,
+        colour: cell.colour,
+        face,
+        level: l,
+    };
+    Ok(Coarse::Stop(blend_parent(
+        hit,
+        cc * s,
+        rr * s,
+        sampler,
+        plan,
+    )?))
+}
+
+/// Test `ray` against level-0 cell `(cc, rr)`, whose tile value is `cell`: its hit, coloured
+/// (the run's colour, a step or a wall, a coarse level's colour or a blend as the plan says),
+/// or `None`. A pure function of the ray, its span and the cell.
+pub(super) fn level0_test(
+    ray: &Ray,
+    span: Span,
+    [cc, rr]: [i64; 2],
+    cell: &Cell,
+    sampler: &mut Sampler,
+    plan: &Plan,
+) -> Result<Option<Hit>> {
+    let runs = if cell.state == STATE_PARTIAL {
+        Some(sampler.column(cc, rr)?)
+    } else {
+        None
+    };
+    let Ok((t_hit, f, k)) = level0_hit(ray, span, cc, rr, cell.max_z, runs) else {
+        return Ok(None); // passed over the top, under a floating run or through a gap
+    };
+    let (colour, top) = match runs {
+        Some(runs) => (runs[k].colour, runs[k].top),
+        None => (cell.colour, cell.max_z),
+    };
+    // Only the ground run of a voxel column can be a step; floating runs are objects.
+    let face = match k {
+        0 => step_or_wall(f, ray, 0, [cc, rr], top, sampler, plan)?,
+        _ => f,
+    };
+    let hit = Hit {
+        t: ray.range(t_hit),
+        colour,
+        face,
+        level: 0,
+    };
+    let hit = coarse_colour(hit, cc, rr, sampler, plan)?;
+    Ok(Some(blend_parent(hit, cc, rr, sampler, plan)?))
+}
+
+/// The levels a traversal steps: `0 ..= top`.
+pub(super) fn top_level(plan: &Plan) -> usize {
+    match plan.traversal {
+        Traversal::Hierarchical => plan.top,
+        Traversal::Level0 => 0,
+    }
+}
+
+/// A walk over level-`l` cells starting at `τ = t` in the cell holding the ray then (`guess`:
+/// a nearby cell index of that level).
+pub(super) fn walk_from(ray: &Ray, plan: &Plan, l: usize, t: f64, guess: [i64; 2]) -> Walk<2> {
+    let s = plan.scales[l];
+    let (o, d) = ([ray.u.o, ray.v.o], [ray.u.d, ray.v.d]);
+    let cell = [
+        walk::cell_at(o[0], d[0], t, s, guess[0]),
+        walk::cell_at(o[1], d[1], t, s, guess[1]),
+    ];
+    Walk::resume(o, d, Corner::Exact, s, cell, t)
+}
+
+/// The level-`l` cell of the eye (a guess for [`walk_from`]).
+pub(super) fn eye_cell(ray: &Ray, plan: &Plan, l: usize) -> [i64; 2] {
+    let s = plan.scales[l];
+    [
+        (ray.u.o.floor() as i64).div_euclid(s),
+        (ray.v.o.floor() as i64).div_euclid(s),
+    ]
+}
+
 /// Step `ray` through `span` of the tile set behind `sampler`.
 ///
 /// Every level is stepped by one [`Walk`] over that level's cells ([`Corner::Exact`]: crossing
 /// times `cross(o, d, K · f^k)`, the same f64 at every level; through a corner where both
 /// crossings are the same f64 the ray steps straight into the diagonal cell). Descending takes a
-/// finer walk up at the same `t` in [`walk::cell_at`]; climbing takes a coarser one up in the
+/// finer walk up at the same `τ` in [`walk::cell_at`]; climbing takes a coarser one up in the
 /// parent of the cell just entered, which is the cell `cell_at` gives there.
-///
-/// With `coherence` (the record of the rays below this one in its image column, see
-/// [`super::coherence`]), the ray starts where that record allows and writes its own; the hit
-/// is the same as without.
-pub fn march(
-    ray: &Ray,
-    span: Span,
-    sampler: &mut Sampler,
-    plan: &Plan,
-    mut coherence: Option<&mut Coherence>,
-) -> Result<Marched> {
-    let top = match plan.traversal {
-        Traversal::Hierarchical => plan.top,
-        Traversal::Level0 => 0,
-    };
-    let (mut t_start, mut face, mut l) = (span.t0, Face::Top, top);
-    if let Some(c) = coherence.as_deref_mut() {
-        match c.start(ray, span, plan) {
-            Start::Span => {}
-            Start::At(t, f, level) => (t_start, face, l) = (t, f, level.min(top)),
-            Start::Nothing => return Ok((None, 0)),
-        }
-    }
-    let (o, d) = ([ray.u.o, ray.v.o], [ray.u.d, ray.v.d]);
-    let cell_at = |l: usize, t: f64, guess: [i64; 2]| -> [i64; 2] {
-        let s = plan.scales[l];
-        [
-            walk::cell_at(o[0], d[0], t, s, guess[0]),
-            walk::cell_at(o[1], d[1], t, s, guess[1]),
-        ]
-    };
-    let s_start = plan.scales[l];
-    let guess = [
-        (o[0].floor() as i64).div_euclid(s_start),
-        (o[1].floor() as i64).div_euclid(s_start),
-    ];
-    let mut w = Walk::resume(
-        o,
-        d,
-        Corner::Exact,
-        s_start,
-        cell_at(l, t_start, guess),
-        t_start,
-    );
+pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Result<Marched> {
+    let top = top_level(plan);
+    let mut l = top;
+    let mut w = walk_from(ray, plan, l, span.t0, eye_cell(ray, plan, l));
     let mut steps = 0u64;
-    // The record while it still looks for this ray's barrier (none without coherence): only
-    // then are close calls and corners worth testing.
-    fn recording<'a>(coherence: &'a mut Option<&mut Coherence>) -> Option<&'a mut Coherence> {
-        coherence.as_deref_mut().filter(|c| c.recording())
-    }
-    // The ray ends in cell `cell` of level `l`: the first cell it cannot vouch for, if none was.
-    fn end(
-        coherence: &mut Option<&mut Coherence>,
-        l: usize,
-        cell: [i64; 2],
-        marched: Marched,
-    ) -> Result<Marched> {
-        if let Some(c) = coherence.as_deref_mut() {
-            c.barrier(l, cell);
-        }
-        Ok(marched)
-    }
     loop {
         steps += 1;
         let Visit {
@@ -269,102 +352,28 @@ pub fn march(
             t_out: t_exit,
         } = w.next().expect("a walk never ends by itself");
         let Some(cell) = sampler.cell(l, cc, rr)? else {
-            return end(&mut coherence, l, [cc, rr], (None, steps));
+            return Ok((None, steps));
         };
         if l == 0 {
-            let runs = if cell.state == STATE_PARTIAL {
-                Some(sampler.column(cc, rr)?)
-            } else {
-                None
-            };
-            match level0_hit(ray, span, cc, rr, cell.max_z, runs) {
-                Ok((t_hit, f, k)) => {
-                    let (colour, top) = match runs {
-                        Some(runs) => (runs[k].colour, runs[k].top),
-                        None => (cell.colour, cell.max_z),
-                    };
-                    // Only the ground run of a voxel column can be a step; floating runs are
-                    // objects.
-                    let face = match k {
-                        0 => step_or_wall(f, ray, 0, [cc, rr], top, sampler, plan)?,
-                        _ => f,
-                    };
-                    let hit = Hit {
-                        t: t_hit,
-                        colour,
-                        face,
-                        level: 0,
-                    };
-                    let hit = coarse_colour(hit, cc, rr, sampler, plan)?;
-                    let hit = blend_parent(hit, cc, rr, sampler, plan)?;
-                    return end(&mut coherence, 0, [cc, rr], (Some(hit), steps));
-                }
-                // Passed under a floating run, through a gap, or only just over the top.
-                Err(lo) => {
-                    if let Some(c) = recording(&mut coherence) {
-                        if close_call(ray, lo, cell.max_z) {
-                            c.barrier(0, [cc, rr]);
-                        }
-                    }
-                }
+            if let Some(hit) = level0_test(ray, span, [cc, rr], &cell, sampler, plan)? {
+                return Ok((Some(hit), steps));
             }
         } else {
-            let lo = lowest(ray, t, t_exit.min(span.t1));
-            if may_hit(lo, cell.max_z) {
-                if let Some(th) = &plan.thresholds {
-                    let mz = cell.max_z as f64;
-                    let (tc, fc) = if ray.z(t) <= mz {
-                        (t, face)
-                    } else {
-                        (
-                            ray.time_at_height(mz)
-                                .unwrap_or(t)
-                                .max(t)
-                                .min(t_exit.min(span.t1)),
-                            Face::Top,
-                        )
-                    };
-                    if blend_weight(tc, th[l], plan.blend) == 1.0 {
-                        let face = step_or_wall(fc, ray, l, [cc, rr], cell.max_z, sampler, plan)?;
-                        let s = plan.scales[l];
-                        let hit = Hit {
-                            t: tc,
-                            colour: cell.colour,
-                            face,
-                            level: l,
-                        };
-                        let hit = blend_parent(hit, cc * s, rr * s, sampler, plan)?;
-                        return end(&mut coherence, l, [cc, rr], (Some(hit), steps));
-                    }
-                    if let Some(c) = recording(&mut coherence) {
-                        c.descended(l, [cc, rr]);
-                    }
+            match coarse_test(ray, span, l, [cc, rr], [t, t_exit], &cell, sampler, plan)? {
+                Coarse::Stop(hit) => return Ok((Some(hit), steps)),
+                Coarse::Descend => {
+                    // Descend at the same τ, into the child holding the ray then.
+                    let f = plan.scales[l] / plan.scales[l - 1];
+                    l -= 1;
+                    w = walk_from(ray, plan, l, t, [cc * f, rr * f]);
+                    continue;
                 }
-                // Descend at the same t, into the child holding the ray then.
-                let f = plan.scales[l] / plan.scales[l - 1];
-                l -= 1;
-                w.restart(plan.scales[l], cell_at(l, t, [cc * f, rr * f]), t);
-                continue;
-            }
-            if let Some(c) = recording(&mut coherence) {
-                if close_call(ray, lo, cell.max_z) {
-                    c.barrier(l, [cc, rr]);
-                }
+                Coarse::Skip => {}
             }
         }
         if t_exit >= span.t1 {
-            return end(&mut coherence, l, [cc, rr], (None, steps));
+            return Ok((None, steps));
         }
-        if let Some(c) = recording(&mut coherence) {
-            if w.near_corner(NEAR_CORNER) {
-                c.barrier(l, [cc, rr]);
-            }
-        }
-        face = if w.stepped()[0] {
-            Face::WallU
-        } else {
-            Face::WallV
-        };
         // Climb to the coarsest level whose cell changed with this step.
         let (mut old, mut new) = ([cc, rr], w.position().0);
         let l0 = l;

@@ -3,7 +3,8 @@
 //! A pinhole [`Camera`] casts one ray per pixel. Each ray is moved into the database's local
 //! cell space (relative to the grid origin, so UTM-sized eyes keep full precision) and
 //! [marched](march::march) through the max-Z hierarchy: coarse steps through empty space,
-//! descents where it may hit, exact integer-boundary stepping at level 0. Range thresholds
+//! descents where it may hit, exact integer-boundary stepping at level 0 — or, for a level
+//! camera, with all the rays of its image column at once ([`column`]). Range thresholds
 //! `TH_k = L_k · N_pix / H_fov` (cell edge `L_k` in metres, field of view in radians) stop a ray
 //! at a coarse level's average colour at long range. Rays that leave the database take the
 //! [sky](sky::sky), or with `repeat` continue through copies of it (modulo arithmetic).
@@ -17,7 +18,7 @@
 //! Conventions and figures: `docs/render.md`.
 
 pub mod camera;
-pub mod coherence;
+pub mod column;
 pub mod flight;
 pub mod march;
 pub mod path;
@@ -33,8 +34,7 @@ use crate::error::{Error, Result};
 use crate::grid::Bounds;
 use crate::io::atomic::write_bytes_atomic;
 use crate::tiles::{ReaderStats, TileReader, STATE_PARTIAL};
-use coherence::Coherence;
-use ray::{Axis, Ray};
+use ray::Ray;
 use rayon::prelude::*;
 use sampler::{ColumnCache, Sampler};
 use serde::Serialize;
@@ -70,9 +70,9 @@ pub struct ViewOptions {
     /// Blend two levels' colours around each range threshold instead of switching
     /// ([`march::blend_weight`]).
     pub blend: bool,
-    /// Start each ray where the rays below it in its image column allow (the patent's vertical
-    /// scan-line coherence, [`coherence`]); used only where image columns are vertical planes
-    /// (zero roll and pitch). The image is the same either way.
+    /// March the rays of each image column with one walk (the patent's vertical scan-line
+    /// coherence, [`column`]); used only where image columns are vertical planes (zero roll
+    /// and pitch). The image is the same either way.
     pub coherence: bool,
 }
 
@@ -228,9 +228,10 @@ impl Scene {
         (self.width as f64 * self.cell[0]).hypot(self.height as f64 * self.cell[1])
     }
 
-    /// The part of `ray` worth stepping: inside the box (unless repeating), below `z_max`.
+    /// The part of `ray` worth stepping: inside the box (unless repeating), below `z_max`,
+    /// within `max_range` metres.
     fn span(&self, ray: &Ray, repeat: bool, max_range: f64) -> Option<Span> {
-        let (mut t0, mut t1) = (0.0f64, max_range);
+        let (mut t0, mut t1) = (0.0f64, max_range / ray.norm);
         if !repeat {
             let (a, b) = ray.u.slab(self.width);
             let (c, d) = ray.v.slab(self.height);
@@ -301,69 +302,69 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     });
     let basis = camera.basis();
     let column_cache = ColumnCache::default();
+    let ray_through = |x: f64, y: f64| Ray::new(u0, v0, ez, basis.through(x, y), scene.cell);
+    let span_of = |ray: &Ray| scene.span(ray, opts.repeat, max_range);
     // Image columns are vertical half-planes through the eye only without roll and pitch.
     let coherent = opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
-    let trace = |pixels: &mut dyn Iterator<Item = (usize, usize)>, len: usize| -> Result<Line> {
+    let trace = |pixels: &[(usize, usize)]| -> Result<Line> {
         let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
-        let mut line = Line::new(len);
-        let mut coherence = coherent.then(Coherence::default);
-        let mut cast = |d: [f64; 3],
-                        coherence: Option<&mut Coherence>,
-                        line: &mut Line|
-         -> Result<(Option<Hit>, [u8; 3])> {
-            let ray = Ray {
-                u: Axis::new(u0, d[0] / scene.cell[0]),
-                v: Axis::new(v0, d[1] / scene.cell[1]),
-                z0: ez,
-                dz: d[2],
-            };
-            let hit = match scene.span(&ray, opts.repeat, max_range) {
-                Some(span) => {
-                    let (hit, steps) = march::march(&ray, span, &mut sampler, &plan, coherence)?;
-                    line.steps += steps;
-                    hit
-                }
-                None => None,
-            };
+        let mut line = Line::new(pixels.len());
+        // The centre rays: the range is always theirs, so the range image does not depend on
+        // the sampling; they are the rays that share a column's path.
+        let rays: Vec<Ray> = pixels
+            .iter()
+            .map(|&(i, j)| ray_through(i as f64 + 0.5, j as f64 + 0.5))
+            .collect();
+        let spans: Vec<Option<Span>> = rays.iter().map(span_of).collect();
+        let hits = if coherent && column::shares_path(&rays) {
+            let (hits, steps) = column::march_column(&rays, &spans, &mut sampler, &plan)?;
+            line.steps += steps;
+            hits
+        } else {
+            let mut hits = Vec::with_capacity(rays.len());
+            for (ray, span) in rays.iter().zip(&spans) {
+                hits.push(line.march(ray, *span, &mut sampler, &plan)?);
+            }
+            hits
+        };
+        for ((&(i, j), ray), hit) in pixels.iter().zip(&rays).zip(hits) {
             line.rays += 1;
             line.hits += u64::from(hit.is_some());
-            Ok((hit, colour(hit, d[2], opts.visibility)))
-        };
-        for (i, j) in pixels {
-            // The range is always the centre ray's, so the range image does not depend on the
-            // sampling; only centre rays are coherent (they lie in their column's plane).
-            let (centre, mut rgb) = cast(basis.direction(i, j), coherence.as_mut(), &mut line)?;
+            let mut rgb = colour(hit, ray, opts.visibility);
             if n > 1 {
                 let mut sum = [0u32; 3];
                 for s in 0..n * n {
                     let (a, b) = jitter(j * camera.width + i, s);
                     let x = i as f64 + ((s % n) as f64 + a) / n as f64;
                     let y = j as f64 + ((s / n) as f64 + b) / n as f64;
-                    let (_, c) = cast(basis.direction_at(x, y), None, &mut line)?;
+                    let ray = ray_through(x, y);
+                    let hit = line.march(&ray, span_of(&ray), &mut sampler, &plan)?;
+                    line.rays += 1;
+                    line.hits += u64::from(hit.is_some());
+                    let c = colour(hit, &ray, opts.visibility);
                     (0..3).for_each(|k| sum[k] += u32::from(c[k]));
                 }
                 let m = (n * n) as u32;
                 rgb = sum.map(|v| ((v + m / 2) / m) as u8);
             }
             line.rgb.push(rgb);
-            line.range
-                .push(centre.map_or(f32::INFINITY, |h| h.t as f32));
+            line.range.push(hit.map_or(f32::INFINITY, |h| h.t as f32));
         }
         line.touched = sampler.touched;
         Ok(line)
     };
     let (w, h) = (camera.width, camera.height);
     let (lines, order) = if coherent {
-        // Each column bottom-up: every ray starts where the rays below it allow.
+        // Each column bottom-up (the order of the patent's vertical scan lines).
         let columns = (0..w)
             .into_par_iter()
-            .map(|i| trace(&mut (0..h).rev().map(|j| (i, j)), h))
+            .map(|i| trace(&(0..h).rev().map(|j| (i, j)).collect::<Vec<_>>()))
             .collect::<Result<_>>()?;
         (columns, Order::ColumnsUp)
     } else {
         let rows = (0..h)
             .into_par_iter()
-            .map(|j| trace(&mut (0..w).map(|i| (i, j)), w))
+            .map(|j| trace(&(0..w).map(|i| (i, j)).collect::<Vec<_>>()))
             .collect::<Result<_>>()?;
         (rows, Order::Rows)
     };
@@ -440,6 +441,22 @@ struct Line {
 }
 
 impl Line {
+    /// March one ray (no hit without a span), counting its steps.
+    fn march(
+        &mut self,
+        ray: &Ray,
+        span: Option<Span>,
+        sampler: &mut Sampler,
+        plan: &Plan,
+    ) -> Result<Option<Hit>> {
+        let Some(span) = span else {
+            return Ok(None);
+        };
+        let (hit, steps) = march::march(ray, span, sampler, plan)?;
+        self.steps += steps;
+        Ok(hit)
+    }
+
     fn new(len: usize) -> Line {
         Line {
             rgb: Vec::with_capacity(len),
@@ -452,11 +469,11 @@ impl Line {
     }
 }
 
-/// What a ray with vertical component `dz` shows: its hit, shaded and hazed, or the sky.
-fn colour(hit: Option<Hit>, dz: f64, visibility: Option<f64>) -> [u8; 3] {
+/// What `ray` shows: its hit, shaded and hazed, or the sky.
+fn colour(hit: Option<Hit>, ray: &Ray, visibility: Option<f64>) -> [u8; 3] {
     match hit {
         Some(h) => sky::shade(h.colour, h.face, h.t, visibility),
-        None => sky::sky(dz),
+        None => sky::sky(ray.sin_elevation()),
     }
 }
 

@@ -1,25 +1,28 @@
 //! A ray in the database's local cell space, and its exact integer-boundary crossings.
 //!
 //! Local frame: `u` = level-0 column coordinate (east for north-up grids), `v` = level-0 row
-//! coordinate, both in cells from the grid's corner origin; `z` in metres. The ray parameter `t`
-//! is the distance from the eye in world metres (the world direction is a unit vector), so `t`
-//! at a hit *is* the range. Working relative to the grid origin keeps UTM-sized eyes exact.
+//! coordinate, both in cells from the grid's corner origin; `z` in metres. The ray parameter `τ`
+//! runs along the camera's *unnormalised* direction through the pixel (the image plane at unit
+//! distance ahead of the eye): range in metres is `τ · norm`. So the rays of one image column of
+//! a level camera share their horizontal motion bit for bit (only their height rate differs),
+//! and cross every cell boundary at the same `τ` ([`super::column`]). Working relative to the
+//! grid origin keeps UTM-sized eyes exact.
 //!
 //! Invariant: the time the ray crosses a cell boundary `b` is one pure function,
 //! [`Axis::cross`] (which is [`crate::walk::cross`]), used by every traversal and every level
 //! (a level-`k` boundary is the level-0 boundary `K · f^k`). The stepping itself is the crate's
 //! one grid walk, [`crate::walk::Walk`], under [`crate::walk::Corner::Exact`] (see
-//! [`super::march`]): the cell the ray is in at time `t` is a pure function of `t`
-//! ([`crate::walk::cell_at`]: a boundary crossed at exactly `t` counts as crossed; through a
+//! [`super::march`]): the cell the ray is in at time `τ` is a pure function of `τ`
+//! ([`crate::walk::cell_at`]: a boundary crossed at exactly `τ` counts as crossed; through a
 //! corner both crossings are, and the ray is in the diagonal cell). So any two traversals that
 //! visit a cell agree bit for bit on its entry and exit times.
 
-/// One horizontal axis of a ray: origin and rate of change in cells (per metre of range).
+/// One horizontal axis of a ray: origin and rate of change in cells (per unit of `τ`).
 #[derive(Debug, Clone, Copy)]
 pub struct Axis {
     /// Position at `t = 0`, cells.
     pub o: f64,
-    /// Cells per metre of range (signed; 0 for a ray parallel to this axis' boundaries).
+    /// Cells per unit of `τ` (signed; 0 for a ray parallel to this axis' boundaries).
     pub d: f64,
 }
 
@@ -30,7 +33,7 @@ impl Axis {
         Axis { o, d }
     }
 
-    /// Time (metres of range) at which the ray crosses boundary `b` (cells); `+inf` when the
+    /// Time `τ` at which the ray crosses boundary `b` (cells); `+inf` when the
     /// ray is parallel to the boundaries. The crate's one crossing function,
     /// [`crate::walk::cross`] (`(b − o) / d`), shared with every other grid walk.
     #[inline]
@@ -77,7 +80,7 @@ impl Axis {
     }
 }
 
-/// A ray from the eye: horizontal axes in cells, height in metres, `t` in metres.
+/// A ray from the eye: horizontal axes in cells, height in metres, parameter `τ` (module doc).
 #[derive(Debug, Clone, Copy)]
 pub struct Ray {
     /// Column axis.
@@ -86,18 +89,45 @@ pub struct Ray {
     pub v: Axis,
     /// Eye height, metres.
     pub z0: f64,
-    /// Height change per metre of range (the sine of the ray's elevation).
+    /// Height change per unit of `τ`, metres.
     pub dz: f64,
+    /// Range per unit of `τ`, metres (the length of the direction the ray was made from).
+    pub norm: f64,
 }
 
 impl Ray {
-    /// Height of the ray at time `t`, metres (monotone in `t`).
+    /// The ray from local eye `(u0, v0)` (cells) at height `z0` (metres) along world direction
+    /// `d` (metres east, north, up; any length), over level-0 cells `cell` metres wide
+    /// (signed: a north-up grid's rows run south).
+    pub fn new(u0: f64, v0: f64, z0: f64, d: [f64; 3], cell: [f64; 2]) -> Ray {
+        Ray {
+            u: Axis::new(u0, d[0] / cell[0]),
+            v: Axis::new(v0, d[1] / cell[1]),
+            z0,
+            dz: d[2],
+            norm: (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt(),
+        }
+    }
+
+    /// Range at `τ`, metres.
+    #[inline]
+    pub fn range(&self, tau: f64) -> f64 {
+        tau * self.norm
+    }
+
+    /// Sine of the ray's elevation.
+    #[inline]
+    pub fn sin_elevation(&self) -> f64 {
+        self.dz / self.norm
+    }
+
+    /// Height of the ray at `τ = t`, metres (monotone in `t`).
     #[inline]
     pub fn z(&self, t: f64) -> f64 {
         self.z0 + t * self.dz
     }
 
-    /// Time at which the ray reaches height `z`, metres (`None` for a level ray).
+    /// The `τ` at which the ray reaches height `z` metres (`None` for a level ray).
     #[inline]
     pub fn time_at_height(&self, z: f64) -> Option<f64> {
         (self.dz != 0.0).then(|| (z - self.z0) / self.dz)

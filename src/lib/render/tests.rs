@@ -6,6 +6,7 @@ use crate::grid::Grid;
 use crate::tiles::Compression;
 use crate::voxel::columns::Run;
 use proptest::prelude::*;
+use ray::Axis;
 use std::sync::OnceLock;
 
 const GREY: [u8; 4] = [120, 120, 120, 255];
@@ -992,6 +993,7 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
                         v: Axis::new(v0, nudge(dv, nv)),
                         z0,
                         dz,
+                        norm: 1.0,
                     };
                     rays += 1;
                     let Some(span) = scene.span(&ray, false, f64::INFINITY) else {
@@ -1000,7 +1002,7 @@ fn hard_case_axes_diagonals_and_two_ulps_off_them_from_utm_eyes_hit_what_brute_f
                     let want = brute_force_hit(&ray, span, 200, 150, rough);
                     for traversal in [Traversal::Hierarchical, Traversal::Level0] {
                         let (got, _) =
-                            march::march(&ray, span, &mut sampler, &plan(traversal), None).unwrap();
+                            march::march(&ray, span, &mut sampler, &plan(traversal)).unwrap();
                         let got = got.map(|h| (h.t, h.colour, h.face));
                         assert_eq!(
                             got.map(|g| (g.0.to_bits(), g.1, g.2)),
@@ -1180,17 +1182,18 @@ fn with_and_without_coherence(
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
-    /// Column coherence changes no pixel and no range: over rough terrain with nodata holes and
+    /// The column march changes no pixel and no range: over rough terrain with nodata holes and
     /// over voxel columns with floating runs, with and without range thresholds and blending,
-    /// repeating or not, from eyes on cell boundaries and corners, looking along the axes and
-    /// diagonals and a few ulps off them.
+    /// repeating or not, with a range limit or not, from eyes below and above the highest
+    /// column, on cell boundaries and corners, looking along the axes and diagonals and a few
+    /// ulps off them.
     #[test]
-    fn column_coherence_gives_the_frames_of_rays_from_the_eye(
+    fn column_march_gives_the_frames_of_rays_from_the_eye(
         x in prop_oneof![-20.0f64..220.0, (-20i32..220).prop_map(f64::from)],
         y in prop_oneof![-20.0f64..170.0, (-20i32..170).prop_map(f64::from)],
         z in 2.0f64..50.0, yaw in hard_yaw(), voxels in any::<bool>(),
         lod in any::<bool>(), blend in any::<bool>(), repeat in any::<bool>(),
-        level0 in any::<bool>(),
+        level0 in any::<bool>(), max_range in prop::option::of(5.0f64..150.0),
     ) {
         let (_d, r) = if voxels { rough_column_tiles() } else { rough_tiles() };
         let cam = camera([x, y, z], 0.0, 0.0, yaw, 20, 48);
@@ -1199,6 +1202,7 @@ proptest! {
             lod,
             blend: lod && blend,
             repeat,
+            max_range,
             ..ViewOptions::default()
         };
         let Some((c, n)) = with_and_without_coherence(r, &cam, opts) else {
@@ -1211,7 +1215,7 @@ proptest! {
 }
 
 #[test]
-fn column_coherence_skips_most_steps_of_a_level_view_and_only_there() {
+fn column_march_skips_most_steps_of_a_level_view_and_only_there() {
     let (_d, r) = rough_tiles();
     let steps = |pitch: f64, coherence: bool| {
         let cam = camera([10.0, 10.0, 30.0], 0.0, pitch, 50.0, 64, 48);
@@ -1227,55 +1231,99 @@ fn column_coherence_skips_most_steps_of_a_level_view_and_only_there() {
     assert_eq!(steps(-5.0, true), steps(-5.0, false));
 }
 
-/// Two rays of one image column differ in horizontal direction by rounding. Ray A passes exactly
-/// through a cell corner beside two tall columns and touches neither; ray B, above it but one
-/// ulp off its direction, clips the side cell at that corner and hits a column's wall. With A's
-/// record, B must still find that wall: a step through a corner is where A stops vouching.
+/// The rays of one column share a path that runs exactly through a cell corner beside two tall
+/// columns and touches neither; the lower ray passes under the corner's height, the upper over
+/// a floating run, and each must find what a ray from the eye finds: the column march gives
+/// every ray its own `march` hit, at axis and diagonal headings and one ulp off them.
 #[test]
-fn hard_case_a_ray_one_ulp_off_the_corner_the_ray_below_passed_through() {
+fn hard_case_a_column_through_a_cell_corner_gives_each_ray_its_own_hit() {
     let tall = |c: usize, r: usize| {
         let z = if (c, r) == (6, 7) || (c, r) == (7, 6) {
             100.0
         } else {
-            0.0
+            f32::from(u8::try_from((c * 7 + r * 3) % 5).unwrap())
         };
         (z, [(c * 20) as u8, (r * 20) as u8, 0, 255])
     };
     let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 2, tall);
     let scene = Scene::of(&r).unwrap();
-    let plan = exact_plan(&scene, Traversal::Hierarchical);
     let cache = ColumnCache::default();
     let mut sampler = Sampler::new(&r, false, &cache);
     let ulp = |x: f64, n: i64| f64::from_bits((x.to_bits() as i64 + n) as u64);
     let c = 0.5;
-    // Local v grows southward on a north-up grid, as the tall cells' rows do.
-    let a = Ray {
-        u: Axis::new(5.0, c),
-        v: Axis::new(5.0, c),
-        z0: 10.0,
-        dz: -0.05,
+    for traversal in [Traversal::Hierarchical, Traversal::Level0] {
+        let plan = exact_plan(&scene, traversal);
+        for (du, dv) in [(c, c), (ulp(c, 1), c), (c, ulp(c, -1)), (c, 0.0), (0.0, c)] {
+            let rays: Vec<Ray> = (0..40)
+                .map(|k| Ray {
+                    u: Axis::new(5.0, du),
+                    v: Axis::new(5.0, dv),
+                    z0: 10.0,
+                    dz: -0.4 + 0.0125 * k as f64,
+                    norm: 1.0 + 0.01 * k as f64,
+                })
+                .collect();
+            let spans: Vec<Option<Span>> = rays
+                .iter()
+                .map(|ray| scene.span(ray, false, f64::INFINITY))
+                .collect();
+            let (hits, steps) = column::march_column(&rays, &spans, &mut sampler, &plan).unwrap();
+            let mut alone = 0;
+            for ((ray, span), hit) in rays.iter().zip(&spans).zip(&hits) {
+                let want = match span {
+                    Some(span) => {
+                        let (hit, n) = march::march(ray, *span, &mut sampler, &plan).unwrap();
+                        alone += n;
+                        hit
+                    }
+                    None => None,
+                };
+                assert_eq!(*hit, want, "{traversal:?}, ({du}, {dv}), dz {}", ray.dz);
+            }
+            let n_hit = hits.iter().filter(|h| h.is_some()).count();
+            assert!(n_hit > 20, "{n_hit} hits, ({du}, {dv}), {traversal:?}");
+            assert!(
+                steps < alone,
+                "{steps} column visits, {alone} steps of single rays"
+            );
+        }
+    }
+}
+
+/// In one column, the lower ray's span ends (its range limit) part-way over a cell it passes
+/// above; the ray above it, spanning the whole cell, comes down onto that cell's top later in
+/// it. Only a ray that spans a whole visit vouches for the rays above it.
+#[test]
+fn hard_case_a_ray_whose_range_ends_over_a_cell_does_not_vouch_for_the_ray_above() {
+    // Ground 0.2 m high; one tall column far off the rays' path keeps the eye below the top.
+    let ground = |c, r| match (c, r) {
+        (60, 60) => (50.0, GREY),
+        _ => (0.2, GREY),
     };
-    for b in [(ulp(c, 1), c), (c, ulp(c, 1))] {
-        let b = Ray {
-            u: Axis::new(5.0, b.0),
-            v: Axis::new(5.0, b.1),
-            z0: 10.0,
-            dz: -0.04,
-        };
-        let span = |ray: &Ray| scene.span(ray, false, f64::INFINITY).unwrap();
-        let (from_eye, _) = march::march(&b, span(&b), &mut sampler, &plan, None).unwrap();
-        let from_eye = from_eye.expect("B hits a tall column's wall");
-        assert_eq!(from_eye.colour[3], 255);
-        assert!(from_eye.t < 5.0, "{from_eye:?}");
-        let mut record = Coherence::default();
-        let (below, _) =
-            march::march(&a, span(&a), &mut sampler, &plan, Some(&mut record)).unwrap();
-        assert!(
-            below.is_none_or(|h| h.t > 5.0),
-            "A passes the corner: {below:?}"
-        );
-        let (coherent, _) =
-            march::march(&b, span(&b), &mut sampler, &plan, Some(&mut record)).unwrap();
-        assert_eq!(coherent, Some(from_eye));
+    let (_d, r) = tiles(0.0, 64.0, 64, 64, 16, 2, ground);
+    let scene = Scene::of(&r).unwrap();
+    let cache = ColumnCache::default();
+    let mut sampler = Sampler::new(&r, false, &cache);
+    let ray = |dz: f64| Ray {
+        u: Axis::new(5.0, 1.0),
+        v: Axis::new(5.5, 0.0),
+        z0: 10.0,
+        dz,
+        norm: 1.0,
+    };
+    let (low, high) = (ray(-1.0), ray(-0.99));
+    let whole = scene.span(&high, false, f64::INFINITY).unwrap();
+    assert_eq!(whole.t0, 0.0);
+    // The low ray would meet the ground at τ ≈ 9.8, in cell 14; it stops looking at 9.5.
+    let spans = [Some(Span { t1: 9.5, ..whole }), Some(whole)];
+    for traversal in [Traversal::Hierarchical, Traversal::Level0] {
+        let plan = exact_plan(&scene, traversal);
+        let (hits, _) = column::march_column(&[low, high], &spans, &mut sampler, &plan).unwrap();
+        assert_eq!(hits[0], None);
+        let (alone, _) = march::march(&high, whole, &mut sampler, &plan).unwrap();
+        let alone = alone.expect("the high ray comes down on cell 14's top");
+        assert_eq!(alone.face, Face::Top);
+        assert!((9.0..10.0).contains(&alone.t), "{alone:?}");
+        assert_eq!(hits[1], Some(alone), "{traversal:?}");
     }
 }
