@@ -168,7 +168,7 @@ mod tests {
     }
 
     /// The raw "os error 21/17/28" of a directory, an existing file and a full disk become words
-    /// with a fix (issue 14, defect 13).
+    /// with a fix.
     #[test]
     fn common_io_errors_are_words_with_a_fix() {
         for (code, want) in [

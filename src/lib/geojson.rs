@@ -133,7 +133,7 @@ mod tests {
     }
 
     /// Lon/lat vertices on a UTM grid are one CRS error; on a geographic grid, or a local grid
-    /// near the origin, they are not (issue 14, defect 13).
+    /// near the origin, they are not.
     #[test]
     fn lon_lat_on_a_projected_grid_is_a_crs_error() {
         use crate::crs::Crs;
@@ -160,7 +160,7 @@ mod tests {
         assert!(require_grid_crs(Path::new("f"), &utm, []).is_ok());
     }
 
-    /// A file that starts with a UTF-8 byte order mark reads like one without (issue 14, defect 13).
+    /// A file that starts with a UTF-8 byte order mark reads like one without.
     #[test]
     fn a_byte_order_mark_is_skipped() {
         let dir = tempfile::tempdir().unwrap();

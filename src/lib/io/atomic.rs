@@ -342,8 +342,8 @@ mod tests {
             return; // Linux only
         }
         let dir = tempfile::tempdir().unwrap();
-        // A process that has ended: its pid names no running process (issue 14: eight killed
-        // pyramids left 1.5 GB of such files).
+        // A process that has ended: its pid names no running process (killed runs leave such
+        // files behind, and they can be large).
         let mut child = std::process::Command::new("true").spawn().unwrap();
         let dead = child.id();
         child.wait().unwrap();

@@ -9,7 +9,7 @@
 //! (rounded, clamped to 255): `I_new` for the requested sun over the merged surface,
 //! `I_photo` for the orthophoto's own sun over what the photo saw (terrain and buildings) —
 //! or 1 when the photo's sun is unknown (the photo taken as evenly lit) and for placed objects
-//! (their voxel colours are unlit albedo). So one rule gives every case of issue 5:
+//! (their voxel colours are unlit albedo). So one rule gives every case:
 //! * no sun → no effect is prepared at all (nothing is cast or shaded);
 //! * the photo's own sun → terrain and roofs keep `I_new / I_photo = 1` (the photo holds their
 //!   shading and shadows; nothing is computed for them), walls and objects are shaded and

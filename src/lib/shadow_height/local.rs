@@ -21,9 +21,9 @@ pub enum Class {
     /// Open ground that this footprint's polygon covers in part (an edge of the polygon crosses
     /// the cell, its centre is outside): the photo shows a mix of the lit roof and the ground
     /// beside it, so its reading says nothing about the shadow. Scan lines walk through it like
-    /// [`Class::Own`]; the refinement leaves it out of the comparison. (A footprint edge at
-    /// 0.6–0.8 of a cell made this cell read lit with the shadow beside it, and every line
-    /// leaving through that edge measured 0 m: issue 13's silent 1.66 m for 10.6 m.)
+    /// [`Class::Own`]; the refinement leaves it out of the comparison. (Read as ground, a cell
+    /// crossed by a footprint edge at 0.6–0.8 of its width reads lit beside the shadow, and
+    /// every line leaving through that edge measures 0 m.)
     Edge,
     /// Under another footprint.
     Other,

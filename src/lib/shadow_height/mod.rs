@@ -1,5 +1,5 @@
 //! Building heights from their shadows in the orthophoto, refined over the real terrain
-//! (`dbms shadow-height`; issue 3, the Hughes patent's shadow-height loop).
+//! (`dbms shadow-height`; the Hughes patent's shadow-height loop).
 //!
 //! # Method (the invariant)
 //! For each valid footprint, independently (in parallel), in two passes — the second with the

@@ -167,7 +167,7 @@ mod tests {
     }
 
     /// A small file declaring a huge image is refused from its header, before any decoding
-    /// allocates for it (issue 14, defect 14).
+    /// allocates for it.
     #[test]
     fn an_image_over_the_pixel_budget_is_refused_before_decoding() {
         let dir = tempfile::tempdir().unwrap();

@@ -551,8 +551,8 @@ mod tests {
             .contains("feature 0: no positive number in property \"height\""));
     }
 
-    /// The extrusion as it was before issue 14 (every footprint tested on every column, every
-    /// voxel of the grid visited): the reference the banded one must equal voxel for voxel.
+    /// The plain extrusion (every footprint tested on every column, every voxel of the grid
+    /// visited): the reference the banded one must equal voxel for voxel.
     fn extrude_brute_force(
         footprints: &[Footprint],
         voxel: f64,
@@ -632,10 +632,9 @@ mod tests {
         }
     }
 
-    /// Issue 14, defect 12: extruding 100,000 footprints took 393 s because every footprint was
-    /// tested on every column of the grid (which grows with the footprints): quadratic. Each
-    /// footprint must be tested only on the columns inside its bounding box, so the work per
-    /// footprint does not grow with the city.
+    /// Each footprint is tested only on the columns inside its bounding box, so the work per
+    /// footprint does not grow with the city (testing every footprint on every column of a grid
+    /// that grows with the footprints is quadratic).
     #[test]
     fn each_footprint_is_tested_only_on_the_columns_of_its_bounding_box() {
         let work = |n: usize| {
@@ -682,7 +681,7 @@ mod tests {
         }
     }
 
-    /// An object smaller than a voxel is refused, never written empty (issue 14, defect 8).
+    /// An object smaller than a voxel is refused, never written empty.
     #[test]
     fn an_object_smaller_than_a_voxel_is_refused() {
         let tree = TreeParams {
