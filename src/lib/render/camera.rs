@@ -121,14 +121,16 @@ impl Camera {
 }
 
 impl Basis {
-    /// Unit world direction through the centre of pixel `(i, j)` (column, row from the top).
-    #[inline]
+    /// Unit world direction through the centre of pixel `(i, j)` (column, row from the top):
+    /// the tests' reference geometry (the renderer works with [`Basis::through`]).
+    #[cfg(test)]
     pub fn direction(&self, i: usize, j: usize) -> [f64; 3] {
         self.direction_at(i as f64 + 0.5, j as f64 + 0.5)
     }
 
     /// Unit world direction through image point `(x, y)`, in pixels from the image's top-left
     /// corner (pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`; its centre is `(i + ½, j + ½)`).
+    #[cfg(test)]
     pub fn direction_at(&self, x: f64, y: f64) -> [f64; 3] {
         let d = self.through(x, y);
         let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
@@ -136,8 +138,8 @@ impl Basis {
         d.map(|c| c / n)
     }
 
-    /// World direction from the eye to image point `(x, y)` (pixels, as for
-    /// [`Basis::direction_at`]) on the image plane one unit ahead: `forward + x′·right + y′·up`,
+    /// World direction from the eye to image point `(x, y)` (pixels from the image's top-left
+    /// corner; pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`) on the image plane one unit ahead: `forward + x′·right + y′·up`,
     /// not normalised. Its horizontal components depend on `x` alone when `up` is vertical.
     #[inline]
     pub fn through(&self, x: f64, y: f64) -> [f64; 3] {

@@ -51,7 +51,7 @@ pub fn march_column(
         rays,
         spans,
         hits: vec![None; rays.len()],
-        done: spans.iter().map(Option::is_none).collect(),
+        done: vec![false; rays.len()],
         steps: 0,
         sampler,
         plan,

@@ -127,9 +127,8 @@ pub(super) fn may_hit(lo: f64, max_z: f32) -> bool {
 
 /// The hit of level-0 cell `(c, r)` within `span`, if the ray hits its column: a solid column
 /// up to `max_z`, or for a partial cell the solid `runs` of its voxel column (ground run from
-/// `−inf` first). Returns the time `τ` of the hit, the face and the index of the run hit (0 for a solid
-/// column), or without a hit the ray's lowest height over the cell. A pure function of the
-/// cell.
+/// `−inf` first). Returns the time `τ` of the hit, the face and the index of the run hit (0
+/// for a solid column). A pure function of the cell.
 #[inline]
 fn level0_hit(
     ray: &Ray,
@@ -138,14 +137,13 @@ fn level0_hit(
     r: i64,
     max_z: f32,
     runs: Option<&[Run]>,
-) -> std::result::Result<(f64, Face, usize), f64> {
+) -> Option<(f64, Face, usize)> {
     let (t_in, face) = entry(ray, span, c, r, 1);
     let t_out = ray.u.exit(c, 1).min(ray.v.exit(r, 1)).min(span.t1);
-    let lo = lowest(ray, t_in, t_out);
-    if !may_hit(lo, max_z) {
-        return Err(lo);
+    if !may_hit(lowest(ray, t_in, t_out), max_z) {
+        return None;
     }
-    let hit = match runs {
+    match runs {
         None => {
             run_hit(ray, t_in, face, t_out, f64::NEG_INFINITY, max_z as f64).map(|(t, f)| (t, f, 0))
         }
@@ -158,8 +156,7 @@ fn level0_hit(
                     .map(|(t, f)| (t, f, k))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0)),
-    };
-    hit.ok_or(lo)
+    }
 }
 
 /// Where the ray, crossing a cell over `[t_in, t_out]` (entering through `face`), first meets
@@ -281,7 +278,7 @@ pub(super) fn level0_test(
     } else {
         None
     };
-    let Ok((t_hit, f, k)) = level0_hit(ray, span, cc, rr, cell.max_z, runs) else {
+    let Some((t_hit, f, k)) = level0_hit(ray, span, cc, rr, cell.max_z, runs) else {
         return Ok(None); // passed over the top, under a floating run or through a gap
     };
     let (colour, top) = match runs {

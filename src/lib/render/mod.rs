@@ -129,7 +129,8 @@ pub struct RenderStats {
     pub rays: u64,
     /// Rays that hit the database.
     pub hits: u64,
-    /// Cells visited by all rays, over all levels.
+    /// Cells visited by all rays, over all levels; a column marched as one ([`column`]) counts
+    /// each cell its walk visits once, for all the column's rays.
     pub cells_stepped: u64,
     /// Distinct pages the rays asked for.
     pub pages_touched: usize,
