@@ -121,6 +121,12 @@ pub fn cell_at(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> i64 {
     k
 }
 
+/// `dir` with its non-finite components (and `-0.0`) taken as 0: the axes the ray does not
+/// move along.
+fn moving<const N: usize>(dir: [f64; N]) -> [f64; N] {
+    dir.map(|d| if d.is_finite() && d != 0.0 { d } else { 0.0 })
+}
+
 /// The cells a ray crosses; see the module doc. `N` is 2 (raster cells) or 3 (voxels).
 #[derive(Debug, Clone)]
 pub struct Walk<const N: usize> {
@@ -149,7 +155,7 @@ impl<const N: usize> Walk<N> {
     /// A walk from `start` (cell coordinates) moving `dir` cells per unit of `t`. Non-finite
     /// components of `dir` are taken as 0.
     pub fn new(start: [f64; N], dir: [f64; N], corner: Corner) -> Walk<N> {
-        let dir = dir.map(|d| if d.is_finite() && d != 0.0 { d } else { 0.0 });
+        let dir = moving(dir);
         let cell = std::array::from_fn(|a| {
             if dir[a] < 0.0 {
                 start[a].ceil() as i64 - 1
@@ -176,7 +182,7 @@ impl<const N: usize> Walk<N> {
         t: f64,
     ) -> Walk<N> {
         assert!((1..=3).contains(&N), "walks are 1-, 2- or 3-dimensional");
-        let dir = dir.map(|d| if d.is_finite() && d != 0.0 { d } else { 0.0 });
+        let dir = moving(dir);
         let mut w = Walk {
             start,
             dir,
