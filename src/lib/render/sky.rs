@@ -13,8 +13,61 @@ pub const ZENITH: [f64; 3] = [58.0, 108.0, 190.0];
 const HAZE_BAND_RAD: f64 = 0.12;
 
 /// Sky colour for a ray whose direction has vertical component `dz` (sine of its elevation):
-/// haze at and below the horizon blending into blue overhead.
+/// haze at and below the horizon blending into blue overhead ([`sky_formula`]).
+///
+/// Read from a table of the sines at which the formula's colour changes (a few hundred, found
+/// once per process by bisection over the f64s in `(0, 1]`), so a sky pixel costs a binary
+/// search instead of an arcsine and an exponential. Equal to [`sky_formula`] at every `dz`
+/// because each channel of the formula is monotone in `dz` (the test checks the breakpoints,
+/// an ulp either side of them, and random sines).
 pub fn sky(dz: f64) -> [u8; 3] {
+    if !(dz > 0.0) {
+        return sky_formula(0.0); // at or below the horizon (NaN too, as the formula has it)
+    }
+    let (first, changes) = sky_table();
+    match changes.partition_point(|&(s, _)| s <= dz) {
+        0 => *first,
+        k => changes[k - 1].1,
+    }
+}
+
+/// The sky's colour just above the horizon (at the smallest positive sine), and every sine in
+/// `(0, 1]` where it changes with the colour from there on, ascending.
+fn sky_table() -> &'static ([u8; 3], Vec<(f64, [u8; 3])>) {
+    static TABLE: std::sync::OnceLock<([u8; 3], Vec<(f64, [u8; 3])>)> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let colour = |bits: u64| sky_formula(f64::from_bits(bits));
+        // Over positive f64s, bit order is numeric order: bisect on the bits.
+        fn changes(
+            a: u64,
+            ca: [u8; 3],
+            b: u64,
+            cb: [u8; 3],
+            colour: &dyn Fn(u64) -> [u8; 3],
+            out: &mut Vec<(f64, [u8; 3])>,
+        ) {
+            if ca == cb {
+                return; // monotone channels: no change between equal ends
+            }
+            if b == a + 1 {
+                out.push((f64::from_bits(b), cb));
+                return;
+            }
+            let m = a + (b - a) / 2;
+            let cm = colour(m);
+            changes(a, ca, m, cm, colour, out);
+            changes(m, cm, b, cb, colour, out);
+        }
+        let (lo, hi) = (1u64, 1.0f64.to_bits());
+        let mut out = Vec::new();
+        changes(lo, colour(lo), hi, colour(hi), &colour, &mut out);
+        (colour(lo), out)
+    })
+}
+
+/// The sky's colour by its defining formula: the zenith blue mixed into the horizon haze by
+/// `1 − exp(−asin(dz) / 0.12)` (0 at and below the horizon, `dz` clamped to 1).
+pub fn sky_formula(dz: f64) -> [u8; 3] {
     // asin is positive exactly when dz is: below the horizon no arcsine is needed.
     let w = if dz > 0.0 {
         1.0 - (-dz.min(1.0).asin() / HAZE_BAND_RAD).exp()
@@ -62,6 +115,44 @@ mod tests {
         assert_eq!(sky(-0.5), sky(0.0));
         let up = sky(1.0);
         assert!(up[2] as i32 - up[0] as i32 > sky(0.1)[2] as i32 - sky(0.1)[0] as i32);
+    }
+
+    #[test]
+    fn sky_table_gives_the_formula_at_its_breakpoints_next_to_them_and_anywhere() {
+        let (_, changes) = sky_table();
+        assert!(
+            changes.len() > 100 && changes.len() < 400,
+            "{}",
+            changes.len()
+        );
+        let ulp = |s: f64, k: i64| f64::from_bits((s.to_bits() as i64 + k) as u64);
+        for &(s, _) in changes {
+            for x in [ulp(s, -1), s, ulp(s, 1)] {
+                assert_eq!(sky(x), sky_formula(x), "{x:e}");
+            }
+        }
+        let mut x = 0x2545_f491_4f6c_dd1d_u64; // xorshift: random sines, uniform and tiny
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let s = (x >> 11) as f64 / (1u64 << 53) as f64;
+            for s in [s, s * 1e-3, s * 1e-9, 1.0 + s] {
+                assert_eq!(sky(s), sky_formula(s), "{s:e}");
+            }
+        }
+        for s in [
+            0.0,
+            -0.0,
+            -0.5,
+            f64::MIN_POSITIVE,
+            5e-324,
+            1.0,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            assert_eq!(sky(s), sky_formula(s), "{s:e}");
+        }
     }
 
     #[test]
