@@ -139,12 +139,31 @@ impl Basis {
     }
 
     /// World direction from the eye to image point `(x, y)` (pixels from the image's top-left
-    /// corner; pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`) on the image plane one unit ahead: `forward + x′·right + y′·up`,
-    /// not normalised. Its horizontal components depend on `x` alone when `up` is vertical.
+    /// corner; pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`) on the image plane one unit
+    /// ahead: `forward + x′·right + y′·up` ([`Basis::through_terms`] of [`Basis::x_term`] and
+    /// [`Basis::y_term`]), not normalised. Its horizontal components depend on `x` alone when
+    /// `up` is vertical.
     #[inline]
     pub fn through(&self, x: f64, y: f64) -> [f64; 3] {
-        let x = (2.0 * x / self.width - 1.0) * self.half_w;
-        let y = (1.0 - 2.0 * y / self.height) * self.half_h;
+        self.through_terms(self.x_term(x), self.y_term(y))
+    }
+
+    /// `x′`: image point `x` (pixels from the left) on the unit image plane, to the right.
+    #[inline]
+    pub fn x_term(&self, x: f64) -> f64 {
+        (2.0 * x / self.width - 1.0) * self.half_w
+    }
+
+    /// `y′`: image point `y` (pixels from the top) on the unit image plane, upward.
+    #[inline]
+    pub fn y_term(&self, y: f64) -> f64 {
+        (1.0 - 2.0 * y / self.height) * self.half_h
+    }
+
+    /// `forward + x′·right + y′·up` ([`Basis::through`] with its terms computed once per image
+    /// column and row, bit for bit the same).
+    #[inline]
+    pub fn through_terms(&self, x: f64, y: f64) -> [f64; 3] {
         std::array::from_fn(|k| self.forward[k] + x * self.right[k] + y * self.up[k])
     }
 }

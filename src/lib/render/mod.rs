@@ -34,7 +34,7 @@ use crate::error::{Error, Result};
 use crate::grid::Bounds;
 use crate::io::atomic::write_bytes_atomic;
 use crate::tiles::{ReaderStats, TileReader, STATE_PARTIAL};
-use ray::Ray;
+use ray::{Ray, Rays};
 use rayon::prelude::*;
 use sampler::{ColumnCache, Sampler};
 use serde::Serialize;
@@ -229,16 +229,30 @@ impl Scene {
         (self.width as f64 * self.cell[0]).hypot(self.height as f64 * self.cell[1])
     }
 
+    /// The times `τ` a ray with `ray`'s horizontal motion is over the database's footprint
+    /// (all of them with `repeat`).
+    fn footprint(&self, ray: &Ray, repeat: bool) -> (f64, f64) {
+        if repeat {
+            return (f64::NEG_INFINITY, f64::INFINITY);
+        }
+        let (a, b) = ray.u.slab(self.width);
+        let (c, d) = ray.v.slab(self.height);
+        (a.max(c), b.min(d))
+    }
+
     /// The part of `ray` worth stepping: inside the box (unless repeating), below `z_max`,
     /// within `max_range` metres.
     fn span(&self, ray: &Ray, repeat: bool, max_range: f64) -> Option<Span> {
-        let (mut t0, mut t1) = (0.0f64, max_range / ray.norm);
-        if !repeat {
-            let (a, b) = ray.u.slab(self.width);
-            let (c, d) = ray.v.slab(self.height);
-            t0 = t0.max(a).max(c);
-            t1 = t1.min(b).min(d);
-        }
+        self.span_within(ray, self.footprint(ray, repeat), max_range)
+    }
+
+    /// [`Scene::span`] for a ray over the footprint during `footprint` ([`Scene::footprint`]).
+    fn span_within(&self, ray: &Ray, footprint: (f64, f64), max_range: f64) -> Option<Span> {
+        let far = match max_range.is_finite() {
+            true => max_range / ray.norm,
+            false => f64::INFINITY,
+        };
+        let (mut t0, mut t1) = (footprint.0.max(0.0), far.min(footprint.1));
         if self.z_max.is_nan() {
             return None;
         }
@@ -305,18 +319,33 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     let column_cache = ColumnCache::default();
     let ray_through = |x: f64, y: f64| Ray::new(u0, v0, ez, basis.through(x, y), scene.cell);
     let span_of = |ray: &Ray| scene.span(ray, opts.repeat, max_range);
+    // A pixel centre's place on the image plane, once per column and row.
+    let x_terms: Vec<f64> = (0..camera.width)
+        .map(|i| basis.x_term(i as f64 + 0.5))
+        .collect();
+    let y_terms: Vec<f64> = (0..camera.height)
+        .map(|j| basis.y_term(j as f64 + 0.5))
+        .collect();
     // Image columns are vertical half-planes through the eye only without roll and pitch.
     let coherent = opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
     let trace = |pixels: &[(usize, usize)]| -> Result<Line> {
         let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
         let mut line = Line::new(pixels.len());
         // The centre rays: the range is always theirs, so the range image does not depend on
-        // the sampling; they are the rays that share a column's path.
-        let rays: Vec<Ray> = pixels
+        // the sampling; they are the rays that share a column's path. Rays sharing a
+        // horizontal direction share their axes and footprint times.
+        let mut centre_rays = Rays::new([u0, v0, ez], scene.cell);
+        let mut footprint = (0.0, 0.0);
+        let (rays, spans): (Vec<Ray>, Vec<Option<Span>>) = pixels
             .iter()
-            .map(|&(i, j)| ray_through(i as f64 + 0.5, j as f64 + 0.5))
-            .collect();
-        let spans: Vec<Option<Span>> = rays.iter().map(span_of).collect();
+            .map(|&(i, j)| {
+                let (ray, same) = centre_rays.ray(basis.through_terms(x_terms[i], y_terms[j]));
+                if !same {
+                    footprint = scene.footprint(&ray, opts.repeat);
+                }
+                (ray, scene.span_within(&ray, footprint, max_range))
+            })
+            .unzip();
         let hits = if coherent && column::shares_path(&rays) {
             let (hits, steps) = column::march_column(&rays, &spans, &mut sampler, &plan)?;
             line.steps += steps;

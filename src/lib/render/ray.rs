@@ -109,6 +109,18 @@ impl Ray {
         }
     }
 
+    /// The ray with `self`'s eye and axes rising `dz` metres per unit of `τ`: [`Ray::new`] for a
+    /// direction whose horizontal components are those `self` was made from, whose squared
+    /// length is `horizontal_sq` (the same f64 operations in the same order).
+    #[inline]
+    fn with_rise(&self, horizontal_sq: f64, dz: f64) -> Ray {
+        Ray {
+            dz,
+            norm: (horizontal_sq + dz * dz).sqrt(),
+            ..*self
+        }
+    }
+
     /// Range at `τ`, metres.
     #[inline]
     pub fn range(&self, tau: f64) -> f64 {
@@ -131,6 +143,43 @@ impl Ray {
     #[inline]
     pub fn time_at_height(&self, z: f64) -> Option<f64> {
         (self.dz != 0.0).then(|| (z - self.z0) / self.dz)
+    }
+}
+
+/// Rays from one eye that remember the last ray's horizontal direction: a ray whose direction
+/// shares it (the rays of an image column of a level camera) reuses its axes, so it costs no
+/// division. Invariant: [`Rays::ray`] is bit for bit [`Ray::new`].
+pub struct Rays {
+    eye: [f64; 3],
+    cell: [f64; 2],
+    /// The last ray, the bits of its direction's horizontal components and their squared length.
+    last: Option<(Ray, [u64; 2], f64)>,
+}
+
+impl Rays {
+    /// Rays from local eye `eye` (cells, cells, metres) over level-0 cells `cell` metres wide
+    /// (as for [`Ray::new`]).
+    pub fn new(eye: [f64; 3], cell: [f64; 2]) -> Rays {
+        Rays {
+            eye,
+            cell,
+            last: None,
+        }
+    }
+
+    /// `Ray::new(eye, d, cell)`, and whether its horizontal direction is the previous ray's.
+    #[inline]
+    pub fn ray(&mut self, d: [f64; 3]) -> (Ray, bool) {
+        let key = [d[0].to_bits(), d[1].to_bits()];
+        if let Some((last, k, sq)) = &self.last {
+            if *k == key {
+                return (last.with_rise(*sq, d[2]), true);
+            }
+        }
+        let [u0, v0, z0] = self.eye;
+        let ray = Ray::new(u0, v0, z0, d, self.cell);
+        self.last = Some((ray, key, d[0] * d[0] + d[1] * d[1]));
+        (ray, false)
     }
 }
 
@@ -160,7 +209,33 @@ mod tests {
         assert!(Axis::new(4.0, 0.0).slab(4).0 >= Axis::new(4.0, 0.0).slab(4).1);
     }
 
+    fn bits(r: &Ray) -> [u64; 7] {
+        [r.u.o, r.u.d, r.v.o, r.v.d, r.z0, r.dz, r.norm].map(f64::to_bits)
+    }
+
     proptest! {
+        #[test]
+        fn rays_sharing_a_heading_are_the_rays_ray_new_makes(
+            eye in prop::array::uniform3(-1e6f64..1e6),
+            cell in prop::array::uniform2(prop_oneof![0.25f64..30.0, -30.0f64..-0.25]),
+            dirs in prop::collection::vec(
+                (prop::array::uniform2(prop_oneof![Just(0.0), Just(-0.0), -2.0f64..2.0]), -3.0f64..3.0, 1usize..4),
+                1..20,
+            ),
+        ) {
+            let mut rays = Rays::new(eye, cell);
+            for (h, dz0, repeat) in dirs {
+                for k in 0..repeat {
+                    let d = [h[0], h[1], dz0 + k as f64 * 0.37];
+                    let (ray, same) = rays.ray(d);
+                    prop_assert_eq!(bits(&ray), bits(&Ray::new(eye[0], eye[1], eye[2], d, cell)));
+                    if k > 0 {
+                        prop_assert!(same);
+                    }
+                }
+            }
+        }
+
         #[test]
         fn entry_and_exit_bracket_the_time_in_the_cell_the_walk_is_in(
             o in -50.0f64..50.0, d in -3.0f64..3.0, t in 0.0f64..100.0
