@@ -92,8 +92,9 @@ impl Column<'_, '_, '_> {
         self.done[j] || self.spans[j].is_some_and(|s| s.t1 <= t_in)
     }
 
-    /// Walk level-`l` cells with `walk` while they lie in `parent` (a level-`l + 1` cell; `None`
-    /// at the top level: to the end), testing the rays `rows` (ascending up the image) on each.
+    /// Walk level-`l` cells with `walk` while they lie in `parent` (a level-`l + 1` cell given as
+    /// its first level-`l` child and its children per axis; `None` at the top level: to the
+    /// end), testing the rays `rows` (ascending up the image) on each.
     ///
     /// A ray takes part in a visit over `[t_in, t_out]` while its span overlaps it. Heights at
     /// every `τ ≥ 0` grow along `rows`, so once a ray passes over the column over the whole
@@ -103,10 +104,16 @@ impl Column<'_, '_, '_> {
         &mut self,
         l: usize,
         walk: Walk<2>,
-        parent: Option<[i64; 2]>,
+        parent: Option<([i64; 2], i64)>,
         rows: &[usize],
     ) -> Result<()> {
         let plan = self.plan;
+        // Children per axis of a cell of this level (for descents).
+        let f = if l > 0 {
+            plan.scales[l] / plan.scales[l - 1]
+        } else {
+            1
+        };
         let mut first = 0; // rows before it are finished
         for Visit {
             cell: [cc, rr],
@@ -114,9 +121,8 @@ impl Column<'_, '_, '_> {
             t_out,
         } in walk
         {
-            if let Some(p) = parent {
-                let f = plan.scales[l + 1] / plan.scales[l];
-                if [cc.div_euclid(f), rr.div_euclid(f)] != p {
+            if let Some(([c0, r0], n)) = parent {
+                if !((c0..c0 + n).contains(&cc) && (r0..r0 + n).contains(&rr)) {
                     return Ok(()); // where `march` climbs out
                 }
             }
@@ -157,10 +163,10 @@ impl Column<'_, '_, '_> {
                 }
             }
             if !descend.is_empty() {
-                let f = plan.scales[l] / plan.scales[l - 1];
                 let ray = &self.rays[descend[0]];
-                let child = walk_from(ray, plan, l - 1, t_in, [cc * f, rr * f]);
-                self.walk(l - 1, child, Some([cc, rr]), &descend)?;
+                let corner = [cc * f, rr * f];
+                let child = walk_from(ray, plan, l - 1, t_in, corner);
+                self.walk(l - 1, child, Some((corner, f)), &descend)?;
             }
             self.descending[l] = descend;
         }
