@@ -16,53 +16,83 @@ const HAZE_BAND_RAD: f64 = 0.12;
 /// haze at and below the horizon blending into blue overhead ([`sky_formula`]).
 ///
 /// Read from a table of the sines at which the formula's colour changes (a few hundred, found
-/// once per process by bisection over the f64s in `(0, 1]`), so a sky pixel costs a binary
-/// search instead of an arcsine and an exponential. Equal to [`sky_formula`] at every `dz`
-/// because each channel of the formula is monotone in `dz` (the test checks the breakpoints,
-/// an ulp either side of them, and random sines).
+/// once per process by bisection over the f64s in `(0, 1]`), so a sky pixel costs a lookup
+/// instead of an arcsine and an exponential. Equal to [`sky_formula`] at every `dz` because
+/// each channel of the formula is monotone in `dz` (the test checks the breakpoints, an ulp
+/// either side of them, and random sines).
 pub fn sky(dz: f64) -> [u8; 3] {
-    if !(dz > 0.0) {
+    if dz.is_nan() || dz <= 0.0 {
         return sky_formula(0.0); // at or below the horizon (NaN too, as the formula has it)
     }
-    let (first, changes) = sky_table();
-    match changes.partition_point(|&(s, _)| s <= dz) {
-        0 => *first,
-        k => changes[k - 1].1,
+    let table = SkyTable::get();
+    // The breakpoints at or below dz: all those at or below its bucket's start, then a few.
+    let s = dz.min(1.0);
+    let mut k = table.before[(s * SKY_BUCKETS as f64) as usize] as usize;
+    while table.changes.get(k).is_some_and(|c| c.0 <= s) {
+        k += 1;
+    }
+    match k {
+        0 => table.first,
+        k => table.changes[k - 1].1,
     }
 }
 
-/// The sky's colour just above the horizon (at the smallest positive sine), and every sine in
-/// `(0, 1]` where it changes with the colour from there on, ascending.
-fn sky_table() -> &'static ([u8; 3], Vec<(f64, [u8; 3])>) {
-    static TABLE: std::sync::OnceLock<([u8; 3], Vec<(f64, [u8; 3])>)> = std::sync::OnceLock::new();
-    TABLE.get_or_init(|| {
-        let colour = |bits: u64| sky_formula(f64::from_bits(bits));
-        // Over positive f64s, bit order is numeric order: bisect on the bits.
-        fn changes(
-            a: u64,
-            ca: [u8; 3],
-            b: u64,
-            cb: [u8; 3],
-            colour: &dyn Fn(u64) -> [u8; 3],
-            out: &mut Vec<(f64, [u8; 3])>,
-        ) {
-            if ca == cb {
-                return; // monotone channels: no change between equal ends
+/// Buckets of equal width in `(0, 1]` that index the sky's breakpoints.
+const SKY_BUCKETS: usize = 4096;
+
+/// The sky's colour as a step function of the sine of the elevation in `(0, 1]`.
+struct SkyTable {
+    /// The colour just above the horizon (at the smallest positive sine).
+    first: [u8; 3],
+    /// Every sine where the colour changes, with the colour from there on, ascending.
+    changes: Vec<(f64, [u8; 3])>,
+    /// For bucket `b` (and one past the last), how many breakpoints lie at or below
+    /// `b / SKY_BUCKETS` (exact: a power-of-two fraction).
+    before: Vec<u16>,
+}
+
+impl SkyTable {
+    fn get() -> &'static SkyTable {
+        static TABLE: std::sync::OnceLock<SkyTable> = std::sync::OnceLock::new();
+        TABLE.get_or_init(|| {
+            let colour = |bits: u64| sky_formula(f64::from_bits(bits));
+            // Over positive f64s, bit order is numeric order: bisect on the bits.
+            fn changes(
+                a: u64,
+                ca: [u8; 3],
+                b: u64,
+                cb: [u8; 3],
+                colour: &dyn Fn(u64) -> [u8; 3],
+                out: &mut Vec<(f64, [u8; 3])>,
+            ) {
+                if ca == cb {
+                    return; // monotone channels: no change between equal ends
+                }
+                if b == a + 1 {
+                    out.push((f64::from_bits(b), cb));
+                    return;
+                }
+                let m = a + (b - a) / 2;
+                let cm = colour(m);
+                changes(a, ca, m, cm, colour, out);
+                changes(m, cm, b, cb, colour, out);
             }
-            if b == a + 1 {
-                out.push((f64::from_bits(b), cb));
-                return;
+            let (lo, hi) = (1u64, 1.0f64.to_bits());
+            let mut out = Vec::new();
+            changes(lo, colour(lo), hi, colour(hi), &colour, &mut out);
+            let before = (0..=SKY_BUCKETS)
+                .map(|b| {
+                    let start = b as f64 / SKY_BUCKETS as f64;
+                    out.partition_point(|c| c.0 <= start) as u16
+                })
+                .collect();
+            SkyTable {
+                first: colour(lo),
+                changes: out,
+                before,
             }
-            let m = a + (b - a) / 2;
-            let cm = colour(m);
-            changes(a, ca, m, cm, colour, out);
-            changes(m, cm, b, cb, colour, out);
-        }
-        let (lo, hi) = (1u64, 1.0f64.to_bits());
-        let mut out = Vec::new();
-        changes(lo, colour(lo), hi, colour(hi), &colour, &mut out);
-        (colour(lo), out)
-    })
+        })
+    }
 }
 
 /// The sky's colour by its defining formula: the zenith blue mixed into the horizon haze by
@@ -119,7 +149,7 @@ mod tests {
 
     #[test]
     fn sky_table_gives_the_formula_at_its_breakpoints_next_to_them_and_anywhere() {
-        let (_, changes) = sky_table();
+        let changes = &SkyTable::get().changes;
         assert!(
             changes.len() > 100 && changes.len() < 400,
             "{}",
