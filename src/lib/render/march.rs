@@ -233,6 +233,12 @@ pub(super) fn coarse_test(
     let Some(th) = &plan.thresholds else {
         return Ok(Coarse::Descend);
     };
+    // The stop below would be at or before `t_out` (the cell's entry is at or before the
+    // visit's start, which the ray's span overlaps), so at most this range: within the
+    // threshold, the level's colour would not be taken whole (blend weight at most ½).
+    if ray.range(t_out) <= th[l] {
+        return Ok(Coarse::Descend);
+    }
     let s = plan.scales[l];
     let mz = cell.max_z as f64;
     let (te, fe) = entry(ray, span, cc, rr, s);
