@@ -91,13 +91,26 @@ pub fn cross(o: f64, d: f64, b: i64) -> f64 {
 /// depend on it, only the time taken to find it).
 #[inline]
 pub fn cell_at(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> i64 {
+    locate(o, d, t, scale, guess).0
+}
+
+/// [`cell_at`], and the time the ray crosses that cell's exit boundary on this axis (`+∞` if it
+/// does not move along it): the walk's next crossing from there, from the same division
+/// `cell_at` checks it with.
+#[inline]
+fn locate(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> (i64, f64) {
+    // floor division by a power of two is an arithmetic shift (a division costs tens of cycles)
+    let div = |k: i64| match (scale as u64).is_power_of_two() {
+        true => k >> scale.trailing_zeros(),
+        false => k.div_euclid(scale),
+    };
     if d == 0.0 || !d.is_finite() {
-        return (o.floor() as i64).div_euclid(scale);
+        return (div(o.floor() as i64), f64::INFINITY);
     }
     // Start from the position's cell (right but for rounding), else from the guess.
     let est = o + t * d;
     let mut k = if est.is_finite() && est.abs() < 9.0e15 {
-        crate::num::floor_i64(est).div_euclid(scale)
+        div(crate::num::floor_i64(est))
     } else {
         guess
     };
@@ -106,7 +119,11 @@ pub fn cell_at(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> i64 {
         while cross(o, d, k * scale) > t {
             k -= 1;
         }
-        while cross(o, d, (k + 1) * scale) <= t {
+        loop {
+            let exit = cross(o, d, (k + 1) * scale);
+            if exit > t {
+                return (k, exit);
+            }
             k += 1;
         }
     } else {
@@ -114,11 +131,14 @@ pub fn cell_at(o: f64, d: f64, t: f64, scale: i64, guess: i64) -> i64 {
         while cross(o, d, (k + 1) * scale) > t {
             k += 1;
         }
-        while cross(o, d, k * scale) <= t {
+        loop {
+            let exit = cross(o, d, k * scale);
+            if exit > t {
+                return (k, exit);
+            }
             k -= 1;
         }
     }
-    k
 }
 
 /// `dir` with its non-finite components (and `-0.0`) taken as 0: the axes the ray does not
@@ -181,14 +201,21 @@ impl<const N: usize> Walk<N> {
         cell: [i64; N],
         t: f64,
     ) -> Walk<N> {
+        let mut w = Walk::unplaced(start, dir, corner);
+        w.restart(scale, cell, t);
+        w
+    }
+
+    /// A walk for the ray that is nowhere yet ([`Walk::restart`] places it).
+    fn unplaced(start: [f64; N], dir: [f64; N], corner: Corner) -> Walk<N> {
         assert!((1..=3).contains(&N), "walks are 1-, 2- or 3-dimensional");
         let dir = moving(dir);
-        let mut w = Walk {
+        Walk {
             start,
             dir,
             corner,
             scale: 1,
-            cell,
+            cell: [0; N],
             stepped: [false; N],
             step: dir.map(|d| {
                 if d > 0.0 {
@@ -205,8 +232,22 @@ impl<const N: usize> Walk<N> {
             n_pending: 0,
             pending_t: 0.0,
             done: false,
-        };
-        w.restart(scale, cell, t);
+        }
+    }
+
+    /// [`Walk::resume`] under [`Corner::Exact`] in the cell holding the ray at `t` ([`cell_at`]
+    /// on each axis; `guess` is any nearby cell), finding the cell and the walk's first
+    /// crossings with the same divisions.
+    pub fn at(start: [f64; N], dir: [f64; N], scale: i64, t: f64, guess: [i64; N]) -> Walk<N> {
+        assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        let mut w = Walk::unplaced(start, dir, Corner::Exact);
+        let located: [(i64, f64); N] =
+            std::array::from_fn(|a| locate(w.start[a], w.dir[a], t, scale, guess[a]));
+        w.scale = scale;
+        w.cell = located.map(|l| l.0);
+        w.t_in = t;
+        w.next_times = located.map(|l| l.1);
+        debug_assert!((0..N).all(|a| w.next_times[a].to_bits() == w.crossing(a).to_bits()));
         w
     }
 
@@ -701,6 +742,17 @@ mod tests {
             if scale == 1 {
                 prop_assert_eq!(cell, fine[k].cell);
             }
+        }
+
+        #[test]
+        fn a_walk_placed_at_t_is_the_walk_resumed_in_the_cell_at_t(
+            o in start(), d in direction(), t in 0.0f64..50.0, scale in 1i64..9,
+            guess in prop::array::uniform2(-400i64..400)
+        ) {
+            let cell = [cell_at(o[0], d[0], t, scale, 0), cell_at(o[1], d[1], t, scale, 0)];
+            let want: Vec<Visit<2>> = Walk::resume(o, d, Corner::Exact, scale, cell, t).take(20).collect();
+            let got: Vec<Visit<2>> = Walk::at(o, d, scale, t, guess).take(20).collect();
+            prop_assert_eq!(got, want);
         }
 
         #[test]

@@ -17,7 +17,7 @@
 //! Stepping, at every level, is the crate's one grid walk, [`crate::walk::Walk`]: a level-`k`
 //! walk has cells `f^k` level-0 cells wide and crosses boundary `K` at
 //! `cross(o, d, K · f^k)` ([`crate::walk::cross`]), so a boundary shared by several levels is
-//! crossed at the same f64 on each. **Corner rule: [`Corner::Exact`].** Where the ray passes
+//! crossed at the same f64 on each. **Corner rule: [`Corner::Exact`](crate::walk::Corner::Exact).** Where the ray passes
 //! through a cell corner — its two crossing times are the same f64 — it steps straight into the
 //! diagonal cell, and the two side cells are not visited (they touch the ray at one point). A
 //! ray a few ulps off a corner visits the side cell it clips, for the tiny time it is in it;
@@ -42,7 +42,7 @@ use super::sampler::Sampler;
 use crate::error::Result;
 use crate::tiles::{Cell, STATE_PARTIAL};
 use crate::voxel::columns::Run;
-use crate::walk::{self, Corner, Visit, Walk};
+use crate::walk::{Visit, Walk};
 
 /// How rays step through the levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -317,13 +317,8 @@ pub(super) fn top_level(plan: &Plan) -> usize {
 /// A walk over level-`l` cells starting at `τ = t` in the cell holding the ray then (`guess`:
 /// a nearby cell index of that level).
 pub(super) fn walk_from(ray: &Ray, plan: &Plan, l: usize, t: f64, guess: [i64; 2]) -> Walk<2> {
-    let s = plan.scales[l];
     let (o, d) = ([ray.u.o, ray.v.o], [ray.u.d, ray.v.d]);
-    let cell = [
-        walk::cell_at(o[0], d[0], t, s, guess[0]),
-        walk::cell_at(o[1], d[1], t, s, guess[1]),
-    ];
-    Walk::resume(o, d, Corner::Exact, s, cell, t)
+    Walk::at(o, d, plan.scales[l], t, guess)
 }
 
 /// The level-`l` cell of the eye (a guess for [`walk_from`]).
@@ -337,10 +332,10 @@ pub(super) fn eye_cell(ray: &Ray, plan: &Plan, l: usize) -> [i64; 2] {
 
 /// Step `ray` through `span` of the tile set behind `sampler`.
 ///
-/// Every level is stepped by one [`Walk`] over that level's cells ([`Corner::Exact`]: crossing
+/// Every level is stepped by one [`Walk`] over that level's cells ([`Corner::Exact`](crate::walk::Corner::Exact): crossing
 /// times `cross(o, d, K · f^k)`, the same f64 at every level; through a corner where both
 /// crossings are the same f64 the ray steps straight into the diagonal cell). Descending takes a
-/// finer walk up at the same `τ` in [`walk::cell_at`]; climbing takes a coarser one up in the
+/// finer walk up at the same `τ` in [`crate::walk::cell_at`]; climbing takes a coarser one up in the
 /// parent of the cell just entered, which is the cell `cell_at` gives there.
 pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Result<Marched> {
     let top = top_level(plan);
