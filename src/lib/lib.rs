@@ -21,6 +21,7 @@
 //!
 //! Shared by the stages: [`walk`], the one grid traversal (cells a ray crosses, explicit corner rule).
 
+pub mod choice;
 pub mod crs;
 pub mod db;
 pub mod error;

@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, value_name = "MINX,MINY,MAXX,MAXY", value_parser = parse_bounds, allow_hyphen_values = true)]
     bounds: Option<Bounds>,
     /// How the DEM is resampled onto the database grid.
-    #[arg(long, value_enum, default_value = "bilinear")]
+    #[arg(long, value_parser = super::choice::<Resampling>(), default_value = "bilinear")]
     dem_resampling: Resampling,
     /// Fill DEM voids by Delaunay interpolation from their borders.
     #[arg(long)]

@@ -14,6 +14,7 @@ pub mod shadows;
 pub mod sun;
 pub mod tiles;
 
+use dbms::choice::Choice;
 use dbms::db::Database;
 use dbms::progress::Progress;
 use dbms::sun::Sun;
@@ -125,4 +126,16 @@ pub fn triple(name: &str, s: &str, what: &str) -> dbms::Result<[f64; 3]> {
         ))
         .fix(format!("give {what}"))
     })
+}
+
+/// The clap parser of a library [`Choice`]: its names as the possible values, each with its
+/// description (without a closing full stop, as clap shows doc comments).
+pub fn choice<T: Choice>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    PossibleValuesParser::new(
+        T::ALL
+            .iter()
+            .map(|v| PossibleValue::new(v.name()).help(v.help().trim_end_matches('.'))),
+    )
+    .map(|name| T::named(&name).expect("clap accepts only the names listed"))
 }

@@ -23,7 +23,7 @@ struct Out {
     #[arg(short, long)]
     output: PathBuf,
     /// Also write these beside the object (same name, .ply / .vox).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = super::choice::<Export>())]
     export: Vec<Export>,
 }
 

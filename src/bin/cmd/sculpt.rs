@@ -24,13 +24,13 @@ pub struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// Also write these beside the object (same name, .ply / .vox).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = super::choice::<Export>())]
     export: Vec<Export>,
     /// Voxels that project outside a view's image: kept (that view has no say) or carved.
-    #[arg(long, value_enum, default_value = "keep")]
+    #[arg(long, value_parser = super::choice::<Unseen>(), default_value = "keep")]
     outside: Unseen,
     /// Voxels behind a pinhole camera: kept (that view has no say) or carved.
-    #[arg(long, value_enum, default_value = "keep")]
+    #[arg(long, value_parser = super::choice::<Unseen>(), default_value = "keep")]
     behind: Unseen,
     /// Colour R,G,B of interior voxels and of surface voxels no view sees.
     #[arg(long, default_value = "128,128,128")]

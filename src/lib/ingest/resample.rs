@@ -29,18 +29,20 @@ use std::ops::Range;
 /// Fraction of a cell's full kernel weight that must come from valid samples.
 pub const MIN_VALID_WEIGHT: f64 = 1e-5;
 
-/// How values are interpolated onto the target grid.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Resampling {
-    /// The source cell containing the target centre.
-    Nearest,
-    /// Triangle kernel: bilinear interpolation between the four nearest centres.
-    Bilinear,
-    /// Keys cubic convolution (a = −0.5) over the 4×4 nearest centres.
-    Cubic,
-    /// Area-weighted mean of the source cells the target cell overlaps.
-    Average,
+crate::choice! {
+    /// How values are interpolated onto the target grid.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+    #[serde(rename_all = "lowercase")]
+    pub enum Resampling {
+        /// The source cell containing the target centre.
+        Nearest = "nearest",
+        /// Triangle kernel: bilinear interpolation between the four nearest centres.
+        Bilinear = "bilinear",
+        /// Keys cubic convolution (a = −0.5) over the 4×4 nearest centres.
+        Cubic = "cubic",
+        /// Area-weighted mean of the source cells the target cell overlaps.
+        Average = "average",
+    }
 }
 
 /// A list of `(source index, weight)` for one target index along one axis.

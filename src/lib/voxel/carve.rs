@@ -33,16 +33,16 @@ pub struct View {
     pub silhouette: Silhouette,
 }
 
-/// What a view does with a voxel it cannot see (behind it or outside its image).
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Unseen {
-    /// The view gives no evidence: the voxel stays (default).
-    Keep,
-    /// The view removes the voxel.
-    Carve,
+crate::choice! {
+    /// What a view does with a voxel it cannot see (behind it or outside its image).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+    #[serde(rename_all = "lowercase")]
+    pub enum Unseen {
+        /// The view gives no evidence: the voxel stays (default).
+        Keep = "keep",
+        /// The view removes the voxel.
+        Carve = "carve",
+    }
 }
 
 /// The geometry rules of carving (see the module docs).

@@ -17,13 +17,15 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// An export format for ordinary tools.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Export {
-    /// Binary PLY point cloud of coloured voxel centres, world metres.
-    Ply,
-    /// MagicaVoxel `.vox` model.
-    Vox,
+crate::choice! {
+    /// An export format for ordinary tools.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum Export {
+        /// Binary PLY point cloud of coloured voxel centres, world metres.
+        Ply = "ply",
+        /// MagicaVoxel `.vox` model.
+        Vox = "vox",
+    }
 }
 
 impl Export {
