@@ -29,7 +29,41 @@ pub struct GeoTransform {
     pub cell_y: f64,
 }
 
+/// Why a file's georeference cannot be a grid's [`GeoTransform`] (each reader words the error
+/// in its own format's terms).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NotNorthUp {
+    /// A rotation or shear term is not zero.
+    Sheared,
+    /// A value is not finite, or the cell is not wider than 0 and of non-zero height.
+    BadGeometry,
+}
+
 impl GeoTransform {
+    /// The north-up transform with corner `origin` and `cell` size (x, y, CRS units), from a
+    /// file whose rotation or shear terms are `shear`: both must be zero, every value finite,
+    /// the cell wider than 0 and of non-zero height. The one check every georeference reader
+    /// (GeoTIFF tags, GDAL, world files) applies.
+    pub fn north_up(
+        origin: [f64; 2],
+        cell: [f64; 2],
+        shear: [f64; 2],
+    ) -> std::result::Result<GeoTransform, NotNorthUp> {
+        if shear != [0.0, 0.0] {
+            return Err(NotNorthUp::Sheared);
+        }
+        let finite = origin.iter().chain(&cell).all(|v| v.is_finite());
+        if !finite || !(cell[0] > 0.0) || cell[1] == 0.0 {
+            return Err(NotNorthUp::BadGeometry);
+        }
+        Ok(GeoTransform {
+            origin_x: origin[0],
+            origin_y: origin[1],
+            cell_x: cell[0],
+            cell_y: cell[1],
+        })
+    }
+
     /// World position of pixel-space point `(px, py)` (fractional pixels, corner convention).
     #[inline]
     pub fn pixel_to_world(&self, px: f64, py: f64) -> (f64, f64) {
@@ -319,6 +353,38 @@ pub struct Window {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn north_up_takes_a_grid_and_says_why_not_otherwise() {
+        let t = GeoTransform::north_up([500_000.0, 5e6], [2.0, -2.0], [0.0, -0.0]).unwrap();
+        assert_eq!(
+            (t.origin_x, t.origin_y, t.cell_x, t.cell_y),
+            (500_000.0, 5e6, 2.0, -2.0)
+        );
+        let why = |o: [f64; 2], c: [f64; 2], s: [f64; 2]| GeoTransform::north_up(o, c, s).err();
+        assert_eq!(
+            why([0.0; 2], [1.0, -1.0], [1e-12, 0.0]),
+            Some(NotNorthUp::Sheared)
+        );
+        assert_eq!(
+            why([0.0; 2], [1.0, -1.0], [0.0, f64::NAN]),
+            Some(NotNorthUp::Sheared)
+        );
+        for (o, c) in [
+            ([0.0, 0.0], [0.0, -1.0]),
+            ([0.0, 0.0], [-1.0, -1.0]),
+            ([0.0, 0.0], [1.0, 0.0]),
+            ([0.0, 0.0], [f64::NAN, -1.0]),
+            ([f64::INFINITY, 0.0], [1.0, -1.0]),
+            ([0.0, f64::NAN], [1.0, -1.0]),
+        ] {
+            assert_eq!(
+                why(o, c, [0.0; 2]),
+                Some(NotNorthUp::BadGeometry),
+                "{o:?} {c:?}"
+            );
+        }
+    }
 
     fn utm_grid() -> Grid {
         Grid::north_up(

@@ -11,7 +11,7 @@
 use super::{crs_from_wkt, Samples, SourceRaster};
 use crate::crs::Crs;
 use crate::error::{Error, Result};
-use crate::grid::{GeoTransform, Grid};
+use crate::grid::{GeoTransform, Grid, NotNorthUp};
 use gdal::cpl::CslStringList;
 use gdal::raster::{ColorInterpretation, GdalDataType, GdalType};
 use gdal::spatial_ref::SpatialRef;
@@ -223,24 +223,16 @@ fn geotransform(path: &Path, ds: &Dataset) -> Result<GeoTransform> {
         Error::file(path, "no georeference")
             .fix("assign one: gdal_translate -a_ullr ULX ULY LRX LRY -a_srs EPSG:CODE in out.tif")
     })?;
-    if gt[2] != 0.0 || gt[4] != 0.0 {
-        return Err(Error::file(
+    GeoTransform::north_up([gt[0], gt[3]], [gt[1], gt[5]], [gt[2], gt[4]]).map_err(|e| match e {
+        NotNorthUp::Sheared => Error::file(
             path,
             format!(
                 "rotated or sheared georeference (terms {}, {})",
                 gt[2], gt[4]
             ),
         )
-        .fix("make it north-up first: gdalwarp in out.tif"));
-    }
-    if !(gt[1] > 0.0 && gt[5] != 0.0 && gt.iter().all(|v| v.is_finite())) {
-        return Err(Error::file(path, format!("bad georeference {gt:?}")));
-    }
-    Ok(GeoTransform {
-        origin_x: gt[0],
-        origin_y: gt[3],
-        cell_x: gt[1],
-        cell_y: gt[5],
+        .fix("make it north-up first: gdalwarp in out.tif"),
+        NotNorthUp::BadGeometry => Error::file(path, format!("bad georeference {gt:?}")),
     })
 }
 

@@ -13,7 +13,7 @@ use super::atomic::{AtomicFile, Staged};
 use super::{crs_from_wkt, image_world, Samples, SourceRaster};
 use crate::crs::Crs;
 use crate::error::{Error, Result};
-use crate::grid::{GeoTransform, Grid};
+use crate::grid::{GeoTransform, Grid, NotNorthUp};
 use crate::raster::{Colour, Raster};
 use rayon::prelude::*;
 use std::io::{BufReader, Seek, Write};
@@ -689,7 +689,8 @@ impl GeoTags {
 
     /// The corner-convention transform, or `None` when the file has no georeferencing tags.
     fn transform(&self, path: &Path, pixel_is_point: bool) -> Result<Option<GeoTransform>> {
-        let t = match (&self.transformation, &self.tiepoints, &self.pixel_scale) {
+        let (origin, cell, shear) = match (&self.transformation, &self.tiepoints, &self.pixel_scale)
+        {
             (Some(m), _, _) => {
                 if m.len() < 8 {
                     return Err(
@@ -697,29 +698,13 @@ impl GeoTags {
                             .fix("re-create the georeference with gdal_translate"),
                     );
                 }
-                if m[1] != 0.0 || m[4] != 0.0 {
-                    return Err(Error::file(
-                        path,
-                        format!(
-                            "rotated or sheared georeference (ModelTransformation terms {}, {})",
-                            m[1], m[4]
-                        ),
-                    )
-                    .fix("make it north-up first: gdalwarp in.tif out.tif"));
-                }
-                GeoTransform {
-                    origin_x: m[3],
-                    origin_y: m[7],
-                    cell_x: m[0],
-                    cell_y: m[5],
-                }
+                ([m[3], m[7]], [m[0], m[5]], [m[1], m[4]])
             }
-            (None, Some(tp), Some(sc)) if tp.len() == 6 && sc.len() >= 2 => GeoTransform {
-                origin_x: tp[3] - tp[0] * sc[0],
-                origin_y: tp[4] + tp[1] * sc[1],
-                cell_x: sc[0],
-                cell_y: -sc[1],
-            },
+            (None, Some(tp), Some(sc)) if tp.len() == 6 && sc.len() >= 2 => (
+                [tp[3] - tp[0] * sc[0], tp[4] + tp[1] * sc[1]],
+                [sc[0], -sc[1]],
+                [0.0, 0.0],
+            ),
             (None, Some(tp), _) if tp.len() >= 6 => {
                 return Err(Error::file(
                     path,
@@ -732,31 +717,29 @@ impl GeoTags {
             }
             _ => return Ok(None),
         };
-        let GeoTransform {
-            origin_x,
-            origin_y,
-            cell_x,
-            cell_y,
-        } = t;
-        if ![origin_x, origin_y, cell_x, cell_y]
-            .iter()
-            .all(|v| v.is_finite())
-            || cell_x <= 0.0
-            || cell_y == 0.0
-        {
-            return Err(Error::file(
+        let t = GeoTransform::north_up(origin, cell, shear).map_err(|e| match e {
+            NotNorthUp::Sheared => Error::file(
                 path,
                 format!(
-                    "bad georeference (origin {origin_x}, {origin_y}; cell {cell_x} × {cell_y})"
+                    "rotated or sheared georeference (ModelTransformation terms {}, {})",
+                    shear[0], shear[1]
                 ),
             )
-            .fix("assign one: gdal_translate -a_ullr ULX ULY LRX LRY in.tif out.tif"));
-        }
+            .fix("make it north-up first: gdalwarp in.tif out.tif"),
+            NotNorthUp::BadGeometry => Error::file(
+                path,
+                format!(
+                    "bad georeference (origin {}, {}; cell {} × {})",
+                    origin[0], origin[1], cell[0], cell[1]
+                ),
+            )
+            .fix("assign one: gdal_translate -a_ullr ULX ULY LRX LRY in.tif out.tif"),
+        })?;
         Ok(Some(if pixel_is_point {
             // The tiepoint is a pixel centre: the corner is half a cell up and left (GDAL does the same).
             GeoTransform {
-                origin_x: origin_x - 0.5 * cell_x,
-                origin_y: origin_y - 0.5 * cell_y,
+                origin_x: t.origin_x - 0.5 * t.cell_x,
+                origin_y: t.origin_y - 0.5 * t.cell_y,
                 ..t
             }
         } else {

@@ -7,7 +7,7 @@
 
 use super::{read_prj, sibling, Samples, SourceRaster};
 use crate::error::{Error, Result};
-use crate::grid::{GeoTransform, Grid};
+use crate::grid::{GeoTransform, Grid, NotNorthUp};
 use image::DynamicImage;
 use std::path::{Path, PathBuf};
 
@@ -145,23 +145,16 @@ pub fn parse_world_file(text: &str) -> Result<GeoTransform> {
             })?;
     }
     let [a, d, b, e, c, f] = v;
-    if d != 0.0 || b != 0.0 {
-        return Err(Error::msg(format!(
+    // The world file gives the centre of the top-left pixel: the corner is half a cell off.
+    GeoTransform::north_up([c - 0.5 * a, f - 0.5 * e], [a, e], [d, b]).map_err(|p| match p {
+        NotNorthUp::Sheared => Error::msg(format!(
             "world file is rotated or sheared (D = {d}, B = {b})"
         ))
-        .fix("make the image north-up first: gdalwarp in.png out.tif"));
-    }
-    if a <= 0.0 || e == 0.0 {
-        return Err(
+        .fix("make the image north-up first: gdalwarp in.png out.tif"),
+        NotNorthUp::BadGeometry => {
             Error::msg(format!("world file has a bad cell size (A = {a}, E = {e})"))
-                .fix("A must be the positive cell width and E the (usually negative) cell height"),
-        );
-    }
-    Ok(GeoTransform {
-        origin_x: c - 0.5 * a,
-        origin_y: f - 0.5 * e,
-        cell_x: a,
-        cell_y: e,
+                .fix("A must be the positive cell width and E the (usually negative) cell height")
+        }
     })
 }
 
