@@ -1,9 +1,9 @@
 //! Closed sets of values a user picks by name — on the command line, in scene files — declared
-//! once with [`choice!`]: the enum, each value's name and its one-line description (the
+//! once with [`choice!`](crate::choice!): the enum, each value's name and its one-line description (the
 //! variant's doc comment), so library types carry no command-line framework and the CLI lists
 //! the same words the library parses.
 
-/// A closed set of named values ([`choice!`] implements it).
+/// A closed set of named values ([`choice!`](crate::choice!) implements it).
 pub trait Choice: Copy + Send + Sync + 'static {
     /// Every value, in the order help lists them.
     const ALL: &'static [Self];

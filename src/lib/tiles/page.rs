@@ -7,12 +7,8 @@
 use super::info::{Compression, TileSetInfo};
 use crate::error::{Error, Result};
 
-/// `state` of an empty or nodata cell.
-pub const STATE_EMPTY: u8 = 0;
-/// `state` of a cell with holes or overhangs: the page's voxel bricks say what is where.
-pub const STATE_PARTIAL: u8 = 1;
-/// `state` of an opaque height-field column, solid from the ground to `max_z`.
-pub const STATE_OPAQUE: u8 = 2;
+/// A cell's `state`: defined with the voxel columns that a partial cell points to.
+pub use crate::voxel::columns::{STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL};
 
 /// Index flag: the stored bytes are one lz4 block of the raw bytes.
 pub const FLAG_LZ4: u32 = 1;

@@ -20,6 +20,13 @@
 //! never accepts what an encoder could not have written. Byte layout: `docs/tile-format.md`
 //! ("Bricks").
 
+/// `state` of an empty or nodata cell.
+pub const STATE_EMPTY: u8 = 0;
+/// `state` of a cell with holes or overhangs: the page's voxel bricks say what is where.
+pub const STATE_PARTIAL: u8 = 1;
+/// `state` of an opaque height-field column, solid from the ground to `max_z`.
+pub const STATE_OPAQUE: u8 = 2;
+
 /// One solid run of a column: `bottom ..= top`, absolute metres, and the colour seen on it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Run {
@@ -184,12 +191,9 @@ impl PageColumns {
     /// Check the columns against their page's layers: exactly the `state` 1 cells have a column,
     /// and each column's last top is the cell's `max_z`, bit for bit.
     pub fn check_layers(&self, state: &[u8], max_z: &[f32]) -> Result<(), String> {
-        let partial = state
-            .iter()
-            .filter(|&&s| s == crate::tiles::STATE_PARTIAL)
-            .count();
+        let partial = state.iter().filter(|&&s| s == STATE_PARTIAL).count();
         for (cell, runs) in self.iter() {
-            if state.get(cell) != Some(&crate::tiles::STATE_PARTIAL) {
+            if state.get(cell) != Some(&STATE_PARTIAL) {
                 return Err(format!(
                     "cell {cell} has a column but its state is not 1 (partial)"
                 ));
@@ -203,8 +207,8 @@ impl PageColumns {
             }
         }
         if partial != self.len() {
-            let missing = (0..state.len())
-                .find(|&i| state[i] == crate::tiles::STATE_PARTIAL && self.runs(i).is_none());
+            let missing =
+                (0..state.len()).find(|&i| state[i] == STATE_PARTIAL && self.runs(i).is_none());
             return Err(format!(
                 "cell {} has state 1 (partial) but no column",
                 missing.unwrap_or(0)
