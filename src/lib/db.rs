@@ -19,20 +19,18 @@ use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::io::atomic::write_database_file;
 use crate::io::SourceRaster;
+use crate::manifest::hex;
+pub use crate::manifest::{
+    InputFile, LatLon, Layer, Manifest, PlacedObject, Provenance, Stage, Units, FORMAT_NAME,
+    FORMAT_VERSION, LOCK_FILE, MANIFEST_FILE,
+};
 use crate::raster::{Colour, Elevation, Raster, RowSource};
-use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-/// The manifest's file name inside a database directory.
-pub const MANIFEST_FILE: &str = "manifest.json";
-/// Format name recorded in every manifest.
-pub const FORMAT_NAME: &str = "dbms-database";
-/// Version of the manifest format this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
 /// The layer name of the terrain elevation.
 pub const ELEVATION: &str = "elevation";
 /// The layer name of the orthophoto colour.
@@ -40,154 +38,6 @@ pub const COLOUR: &str = "colour";
 /// The layer name of the raised buildings (GeoJSON prisms with `roof_z`, from
 /// `dbms shadow-height --apply`).
 pub const BUILDINGS: &str = "buildings";
-
-/// The contents of `manifest.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Manifest {
-    /// Always [`FORMAT_NAME`].
-    pub format: String,
-    /// [`FORMAT_VERSION`] of the writer.
-    pub format_version: u32,
-    /// The database grid every layer shares.
-    pub grid: Grid,
-    /// Units of coordinates and values.
-    pub units: Units,
-    /// Latitude/longitude of the grid centre (degrees), when the CRS allows it (see
-    /// [`crate::crs::Crs::to_lat_lon`]); the sun model uses it.
-    pub centre: Option<LatLon>,
-    /// Layers by name ([`ELEVATION`], [`COLOUR`], and what later stages add).
-    pub layers: BTreeMap<String, Layer>,
-    /// Voxel objects placed in the scene, in placement order.
-    #[serde(default)]
-    pub objects: Vec<PlacedObject>,
-    /// Where the database came from.
-    pub provenance: Provenance,
-    /// Stages that have run, in order (ingest first).
-    pub stages: Vec<Stage>,
-    /// Lower-case hex SHA-256 of this manifest written without this member
-    /// ([`Manifest::content_sha256`]); absent in manifests of dbms before 0.x's transactions.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub checksum: Option<String>,
-}
-
-impl Manifest {
-    /// The manifest's text as saved: pretty JSON with a final newline.
-    fn text(&self) -> String {
-        let mut text = serde_json::to_string_pretty(self).expect("manifest serialises");
-        text.push('\n');
-        text
-    }
-
-    /// SHA-256 of the manifest's text without its `checksum` member.
-    pub fn content_sha256(&self) -> String {
-        let bare = Manifest {
-            checksum: None,
-            ..self.clone()
-        };
-        hex(&Sha256::digest(bare.text().as_bytes()))
-    }
-
-    /// Every file the manifest names (layers, then objects), relative to the directory.
-    fn files(&self) -> impl Iterator<Item = (&String, &String)> {
-        let layers = self.layers.values().map(|l| (&l.file, &l.sha256));
-        layers.chain(self.objects.iter().map(|o| (&o.file, &o.sha256)))
-    }
-}
-
-/// Units of a database.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Units {
-    /// `metre` or `degree`: the CRS's horizontal unit.
-    pub horizontal: String,
-    /// Always `metre`.
-    pub vertical: String,
-}
-
-/// A geographic position in degrees.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct LatLon {
-    /// Latitude, degrees north.
-    pub latitude_deg: f64,
-    /// Longitude, degrees east.
-    pub longitude_deg: f64,
-}
-
-/// One layer file of the database.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Layer {
-    /// File name relative to the database directory.
-    pub file: String,
-    /// What it holds: `elevation` (float32 m), `colour` (RGBA8), `buildings` (GeoJSON), ...
-    pub kind: String,
-    /// Lower-case hex SHA-256 of the file.
-    pub sha256: String,
-    /// Number of nodata cells (raster layers).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub nodata_cells: Option<u64>,
-}
-
-/// A voxel object placed in the scene (by `dbms place`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PlacedObject {
-    /// Object file relative to the database directory.
-    pub file: String,
-    /// SHA-256 of the object file.
-    pub sha256: String,
-    /// World position of the object's anchor, the centre of the bottom face of its voxel grid
-    /// (`VoxelObject::anchor`): CRS units; z in metres, absolute.
-    pub x: f64,
-    /// See `x`.
-    pub y: f64,
-    /// See `x`.
-    pub z: f64,
-    /// Rotation about the vertical axis, degrees clockwise from north (0 = object's +y points north).
-    pub heading_deg: f64,
-}
-
-/// Inputs and tool that made the database.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Provenance {
-    /// Input files with their role and SHA-256.
-    pub inputs: Vec<InputFile>,
-    /// Version of dbms that created the database.
-    pub dbms_version: String,
-}
-
-/// An input file of a stage.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct InputFile {
-    /// What the file was used as (`dem`, `ortho`, `footprints`, ...).
-    pub role: String,
-    /// The path as given on the command line.
-    pub path: String,
-    /// Lower-case hex SHA-256 of the file's bytes.
-    pub sha256: String,
-}
-
-/// A stage that has run on the database.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Stage {
-    /// Subcommand name (`ingest`, `shadow-height`, `place`, `pyramid`, ...).
-    pub name: String,
-    /// The command line, as argv.
-    pub command_line: Vec<String>,
-    /// dbms version that ran it.
-    pub dbms_version: String,
-    /// Stage-specific parameters and results.
-    pub params: serde_json::Value,
-}
-
-impl Stage {
-    /// A stage record for the running dbms with the process's own command line.
-    pub fn now(name: &str, params: serde_json::Value) -> Stage {
-        Stage {
-            name: name.to_string(),
-            command_line: std::env::args().collect(),
-            dbms_version: env!("CARGO_PKG_VERSION").to_string(),
-            params,
-        }
-    }
-}
 
 /// An open database directory.
 #[derive(Debug, Clone)]
@@ -238,61 +88,9 @@ impl Database {
 
     /// Open an existing database, checking its manifest's format and version.
     pub fn open(dir: &Path) -> Result<Database> {
-        let path = dir.join(MANIFEST_FILE);
-        if dir.exists() && !dir.is_dir() {
-            return Err(Error::file(dir, "is a file, not a database directory")
-                .fix("give the directory `dbms ingest -o DIR` made"));
-        }
-        if !dir.is_dir() {
-            return Err(Error::file(dir, "no such database directory")
-                .fix("create it with `dbms ingest ... -o DIR`"));
-        }
-        let text = std::fs::read_to_string(&path).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => {
-                Error::file(dir, "not a dbms database (no manifest.json)")
-                    .fix("create it with `dbms ingest ... -o DIR`")
-            }
-            _ => Error::io(&path, e),
-        })?;
-        let manifest: Manifest = serde_json::from_str(&text).map_err(|e| {
-            Error::file(&path, format!("not a valid dbms manifest: {e}"))
-                .fix("re-create the database with `dbms ingest`")
-        })?;
-        if manifest.format != FORMAT_NAME {
-            return Err(Error::file(
-                &path,
-                format!("format is {:?}, not {FORMAT_NAME:?}", manifest.format),
-            ));
-        }
-        if manifest.format_version > FORMAT_VERSION {
-            return Err(Error::file(
-                &path,
-                format!(
-                    "format version {} is newer than this dbms reads ({FORMAT_VERSION})",
-                    manifest.format_version
-                ),
-            )
-            .fix("upgrade dbms"));
-        }
-        if let Some(sum) = &manifest.checksum {
-            if *sum != manifest.content_sha256() {
-                return Err(Error::file(
-                    &path,
-                    "was changed outside dbms or is corrupt: its checksum does not match its content",
-                )
-                .fix("undo the edit, or re-create the database with `dbms ingest`"));
-            }
-        }
-        if let Some((file, _)) = manifest.files().find(|(f, _)| !inside(f)) {
-            return Err(Error::file(
-                &path,
-                format!("names {file:?}, a file outside the database directory"),
-            )
-            .fix("re-create the database with `dbms ingest`"));
-        }
         Ok(Database {
             dir: dir.to_path_buf(),
-            manifest,
+            manifest: Manifest::read(dir)?,
         })
     }
 
@@ -450,7 +248,7 @@ impl Database {
     /// Whether `name` (a file name in the database directory) is one of the database's own
     /// files: its manifest, its lock, or a file the manifest names.
     pub fn owns(&self, name: &str) -> bool {
-        name == MANIFEST_FILE || name == LOCK_FILE || self.manifest.files().any(|(f, _)| f == name)
+        self.manifest.owns(name)
     }
 
     /// Check every layer and object file against its recorded SHA-256; the first mismatch is an
@@ -469,10 +267,6 @@ impl Database {
         Ok(())
     }
 }
-
-/// The lock file in a database directory. A [`Change`] holds an exclusive advisory lock
-/// (`flock`) on it; it is never removed (removing it would let two writers lock two files).
-pub const LOCK_FILE: &str = ".dbms.lock";
 
 /// Prefix of the files a [`Change`] is still writing: what a killed change leaves behind, and
 /// the next change removes.
@@ -743,20 +537,6 @@ pub fn sha256_file(path: &Path) -> Result<String> {
         hasher.update(&buf[..n]);
     }
     Ok(hex(&hasher.finalize()))
-}
-
-/// Lower-case hex of `bytes`.
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// Whether `file` (as a manifest names it) is a relative path of plain names: inside the
-/// database directory.
-fn inside(file: &str) -> bool {
-    let p = Path::new(file);
-    !file.is_empty()
-        && p.components()
-            .all(|c| matches!(c, std::path::Component::Normal(_)))
 }
 
 #[cfg(test)]

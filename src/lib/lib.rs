@@ -29,6 +29,7 @@ pub mod geojson;
 pub mod grid;
 pub mod ingest;
 pub mod io;
+pub mod manifest;
 pub mod num;
 pub mod progress;
 pub mod pyramid;

@@ -3,6 +3,7 @@
 //! half-written file that `make` would take as up to date.
 
 use crate::error::{Error, Result};
+use crate::manifest::{Manifest, MANIFEST_FILE};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -236,10 +237,10 @@ pub fn check_output(path: &Path) -> Result<()> {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    if dir.join(crate::db::MANIFEST_FILE).is_file() {
+    if dir.join(MANIFEST_FILE).is_file() {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-        let owned = match crate::db::Database::open(dir) {
-            Ok(db) => db.owns(name.as_deref().unwrap_or("")),
+        let owned = match Manifest::read(dir) {
+            Ok(manifest) => manifest.owns(name.as_deref().unwrap_or("")),
             Err(_) => true,
         };
         if owned {
