@@ -10,7 +10,7 @@
 //!
 //! Invariant (exactness): each ray is tested on exactly the cells [`super::march::march`] would
 //! test it on, in the same order, with the same pure per-cell tests
-//! ([`super::march::coarse_test`], [`super::march::level0_test`]), so it gets the same hit bit
+//! (`march::coarse_test`, `march::level0_test`), so it gets the same hit bit
 //! for bit. A ray takes part in a visited cell from the cell holding its span's start; it is
 //! tested on a coarse cell's children exactly when its own test there says descend (the walk
 //! of the children is the one `march` takes after descending at the cell's entry `τ`, and ends
@@ -109,11 +109,7 @@ impl Column<'_, '_, '_> {
     ) -> Result<()> {
         let plan = self.plan;
         // Children per axis of a cell of this level (for descents).
-        let f = if l > 0 {
-            plan.scales[l] / plan.scales[l - 1]
-        } else {
-            1
-        };
+        let f = if l > 0 { plan.children(l) } else { 1 };
         let mut first = 0; // rows before it are finished
         for Visit {
             cell: [cc, rr],

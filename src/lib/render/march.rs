@@ -17,10 +17,11 @@
 //! Stepping, at every level, is the crate's one grid walk, [`crate::walk::Walk`]: a level-`k`
 //! walk has cells `f^k` level-0 cells wide and crosses boundary `K` at
 //! `cross(o, d, K · f^k)` ([`crate::walk::cross`]), so a boundary shared by several levels is
-//! crossed at the same f64 on each. **Corner rule: [`Corner::Exact`](crate::walk::Corner::Exact).** Where the ray passes
-//! through a cell corner — its two crossing times are the same f64 — it steps straight into the
-//! diagonal cell, and the two side cells are not visited (they touch the ray at one point). A
-//! ray a few ulps off a corner visits the side cell it clips, for the tiny time it is in it;
+//! crossed at the same f64 on each. **Corner rule:
+//! [`Corner::Exact`](crate::walk::Corner::Exact).** Where the ray passes through a cell
+//! corner — its two crossing times are the same f64 — it steps straight into the diagonal cell,
+//! and the two side cells are not visited (they touch the ray at one point). A ray a few ulps
+//! off a corner visits the side cell it clips, for the tiny time it is in it;
 //! there is no [`crate::walk::CORNER_EPS`] tolerance, because the tolerant rules are
 //! path-dependent (a ray grazing a boundary line is stepped across it at the first crossing of
 //! another axis, and a coarse walk sees fewer crossings than a fine one). Under `Exact` the cell
@@ -32,7 +33,7 @@
 //! coarse test over a crossing that contains a child's crossing passes whenever the child's
 //! does). So without range thresholds the hierarchy finds exactly the hit of level-0 stepping,
 //! bit for bit ([`Traversal::Level0`] runs the same loop with one level). A coarse cell's stop
-//! under range thresholds ([`coarse_test`]) is a pure function of the cell too (its entry face is
+//! under range thresholds (`coarse_test`) is a pure function of the cell too (its entry face is
 //! the cell's own, not the finer walk's last step), so any traversal that tests a ray on the same
 //! cells finds the same hit: that is what lets [`super::column`] march a whole image column at
 //! once.
@@ -108,6 +109,14 @@ pub struct Plan {
     /// Width of a level-0 cell along the column and row axes, metres: a column side that rises
     /// less than its cell's width above the neighbour the ray came from is a [`Face::Step`].
     pub cell_m: [f64; 2],
+}
+
+impl Plan {
+    /// Level-`l − 1` cells along each axis of a level-`l` cell (`l ≥ 1`): the pyramid's factor.
+    #[inline]
+    pub(super) fn children(&self, l: usize) -> i64 {
+        self.scales[l] / self.scales[l - 1]
+    }
 }
 
 /// Result of one ray: the hit, if any, and the number of cells visited.
@@ -332,11 +341,12 @@ pub(super) fn eye_cell(ray: &Ray, plan: &Plan, l: usize) -> [i64; 2] {
 
 /// Step `ray` through `span` of the tile set behind `sampler`.
 ///
-/// Every level is stepped by one [`Walk`] over that level's cells ([`Corner::Exact`](crate::walk::Corner::Exact): crossing
-/// times `cross(o, d, K · f^k)`, the same f64 at every level; through a corner where both
-/// crossings are the same f64 the ray steps straight into the diagonal cell). Descending takes a
-/// finer walk up at the same `τ` in [`crate::walk::cell_at`]; climbing takes a coarser one up in the
-/// parent of the cell just entered, which is the cell `cell_at` gives there.
+/// Every level is stepped by one [`Walk`] over that level's cells
+/// ([`Corner::Exact`](crate::walk::Corner::Exact): crossing times `cross(o, d, K · f^k)`, the
+/// same f64 at every level; through a corner where both crossings are the same f64 the ray
+/// steps straight into the diagonal cell). Descending takes a finer walk up at the same `τ` in
+/// [`crate::walk::cell_at`]; climbing takes a coarser one up in the parent of the cell just
+/// entered, which is the cell `cell_at` gives there.
 pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Result<Marched> {
     let top = top_level(plan);
     let mut l = top;
@@ -361,7 +371,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                 Coarse::Stop(hit) => return Ok((Some(hit), steps)),
                 Coarse::Descend => {
                     // Descend at the same τ, into the child holding the ray then.
-                    let f = plan.scales[l] / plan.scales[l - 1];
+                    let f = plan.children(l);
                     l -= 1;
                     w = walk_from(ray, plan, l, t, [cc * f, rr * f]);
                     continue;
@@ -376,7 +386,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
         let (mut old, mut new) = ([cc, rr], w.position().0);
         let l0 = l;
         while l < top {
-            let f = plan.scales[l + 1] / plan.scales[l];
+            let f = plan.children(l + 1);
             let (po, pn) = (old.map(|k| k.div_euclid(f)), new.map(|k| k.div_euclid(f)));
             if po == pn {
                 break;

@@ -4,10 +4,11 @@
 //! cell space (relative to the grid origin, so UTM-sized eyes keep full precision) and
 //! [marched](march::march) through the max-Z hierarchy: coarse steps through empty space,
 //! descents where it may hit, exact integer-boundary stepping at level 0 — or, for a level
-//! camera, with all the rays of its image column at once ([`column`]). Range thresholds
-//! `TH_k = L_k · N_pix / H_fov` (cell edge `L_k` in metres, field of view in radians) stop a ray
-//! at a coarse level's average colour at long range. Rays that leave the database take the
-//! [sky](sky::sky), or with `repeat` continue through copies of it (modulo arithmetic).
+//! camera, with all the rays of its image column at once ([`column`](mod@column)). Range
+//! thresholds `TH_k = L_k · N_pix / H_fov` (cell edge `L_k` in metres, field of view in
+//! radians) stop a ray at a coarse level's average colour at long range. Rays that leave the
+//! database take the [sky](sky::sky), or with `repeat` continue through copies of it (modulo
+//! arithmetic).
 //! [`render_top`] is the orthographic map of the whole database or of a window of it.
 //!
 //! Invariants: pages come only through [`TileReader`] (bounded cache, counted reads); the same
@@ -71,8 +72,8 @@ pub struct ViewOptions {
     /// ([`march::blend_weight`]).
     pub blend: bool,
     /// March the rays of each image column with one walk (the patent's vertical scan-line
-    /// coherence, [`column`]); used only where image columns are vertical planes (zero roll
-    /// and pitch). The image is the same either way.
+    /// coherence, [`column`](mod@column)); used only where image columns are vertical planes
+    /// (zero roll and pitch). The image is the same either way.
     pub coherence: bool,
 }
 
@@ -129,8 +130,8 @@ pub struct RenderStats {
     pub rays: u64,
     /// Rays that hit the database.
     pub hits: u64,
-    /// Cells visited by all rays, over all levels; a column marched as one ([`column`]) counts
-    /// each cell its walk visits once, for all the column's rays.
+    /// Cells visited by all rays, over all levels; a column marched as one
+    /// ([`column`](mod@column)) counts each cell its walk visits once, for all the column's rays.
     pub cells_stepped: u64,
     /// Distinct pages the rays asked for.
     pub pages_touched: usize,
