@@ -221,3 +221,110 @@ fn ingest_agrees_with_gdalwarp() {
         assert!(c < 1.0, "cell {cell}: colour RMS {c}");
     }
 }
+
+/// Internal masks as GDAL writes them (`GDAL_TIFF_INTERNAL_MASK=YES`: 1 bit a cell) read as
+/// GDAL reads them: our alpha band is `gdal_translate -b mask`'s, cell for cell, whole and by
+/// rows across chunk rows, for tiled Deflate, stripped LZW and uncompressed layouts, and for a
+/// sparse file whose fully masked blocks GDAL leaves out.
+#[test]
+fn internal_masks_read_as_gdal_reads_them() {
+    if !have_gdalwarp() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "gdal_translate not found under CI: .ci/run installs gdal-bin"
+        );
+        println!("skipped: gdal_translate not found (install gdal-bin to run this comparison)");
+        return;
+    }
+    let t = tempfile::tempdir().unwrap();
+    let g = Grid::north_up(500_000.0, 5_300_000.0, 0.5, 75, 41, Crs::epsg(32632));
+    // Alpha off in a ragged pattern, and in one whole 32 × 16 block (black there, so a sparse
+    // writer can leave out both the block and its mask).
+    let data = (0..g.len())
+        .map(|i| {
+            let (c, r) = (i % g.width, i / g.width);
+            if (32..64).contains(&c) && (16..32).contains(&r) {
+                [0, 0, 0, 0]
+            } else {
+                let a = if (c * 7 + r * 3) % 11 < 4 { 0 } else { 255 };
+                [(c * 3) as u8, (r * 5) as u8, (c ^ r) as u8, a]
+            }
+        })
+        .collect();
+    let rgba = t.path().join("rgba.tif");
+    geotiff::write_rgba8(&rgba, &Raster::new(g.clone(), data)).unwrap();
+    let layouts: [&[&str]; 5] = [
+        &[
+            "-co",
+            "TILED=YES",
+            "-co",
+            "BLOCKXSIZE=32",
+            "-co",
+            "BLOCKYSIZE=16",
+            "-co",
+            "COMPRESS=DEFLATE",
+        ],
+        &["-co", "BLOCKYSIZE=7", "-co", "COMPRESS=LZW"],
+        &["-co", "BLOCKYSIZE=5"],
+        &[
+            "-co",
+            "TILED=YES",
+            "-co",
+            "BLOCKXSIZE=32",
+            "-co",
+            "BLOCKYSIZE=16",
+            "-co",
+            "SPARSE_OK=TRUE",
+        ],
+        &[
+            "-co",
+            "TILED=YES",
+            "-co",
+            "BLOCKXSIZE=32",
+            "-co",
+            "BLOCKYSIZE=16",
+        ],
+    ];
+    for (k, options) in layouts.iter().enumerate() {
+        let masked = t.path().join(format!("masked{k}.tif"));
+        let gdal_mask = t.path().join(format!("mask{k}.tif"));
+        run(Command::new("gdal_translate")
+            .args(["-q", "-b", "1", "-b", "2", "-b", "3", "-mask", "4"])
+            .args(["--config", "GDAL_TIFF_INTERNAL_MASK", "YES"])
+            .args(*options)
+            .arg(&rgba)
+            .arg(&masked));
+        run(Command::new("gdal_translate")
+            .args(["-q", "-b", "mask"])
+            .arg(&masked)
+            .arg(&gdal_mask));
+        let theirs = match read_raster(&gdal_mask).unwrap().samples {
+            dbms::io::Samples::U8(v) => v,
+            other => panic!("{options:?}: GDAL's mask is {other:?}"),
+        };
+        let alpha = |rows: std::ops::Range<usize>| -> Vec<u8> {
+            let s = geotiff::read_rows(&masked, rows.clone()).unwrap();
+            assert_eq!((s.bands, s.alpha_band), (4, Some(3)), "{options:?}");
+            match s.samples {
+                dbms::io::Samples::U8(v) => v.chunks(4).map(|px| px[3]).collect(),
+                other => panic!("{options:?}: {other:?}"),
+            }
+        };
+        for rows in [0..41, 13..30, 15..17, 40..41] {
+            let want = &theirs[rows.start * 75..rows.end * 75];
+            assert!(alpha(rows.clone()) == want, "{options:?}: rows {rows:?}");
+        }
+        if k == 4 {
+            // The same layout without SPARSE_OK stores the black block and its mask.
+            let size = |k| {
+                std::fs::metadata(t.path().join(format!("masked{k}.tif")))
+                    .unwrap()
+                    .len()
+            };
+            assert!(
+                size(3) + 32 * 16 * 3 <= size(4),
+                "SPARSE_OK left no block out"
+            );
+        }
+    }
+}

@@ -2,11 +2,15 @@
 //!
 //! Invariant: for every layout [`plan`] accepts, [`decode`] returns exactly the samples the
 //! `tiff` crate's serial `read_image_to_buffer` returns (same variant, same values, same plane
-//! order), except in sparse chunks (below), which that crate reads from offset 0; layouts it does not accept (other compressions, float16, sub-byte samples, mixed
-//! sample formats) return `None` from [`plan`] and are left to the `tiff` crate. Each chunk's
+//! order), except in sparse chunks and 1-bit samples (below); layouts it does not accept (other
+//! compressions, float16, other sub-byte samples, mixed sample formats) return `None` from
+//! [`plan`] and are left to the `tiff` crate. Each chunk's
 //! compressed bytes are read by offset and byte count (positioned reads, no shared cursor),
 //! inflated (Deflate by libdeflate, adler-32 checked; LZW by `weezl`) and un-predicted on a
 //! rayon thread, then copied into the image.
+//!
+//! One-bit samples (one a pixel, unsigned, no predictor: a transparency mask as GDAL writes it)
+//! decode to one byte each, 0 or 1, as GDAL reads such a band; the `tiff` crate keeps them packed.
 //!
 //! Sparse files: a chunk of byte count 0 (GDAL's `SPARSE_OK=TRUE` writes offset 0 and byte
 //! count 0 for a block that is all nodata, or all zero without nodata) holds no data and reads
@@ -30,8 +34,11 @@ pub(crate) struct Plan {
     height: usize,
     /// Samples per pixel.
     samples: usize,
-    /// Bytes per sample: 1, 2, 4 or 8.
+    /// Bytes per decoded sample: 1, 2, 4 or 8.
     bytes: usize,
+    /// 1-bit samples, eight to a stored byte, most significant bit first (each stored row
+    /// starts on a byte); decoded to one byte each.
+    packed: bool,
     /// SampleFormat: 1 unsigned, 2 signed, 3 IEEE float.
     format: u16,
     /// PlanarConfiguration 2: one set of chunks per sample.
@@ -82,9 +89,10 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
     let (Some(&b), Some(&format)) = (bits.first(), formats.first()) else {
         return Ok(None);
     };
-    let bytes = b as usize / 8;
+    let packed = b == 1;
+    let bytes = (b as usize / 8).max(1);
     let supported = samples >= 1
-        && matches!(b, 8 | 16 | 32 | 64)
+        && (matches!(b, 8 | 16 | 32 | 64) || packed && samples == 1 && predictor == 1)
         && bits.iter().all(|&x| x == b)
         && formats.iter().all(|&f| f == format)
         && match format {
@@ -127,6 +135,7 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
         height,
         samples,
         bytes,
+        packed,
         format,
         planar,
         big_endian: dec.byte_order() == ByteOrder::BigEndian,
@@ -175,6 +184,15 @@ impl Plan {
             1
         } else {
             self.samples
+        }
+    }
+
+    /// Bytes of one stored (inflated) row of a chunk, of samples `word` bytes wide once decoded.
+    fn stored_row_bytes(&self, word: usize) -> usize {
+        if self.packed {
+            self.chunk_w.div_ceil(8)
+        } else {
+            self.chunk_w * self.chunk_samples() * word
         }
     }
 
@@ -382,7 +400,7 @@ fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> 
             }
         }
     }
-    let chunk_row_bytes = plan.chunk_w * spp * W::BYTES;
+    let chunk_row_bytes = plan.stored_row_bytes(W::BYTES);
     let fill = W::from_be_bytes(&plan.fill.to_be_bytes()[8 - W::BYTES..]);
     parts
         .into_par_iter()
@@ -427,7 +445,7 @@ thread_local! {
 
 /// Inflate a zlib stream (TIFF's Deflate, adler-32 checked) of at most `limit` bytes; `Err`
 /// says what is wrong with the data (a longer stream is refused as corrupt).
-pub(crate) fn inflate_zlib(stored: &[u8], limit: usize) -> std::result::Result<Vec<u8>, String> {
+fn inflate_zlib(stored: &[u8], limit: usize) -> std::result::Result<Vec<u8>, String> {
     let mut raw = vec![0u8; limit];
     let n = INFLATER.with(|d| d.borrow_mut().zlib_decompress(stored, &mut raw));
     let n = n.map_err(|e| format!("Deflate data: {e}"))?;
@@ -440,6 +458,12 @@ pub(crate) fn inflate_zlib(stored: &[u8], limit: usize) -> std::result::Result<V
 /// `scratch` holds the whole row then).
 fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Vec<W>) {
     let spp = plan.chunk_samples();
+    if plan.packed {
+        for (c, w) in out.iter_mut().enumerate() {
+            *w = W::from_be_bytes(&[bytes[c / 8] >> (7 - c % 8) & 1]);
+        }
+        return;
+    }
     match plan.predictor {
         // Byte planes, most significant first, whatever the file's byte order.
         3 if out.len() * W::BYTES == bytes.len() => float_row(bytes, spp, out),
@@ -481,8 +505,7 @@ fn chunk_bytes(
         )
         .fix("re-create the file, or check it with gdalinfo")
     };
-    let spp = plan.chunk_samples();
-    let row_bytes = plan.chunk_w * spp * word;
+    let row_bytes = plan.stored_row_bytes(word);
     // Tiles are stored whole and the last strip may be too: only the first `rows` rows matter.
     let want = rows * row_bytes;
     let whole = plan.chunk_h * row_bytes;
