@@ -66,10 +66,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         sizes.join(", "),
         s.pages
     );
-    let applied: Vec<&str> = s.effects["applied"]
-        .as_array()
-        .map(|a| a.iter().filter_map(|v| v.as_str()).collect())
-        .unwrap_or_default();
+    let applied = &s.effects.applied;
     let _ = write!(
         human,
         "\neffects: {}",

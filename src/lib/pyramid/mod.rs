@@ -84,7 +84,7 @@ pub struct PyramidSummary {
     /// Cells dropped to nodata because only one of elevation and colour was valid.
     pub half_valid_cells: usize,
     /// The effects record (also in the tile header and the manifest).
-    pub effects: serde_json::Value,
+    pub effects: shade::EffectsRecord,
     /// GeoTIFFs written by `--export-levels`.
     pub exported: Vec<PathBuf>,
     /// Where the time went (not recorded in the manifest: it would break reproducibility).
@@ -174,10 +174,11 @@ pub fn build_pyramid(
         &objects,
         &all,
     )?;
-    info.effects = match &effects {
+    let effects_record = match &effects {
         Some(fx) => fx.record(),
-        None => shade::record_none(opts.sun, photo_sun, opts.shadow_factor),
+        None => shade::EffectsRecord::none(opts.sun, photo_sun, opts.shadow_factor),
     };
+    info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
 
     seconds.prepare = lap();
     let level0 = base::Level0::new(&terrain, &colour, &all, effects.as_ref());
@@ -224,7 +225,7 @@ pub fn build_pyramid(
         object_cells: objects.len(),
         partial_cells: all.cells().iter().filter(|c| c.partial).count(),
         half_valid_cells: level0.half_valid_cells(),
-        effects: info.effects.clone(),
+        effects: effects_record,
         exported,
         seconds,
     };
@@ -234,7 +235,7 @@ pub fn build_pyramid(
         serde_json::json!({
             "tiles": out, "factor": opts.factor, "page_size": opts.page_size, "levels": summary.levels,
             "compression": opts.compression.name(), "export_levels": opts.export_levels,
-            "effects": summary.effects,
+            "effects": info.effects,
             "building_cells": summary.building_cells, "object_cells": summary.object_cells,
             "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
         }),

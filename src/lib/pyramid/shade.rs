@@ -43,7 +43,7 @@ use crate::shadow::ShadowBits;
 use crate::standing::Raised;
 use crate::sun::Sun;
 use rayon::prelude::*;
-use serde_json::json;
+use serde::Serialize;
 
 /// Default shadow factor `F`: a shadowed surface gets this fraction of the light of a sunlit
 /// one. 0.45 is typical of aerial photos on clear days (skylight); the patent's example, 0.02,
@@ -193,28 +193,78 @@ pub fn lit(mut colour: [u8; 4], factor: f64) -> [u8; 4] {
     colour
 }
 
-/// The effects record for the tile header and the manifest when no sun was given or nothing
-/// was needed: which sun, and an empty list of applied effects.
-pub fn record_none(
-    sun: Option<Sun>,
-    photo_sun: Option<Sun>,
-    shadow_factor: f64,
-) -> serde_json::Value {
-    let reason = match (sun, photo_sun) {
-        (None, _) => "no sun given",
-        _ => "the photo's own sun and nothing the photo did not see",
-    };
-    json!({
-        "sun": sun.map(sun_json),
-        "photo_sun": photo_sun.map(sun_json),
-        "shadow_factor": shadow_factor,
-        "applied": [],
-        "reason": reason,
-    })
+/// What the pyramid baked into the level-0 colours for a sun: the tile header's `effects` and
+/// the manifest's pyramid stage hold it as JSON (`schemas/pyramid-effects.schema.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EffectsRecord {
+    /// The sun asked for; `None` when none was given.
+    pub sun: Option<SunAngles>,
+    /// The orthophoto's own sun, when the database records it (and a sun was asked for).
+    pub photo_sun: Option<SunAngles>,
+    /// Fraction of full-sun brightness left in shadow, (0, 1].
+    pub shadow_factor: f64,
+    /// The effects applied, in the order they are applied; empty when nothing was done.
+    pub applied: Vec<&'static str>,
+    /// Why nothing was done, or the cells the prepared effects cover.
+    #[serde(flatten)]
+    pub outcome: Outcome,
 }
 
-fn sun_json(s: Sun) -> serde_json::Value {
-    json!({ "elevation_deg": s.elevation_deg, "azimuth_deg": s.azimuth_deg })
+/// A sun's direction in an [`EffectsRecord`], degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SunAngles {
+    /// Above the horizon.
+    pub elevation_deg: f64,
+    /// Clockwise from grid north, toward the sun.
+    pub azimuth_deg: f64,
+}
+
+impl From<Sun> for SunAngles {
+    fn from(s: Sun) -> SunAngles {
+        SunAngles {
+            elevation_deg: s.elevation_deg,
+            azimuth_deg: s.azimuth_deg,
+        }
+    }
+}
+
+/// How an [`EffectsRecord`] ends: nothing to do and why, or cell counts of what was prepared.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Outcome {
+    /// No sun given, or the photo's own sun with nothing the photo did not see.
+    Skipped {
+        /// Why, in words.
+        reason: &'static str,
+    },
+    /// Effects were prepared; each count is `None` when that cast was not needed.
+    Prepared {
+        /// Cells in the new surface's cast shadow.
+        shadow_cells: Option<usize>,
+        /// Cells in the cast for the photo's sun over the surface the photo saw.
+        photo_shadow_cells: Option<usize>,
+        /// Cells of the photo's shadows as found in the photo.
+        detected_photo_shadow_cells: Option<usize>,
+        /// Raised cells with an exposed vertical face.
+        wall_cells: usize,
+    },
+}
+
+impl EffectsRecord {
+    /// The record when no sun was given or nothing was needed: which sun, nothing applied.
+    pub fn none(sun: Option<Sun>, photo_sun: Option<Sun>, shadow_factor: f64) -> EffectsRecord {
+        let reason = match sun {
+            None => "no sun given",
+            Some(_) => "the photo's own sun and nothing the photo did not see",
+        };
+        EffectsRecord {
+            sun: sun.map(SunAngles::from),
+            photo_sun: photo_sun.map(SunAngles::from),
+            shadow_factor,
+            applied: Vec::new(),
+            outcome: Outcome::Skipped { reason },
+        }
+    }
 }
 
 fn same(a: &Sun, b: &Sun) -> bool {
@@ -259,17 +309,19 @@ impl Band {
 
 impl Effects<'_> {
     /// What was applied, for the tile header and the manifest.
-    pub fn record(&self) -> serde_json::Value {
-        json!({
-            "sun": sun_json(self.sun),
-            "photo_sun": self.photo.map(|p| sun_json(p.0)),
-            "shadow_factor": self.factor,
-            "applied": self.applied,
-            "shadow_cells": self.new_shadow.as_ref().map(ShadowBits::count),
-            "photo_shadow_cells": self.photo_shadow.as_ref().map(ShadowBits::count),
-            "detected_photo_shadow_cells": self.detected.as_ref().map(ShadowBits::count),
-            "wall_cells": self.wall_cells,
-        })
+    pub fn record(&self) -> EffectsRecord {
+        EffectsRecord {
+            sun: Some(self.sun.into()),
+            photo_sun: self.photo.map(|p| p.0.into()),
+            shadow_factor: self.factor,
+            applied: self.applied.clone(),
+            outcome: Outcome::Prepared {
+                shadow_cells: self.new_shadow.as_ref().map(ShadowBits::count),
+                photo_shadow_cells: self.photo_shadow.as_ref().map(ShadowBits::count),
+                detected_photo_shadow_cells: self.detected.as_ref().map(ShadowBits::count),
+                wall_cells: self.wall_cells,
+            },
+        }
     }
 
     /// Raised cells with at least one exposed vertical face, counted band by band.
@@ -486,6 +538,12 @@ mod tests {
     use crate::grid::Grid;
     use crate::raster::{Colour, Elevation};
     use crate::standing::{rasterise_prisms, Prism, RaisedCell};
+    use serde_json::json;
+
+    /// The record as the tile header and the manifest hold it.
+    fn json(r: &EffectsRecord) -> serde_json::Value {
+        serde_json::to_value(r).unwrap()
+    }
 
     fn terrain(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Elevation {
         let g = Grid::north_up(0.0, h as f64, 1.0, w, h, Crs::unknown());
@@ -522,7 +580,7 @@ mod tests {
     fn no_sun_prepares_nothing() {
         let t = terrain(8, 8, |c, _| c as f32);
         assert!(bare(None, None, 0.5, &t).is_none());
-        let r = record_none(None, None, 0.5);
+        let r = json(&EffectsRecord::none(None, None, 0.5));
         assert_eq!(r["applied"], json!([]));
         assert!(r["sun"].is_null());
     }
@@ -545,7 +603,7 @@ mod tests {
         let mut c = vec![[100, 150, 200, 255]; 64];
         fx.shade_band(0, &mut c).unwrap();
         assert!(c.iter().all(|p| *p == [100, 150, 200, 255]));
-        assert_eq!(fx.record()["shadow_cells"], json!(0));
+        assert_eq!(json(&fx.record())["shadow_cells"], json!(0));
     }
 
     #[test]
@@ -598,7 +656,7 @@ mod tests {
         let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), &b, none(), &b)
             .unwrap()
             .unwrap();
-        assert_eq!(fx.record()["applied"], json!(["wall_shading"]));
+        assert_eq!(json(&fx.record())["applied"], json!(["wall_shading"]));
         // Ground in the building's shadow (west of it) and plain ground: unchanged.
         assert_eq!(fx.factor_at(6, 10).unwrap(), 1.0);
         assert_eq!(fx.factor_at(2, 2).unwrap(), 1.0);
@@ -606,7 +664,7 @@ mod tests {
         assert_eq!(fx.factor_at(10, 10).unwrap(), 1.0);
         let (east, west) = (fx.factor_at(11, 10).unwrap(), fx.factor_at(8, 10).unwrap());
         assert!(east > 1.0 && west < 1.0, "east {east} west {west}");
-        assert_eq!(fx.record()["wall_cells"], json!(12));
+        assert_eq!(json(&fx.record())["wall_cells"], json!(12));
     }
 
     #[test]
@@ -628,7 +686,7 @@ mod tests {
             .unwrap()
             .unwrap();
         assert_eq!(
-            fx.record()["applied"],
+            json(&fx.record())["applied"],
             json!(["object_shadows", "wall_shading", "object_shading"])
         );
         // West of the object: its new shadow (8 m at 45°) → × F. West of the building: the
@@ -670,7 +728,7 @@ mod tests {
         let fx = prepare(Some(now), Some(photo), 0.5, &t, &ortho, &b, none(), &b)
             .unwrap()
             .unwrap();
-        let applied = fx.record()["applied"].clone();
+        let applied = json(&fx.record())["applied"].clone();
         assert!(
             applied
                 .as_array()
@@ -717,7 +775,7 @@ mod tests {
         let fx = prepare(Some(now), Some(photo), 0.5, &t, &ortho, &db, none(), &db)
             .unwrap()
             .unwrap();
-        let r = fx.record();
+        let r = json(&fx.record());
         assert!(r["applied"]
             .as_array()
             .unwrap()
