@@ -283,123 +283,186 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
     let n = sample_grid(opts.samples)?;
     let start = Instant::now();
     let before = reader.stats();
-    let scene = Scene::of(reader)?;
-    let [ex, ey, ez] = camera.eye;
-    let (u0, v0) = scene.local(ex, ey);
-    if u0.abs().max(v0.abs()) > MAX_EYE_CELLS {
-        return Err(Error::msg(format!(
-            "--eye {ex},{ey},{ez}: the eye is over {MAX_EYE_CELLS:e} cells from the database"
-        ))
-        .fix("give X,Y in the tile set's CRS (see `dbms tiles`)"));
-    }
-    check_eye_above_terrain(reader, opts.repeat, u0, v0, camera)?;
-
-    let top = scene.top(opts.repeat);
-    let cell_m = scene.cell[0].abs().max(scene.cell[1].abs());
-    let per_pixel = camera.hfov.to_radians() / camera.width as f64;
-    let plan = Plan {
-        traversal: opts.traversal,
-        top,
-        scales: scene.scales.clone(),
-        thresholds: opts.lod.then(|| {
-            scene
-                .scales
-                .iter()
-                .map(|&s| s as f64 * cell_m / per_pixel)
-                .collect()
-        }),
-        blend: opts.blend,
-        cell_m: scene.cell.map(f64::abs),
-    };
-    let max_range = opts.max_range.unwrap_or(if opts.repeat {
-        REPEAT_RANGE_DIAGONALS * scene.diagonal_m()
+    let view = View::new(reader, camera, opts, n)?;
+    let (w, h) = (camera.width, camera.height);
+    let (lines, order) = if view.coherent {
+        // Each column bottom-up (the order of the patent's vertical scan lines).
+        let columns = (0..w)
+            .into_par_iter()
+            .map(|i| view.trace(&(0..h).rev().map(|j| (i, j)).collect::<Vec<_>>()))
+            .collect::<Result<_>>()?;
+        (columns, Order::ColumnsUp)
     } else {
-        f64::INFINITY
-    });
-    let basis = camera.basis();
-    let column_cache = ColumnCache::default();
-    let ray_through = |x: f64, y: f64| Ray::new(u0, v0, ez, basis.through(x, y), scene.cell);
-    let span_of = |ray: &Ray| scene.span(ray, opts.repeat, max_range);
-    // A pixel centre's place on the image plane, once per column and row.
-    let x_terms: Vec<f64> = (0..camera.width)
-        .map(|i| basis.x_term(i as f64 + 0.5))
-        .collect();
-    let y_terms: Vec<f64> = (0..camera.height)
-        .map(|j| basis.y_term(j as f64 + 0.5))
-        .collect();
-    // Image columns are vertical half-planes through the eye only without roll and pitch.
-    let coherent = opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
-    let trace = |pixels: &[(usize, usize)]| -> Result<Line> {
-        let mut sampler = Sampler::new(reader, opts.repeat, &column_cache);
+        let rows = (0..h)
+            .into_par_iter()
+            .map(|j| view.trace(&(0..w).map(|i| (i, j)).collect::<Vec<_>>()))
+            .collect::<Result<_>>()?;
+        (rows, Order::Rows)
+    };
+    Ok(assemble(w, h, lines, order, reader, before, start))
+}
+
+/// What every ray of one perspective frame shares, fixed before the first is cast.
+struct View<'a> {
+    reader: &'a TileReader,
+    camera: &'a Camera,
+    opts: &'a ViewOptions,
+    scene: Scene,
+    /// The eye in local cell space (`u`, `v`) and its height, metres.
+    eye: [f64; 3],
+    plan: Plan,
+    basis: camera::Basis,
+    /// Range beyond which rays stop looking, metres.
+    max_range: f64,
+    /// A pixel centre's place on the image plane, per image column and per row.
+    x_terms: Vec<f64>,
+    y_terms: Vec<f64>,
+    /// Rays per pixel along each axis (`samples = n²`).
+    n: usize,
+    /// Image columns are marched as one ([`column`](mod@column)).
+    coherent: bool,
+    column_cache: ColumnCache,
+}
+
+impl<'a> View<'a> {
+    /// The frame's geometry: scene, eye (checked to be near the database and in open air),
+    /// range thresholds and the image plane's terms.
+    fn new(
+        reader: &'a TileReader,
+        camera: &'a Camera,
+        opts: &'a ViewOptions,
+        n: usize,
+    ) -> Result<View<'a>> {
+        let scene = Scene::of(reader)?;
+        let [ex, ey, ez] = camera.eye;
+        let (u0, v0) = scene.local(ex, ey);
+        if u0.abs().max(v0.abs()) > MAX_EYE_CELLS {
+            return Err(Error::msg(format!(
+                "--eye {ex},{ey},{ez}: the eye is over {MAX_EYE_CELLS:e} cells from the database"
+            ))
+            .fix("give X,Y in the tile set's CRS (see `dbms tiles`)"));
+        }
+        check_eye_above_terrain(reader, opts.repeat, u0, v0, camera)?;
+        let cell_m = scene.cell[0].abs().max(scene.cell[1].abs());
+        let per_pixel = camera.hfov.to_radians() / camera.width as f64;
+        let plan = Plan {
+            traversal: opts.traversal,
+            top: scene.top(opts.repeat),
+            scales: scene.scales.clone(),
+            thresholds: opts.lod.then(|| {
+                scene
+                    .scales
+                    .iter()
+                    .map(|&s| s as f64 * cell_m / per_pixel)
+                    .collect()
+            }),
+            blend: opts.blend,
+            cell_m: scene.cell.map(f64::abs),
+        };
+        let max_range = opts.max_range.unwrap_or(if opts.repeat {
+            REPEAT_RANGE_DIAGONALS * scene.diagonal_m()
+        } else {
+            f64::INFINITY
+        });
+        let basis = camera.basis();
+        let x_terms = (0..camera.width)
+            .map(|i| basis.x_term(i as f64 + 0.5))
+            .collect();
+        let y_terms = (0..camera.height)
+            .map(|j| basis.y_term(j as f64 + 0.5))
+            .collect();
+        // Image columns are vertical half-planes through the eye only without roll and pitch.
+        let coherent =
+            opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
+        Ok(View {
+            reader,
+            camera,
+            opts,
+            scene,
+            eye: [u0, v0, ez],
+            plan,
+            basis,
+            max_range,
+            x_terms,
+            y_terms,
+            n,
+            coherent,
+            column_cache: ColumnCache::default(),
+        })
+    }
+
+    /// Trace one line of `pixels` (`(column, row)`, an image row or an image column bottom-up).
+    fn trace(&self, pixels: &[(usize, usize)]) -> Result<Line> {
+        let (scene, opts) = (&self.scene, self.opts);
+        let mut sampler = Sampler::new(self.reader, opts.repeat, &self.column_cache);
         let mut line = Line::new(pixels.len());
         // The centre rays: the range is always theirs, so the range image does not depend on
         // the sampling; they are the rays that share a column's path. Rays sharing a
         // horizontal direction share their axes and footprint times.
-        let mut centre_rays = Rays::new([u0, v0, ez], scene.cell);
+        let mut centre_rays = Rays::new(self.eye, scene.cell);
         let mut footprint = (0.0, 0.0);
         let (rays, spans): (Vec<Ray>, Vec<Option<Span>>) = pixels
             .iter()
             .map(|&(i, j)| {
-                let (ray, same) = centre_rays.ray(basis.through_terms(x_terms[i], y_terms[j]));
+                let through = self.basis.through_terms(self.x_terms[i], self.y_terms[j]);
+                let (ray, same) = centre_rays.ray(through);
                 if !same {
                     footprint = scene.footprint(&ray, opts.repeat);
                 }
-                (ray, scene.span_within(&ray, footprint, max_range))
+                (ray, scene.span_within(&ray, footprint, self.max_range))
             })
             .unzip();
-        let hits = if coherent && column::shares_path(&rays) {
-            let (hits, steps) = column::march_column(&rays, &spans, &mut sampler, &plan)?;
+        let hits = if self.coherent && column::shares_path(&rays) {
+            let (hits, steps) = column::march_column(&rays, &spans, &mut sampler, &self.plan)?;
             line.steps += steps;
             hits
         } else {
             let mut hits = Vec::with_capacity(rays.len());
             for (ray, span) in rays.iter().zip(&spans) {
-                hits.push(line.march(ray, *span, &mut sampler, &plan)?);
+                hits.push(line.march(ray, *span, &mut sampler, &self.plan)?);
             }
             hits
         };
         for ((&(i, j), ray), hit) in pixels.iter().zip(&rays).zip(hits) {
             line.rays += 1;
             line.hits += u64::from(hit.is_some());
-            let mut rgb = colour(hit, ray, opts.visibility);
-            if n > 1 {
-                let mut sum = [0u32; 3];
-                for s in 0..n * n {
-                    let (a, b) = jitter(j * camera.width + i, s);
-                    let x = i as f64 + ((s % n) as f64 + a) / n as f64;
-                    let y = j as f64 + ((s / n) as f64 + b) / n as f64;
-                    let ray = ray_through(x, y);
-                    let hit = line.march(&ray, span_of(&ray), &mut sampler, &plan)?;
-                    line.rays += 1;
-                    line.hits += u64::from(hit.is_some());
-                    let c = colour(hit, &ray, opts.visibility);
-                    (0..3).for_each(|k| sum[k] += u32::from(c[k]));
-                }
-                let m = (n * n) as u32;
-                rgb = sum.map(|v| ((v + m / 2) / m) as u8);
-            }
+            let rgb = match self.n {
+                1 => colour(hit, ray, opts.visibility),
+                _ => self.supersample(i, j, &mut line, &mut sampler)?,
+            };
             line.rgb.push(rgb);
             line.range.push(hit.map_or(f32::INFINITY, |h| h.t as f32));
         }
         line.touched = sampler.touched;
         Ok(line)
-    };
-    let (w, h) = (camera.width, camera.height);
-    let (lines, order) = if coherent {
-        // Each column bottom-up (the order of the patent's vertical scan lines).
-        let columns = (0..w)
-            .into_par_iter()
-            .map(|i| trace(&(0..h).rev().map(|j| (i, j)).collect::<Vec<_>>()))
-            .collect::<Result<_>>()?;
-        (columns, Order::ColumnsUp)
-    } else {
-        let rows = (0..h)
-            .into_par_iter()
-            .map(|j| trace(&(0..w).map(|i| (i, j)).collect::<Vec<_>>()))
-            .collect::<Result<_>>()?;
-        (rows, Order::Rows)
-    };
-    Ok(assemble(w, h, lines, order, reader, before, start))
+    }
+
+    /// Pixel `(i, j)`'s colour as the mean of its `n²` jittered rays.
+    fn supersample(
+        &self,
+        i: usize,
+        j: usize,
+        line: &mut Line,
+        sampler: &mut Sampler,
+    ) -> Result<[u8; 3]> {
+        let n = self.n;
+        let [u0, v0, ez] = self.eye;
+        let mut sum = [0u32; 3];
+        for s in 0..n * n {
+            let (a, b) = jitter(j * self.camera.width + i, s);
+            let x = i as f64 + ((s % n) as f64 + a) / n as f64;
+            let y = j as f64 + ((s / n) as f64 + b) / n as f64;
+            let ray = Ray::new(u0, v0, ez, self.basis.through(x, y), self.scene.cell);
+            let span = self.scene.span(&ray, self.opts.repeat, self.max_range);
+            let hit = line.march(&ray, span, sampler, &self.plan)?;
+            line.rays += 1;
+            line.hits += u64::from(hit.is_some());
+            let c = colour(hit, &ray, self.opts.visibility);
+            (0..3).for_each(|k| sum[k] += u32::from(c[k]));
+        }
+        let m = (n * n) as u32;
+        Ok(sum.map(|v| ((v + m / 2) / m) as u8))
+    }
 }
 
 /// Error if the eye is inside the solid part of any level-0 column whose closed cell contains
