@@ -2,7 +2,8 @@
 
 use super::Ctx;
 use dbms::db::Database;
-use std::path::PathBuf;
+use dbms::manifest::Manifest;
+use std::path::{Path, PathBuf};
 
 /// Print what a database holds: grid, CRS, layers with checksums, objects, stages run.
 #[derive(clap::Args)]
@@ -19,66 +20,92 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     if args.verify {
         db.verify()?;
     }
-    let m = &db.manifest;
-    let g = &m.grid;
-    let (cx, cy) = g.cell_size();
-    let b = g.bounds();
-    let mut h = format!(
-        "database {} (format {} v{})\n",
-        args.db.display(),
-        m.format,
-        m.format_version
-    );
-    h += &format!(
-        "grid: {} x {} cells of {} x {} {}, {}\n",
-        g.width,
-        g.height,
-        cx,
-        cy,
-        m.units.horizontal,
-        g.crs.name()
-    );
-    h += &format!(
-        "extent: [{}, {}, {}, {}]\n",
-        b.min_x, b.min_y, b.max_x, b.max_y
-    );
-    if let Some(c) = m.centre {
-        let ns = if c.latitude_deg < 0.0 { 'S' } else { 'N' };
-        let ew = if c.longitude_deg < 0.0 { 'W' } else { 'E' };
-        h += &format!(
-            "centre: {:.6} {ns}, {:.6} {ew}\n",
-            c.latitude_deg.abs(),
-            c.longitude_deg.abs()
-        );
-    }
-    h += "layers:\n";
-    for (name, l) in &m.layers {
-        let nodata = l
-            .nodata_cells
-            .map(|n| format!(", {n} nodata cells"))
-            .unwrap_or_default();
-        h += &format!(
-            "  {name}: {} ({}{nodata}) sha256 {}\n",
-            l.file, l.kind, l.sha256
-        );
-    }
-    if !m.objects.is_empty() {
-        h += "objects:\n";
-        for o in &m.objects {
-            h += &format!(
-                "  {} at ({}, {}, {}) heading {} deg\n",
-                o.file, o.x, o.y, o.z, o.heading_deg
-            );
-        }
-    }
-    h += &format!("stages: {}", db.stages_run().join(", "));
-    if args.verify {
-        h += "\nverified: every file matches its checksum";
-    }
-    let mut json = serde_json::to_value(m).expect("manifest serialises");
-    if args.verify {
-        json["verified"] = serde_json::Value::Bool(true);
-    }
-    ctx.report(h, json);
+    ctx.report(&Described {
+        manifest: &db.manifest,
+        verified: args.verify,
+        dir: &args.db,
+        stages: db.stages_run(),
+    });
     Ok(())
+}
+
+/// `dbms info`'s summary: the manifest (JSON: as stored, plus `verified` after `--verify`).
+#[derive(serde::Serialize)]
+struct Described<'a> {
+    #[serde(flatten)]
+    manifest: &'a Manifest,
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    verified: bool,
+    #[serde(skip)]
+    dir: &'a Path,
+    #[serde(skip)]
+    stages: Vec<&'a str>,
+}
+
+impl std::fmt::Display for Described<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let m = self.manifest;
+        let g = &m.grid;
+        let (cx, cy) = g.cell_size();
+        let b = g.bounds();
+        writeln!(
+            f,
+            "database {} (format {} v{})",
+            self.dir.display(),
+            m.format,
+            m.format_version
+        )?;
+        writeln!(
+            f,
+            "grid: {} x {} cells of {} x {} {}, {}",
+            g.width,
+            g.height,
+            cx,
+            cy,
+            m.units.horizontal,
+            g.crs.name()
+        )?;
+        writeln!(
+            f,
+            "extent: [{}, {}, {}, {}]",
+            b.min_x, b.min_y, b.max_x, b.max_y
+        )?;
+        if let Some(c) = m.centre {
+            let ns = if c.latitude_deg < 0.0 { 'S' } else { 'N' };
+            let ew = if c.longitude_deg < 0.0 { 'W' } else { 'E' };
+            writeln!(
+                f,
+                "centre: {:.6} {ns}, {:.6} {ew}",
+                c.latitude_deg.abs(),
+                c.longitude_deg.abs()
+            )?;
+        }
+        writeln!(f, "layers:")?;
+        for (name, l) in &m.layers {
+            let nodata = l
+                .nodata_cells
+                .map(|n| format!(", {n} nodata cells"))
+                .unwrap_or_default();
+            writeln!(
+                f,
+                "  {name}: {} ({}{nodata}) sha256 {}",
+                l.file, l.kind, l.sha256
+            )?;
+        }
+        if !m.objects.is_empty() {
+            writeln!(f, "objects:")?;
+            for o in &m.objects {
+                writeln!(
+                    f,
+                    "  {} at ({}, {}, {}) heading {} deg",
+                    o.file, o.x, o.y, o.z, o.heading_deg
+                )?;
+            }
+        }
+        write!(f, "stages: {}", self.stages.join(", "))?;
+        if self.verified {
+            write!(f, "\nverified: every file matches its checksum")?;
+        }
+        Ok(())
+    }
 }

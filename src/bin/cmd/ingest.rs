@@ -65,22 +65,6 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         overwrite: args.overwrite,
     };
     let progress = ctx.progress(6, "ingest");
-    let s = ingest::ingest(&opts, &args.output, &progress)?;
-    let g = &s.grid;
-    let (cx, cy) = g.cell_size();
-    let b = g.bounds();
-    let mut human = format!(
-        "{}: {} x {} cells of {} x {} {} in {}, extent [{}, {}, {}, {}]\n  elevation: {} nodata cells",
-        s.database.display(), g.width, g.height, cx, cy, g.crs.unit(), g.crs.name(),
-        b.min_x, b.min_y, b.max_x, b.max_y, s.elevation.nodata_cells,
-    );
-    if let Some(f) = s.elevation.filled_cells {
-        human += &format!(", {f} filled");
-    }
-    if let Some((lo, hi)) = s.elevation.range_m {
-        human += &format!(", {lo} to {hi} m");
-    }
-    human += &format!("\n  colour: {} nodata cells", s.colour.nodata_cells);
-    ctx.report(human, serde_json::to_value(&s).expect("summary serialises"));
+    ctx.report(&ingest::ingest(&opts, &args.output, &progress)?);
     Ok(())
 }

@@ -18,6 +18,7 @@ use dbms::choice::Choice;
 use dbms::db::Database;
 use dbms::progress::Progress;
 use dbms::sun::Sun;
+use serde::Serialize;
 use std::fmt::Display;
 
 /// What every subcommand needs from the global options.
@@ -33,15 +34,17 @@ pub struct Ctx {
 }
 
 impl Ctx {
-    /// Print the result of a command on stdout: `json` with `--json`, else `human` unless quiet.
-    pub fn report(&self, human: impl Display, json: serde_json::Value) {
+    /// Print a command's summary on stdout: as JSON with `--json` (keys sorted, pretty), else
+    /// as its human text unless `--quiet`. Every command reports through here, once.
+    pub fn report<S: Serialize + Display>(&self, summary: &S) {
         if self.json {
+            let json = serde_json::to_value(summary).expect("summaries serialise");
             println!(
                 "{}",
                 serde_json::to_string_pretty(&json).expect("JSON value serialises")
             );
         } else if !self.quiet {
-            println!("{human}");
+            println!("{summary}");
         }
     }
 
@@ -108,6 +111,29 @@ impl SunArgs {
             (Some(t), _, _) => Ok(Some(dbms::sun::at_database_centre(db, t)?)),
             (None, Some(e), Some(a)) => Ok(Some(Sun::new(e, a)?)),
             _ => Ok(None),
+        }
+    }
+}
+
+/// The sun a command worked with, as its summary reports it: the angles, and the `--time`
+/// they came from (`None` when given as angles or taken from the photo).
+#[derive(Serialize)]
+pub struct SunUsed {
+    /// Degrees above the horizon.
+    pub elevation_deg: f64,
+    /// Degrees clockwise from grid north.
+    pub azimuth_deg: f64,
+    /// The `--time` given.
+    pub time: Option<String>,
+}
+
+impl SunUsed {
+    /// `sun`, from `args`.
+    pub fn new(sun: &Sun, args: &SunArgs) -> SunUsed {
+        SunUsed {
+            elevation_deg: sun.elevation_deg,
+            azimuth_deg: sun.azimuth_deg,
+            time: args.time.clone(),
         }
     }
 }

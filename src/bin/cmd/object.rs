@@ -112,7 +112,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         } => (out, vec![footprints]),
     };
     let planned = plan_exports(&out.output, &out.export, &inputs)?;
-    let (obj, out, source, extra): (VoxelObject, Out, String, serde_json::Value) = match args.kind {
+    // The object, its options, its source line, and what the summary adds for its kind.
+    let (obj, out, source, extra): (VoxelObject, Out, String, Extra) = match args.kind {
         Kind::Revolve {
             profile,
             colour,
@@ -123,7 +124,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 obj,
                 out,
                 format!("dbms object revolve --profile {profile}"),
-                serde_json::json!({}),
+                Extra::default(),
             )
         }
         Kind::Cone {
@@ -152,7 +153,10 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 obj,
                 out,
                 format!("dbms object cone --height {height} --radius {radius} --vary {vary} --seed {seed}"),
-                serde_json::json!({ "tree_height_m": h }),
+                Extra {
+                    tree_height_m: Some(h),
+                    ..Extra::default()
+                },
             )
         }
         Kind::Extrude {
@@ -175,31 +179,69 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 obj,
                 out,
                 format!("dbms object extrude ({n} footprints)"),
-                serde_json::json!({ "footprints": n }),
+                Extra {
+                    footprints: Some(n),
+                    ..Extra::default()
+                },
             )
         }
     };
     check_exports(&obj, &planned)?;
     write_with_exports(&out.output, &obj, &source, &planned)?;
-    let exports: Vec<&PathBuf> = planned.iter().map(|(_, p)| p).collect();
-    let d = obj.grid.dims;
-    let a = obj.anchor();
-    let human = format!(
-        "{}: {} voxels in a {}x{}x{} grid of {} m; anchor (bottom centre) at ({}, {}, {})",
-        out.output.display(),
-        obj.len(),
-        d[0],
-        d[1],
-        d[2],
-        out.voxel,
-        a[0],
-        a[1],
-        a[2]
-    );
-    let mut json = serde_json::json!({ "output": out.output, "exports": exports, "voxels": obj.len(), "dims": d, "anchor": a });
-    if let (Some(j), Some(e)) = (json.as_object_mut(), extra.as_object()) {
-        j.extend(e.clone());
-    }
-    ctx.report(human, json);
+    ctx.report(&Made {
+        voxels: obj.len(),
+        dims: obj.grid.dims,
+        anchor: obj.anchor(),
+        output: out.output,
+        exports: planned.into_iter().map(|(_, p)| p).collect(),
+        extra,
+        voxel: out.voxel,
+    });
     Ok(())
+}
+
+/// `dbms object`'s summary.
+#[derive(serde::Serialize)]
+struct Made {
+    output: PathBuf,
+    exports: Vec<PathBuf>,
+    voxels: usize,
+    dims: [u32; 3],
+    /// Bottom centre of the voxel grid, metres in the object's frame.
+    anchor: [f64; 3],
+    #[serde(flatten)]
+    extra: Extra,
+    /// Voxel edge, metres (in the text only).
+    #[serde(skip)]
+    voxel: f64,
+}
+
+/// What a kind of object adds to its summary.
+#[derive(Default, serde::Serialize)]
+struct Extra {
+    /// A cone tree's height after `--vary`, metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tree_height_m: Option<f64>,
+    /// Footprints extruded.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    footprints: Option<usize>,
+}
+
+impl std::fmt::Display for Made {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (d, a) = (self.dims, self.anchor);
+        write!(
+            f,
+            "{}: {} voxels in a {}x{}x{} grid of {} m; anchor (bottom centre) at ({}, {}, {})",
+            self.output.display(),
+            self.voxels,
+            d[0],
+            d[1],
+            d[2],
+            self.voxel,
+            a[0],
+            a[1],
+            a[2]
+        )
+    }
 }

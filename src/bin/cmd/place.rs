@@ -42,18 +42,34 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         v.get(2).copied(),
         args.heading,
     )?;
-    let human = format!(
-        "placed {} at ({}, {}, {}) heading {} deg in {}",
-        p.file,
-        p.x,
-        p.y,
-        p.z,
-        p.heading_deg,
-        args.db.display()
-    );
-    ctx.report(
-        human,
-        serde_json::to_value(&p).expect("placement serialises"),
-    );
+    ctx.report(&Placed {
+        object: p,
+        db: args.db,
+    });
     Ok(())
+}
+
+/// `dbms place`'s summary: the manifest's record of the placed object.
+#[derive(serde::Serialize)]
+struct Placed {
+    #[serde(flatten)]
+    object: dbms::manifest::PlacedObject,
+    #[serde(skip)]
+    db: PathBuf,
+}
+
+impl std::fmt::Display for Placed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p = &self.object;
+        write!(
+            f,
+            "placed {} at ({}, {}, {}) heading {} deg in {}",
+            p.file,
+            p.x,
+            p.y,
+            p.z,
+            p.heading_deg,
+            self.db.display()
+        )
+    }
 }

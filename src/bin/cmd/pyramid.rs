@@ -4,8 +4,6 @@ use super::Ctx;
 use dbms::db::Database;
 use dbms::pyramid::{build_pyramid, PyramidOptions, DEFAULT_FACTOR, DEFAULT_PAGE};
 use dbms::tiles::Compression;
-use serde_json::json;
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 /// Build the render database: every level (max Z, average colour, occupancy) in one tile file,
@@ -54,45 +52,12 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         export_levels: args.export_levels,
     };
     let progress = ctx.progress(0, "pyramid");
-    let s = build_pyramid(&db, ctx.wait, &args.output, &opts, &progress)?;
-
-    let mut human = String::new();
-    let sizes: Vec<String> = s.levels.iter().map(|(w, h)| format!("{w}×{h}")).collect();
-    let _ = write!(
-        human,
-        "{}: {} levels ({}), {} pages",
-        s.tiles.display(),
-        s.levels.len(),
-        sizes.join(", "),
-        s.pages
-    );
-    let applied = &s.effects.applied;
-    let _ = write!(
-        human,
-        "\neffects: {}",
-        if applied.is_empty() {
-            "none".to_string()
-        } else {
-            applied.join(", ")
-        }
-    );
-    if s.building_cells + s.object_cells > 0 {
-        let _ = write!(
-            human,
-            "\nraised: {} building cells, {} object cells ({} partial)",
-            s.building_cells, s.object_cells, s.partial_cells
-        );
-    }
-    if s.half_valid_cells > 0 {
-        let _ = write!(
-            human,
-            "\nnodata: {} cells had only one of elevation and colour",
-            s.half_valid_cells
-        );
-    }
-    if !s.exported.is_empty() {
-        let _ = write!(human, "\nexported {} GeoTIFFs", s.exported.len());
-    }
-    ctx.report(human, json!(s));
+    ctx.report(&build_pyramid(
+        &db,
+        ctx.wait,
+        &args.output,
+        &opts,
+        &progress,
+    )?);
     Ok(())
 }

@@ -2,10 +2,10 @@
 
 use super::Ctx;
 use dbms::grid::Bounds;
-use dbms::render::{self, Attitude, Camera, Traversal, ViewOptions};
+use dbms::render::flight::FlightStats;
+use dbms::render::{self, Attitude, Camera, RenderStats, Traversal, ViewOptions};
 use dbms::tiles::TileReader;
 use dbms::Error;
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Ray-cast a view of a tile set (or, with --top, an orthographic map of all of it) to PNG.
@@ -181,30 +181,13 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         render::render_view(&reader, &camera, &view_options(&args))?
     };
     frame.write(&args.output, args.range_out.as_deref())?;
-    let s = &frame.stats;
-    ctx.report(
-        format!(
-            "{}: {}×{}, {} of {} rays hit, {:.2} Mrays/s ({:.3} s); {} pages touched, {} read ({} bytes), {} cache hits",
-            args.output.display(),
-            frame.width,
-            frame.height,
-            s.hits,
-            s.rays,
-            s.rays_per_second / 1e6,
-            s.seconds,
-            s.pages_touched,
-            s.reader.pages_read,
-            s.reader.bytes_read,
-            s.reader.cache_hits
-        ),
-        json!({
-            "output": args.output,
-            "range_out": args.range_out,
-            "width": frame.width,
-            "height": frame.height,
-            "stats": s,
-        }),
-    );
+    ctx.report(&Rendered {
+        output: args.output,
+        range_out: args.range_out,
+        width: frame.width,
+        height: frame.height,
+        stats: frame.stats,
+    });
     Ok(())
 }
 
@@ -256,30 +239,77 @@ fn fly(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         &progress,
     )?;
     progress.finish();
-    ctx.report(
-        format!(
-            "{}: {} frames {}×{}, {:.1} frames/s rendering ({:.2} s; {:.2} s with writing), {:.1} pages read per frame (most {}), {:.1} cells stepped per ray{}",
-            args.output.display(),
-            stats.frames,
-            width,
-            height,
-            stats.frames_per_second,
-            stats.render_seconds,
-            stats.total_seconds,
-            stats.pages_read_per_frame,
-            stats.pages_read_max,
-            stats.cells_stepped_per_ray,
-            args.animation
-                .as_ref()
-                .map_or(String::new(), |a| format!("; animation {}", a.display()))
-        ),
-        json!({
-            "output": args.output,
-            "animation": args.animation,
-            "width": width,
-            "height": height,
-            "stats": stats,
-        }),
-    );
+    ctx.report(&Flown {
+        output: args.output,
+        animation: args.animation,
+        width,
+        height,
+        stats,
+    });
     Ok(())
+}
+
+/// `dbms render`'s summary for one view.
+#[derive(serde::Serialize)]
+struct Rendered {
+    output: PathBuf,
+    range_out: Option<PathBuf>,
+    width: usize,
+    height: usize,
+    stats: RenderStats,
+}
+
+impl std::fmt::Display for Rendered {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = &self.stats;
+        write!(
+            f,
+            "{}: {}×{}, {} of {} rays hit, {:.2} Mrays/s ({:.3} s); {} pages touched, {} read ({} bytes), {} cache hits",
+            self.output.display(),
+            self.width,
+            self.height,
+            s.hits,
+            s.rays,
+            s.rays_per_second / 1e6,
+            s.seconds,
+            s.pages_touched,
+            s.reader.pages_read,
+            s.reader.bytes_read,
+            s.reader.cache_hits
+        )
+    }
+}
+
+/// `dbms render --path`'s summary.
+#[derive(serde::Serialize)]
+struct Flown {
+    output: PathBuf,
+    animation: Option<PathBuf>,
+    width: usize,
+    height: usize,
+    stats: FlightStats,
+}
+
+impl std::fmt::Display for Flown {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = &self.stats;
+        write!(
+            f,
+            "{}: {} frames {}×{}, {:.1} frames/s rendering ({:.2} s; {:.2} s with writing), {:.1} pages read per frame (most {}), {:.1} cells stepped per ray",
+            self.output.display(),
+            s.frames,
+            self.width,
+            self.height,
+            s.frames_per_second,
+            s.render_seconds,
+            s.total_seconds,
+            s.pages_read_per_frame,
+            s.pages_read_max,
+            s.cells_stepped_per_ray,
+        )?;
+        if let Some(a) = &self.animation {
+            write!(f, "; animation {}", a.display())?;
+        }
+        Ok(())
+    }
 }

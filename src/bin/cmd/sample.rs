@@ -2,7 +2,6 @@
 
 use super::Ctx;
 use dbms::sample::{self, SampleOptions};
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Generate the sample scene (DEM, orthophoto with cast shadows, building footprints, truth).
@@ -25,29 +24,49 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         size: args.size,
     })?;
     let files = sample::write(&scene, &args.output)?;
-    ctx.report(
-        format!(
+    ctx.report(&Generated {
+        sun: sample::sun_json(&scene),
+        buildings: scene.buildings.len(),
+        max_slope_percent: scene.max_slope_percent,
+        shadow_fraction: scene.shadow_fraction,
+        output: args.output,
+        files,
+        scene: &scene,
+    });
+    Ok(())
+}
+
+/// `dbms sample`'s summary.
+#[derive(serde::Serialize)]
+struct Generated<'a> {
+    output: PathBuf,
+    files: Vec<PathBuf>,
+    buildings: usize,
+    /// The sun as scene.json states it.
+    sun: serde_json::Value,
+    max_slope_percent: f64,
+    shadow_fraction: f64,
+    #[serde(skip)]
+    scene: &'a sample::Scene,
+}
+
+impl std::fmt::Display for Generated<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let scene = self.scene;
+        write!(
+            f,
             "{}: {} × {} DEM at {} m, {} × {} orthophoto at {} m, {} buildings; sun {} (elevation {:.2}°, azimuth {:.2}° from grid north)",
-            args.output.display(),
+            self.output.display(),
             scene.dem.width(),
             scene.dem.height(),
             sample::DEM_CELL_M,
             scene.ortho.width(),
             scene.ortho.height(),
             sample::ORTHO_CELL_M,
-            scene.buildings.len(),
+            self.buildings,
             sample::SUN_TIME,
             scene.sun.elevation_deg,
             scene.sun.azimuth_deg
-        ),
-        json!({
-            "output": args.output,
-            "files": files,
-            "buildings": scene.buildings.len(),
-            "sun": sample::sun_json(&scene),
-            "max_slope_percent": scene.max_slope_percent,
-            "shadow_fraction": scene.shadow_fraction,
-        }),
-    );
-    Ok(())
+        )
+    }
 }

@@ -3,7 +3,7 @@
 use super::Ctx;
 use dbms::voxel::carve::{CarveOptions, Unseen};
 use dbms::voxel::export::{check_exports, plan_exports, write_with_exports, Export};
-use dbms::voxel::sculpt::{sculpt, SculptOptions};
+use dbms::voxel::sculpt::{sculpt, SculptOptions, SculptReport};
 use dbms::voxel::views::ViewsFile;
 use dbms::voxel::{grid::parse_box, object::parse_rgb};
 use std::path::{Path, PathBuf};
@@ -60,28 +60,47 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         &format!("dbms sculpt --voxel {}", args.voxel),
         &planned,
     )?;
-    let exports: Vec<&PathBuf> = planned.iter().map(|(_, p)| p).collect();
-    let d = report.dims;
-    let c = report.colour;
-    let mut human = format!(
-        "{}: {} voxels in a {}x{}x{} grid of {} m from {} views; {} surface voxels, {} coloured, {} seen by no view",
-        args.output.display(),
-        report.voxels,
-        d[0],
-        d[1],
-        d[2],
-        args.voxel,
-        report.views,
-        c.surface,
-        c.seen,
-        c.unseen
-    );
-    for p in &exports {
-        human += &format!("\nexported {}", p.display());
-    }
-    let mut json = serde_json::to_value(&report).expect("report serialises");
-    json["output"] = serde_json::json!(args.output);
-    json["exports"] = serde_json::json!(exports);
-    ctx.report(human, json);
+    ctx.report(&Sculpted {
+        report,
+        output: args.output,
+        exports: planned.into_iter().map(|(_, p)| p).collect(),
+        voxel: args.voxel,
+    });
     Ok(())
+}
+
+/// `dbms sculpt`'s summary: the carving's report, the object file and its exports.
+#[derive(serde::Serialize)]
+struct Sculpted {
+    #[serde(flatten)]
+    report: SculptReport,
+    output: PathBuf,
+    exports: Vec<PathBuf>,
+    /// Voxel edge, metres (in the report's text only).
+    #[serde(skip)]
+    voxel: f64,
+}
+
+impl std::fmt::Display for Sculpted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (r, d, c) = (&self.report, self.report.dims, self.report.colour);
+        write!(
+            f,
+            "{}: {} voxels in a {}x{}x{} grid of {} m from {} views; {} surface voxels, {} coloured, {} seen by no view",
+            self.output.display(),
+            r.voxels,
+            d[0],
+            d[1],
+            d[2],
+            self.voxel,
+            r.views,
+            c.surface,
+            c.seen,
+            c.unseen
+        )?;
+        for p in &self.exports {
+            write!(f, "\nexported {}", p.display())?;
+        }
+        Ok(())
+    }
 }

@@ -1,6 +1,6 @@
 //! `dbms shadow-height`: building heights from their shadows in the database's orthophoto.
 
-use super::Ctx;
+use super::{Ctx, SunUsed};
 use dbms::db::Database;
 use dbms::error::Error;
 use dbms::io::atomic::AtomicFile;
@@ -154,7 +154,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let failed = results.iter().filter(|r| r.is_err()).count();
     if args.apply {
         let params = json!({
-            "footprints": args.footprints, "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
+            "footprints": args.footprints, "sun": SunUsed::new(&sun, &args.sun),
             "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
             "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
             "max_shift_m": args.max_shift, "camera": args.camera,
@@ -164,21 +164,16 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         output::apply_buildings(&db, &doc, params, ctx.wait)?;
     }
     heights_file.commit()?;
-    ctx.report(
-        format!(
-            "{}: {} footprints, {heights} heights measured, {flagged} flagged, {failed} bad; sun elevation {:.3}°, azimuth {:.3}°{}",
-            args.output.display(),
-            results.len(),
-            sun.elevation_deg,
-            sun.azimuth_deg,
-            if args.apply { format!("; {heights} buildings written to the database's buildings layer in {}", db.dir.display()) } else { String::new() }
-        ),
-        json!({
-            "output": args.output,
-            "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
-            "features": results.len(), "measured": heights, "flagged": flagged, "failed": failed, "applied": args.apply,
-        }),
-    );
+    ctx.report(&Measured {
+        sun: SunUsed::new(&sun, &args.sun),
+        output: args.output,
+        features: results.len(),
+        measured: heights,
+        flagged,
+        failed,
+        applied: args.apply,
+        db: db.dir.clone(),
+    });
     Ok(())
 }
 
@@ -192,4 +187,46 @@ fn parse_camera(text: &str) -> dbms::Result<sh::register::Camera> {
         );
     }
     Ok(sh::register::Camera { east, north, z })
+}
+
+/// `dbms shadow-height`'s summary.
+#[derive(serde::Serialize)]
+struct Measured {
+    output: PathBuf,
+    sun: SunUsed,
+    /// Features in the footprint file.
+    features: usize,
+    /// Heights measured.
+    measured: usize,
+    flagged: usize,
+    failed: usize,
+    /// `--apply` wrote the heights to the database's buildings layer.
+    applied: bool,
+    #[serde(skip)]
+    db: PathBuf,
+}
+
+impl std::fmt::Display for Measured {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: {} footprints, {} heights measured, {} flagged, {} bad; sun elevation {:.3}°, azimuth {:.3}°",
+            self.output.display(),
+            self.features,
+            self.measured,
+            self.flagged,
+            self.failed,
+            self.sun.elevation_deg,
+            self.sun.azimuth_deg,
+        )?;
+        if self.applied {
+            write!(
+                f,
+                "; {} buildings written to the database's buildings layer in {}",
+                self.measured,
+                self.db.display()
+            )?;
+        }
+        Ok(())
+    }
 }

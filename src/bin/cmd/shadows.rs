@@ -1,9 +1,8 @@
 //! `dbms shadows`: the cast-shadow mask of a database for one sun.
 
-use super::Ctx;
+use super::{Ctx, SunUsed};
 use dbms::db::Database;
-use dbms::shadow_mask::{write_shadow_mask, MaskCounts, Rule};
-use serde_json::json;
+use dbms::shadow_mask::{write_shadow_mask, Rule};
 use std::path::PathBuf;
 
 /// Write the cast-shadow mask (byte GeoTIFF: 1 = shadow, 0 = lit, 255 = nodata) of a database's
@@ -49,37 +48,64 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let progress = ctx.progress(0, "shadows");
     let counts = write_shadow_mask(&db, &sun, rule, args.terrain_only, &args.output, &progress)?;
     progress.finish();
-    let MaskCounts {
-        shadow,
-        lit,
-        nodata,
-        building_cells,
-        object_cells,
-    } = counts;
-    let valid = (shadow + lit).max(1) as f64;
-    let rule = rule.name();
-    let standing_text = match (building_cells, object_cells) {
-        (0, 0) => String::new(),
-        (b, o) => format!(", {b} building and {o} object cells raised"),
-    };
-    ctx.report(
-        format!(
-            "{}: sun elevation {:.3}°, azimuth {:.3}°, {rule} rule: {shadow} cells in shadow ({:.2} %), {lit} lit, {nodata} nodata{standing_text}",
-            args.output.display(),
-            sun.elevation_deg,
-            sun.azimuth_deg,
-            100.0 * shadow as f64 / valid,
-        ),
-        json!({
-            "output": args.output,
-            "sun": { "elevation_deg": sun.elevation_deg, "azimuth_deg": sun.azimuth_deg, "time": args.sun.time },
-            "rule": rule,
-            "terrain_only": args.terrain_only,
-            "cells": { "shadow": shadow, "lit": lit, "nodata": nodata },
-            "shadow_fraction": shadow as f64 / valid,
-            "building_cells": building_cells,
-            "object_cells": object_cells,
-        }),
-    );
+    ctx.report(&Shadows {
+        sun: SunUsed::new(&sun, &args.sun),
+        output: args.output,
+        rule: rule.name(),
+        terrain_only: args.terrain_only,
+        cells: Cells {
+            shadow: counts.shadow,
+            lit: counts.lit,
+            nodata: counts.nodata,
+        },
+        shadow_fraction: counts.shadow as f64 / (counts.shadow + counts.lit).max(1) as f64,
+        building_cells: counts.building_cells,
+        object_cells: counts.object_cells,
+    });
     Ok(())
+}
+
+/// `dbms shadows`' summary.
+#[derive(serde::Serialize)]
+struct Shadows {
+    output: PathBuf,
+    sun: SunUsed,
+    rule: &'static str,
+    terrain_only: bool,
+    cells: Cells,
+    /// Shadow cells over valid cells.
+    shadow_fraction: f64,
+    building_cells: usize,
+    object_cells: usize,
+}
+
+/// The mask's cells by value.
+#[derive(serde::Serialize)]
+struct Cells {
+    shadow: usize,
+    lit: usize,
+    nodata: usize,
+}
+
+impl std::fmt::Display for Shadows {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let Cells {
+            shadow,
+            lit,
+            nodata,
+        } = self.cells;
+        write!(
+            f,
+            "{}: sun elevation {:.3}°, azimuth {:.3}°, {} rule: {shadow} cells in shadow ({:.2} %), {lit} lit, {nodata} nodata",
+            self.output.display(),
+            self.sun.elevation_deg,
+            self.sun.azimuth_deg,
+            self.rule,
+            100.0 * shadow as f64 / (shadow + lit).max(1) as f64,
+        )?;
+        match (self.building_cells, self.object_cells) {
+            (0, 0) => Ok(()),
+            (b, o) => write!(f, ", {b} building and {o} object cells raised"),
+        }
+    }
 }

@@ -3,9 +3,8 @@
 use super::Ctx;
 use chrono::SecondsFormat;
 use dbms::db::Database;
-use dbms::sun::{self, Atmosphere, Observer, SunOptions};
+use dbms::sun::{self, Atmosphere, Observer, SunOptions, SunPosition};
 use dbms::Error;
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Sun elevation, azimuth (clockwise from true north) and zenith in degrees, by NREL SPA; with
@@ -104,38 +103,73 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let delta_t_s = args.delta_t.unwrap_or_else(|| sun::delta_t_model_s(utc));
     let time = utc.to_rfc3339_opts(SecondsFormat::AutoSi, true);
 
-    let grid_azimuth_deg = convergence_deg.map(|g| sun::grid_azimuth_deg(p.azimuth_deg, g));
-    let mut human = format!(
-        "sun at {time} seen from {latitude_deg:.6} N, {longitude_deg:.6} E, {} m ({}):\n  elevation {:11.6} deg\n  azimuth   {:11.6} deg (clockwise from true north)\n  zenith    {:11.6} deg",
-        args.height,
-        if opts.refraction { "with refraction" } else { "geometric, no refraction" },
-        p.elevation_deg,
-        p.azimuth_deg,
-        p.zenith_deg,
-    );
-    if let (Some(a), Some(g)) = (grid_azimuth_deg, convergence_deg) {
-        human += &format!(
-            "\n  grid azimuth {a:8.6} deg (clockwise from grid north; convergence {g:+.6} deg)"
-        );
-    }
-    let json = json!({
-        "elevation_deg": p.elevation_deg,
-        "azimuth_deg": p.azimuth_deg,
-        "zenith_deg": p.zenith_deg,
-        "grid_azimuth_deg": grid_azimuth_deg,
-        "grid_convergence_deg": convergence_deg,
-        "time": time,
-        "latitude_deg": latitude_deg,
-        "longitude_deg": longitude_deg,
-        "height_m": args.height,
-        "db": args.db.as_ref().map(|d| d.display().to_string()),
-        "refraction": opts.refraction,
-        "pressure_mbar": args.pressure,
-        "temperature_c": args.temperature,
-        "delta_t_s": delta_t_s,
-        "delta_t_source": if args.delta_t.is_some() { "given" } else { "Espenak & Meeus 2006 model" },
-        "delta_ut1_s": args.delta_ut1,
+    ctx.report(&SunReport {
+        position: p,
+        grid_azimuth_deg: convergence_deg.map(|g| sun::grid_azimuth_deg(p.azimuth_deg, g)),
+        grid_convergence_deg: convergence_deg,
+        time,
+        latitude_deg,
+        longitude_deg,
+        height_m: args.height,
+        db: args.db.as_ref().map(|d| d.display().to_string()),
+        refraction: opts.refraction,
+        pressure_mbar: args.pressure,
+        temperature_c: args.temperature,
+        delta_t_s,
+        delta_t_source: match args.delta_t {
+            Some(_) => "given",
+            None => "Espenak & Meeus 2006 model",
+        },
+        delta_ut1_s: args.delta_ut1,
     });
-    ctx.report(human, json);
     Ok(())
+}
+
+/// `dbms sun`'s summary: the position and everything it was computed from.
+#[derive(serde::Serialize)]
+struct SunReport {
+    /// Elevation, azimuth from true north and zenith, degrees.
+    #[serde(flatten)]
+    position: SunPosition,
+    /// Azimuth from grid north (with `--db`), degrees.
+    grid_azimuth_deg: Option<f64>,
+    /// Grid north's angle from true north at the database centre (with `--db`), degrees.
+    grid_convergence_deg: Option<f64>,
+    /// The time, RFC 3339 UTC.
+    time: String,
+    latitude_deg: f64,
+    longitude_deg: f64,
+    height_m: f64,
+    db: Option<String>,
+    refraction: bool,
+    pressure_mbar: f64,
+    temperature_c: f64,
+    delta_t_s: f64,
+    delta_t_source: &'static str,
+    delta_ut1_s: f64,
+}
+
+impl std::fmt::Display for SunReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p = &self.position;
+        write!(
+            f,
+            "sun at {} seen from {:.6} N, {:.6} E, {} m ({}):\n  elevation {:11.6} deg\n  azimuth   {:11.6} deg (clockwise from true north)\n  zenith    {:11.6} deg",
+            self.time,
+            self.latitude_deg,
+            self.longitude_deg,
+            self.height_m,
+            if self.refraction { "with refraction" } else { "geometric, no refraction" },
+            p.elevation_deg,
+            p.azimuth_deg,
+            p.zenith_deg,
+        )?;
+        if let (Some(a), Some(g)) = (self.grid_azimuth_deg, self.grid_convergence_deg) {
+            write!(
+                f,
+                "\n  grid azimuth {a:8.6} deg (clockwise from grid north; convergence {g:+.6} deg)"
+            )?;
+        }
+        Ok(())
+    }
 }

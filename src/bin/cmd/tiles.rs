@@ -2,9 +2,8 @@
 //! and list its page index.
 
 use super::Ctx;
-use dbms::tiles::{IndexEntry, TileReader, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE};
-use serde_json::json;
-use std::fmt::Write as _;
+use dbms::tiles::{IndexEntry, TileReader, TileSetInfo, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE};
+use serde::Serialize;
 use std::path::PathBuf;
 
 /// Print a tile file's header summary; with --verify, check every page's checksum.
@@ -34,13 +33,32 @@ fn flag_names(flags: u32) -> Vec<&'static str> {
     .collect()
 }
 
-/// One page's index entry as `dbms tiles --index --json` lists it.
-fn entry_json(page: (usize, usize, usize), e: &IndexEntry) -> serde_json::Value {
-    json!({
-        "level": page.0, "tx": page.1, "ty": page.2,
-        "offset": e.offset, "stored_len": e.stored_len, "raw_len": e.raw_len,
-        "crc32": e.crc, "flags": flag_names(e.flags),
-    })
+/// One page's index entry as `dbms tiles --index` lists it (schemas/tiles-index.schema.json).
+#[derive(Serialize)]
+struct Listed {
+    level: usize,
+    tx: usize,
+    ty: usize,
+    offset: u64,
+    stored_len: u32,
+    raw_len: u32,
+    crc32: u32,
+    flags: Vec<&'static str>,
+}
+
+impl Listed {
+    fn new((level, tx, ty): (usize, usize, usize), e: &IndexEntry) -> Listed {
+        Listed {
+            level,
+            tx,
+            ty,
+            offset: e.offset,
+            stored_len: e.stored_len,
+            raw_len: e.raw_len,
+            crc32: e.crc,
+            flags: flag_names(e.flags),
+        }
+    }
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -63,108 +81,123 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .filter(|e| e.flags & FLAG_BRICKS != 0)
         .count();
 
-    let mut human = String::new();
-    let g = &info.grid;
-    let (cx, cy) = g.cell_size();
-    let _ = writeln!(
-        human,
-        "{}: dbms tile file, format version {}, {} bytes",
-        args.tiles.display(),
-        reader.version(),
-        reader.file_len()
-    );
-    let _ = writeln!(
-        human,
-        "grid {}×{} cells of {cx}×{cy} {} ({}), origin ({}, {})",
-        g.width,
-        g.height,
-        g.crs.unit(),
-        g.crs.name(),
-        g.transform.origin_x,
-        g.transform.origin_y
-    );
-    let _ = writeln!(
-        human,
-        "pages of {0}×{0} cells, factor {1}, {2} levels:",
-        info.page_size,
-        info.factor,
-        info.levels.len()
-    );
-    for l in &info.levels {
-        let _ = writeln!(
-            human,
-            "  level {}: {}×{} cells of {}×{}, {}×{} pages",
-            l.level,
-            l.width,
-            l.height,
-            l.cell_x.abs(),
-            l.cell_y.abs(),
-            l.pages_x,
-            l.pages_y
-        );
-    }
-    let layers: Vec<String> = info
-        .layers
-        .iter()
-        .map(|l| format!("{} ({})", l.name, l.kind))
-        .collect();
-    let _ = writeln!(human, "layers: {}", layers.join(", "));
-    let _ = writeln!(
-        human,
-        "compression: {} ({compressed} of {} pages compressed, {stored} of {raw} bytes stored); {with_bricks} pages with bricks",
-        info.compression.name(),
-        entries.len()
-    );
-    let _ = write!(human, "effects: {}", info.effects);
-    if let Some(n) = verified {
-        let _ = write!(human, "\nverified: all {n} pages match their checksums");
-    }
-    // With --index: each entry beside the page its index position stands for.
-    let index: Option<Vec<_>> = args.index.then(|| {
-        entries
-            .iter()
-            .enumerate()
-            .map(|(pos, e)| (info.page_at(pos).expect("an entry per index position"), e))
-            .collect()
-    });
-    if let Some(pages) = &index {
-        let _ = write!(
-            human,
-            "\nindex (level, tx, ty: offset, stored/raw bytes, crc32, flags):"
-        );
-        for &((l, tx, ty), e) in pages {
-            let _ = write!(
-                human,
-                "\n  {l}, {tx}, {ty}: {}, {}/{}, {:08x}, {}",
-                e.offset,
-                e.stored_len,
-                e.raw_len,
-                e.crc,
-                match flag_names(e.flags).join("+") {
-                    f if f.is_empty() => "none".to_string(),
-                    f => f,
-                }
-            );
-        }
-    }
-
-    let index_json: Option<Vec<_>> =
-        index.map(|pages| pages.into_iter().map(|(p, e)| entry_json(p, e)).collect());
-    ctx.report(
-        human,
-        json!({
-            "path": args.tiles,
-            "format_version": reader.version(),
-            "file_bytes": reader.file_len(),
-            "header": info,
-            "pages": entries.len(),
-            "compressed_pages": compressed,
-            "pages_with_bricks": with_bricks,
-            "stored_bytes": stored,
-            "raw_bytes": raw,
-            "verified_pages": verified,
-            "index": index_json,
+    ctx.report(&Described {
+        path: args.tiles.clone(),
+        format_version: reader.version(),
+        file_bytes: reader.file_len(),
+        header: info,
+        pages: entries.len(),
+        compressed_pages: compressed,
+        pages_with_bricks: with_bricks,
+        stored_bytes: stored,
+        raw_bytes: raw,
+        verified_pages: verified,
+        // With --index: each entry beside the page its index position stands for.
+        index: args.index.then(|| {
+            (entries.iter().enumerate())
+                .map(|(pos, e)| {
+                    Listed::new(info.page_at(pos).expect("an entry per index position"), e)
+                })
+                .collect()
         }),
-    );
+    });
     Ok(())
+}
+
+/// `dbms tiles`' summary: the header and the index's totals, optionally the index.
+#[derive(Serialize)]
+struct Described<'a> {
+    path: PathBuf,
+    format_version: u32,
+    file_bytes: u64,
+    header: &'a TileSetInfo,
+    pages: usize,
+    compressed_pages: usize,
+    pages_with_bricks: usize,
+    stored_bytes: u64,
+    raw_bytes: u64,
+    /// Pages whose checksum `--verify` checked.
+    verified_pages: Option<usize>,
+    index: Option<Vec<Listed>>,
+}
+
+impl std::fmt::Display for Described<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let info = self.header;
+        let g = &info.grid;
+        let (cx, cy) = g.cell_size();
+        writeln!(
+            f,
+            "{}: dbms tile file, format version {}, {} bytes",
+            self.path.display(),
+            self.format_version,
+            self.file_bytes
+        )?;
+        writeln!(
+            f,
+            "grid {}×{} cells of {cx}×{cy} {} ({}), origin ({}, {})",
+            g.width,
+            g.height,
+            g.crs.unit(),
+            g.crs.name(),
+            g.transform.origin_x,
+            g.transform.origin_y
+        )?;
+        writeln!(
+            f,
+            "pages of {0}×{0} cells, factor {1}, {2} levels:",
+            info.page_size,
+            info.factor,
+            info.levels.len()
+        )?;
+        for l in &info.levels {
+            writeln!(
+                f,
+                "  level {}: {}×{} cells of {}×{}, {}×{} pages",
+                l.level,
+                l.width,
+                l.height,
+                l.cell_x.abs(),
+                l.cell_y.abs(),
+                l.pages_x,
+                l.pages_y
+            )?;
+        }
+        let layers: Vec<String> = (info.layers.iter())
+            .map(|l| format!("{} ({})", l.name, l.kind))
+            .collect();
+        writeln!(f, "layers: {}", layers.join(", "))?;
+        writeln!(
+            f,
+            "compression: {} ({} of {} pages compressed, {} of {} bytes stored); {} pages with bricks",
+            info.compression.name(),
+            self.compressed_pages,
+            self.pages,
+            self.stored_bytes,
+            self.raw_bytes,
+            self.pages_with_bricks
+        )?;
+        write!(f, "effects: {}", info.effects)?;
+        if let Some(n) = self.verified_pages {
+            write!(f, "\nverified: all {n} pages match their checksums")?;
+        }
+        if let Some(index) = &self.index {
+            write!(
+                f,
+                "\nindex (level, tx, ty: offset, stored/raw bytes, crc32, flags):"
+            )?;
+            for e in index {
+                let flags = match e.flags.join("+") {
+                    names if names.is_empty() => "none".to_string(),
+                    names => names,
+                };
+                write!(
+                    f,
+                    "\n  {}, {}, {}: {}, {}/{}, {:08x}, {flags}",
+                    e.level, e.tx, e.ty, e.offset, e.stored_len, e.raw_len, e.crc32
+                )?;
+            }
+        }
+        Ok(())
+    }
 }

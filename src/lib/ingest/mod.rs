@@ -82,6 +82,27 @@ pub struct LayerSummary {
     pub range_m: Option<(f32, f32)>,
 }
 
+impl std::fmt::Display for IngestSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let g = &self.grid;
+        let (cx, cy) = g.cell_size();
+        let b = g.bounds();
+        write!(
+            f,
+            "{}: {} x {} cells of {} x {} {} in {}, extent [{}, {}, {}, {}]\n  elevation: {} nodata cells",
+            self.database.display(), g.width, g.height, cx, cy, g.crs.unit(), g.crs.name(),
+            b.min_x, b.min_y, b.max_x, b.max_y, self.elevation.nodata_cells,
+        )?;
+        if let Some(n) = self.elevation.filled_cells {
+            write!(f, ", {n} filled")?;
+        }
+        if let Some((lo, hi)) = self.elevation.range_m {
+            write!(f, ", {lo} to {hi} m")?;
+        }
+        write!(f, "\n  colour: {} nodata cells", self.colour.nodata_cells)
+    }
+}
+
 /// Read both inputs, register them onto one grid and write the database to `out`.
 pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<IngestSummary> {
     // Checked now with the parser later stages use on the recorded value, so they cannot disagree.

@@ -91,6 +91,47 @@ pub struct PyramidSummary {
     pub seconds: Timings,
 }
 
+impl std::fmt::Display for PyramidSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let sizes: Vec<String> = self
+            .levels
+            .iter()
+            .map(|(w, h)| format!("{w}×{h}"))
+            .collect();
+        write!(
+            f,
+            "{}: {} levels ({}), {} pages",
+            self.tiles.display(),
+            self.levels.len(),
+            sizes.join(", "),
+            self.pages
+        )?;
+        let applied = &self.effects.applied;
+        match applied.is_empty() {
+            true => write!(f, "\neffects: none")?,
+            false => write!(f, "\neffects: {}", applied.join(", "))?,
+        }
+        if self.building_cells + self.object_cells > 0 {
+            write!(
+                f,
+                "\nraised: {} building cells, {} object cells ({} partial)",
+                self.building_cells, self.object_cells, self.partial_cells
+            )?;
+        }
+        if self.half_valid_cells > 0 {
+            write!(
+                f,
+                "\nnodata: {} cells had only one of elevation and colour",
+                self.half_valid_cells
+            )?;
+        }
+        if !self.exported.is_empty() {
+            write!(f, "\nexported {} GeoTIFFs", self.exported.len())?;
+        }
+        Ok(())
+    }
+}
+
 /// Wall-clock seconds of each step of [`build_pyramid`].
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct Timings {
