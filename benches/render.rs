@@ -4,7 +4,7 @@
 //! one; the 8192² side from `DBMS_BENCH_SIZE`). Two tile sets, made untimed:
 //! 1. the sample scene (`dbms sample`, `dbms ingest`, `dbms pyramid` run through the binary);
 //! 2. a generated `N × N` grid of 1 m cells (rolling hills, blocks of buildings, a textured
-//!    colour) written with `render::synthetic::write_tiles` (lz4 pages of 256, factor 4).
+//!    colour) written with `testing::tiles::write_tiles` (lz4 pages of 256, factor 4).
 //!
 //! On each, 640 × 480 frames (60° field of view) along a straight path 25 m above the ground,
 //! pitched 4° down, rendered three ways: hierarchical without range thresholds, level-0 stepping
@@ -22,7 +22,8 @@
 
 use dbms::crs::Crs;
 use dbms::grid::Grid;
-use dbms::render::{render_view, synthetic, Attitude, Camera, Frame, Traversal, ViewOptions};
+use dbms::render::{render_view, Attitude, Camera, Frame, Traversal, ViewOptions};
+use dbms::testing::tiles as synthetic;
 use dbms::tiles::{Compression, TileReader};
 use std::path::{Path, PathBuf};
 use std::process::Command;

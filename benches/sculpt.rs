@@ -7,12 +7,12 @@
 //! A second table times the colour pass (visibility by ray casting through the carved volume).
 //! Run: `cargo bench --bench sculpt` (add `-- quick` for 64³ and 128³ only).
 
+use dbms::testing::solids::{benchmark_solids, exact_hull, render, voxelize, BENCHMARK_NAMES};
 use dbms::voxel::camera::Camera;
 use dbms::voxel::carve::{carve, carve_dense, CarveOptions, View};
 use dbms::voxel::colour::colour;
 use dbms::voxel::grid::VoxelGrid;
 use dbms::voxel::picture::Picture;
-use dbms::voxel::solids::{benchmark_solids, exact_hull, render, voxelize, BENCHMARK_NAMES};
 use std::time::Instant;
 
 /// Image size of every view, pixels.

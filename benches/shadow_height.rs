@@ -1,6 +1,6 @@
 //! Accuracy and cost of `dbms shadow-height` on generated scenes with known heights.
 //!
-//! Scenes (`dbms::shadow_height::synth`): flat ground and 20 % slopes facing the sun (shadows
+//! Scenes (`dbms::testing::shadow_scene`): flat ground and 20 % slopes facing the sun (shadows
 //! fall uphill) and facing away (downhill); sun elevation 15°..75°; cells 0.25..2 m. Layouts:
 //! * `isolated`: one building;
 //! * `adjacent`: the same building with a 10 m × 10 m neighbour beside it, across the shadow
@@ -28,9 +28,9 @@
 //!
 //! `cargo bench --bench shadow_height` (all cases) or `-- quick` (0.5 m cells only).
 
-use dbms::shadow_height::synth::{synth_scene, SynthBuilding, SynthSpec};
 use dbms::shadow_height::{measure, Inputs, Measurement, Options};
 use dbms::sun::Sun;
+use dbms::testing::shadow_scene::{synth_scene, SynthBuilding, SynthSpec};
 use std::time::Instant;
 
 const TRIALS: usize = 4;

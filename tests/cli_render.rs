@@ -2,7 +2,7 @@
 
 use dbms::crs::Crs;
 use dbms::grid::Grid;
-use dbms::render::synthetic::write_tiles;
+use dbms::testing::tiles::write_tiles;
 use dbms::tiles::Compression;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -363,7 +363,7 @@ fn centre_range(tiles: &Path, dir: &Path, eye: &str, attitude: &str, traversal: 
 
 #[test]
 fn rays_pass_through_an_arch_and_its_range_is_on_the_face_hit() {
-    use dbms::render::synthetic::write_columns;
+    use dbms::testing::tiles::write_columns;
     use dbms::voxel::columns::Run;
     let dir = tempfile::tempdir().unwrap();
     // Ground at 50 m, UTM-sized origin, 1 m cells; a 10 m wall along row 4; an arch over rows

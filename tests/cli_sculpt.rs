@@ -1,9 +1,9 @@
 //! `dbms sculpt` end to end: views rendered from analytic solids, carved by the binary, checked
 //! against the truth; plus the hard cases of issue 4.
 
+use dbms::testing::solids::{self, Solid};
 use dbms::voxel::format;
 use dbms::voxel::grid::VoxelGrid;
-use dbms::voxel::solids::{self, Solid};
 use dbms::voxel::views::CameraSpec;
 use serde_json::{json, Value};
 use std::path::Path;

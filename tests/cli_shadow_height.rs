@@ -2,8 +2,8 @@
 //! `--apply` into the database, bad footprints, and whole-run errors.
 
 use dbms::io::geotiff;
-use dbms::shadow_height::synth::{synth_scene, SynthBuilding, SynthSpec};
 use dbms::sun::Sun;
+use dbms::testing::shadow_scene::{synth_scene, SynthBuilding, SynthSpec};
 use serde_json::{json, Value};
 use std::path::Path;
 use std::process::Output;

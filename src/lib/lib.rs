@@ -41,6 +41,8 @@ pub mod shadow_height;
 pub mod shadow_mask;
 pub mod standing;
 pub mod sun;
+#[doc(hidden)]
+pub mod testing;
 pub mod tiles;
 pub mod voxel;
 pub mod walk;

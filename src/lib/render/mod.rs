@@ -26,7 +26,6 @@ pub mod path;
 pub mod ray;
 pub mod sampler;
 pub mod sky;
-pub mod synthetic;
 
 pub use camera::{Attitude, Camera};
 pub use march::{Face, Hit, Plan, Span, Traversal};

@@ -3,6 +3,7 @@
 use super::*;
 use crate::crs::Crs;
 use crate::grid::Grid;
+use crate::testing::tiles as synthetic;
 use crate::tiles::Compression;
 use crate::voxel::columns::Run;
 use proptest::prelude::*;

@@ -42,7 +42,6 @@ pub mod refine;
 pub mod register;
 pub mod roof;
 pub mod scan;
-pub mod synth;
 
 pub use footprint::{read_footprints, Footprint, InputFeature};
 
@@ -1425,9 +1424,9 @@ impl Shared<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::synth::{synth_scene, SynthBuilding, SynthSpec};
     use super::*;
     use crate::shadow::cast_shadows;
+    use crate::testing::shadow_scene::{self as synth, synth_scene, SynthBuilding, SynthSpec};
 
     fn building(x: f64, y: f64, h: f64) -> SynthBuilding {
         SynthBuilding {

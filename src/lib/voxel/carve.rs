@@ -299,7 +299,7 @@ impl Ctx<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::voxel::solids::{self, Solid};
+    use crate::testing::solids::{self, Solid};
     use proptest::prelude::*;
 
     fn ring(n: usize, dist: f64, elev_deg: f64, size: u32) -> Vec<Camera> {

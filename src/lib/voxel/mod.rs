@@ -16,7 +16,6 @@ pub mod picture;
 pub mod place;
 pub mod sculpt;
 pub mod silhouette;
-pub mod solids;
 pub mod synth;
-mod vec3;
+pub(crate) mod vec3;
 pub mod views;

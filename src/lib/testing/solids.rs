@@ -7,12 +7,12 @@
 //! # Invariant
 //! Solids are closed sets in world metres with z up; cylinder and cone axes are vertical.
 
-use super::camera::{Camera, Ray};
-use super::carve::{CarveOptions, Unseen};
-use super::grid::VoxelGrid;
-use super::occupancy::Occupancy;
-use super::silhouette::Silhouette;
-use super::vec3::{dot, sub};
+use crate::voxel::camera::{Camera, Ray};
+use crate::voxel::carve::{CarveOptions, Unseen};
+use crate::voxel::grid::VoxelGrid;
+use crate::voxel::occupancy::Occupancy;
+use crate::voxel::silhouette::Silhouette;
+use crate::voxel::vec3::{dot, sub};
 use rayon::prelude::*;
 
 /// A closed solid in world metres.

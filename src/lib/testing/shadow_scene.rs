@@ -8,10 +8,10 @@
 //! would put them at cell centres, half a fine cell off). Truth heights follow the
 //! module's convention: roof above the highest coarse cell centre of terrain under the footprint.
 
-use super::footprint::Footprint;
 use crate::crs::Crs;
 use crate::grid::Grid;
 use crate::raster::{Colour, Elevation, Raster};
+use crate::shadow_height::Footprint;
 use crate::standing::{rasterise_prisms, Prism};
 use crate::sun::Sun;
 use rayon::prelude::*;
