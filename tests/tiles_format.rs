@@ -8,7 +8,6 @@ use dbms::tiles::{
 };
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// SplitMix64: deterministic pseudo-random values for test content.
 fn mix(mut z: u64) -> u64 {
@@ -678,12 +677,9 @@ fn header_has_the_schema_s_fields() {
     }
 }
 
-fn dbms(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
 
 #[test]
 fn cli_prints_the_summary_and_verifies() {

@@ -38,10 +38,9 @@ impl Outcome {
     }
 }
 
-/// The dbms binary under test.
-pub fn dbms() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_dbms"))
-}
+#[path = "cli.rs"]
+mod cli;
+use cli::command as dbms;
 
 fn run(mut c: Command, what: &str) -> Result<(), String> {
     let out = c.output().map_err(|e| format!("{what}: {e}"))?;
