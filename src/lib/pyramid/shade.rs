@@ -162,9 +162,9 @@ pub fn prepare<'a>(
         applied.push("object_shading");
     }
     let mut fx = Effects {
-        s: enu(&sun),
+        s: sun.direction_enu(),
         sun,
-        photo: photo_sun.map(|p| (p, enu(&p))),
+        photo: photo_sun.map(|p| (p, p.direction_enu())),
         same_sun,
         factor: shadow_factor,
         terrain,
@@ -270,11 +270,6 @@ impl EffectsRecord {
 fn same(a: &Sun, b: &Sun) -> bool {
     let daz = (a.azimuth_deg - b.azimuth_deg).rem_euclid(360.0);
     (a.elevation_deg - b.elevation_deg).abs() < SAME_SUN_DEG && daz.min(360.0 - daz) < SAME_SUN_DEG
-}
-
-fn enu(s: &Sun) -> [f64; 3] {
-    let (e, a) = (s.elevation_deg.to_radians(), s.azimuth_deg.to_radians());
-    [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()]
 }
 
 /// The surfaces over a band of rows `first..first + n` (the rows shaded plus a one-row apron

@@ -66,6 +66,12 @@ impl Sun {
         height_m / self.elevation_deg.to_radians().tan()
     }
 
+    /// Unit vector toward the sun in the grid's frame, `[east, north, up]` (east and north along
+    /// the grid's axes): `[cos e sin a, cos e cos a, sin e]`.
+    pub fn direction_enu(&self) -> [f64; 3] {
+        enu(self.elevation_deg, self.azimuth_deg)
+    }
+
     /// Horizontal unit vector toward the sun, `(east, north)`. Components within 1e-12 of 0 are
     /// snapped to 0 so azimuths 0, 90, 180 and 270 are exactly axis-aligned.
     pub fn direction(&self) -> (f64, f64) {
@@ -229,12 +235,15 @@ impl SunPosition {
     /// Unit vector from the ground TO the sun in the local east-north-up frame:
     /// `[x east, y north, z up]` = `[cos e sin a, cos e cos a, sin e]` for elevation e, azimuth a.
     pub fn direction_enu(&self) -> [f64; 3] {
-        let (e, a) = (
-            self.elevation_deg.to_radians(),
-            self.azimuth_deg.to_radians(),
-        );
-        [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()]
+        enu(self.elevation_deg, self.azimuth_deg)
     }
+}
+
+/// `[cos e sin a, cos e cos a, sin e]` for elevation `e` and azimuth `a` (degrees): the unit
+/// vector toward a direction in an east-north-up frame.
+fn enu(elevation_deg: f64, azimuth_deg: f64) -> [f64; 3] {
+    let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
+    [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()]
 }
 
 /// Topocentric position of the sun for `obs` at the UTC instant `utc` (years −2000..6000).
