@@ -23,6 +23,8 @@ pub mod shade;
 use crate::db::{Database, Stage};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
+use crate::raster::RowSource;
+use crate::standing::Raised;
 use crate::sun::Sun;
 use crate::tiles::{Compression, TileSetInfo, TileWriter};
 use serde::Serialize;
@@ -157,26 +159,7 @@ pub fn build_pyramid(
     opts: &PyramidOptions,
     progress: &Progress,
 ) -> Result<PyramidSummary> {
-    // Before any work: the tile file must not be a special file or one of the database's.
-    crate::io::atomic::check_output(out)?;
-    if !(opts.shadow_factor > 0.0 && opts.shadow_factor <= 1.0) {
-        return Err(Error::msg(format!(
-            "--shadow-factor {}: must be in (0, 1]",
-            opts.shadow_factor
-        ))
-        .fix(format!("the default is {}", shade::DEFAULT_SHADOW_FACTOR)));
-    }
-    let clock = std::time::Instant::now();
-    let mut lap = {
-        let mut last = 0.0;
-        move || {
-            let now = clock.elapsed().as_secs_f64();
-            let d = now - last;
-            last = now;
-            d
-        }
-    };
-    let mut seconds = Timings::default();
+    check_request(out, opts)?;
     let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
     info.compression = opts.compression;
     if let Some(dir) = &opts.export_levels {
@@ -187,6 +170,8 @@ pub fn build_pyramid(
             .collect();
         crate::io::atomic::check_outputs(&outputs, &[])?;
     }
+    let mut lap = stopwatch();
+    let mut seconds = Timings::default();
     // The layers are read band by band (each band's tiles decoded in parallel), never whole.
     let (terrain, colour) = (db.elevation_rows()?, db.colour_rows()?);
     seconds.read = lap();
@@ -198,53 +183,13 @@ pub fn build_pyramid(
         all,
     } = crate::standing::Standing::read(db, &terrain, opts.page_size)?;
 
-    // The photo's sun matters only against a requested one (a night-time photo_time must not
-    // stop a build without a sun).
-    let photo_sun = if opts.sun.is_some() {
-        crate::sun::photo_sun(db)?
-    } else {
-        None
-    };
-    let effects = shade::prepare(
-        opts.sun,
-        photo_sun,
-        opts.shadow_factor,
-        &terrain,
-        &colour,
-        &buildings,
-        &objects,
-        &all,
-    )?;
-    let effects_record = match &effects {
-        Some(fx) => fx.record(),
-        None => shade::EffectsRecord::none(opts.sun, photo_sun, opts.shadow_factor),
-    };
+    let (effects, effects_record) =
+        sun_effects(db, opts, &terrain, &colour, [&buildings, &objects, &all])?;
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
-
     seconds.prepare = lap();
+
     let level0 = base::Level0::new(&terrain, &colour, &all, effects.as_ref());
-    let writer = TileWriter::create(out, info.clone())?;
-    let exporter = match &opts.export_levels {
-        Some(dir) => Some(export::LevelExporter::create(&info, dir)?),
-        None => None,
-    };
-    progress.phase(info.page_count() as u64, "pyramid");
-    cascade::build_levels_by_page_row(
-        &info,
-        |row0, rows| level0.band(row0, rows),
-        &|level, tx, ty, page| {
-            if let Some(x) = &exporter {
-                x.put(level, tx, ty, page);
-            }
-            writer.write_page(level, tx, ty, page)?;
-            progress.inc(1);
-            Ok(())
-        },
-        &mut |level, ty| match &exporter {
-            Some(x) => x.page_row_done(level, ty),
-            None => Ok(()),
-        },
-    )?;
+    let (writer, exporter) = write_levels(&info, &level0, out, opts, progress)?;
     seconds.levels = lap();
     // Every output is finished under its temporary name, and all are renamed together once the
     // database has recorded the stage: a run that fails at any point leaves no tile file (the
@@ -273,16 +218,122 @@ pub fn build_pyramid(
     let mut change = Database::begin(&db.dir, wait)?;
     change.db.record_stage(Stage::now(
         "pyramid",
-        serde_json::json!({
-            "tiles": out, "factor": opts.factor, "page_size": opts.page_size, "levels": summary.levels,
-            "compression": opts.compression.name(), "export_levels": opts.export_levels,
-            "effects": info.effects,
-            "building_cells": summary.building_cells, "object_cells": summary.object_cells,
-            "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
-        }),
+        stage_params(out, opts, &info, &summary),
     ));
     change.commit()?;
     // The tile file last: a rename that fails leaves it out, not the levels without it.
     crate::io::atomic::commit_all(staged)?;
     Ok(summary)
+}
+
+/// The sun effects `opts` asks for over the terrain and what stands on it (`standing`:
+/// buildings, placed objects, both), prepared for the whole grid, and their record (also when
+/// there are none).
+fn sun_effects<'a>(
+    db: &Database,
+    opts: &PyramidOptions,
+    terrain: &'a dyn RowSource<f32>,
+    colour: &dyn RowSource<[u8; 4]>,
+    [buildings, objects, all]: [&'a Raised; 3],
+) -> Result<(Option<shade::Effects<'a>>, shade::EffectsRecord)> {
+    // The photo's sun matters only against a requested one (a night-time photo_time must not
+    // stop a build without a sun).
+    let photo_sun = if opts.sun.is_some() {
+        crate::sun::photo_sun(db)?
+    } else {
+        None
+    };
+    let effects = shade::prepare(
+        opts.sun,
+        photo_sun,
+        opts.shadow_factor,
+        terrain,
+        colour,
+        buildings,
+        objects,
+        all,
+    )?;
+    let record = match &effects {
+        Some(fx) => fx.record(),
+        None => shade::EffectsRecord::none(opts.sun, photo_sun, opts.shadow_factor),
+    };
+    Ok((effects, record))
+}
+
+/// Before any work: the tile file must not be a special file or one of the database's, and the
+/// shadow factor must be in (0, 1].
+fn check_request(out: &Path, opts: &PyramidOptions) -> Result<()> {
+    crate::io::atomic::check_output(out)?;
+    if !(opts.shadow_factor > 0.0 && opts.shadow_factor <= 1.0) {
+        return Err(Error::msg(format!(
+            "--shadow-factor {}: must be in (0, 1]",
+            opts.shadow_factor
+        ))
+        .fix(format!("the default is {}", shade::DEFAULT_SHADOW_FACTOR)));
+    }
+    Ok(())
+}
+
+/// Seconds since the previous call (the first: since this was made).
+fn stopwatch() -> impl FnMut() -> f64 {
+    let clock = std::time::Instant::now();
+    let mut last = 0.0;
+    move || {
+        let now = clock.elapsed().as_secs_f64();
+        let d = now - last;
+        last = now;
+        d
+    }
+}
+
+/// What the manifest's `pyramid` stage records: the request and what it made, without times
+/// (a rebuild from the same inputs records the same).
+fn stage_params(
+    out: &Path,
+    opts: &PyramidOptions,
+    info: &TileSetInfo,
+    summary: &PyramidSummary,
+) -> serde_json::Value {
+    serde_json::json!({
+        "tiles": out, "factor": opts.factor, "page_size": opts.page_size, "levels": summary.levels,
+        "compression": opts.compression.name(), "export_levels": opts.export_levels,
+        "effects": info.effects,
+        "building_cells": summary.building_cells, "object_cells": summary.object_cells,
+        "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
+    })
+}
+
+/// Every page of every level of the tile file `out` (and with `--export-levels` each level's
+/// GeoTIFFs) from `level0`, page row by page row: the writers, every page written, their files
+/// not yet finished.
+fn write_levels(
+    info: &TileSetInfo,
+    level0: &base::Level0,
+    out: &Path,
+    opts: &PyramidOptions,
+    progress: &Progress,
+) -> Result<(TileWriter, Option<export::LevelExporter>)> {
+    let writer = TileWriter::create(out, info.clone())?;
+    let exporter = match &opts.export_levels {
+        Some(dir) => Some(export::LevelExporter::create(info, dir)?),
+        None => None,
+    };
+    progress.phase(info.page_count() as u64, "pyramid");
+    cascade::build_levels_by_page_row(
+        info,
+        |row0, rows| level0.band(row0, rows),
+        &|level, tx, ty, page| {
+            if let Some(x) = &exporter {
+                x.put(level, tx, ty, page);
+            }
+            writer.write_page(level, tx, ty, page)?;
+            progress.inc(1);
+            Ok(())
+        },
+        &mut |level, ty| match &exporter {
+            Some(x) => x.page_row_done(level, ty),
+            None => Ok(()),
+        },
+    )?;
+    Ok((writer, exporter))
 }
