@@ -506,7 +506,7 @@ pub fn measure(
                 let shaders = roofs.iter().any(Option::is_some).then(|| {
                     neighbour_shadows(&band.terrain, footprints, roofs, &shadows, sun, reach)
                 });
-                let shared = Shared {
+                let pass_inputs = PassInputs {
                     grid,
                     band: &band,
                     shaders: shaders.as_ref(),
@@ -522,7 +522,13 @@ pub fn measure(
                 };
                 Ok(members
                     .par_iter()
-                    .map(|&k| shared.one(k as u32 + 1, &footprints[k], band.cells_of(k)))
+                    .map(|&k| {
+                        pass_inputs.measure_footprint(
+                            k as u32 + 1,
+                            &footprints[k],
+                            band.cells_of(k),
+                        )
+                    })
                     .collect())
             },
         )
@@ -957,7 +963,105 @@ fn own_edge(
     base
 }
 
-/// Where [`Shared::classify`] takes a footprint's detection threshold from.
+/// The shadow length the scan lines measured, metres: their median, unless too few lines were
+/// valid, none saw shadow, or the few left are the lines along the footprint's own edge.
+fn shadow_length(s: &scan::Scan, cell: f64) -> Option<f64> {
+    if s.lengths.len() < MIN_VALID_LINES.min(s.lines) {
+        return None;
+    }
+    let (Some(len), true) = (scan::median(&s.lengths), s.with_shadow > 0) else {
+        return None;
+    };
+    // Most lines met another footprint and the few left say "no shadow": those are the
+    // lines along the footprint's edge, whose first cell its own lit roof covers in part,
+    // not a measurement (a 20 % downhill slope at 15° gave 0 m for 8 m).
+    (!(len < cell && s.on_other > s.lengths.len())).then_some(len)
+}
+
+/// Where one footprint's shadow is sought: away from the sun in a window reaching the longest
+/// shadow (`reach`). The cells are classified in a part of it reaching `classified_len`, grown
+/// while the scan lines reach its border (a building's shadow is mostly far shorter than the
+/// tallest sought); the threshold is always the whole window's. A leaning roof's cells may lie
+/// anywhere along its lean: classified whole.
+struct Sought<'p, 'a, 'h> {
+    pass: &'p PassInputs<'a>,
+    id: u32,
+    fp: &'p Footprint,
+    /// The way shadows fall, `(east, north)`.
+    u: (f64, f64),
+    /// The roof's offset from its footprint in the photo, metres (`(0, 0)`: none).
+    lean: (f64, f64),
+    /// The whole window, reaching `reach` along `u`.
+    full: crate::grid::Window,
+    source: Threshold<'h>,
+    /// How far along `u` the cells classified so far reach, metres.
+    classified_len: f64,
+    /// Cell edge (the larger), metres.
+    cell: f64,
+    tan_e: f64,
+}
+
+impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
+    fn new(
+        pass: &'p PassInputs<'a>,
+        id: u32,
+        fp: &'p Footprint,
+        full: crate::grid::Window,
+        source: Threshold<'h>,
+    ) -> Self {
+        let (cx, cy) = pass.grid.cell_size();
+        let lean = pass.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
+        Sought {
+            pass,
+            id,
+            fp,
+            u: pass.away_from_sun(),
+            lean,
+            full,
+            source,
+            classified_len: match lean == (0.0, 0.0) {
+                true => pass.reach / 4.0,
+                false => pass.reach,
+            },
+            cell: cx.max(cy),
+            tan_e: pass.sun.elevation_deg.to_radians().tan(),
+        }
+    }
+
+    /// The cells of the window's part reaching `len` (at most `reach`) classified, and the
+    /// detection threshold used.
+    fn classified(&self, len: f64) -> (Local, Option<f64>) {
+        let p = self.pass;
+        let win = local::window_for(p.grid, self.fp.bbox(), self.u, len.min(p.reach), 3);
+        p.classify(self.id, self.fp, self.lean, win, self.full, self.source)
+    }
+
+    fn scan(&self, local: &Local) -> scan::Scan {
+        let spacing = self.pass.opts.line_spacing_cells * self.cell;
+        scan::scan(
+            self.fp,
+            local,
+            self.u,
+            self.cell,
+            spacing,
+            self.pass.reach,
+            self.tan_e,
+        )
+    }
+
+    /// Scan `local`, doubling the part classified while the lines reach its edge.
+    fn scan_growing(&mut self, local: &mut Local) -> scan::Scan {
+        let mut s = self.scan(local);
+        while s.at_window_edge && self.classified_len < self.pass.reach {
+            self.classified_len *= 2.0;
+            *local = self.classified(self.classified_len).0;
+            s = self.scan(local);
+        }
+        s
+    }
+}
+
+/// Where [`PassInputs::classify`] takes a footprint's detection threshold from.
 #[derive(Clone, Copy)]
 enum Threshold<'h> {
     /// Found already (in the first pass).
@@ -966,8 +1070,8 @@ enum Threshold<'h> {
     Open(&'h [u64; 256]),
 }
 
-/// What every footprint's measurement reads.
-struct Shared<'a> {
+/// What every footprint's measurement in one pass reads.
+struct PassInputs<'a> {
     grid: &'a Grid,
     /// The rows of the layers the footprints measured now read.
     band: &'a Band<'a>,
@@ -995,13 +1099,72 @@ struct Shared<'a> {
     sketch: bool,
 }
 
-impl Shared<'_> {
-    fn one(
+impl PassInputs<'_> {
+    /// Footprint `id` (`fp`, whose cell centres in the band are `cells`) measured, or why it
+    /// cannot be. Scan lines across the shadow give its length, hence a first height; outside
+    /// the first pass the refinement then casts synthetic shadows over the real terrain and
+    /// keeps the height whose shadow matches the photo's, flagged unless every estimate agrees.
+    fn measure_footprint(
         &self,
         id: u32,
         fp: &Footprint,
         cells: &[usize],
     ) -> std::result::Result<Measurement, String> {
+        let ground_z = self.ground_under(cells)?;
+        // The threshold depends only on the window's cells: the second pass has the first's.
+        let full = local::window_for(self.grid, fp.bbox(), self.away_from_sun(), self.reach, 3);
+        let open;
+        let source = match self.thresholds {
+            Some(known) => Threshold::Known(known[id as usize - 1]),
+            None => {
+                open = self.open_histogram(&full);
+                Threshold::Open(&open)
+            }
+        };
+        let mut sought = Sought::new(self, id, fp, full, source);
+        let (mut local, threshold) = sought.classified(sought.classified_len);
+        let e = self.sun.elevation_deg;
+        let mut m = Measurement {
+            height_m: None,
+            roof_z: None,
+            initial_height_m: None,
+            overlap: None,
+            uncertainty_m: sought.cell * sought.tan_e,
+            ground_z,
+            shadow_length_m: None,
+            lines_total: 0,
+            lines_used: 0,
+            threshold,
+            flags: Flags {
+                low_sun: e < LOW_SUN_DEG,
+                high_sun: e > HIGH_SUN_DEG,
+                pitched_roof: !self.sketch && self.looks_pitched(id, fp, cells, sought.lean),
+                ..Flags::default()
+            },
+        };
+        let s = sought.scan_growing(&mut local);
+        m.lines_total = s.lines;
+        m.lines_used = s.lengths.len();
+        m.flags.shadow_cut_by_edge_or_nodata = s.cut > 0;
+        m.flags.shadow_on_other_building = s.on_other > 0;
+        m.flags.no_shadow = s.with_shadow == 0 && !s.lengths.is_empty();
+        let Some(len) = shadow_length(&s, sought.cell) else {
+            return Ok(m);
+        };
+        let z0 = len * sought.tan_e;
+        let z_ray = scan::median(&s.tip_roofs).map_or(z0, |r| r - ground_z);
+        m.shadow_length_m = Some(len);
+        m.initial_height_m = Some(z0);
+        if self.sketch {
+            m.height_m = Some(z_ray);
+            m.roof_z = Some(ground_z + z_ray);
+            return Ok(m);
+        }
+        self.refine_height(m, &sought, local, &s, [len, z0, z_ray])
+    }
+
+    /// The highest valid terrain under a footprint's cells, metres.
+    fn ground_under(&self, cells: &[usize]) -> std::result::Result<f64, String> {
         if cells.is_empty() {
             return Err(
                 "covers no cell centre of the database grid (outside it, or smaller than a cell)"
@@ -1013,119 +1176,47 @@ impl Shared<'_> {
             .map(|&i| *self.band.terrain.at(i) as f64)
             .filter(|z| z.is_finite())
             .fold(f64::NAN, f64::max);
-        if ground_z.is_nan() {
-            return Err("stands on nodata elevation only".into());
+        match ground_z.is_nan() {
+            true => Err("stands on nodata elevation only".into()),
+            false => Ok(ground_z),
         }
-        let e = self.sun.elevation_deg;
-        let tan_e = e.to_radians().tan();
-        let (cx, cy) = self.grid.cell_size();
-        let cell = cx.max(cy);
+    }
+
+    /// The horizontal unit vector away from the sun, `(east, north)`: the way shadows fall.
+    fn away_from_sun(&self) -> (f64, f64) {
         let (dx, dy) = self.sun.direction();
-        let u = (-dx, -dy);
-        let max_len = self.reach;
-        let lean = self.leans.map_or((0.0, 0.0), |l| l[id as usize - 1]);
-        // The window the shadow is sought in reaches `max_len` along it; the cells are
-        // classified in a part of it reaching `classified_len`, grown while the scan lines
-        // reach its border (a building's shadow is mostly far shorter than the tallest
-        // sought). The threshold is always the whole window's. A leaning roof's cells may lie
-        // anywhere along its lean: classified whole.
-        let full = local::window_for(self.grid, fp.bbox(), u, max_len, 3);
-        // The threshold depends only on the window's cells: the second pass has the first's.
-        let open;
-        let source = match self.thresholds {
-            Some(known) => Threshold::Known(known[id as usize - 1]),
-            None => {
-                open = self.open_histogram(&full);
-                Threshold::Open(&open)
-            }
-        };
-        let mut classified_len = if lean == (0.0, 0.0) {
-            max_len / 4.0
-        } else {
-            max_len
-        };
-        let classified = |len: f64| {
-            let win = local::window_for(self.grid, fp.bbox(), u, len.min(max_len), 3);
-            self.classify(id, fp, lean, win, full, source)
-        };
-        let (mut local, threshold) = classified(classified_len);
-        let mut m = Measurement {
-            height_m: None,
-            roof_z: None,
-            initial_height_m: None,
-            overlap: None,
-            uncertainty_m: cell * tan_e,
-            ground_z,
-            shadow_length_m: None,
-            lines_total: 0,
-            lines_used: 0,
-            threshold,
-            flags: Flags {
-                low_sun: e < LOW_SUN_DEG,
-                high_sun: e > HIGH_SUN_DEG,
-                pitched_roof: !self.sketch && self.looks_pitched(id, fp, cells, lean),
-                ..Flags::default()
-            },
-        };
-        let scanned = |local: &Local| {
-            scan::scan(
-                fp,
-                local,
-                u,
-                cell,
-                self.opts.line_spacing_cells * cell,
-                max_len,
-                tan_e,
-            )
-        };
-        let mut s = scanned(&local);
-        while s.at_window_edge && classified_len < max_len {
-            classified_len *= 2.0;
-            local = classified(classified_len).0;
-            s = scanned(&local);
-        }
-        m.lines_total = s.lines;
-        m.lines_used = s.lengths.len();
-        m.flags.shadow_cut_by_edge_or_nodata = s.cut > 0;
-        m.flags.shadow_on_other_building = s.on_other > 0;
-        m.flags.no_shadow = s.with_shadow == 0 && !s.lengths.is_empty();
-        if s.lengths.len() < MIN_VALID_LINES.min(s.lines) {
-            return Ok(m);
-        }
-        let (Some(len), true) = (scan::median(&s.lengths), s.with_shadow > 0) else {
-            return Ok(m);
-        };
-        // Most lines met another footprint and the few left say "no shadow": those are the
-        // lines along the footprint's edge, whose first cell its own lit roof covers in part,
-        // not a measurement (a 20 % downhill slope at 15° gave 0 m for 8 m).
-        if len < cell && s.on_other > s.lengths.len() {
-            return Ok(m);
-        }
-        let z0 = len * tan_e;
-        let z_ray = scan::median(&s.tip_roofs).map_or(z0, |r| r - ground_z);
-        m.shadow_length_m = Some(len);
-        m.initial_height_m = Some(z0);
-        if self.sketch {
-            m.height_m = Some(z_ray);
-            m.roof_z = Some(ground_z + z_ray);
-            return Ok(m);
-        }
+        (-dx, -dy)
+    }
+
+    /// The refinement of `m` (scanned: `s`, with shadow length, first height and the scan
+    /// lines' roof above the ground `[len, z0, z_ray]`) over the cells `local` classified: its
+    /// height, overlap and agreement flags. No height when none of the shadow the lines saw is
+    /// attached to the footprint (nothing to refine against: no height is better than an
+    /// unchecked one).
+    fn refine_height(
+        &self,
+        mut m: Measurement,
+        sought: &Sought,
+        mut local: Local,
+        s: &scan::Scan,
+        [len, z0, z_ray]: [f64; 3],
+    ) -> std::result::Result<Measurement, String> {
+        let (fp, u, cell, tan_e) = (sought.fp, sought.u, sought.cell, sought.tan_e);
         let z_hi = (2.0 * z0)
             .max(1.5 * z_ray)
             .max(z0 + 4.0 * cell * tan_e)
             .min(self.opts.max_height_m.max(z0 + cell * tan_e));
         let sub_len = z_hi / tan_e + cell;
-        if sub_len > classified_len && classified_len < max_len {
-            local = classified(sub_len).0;
+        if sub_len > sought.classified_len && sought.classified_len < self.reach {
+            local = sought.classified(sub_len).0;
         }
         let mut sub = local.crop(
             local::window_for(self.grid, fp.bbox(), u, sub_len, 3),
             self.grid,
         );
         sub.index = self.shade(&sub);
-        let keep = inlier_bands(&sub, &s, len, (-u.1, u.0), cell);
-        // Shadow seen by the lines but none of it attached to the footprint in the corridor:
-        // nothing to refine against, and no height is better than an unchecked one.
+        let keep = inlier_bands(&sub, s, len, (-u.1, u.0), cell);
+        let ground_z = m.ground_z;
         let Some(r) = refine::refine(
             &sub,
             fp,
