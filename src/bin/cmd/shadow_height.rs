@@ -178,7 +178,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
 }
 
 /// `EAST,NORTH,Z` metres.
-fn parse_camera(text: &str) -> dbms::Result<sh::register::Camera> {
+fn parse_camera(text: &str) -> dbms::Result<sh::register::PerspectiveCentre> {
     const WHAT: &str = "the perspective centre as EAST,NORTH,Z in metres, e.g. 500100,5300100,1250";
     let [east, north, z] = super::triple("--camera", text, WHAT)?;
     if ![east, north, z].iter().all(|x| x.is_finite()) {
@@ -186,7 +186,7 @@ fn parse_camera(text: &str) -> dbms::Result<sh::register::Camera> {
             Error::msg(format!("--camera {text}: not finite numbers")).fix(format!("give {WHAT}"))
         );
     }
-    Ok(sh::register::Camera { east, north, z })
+    Ok(sh::register::PerspectiveCentre { east, north, z })
 }
 
 /// `dbms shadow-height`'s summary.

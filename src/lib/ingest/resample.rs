@@ -136,15 +136,15 @@ fn keys_cubic(x: f64) -> f64 {
 }
 
 /// Per-axis taps from `src` onto `dst` for one method.
-struct Plan {
+struct AxisTaps {
     cols: Vec<Taps>,
     rows: Vec<Taps>,
     /// Source cell containing each target centre, per axis; `None` for `average`, which has no home.
     homes: Option<(Vec<Option<u32>>, Vec<Option<u32>>)>,
 }
 
-impl Plan {
-    fn new(method: Resampling, src: &Grid, dst: &Grid) -> Plan {
+impl AxisTaps {
+    fn new(method: Resampling, src: &Grid, dst: &Grid) -> AxisTaps {
         let (st, dt) = (&src.transform, &dst.transform);
         let scale_x = (dt.cell_x / st.cell_x).abs();
         let scale_y = (dt.cell_y / st.cell_y).abs();
@@ -160,7 +160,7 @@ impl Plan {
                 axis_homes(dst.height, src.height, row_px),
             )
         });
-        Plan { cols, rows, homes }
+        AxisTaps { cols, rows, homes }
     }
 
     /// Is the source cell containing target cell `(c, r)`'s centre valid (methods with a home)?
@@ -251,7 +251,7 @@ fn accumulate<T, const N: usize>(
             }
         }
     }
-    let full = Plan::full_weight(xt, yt);
+    let full = AxisTaps::full_weight(xt, yt);
     if full == 0.0 || wsum.abs() < MIN_VALID_WEIGHT * full.abs() {
         return (None, all_valid);
     }
@@ -264,9 +264,9 @@ fn accumulate<T, const N: usize>(
 pub struct Resampler {
     source: Grid,
     target: Grid,
-    plan: Plan,
+    plan: AxisTaps,
     /// Cubic's bilinear fallback near nodata and edges.
-    fallback: Option<Plan>,
+    fallback: Option<AxisTaps>,
 }
 
 impl Resampler {
@@ -275,9 +275,9 @@ impl Resampler {
         Resampler {
             source: source.clone(),
             target: target.clone(),
-            plan: Plan::new(method, source, target),
+            plan: AxisTaps::new(method, source, target),
             fallback: (method == Resampling::Cubic)
-                .then(|| Plan::new(Resampling::Bilinear, source, target)),
+                .then(|| AxisTaps::new(Resampling::Bilinear, source, target)),
         }
     }
 

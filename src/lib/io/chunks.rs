@@ -1,10 +1,10 @@
 //! Parallel decoding of a TIFF image's strips or tiles ("chunks").
 //!
-//! Invariant: for every layout [`plan`] accepts, [`decode`] returns exactly the samples the
+//! Invariant: for every layout [`layout`] accepts, [`decode`] returns exactly the samples the
 //! `tiff` crate's serial `read_image_to_buffer` returns (same variant, same values, same plane
 //! order), except in sparse chunks and 1-bit samples (below); layouts it does not accept (other
 //! compressions, float16, other sub-byte samples, mixed sample formats) return `None` from
-//! [`plan`] and are left to the `tiff` crate. Each chunk's
+//! [`layout`] and are left to the `tiff` crate. Each chunk's
 //! compressed bytes are read by offset and byte count (positioned reads, no shared cursor),
 //! inflated (Deflate by libdeflate, adler-32 checked; LZW by `weezl`) and un-predicted on a
 //! rayon thread, then copied into the image.
@@ -12,9 +12,9 @@
 //! One-bit samples (one a pixel, unsigned, no predictor: a transparency mask as GDAL writes it)
 //! decode to one byte each, 0 or 1, as GDAL reads such a band; the `tiff` crate keeps them packed.
 //!
-//! Sparse files: a chunk of byte count 0 (GDAL's `SPARSE_OK=TRUE` writes offset 0 and byte
-//! count 0 for a block that is all nodata, or all zero without nodata) holds no data and reads
-//! as the fill value ([`Plan::with_fill`]): the file's nodata value, else 0, as GDAL reads it.
+//! Sparse files: a chunk of byte count 0 (GDAL's `SPARSE_OK=TRUE` writes offset 0 and byte count 0
+//! for a block that is all nodata, or all zero without nodata) holds no data and reads as the fill
+//! value ([`ChunkLayout::with_fill`]): the file's nodata value, else 0, as GDAL reads it.
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -29,7 +29,7 @@ use tiff::TiffResult;
 
 /// How the chunks of an image are stored, as far as [`decode`] needs it.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Plan {
+pub(crate) struct ChunkLayout {
     width: usize,
     height: usize,
     /// Samples per pixel.
@@ -65,7 +65,7 @@ enum Codec {
 
 /// The chunk plan of the decoder's current image, or `None` for a layout [`decode`] leaves to the
 /// `tiff` crate.
-pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Plan>> {
+pub(crate) fn layout<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<ChunkLayout>> {
     let (width, height) = dec.dimensions()?;
     let (width, height) = (width as usize, height as usize);
     let samples: usize = dec.find_tag_unsigned(Tag::SamplesPerPixel)?.unwrap_or(1);
@@ -130,7 +130,7 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
     if chunk_w == 0 || chunk_h == 0 {
         return Ok(None);
     }
-    Ok(Some(Plan {
+    Ok(Some(ChunkLayout {
         width,
         height,
         samples,
@@ -149,10 +149,10 @@ pub(crate) fn plan<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<Pl
     }))
 }
 
-impl Plan {
+impl ChunkLayout {
     /// This plan with sparse chunks (byte count 0) read as `nodata` (the file's declared value,
     /// in the sample's type as GDAL converts it), or as 0 when the file declares none.
-    pub(crate) fn with_fill(self, nodata: Option<f64>) -> Plan {
+    pub(crate) fn with_fill(self, nodata: Option<f64>) -> ChunkLayout {
         let v = nodata.unwrap_or(0.0);
         let fill = match (self.format, self.bytes) {
             (3, 4) => (v as f32).to_bits() as u64,
@@ -161,7 +161,7 @@ impl Plan {
             (2, _) => v as i64 as u64,
             _ => v as u64,
         };
-        Plan { fill, ..self }
+        ChunkLayout { fill, ..self }
     }
 
     /// Planes of chunks: one per sample if planar, else one.
@@ -211,7 +211,7 @@ impl Plan {
 pub(crate) fn decode(
     path: &Path,
     file: &File,
-    plan: &Plan,
+    plan: &ChunkLayout,
     rows: Range<usize>,
 ) -> Result<DecodingResult> {
     let chunks = plan.planes() * plan.across() * plan.down();
@@ -267,7 +267,7 @@ pub(crate) fn decode(
                 .map(f64::from_bits)
                 .collect(),
         ),
-        _ => unreachable!("plan() accepts only these sample types"),
+        _ => unreachable!("layout() accepts only these sample types"),
     })
 }
 
@@ -324,7 +324,7 @@ fn float_row<W: Word>(bytes: &[u8], spp: usize, out: &mut [W]) {
         2 => lanes::<W, 2>(bytes, out),
         3 => lanes::<W, 3>(bytes, out),
         4 => lanes::<W, 4>(bytes, out),
-        _ => unreachable!("plan() leaves more than {FLOAT_LANES} lanes to the tiff crate"),
+        _ => unreachable!("layout() leaves more than {FLOAT_LANES} lanes to the tiff crate"),
     }
 }
 
@@ -383,7 +383,12 @@ word!(u64);
 /// (and plane), the chunks of a row decoded in parallel too, so a single-strip image still
 /// spreads; each chunk's bytes are then turned into words straight in the output rows, rows in
 /// parallel.
-fn words<W: Word>(path: &Path, file: &File, plan: &Plan, rows: Range<usize>) -> Result<Vec<W>> {
+fn words<W: Word>(
+    path: &Path,
+    file: &File,
+    plan: &ChunkLayout,
+    rows: Range<usize>,
+) -> Result<Vec<W>> {
     let spp = plan.chunk_samples();
     let row_len = plan.width * spp;
     let mut out = vec![W::default(); rows.len() * row_len * plan.planes()];
@@ -456,7 +461,7 @@ fn inflate_zlib(stored: &[u8], limit: usize) -> std::result::Result<Vec<u8>, Str
 /// One stored row of a chunk (`chunk_w` pixels, inflated) as words into `out`, its first
 /// `out.len()` samples (fewer than the chunk's when the chunk overhangs the image's right edge;
 /// `scratch` holds the whole row then).
-fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Vec<W>) {
+fn chunk_row<W: Word>(plan: &ChunkLayout, bytes: &[u8], out: &mut [W], scratch: &mut Vec<W>) {
     let spp = plan.chunk_samples();
     if plan.packed {
         for (c, w) in out.iter_mut().enumerate() {
@@ -493,7 +498,7 @@ fn chunk_row<W: Word>(plan: &Plan, bytes: &[u8], out: &mut [W], scratch: &mut Ve
 fn chunk_bytes(
     path: &Path,
     file: &File,
-    plan: &Plan,
+    plan: &ChunkLayout,
     index: usize,
     rows: usize,
     word: usize,
@@ -553,7 +558,7 @@ mod tests {
     fn both(path: &Path) -> Option<(DecodingResult, DecodingResult)> {
         let file = File::open(path).unwrap();
         let mut dec = Decoder::new(std::io::BufReader::new(file.try_clone().unwrap())).unwrap();
-        let plan = plan(&mut dec).unwrap()?;
+        let plan = layout(&mut dec).unwrap()?;
         let parallel = decode(path, &file, &plan, 0..plan.height).unwrap();
         assert_windows_match(path, &file, &plan, &parallel);
         let mut serial = DecodingResult::U8(Vec::new());
@@ -563,7 +568,7 @@ mod tests {
 
     /// Windows of rows (chunk-aligned or not, one row, all but the edges) decode to the same
     /// samples as the matching rows of the whole image, plane by plane.
-    fn assert_windows_match(path: &Path, file: &File, plan: &Plan, whole: &DecodingResult) {
+    fn assert_windows_match(path: &Path, file: &File, plan: &ChunkLayout, whole: &DecodingResult) {
         let h = plan.height;
         let row_len = plan.width * plan.chunk_samples();
         let all = bits(whole);
@@ -678,7 +683,7 @@ mod tests {
             };
             // Sparse chunks (byte count 0): the tiff crate reads bytes at offset 0, the file's
             // header; we read GDAL's fill (tests/io_formats.rs checks those files' values).
-            if matches!(plan(&mut dec), Ok(Some(p)) if p.counts.contains(&0)) {
+            if matches!(layout(&mut dec), Ok(Some(p)) if p.counts.contains(&0)) {
                 continue;
             }
             let mut serial = DecodingResult::U8(Vec::new());

@@ -117,7 +117,7 @@ fn chunked_height(path: &Path) -> Option<usize> {
     let file = std::fs::File::open(path).ok()?;
     let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).ok()?;
     let height = dec.dimensions().ok()?.1 as usize;
-    super::chunks::plan(&mut dec).ok()?.map(|_| height)
+    super::chunks::layout(&mut dec).ok()?.map(|_| height)
 }
 
 #[cfg(test)]

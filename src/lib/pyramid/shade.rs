@@ -275,7 +275,7 @@ fn same(a: &Sun, b: &Sun) -> bool {
 /// The surfaces over a band of rows `first..first + n` (the rows shaded plus a one-row apron
 /// each side, clipped to the grid): heights of the new surface and of the surface the photo saw
 /// (metres, NaN = nodata), and each cell's class.
-struct Band {
+struct Surfaces {
     first: usize,
     width: usize,
     new: Vec<f32>,
@@ -284,7 +284,7 @@ struct Band {
     class: Vec<u8>,
 }
 
-impl Band {
+impl Surfaces {
     fn at(&self, col: usize, row: usize) -> usize {
         (row - self.first) * self.width + col
     }
@@ -370,7 +370,7 @@ impl Effects<'_> {
     }
 
     /// The surfaces over rows `row0 .. row0 + rows` and a one-row apron.
-    fn band(&self, row0: usize, rows: usize) -> Result<Band> {
+    fn band(&self, row0: usize, rows: usize) -> Result<Surfaces> {
         let g = self.terrain.grid();
         let (w, first) = (g.width, row0.saturating_sub(1));
         let end = (row0 + rows + 1).min(g.height);
@@ -389,7 +389,7 @@ impl Effects<'_> {
                 class[c.index - start] = value;
             }
         }
-        Ok(Band {
+        Ok(Surfaces {
             first,
             width: w,
             new: lay(self.all),
@@ -399,7 +399,7 @@ impl Effects<'_> {
     }
 
     /// `I_new / I_photo` of cell `(col, row)` over `surface`, a band holding its row.
-    fn factor(&self, surface: &Band, col: usize, row: usize) -> f64 {
+    fn factor(&self, surface: &Surfaces, col: usize, row: usize) -> f64 {
         let i = self.terrain.grid().index(col, row);
         let class = surface.class(col, row);
         let shadow_new = self.new_shadow.as_ref().is_some_and(|m| m.get(i));
@@ -454,7 +454,7 @@ impl Effects<'_> {
     /// usable neighbour of a cell of class `class`.
     fn neighbour(
         &self,
-        surface: &Band,
+        surface: &Surfaces,
         photo: bool,
         class: u8,
         col: isize,
@@ -475,7 +475,7 @@ impl Effects<'_> {
 
     /// Unit normal (east, north, up) of the new (or the photo's) surface by central differences
     /// within the cell's class.
-    fn normal(&self, surface: &Band, photo: bool, col: usize, row: usize) -> [f64; 3] {
+    fn normal(&self, surface: &Surfaces, photo: bool, col: usize, row: usize) -> [f64; 3] {
         let g = self.terrain.grid();
         let z = if photo {
             surface.photo_height(col, row)
@@ -501,7 +501,7 @@ impl Effects<'_> {
 
     /// Horizontal normals of the exposed vertical faces of a raised cell: toward each
     /// 4-neighbour of the new surface lower by at least one cell size (valid neighbours only).
-    fn faces(&self, surface: &Band, col: usize, row: usize) -> Vec<[f64; 3]> {
+    fn faces(&self, surface: &Surfaces, col: usize, row: usize) -> Vec<[f64; 3]> {
         let g = self.terrain.grid();
         let z = surface.new_height(col, row) as f64;
         let step = g.cell_size().0.min(g.cell_size().1);

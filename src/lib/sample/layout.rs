@@ -51,7 +51,7 @@ pub enum Shape {
 
 /// A planned building: footprint and height, before it meets the terrain.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Plan {
+pub struct PlannedBuilding {
     /// Exterior ring, local metres, counter-clockwise, not closed.
     pub ring: Vec<(f64, f64)>,
     /// Kind of footprint.
@@ -97,7 +97,7 @@ pub fn roads(extent: f64) -> Vec<Road> {
 /// Buildings for a scene `extent` metres wide: about one lot in ten (at least 4 when there are
 /// 4 lots, at most [`MAX_LOTS`]); the first chosen lot holds the L-shape and every fourth an
 /// adjacent pair.
-pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
+pub fn buildings(seed: u64, extent: f64) -> Vec<PlannedBuilding> {
     let (n, offset) = lot_grid(extent);
     let mut rng = Rng::new(seed);
     let mut lots: Vec<(usize, usize)> = (0..n).flat_map(|i| (0..n).map(move |j| (i, j))).collect();
@@ -126,7 +126,7 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
                 (x0 + w - wn, y0 + d),
                 (x0, y0 + d),
             ];
-            plans.push(Plan {
+            plans.push(PlannedBuilding {
                 ring,
                 shape: Shape::LShape,
                 height_m: height(&mut rng),
@@ -142,13 +142,13 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
             } else {
                 h1 + rng.stepped(3.0, 25.0 - h1, 0.5)
             };
-            plans.push(Plan {
+            plans.push(PlannedBuilding {
                 ring: rectangle(x0, y0, w1, d1),
                 shape: Shape::Adjacent,
                 height_m: h1,
                 roof: roof(&mut rng),
             });
-            plans.push(Plan {
+            plans.push(PlannedBuilding {
                 ring: rectangle(x0 + w1, y0, w2, d2),
                 shape: Shape::Adjacent,
                 height_m: h2,
@@ -160,7 +160,7 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<Plan> {
                 rng.stepped(0.0, room - w, SNAP),
                 rng.stepped(0.0, room - d, SNAP),
             );
-            plans.push(Plan {
+            plans.push(PlannedBuilding {
                 ring: rectangle(x0 + dx, y0 + dy, w, d),
                 shape: Shape::Rectangle,
                 height_m: height(&mut rng),

@@ -30,7 +30,7 @@ use crate::raster::{Colour, Elevation, Raster};
 use crate::shadow::{cast_shadows_slice, SHADOW};
 use crate::standing::{rasterise_prisms, Prism};
 use crate::sun::Sun;
-use layout::{Plan, Road, ROAD_HALF_WIDTH};
+use layout::{PlannedBuilding, Road, ROAD_HALF_WIDTH};
 use noise::{mix, octaves};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -391,7 +391,7 @@ fn render_ortho(
     crs: &Crs,
     sun: &Sun,
     ground: &(impl Fn(f64, f64) -> f64 + Sync),
-    plans: &[Plan],
+    plans: &[PlannedBuilding],
     buildings: &[Building],
 ) -> (Colour, f64) {
     let m = (extent / ORTHO_CELL_M).round() as usize;

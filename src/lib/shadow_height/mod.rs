@@ -237,7 +237,7 @@ pub struct Registration {
     pub leans: Vec<(f64, f64)>,
     /// The perspective centre the leans are toward, with whether it was estimated
     /// ([`register::estimate_camera`]) rather than given; `None` for an orthophoto.
-    pub camera: Option<(register::Camera, bool)>,
+    pub camera: Option<(register::PerspectiveCentre, bool)>,
 }
 
 impl Registration {
@@ -291,7 +291,7 @@ pub fn register_footprints(
     footprints: &[Footprint],
     sun: &Sun,
     max_shift_m: f64,
-    camera: Option<&register::Camera>,
+    camera: Option<&register::PerspectiveCentre>,
     band_cells: usize,
 ) -> Result<(Registration, Vec<Footprint>)> {
     let grid = colour.grid();
@@ -349,7 +349,7 @@ pub fn register_and_measure(
     sun: &Sun,
     opts: &Options,
     max_shift_m: f64,
-    camera: Option<&register::Camera>,
+    camera: Option<&register::PerspectiveCentre>,
 ) -> Result<(Registration, Vec<std::result::Result<Measurement, String>>)> {
     let grid = inputs.terrain.grid();
     let (cx, cy) = grid.cell_size();
@@ -502,7 +502,7 @@ pub fn measure(
             &needs,
             rows_in(opts.band_cells, grid.width),
             |rows, members| {
-                let band = Band::read(inputs, rows, footprints, &outlines, &terrain_shadow)?;
+                let band = BandLayers::read(inputs, rows, footprints, &outlines, &terrain_shadow)?;
                 let shaders = roofs.iter().any(Option::is_some).then(|| {
                     neighbour_shadows(&band.terrain, footprints, roofs, &shadows, sun, reach)
                 });
@@ -630,7 +630,7 @@ fn in_bands<T>(
 }
 
 /// The layers' rows of one band, and which footprint owns each of its cells.
-struct Band<'a> {
+struct BandLayers<'a> {
     terrain: RowBand<'a, f32>,
     colour: RowBand<'a, [u8; 4]>,
     mask: Option<RowBand<'a, u8>>,
@@ -646,7 +646,7 @@ struct Band<'a> {
     ground: RowBand<'a, u16>,
 }
 
-/// See [`Band::ground`]: a cell that is not open ground.
+/// See [`BandLayers::ground`]: a cell that is not open ground.
 const NOT_OPEN: u16 = u16::MAX;
 
 /// The shadow index a given mask's cell stands for: 0 where it says shadow (or nodata), 255
@@ -659,14 +659,14 @@ fn mask_index(mask: u8) -> u8 {
     }
 }
 
-impl<'a> Band<'a> {
+impl<'a> BandLayers<'a> {
     fn read(
         inputs: &Inputs<'a>,
         rows: Range<usize>,
         footprints: &[Footprint],
         outlines: &BoxIndex,
         terrain_shadow: &ShadowBits,
-    ) -> Result<Band<'a>> {
+    ) -> Result<BandLayers<'a>> {
         let terrain = RowBand::read(inputs.terrain, rows.clone())?;
         let colour = RowBand::read(inputs.colour, rows.clone())?;
         let mask = inputs
@@ -709,7 +709,7 @@ impl<'a> Band<'a> {
                 }
             })
             .collect();
-        Ok(Band {
+        Ok(BandLayers {
             owner: RowBand::new(grid, rows.clone(), owner),
             ground: RowBand::new(grid, rows, ground),
             terrain,
@@ -1074,7 +1074,7 @@ enum Threshold<'h> {
 struct PassInputs<'a> {
     grid: &'a Grid,
     /// The rows of the layers the footprints measured now read.
-    band: &'a Band<'a>,
+    band: &'a BandLayers<'a>,
     /// Second pass: whose shadow covers each cell of the band ([`neighbour_shadows`]).
     shaders: Option<&'a RowBand<'a, u32>>,
     /// See [`Inputs::leans`].
@@ -1368,7 +1368,7 @@ impl PassInputs<'_> {
         })
     }
 
-    /// The histogram of ground bins ([`Band::ground`]) over the open cells of window `win`:
+    /// The histogram of ground bins ([`BandLayers::ground`]) over the open cells of window `win`:
     /// usable ground under no footprint.
     fn open_histogram(&self, win: &crate::grid::Window) -> [u64; 256] {
         let w = self.grid.width;

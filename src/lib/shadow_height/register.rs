@@ -446,7 +446,7 @@ pub fn scene_shift(shifts: &[Option<Shift>]) -> Option<(f64, f64, usize)> {
 /// The perspective centre of a frame photo: world metres east and north, and its absolute
 /// height, metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Camera {
+pub struct PerspectiveCentre {
     /// Metres east.
     pub east: f64,
     /// Metres north.
@@ -468,7 +468,7 @@ pub struct Camera {
 pub fn with_camera(
     footprints: &[Footprint],
     shifts: &[Option<Shift>],
-    camera: &Camera,
+    camera: &PerspectiveCentre,
     cell: f64,
 ) -> (Option<(f64, f64, usize)>, Vec<(f64, f64)>) {
     let radial: Vec<(f64, f64)> = footprints
@@ -555,7 +555,7 @@ pub fn estimate_camera(
     heights: &[Option<f64>],
     ground_z: f64,
     cell: f64,
-) -> Option<Camera> {
+) -> Option<PerspectiveCentre> {
     let centre = |f: &Footprint| {
         let b = f.bbox();
         ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0)
@@ -639,7 +639,7 @@ pub fn estimate_camera(
             (a * h * px - h * m.0).hypot(a * h * py - h * m.1)
         })
         .fold(0.0, f64::max);
-    (unexplained <= 0.25 * scatter && largest_lean > cell).then(|| Camera {
+    (unexplained <= 0.25 * scatter && largest_lean > cell).then(|| PerspectiveCentre {
         east: origin.0 + m.0 / a,
         north: origin.1 + m.1 / a,
         z: ground_z + 1.0 / a,
@@ -874,7 +874,7 @@ mod tests {
     /// from `camera` with the whole scene misregistered by `g`: each one's shift is `g` plus
     /// its exact lean `h·(p − N)/(Z − h)` (the estimate models `h ≪ Z`), plus `noise(k)`.
     fn leaning(
-        camera: Camera,
+        camera: PerspectiveCentre,
         g: (f64, f64),
         noise: impl Fn(usize) -> (f64, f64),
     ) -> (Vec<Footprint>, Vec<Option<Shift>>, Vec<Option<f64>>) {
@@ -907,7 +907,7 @@ mod tests {
         // From 1500 m over ground at 100 m, nadir 300 m south-west of the buildings, the scene
         // 0.8 m off: leans of 1–4 m, all nearly one way — a shift alone cannot explain them,
         // their growth with height does.
-        let truth = Camera {
+        let truth = PerspectiveCentre {
             east: 780.0,
             north: 1790.0,
             z: 1600.0,
@@ -936,7 +936,7 @@ mod tests {
     #[test]
     fn an_orthophoto_has_no_perspective_centre() {
         // Every building off by the same shift and a little noise: nothing leans.
-        let far = Camera {
+        let far = PerspectiveCentre {
             east: 0.0,
             north: 0.0,
             z: 1e9,
@@ -945,7 +945,7 @@ mod tests {
         let (fps, shifts, heights) = leaning(far, (1.5, 0.7), jitter);
         assert_eq!(estimate_camera(&fps, &shifts, &heights, 100.0, 0.5), None);
         // Leans under a cell change no height: not worth a camera either (from 30 km up).
-        let high = Camera {
+        let high = PerspectiveCentre {
             east: 780.0,
             north: 1790.0,
             z: 30_000.0,
@@ -954,7 +954,7 @@ mod tests {
         assert_eq!(estimate_camera(&fps, &shifts, &heights, 100.0, 0.5), None);
         // Too few buildings with a height to tell.
         let (fps, shifts, mut heights) = leaning(
-            Camera {
+            PerspectiveCentre {
                 east: 780.0,
                 north: 1790.0,
                 z: 1600.0,

@@ -111,7 +111,7 @@ pub fn carve(grid: &VoxelGrid, views: &[View], opts: &CarveOptions) -> Result<Oc
     check(views)?;
     let out = AtomicOccupancy::new(grid);
     let all: Vec<usize> = (0..views.len()).collect();
-    let ctx = Ctx {
+    let ctx = Carver {
         grid,
         views,
         opts,
@@ -122,28 +122,28 @@ pub fn carve(grid: &VoxelGrid, views: &[View], opts: &CarveOptions) -> Result<Oc
 }
 
 #[derive(Clone, Copy, PartialEq)]
-enum Class {
+enum Verdict {
     Keep,
     Carve,
     Partial,
 }
 
-struct Ctx<'a> {
+struct Carver<'a> {
     grid: &'a VoxelGrid,
     views: &'a [View],
     opts: &'a CarveOptions,
     out: &'a AtomicOccupancy,
 }
 
-impl Ctx<'_> {
+impl Carver<'_> {
     /// Carve voxels `lo..hi` (per axis, exclusive) against the views in `active`.
     fn carve_box(&self, lo: [u32; 3], hi: [u32; 3], active: &[usize]) {
         let mut partial = Vec::with_capacity(active.len());
         for &vi in active {
             match self.classify(&self.views[vi], lo, hi) {
-                Class::Carve => return,
-                Class::Keep => {}
-                Class::Partial => partial.push(vi),
+                Verdict::Carve => return,
+                Verdict::Keep => {}
+                Verdict::Partial => partial.push(vi),
             }
         }
         if partial.is_empty() {
@@ -209,7 +209,7 @@ impl Ctx<'_> {
 
     /// What one view says about every voxel centre in `lo..hi`: conservative, so `Keep` and
     /// `Carve` hold for each voxel under the exact rule.
-    fn classify(&self, view: &View, lo: [u32; 3], hi: [u32; 3]) -> Class {
+    fn classify(&self, view: &View, lo: [u32; 3], hi: [u32; 3]) -> Verdict {
         // The voxel centres of the box span the box between its first and last centres; depth is
         // affine and perspective maps segments to segments, so the corners bound everything.
         let (a, b) = (
@@ -251,13 +251,13 @@ impl Ctx<'_> {
         if pinhole {
             if depth.1 <= NEAR - DEPTH_EPS {
                 return if self.opts.behind == Unseen::Keep {
-                    Class::Keep
+                    Verdict::Keep
                 } else {
-                    Class::Carve
+                    Verdict::Carve
                 };
             }
             if depth.0 <= NEAR + DEPTH_EPS {
-                return Class::Partial;
+                return Verdict::Partial;
             }
         }
         let pad = |x: f64| 1e-6 + 1e-9 * x.abs();
@@ -287,11 +287,11 @@ impl Ctx<'_> {
         };
         let outside_keeps = self.opts.outside == Unseen::Keep;
         if inside == area && (!leaves_image || outside_keeps) {
-            Class::Keep
+            Verdict::Keep
         } else if inside == 0 && (!leaves_image || !outside_keeps) {
-            Class::Carve
+            Verdict::Carve
         } else {
-            Class::Partial
+            Verdict::Partial
         }
     }
 }

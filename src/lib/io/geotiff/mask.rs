@@ -68,7 +68,7 @@ pub(super) fn read<R: Read + Seek>(
     {
         return Err(unsupported());
     }
-    let plan = chunks::plan(dec)
+    let plan = chunks::layout(dec)
         .map_err(err)?
         .ok_or_else(|| {
             Error::file(path, "corrupt internal mask: no strip or tile offsets")

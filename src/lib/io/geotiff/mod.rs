@@ -100,7 +100,7 @@ fn read_impl(path: &Path, window: Option<Range<usize>>) -> Result<SourceRaster> 
     let err = |e| corrupt(path, e);
     let (width, height) = dec.dimensions().map_err(err)?;
     let (width, height) = (width as usize, height as usize);
-    let layout = Layout::of(path, &mut dec)?;
+    let layout = PixelFormat::of(path, &mut dec)?;
     let tags = GeoTags::read(&mut dec).map_err(err)?;
     let rows = window.clone().unwrap_or(0..height);
     if rows.start > rows.end || rows.end > height {
@@ -152,7 +152,7 @@ fn read_impl(path: &Path, window: Option<Range<usize>>) -> Result<SourceRaster> 
 
 /// How an image's pixels are made, as far as reading them needs: checked to be something we
 /// read exactly (no WhiteIsZero, no palette, YCbCr only as JPEG, 8- to 64-bit samples).
-struct Layout {
+struct PixelFormat {
     /// Samples per pixel.
     bands: usize,
     /// The band ExtraSamples marks as alpha (associated or not).
@@ -161,8 +161,11 @@ struct Layout {
     ycbcr: bool,
 }
 
-impl Layout {
-    fn of<R: std::io::Read + std::io::Seek>(path: &Path, dec: &mut Decoder<R>) -> Result<Layout> {
+impl PixelFormat {
+    fn of<R: std::io::Read + std::io::Seek>(
+        path: &Path,
+        dec: &mut Decoder<R>,
+    ) -> Result<PixelFormat> {
         let err = |e| corrupt(path, e);
         let photometric: Option<u16> = dec
             .find_tag_unsigned(Tag::PhotometricInterpretation)
@@ -209,7 +212,7 @@ impl Layout {
                     || e == ExtraSamples::UnassociatedAlpha.to_u16()
             })
             .map(|i| bands - extra.len() + i);
-        Ok(Layout {
+        Ok(PixelFormat {
             bands,
             alpha_band,
             ycbcr,
@@ -224,14 +227,14 @@ fn decode_rows<R: std::io::Read + std::io::Seek>(
     path: &Path,
     dec: &mut Decoder<R>,
     file: &std::fs::File,
-    layout: &Layout,
+    layout: &PixelFormat,
     nodata: Option<f64>,
     rows: Range<usize>,
 ) -> Result<Samples> {
     let err = |e| corrupt(path, e);
     let (width, height) = dec.dimensions().map_err(err)?;
     let bands = layout.bands;
-    let (buf, planes, whole) = match super::chunks::plan(dec)
+    let (buf, planes, whole) = match super::chunks::layout(dec)
         .map_err(err)?
         .map(|p| p.with_fill(nodata))
     {
