@@ -16,12 +16,23 @@ use dbms::raster::Raster;
 use std::path::Path;
 use std::process::Command;
 
-fn have_gdalwarp() -> bool {
-    Command::new("gdalwarp")
+/// Whether GDAL's tools are on PATH to compare with; if not, says the test is skipped. Under
+/// CI (`CI` set), whose .ci/run installs gdal-bin, a missing gdalwarp is a broken setup, not a
+/// reason to skip: it fails.
+fn gdal_tools() -> bool {
+    let found = Command::new("gdalwarp")
         .arg("--version")
         .output()
         .map(|o| o.status.success())
-        .unwrap_or(false)
+        .unwrap_or(false);
+    if !found {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "gdalwarp not found under CI: .ci/run installs gdal-bin"
+        );
+        println!("skipped: GDAL's tools not found (install gdal-bin to run this comparison)");
+    }
+    found
 }
 
 /// Smooth but non-planar terrain with a nodata hole, at UTM coordinates.
@@ -198,13 +209,7 @@ fn agreement(dir: &Path, cell: f64) -> (f64, f64) {
 
 #[test]
 fn ingest_agrees_with_gdalwarp() {
-    if !have_gdalwarp() {
-        // CI installs gdal-bin: there a missing gdalwarp is a broken setup, not a reason to skip.
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "gdalwarp not found under CI: .ci/run installs gdal-bin"
-        );
-        println!("skipped: gdalwarp not found (install gdal-bin to run this comparison)");
+    if !gdal_tools() {
         return;
     }
     let t = tempfile::tempdir().unwrap();
@@ -228,12 +233,7 @@ fn ingest_agrees_with_gdalwarp() {
 /// sparse file whose fully masked blocks GDAL leaves out.
 #[test]
 fn internal_masks_read_as_gdal_reads_them() {
-    if !have_gdalwarp() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "gdal_translate not found under CI: .ci/run installs gdal-bin"
-        );
-        println!("skipped: gdal_translate not found (install gdal-bin to run this comparison)");
+    if !gdal_tools() {
         return;
     }
     let t = tempfile::tempdir().unwrap();
