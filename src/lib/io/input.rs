@@ -1,6 +1,6 @@
 //! Input rasters read band by band, so a stage can stream an input larger than memory.
 //!
-//! Invariant: [`RasterInput::rows`] returns exactly what [`read_raster`](super::read_raster)
+//! Invariant: [`RasterInput::rows`] returns exactly what [`super::read_raster`]
 //! would hold for those rows — same samples, same metadata, the rows' sub-grid — whether the
 //! file is decoded band by band or was read whole.
 
@@ -14,7 +14,7 @@ use std::path::Path;
 /// An input raster opened for reading by rows. A GeoTIFF whose strips or tiles decode one by
 /// one (uncompressed, LZW or Deflate) is decoded band by band on demand: memory is the band's.
 /// Anything else (ASCII grids, PNG/JPEG with a world file, other TIFF codecs, GDAL's formats) is
-/// read whole once, as [`read_raster`](super::read_raster) reads it.
+/// read whole once, as [`super::read_raster`] reads it.
 pub struct RasterInput {
     /// The whole raster, or for a streamed GeoTIFF its first row (whose metadata — path, bands,
     /// nodata, alpha band, format, PixelIsPoint — are the file's).
@@ -26,7 +26,7 @@ pub struct RasterInput {
 }
 
 impl RasterInput {
-    /// Open `path` (any format [`read_raster`](super::read_raster) reads), checking its header
+    /// Open `path` (any format [`super::read_raster`] reads), checking its header
     /// and georeference now.
     pub fn open(path: &Path) -> Result<RasterInput> {
         if kind_of(path)?.0 == Kind::Tiff {

@@ -3,7 +3,7 @@
 //! Invariant: level 0 is requested one page-row (`P` grid rows) at a time, top to bottom; each
 //! level keeps at most one page-row of its own rows pending. When a level's pending rows make a
 //! whole page-row (or its last, shorter one), its pages are emitted and the rows are reduced into
-//! the next level ([`reduce`](super::reduce::reduce)) and dropped. With `P` a multiple of the
+//! the next level ([`super::reduce::reduce`]) and dropped. With `P` a multiple of the
 //! factor `f`, a page-row of level `k` gives exactly `P / f` rows of level `k + 1`, so page-rows
 //! of every level fill without carry-over. Memory at any moment: one level-0 band
 //! (`P · W` cells), the pages being emitted from it, and at most `P · ceil(W / f^k)` pending

@@ -15,7 +15,7 @@
 //!   shading and shadows; nothing is computed for them), walls and objects are shaded and
 //!   objects' new shadows darken what they fall on;
 //! * a different sun → the photo's shadows are brightened by `1 / F` — on the ground those
-//!   detected in the photo itself ([`detected`]: shadows of things the database does not hold
+//!   detected in the photo itself (`detected`: shadows of things the database does not hold
 //!   are there too, and a cast from a height slightly off is not), on raised roofs those cast
 //!   over terrain + buildings for the photo's sun — the new ones darkened by `F`, slopes
 //!   re-shaded.

@@ -2,7 +2,7 @@
 //!
 //! # The rule (what both carvers compute, bit for bit)
 //! A voxel is kept when, for every view, its **centre** `c` passes:
-//! * `c` behind a pinhole camera (depth ≤ [`NEAR`](super::camera::NEAR)): the `behind` option decides;
+//! * `c` behind a pinhole camera (depth ≤ [`super::camera::NEAR`]): the `behind` option decides;
 //! * `c` projects outside the image: the `outside` option decides;
 //! * otherwise: kept iff pixel `(⌊u⌋, ⌊v⌋)` is in the silhouette.
 //!

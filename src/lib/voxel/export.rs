@@ -89,7 +89,7 @@ pub fn check_exports(obj: &VoxelObject, planned: &[PlannedExport]) -> Result<()>
     Ok(())
 }
 
-/// Write `obj` to `object_path` (`.dvox`, [`format`], with `source`) and as each export of
+/// Write `obj` to `object_path` (`.dvox`, [`format`](mod@super::format), with `source`) and as each export of
 /// `planned`, all or none: every file is written and synced under a temporary name first, then
 /// all are renamed into place, the object last — it is what `make` waits for. A run that fails
 /// leaves no output and replaces none.

@@ -3,7 +3,7 @@
 //! GeoJSON footprints (the heights the shadow stage measures).
 //!
 //! # Invariants
-//! * A voxel is solid when its **centre** is inside the solid (same rule as [`super::solids`]).
+//! * A voxel is solid when its **centre** is inside the solid (same rule as [`crate::testing::solids`]).
 //! * Revolved objects and trees are built in their local frame with the anchor (centre of the
 //!   grid's bottom face) at `(0, 0, 0)` and an odd number of voxels across, so the axis runs
 //!   through a column of voxel centres and a trunk thinner than a voxel still shows as one column.
@@ -383,7 +383,7 @@ fn band_lists(prisms: &[Prism<'_>], grid: &VoxelGrid) -> Vec<Vec<u32>> {
 /// voxel of each column) take `roof`, the rest `wall`. Where footprints overlap the tallest wins.
 ///
 /// Cost grows with the footprints' area and the solid voxels, not with the grid: each footprint
-/// is tested only on the columns inside its bounding box (bands of [`BAND_ROWS`] rows, in
+/// is tested only on the columns inside its bounding box (bands of `BAND_ROWS` rows, in
 /// parallel), and empty columns are never visited voxel by voxel. The grid spans all footprints,
 /// so its size limits ([`super::grid::MAX_VOXELS`]) bound one object to a district at a fine
 /// voxel (10 km × 10 km × 42 m at 1 m).

@@ -2,7 +2,7 @@
 //!
 //! This module reads the pixels; `geokeys` turns the georeferencing tags into a [`Crs`] and a
 //! grid (and writes them), `mask` reads an internal mask on the shared chunk walk
-//! ([`super::chunks`]), `write` holds the writers.
+//! (`io::chunks`), `write` holds the writers.
 //!
 //! # Invariant
 //! [`read`] returns the corner-convention grid GDAL reports for the same file: ModelTiepoint +
@@ -70,7 +70,7 @@ pub(super) fn corrupt(path: &Path, e: TiffError) -> Error {
 /// float16/32/64; stripped or tiled; chunky or planar; any compression and predictor the `tiff`
 /// crate decodes (none, LZW, Deflate, PackBits, JPEG; predictors 2 and 3). Uncompressed, LZW and
 /// Deflate images of 8- to 64-bit samples decode their strips or tiles in parallel
-/// ([`super::chunks`]); the rest go through the `tiff` crate on one thread.
+/// (`io::chunks`); the rest go through the `tiff` crate on one thread.
 pub fn read(path: &Path) -> Result<SourceRaster> {
     read_impl(path, None)
 }

@@ -125,7 +125,7 @@ impl GeoTiffWriter<[u8; 4]> {
     /// internal mask, as GDAL writes one with `GDAL_TIFF_INTERNAL_MASK=YES` — a second IFD after
     /// the image's (NewSubfileType 4, PhotometricInterpretation 4 = transparency mask, 1 bit a
     /// cell, same size and 256 × 256 tiles, Deflate), bit 1 where alpha ≠ 0. GDAL reports it as
-    /// "Mask Flags: PER_DATASET" (masked cells are nodata to every GDAL tool) and [`read`] returns
+    /// "Mask Flags: PER_DATASET" (masked cells are nodata to every GDAL tool) and [`super::read`] returns
     /// it as a 4th (alpha) band, so no colour value has to be given up as nodata.
     pub fn create_rgb8_masked(path: &Path, grid: &Grid) -> Result<Self> {
         Self::create(path, grid, Spec::rgb8_masked())
