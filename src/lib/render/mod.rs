@@ -634,34 +634,7 @@ pub fn render_top(
     let start = Instant::now();
     let before = reader.stats();
     let scene = Scene::of(reader)?;
-    // The window in level-0 cells: left column `u0`, top row `v0`, cells per pixel `sx`, `sy`.
-    let (u0, v0, sx, sy) = match window {
-        None => (
-            0.0,
-            0.0,
-            scene.width as f64 / width as f64,
-            scene.height as f64 / height as f64,
-        ),
-        Some(w) => {
-            let shown = format!("{},{},{},{}", w.min_x, w.min_y, w.max_x, w.max_y);
-            let w = w.check("--window", &shown)?;
-            if w.intersection(&reader.info().grid.bounds()).is_none() {
-                return Err(Error::msg(format!(
-                    "--window {shown}: the window does not overlap the database"
-                ))
-                .fix("give it in the tile set's CRS (see `dbms tiles` for the extent)"));
-            }
-            let (a, b) = (scene.local(w.min_x, w.max_y), scene.local(w.max_x, w.min_y));
-            let (umin, umax) = (a.0.min(b.0), a.0.max(b.0));
-            let (vmin, vmax) = (a.1.min(b.1), a.1.max(b.1));
-            (
-                umin,
-                vmin,
-                (umax - umin) / width as f64,
-                (vmax - vmin) / height as f64,
-            )
-        }
-    };
+    let (u0, v0, sx, sy) = top_window(&scene, reader, window, width, height)?;
     let level = match lod {
         true => scene
             .scales
@@ -707,6 +680,43 @@ pub fn render_top(
         reader,
         before,
         start,
+    ))
+}
+
+/// `window` (`None`: the whole database) in level-0 cells for a `width × height` map: left
+/// column `u0`, top row `v0`, and cells per pixel `sx`, `sy`. A window that is malformed or
+/// misses the database is an error.
+fn top_window(
+    scene: &Scene,
+    reader: &TileReader,
+    window: Option<Bounds>,
+    width: usize,
+    height: usize,
+) -> Result<(f64, f64, f64, f64)> {
+    let Some(w) = window else {
+        return Ok((
+            0.0,
+            0.0,
+            scene.width as f64 / width as f64,
+            scene.height as f64 / height as f64,
+        ));
+    };
+    let shown = format!("{},{},{},{}", w.min_x, w.min_y, w.max_x, w.max_y);
+    let w = w.check("--window", &shown)?;
+    if w.intersection(&reader.info().grid.bounds()).is_none() {
+        return Err(Error::msg(format!(
+            "--window {shown}: the window does not overlap the database"
+        ))
+        .fix("give it in the tile set's CRS (see `dbms tiles` for the extent)"));
+    }
+    let (a, b) = (scene.local(w.min_x, w.max_y), scene.local(w.max_x, w.min_y));
+    let (umin, umax) = (a.0.min(b.0), a.0.max(b.0));
+    let (vmin, vmax) = (a.1.min(b.1), a.1.max(b.1));
+    Ok((
+        umin,
+        vmin,
+        (umax - umin) / width as f64,
+        (vmax - vmin) / height as f64,
     ))
 }
 
