@@ -103,17 +103,10 @@ fn parse_profile(s: &str) -> dbms::Result<Vec<[f64; 2]>> {
         .collect()
 }
 
-pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
-    // Before any work: no output may be a special file, a database's, or an input.
-    let (out, inputs): (&Out, Vec<&Path>) = match &args.kind {
-        Kind::Revolve { out, .. } | Kind::Cone { out, .. } => (out, vec![]),
-        Kind::Extrude {
-            out, footprints, ..
-        } => (out, vec![footprints]),
-    };
-    let planned = plan_exports(&out.output, &out.export, &inputs)?;
-    // The object, its options, its source line, and what the summary adds for its kind.
-    let (obj, out, source, extra): (VoxelObject, Out, String, Extra) = match args.kind {
+/// The object `kind` asks for, with its options, the source line its file records, and what
+/// the summary adds for its kind.
+fn make(kind: Kind) -> dbms::Result<(VoxelObject, Out, String, Extra)> {
+    Ok(match kind {
         Kind::Revolve {
             profile,
             colour,
@@ -185,7 +178,19 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
                 },
             )
         }
+    })
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    // Before any work: no output may be a special file, a database's, or an input.
+    let (out, inputs): (&Out, Vec<&Path>) = match &args.kind {
+        Kind::Revolve { out, .. } | Kind::Cone { out, .. } => (out, vec![]),
+        Kind::Extrude {
+            out, footprints, ..
+        } => (out, vec![footprints]),
     };
+    let planned = plan_exports(&out.output, &out.export, &inputs)?;
+    let (obj, out, source, extra) = make(args.kind)?;
     check_exports(&obj, &planned)?;
     write_with_exports(&out.output, &obj, &source, &planned)?;
     ctx.report(&Made {
