@@ -1006,6 +1006,7 @@ impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
         pass: &'p PassInputs<'a>,
         id: u32,
         fp: &'p Footprint,
+        u: (f64, f64),
         full: crate::grid::Window,
         source: Threshold<'h>,
     ) -> Self {
@@ -1015,7 +1016,7 @@ impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
             pass,
             id,
             fp,
-            u: pass.away_from_sun(),
+            u,
             lean,
             full,
             source,
@@ -1112,7 +1113,8 @@ impl PassInputs<'_> {
     ) -> std::result::Result<Measurement, String> {
         let ground_z = self.ground_under(cells)?;
         // The threshold depends only on the window's cells: the second pass has the first's.
-        let full = local::window_for(self.grid, fp.bbox(), self.away_from_sun(), self.reach, 3);
+        let u = self.away_from_sun();
+        let full = local::window_for(self.grid, fp.bbox(), u, self.reach, 3);
         let open;
         let source = match self.thresholds {
             Some(known) => Threshold::Known(known[id as usize - 1]),
@@ -1121,7 +1123,7 @@ impl PassInputs<'_> {
                 Threshold::Open(&open)
             }
         };
-        let mut sought = Sought::new(self, id, fp, full, source);
+        let mut sought = Sought::new(self, id, fp, u, full, source);
         let (mut local, threshold) = sought.classified(sought.classified_len);
         let e = self.sun.elevation_deg;
         let mut m = Measurement {
