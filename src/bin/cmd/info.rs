@@ -20,7 +20,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     if args.verify {
         db.verify()?;
     }
-    ctx.report(&Described {
+    ctx.report(&DatabaseInfo {
         manifest: &db.manifest,
         verified: args.verify,
         dir: &args.db,
@@ -31,7 +31,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
 
 /// `dbms info`'s summary: the manifest (JSON: as stored, plus `verified` after `--verify`).
 #[derive(serde::Serialize)]
-struct Described<'a> {
+struct DatabaseInfo<'a> {
     #[serde(flatten)]
     manifest: &'a Manifest,
     #[serde(skip_serializing_if = "std::ops::Not::not")]
@@ -42,7 +42,7 @@ struct Described<'a> {
     stages: Vec<&'a str>,
 }
 
-impl std::fmt::Display for Described<'_> {
+impl std::fmt::Display for DatabaseInfo<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let m = self.manifest;
         let g = &m.grid;

@@ -81,7 +81,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .filter(|e| e.flags & FLAG_BRICKS != 0)
         .count();
 
-    ctx.report(&Described {
+    ctx.report(&TileFileInfo {
         path: args.tiles.clone(),
         format_version: reader.version(),
         file_bytes: reader.file_len(),
@@ -106,7 +106,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
 
 /// `dbms tiles`' summary: the header and the index's totals, optionally the index.
 #[derive(Serialize)]
-struct Described<'a> {
+struct TileFileInfo<'a> {
     path: PathBuf,
     format_version: u32,
     file_bytes: u64,
@@ -121,7 +121,7 @@ struct Described<'a> {
     index: Option<Vec<Listed>>,
 }
 
-impl std::fmt::Display for Described<'_> {
+impl std::fmt::Display for TileFileInfo<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let info = self.header;
         let g = &info.grid;
