@@ -253,78 +253,61 @@ fn internal_masks_read_as_gdal_reads_them() {
         .collect();
     let rgba = t.path().join("rgba.tif");
     geotiff::write_rgba8(&rgba, &Raster::new(g.clone(), data)).unwrap();
-    let layouts: [&[&str]; 5] = [
-        &[
-            "-co",
-            "TILED=YES",
-            "-co",
-            "BLOCKXSIZE=32",
-            "-co",
-            "BLOCKYSIZE=16",
-            "-co",
-            "COMPRESS=DEFLATE",
-        ],
-        &["-co", "BLOCKYSIZE=7", "-co", "COMPRESS=LZW"],
-        &["-co", "BLOCKYSIZE=5"],
-        &[
-            "-co",
-            "TILED=YES",
-            "-co",
-            "BLOCKXSIZE=32",
-            "-co",
-            "BLOCKYSIZE=16",
-            "-co",
-            "SPARSE_OK=TRUE",
-        ],
-        &[
-            "-co",
-            "TILED=YES",
-            "-co",
-            "BLOCKXSIZE=32",
-            "-co",
-            "BLOCKYSIZE=16",
-        ],
+    // Creation options by name; "tiled" and "sparse" differ only in SPARSE_OK.
+    let tiled = [
+        "-co",
+        "TILED=YES",
+        "-co",
+        "BLOCKXSIZE=32",
+        "-co",
+        "BLOCKYSIZE=16",
     ];
-    for (k, options) in layouts.iter().enumerate() {
-        let masked = t.path().join(format!("masked{k}.tif"));
-        let gdal_mask = t.path().join(format!("mask{k}.tif"));
+    let with = |extra: &[&'static str]| [&tiled[..], extra].concat();
+    let layouts: [(&str, Vec<&str>); 5] = [
+        ("deflate", with(&["-co", "COMPRESS=DEFLATE"])),
+        (
+            "lzw-strips",
+            vec!["-co", "BLOCKYSIZE=7", "-co", "COMPRESS=LZW"],
+        ),
+        ("strips", vec!["-co", "BLOCKYSIZE=5"]),
+        ("sparse", with(&["-co", "SPARSE_OK=TRUE"])),
+        ("tiled", tiled.to_vec()),
+    ];
+    let masked = |name: &str| t.path().join(format!("masked-{name}.tif"));
+    for (name, options) in &layouts {
+        let file = masked(name);
+        let gdal_mask = t.path().join(format!("mask-{name}.tif"));
         run(Command::new("gdal_translate")
             .args(["-q", "-b", "1", "-b", "2", "-b", "3", "-mask", "4"])
             .args(["--config", "GDAL_TIFF_INTERNAL_MASK", "YES"])
-            .args(*options)
+            .args(options)
             .arg(&rgba)
-            .arg(&masked));
+            .arg(&file));
         run(Command::new("gdal_translate")
             .args(["-q", "-b", "mask"])
-            .arg(&masked)
+            .arg(&file)
             .arg(&gdal_mask));
         let theirs = match read_raster(&gdal_mask).unwrap().samples {
             dbms::io::Samples::U8(v) => v,
-            other => panic!("{options:?}: GDAL's mask is {other:?}"),
+            other => panic!("{name}: GDAL's mask is {other:?}"),
         };
         let alpha = |rows: std::ops::Range<usize>| -> Vec<u8> {
-            let s = geotiff::read_rows(&masked, rows.clone()).unwrap();
-            assert_eq!((s.bands, s.alpha_band), (4, Some(3)), "{options:?}");
+            let s = geotiff::read_rows(&file, rows.clone()).unwrap();
+            assert_eq!((s.bands, s.alpha_band), (4, Some(3)), "{name}");
             match s.samples {
                 dbms::io::Samples::U8(v) => v.chunks(4).map(|px| px[3]).collect(),
-                other => panic!("{options:?}: {other:?}"),
+                other => panic!("{name}: {other:?}"),
             }
         };
         for rows in [0..41, 13..30, 15..17, 40..41] {
             let want = &theirs[rows.start * 75..rows.end * 75];
-            assert!(alpha(rows.clone()) == want, "{options:?}: rows {rows:?}");
-        }
-        if k == 4 {
-            // The same layout without SPARSE_OK stores the black block and its mask.
-            let size = |k| {
-                std::fs::metadata(t.path().join(format!("masked{k}.tif")))
-                    .unwrap()
-                    .len()
-            };
-            assert!(
-                size(3) + 32 * 16 * 3 <= size(4),
-                "SPARSE_OK left no block out"
-            );
+            assert!(alpha(rows.clone()) == want, "{name}: rows {rows:?}");
         }
     }
+    // The tiled layout without SPARSE_OK stores the black block and its mask.
+    let size = |name| std::fs::metadata(masked(name)).unwrap().len();
+    assert!(
+        size("sparse") + 32 * 16 * 3 <= size("tiled"),
+        "SPARSE_OK left no block out"
+    );
 }
