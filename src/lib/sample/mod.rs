@@ -149,51 +149,13 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
         sample_grid(&dem_grid, |x, y| ground(x, y) as f32),
     );
     let max_slope_percent = max_slope(&dem) * 100.0;
-    for i in 0..NODATA_CORNER {
-        for j in 0..NODATA_CORNER - i {
-            *dem.get_mut(n - 1 - i, n - 1 - j) = f32::NAN;
-        }
-    }
+    cut_nodata_corner(&mut dem);
 
     let plans = layout::buildings(mix(options.seed ^ 0xb1d), extent);
-    let prisms: Vec<Prism> = plans
-        .iter()
-        .map(|p| Prism {
-            rings: vec![world_ring(&p.ring)],
-            roof_z: 0.0,
-        })
-        .collect();
     let buildings: Vec<Building> = plans
         .iter()
-        .zip(&prisms)
         .enumerate()
-        .map(|(i, (plan, prism))| {
-            let under: Vec<f64> = rasterise_prisms(&dem_grid, std::slice::from_ref(prism))
-                .iter()
-                .map(|c| {
-                    let (col, row) = (c.index % n, c.index / n);
-                    let (x, y) = dem_grid.cell_centre(col, row);
-                    ground(x - MIN_X, y - MIN_Y)
-                })
-                .collect();
-            let (lo, hi) = under
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| {
-                    (a.min(z), b.max(z))
-                });
-            let mut footprint: Vec<[f64; 2]> =
-                prism.rings[0].iter().map(|&(x, y)| [x, y]).collect();
-            footprint.push(footprint[0]);
-            Building {
-                id: i as u32 + 1,
-                shape: plan.shape,
-                footprint,
-                height_m: plan.height_m,
-                roof_z: hi + plan.height_m,
-                ground_min_z: lo,
-                ground_max_z: hi,
-            }
-        })
+        .map(|(i, plan)| building(i as u32 + 1, plan, &dem_grid, &ground))
         .collect();
 
     let (ortho, shadow_fraction) = render_ortho(
@@ -216,6 +178,57 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
         max_slope_percent,
         shadow_fraction,
     })
+}
+
+/// Blank the DEM's south-east corner (a triangle [`NODATA_CORNER`] cells on a side) to nodata,
+/// so every run exercises nodata handling.
+fn cut_nodata_corner(dem: &mut Elevation) {
+    let n = dem.grid.width;
+    for i in 0..NODATA_CORNER {
+        for j in 0..NODATA_CORNER - i {
+            *dem.get_mut(n - 1 - i, n - 1 - j) = f32::NAN;
+        }
+    }
+}
+
+/// The building `id` stands on `plan`'s footprint: its ground is the lowest and highest
+/// terrain (metres) under the DEM cells the footprint covers, and its flat roof stands
+/// `plan.height_m` above the highest.
+fn building(
+    id: u32,
+    plan: &PlannedBuilding,
+    dem_grid: &Grid,
+    ground: &impl Fn(f64, f64) -> f64,
+) -> Building {
+    let prism = Prism {
+        rings: vec![world_ring(&plan.ring)],
+        roof_z: 0.0,
+    };
+    let n = dem_grid.width;
+    let under: Vec<f64> = rasterise_prisms(dem_grid, std::slice::from_ref(&prism))
+        .iter()
+        .map(|c| {
+            let (col, row) = (c.index % n, c.index / n);
+            let (x, y) = dem_grid.cell_centre(col, row);
+            ground(x - MIN_X, y - MIN_Y)
+        })
+        .collect();
+    let (lo, hi) = under
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| {
+            (a.min(z), b.max(z))
+        });
+    let mut footprint: Vec<[f64; 2]> = prism.rings[0].iter().map(|&(x, y)| [x, y]).collect();
+    footprint.push(footprint[0]);
+    Building {
+        id,
+        shape: plan.shape,
+        footprint,
+        height_m: plan.height_m,
+        roof_z: hi + plan.height_m,
+        ground_min_z: lo,
+        ground_max_z: hi,
+    }
 }
 
 /// File names inside a sample directory.
