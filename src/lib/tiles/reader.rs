@@ -54,80 +54,10 @@ impl TileReader {
     /// index entry's bounds; a failure is one line naming the file and what is wrong.
     pub fn open(path: &Path, cache_pages: usize) -> Result<TileReader> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
-        let actual_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
-        let bad = |problem: String| Error::file(path, problem).fix(REBUILD);
-
-        let mut head = vec![0u8; PREAMBLE_LEN.min(actual_len as usize)];
-        file.read_exact_at(&mut head, 0)
-            .map_err(|e| Error::io(path, e))?;
-        let pre = Preamble::decode(&head)
-            .map_err(|(problem, fix)| Error::file(path, problem).fix(fix))?;
-        if actual_len < pre.file_len {
-            return Err(Error::file(
-                path,
-                format!("file is truncated ({actual_len} of {} bytes)", pre.file_len),
-            )
-            .fix("rebuild it with dbms pyramid"));
-        }
-        if actual_len > pre.file_len {
-            return Err(bad(format!(
-                "file has {} bytes after its end",
-                actual_len - pre.file_len
-            )));
-        }
-        let index_len = pre.page_count.checked_mul(ENTRY_LEN as u64);
-        let index_end = index_len.and_then(|n| n.checked_add(pre.index_offset));
-        let header_end = pre.header_offset.checked_add(pre.header_len);
-        match (header_end, index_end) {
-            (Some(h), Some(i))
-                if pre.header_offset >= PREAMBLE_LEN as u64
-                    && pre.header_len <= MAX_HEADER_LEN
-                    && h <= pre.index_offset
-                    && i <= pre.file_len => {}
-            _ => {
-                return Err(bad(
-                    "preamble's header or index lies outside the file".into()
-                ))
-            }
-        }
-        let index_end = index_end.expect("checked");
-
-        let mut header = vec![0u8; pre.header_len as usize];
-        file.read_exact_at(&mut header, pre.header_offset)
-            .map_err(|e| Error::io(path, e))?;
-        if crc32fast::hash(&header) != pre.header_crc {
-            return Err(bad("header checksum mismatch".into()));
-        }
-        let info: TileSetInfo = serde_json::from_slice(&header)
-            .map_err(|e| bad(format!("header is not a valid tile set description ({e})")))?;
-        info.validate().map_err(|e| e.in_file(path).fix(REBUILD))?;
-        if pre.page_count != info.page_count() as u64 {
-            return Err(bad(format!(
-                "index has {} pages, the header's levels have {}",
-                pre.page_count,
-                info.page_count()
-            )));
-        }
-
-        let mut raw_index = vec![0u8; (index_end - pre.index_offset) as usize];
-        file.read_exact_at(&mut raw_index, pre.index_offset)
-            .map_err(|e| Error::io(path, e))?;
-        if crc32fast::hash(&raw_index) != pre.index_crc {
-            return Err(bad("index checksum mismatch".into()));
-        }
-        let index: Vec<IndexEntry> = raw_index
-            .chunks_exact(ENTRY_LEN)
-            .map(|b| IndexEntry::decode(b.try_into().expect("24 bytes")))
-            .collect();
+        let pre = read_preamble(&file, path)?;
+        let info = read_header(&file, path, &pre)?;
         let layout = Layout::of(&info);
-        for (pos, e) in index.iter().enumerate() {
-            if let Some(problem) =
-                entry_problem(e, &layout, info.alignment, index_end, pre.file_len)
-            {
-                let (level, tx, ty) = info.page_at(pos).expect("index matches the levels");
-                return Err(bad(format!("page (level {level}, {tx}, {ty}) {problem}")));
-            }
-        }
+        let index = read_index(&file, path, &pre, &info, &layout)?;
         Ok(TileReader {
             path: path.to_path_buf(),
             file,
@@ -267,6 +197,122 @@ impl TileReader {
         page::decode(&self.layout, &stored, e.raw_len, e.flags)
             .map_err(|problem| Error::file(&self.path, format!("{name} {problem}")).fix(REBUILD))
     }
+}
+
+/// The error for a tile file `path` that is damaged in the way `problem` says.
+fn corrupt(path: &Path, problem: String) -> Error {
+    Error::file(path, problem).fix(REBUILD)
+}
+
+/// The preamble of the tile file `file` (at `path`), checked against the file's length: the
+/// file is neither truncated nor extended, and the header and index it points to lie inside
+/// the file, in that order, after the preamble.
+fn read_preamble(file: &File, path: &Path) -> Result<Preamble> {
+    let actual_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut head = vec![0u8; PREAMBLE_LEN.min(actual_len as usize)];
+    file.read_exact_at(&mut head, 0)
+        .map_err(|e| Error::io(path, e))?;
+    let pre =
+        Preamble::decode(&head).map_err(|(problem, fix)| Error::file(path, problem).fix(fix))?;
+    if actual_len < pre.file_len {
+        return Err(Error::file(
+            path,
+            format!("file is truncated ({actual_len} of {} bytes)", pre.file_len),
+        )
+        .fix("rebuild it with dbms pyramid"));
+    }
+    if actual_len > pre.file_len {
+        return Err(corrupt(
+            path,
+            format!("file has {} bytes after its end", actual_len - pre.file_len),
+        ));
+    }
+    match (header_end(&pre), index_end(&pre)) {
+        (Some(h), Some(i))
+            if pre.header_offset >= PREAMBLE_LEN as u64
+                && pre.header_len <= MAX_HEADER_LEN
+                && h <= pre.index_offset
+                && i <= pre.file_len =>
+        {
+            Ok(pre)
+        }
+        _ => Err(corrupt(
+            path,
+            "preamble's header or index lies outside the file".into(),
+        )),
+    }
+}
+
+/// The byte offset just past the header, `None` if it overflows.
+fn header_end(pre: &Preamble) -> Option<u64> {
+    pre.header_offset.checked_add(pre.header_len)
+}
+
+/// The byte offset just past the index, `None` if it overflows.
+fn index_end(pre: &Preamble) -> Option<u64> {
+    let index_len = pre.page_count.checked_mul(ENTRY_LEN as u64);
+    index_len.and_then(|n| n.checked_add(pre.index_offset))
+}
+
+/// The JSON header the checked preamble `pre` points to: its checksum matches, it describes a
+/// valid tile set, and its levels have as many pages as the index.
+fn read_header(file: &File, path: &Path, pre: &Preamble) -> Result<TileSetInfo> {
+    let mut header = vec![0u8; pre.header_len as usize];
+    file.read_exact_at(&mut header, pre.header_offset)
+        .map_err(|e| Error::io(path, e))?;
+    if crc32fast::hash(&header) != pre.header_crc {
+        return Err(corrupt(path, "header checksum mismatch".into()));
+    }
+    let info: TileSetInfo = serde_json::from_slice(&header).map_err(|e| {
+        corrupt(
+            path,
+            format!("header is not a valid tile set description ({e})"),
+        )
+    })?;
+    info.validate().map_err(|e| e.in_file(path).fix(REBUILD))?;
+    if pre.page_count != info.page_count() as u64 {
+        return Err(corrupt(
+            path,
+            format!(
+                "index has {} pages, the header's levels have {}",
+                pre.page_count,
+                info.page_count()
+            ),
+        ));
+    }
+    Ok(info)
+}
+
+/// The page index the checked preamble `pre` points to: its checksum matches and every entry
+/// lies inside the file with plausible lengths for `layout`.
+fn read_index(
+    file: &File,
+    path: &Path,
+    pre: &Preamble,
+    info: &TileSetInfo,
+    layout: &Layout,
+) -> Result<Vec<IndexEntry>> {
+    let index_end = index_end(pre).expect("read_preamble checked it");
+    let mut raw_index = vec![0u8; (index_end - pre.index_offset) as usize];
+    file.read_exact_at(&mut raw_index, pre.index_offset)
+        .map_err(|e| Error::io(path, e))?;
+    if crc32fast::hash(&raw_index) != pre.index_crc {
+        return Err(corrupt(path, "index checksum mismatch".into()));
+    }
+    let index: Vec<IndexEntry> = raw_index
+        .chunks_exact(ENTRY_LEN)
+        .map(|b| IndexEntry::decode(b.try_into().expect("24 bytes")))
+        .collect();
+    for (pos, e) in index.iter().enumerate() {
+        if let Some(problem) = entry_problem(e, layout, info.alignment, index_end, pre.file_len) {
+            let (level, tx, ty) = info.page_at(pos).expect("index matches the levels");
+            return Err(corrupt(
+                path,
+                format!("page (level {level}, {tx}, {ty}) {problem}"),
+            ));
+        }
+    }
+    Ok(index)
 }
 
 /// What is wrong with an index entry, if anything.
