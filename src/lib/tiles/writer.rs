@@ -333,90 +333,125 @@ impl TileWriter {
             Error::io(&self.path, e).fix("check the free space in the output's directory")
         })?;
         let slots = self.slots.into_inner().unwrap_or_else(|p| p.into_inner());
-        let missing = slots.pages.iter().filter(|p| p.is_none()).count();
-        if let Some(first) = slots.pages.iter().position(Option::is_none) {
-            let (level, tx, ty) = self.info.page_at(first).expect("position within the index");
-            return Err(Error::file(
-                &self.path,
-                format!("{missing} page(s) were never written, the first is (level {level}, {tx}, {ty})"),
-            )
-            .fix("write every page of every level before finishing"));
-        }
-        let pages: Vec<Stored> = slots
-            .pages
-            .into_iter()
-            .map(|p| p.expect("checked above"))
-            .collect();
-
-        let header = &self.header;
-        let (index_offset, index_end) = index_span(header.len(), pages.len());
+        let pages = every_page(slots, &self.info, &self.path)?;
+        let (index_offset, index_end) = index_span(self.header.len(), pages.len());
         let (offsets, end) = place(&self.info, index_end, |pos| pages[pos].stored_len as u64);
-        let entries: Vec<IndexEntry> = pages
-            .iter()
-            .zip(&offsets)
-            .map(|(p, &offset)| IndexEntry {
-                offset,
-                stored_len: p.stored_len,
-                raw_len: p.raw_len,
-                crc: p.crc,
-                flags: p.flags,
-            })
-            .collect();
-        let index: Vec<u8> = entries.iter().flat_map(|e| e.encode()).collect();
-        let preamble = Preamble {
-            version: VERSION,
-            header_offset: PREAMBLE_LEN as u64,
-            header_len: header.len() as u64,
-            index_offset,
-            page_count: pages.len() as u64,
-            file_len: end,
-            header_crc: crc32fast::hash(header),
-            index_crc: crc32fast::hash(&index),
-        };
-        let mut front = preamble.encode().to_vec();
-        front.extend_from_slice(header);
-        front.resize(index_offset as usize, 0);
-        front.extend_from_slice(&index);
-
+        let front = front_matter(&self.header, &pages, &offsets, index_offset, end);
         let path = &self.path;
         let in_place = pages.iter().zip(&offsets).all(|(p, &o)| p.at == o);
         match self.target {
-            Target::Direct(tmp) if in_place => {
-                // Every page is already where it belongs: add the front, and rename.
-                let io = |e| Error::io(path, e);
-                let f = tmp.as_file();
-                f.write_all_at(&front, 0).map_err(io)?;
-                f.set_len(end).map_err(io)?;
-                // tempfile creates 0600; outputs are ordinary files other users and tools may read.
-                use std::os::unix::fs::PermissionsExt;
-                f.set_permissions(std::fs::Permissions::from_mode(0o644))
-                    .map_err(io)?;
-                f.sync_all().map_err(io)?;
-                Staged::new(path, tmp.into_temp_path())
-            }
+            Target::Direct(tmp) if in_place => add_front(tmp, &front, end, path),
             target => {
                 let mut out = AtomicFile::create(path)?;
                 let w = out.writer();
-                let io = |e| Error::io(path, e);
-                w.write_all(&front).map_err(io)?;
-                let (mut at, mut buf) = (index_end, Vec::new());
-                for pos in storage_order(&self.info) {
-                    let p = pages[pos];
-                    let pad = offsets[pos] - at;
-                    buf.clear();
-                    buf.resize(pad as usize + p.stored_len as usize, 0);
-                    target
-                        .file()
-                        .read_exact_at(&mut buf[pad as usize..], p.at)
-                        .map_err(io)?;
-                    w.write_all(&buf).map_err(io)?;
-                    at = offsets[pos] + p.stored_len as u64;
-                }
+                w.write_all(&front).map_err(|e| Error::io(path, e))?;
+                let order = storage_order(&self.info);
+                let at = copy_pages(target.file(), w, &pages, &offsets, &order, index_end)
+                    .map_err(|e| Error::io(path, e))?;
                 debug_assert_eq!(at, end);
                 out.stage()
             }
         }
     }
+}
+
+/// Every page's record, by index position; an error naming the first page never written.
+fn every_page(slots: Slots, info: &TileSetInfo, path: &Path) -> Result<Vec<Stored>> {
+    let missing = slots.pages.iter().filter(|p| p.is_none()).count();
+    if let Some(first) = slots.pages.iter().position(Option::is_none) {
+        let (level, tx, ty) = info.page_at(first).expect("position within the index");
+        return Err(Error::file(
+            path,
+            format!(
+                "{missing} page(s) were never written, the first is (level {level}, {tx}, {ty})"
+            ),
+        )
+        .fix("write every page of every level before finishing"));
+    }
+    Ok(slots
+        .pages
+        .into_iter()
+        .map(|p| p.expect("checked above"))
+        .collect())
+}
+
+/// The bytes before the first page: preamble, `header`, zero padding up to `index_offset`, and
+/// the index of `pages` at their canonical `offsets`, in a file `end` bytes long.
+fn front_matter(
+    header: &[u8],
+    pages: &[Stored],
+    offsets: &[u64],
+    index_offset: u64,
+    end: u64,
+) -> Vec<u8> {
+    let index: Vec<u8> = pages
+        .iter()
+        .zip(offsets)
+        .flat_map(|(p, &offset)| {
+            IndexEntry {
+                offset,
+                stored_len: p.stored_len,
+                raw_len: p.raw_len,
+                crc: p.crc,
+                flags: p.flags,
+            }
+            .encode()
+        })
+        .collect();
+    let preamble = Preamble {
+        version: VERSION,
+        header_offset: PREAMBLE_LEN as u64,
+        header_len: header.len() as u64,
+        index_offset,
+        page_count: pages.len() as u64,
+        file_len: end,
+        header_crc: crc32fast::hash(header),
+        index_crc: crc32fast::hash(&index),
+    };
+    let mut front = preamble.encode().to_vec();
+    front.extend_from_slice(header);
+    front.resize(index_offset as usize, 0);
+    front.extend_from_slice(&index);
+    front
+}
+
+/// Finish a temporary file whose every page already sits at its canonical offset: write
+/// `front` at its start, cut it to `end` bytes, make it readable like any output, sync it, and
+/// stage it for renaming to `path`.
+fn add_front(tmp: tempfile::NamedTempFile, front: &[u8], end: u64, path: &Path) -> Result<Staged> {
+    let io = |e| Error::io(path, e);
+    let f = tmp.as_file();
+    f.write_all_at(front, 0).map_err(io)?;
+    f.set_len(end).map_err(io)?;
+    // tempfile creates 0600; outputs are ordinary files other users and tools may read.
+    use std::os::unix::fs::PermissionsExt;
+    f.set_permissions(std::fs::Permissions::from_mode(0o644))
+        .map_err(io)?;
+    f.sync_all().map_err(io)?;
+    Staged::new(path, tmp.into_temp_path())
+}
+
+/// Copy `pages` from `from` to `to` in storage `order`, each zero-padded up to its canonical
+/// offset, starting at `index_end` (where `to` stands); returns the offset reached.
+fn copy_pages(
+    from: &File,
+    to: &mut impl Write,
+    pages: &[Stored],
+    offsets: &[u64],
+    order: &[usize],
+    index_end: u64,
+) -> std::io::Result<u64> {
+    let (mut at, mut buf) = (index_end, Vec::new());
+    for &pos in order {
+        let p = pages[pos];
+        let pad = offsets[pos] - at;
+        buf.clear();
+        buf.resize(pad as usize + p.stored_len as usize, 0);
+        from.read_exact_at(&mut buf[pad as usize..], p.at)?;
+        to.write_all(&buf)?;
+        at = offsets[pos] + p.stored_len as u64;
+    }
+    Ok(at)
 }
 
 #[cfg(test)]
