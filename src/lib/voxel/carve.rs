@@ -216,52 +216,19 @@ impl Carver<'_> {
             self.grid.centre(lo[0], lo[1], lo[2]),
             self.grid.centre(hi[0] - 1, hi[1] - 1, hi[2] - 1),
         );
-        let corners = (0..8).map(|k| {
-            [
-                if k & 1 == 0 { a[0] } else { b[0] },
-                if k & 2 == 0 { a[1] } else { b[1] },
-                if k & 4 == 0 { a[2] } else { b[2] },
-            ]
-        });
-        // Rounding margin on depths (metres): far above f64 noise at UTM magnitudes.
-        const DEPTH_EPS: f64 = 1e-7;
-        let mut depth = (f64::INFINITY, f64::NEG_INFINITY);
-        let (mut umin, mut umax, mut vmin, mut vmax) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
-        let pinhole = matches!(view.camera, Camera::Pinhole(_));
-        for c in corners {
-            if pinhole {
-                let d = view.camera.depth(c);
-                depth = (depth.0.min(d), depth.1.max(d));
-                if d <= NEAR + DEPTH_EPS {
-                    continue;
-                }
-            }
-            if let Some([u, v]) = view.camera.project(c) {
-                umin = umin.min(u);
-                umax = umax.max(u);
-                vmin = vmin.min(v);
-                vmax = vmax.max(v);
-            }
+        match project_box(&view.camera, a, b) {
+            Projected::Behind if self.opts.behind == Unseen::Keep => Verdict::Keep,
+            Projected::Behind => Verdict::Carve,
+            Projected::AcrossNear => Verdict::Partial,
+            Projected::Within(bounds) => self.verdict_within(&view.silhouette, bounds),
         }
-        if pinhole {
-            if depth.1 <= NEAR - DEPTH_EPS {
-                return if self.opts.behind == Unseen::Keep {
-                    Verdict::Keep
-                } else {
-                    Verdict::Carve
-                };
-            }
-            if depth.0 <= NEAR + DEPTH_EPS {
-                return Verdict::Partial;
-            }
-        }
+    }
+
+    /// What a silhouette says about points that project inside `bounds` (`[umin, umax, vmin,
+    /// vmax]`, pixels): every covered pixel in the silhouette keeps them, none carves them,
+    /// unless part of the bounds leaves the image and the options treat outside otherwise.
+    fn verdict_within(&self, s: &Silhouette, [umin, umax, vmin, vmax]: [f64; 4]) -> Verdict {
         let pad = |x: f64| 1e-6 + 1e-9 * x.abs();
-        let s = &view.silhouette;
         let (w, h) = (s.width() as f64, s.height() as f64);
         // Pixel columns/rows any centre can fall in, clamped to one past the image on each side.
         let c0 = (umin - pad(umin)).floor().clamp(-1.0, w);
@@ -293,6 +260,60 @@ impl Carver<'_> {
         } else {
             Verdict::Partial
         }
+    }
+}
+
+/// Where the box between corners `a` and `b` (world metres) lands in a camera's image.
+enum Projected {
+    /// Wholly behind a pinhole camera's near plane.
+    Behind,
+    /// Partly behind the near plane: no bound on the image holds.
+    AcrossNear,
+    /// In front (or seen by a camera without a near plane): the projected corners' bounds,
+    /// `[umin, umax, vmin, vmax]` in pixels (infinite when no corner projects).
+    Within([f64; 4]),
+}
+
+/// Project the eight corners of the box between `a` and `b` with `camera`.
+fn project_box(camera: &Camera, a: [f64; 3], b: [f64; 3]) -> Projected {
+    let corners = (0..8).map(|k| {
+        [
+            if k & 1 == 0 { a[0] } else { b[0] },
+            if k & 2 == 0 { a[1] } else { b[1] },
+            if k & 4 == 0 { a[2] } else { b[2] },
+        ]
+    });
+    // Rounding margin on depths (metres): far above f64 noise at UTM magnitudes.
+    const DEPTH_EPS: f64 = 1e-7;
+    let mut depth = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut umin, mut umax, mut vmin, mut vmax) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    let pinhole = matches!(camera, Camera::Pinhole(_));
+    for c in corners {
+        if pinhole {
+            let d = camera.depth(c);
+            depth = (depth.0.min(d), depth.1.max(d));
+            if d <= NEAR + DEPTH_EPS {
+                continue;
+            }
+        }
+        if let Some([u, v]) = camera.project(c) {
+            umin = umin.min(u);
+            umax = umax.max(u);
+            vmin = vmin.min(v);
+            vmax = vmax.max(v);
+        }
+    }
+    if pinhole && depth.1 <= NEAR - DEPTH_EPS {
+        Projected::Behind
+    } else if pinhole && depth.0 <= NEAR + DEPTH_EPS {
+        Projected::AcrossNear
+    } else {
+        Projected::Within([umin, umax, vmin, vmax])
     }
 }
 
