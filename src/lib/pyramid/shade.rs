@@ -37,6 +37,7 @@
 mod detected;
 
 use crate::error::{Error, Result};
+use crate::grid::Grid;
 use crate::raster::band_rows;
 use crate::raster::RowSource;
 use crate::shadow::ShadowBits;
@@ -108,14 +109,7 @@ pub fn prepare<'a>(
     all: &'a Raised,
 ) -> Result<Option<Effects<'a>>> {
     let Some(sun) = sun else { return Ok(None) };
-    let (g, gc) = (terrain.grid(), colour.grid());
-    if (gc.width, gc.height) != (g.width, g.height) {
-        return Err(Error::msg(format!(
-            "the colour layer is {} × {} cells, the elevation {} × {}",
-            gc.width, gc.height, g.width, g.height
-        ))
-        .fix("both layers must be on the database grid: run dbms ingest again"));
-    }
+    same_size(terrain.grid(), colour.grid())?;
     let same_sun = photo_sun.is_some_and(|p| same(&p, &sun));
     let nothing_unseen = buildings.is_empty() && objects.is_empty();
     if same_sun && nothing_unseen {
@@ -142,25 +136,7 @@ pub fn prepare<'a>(
         true => Some(detected::detect(colour, buildings)?),
         false => None,
     };
-    let mut applied = Vec::new();
-    if !same_sun {
-        applied.extend(["cast_shadows", "terrain_lambert"]);
-        if photo_sun.is_some() {
-            applied.extend([
-                "photo_shadow_detection",
-                "photo_shadow_compensation",
-                "photo_shading_compensation",
-            ]);
-        }
-    } else if !objects.is_empty() {
-        applied.push("object_shadows");
-    }
-    if !all.is_empty() {
-        applied.push("wall_shading");
-    }
-    if !objects.is_empty() {
-        applied.push("object_shading");
-    }
+    let applied = applied(same_sun, photo_sun.is_some(), objects, all);
     let mut fx = Effects {
         s: sun.direction_enu(),
         sun,
@@ -181,6 +157,44 @@ pub fn prepare<'a>(
     };
     fx.wall_cells = fx.count_walls()?;
     Ok(Some(fx))
+}
+
+/// An error unless the colour layer's grid `gc` has as many cells as the elevation's `g`.
+fn same_size(g: &Grid, gc: &Grid) -> Result<()> {
+    if (gc.width, gc.height) != (g.width, g.height) {
+        return Err(Error::msg(format!(
+            "the colour layer is {} × {} cells, the elevation {} × {}",
+            gc.width, gc.height, g.width, g.height
+        ))
+        .fix("both layers must be on the database grid: run dbms ingest again"));
+    }
+    Ok(())
+}
+
+/// The effects [`prepare`] applies, in the order they are applied, for a sun that is or is
+/// not the photo's own (`same_sun`), with or without a recorded photo sun, over `objects` and
+/// everything raised (`all`).
+fn applied(same_sun: bool, photo_sun: bool, objects: &Raised, all: &Raised) -> Vec<&'static str> {
+    let mut applied = Vec::new();
+    if !same_sun {
+        applied.extend(["cast_shadows", "terrain_lambert"]);
+        if photo_sun {
+            applied.extend([
+                "photo_shadow_detection",
+                "photo_shadow_compensation",
+                "photo_shading_compensation",
+            ]);
+        }
+    } else if !objects.is_empty() {
+        applied.push("object_shadows");
+    }
+    if !all.is_empty() {
+        applied.push("wall_shading");
+    }
+    if !objects.is_empty() {
+        applied.push("object_shading");
+    }
+    applied
 }
 
 /// `colour` lit by an effects factor: channels × `factor`, rounded, at most 255; alpha kept.
