@@ -91,7 +91,43 @@ pub(crate) fn layout<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<
     };
     let packed = b == 1;
     let bytes = (b as usize / 8).max(1);
-    let supported = samples >= 1
+    let supported = supported(samples, &bits, &formats, predictor, planar);
+    if !supported || width == 0 || height == 0 {
+        return Ok(None);
+    }
+    let Some(Chunks {
+        size: (chunk_w, chunk_h),
+        offsets,
+        counts,
+    }) = chunks(dec, width, height)?
+    else {
+        return Ok(None);
+    };
+    Ok(Some(ChunkLayout {
+        width,
+        height,
+        samples,
+        bytes,
+        packed,
+        format,
+        planar,
+        big_endian: dec.byte_order() == ByteOrder::BigEndian,
+        codec,
+        predictor,
+        chunk_w,
+        chunk_h,
+        offsets,
+        counts,
+        fill: 0,
+    }))
+}
+
+/// Whether [`decode`] reads samples of these `bits` and SampleFormat `formats` (one value per
+/// sample, all equal), `samples` per pixel, with this predictor and planar configuration.
+fn supported(samples: usize, bits: &[u16], formats: &[u16], predictor: u16, planar: bool) -> bool {
+    let (b, format) = (bits[0], formats[0]);
+    let packed = b == 1;
+    samples >= 1
         && (matches!(b, 8 | 16 | 32 | 64) || packed && samples == 1 && predictor == 1)
         && bits.iter().all(|&x| x == b)
         && formats.iter().all(|&f| f == format)
@@ -105,10 +141,26 @@ pub(crate) fn layout<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<
                     && (predictor != 3 || planar || samples <= FLOAT_LANES)
             }
             _ => false,
-        };
-    if !supported || width == 0 || height == 0 {
-        return Ok(None);
-    }
+        }
+}
+
+/// Where an image's chunks (tiles or strips) are.
+struct Chunks {
+    /// Chunk width and height, pixels.
+    size: (usize, usize),
+    /// Each chunk's file offset, bytes.
+    offsets: Vec<u64>,
+    /// Each chunk's stored length, bytes (0: sparse).
+    counts: Vec<u64>,
+}
+
+/// The chunks of an image of `width` × `height` pixels, from the tile tags or else the strip
+/// tags; `None` when a tag is missing or a chunk would be empty.
+fn chunks<R: Read + Seek>(
+    dec: &mut Decoder<R>,
+    width: usize,
+    height: usize,
+) -> TiffResult<Option<Chunks>> {
     let tiled = dec.find_tag(Tag::TileWidth)?.is_some();
     let (chunk_w, chunk_h, offsets, counts) = if tiled {
         let tw: usize = dec.find_tag_unsigned(Tag::TileWidth)?.unwrap_or(0);
@@ -130,22 +182,10 @@ pub(crate) fn layout<R: Read + Seek>(dec: &mut Decoder<R>) -> TiffResult<Option<
     if chunk_w == 0 || chunk_h == 0 {
         return Ok(None);
     }
-    Ok(Some(ChunkLayout {
-        width,
-        height,
-        samples,
-        bytes,
-        packed,
-        format,
-        planar,
-        big_endian: dec.byte_order() == ByteOrder::BigEndian,
-        codec,
-        predictor,
-        chunk_w,
-        chunk_h,
+    Ok(Some(Chunks {
+        size: (chunk_w, chunk_h),
         offsets,
         counts,
-        fill: 0,
     }))
 }
 
