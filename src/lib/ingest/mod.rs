@@ -15,7 +15,7 @@ pub mod resample;
 use crate::crs::Crs;
 use crate::db::{self, Database, InputFile, Stage};
 use crate::error::{Error, Result};
-use crate::grid::{Bounds, Grid};
+use crate::grid::{Bounds, GeoTransform, Grid};
 use crate::io::input::RasterInput;
 use crate::io::{self, SourceRaster};
 use crate::progress::Progress;
@@ -461,16 +461,7 @@ pub fn plan_grid(
     let ob = extent_in(ortho, target, &dem.grid().crs)?;
     // A photo carried across CRSs has no lattice in the target; its cell there is estimated.
     let photo_native = ortho.grid().crs.same_as(target);
-    if let Some(cell) = opts.cell {
-        if !(cell.is_finite() && cell > 0.0) {
-            return Err(Error::msg(format!("--cell {cell} is not a positive size"))
-                .fix("give the cell size in metres, e.g. --cell 0.5"));
-        }
-        if crs.geographic {
-            return Err(Error::file(&opts.dem, format!("the database CRS is geographic (degrees, {}) but --cell is in metres", crs.name()))
-                .fix("reproject the DEM to a projected CRS first (gdalwarp -t_srs EPSG:326NN for UTM), or build dbms with --features gdal"));
-        }
-    }
+    check_cell(opts, &crs)?;
     let overlap = db.intersection(&ob).ok_or_else(|| {
         Error::file(
             &opts.ortho,
@@ -497,30 +488,8 @@ pub fn plan_grid(
         (None, None) if !photo_native => with_cells(&overlap, photo_cell, photo_cell, crs)?,
         (None, None) => {
             // Snap the overlap inward to the photo's lattice: the photo is then copied 1:1.
-            let (cx, cy) = (ot.cell_x.abs(), ot.cell_y.abs());
-            let snap = |v: f64, origin: f64, c: f64, up: bool| {
-                let k = (v - origin) / c;
-                let k = if up {
-                    (k - 1e-9).ceil()
-                } else {
-                    (k + 1e-9).floor()
-                };
-                origin + k * c
-            };
-            let b = Bounds {
-                min_x: snap(overlap.min_x, ob.min_x, cx, true),
-                max_x: snap(overlap.max_x, ob.min_x, cx, false),
-                min_y: snap(overlap.min_y, ob.max_y, cy, true),
-                max_y: snap(overlap.max_y, ob.max_y, cy, false),
-            };
-            if !(b.min_x < b.max_x && b.min_y < b.max_y) {
-                return Err(Error::file(
-                    &opts.ortho,
-                    "the DEM and orthophoto overlap by less than one photo cell",
-                )
-                .fix("check that both files cover the same area"));
-            }
-            with_cells(&b, cx, cy, crs)?
+            let b = snap_to_photo(&overlap, &ob, ot, opts)?;
+            with_cells(&b, ot.cell_x.abs(), ot.cell_y.abs(), crs)?
         }
     };
     let cells = grid.width as u64 * grid.height as u64;
@@ -532,6 +501,56 @@ pub fn plan_grid(
         .fix("check --cell and --bounds, or raise --max-cells if this is really wanted"));
     }
     Ok(grid)
+}
+
+/// An error unless `--cell`, if given, is a positive size in the metres of a projected `crs`.
+fn check_cell(opts: &IngestOptions, crs: &Crs) -> Result<()> {
+    if let Some(cell) = opts.cell {
+        if !(cell.is_finite() && cell > 0.0) {
+            return Err(Error::msg(format!("--cell {cell} is not a positive size"))
+                .fix("give the cell size in metres, e.g. --cell 0.5"));
+        }
+        if crs.geographic {
+            return Err(Error::file(&opts.dem, format!("the database CRS is geographic (degrees, {}) but --cell is in metres", crs.name()))
+                .fix("reproject the DEM to a projected CRS first (gdalwarp -t_srs EPSG:326NN for UTM), or build dbms with --features gdal"));
+        }
+    }
+    Ok(())
+}
+
+/// `overlap` shrunk to the photo's cell lattice (`ot`, whose extent is `ob`): each edge moves
+/// inward to the nearest cell edge (within 1e-9 of a cell). An error when less than one photo
+/// cell is left.
+fn snap_to_photo(
+    overlap: &Bounds,
+    ob: &Bounds,
+    ot: &GeoTransform,
+    opts: &IngestOptions,
+) -> Result<Bounds> {
+    let (cx, cy) = (ot.cell_x.abs(), ot.cell_y.abs());
+    let snap = |v: f64, origin: f64, c: f64, up: bool| {
+        let k = (v - origin) / c;
+        let k = if up {
+            (k - 1e-9).ceil()
+        } else {
+            (k + 1e-9).floor()
+        };
+        origin + k * c
+    };
+    let b = Bounds {
+        min_x: snap(overlap.min_x, ob.min_x, cx, true),
+        max_x: snap(overlap.max_x, ob.min_x, cx, false),
+        min_y: snap(overlap.min_y, ob.max_y, cy, true),
+        max_y: snap(overlap.max_y, ob.max_y, cy, false),
+    };
+    if !(b.min_x < b.max_x && b.min_y < b.max_y) {
+        return Err(Error::file(
+            &opts.ortho,
+            "the DEM and orthophoto overlap by less than one photo cell",
+        )
+        .fix("check that both files cover the same area"));
+    }
+    Ok(b)
 }
 
 /// The grid of `cell_x` × `cell_y` cells covering `b`, top-left at `(min_x, max_y)`.
