@@ -280,30 +280,32 @@ fn days_since_j2000(utc: DateTime<Utc>) -> f64 {
     secs as f64 / 86400.0 + f64::from(utc.timestamp_subsec_nanos()) / 86400e9
 }
 
+/// `v` if it lies in `lo..=hi`, else an error naming `what` with the `fix`.
+fn within(what: &str, v: f64, lo: f64, hi: f64, fix: &str) -> Result<f64> {
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(Error::msg(format!("{what} {v} is outside [{lo}, {hi}]")).fix(fix))
+    }
+}
+
 /// Validates every input and converts it to SPA's.
 fn spa_input(obs: &Observer, utc: DateTime<Utc>, opts: &SunOptions) -> Result<spa::Input> {
-    let check = |what: &str, v: f64, lo: f64, hi: f64, fix: &str| {
-        if (lo..=hi).contains(&v) {
-            Ok(v)
-        } else {
-            Err(Error::msg(format!("{what} {v} is outside [{lo}, {hi}]")).fix(fix))
-        }
-    };
-    let latitude_deg = check(
+    let latitude_deg = within(
         "latitude",
         obs.latitude_deg,
         -90.0,
         90.0,
         "give degrees north, -90 to 90",
     )?;
-    let longitude_deg = check(
+    let longitude_deg = within(
         "longitude",
         obs.longitude_deg,
         -180.0,
         180.0,
         "give degrees east, -180 to 180",
     )?;
-    let height_m = check(
+    let height_m = within(
         "observer height (m)",
         obs.height_m,
         -11_000.0,
@@ -318,7 +320,7 @@ fn spa_input(obs: &Observer, utc: DateTime<Utc>, opts: &SunOptions) -> Result<sp
         );
     }
     let delta_t_s = match opts.delta_t_s {
-        Some(dt) => check(
+        Some(dt) => within(
             "delta T (s)",
             dt,
             -8000.0,
@@ -327,40 +329,44 @@ fn spa_input(obs: &Observer, utc: DateTime<Utc>, opts: &SunOptions) -> Result<sp
         )?,
         None => delta_t_model_s(utc),
     };
-    let delta_ut1_s = check(
+    let delta_ut1_s = within(
         "delta UT1 (s)",
         opts.delta_ut1_s,
         -1.0,
         1.0,
         "give UT1 - UTC in seconds, |dUT1| < 1",
     )?;
-    let refraction = if opts.refraction {
-        let p = check(
-            "pressure (mbar)",
-            opts.atmosphere.pressure_mbar,
-            0.0,
-            2000.0,
-            "give the station pressure in millibar (hPa), about 1013 at sea level",
-        )?;
-        let t = check(
-            "temperature (°C)",
-            opts.atmosphere.temperature_c,
-            -100.0,
-            100.0,
-            "give the air temperature in degrees Celsius",
-        )?;
-        Some((p, t))
-    } else {
-        None
-    };
     Ok(spa::Input {
         days_j2000: days_since_j2000(utc) + delta_ut1_s / 86400.0,
         delta_t_s,
         latitude_deg,
         longitude_deg,
         height_m,
-        refraction,
+        refraction: refraction_input(opts)?,
     })
+}
+
+/// The checked atmosphere (pressure in mbar, temperature in °C) SPA corrects refraction for,
+/// `None` when refraction is off.
+fn refraction_input(opts: &SunOptions) -> Result<Option<(f64, f64)>> {
+    if !opts.refraction {
+        return Ok(None);
+    }
+    let p = within(
+        "pressure (mbar)",
+        opts.atmosphere.pressure_mbar,
+        0.0,
+        2000.0,
+        "give the station pressure in millibar (hPa), about 1013 at sea level",
+    )?;
+    let t = within(
+        "temperature (°C)",
+        opts.atmosphere.temperature_c,
+        -100.0,
+        100.0,
+        "give the air temperature in degrees Celsius",
+    )?;
+    Ok(Some((p, t)))
 }
 
 #[cfg(test)]
