@@ -182,22 +182,10 @@ fn check(points: &[Waypoint]) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// The camera of every frame along `points` (each `width × height`, `hfov` degrees).
-pub fn cameras(
-    points: &[Waypoint],
-    flight: &Flight,
-    hfov: f64,
-    width: usize,
-    height: usize,
-) -> Result<Vec<Camera>> {
-    check(points).map_err(Error::msg)?;
-    if !(flight.fps > 0.0 && flight.fps <= 1000.0) {
-        return Err(Error::msg(format!(
-            "--fps {}: frames per second must be in (0, 1000]",
-            flight.fps
-        )));
-    }
-    let times: Vec<f64> = match (points[0].time, flight.speed) {
+/// The time of each of the checked `points`, seconds: their own, or at `speed` (metres per
+/// second) along the path from 0 at the first.
+fn waypoint_times(points: &[Waypoint], speed: Option<f64>) -> Result<Vec<f64>> {
+    let times = match (points[0].time, speed) {
         (Some(_), _) => points.iter().map(|p| p.time.expect("checked")).collect(),
         (None, Some(v)) if v > 0.0 && v.is_finite() => {
             let mut t = vec![0.0];
@@ -224,6 +212,25 @@ pub fn cameras(
                 .fix("give --speed METRES_PER_SECOND, or a time t at every position"))
         }
     };
+    Ok(times)
+}
+
+/// The camera of every frame along `points` (each `width × height`, `hfov` degrees).
+pub fn cameras(
+    points: &[Waypoint],
+    flight: &Flight,
+    hfov: f64,
+    width: usize,
+    height: usize,
+) -> Result<Vec<Camera>> {
+    check(points).map_err(Error::msg)?;
+    if !(flight.fps > 0.0 && flight.fps <= 1000.0) {
+        return Err(Error::msg(format!(
+            "--fps {}: frames per second must be in (0, 1000]",
+            flight.fps
+        )));
+    }
+    let times = waypoint_times(points, flight.speed)?;
     let (t0, t1) = (times[0], *times.last().expect("two"));
     let count = ((t1 - t0) * flight.fps + 1e-9).floor() as usize + 1;
     if count > MAX_FRAMES {
