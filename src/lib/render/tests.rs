@@ -854,6 +854,22 @@ proptest! {
     }
 }
 
+/// Every time in `(0, span.t1)` at which `ray` crosses a column (axis 0) or row (axis 1)
+/// boundary of a `w` × `h` grid or the one just outside it, as (time, axis), sorted by time.
+fn boundary_crossings(ray: &Ray, span: Span, w: i64, h: i64) -> Vec<(f64, usize)> {
+    let mut crossings: Vec<(f64, usize)> = Vec::new();
+    for (a, axis, n) in [(0, ray.u, w), (1, ray.v, h)] {
+        for b in -1..=n + 1 {
+            let t = axis.cross(b);
+            if t > 0.0 && t < span.t1 {
+                crossings.push((t, a));
+            }
+        }
+    }
+    crossings.sort_by(|x, y| x.0.total_cmp(&y.0));
+    crossings
+}
+
 /// The level-0 hit of `ray` over `span` by brute force, sharing no code with the walk: every
 /// column and row boundary crossing in `(0, t1)` sorted (equal times are one corner, crossed
 /// together), the cell from the eye's cell moved one cell per crossing passed, and each cell's
@@ -868,16 +884,7 @@ fn brute_force_hit<F>(
 where
     F: Fn(usize, usize) -> (f32, [u8; 4]),
 {
-    let mut crossings: Vec<(f64, usize)> = Vec::new();
-    for (a, axis, n) in [(0, ray.u, w), (1, ray.v, h)] {
-        for b in -1..=n + 1 {
-            let t = axis.cross(b);
-            if t > 0.0 && t < span.t1 {
-                crossings.push((t, a));
-            }
-        }
-    }
-    crossings.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let crossings = boundary_crossings(ray, span, w, h);
     let start = |a: Axis| {
         if a.d < 0.0 {
             a.o.ceil() as i64 - 1
@@ -917,14 +924,13 @@ where
                     Face::WallV => Some([cell[0], cell[1] - step(ray.v)]),
                     _ => None,
                 };
-                let face = match behind {
-                    Some([c, r]) if (0..w).contains(&c) && (0..h).contains(&r) => {
-                        match mz - height(c as usize, r as usize).0 as f64 {
-                            rise if rise < 1.0 => Face::Step,
-                            _ => face,
-                        }
-                    }
-                    _ => face,
+                let rise = behind
+                    .filter(|&[c, r]| (0..w).contains(&c) && (0..h).contains(&r))
+                    .map(|[c, r]| mz - height(c as usize, r as usize).0 as f64);
+                let face = if rise.is_some_and(|rise| rise < 1.0) {
+                    Face::Step
+                } else {
+                    face
                 };
                 return Some(if ray.z(t_in) <= mz {
                     (t_in, colour, face)
