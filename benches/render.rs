@@ -22,7 +22,7 @@
 
 use dbms::crs::Crs;
 use dbms::grid::Grid;
-use dbms::render::{render_view, Attitude, Camera, Frame, Traversal, ViewOptions};
+use dbms::render::{render_view, Attitude, Frame, Traversal, ViewOptions, Viewpoint};
 use dbms::testing::tiles as synthetic;
 use dbms::tiles::{Compression, TileReader};
 use std::path::{Path, PathBuf};
@@ -296,7 +296,7 @@ fn sample_tiles(work: &Path) -> PathBuf {
 
 /// `n` cameras along the database's diagonal band, 25 m over the ground, pitched `pitch`
 /// degrees (up positive), heading along the path.
-fn flight(reader: &TileReader, n: usize, pitch: f64) -> Vec<Camera> {
+fn flight(reader: &TileReader, n: usize, pitch: f64) -> Vec<Viewpoint> {
     let g = &reader.info().grid;
     let t = &g.transform;
     (0..n)
@@ -313,7 +313,7 @@ fn flight(reader: &TileReader, n: usize, pitch: f64) -> Vec<Camera> {
                 .filter(|z| !z.is_nan())
                 .unwrap_or(0.0);
             let (x, y) = t.pixel_to_world(col as f64 + 0.5, row as f64 + 0.5);
-            Camera {
+            Viewpoint {
                 eye: [x, y, ground as f64 + 25.0],
                 attitude: Attitude {
                     roll: 0.0,

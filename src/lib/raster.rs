@@ -81,12 +81,12 @@ impl<T> Raster<T> {
 }
 
 /// Cells in a band of a layer read at once by the stages that stream one ([`band_rows`]).
-const BAND_CELLS: usize = 1 << 22;
+const STREAMED_BAND_CELLS: usize = 1 << 22;
 
 /// Rows in a band of about 4 M cells of a grid `width` cells wide (at least 1): how many rows
 /// the stages that stream a layer read at a time.
 pub fn band_rows(width: usize) -> usize {
-    rows_in(BAND_CELLS, width)
+    rows_in(STREAMED_BAND_CELLS, width)
 }
 
 /// Whole rows of a grid `width` cells wide in `cells` cells (at least 1): the rows of a band

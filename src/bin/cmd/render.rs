@@ -3,7 +3,7 @@
 use super::Ctx;
 use dbms::grid::Bounds;
 use dbms::render::flight::FlightStats;
-use dbms::render::{self, Attitude, Camera, RenderStats, Traversal, ViewOptions};
+use dbms::render::{self, Attitude, RenderStats, Traversal, ViewOptions, Viewpoint};
 use dbms::tiles::TileReader;
 use dbms::Error;
 use std::path::PathBuf;
@@ -171,7 +171,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             "X,Y,Z in the database's CRS units and metres",
         )?;
         let (width, height) = size(args.size.as_deref().unwrap_or("640x480"))?;
-        let camera = Camera {
+        let camera = Viewpoint {
             eye,
             attitude: attitude(&args)?,
             hfov: args.fov,
@@ -227,12 +227,12 @@ fn fly(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         attitude: attitude(&args)?,
         fixed_heading: args.fixed_heading,
     };
-    let cameras = render::path::cameras(&waypoints, &flight, args.fov, width, height)?;
+    let viewpoints = render::path::viewpoints(&waypoints, &flight, args.fov, width, height)?;
     let reader = TileReader::open(&args.tiles, args.cache_pages)?;
-    let progress = ctx.progress(cameras.len() as u64, "frames");
+    let progress = ctx.progress(viewpoints.len() as u64, "frames");
     let stats = render::flight::fly(
         &reader,
-        &cameras,
+        &viewpoints,
         &view_options(&args),
         &args.output,
         args.animation.as_deref().map(|a| (a, args.fps)),

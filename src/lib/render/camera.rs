@@ -27,9 +27,10 @@ pub struct Attitude {
     pub yaw: f64,
 }
 
-/// A pinhole camera: where the eye is, where it looks, and the image it makes.
+/// The preview's pinhole camera: where the eye is, where it looks, and the image it makes
+/// (the calibrated cameras of the photos objects are carved from are [`crate::voxel::camera::Camera`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Camera {
+pub struct Viewpoint {
     /// Eye position in world coordinates (CRS units; z in metres).
     pub eye: [f64; 3],
     /// Orientation.
@@ -70,7 +71,7 @@ fn sin_cos_deg(deg: f64) -> (f64, f64) {
     }
 }
 
-impl Camera {
+impl Viewpoint {
     /// Check the camera's numbers; errors name the option to fix.
     pub fn validate(&self) -> Result<()> {
         if !self.eye.iter().all(|c| c.is_finite()) {
@@ -183,8 +184,8 @@ pub fn check_size(width: usize, height: usize) -> Result<()> {
 mod tests {
     use super::*;
 
-    fn cam(roll: f64, pitch: f64, yaw: f64) -> Camera {
-        Camera {
+    fn cam(roll: f64, pitch: f64, yaw: f64) -> Viewpoint {
+        Viewpoint {
             eye: [0.0; 3],
             attitude: Attitude { roll, pitch, yaw },
             hfov: 90.0,

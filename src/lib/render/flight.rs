@@ -5,7 +5,7 @@
 //! rename is the run's end: `make` may take it as the target); frames are the same bytes on
 //! every run, and frame files left from a longer earlier flight in the directory are removed.
 
-use super::{render_view, Camera, Frame, ViewOptions};
+use super::{render_view, Frame, ViewOptions, Viewpoint};
 use crate::error::{Error, Result};
 use crate::io::atomic::AtomicFile;
 use crate::progress::Progress;
@@ -39,19 +39,19 @@ pub fn frame_file(dir: &Path, k: usize) -> PathBuf {
     dir.join(format!("frame-{k:05}.png"))
 }
 
-/// Render `cameras` over `reader` with `opts`: frame `k` into [`frame_file`]`(dir, k)` (the
+/// Render `viewpoints` over `reader` with `opts`: frame `k` into [`frame_file`]`(dir, k)` (the
 /// directory is created), and, given `animation`, every frame into one animated PNG there,
 /// shown `1 / fps` seconds each, looping.
 pub fn fly(
     reader: &TileReader,
-    cameras: &[Camera],
+    viewpoints: &[Viewpoint],
     opts: &ViewOptions,
     dir: &Path,
     animation: Option<(&Path, f64)>,
     progress: &Progress,
 ) -> Result<FlightStats> {
     let start = Instant::now();
-    let (Some(first), false) = (cameras.first(), dir.as_os_str().is_empty()) else {
+    let (Some(first), false) = (viewpoints.first(), dir.as_os_str().is_empty()) else {
         return Err(Error::msg(
             "a flight needs at least one frame and an output directory",
         ));
@@ -62,11 +62,11 @@ pub fn fly(
     }
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let mut animated = match animation {
-        Some((path, fps)) => Some(Animation::create(path, first, cameras.len(), fps)?),
+        Some((path, fps)) => Some(Animation::create(path, first, viewpoints.len(), fps)?),
         None => None,
     };
     let (mut render_seconds, mut pages, mut pages_max, mut steps, mut rays) = (0.0, 0, 0, 0, 0);
-    for (k, camera) in cameras.iter().enumerate() {
+    for (k, camera) in viewpoints.iter().enumerate() {
         let frame = render_view(reader, camera, opts)
             .map_err(|e| Error::msg(format!("frame {k} (eye {:?}): {e}", camera.eye)))?;
         let s = &frame.stats;
@@ -81,11 +81,11 @@ pub fn fly(
         }
         progress.inc(1);
     }
-    remove_stale_frames(dir, cameras.len())?;
+    remove_stale_frames(dir, viewpoints.len())?;
     if let Some(a) = animated {
         a.finish()?;
     }
-    let frames = cameras.len();
+    let frames = viewpoints.len();
     Ok(FlightStats {
         frames,
         render_seconds,
@@ -126,7 +126,7 @@ fn apng_error(path: &Path, e: png::EncodingError) -> Error {
 }
 
 impl Animation {
-    fn create(path: &Path, first: &Camera, frames: usize, fps: f64) -> Result<Animation> {
+    fn create(path: &Path, first: &Viewpoint, frames: usize, fps: f64) -> Result<Animation> {
         let mut staged = AtomicFile::create(path)?;
         // The encoder writes through its own handle on the temporary file (the staged one's
         // buffer stays empty); `finish` flushes it, then the commit syncs and renames the file.

@@ -51,7 +51,7 @@ fn tile_set(relief: &Relief) -> (tempfile::TempDir, TileReader) {
 /// The reference image: 4 × 4 stratified rays per pixel, each sphere-traced against the
 /// continuous surface (a step never exceeds the gap over the largest rate at which the slope
 /// bound lets it close), coloured by the cell under the hit, the sky where it leaves the grid.
-fn reference(relief: &Relief, camera: &Camera) -> Vec<[f64; 3]> {
+fn reference(relief: &Relief, camera: &Viewpoint) -> Vec<[f64; 3]> {
     let basis = camera.basis();
     let [ex, ey, ez] = camera.eye;
     let side = SIDE as f64;
@@ -116,7 +116,7 @@ fn smooth_slopes_render_as_smoothly_as_a_supersampled_trace_of_the_continuous_su
     for (name, relief) in [("plane", PLANE), ("hills", HILLS)] {
         let (_d, reader) = tile_set(&relief);
         let (x, y) = (60.0, 50.0);
-        let camera = Camera {
+        let camera = Viewpoint {
             eye: [x, y, (relief.z)(x, y) + 25.0],
             attitude: Attitude {
                 roll: 0.0,

@@ -1,6 +1,6 @@
 //! `dbms render`: a ray-casting preview of a paged tile set (the Hughes patent's stepping loop).
 //!
-//! A pinhole [`Camera`] casts one ray per pixel. Each ray is moved into the database's local
+//! A pinhole [`Viewpoint`] casts one ray per pixel. Each ray is moved into the database's local
 //! cell space (relative to the grid origin, so UTM-sized eyes keep full precision) and
 //! [marched](march::march) through the max-Z hierarchy: coarse steps through empty space,
 //! descents where it may hit, exact integer-boundary stepping at level 0 — or, for a level
@@ -27,7 +27,7 @@ pub mod ray;
 pub mod sampler;
 pub mod sky;
 
-pub use camera::{Attitude, Camera};
+pub use camera::{Attitude, Viewpoint};
 pub use march::{Face, Hit, Plan, Span, Traversal};
 
 use crate::error::{Error, Result};
@@ -266,7 +266,7 @@ impl Scene {
 }
 
 /// Render the perspective view of `camera` over the tile set behind `reader`.
-pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> Result<Frame> {
+pub fn render_view(reader: &TileReader, camera: &Viewpoint, opts: &ViewOptions) -> Result<Frame> {
     camera.validate()?;
     if let Some(v) = opts.visibility.filter(|v| !(*v > 0.0 && v.is_finite())) {
         return Err(Error::msg(format!(
@@ -304,7 +304,7 @@ pub fn render_view(reader: &TileReader, camera: &Camera, opts: &ViewOptions) -> 
 /// What every ray of one perspective frame shares, fixed before the first is cast.
 struct View<'a> {
     reader: &'a TileReader,
-    camera: &'a Camera,
+    camera: &'a Viewpoint,
     opts: &'a ViewOptions,
     scene: Scene,
     /// The eye in local cell space (`u`, `v`) and its height, metres.
@@ -328,7 +328,7 @@ impl<'a> View<'a> {
     /// range thresholds and the image plane's terms.
     fn new(
         reader: &'a TileReader,
-        camera: &'a Camera,
+        camera: &'a Viewpoint,
         opts: &'a ViewOptions,
         n: usize,
     ) -> Result<View<'a>> {
@@ -472,7 +472,7 @@ fn check_eye_above_terrain(
     repeat: bool,
     u: f64,
     v: f64,
-    camera: &Camera,
+    camera: &Viewpoint,
 ) -> Result<()> {
     let near = |x: f64| {
         let k = x.floor() as i64;

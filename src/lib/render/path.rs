@@ -12,7 +12,7 @@
 //! Invariant: frames are a pure function of the waypoints and the options (no clock), so the
 //! same path renders the same frames.
 
-use super::camera::{Attitude, Camera};
+use super::camera::{Attitude, Viewpoint};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -215,14 +215,14 @@ fn waypoint_times(points: &[Waypoint], speed: Option<f64>) -> Result<Vec<f64>> {
     Ok(times)
 }
 
-/// The camera of every frame along `points` (each `width × height`, `hfov` degrees).
-pub fn cameras(
+/// The viewpoint of every frame along `points` (each `width × height`, `hfov` degrees).
+pub fn viewpoints(
     points: &[Waypoint],
     flight: &Flight,
     hfov: f64,
     width: usize,
     height: usize,
-) -> Result<Vec<Camera>> {
+) -> Result<Vec<Viewpoint>> {
     check(points).map_err(Error::msg)?;
     if !(flight.fps > 0.0 && flight.fps <= 1000.0) {
         return Err(Error::msg(format!(
@@ -258,7 +258,7 @@ pub fn cameras(
                     yaw = dx.atan2(dy).to_degrees().rem_euclid(360.0);
                 }
             }
-            Camera {
+            Viewpoint {
                 eye: at(t),
                 attitude: Attitude {
                     yaw,
@@ -304,7 +304,7 @@ mod tests {
             wp(100.0, 0.0, 50.0, None),
             wp(100.0, 100.0, 50.0, None),
         ];
-        let cams = cameras(&pts, &flight(2.0, Some(20.0)), 60.0, 8, 6).unwrap();
+        let cams = viewpoints(&pts, &flight(2.0, Some(20.0)), 60.0, 8, 6).unwrap();
         assert_eq!(cams.len(), 21);
         assert_eq!(cams[0].eye, [0.0, 0.0, 50.0]);
         assert_eq!(cams[4].eye, [40.0, 0.0, 50.0]);
@@ -328,13 +328,13 @@ mod tests {
         ];
         let mut f = flight(1.0, Some(999.0));
         f.fixed_heading = true;
-        let cams = cameras(&pts, &f, 60.0, 8, 6).unwrap();
+        let cams = viewpoints(&pts, &f, 60.0, 8, 6).unwrap();
         assert_eq!(cams.len(), 4);
         assert_eq!(cams[1].eye, [0.0, -10.0, 50.0]);
         assert!(cams.iter().all(|c| c.attitude.yaw == 17.0));
         f.fixed_heading = false;
         assert_eq!(
-            cameras(&pts, &f, 60.0, 8, 6).unwrap()[1].attitude.yaw,
+            viewpoints(&pts, &f, 60.0, 8, 6).unwrap()[1].attitude.yaw,
             180.0
         );
     }
@@ -346,23 +346,25 @@ mod tests {
             wp(0.0, 10.0, 50.0, None),
             wp(0.0, 10.0, 90.0, None),
         ];
-        let cams = cameras(&pts, &flight(4.0, Some(10.0)), 60.0, 8, 6).unwrap();
+        let cams = viewpoints(&pts, &flight(4.0, Some(10.0)), 60.0, 8, 6).unwrap();
         assert!(cams.iter().all(|c| c.attitude.yaw == 0.0));
     }
 
     #[test]
     fn bad_paths_and_options_are_errors_that_say_what_to_do() {
         let two = [wp(0.0, 0.0, 50.0, None), wp(10.0, 0.0, 50.0, None)];
-        let e = |r: Result<Vec<Camera>>| r.unwrap_err().to_string();
-        assert!(e(cameras(&two, &flight(25.0, None), 60.0, 8, 6)).contains("--speed"));
-        assert!(e(cameras(&two, &flight(0.0, Some(1.0)), 60.0, 8, 6)).contains("--fps 0"));
-        assert!(e(cameras(&two, &flight(25.0, Some(-1.0)), 60.0, 8, 6)).contains("--speed -1"));
-        assert!(e(cameras(&two, &flight(1000.0, Some(1e-4)), 60.0, 8, 6)).contains("allowed"));
-        assert!(e(cameras(&two[..1], &flight(1.0, Some(1.0)), 60.0, 8, 6)).contains("at least two"));
+        let e = |r: Result<Vec<Viewpoint>>| r.unwrap_err().to_string();
+        assert!(e(viewpoints(&two, &flight(25.0, None), 60.0, 8, 6)).contains("--speed"));
+        assert!(e(viewpoints(&two, &flight(0.0, Some(1.0)), 60.0, 8, 6)).contains("--fps 0"));
+        assert!(e(viewpoints(&two, &flight(25.0, Some(-1.0)), 60.0, 8, 6)).contains("--speed -1"));
+        assert!(e(viewpoints(&two, &flight(1000.0, Some(1e-4)), 60.0, 8, 6)).contains("allowed"));
+        assert!(
+            e(viewpoints(&two[..1], &flight(1.0, Some(1.0)), 60.0, 8, 6)).contains("at least two")
+        );
         let back = [wp(0.0, 0.0, 50.0, Some(2.0)), wp(1.0, 0.0, 50.0, Some(2.0))];
-        assert!(e(cameras(&back, &flight(1.0, None), 60.0, 8, 6)).contains("must increase"));
+        assert!(e(viewpoints(&back, &flight(1.0, None), 60.0, 8, 6)).contains("must increase"));
         let same = [wp(0.0, 0.0, 50.0, None), wp(0.0, 0.0, 50.0, None)];
-        assert!(e(cameras(&same, &flight(1.0, Some(1.0)), 60.0, 8, 6)).contains("repeats"));
+        assert!(e(viewpoints(&same, &flight(1.0, Some(1.0)), 60.0, 8, 6)).contains("repeats"));
     }
 
     #[test]

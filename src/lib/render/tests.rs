@@ -33,8 +33,8 @@ where
     (dir, reader)
 }
 
-fn camera(eye: [f64; 3], roll: f64, pitch: f64, yaw: f64, w: usize, h: usize) -> Camera {
-    Camera {
+fn camera(eye: [f64; 3], roll: f64, pitch: f64, yaw: f64, w: usize, h: usize) -> Viewpoint {
+    Viewpoint {
         eye,
         attitude: Attitude { roll, pitch, yaw },
         hfov: 60.0,
@@ -689,7 +689,7 @@ fn arch_scene(arch: bool) -> (tempfile::TempDir, TileReader) {
 }
 
 /// The centre pixel's range and colour for both traversals (asserting they agree).
-fn centre_hit(r: &TileReader, cam: &Camera) -> (f32, [u8; 3]) {
+fn centre_hit(r: &TileReader, cam: &Viewpoint) -> (f32, [u8; 3]) {
     let h = render_view(r, cam, &no_lod(Traversal::Hierarchical)).unwrap();
     let l = render_view(r, cam, &no_lod(Traversal::Level0)).unwrap();
     assert_eq!((h.rgb.clone(), bits(&h.range)), (l.rgb, bits(&l.range)));
@@ -1164,7 +1164,7 @@ fn hard_yaw() -> impl Strategy<Value = f64> {
 /// eye is inside solid matter (refused alike).
 fn with_and_without_coherence(
     r: &TileReader,
-    cam: &Camera,
+    cam: &Viewpoint,
     opts: ViewOptions,
 ) -> Option<(Frame, Frame)> {
     let with = render_view(
