@@ -159,7 +159,7 @@ fn make(kind: Kind) -> dbms::Result<(VoxelObject, Out, String, Extra)> {
             roof_colour,
             out,
         } => {
-            let fp = synth::read_footprints(&footprints, &height_field)?;
+            let fp = synth::read_extrusions(&footprints, &height_field)?;
             let obj = synth::extrude(
                 &fp,
                 out.voxel,

@@ -176,18 +176,19 @@ pub fn cone_tree(p: &TreeParams, voxel: f64) -> Result<(VoxelObject, f64)> {
     Ok((solid(obj)?, h))
 }
 
-/// A footprint: polygon rings (outer ring first, then holes; x, y world units) and a height.
+/// A footprint to extrude: polygon rings (outer ring first, then holes; x, y world units) and
+/// the height of its flat roof.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Footprint {
+pub struct Extrusion {
     /// Rings of `[x, y]` points; inside is the even-odd rule over all rings.
     pub rings: Vec<Vec<[f64; 2]>>,
     /// Height of the flat roof above the ground, metres.
     pub height: f64,
 }
 
-/// Read the footprints of a GeoJSON FeatureCollection (Polygon and MultiPolygon features) with
-/// their height from property `height_field` (a number, metres).
-pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>> {
+/// The footprints to extrude from a GeoJSON FeatureCollection (Polygon and MultiPolygon
+/// features), with their height from property `height_field` (a number, metres).
+pub fn read_extrusions(path: &Path, height_field: &str) -> Result<Vec<Extrusion>> {
     let features =
         crate::geojson::read_features(path, "give a GeoJSON FeatureCollection of Polygons")?;
     let mut out = Vec::new();
@@ -211,7 +212,7 @@ pub fn read_footprints(path: &Path, height_field: &str) -> Result<Vec<Footprint>
                 .into_iter()
                 .map(|r| r.into_iter().map(|(x, y)| [x, y]).collect())
                 .collect();
-            out.push(Footprint { rings, height });
+            out.push(Extrusion { rings, height });
         }
     }
     if out.is_empty() {
@@ -229,7 +230,7 @@ const BAND_ROWS: u32 = 16;
 /// A footprint with the columns it can cover: those whose centre lies in the bounding box of its
 /// outer ring (inclusive), `cols` and `rows` as inclusive index ranges.
 struct Prism<'a> {
-    footprint: &'a Footprint,
+    footprint: &'a Extrusion,
     lo: [f64; 2],
     hi: [f64; 2],
     cols: [u32; 2],
@@ -262,7 +263,7 @@ fn centre_range(grid: &VoxelGrid, a: usize, lo: f64, hi: f64) -> Option<[u32; 2]
 }
 
 /// The footprints that cover at least one column centre of `grid`, with their column ranges.
-fn prisms<'a>(grid: &VoxelGrid, footprints: &'a [Footprint]) -> Vec<Prism<'a>> {
+fn prisms<'a>(grid: &VoxelGrid, footprints: &'a [Extrusion]) -> Vec<Prism<'a>> {
     footprints
         .iter()
         .filter_map(|f| {
@@ -343,7 +344,7 @@ fn column_voxels(grid: &VoxelGrid, h: f64) -> u32 {
 }
 
 /// The grid of [`extrude`]: all footprint vertices, from the ground to the tallest roof.
-fn extrude_grid(footprints: &[Footprint], voxel: f64) -> Result<VoxelGrid> {
+fn extrude_grid(footprints: &[Extrusion], voxel: f64) -> Result<VoxelGrid> {
     let pts = footprints.iter().flat_map(|f| f.rings.iter().flatten());
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in pts {
@@ -388,7 +389,7 @@ fn band_lists(prisms: &[Prism<'_>], grid: &VoxelGrid) -> Vec<Vec<u32>> {
 /// so its size limits ([`super::grid::MAX_VOXELS`]) bound one object to a district at a fine
 /// voxel (10 km × 10 km × 42 m at 1 m).
 pub fn extrude(
-    footprints: &[Footprint],
+    footprints: &[Extrusion],
     voxel: f64,
     wall: [u8; 3],
     roof: [u8; 3],
@@ -534,7 +535,7 @@ mod tests {
                 [[500020,5000000],[500024,5000000],[500024,5000004],[500020,5000004],[500020,5000000]]]]}}]}"#,
         )
         .unwrap();
-        let fp = read_footprints(&p, "height").unwrap();
+        let fp = read_extrusions(&p, "height").unwrap();
         assert_eq!(fp.len(), 2);
         let o = extrude(&fp, 0.5, [1, 1, 1], [9, 9, 9]).unwrap();
         assert_eq!(o.grid.origin, [500000.0, 5000000.0, 0.0]);
@@ -545,7 +546,7 @@ mod tests {
         assert_eq!(o.colour_at(&rank, 0, 0, 10), Some([1, 1, 1]), "wall");
         assert_eq!(o.colour_at(&rank, 10, 10, 0), None, "courtyard");
         std::fs::write(&p, r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[[[0,0],[1,0],[1,1]]]}}]}"#).unwrap();
-        assert!(read_footprints(&p, "height")
+        assert!(read_extrusions(&p, "height")
             .unwrap_err()
             .to_string()
             .contains("feature 0: no positive number in property \"height\""));
@@ -554,7 +555,7 @@ mod tests {
     /// The plain extrusion (every footprint tested on every column, every voxel of the grid
     /// visited): the reference the banded one must equal voxel for voxel.
     fn extrude_brute_force(
-        footprints: &[Footprint],
+        footprints: &[Extrusion],
         voxel: f64,
         wall: [u8; 3],
         roof: [u8; 3],
@@ -611,7 +612,7 @@ mod tests {
             voxel in proptest::sample::select(vec![0.25, 0.5, 0.7, 1.0, 3.0]),
         ) {
             let q = 0.25;
-            let fp: Vec<Footprint> = shapes
+            let fp: Vec<Extrusion> = shapes
                 .iter()
                 .map(|&(x, y, w, d, h, kind)| {
                     let (x, y) = (500_000.0 + x as f64 * q, 5_300_000.0 + y as f64 * q);
@@ -621,7 +622,7 @@ mod tests {
                         1 => vec![rect(x, y, w, d), rect(x + w / 4.0, y + d / 4.0, w / 2.0, d / 2.0)],
                         _ => vec![vec![[x, y], [x + w, y + d / 3.0], [x + w / 3.0, y + d]]],
                     };
-                    Footprint { rings, height: h as f64 * 0.37 }
+                    Extrusion { rings, height: h as f64 * 0.37 }
                 })
                 .collect();
             let (wall, roof) = ([1, 2, 3], [7, 8, 9]);
@@ -639,8 +640,8 @@ mod tests {
     fn each_footprint_is_tested_only_on_the_columns_of_its_bounding_box() {
         let work = |n: usize| {
             // 10 m squares on a 31 m lot grid, 100 lots a row, corners on voxel boundaries.
-            let fp: Vec<Footprint> = (0..n)
-                .map(|k| Footprint {
+            let fp: Vec<Extrusion> = (0..n)
+                .map(|k| Extrusion {
                     rings: vec![rect(
                         500_000.0 + 31.0 * (k % 100) as f64,
                         5_300_000.0 + 31.0 * (k / 100) as f64,
@@ -694,7 +695,7 @@ mod tests {
             trunk: [90, 60, 30],
             seed: 1,
         };
-        let footprint = Footprint {
+        let footprint = Extrusion {
             rings: vec![vec![[0.2, 0.2], [0.8, 0.2], [0.8, 0.8], [0.2, 0.8]]],
             height: 6.0,
         };
@@ -714,7 +715,7 @@ mod tests {
     /// `--bounds` (an option extrude does not have).
     #[test]
     fn a_city_too_large_for_one_object_says_how_to_split_it() {
-        let fp = |x: f64, y: f64| Footprint {
+        let fp = |x: f64, y: f64| Extrusion {
             rings: vec![rect(x, y, 10.0, 10.0)],
             height: 8.0,
         };
@@ -723,7 +724,7 @@ mod tests {
             .to_string();
         assert!(e.contains("too large"), "{e}");
         assert!(e.contains("split the footprints"), "{e}");
-        let flat = Footprint {
+        let flat = Extrusion {
             rings: vec![vec![[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]]],
             height: 8.0,
         };
