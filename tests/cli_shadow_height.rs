@@ -493,7 +493,7 @@ fn sample_within_a_cell(size: usize, min_measured: usize) {
         ],
         &s,
     );
-    let cell = dbms::sample::ORTHO_CELL_M;
+    let cell = dbms::sample_scene::ORTHO_CELL_M;
     let h = read_json(&s.join("heights.geojson"));
     let features = h["features"].as_array().unwrap();
     let truths = truth["buildings"].as_array().unwrap();
@@ -533,5 +533,5 @@ fn the_small_sample_scene_buildings_come_back_within_a_cell() {
 /// neighbours and roads): the goal, checked on every `cargo test`.
 #[test]
 fn the_full_sample_scene_buildings_come_back_within_a_cell() {
-    sample_within_a_cell(dbms::sample::DEFAULT_SIZE, 25);
+    sample_within_a_cell(dbms::sample_scene::DEFAULT_SIZE, 25);
 }

@@ -12,7 +12,7 @@
 //! * [`sun`]: solar position; [`shadow`]: cast-shadow masks over a height field;
 //!   [`shadow_mask`]: the `dbms shadows` stage (a database's mask as a GeoTIFF).
 //! * [`shadow_height`]: building heights from their shadows, refined over the terrain.
-//! * [`sample`]: the generated sample scene.
+//! * [`sample_scene`]: the generated sample scene.
 //! * [`voxel`]: sculpted and synthetic voxel objects.
 //! * [`standing`]: what stands on the terrain (building prisms and placed voxel objects, and
 //!   the polygon fill that rasterises footprints), read by shadow-height, the shadows command
@@ -35,7 +35,7 @@ pub mod progress;
 pub mod pyramid;
 pub mod raster;
 pub mod render;
-pub mod sample;
+pub mod sample_scene;
 pub mod shadow;
 pub mod shadow_height;
 pub mod shadow_mask;

@@ -1,7 +1,7 @@
 //! `dbms sample`: generate the sample scene.
 
 use super::Ctx;
-use dbms::sample::{self, SampleOptions};
+use dbms::sample_scene::{self, SampleOptions};
 use std::path::PathBuf;
 
 /// Generate the sample scene (DEM, orthophoto with cast shadows, building footprints, truth).
@@ -14,18 +14,18 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// DEM cells per side at 0.5 m (the orthophoto has twice as many at 0.25 m).
-    #[arg(long, default_value_t = sample::DEFAULT_SIZE)]
+    #[arg(long, default_value_t = sample_scene::DEFAULT_SIZE)]
     size: usize,
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
-    let scene = sample::generate(SampleOptions {
+    let scene = sample_scene::generate(SampleOptions {
         seed: args.seed,
         size: args.size,
     })?;
-    let files = sample::write(&scene, &args.output)?;
+    let files = sample_scene::write(&scene, &args.output)?;
     ctx.report(&Generated {
-        sun: sample::sun_json(&scene),
+        sun: sample_scene::sun_json(&scene),
         buildings: scene.buildings.len(),
         max_slope_percent: scene.max_slope_percent,
         shadow_fraction: scene.shadow_fraction,
@@ -47,7 +47,7 @@ struct Generated<'a> {
     max_slope_percent: f64,
     shadow_fraction: f64,
     #[serde(skip)]
-    scene: &'a sample::Scene,
+    scene: &'a sample_scene::Scene,
 }
 
 impl std::fmt::Display for Generated<'_> {
@@ -59,12 +59,12 @@ impl std::fmt::Display for Generated<'_> {
             self.output.display(),
             scene.dem.width(),
             scene.dem.height(),
-            sample::DEM_CELL_M,
+            sample_scene::DEM_CELL_M,
             scene.ortho.width(),
             scene.ortho.height(),
-            sample::ORTHO_CELL_M,
+            sample_scene::ORTHO_CELL_M,
             self.buildings,
-            sample::SUN_TIME,
+            sample_scene::SUN_TIME,
             scene.sun.elevation_deg,
             scene.sun.azimuth_deg
         )

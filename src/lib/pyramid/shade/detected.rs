@@ -190,7 +190,7 @@ mod tests {
     use crate::grid::Grid;
     use crate::ingest::resample::{resample_elevation, Resampling};
     use crate::raster::{Colour, Elevation};
-    use crate::sample::{generate, Building, SampleOptions};
+    use crate::sample_scene::{generate, Building, SampleOptions};
     use crate::standing::{rasterise_prisms, Prism, RaisedCell};
 
     /// Grey of index `v` (a grey's shadow index is its value).
