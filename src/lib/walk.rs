@@ -6,6 +6,10 @@
 //! axis spans `[k, k + 1)` — from `start`, moving `dir` cells per unit of the caller's parameter
 //! `t` (metres, or cells).
 //!
+//! [`Walk`] takes the corner rule as a value; under [`Corner::Exact`] it is an [`ExactWalk`],
+//! which callers that step many rays (the renderer) use directly: that rule needs no state
+//! beyond the cell and the next crossings, and the walk is small enough to copy.
+//!
 //! A walk may also run over a coarser grid whose cells are `scale` cells wide ([`Walk::resume`]):
 //! its boundary `K` is the fine boundary `K · scale`, and its crossing time is
 //! `cross(start, dir, K · scale)`, the same f64 as the fine walk's for that boundary.
@@ -150,40 +154,47 @@ fn moving<const N: usize>(dir: [f64; N]) -> [f64; N] {
 /// The cells a ray crosses; see the module doc. `N` is 2 (raster cells) or 3 (voxels).
 #[derive(Debug, Clone)]
 pub struct Walk<const N: usize> {
-    start: [f64; N],
-    dir: [f64; N],
-    corner: Corner,
-    /// Width of a cell in the caller's cells (1, or `f^k` for a coarse level).
-    scale: i64,
-    cell: [i64; N],
-    step: [i64; N],
-    /// The axes crossed to enter `cell` (none at the start).
-    stepped: [bool; N],
-    /// Parameter at which the ray entered `cell`.
-    t_in: f64,
-    /// The crossing time of the next boundary on each axis from `cell` (only the axes a step
-    /// changes are computed again).
-    next_times: [f64; N],
-    /// Side cells still to visit at a corner (Touching), and how many.
-    pending: [[i64; N]; 8],
-    n_pending: usize,
-    pending_t: f64,
-    done: bool,
+    rule: Rule<N>,
+}
+
+/// A walk's state under its corner rule: the exact rule needs no memory of its path.
+#[derive(Debug, Clone)]
+enum Rule<const N: usize> {
+    Tolerant(Tolerant<N>),
+    Exact(ExactWalk<N>),
+}
+
+/// The start cell on each axis: the cell holding `start`, or on a boundary the one the ray
+/// moves into.
+fn start_cell<const N: usize>(start: [f64; N], dir: [f64; N]) -> [i64; N] {
+    std::array::from_fn(|a| {
+        if dir[a] < 0.0 {
+            start[a].ceil() as i64 - 1
+        } else {
+            start[a].floor() as i64
+        }
+    })
+}
+
+/// The step on each axis: +1, −1, or 0 where the ray does not move along it.
+fn steps<const N: usize>(dir: [f64; N]) -> [i64; N] {
+    dir.map(|d| {
+        if d > 0.0 {
+            1
+        } else if d < 0.0 {
+            -1
+        } else {
+            0
+        }
+    })
 }
 
 impl<const N: usize> Walk<N> {
-    /// A walk from `start` (cell coordinates) moving `dir` cells per unit of `t`. Non-finite
-    /// components of `dir` are taken as 0.
+    /// The walk of the ray from `start` moving `dir` cells per unit of `t`, first visit the
+    /// start cell from `t = 0`.
     pub fn new(start: [f64; N], dir: [f64; N], corner: Corner) -> Walk<N> {
         let dir = moving(dir);
-        let cell = std::array::from_fn(|a| {
-            if dir[a] < 0.0 {
-                start[a].ceil() as i64 - 1
-            } else {
-                start[a].floor() as i64
-            }
-        });
-        Walk::resume(start, dir, corner, 1, cell, 0.0)
+        Walk::resume(start, dir, corner, 1, start_cell(start, dir), 0.0)
     }
 
     /// A walk over cells `scale` of the caller's cells wide (cell `K` spans
@@ -201,104 +212,135 @@ impl<const N: usize> Walk<N> {
         cell: [i64; N],
         t: f64,
     ) -> Walk<N> {
-        let mut w = Walk::unplaced(start, dir, corner);
-        w.restart(scale, cell, t);
-        w
+        assert!((1..=3).contains(&N), "walks are 1-, 2- or 3-dimensional");
+        let rule = match corner {
+            Corner::Exact => Rule::Exact(ExactWalk::resume(start, dir, scale, cell, t)),
+            tolerant => Rule::Tolerant(Tolerant::resume(start, dir, tolerant, scale, cell, t)),
+        };
+        Walk { rule }
     }
 
-    /// A walk for the ray that is nowhere yet ([`Walk::restart`] places it).
-    fn unplaced(start: [f64; N], dir: [f64; N], corner: Corner) -> Walk<N> {
-        assert!((1..=3).contains(&N), "walks are 1-, 2- or 3-dimensional");
-        let dir = moving(dir);
-        Walk {
-            start,
-            dir,
-            corner,
-            scale: 1,
-            cell: [0; N],
-            stepped: [false; N],
-            step: dir.map(|d| {
-                if d > 0.0 {
-                    1
-                } else if d < 0.0 {
-                    -1
-                } else {
-                    0
-                }
-            }),
-            t_in: 0.0,
-            next_times: [f64::INFINITY; N],
-            pending: [[0; N]; 8],
-            n_pending: 0,
-            pending_t: 0.0,
-            done: false,
+    /// The cell the walk is in and the time it entered it (before the first `next`: the start
+    /// cell and the start time).
+    #[inline]
+    pub fn position(&self) -> ([i64; N], f64) {
+        match &self.rule {
+            Rule::Tolerant(w) => (w.cell, w.t_in),
+            Rule::Exact(w) => w.position(),
         }
     }
 
-    /// [`Walk::resume`] under [`Corner::Exact`] in the cell holding the ray at `t` ([`cell_at`]
-    /// on each axis; `guess` is any nearby cell), finding the cell and the walk's first
-    /// crossings with the same divisions.
-    pub fn at(start: [f64; N], dir: [f64; N], scale: i64, t: f64, guess: [i64; N]) -> Walk<N> {
-        assert!(scale >= 1, "a walk's cells are at least one cell wide");
-        let mut w = Walk::unplaced(start, dir, Corner::Exact);
-        let located: [(i64, f64); N] =
-            std::array::from_fn(|a| locate(w.start[a], w.dir[a], t, scale, guess[a]));
-        w.scale = scale;
-        w.cell = located.map(|l| l.0);
-        w.t_in = t;
-        w.next_times = located.map(|l| l.1);
-        debug_assert!((0..N).all(|a| w.next_times[a].to_bits() == w.crossing(a).to_bits()));
-        w
-    }
-
-    /// Take the same ray up again, as [`Walk::resume`] with this walk's start, direction and
-    /// corner rule, without building a new walk (the renderer does this on every change of
-    /// level).
-    #[inline]
-    pub fn restart(&mut self, scale: i64, cell: [i64; N], t: f64) {
-        assert!(scale >= 1, "a walk's cells are at least one cell wide");
-        self.scale = scale;
-        self.cell = cell;
-        self.t_in = t;
-        self.stepped = [false; N];
-        self.next_times = std::array::from_fn(|a| self.crossing(a));
-        self.n_pending = 0;
-        self.done = false;
-    }
-
-    /// The cell the walk is in now and the time it entered it: the next visit's cell and
-    /// `t_in` (under [`Corner::Touching`], past the zero-length side cells still to visit).
-    #[inline]
-    pub fn position(&self) -> ([i64; N], f64) {
-        (self.cell, self.t_in)
-    }
-
-    /// The axes whose boundaries the walk crossed to enter the cell it is in now (several at a
-    /// corner; none for the cell it started or resumed in).
+    /// The axes the last step crossed (all `false` before the first step).
     #[inline]
     pub fn stepped(&self) -> [bool; N] {
-        self.stepped
-    }
-
-    /// The time the ray crosses the next boundary on axis `a` from `cell`.
-    #[inline]
-    fn crossing(&self, a: usize) -> f64 {
-        cross(self.start[a], self.dir[a], self.next_boundary(a))
-    }
-
-    /// The boundary the ray crosses next on axis `a`, in the caller's (fine) cells.
-    #[inline]
-    fn next_boundary(&self, a: usize) -> i64 {
-        if self.step[a] > 0 {
-            (self.cell[a] + 1) * self.scale
-        } else {
-            self.cell[a] * self.scale
+        match &self.rule {
+            Rule::Tolerant(w) => w.stepped,
+            Rule::Exact(w) => w.stepped,
         }
     }
 }
 
 impl<const N: usize> Iterator for Walk<N> {
     type Item = Visit<N>;
+
+    fn next(&mut self) -> Option<Visit<N>> {
+        match &mut self.rule {
+            Rule::Tolerant(w) => w.next(),
+            Rule::Exact(w) => w.next(),
+        }
+    }
+}
+
+/// A walk under [`Corner::Diagonal`] or [`Corner::Touching`]: corners within [`CORNER_EPS`],
+/// and for `Touching` the side cells queued to visit with zero length.
+#[derive(Debug, Clone)]
+struct Tolerant<const N: usize> {
+    start: [f64; N],
+    dir: [f64; N],
+    corner: Corner,
+    /// Width of a cell in the caller's cells.
+    scale: i64,
+    cell: [i64; N],
+    step: [i64; N],
+    /// Which axes the last step crossed.
+    stepped: [bool; N],
+    t_in: f64,
+    /// The time the ray crosses the next boundary of each axis (`+∞` for an axis it does not
+    /// move along).
+    next_times: [f64; N],
+    /// Zero-length side cells still to visit (`Touching`), last first.
+    pending: [[i64; N]; 8],
+    n_pending: usize,
+    pending_t: f64,
+    done: bool,
+}
+
+impl<const N: usize> Tolerant<N> {
+    fn resume(
+        start: [f64; N],
+        dir: [f64; N],
+        corner: Corner,
+        scale: i64,
+        cell: [i64; N],
+        t: f64,
+    ) -> Tolerant<N> {
+        assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        let dir = moving(dir);
+        let mut w = Tolerant {
+            start,
+            dir,
+            corner,
+            scale,
+            cell,
+            step: steps(dir),
+            stepped: [false; N],
+            t_in: t,
+            next_times: [f64::INFINITY; N],
+            pending: [[0; N]; 8],
+            n_pending: 0,
+            pending_t: 0.0,
+            done: false,
+        };
+        w.next_times = std::array::from_fn(|a| w.crossing(a));
+        w
+    }
+
+    /// The time the ray crosses the next boundary of axis `a` (`+∞` if it does not move along it).
+    #[inline]
+    fn crossing(&self, a: usize) -> f64 {
+        cross(self.start[a], self.dir[a], self.next_boundary(a))
+    }
+
+    /// The next boundary (in the caller's cells) of axis `a` in the direction of travel.
+    #[inline]
+    fn next_boundary(&self, a: usize) -> i64 {
+        next_boundary(self.cell[a], self.step[a], self.scale)
+    }
+
+    /// Queue the side cells of a corner the ray passes through at `t_out` on the `tied` axes:
+    /// every proper, non-empty subset of them stepped.
+    fn queue_side_cells(&mut self, tied: [bool; N], t_out: f64) {
+        let mut axes = [0usize; 3];
+        let mut n_axes = 0;
+        for a in (0..N).filter(|&a| tied[a]) {
+            axes[n_axes] = a;
+            n_axes += 1;
+        }
+        let axes = &axes[..n_axes];
+        let full = (1usize << axes.len()) - 1;
+        self.n_pending = 0;
+        for mask in (1..full).rev() {
+            let mut c = self.cell;
+            for (k, &a) in axes.iter().enumerate() {
+                if mask & (1 << k) != 0 {
+                    c[a] += self.step[a];
+                }
+            }
+            self.pending[self.n_pending] = c;
+            self.n_pending += 1;
+        }
+        self.pending_t = t_out;
+    }
 
     fn next(&mut self) -> Option<Visit<N>> {
         if self.n_pending > 0 {
@@ -336,35 +378,11 @@ impl<const N: usize> Iterator for Walk<N> {
         let tied: [bool; N] = std::array::from_fn(|a| {
             a == m
                 || (self.dir[a] != 0.0
-                    && if self.corner == Corner::Exact {
-                        times[a] == t_out
-                    } else {
-                        (self.start[a] + t_out * self.dir[a] - self.next_boundary(a) as f64).abs()
-                            <= CORNER_EPS
-                    })
+                    && (self.start[a] + t_out * self.dir[a] - self.next_boundary(a) as f64).abs()
+                        <= CORNER_EPS)
         });
         if self.corner == Corner::Touching {
-            // Every proper, non-empty subset of the tied axes stepped: the side cells.
-            let mut axes = [0usize; 3];
-            let mut n_axes = 0;
-            for a in (0..N).filter(|&a| tied[a]) {
-                axes[n_axes] = a;
-                n_axes += 1;
-            }
-            let axes = &axes[..n_axes];
-            let full = (1usize << axes.len()) - 1;
-            self.n_pending = 0;
-            for mask in (1..full).rev() {
-                let mut c = self.cell;
-                for (k, &a) in axes.iter().enumerate() {
-                    if mask & (1 << k) != 0 {
-                        c[a] += self.step[a];
-                    }
-                }
-                self.pending[self.n_pending] = c;
-                self.n_pending += 1;
-            }
-            self.pending_t = t_out;
+            self.queue_side_cells(tied, t_out);
         }
         for (a, &t) in tied.iter().enumerate() {
             if t {
@@ -374,6 +392,149 @@ impl<const N: usize> Iterator for Walk<N> {
         self.stepped = tied;
         for a in (0..N).filter(|&a| tied[a]) {
             self.next_times[a] = self.crossing(a);
+        }
+        self.t_in = t_out;
+        Some(here)
+    }
+}
+
+/// The next boundary (in the caller's cells) along an axis from `cell` of cells `scale` wide,
+/// moving `step`.
+#[inline]
+fn next_boundary(cell: i64, step: i64, scale: i64) -> i64 {
+    if step > 0 {
+        (cell + 1) * scale
+    } else {
+        cell * scale
+    }
+}
+
+/// A walk under [`Corner::Exact`], as a type of its own: it holds only what the exact rule
+/// needs (no corner tolerance, no queue), so the renderer, which steps hundreds of thousands
+/// of cells a frame, takes it directly. [`Walk`] with `Corner::Exact` is this walk.
+#[derive(Debug, Clone, Copy)]
+pub struct ExactWalk<const N: usize> {
+    start: [f64; N],
+    dir: [f64; N],
+    step: [i64; N],
+    /// Width of a cell in the caller's cells.
+    scale: i64,
+    cell: [i64; N],
+    stepped: [bool; N],
+    t_in: f64,
+    /// The time the ray crosses the next boundary of each axis (`+∞` for an axis it does not
+    /// move along).
+    next_times: [f64; N],
+    done: bool,
+}
+
+impl<const N: usize> ExactWalk<N> {
+    /// See [`Walk::resume`] (under [`Corner::Exact`]).
+    pub fn resume(
+        start: [f64; N],
+        dir: [f64; N],
+        scale: i64,
+        cell: [i64; N],
+        t: f64,
+    ) -> ExactWalk<N> {
+        let mut w = ExactWalk::unplaced(start, dir, scale);
+        w.restart(scale, cell, t);
+        w
+    }
+
+    /// [`ExactWalk::resume`] in the cell holding the ray at `t` ([`cell_at`] on each axis;
+    /// `guess` is any nearby cell), finding the cell and the walk's first crossings with the
+    /// same divisions.
+    pub fn at(start: [f64; N], dir: [f64; N], scale: i64, t: f64, guess: [i64; N]) -> ExactWalk<N> {
+        let mut w = ExactWalk::unplaced(start, dir, scale);
+        let located: [(i64, f64); N] =
+            std::array::from_fn(|a| locate(w.start[a], w.dir[a], t, scale, guess[a]));
+        w.cell = located.map(|l| l.0);
+        w.t_in = t;
+        w.next_times = located.map(|l| l.1);
+        debug_assert!((0..N).all(|a| w.next_times[a].to_bits() == w.crossing(a).to_bits()));
+        w
+    }
+
+    fn unplaced(start: [f64; N], dir: [f64; N], scale: i64) -> ExactWalk<N> {
+        assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        let dir = moving(dir);
+        ExactWalk {
+            start,
+            dir,
+            step: steps(dir),
+            scale,
+            cell: [0; N],
+            stepped: [false; N],
+            t_in: 0.0,
+            next_times: [f64::INFINITY; N],
+            done: false,
+        }
+    }
+
+    /// Take the same ray up again, as [`ExactWalk::resume`] with this walk's start and
+    /// direction, without building a new walk (the renderer does this on every change of
+    /// level).
+    #[inline]
+    pub fn restart(&mut self, scale: i64, cell: [i64; N], t: f64) {
+        assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        self.scale = scale;
+        self.cell = cell;
+        self.t_in = t;
+        self.stepped = [false; N];
+        self.next_times = std::array::from_fn(|a| self.crossing(a));
+        self.done = false;
+    }
+
+    /// See [`Walk::position`].
+    #[inline]
+    pub fn position(&self) -> ([i64; N], f64) {
+        (self.cell, self.t_in)
+    }
+
+    /// The time the ray crosses the next boundary of axis `a` (`+∞` if it does not move along it).
+    #[inline]
+    fn crossing(&self, a: usize) -> f64 {
+        cross(
+            self.start[a],
+            self.dir[a],
+            next_boundary(self.cell[a], self.step[a], self.scale),
+        )
+    }
+}
+
+impl<const N: usize> Iterator for ExactWalk<N> {
+    type Item = Visit<N>;
+
+    /// The next visit: the cell until the nearest crossing; every axis crossed at exactly that
+    /// f64 steps (a corner when several do).
+    #[inline]
+    fn next(&mut self) -> Option<Visit<N>> {
+        if self.done {
+            return None;
+        }
+        let mut t_out = f64::INFINITY;
+        for &t in &self.next_times {
+            if t < t_out {
+                t_out = t;
+            }
+        }
+        let here = Visit {
+            cell: self.cell,
+            t_in: self.t_in,
+            t_out,
+        };
+        if t_out == f64::INFINITY {
+            self.done = true;
+            return Some(here);
+        }
+        for a in 0..N {
+            let tied = self.next_times[a] == t_out;
+            self.stepped[a] = tied;
+            if tied {
+                self.cell[a] += self.step[a];
+                self.next_times[a] = self.crossing(a);
+            }
         }
         self.t_in = t_out;
         Some(here)
@@ -751,7 +912,7 @@ mod tests {
         ) {
             let cell = [cell_at(o[0], d[0], t, scale, 0), cell_at(o[1], d[1], t, scale, 0)];
             let want: Vec<Visit<2>> = Walk::resume(o, d, Corner::Exact, scale, cell, t).take(20).collect();
-            let got: Vec<Visit<2>> = Walk::at(o, d, scale, t, guess).take(20).collect();
+            let got: Vec<Visit<2>> = ExactWalk::at(o, d, scale, t, guess).take(20).collect();
             prop_assert_eq!(got, want);
         }
 

@@ -25,7 +25,7 @@ use super::march::{Plan, Span};
 use super::ray::Ray;
 use super::sampler::Sampler;
 use crate::error::Result;
-use crate::walk::{Visit, Walk};
+use crate::walk::{ExactWalk, Visit};
 
 /// Whether `rays` can be marched as one column: every ray moves horizontally exactly as the
 /// first does (same origin and rate on both axes, bit for bit).
@@ -103,7 +103,7 @@ impl Column<'_, '_, '_> {
     fn walk(
         &mut self,
         l: usize,
-        walk: Walk<2>,
+        walk: ExactWalk<2>,
         parent: Option<([i64; 2], i64)>,
         rows: &[usize],
     ) -> Result<()> {

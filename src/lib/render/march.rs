@@ -14,8 +14,8 @@
 //! ray over the whole crossing is skipped in one step; otherwise the ray descends a level at the
 //! same `t`; after a step it climbs back to the coarsest level whose cell changed.
 //!
-//! Stepping, at every level, is the crate's one grid walk, [`crate::walk::Walk`]: a level-`k`
-//! walk has cells `f^k` level-0 cells wide and crosses boundary `K` at
+//! Stepping, at every level, is the crate's one grid walk under the exact corner rule,
+//! [`ExactWalk`]: a level-`k` walk has cells `f^k` level-0 cells wide and crosses boundary `K` at
 //! `cross(o, d, K · f^k)` ([`crate::walk::cross`]), so a boundary shared by several levels is
 //! crossed at the same f64 on each. **Corner rule:
 //! [`Corner::Exact`](crate::walk::Corner::Exact).** Where the ray passes through a cell
@@ -43,7 +43,7 @@ use super::sampler::Sampler;
 use crate::error::Result;
 use crate::tiles::{Cell, STATE_PARTIAL};
 use crate::voxel::columns::Run;
-use crate::walk::{Visit, Walk};
+use crate::walk::{ExactWalk, Visit};
 
 /// How rays step through the levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -325,9 +325,9 @@ pub(super) fn top_level(plan: &Plan) -> usize {
 
 /// A walk over level-`l` cells starting at `τ = t` in the cell holding the ray then (`guess`:
 /// a nearby cell index of that level).
-pub(super) fn walk_from(ray: &Ray, plan: &Plan, l: usize, t: f64, guess: [i64; 2]) -> Walk<2> {
+pub(super) fn walk_from(ray: &Ray, plan: &Plan, l: usize, t: f64, guess: [i64; 2]) -> ExactWalk<2> {
     let (o, d) = ([ray.u.o, ray.v.o], [ray.u.d, ray.v.d]);
-    Walk::at(o, d, plan.scales[l], t, guess)
+    ExactWalk::at(o, d, plan.scales[l], t, guess)
 }
 
 /// The level-`l` cell of the eye (a guess for [`walk_from`]).
@@ -341,7 +341,7 @@ pub(super) fn eye_cell(ray: &Ray, plan: &Plan, l: usize) -> [i64; 2] {
 
 /// Step `ray` through `span` of the tile set behind `sampler`.
 ///
-/// Every level is stepped by one [`Walk`] over that level's cells
+/// Every level is stepped by one [`ExactWalk`] over that level's cells
 /// ([`Corner::Exact`](crate::walk::Corner::Exact): crossing times `cross(o, d, K · f^k)`, the
 /// same f64 at every level; through a corner where both crossings are the same f64 the ray
 /// steps straight into the diagonal cell). Descending takes a finer walk up at the same `τ` in

@@ -11,7 +11,7 @@
 //! Invariant: the time the ray crosses a cell boundary `b` is one pure function,
 //! [`Axis::cross`] (which is [`crate::walk::cross`]), used by every traversal and every level
 //! (a level-`k` boundary is the level-0 boundary `K · f^k`). The stepping itself is the crate's
-//! one grid walk, [`crate::walk::Walk`], under [`crate::walk::Corner::Exact`] (see
+//! one grid walk under [`crate::walk::Corner::Exact`], [`crate::walk::ExactWalk`] (see
 //! [`super::march`]): the cell the ray is in at time `τ` is a pure function of `τ`
 //! ([`crate::walk::cell_at`]: a boundary crossed at exactly `τ` counts as crossed; through a
 //! corner both crossings are, and the ray is in the diagonal cell). So any two traversals that
