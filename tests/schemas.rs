@@ -135,3 +135,31 @@ fn flight_paths_dbms_reads_match_their_schema() {
         }
     }
 }
+
+/// The sample scene file validates against the scene schema and reads in dbms; documents the
+/// schema refuses, dbms refuses too.
+#[test]
+fn scene_files_match_their_schema() {
+    let v = schema("scene.schema.json");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/scene.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let doc: serde_json::Value = toml::from_str(&text).unwrap();
+    assert_valid(&v, &doc, "samples/scene.toml");
+    dbms::scene::Scene::parse(&text).unwrap();
+    let bad = [
+        text.replace("heading = 50", "heading = 50\nheadnig = 3"),
+        text.replace("sensor = \"visual\"", "sensor = \"sonar\""),
+        text.replace("voxel = 0.25\nseed = 1", "voxel = 0\nseed = 1"),
+        text.replace(
+            "day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"\n",
+            "day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"\nsun = { elevation = 30, azimuth = 100 }\n",
+        ),
+        text.replace("version = 1", "version = 2"),
+    ];
+    for b in &bad {
+        assert_ne!(b, &text, "each bad document changes the sample");
+        let doc: serde_json::Value = toml::from_str(b).unwrap();
+        assert!(!v.is_valid(&doc), "the schema accepts:\n{b}");
+        assert!(dbms::scene::Scene::parse(b).is_err(), "dbms accepts:\n{b}");
+    }
+}

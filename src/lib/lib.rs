@@ -18,6 +18,7 @@
 //!   the polygon fill that rasterises footprints), read by shadow-height, the shadows command
 //!   and the pyramid.
 //! * [`pyramid`] and [`tiles`]: the render database; [`render`]: the ray-casting preview.
+//! * [`scene`]: a scene file naming the inputs, objects, placements and products of a build.
 //!
 //! Shared by the stages: [`walk`], the one grid traversal (cells a ray crosses, explicit corner rule).
 
@@ -36,6 +37,7 @@ pub mod pyramid;
 pub mod raster;
 pub mod render;
 pub mod sample_scene;
+pub mod scene;
 pub mod shadow;
 pub mod shadow_height;
 pub mod shadow_mask;

@@ -1,0 +1,610 @@
+//! The scene file: a TOML description of what a database holds and which products to build
+//! from it (`schemas/scene.schema.json`, `docs/scene.md`).
+//!
+//! Invariant: a [`Scene`] that [`Scene::read`] returns is complete and consistent before any
+//! step runs: every key is known, every value is in its range, every placement names a declared
+//! object, every product names a sensor this dbms builds and at most one sun, no output is also
+//! an input or another step's output, and relative paths are resolved against the scene file's
+//! directory. A problem is one line naming the file, the key (`products.dusk.time`) and, where
+//! TOML gives one, the line.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The format version this dbms reads.
+pub const VERSION: u32 = 1;
+
+/// A scene, as written in its file (paths as given).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Format version, [`VERSION`].
+    pub version: u32,
+    /// The database the build writes.
+    pub database: DatabaseSpec,
+    /// The terrain: elevation and orthophoto.
+    pub terrain: Terrain,
+    /// Buildings whose heights are measured from the orthophoto's shadows.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub buildings: Option<Buildings>,
+    /// Synthetic voxel objects, by name.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub objects: BTreeMap<String, ObjectSpec>,
+    /// Objects placed on the terrain, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub placements: Vec<Placement>,
+    /// What the build delivers, by name: one tile file each.
+    pub products: BTreeMap<String, Product>,
+}
+
+/// `[database]`: where the database goes and its grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DatabaseSpec {
+    /// The database directory.
+    pub dir: PathBuf,
+    /// Cell size, metres; default the orthophoto's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell: Option<f64>,
+    /// Extent `[min_x, min_y, max_x, max_y]` in the DEM's CRS; default where DEM and photo
+    /// overlap.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounds: Option<[f64; 4]>,
+}
+
+/// `[terrain]`: the inputs of ingest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Terrain {
+    /// The elevation raster (GeoTIFF or ASCII grid).
+    pub dem: PathBuf,
+    /// The orthophoto.
+    pub ortho: PathBuf,
+    /// When the orthophoto was taken (RFC 3339 UTC): its sun, whose shadows are in the photo.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photo_time: Option<String>,
+}
+
+/// `[buildings]`: footprints whose heights shadow-height measures in the orthophoto.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Buildings {
+    /// GeoJSON FeatureCollection of footprint polygons.
+    pub footprints: PathBuf,
+}
+
+/// `[objects.NAME]`: a synthetic voxel object, as `dbms object KIND` makes it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObjectSpec {
+    /// A cone tree on a trunk (`dbms object cone`).
+    Cone {
+        /// Nominal total height, metres, > 0.
+        height: f64,
+        /// Crown radius at its base, metres, > 0.
+        radius: f64,
+        /// Voxel edge, metres, > 0.
+        voxel: f64,
+        /// Seed of the variation.
+        #[serde(default = "one")]
+        seed: u64,
+        /// Relative variation of size and shade, in [0, 1).
+        #[serde(default = "default_vary")]
+        vary: f64,
+    },
+    /// A surface of revolution (`dbms object revolve`).
+    Revolve {
+        /// The profile, `[radius, z]` pairs in metres from bottom to top.
+        profile: Vec<[f64; 2]>,
+        /// Voxel edge, metres, > 0.
+        voxel: f64,
+    },
+}
+
+fn one() -> u64 {
+    1
+}
+
+fn default_vary() -> f64 {
+    0.2
+}
+
+/// `[[placements]]`: one object stood on the terrain.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Placement {
+    /// The name of an object in `[objects]`.
+    pub object: String,
+    /// Where its origin goes, `[x, y]` in the database CRS.
+    pub at: [f64; 2],
+    /// Rotation clockwise from grid north, degrees.
+    #[serde(default)]
+    pub heading: f64,
+}
+
+/// `[products.NAME]`: one tile file for one sensor under one sun and its conditions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Product {
+    /// The sensor the product is for ([`SENSORS`]).
+    pub sensor: String,
+    /// The tile file the build writes.
+    pub tiles: PathBuf,
+    /// The sun by time (RFC 3339 UTC, over the database centre); exclusive with `sun`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<String>,
+    /// The sun by its angles; exclusive with `time`. Neither: no sun effects at all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sun: Option<SunAngles>,
+    /// What the scene is like when the product is seen.
+    #[serde(default)]
+    pub conditions: Conditions,
+}
+
+/// A sun given by its angles.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SunAngles {
+    /// Elevation above the horizon, degrees, in (0, 90].
+    pub elevation: f64,
+    /// Azimuth clockwise from grid north, degrees.
+    pub azimuth: f64,
+}
+
+/// `[products.NAME.conditions]`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Conditions {
+    /// Meteorological visibility, metres (haze), > 0; none: clear air.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub visibility_m: Option<f64>,
+}
+
+/// The sensors a product may name. Only `visual` is built today.
+pub const SENSORS: [&str; 1] = ["visual"];
+
+impl Scene {
+    /// Read and check the scene file at `path`; relative paths in it become relative to its
+    /// directory.
+    pub fn read(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::io(path, e).fix("give the path of a scene file (TOML)"))?;
+        let mut scene = Scene::parse(&text).map_err(|e| e.in_file(path))?;
+        let base = path.parent().unwrap_or(Path::new(""));
+        scene.resolve_paths(base);
+        scene.check_paths().map_err(|e| e.in_file(path))?;
+        Ok(scene)
+    }
+
+    /// Parse and check a scene file's text (paths left as written).
+    pub fn parse(text: &str) -> Result<Scene> {
+        let scene: Scene = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
+        scene.check()?;
+        Ok(scene)
+    }
+
+    /// Every check that needs no file system.
+    fn check(&self) -> Result<()> {
+        if self.version != VERSION {
+            return Err(key_error(
+                "version",
+                format!("is {}, this dbms reads version {VERSION}", self.version),
+                "write version = 1",
+            ));
+        }
+        if let Some(cell) = self.database.cell {
+            positive("database.cell", cell)?;
+        }
+        if let Some([x0, y0, x1, y1]) = self.database.bounds {
+            if !(x0 < x1 && y0 < y1) || [x0, y0, x1, y1].iter().any(|v| !v.is_finite()) {
+                return Err(key_error(
+                    "database.bounds",
+                    "is not [min_x, min_y, max_x, max_y] with min < max".into(),
+                    "give the extent's corners, west-south first",
+                ));
+            }
+        }
+        if let Some(t) = &self.terrain.photo_time {
+            check_time("terrain.photo_time", t)?;
+        }
+        if self.buildings.is_some() && self.terrain.photo_time.is_none() {
+            return Err(key_error(
+                "buildings",
+                "measures heights from the photo's shadows, but terrain.photo_time is not given"
+                    .into(),
+                "give terrain.photo_time, the UTC time the orthophoto was taken",
+            ));
+        }
+        for (name, object) in &self.objects {
+            object.check(&format!("objects.{name}"))?;
+        }
+        for (k, p) in self.placements.iter().enumerate() {
+            let key = format!("placements[{k}]");
+            if !self.objects.contains_key(&p.object) {
+                return Err(key_error(
+                    &format!("{key}.object"),
+                    format!("names {:?}, which [objects] does not declare", p.object),
+                    "declare it as [objects.NAME], or fix the name",
+                ));
+            }
+            if p.at.iter().chain([&p.heading]).any(|v| !v.is_finite()) {
+                return Err(key_error(
+                    &key,
+                    "has a value that is not a number".into(),
+                    "",
+                ));
+            }
+        }
+        if self.products.is_empty() {
+            return Err(key_error(
+                "products",
+                "is empty: the build would deliver nothing".into(),
+                "add a [products.NAME] with sensor = \"visual\" and tiles = \"FILE.dbt\"",
+            ));
+        }
+        for (name, product) in &self.products {
+            product.check(&format!("products.{name}"))?;
+        }
+        Ok(())
+    }
+
+    /// Make every relative path relative to `base` (the scene file's directory).
+    fn resolve_paths(&mut self, base: &Path) {
+        let resolve = |p: &mut PathBuf| {
+            if p.is_relative() {
+                *p = base.join(&*p);
+            }
+        };
+        resolve(&mut self.database.dir);
+        resolve(&mut self.terrain.dem);
+        resolve(&mut self.terrain.ortho);
+        if let Some(b) = &mut self.buildings {
+            resolve(&mut b.footprints);
+        }
+        for p in self.products.values_mut() {
+            resolve(&mut p.tiles);
+        }
+    }
+
+    /// The inputs exist, and no output is an input or another output.
+    fn check_paths(&self) -> Result<()> {
+        let mut inputs = vec![
+            ("terrain.dem", &self.terrain.dem),
+            ("terrain.ortho", &self.terrain.ortho),
+        ];
+        if let Some(b) = &self.buildings {
+            inputs.push(("buildings.footprints", &b.footprints));
+        }
+        for (key, path) in &inputs {
+            if !path.is_file() {
+                return Err(key_error(
+                    key,
+                    format!("{} does not exist", path.display()),
+                    "give a path relative to the scene file, or an absolute one",
+                ));
+            }
+        }
+        let mut outputs: Vec<(String, &PathBuf)> =
+            vec![("database.dir".into(), &self.database.dir)];
+        for (name, p) in &self.products {
+            outputs.push((format!("products.{name}.tiles"), &p.tiles));
+        }
+        for (k, (key, out)) in outputs.iter().enumerate() {
+            let clash = inputs
+                .iter()
+                .map(|(k, p)| (k.to_string(), *p))
+                .chain(outputs[..k].iter().map(|(k, p)| (k.clone(), *p)))
+                .find(|(_, p)| same_path(p, out));
+            if let Some((other, _)) = clash {
+                return Err(key_error(
+                    key,
+                    format!("is {}, which {other} also names: a step would overwrite what another reads or writes", out.display()),
+                    "give each output its own path",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ObjectSpec {
+    fn check(&self, key: &str) -> Result<()> {
+        match self {
+            ObjectSpec::Cone {
+                height,
+                radius,
+                voxel,
+                vary,
+                ..
+            } => {
+                positive(&format!("{key}.height"), *height)?;
+                positive(&format!("{key}.radius"), *radius)?;
+                positive(&format!("{key}.voxel"), *voxel)?;
+                if !(0.0..1.0).contains(vary) {
+                    return Err(key_error(
+                        &format!("{key}.vary"),
+                        format!("is {vary}, outside [0, 1)"),
+                        "give a relative variation such as 0.2",
+                    ));
+                }
+            }
+            ObjectSpec::Revolve { profile, voxel } => {
+                positive(&format!("{key}.voxel"), *voxel)?;
+                if profile.len() < 2 || profile.iter().flatten().any(|v| !v.is_finite()) {
+                    return Err(key_error(
+                        &format!("{key}.profile"),
+                        "needs at least two [radius, z] pairs of numbers".into(),
+                        "e.g. profile = [[6, 0], [6, 8], [0, 9.5]]",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Product {
+    fn check(&self, key: &str) -> Result<()> {
+        if !SENSORS.contains(&self.sensor.as_str()) {
+            return Err(key_error(
+                &format!("{key}.sensor"),
+                format!("is {:?}, which this dbms does not build", self.sensor),
+                &format!("give one of {}", SENSORS.join(", ")),
+            ));
+        }
+        match (&self.time, &self.sun) {
+            (Some(_), Some(_)) => {
+                return Err(key_error(
+                    key,
+                    "gives both time and sun: a product has one sun".into(),
+                    "keep one of them",
+                ))
+            }
+            (Some(t), None) => check_time(&format!("{key}.time"), t)?,
+            (None, Some(s)) => {
+                if !(s.elevation > 0.0 && s.elevation <= 90.0 && s.azimuth.is_finite()) {
+                    return Err(key_error(
+                        &format!("{key}.sun"),
+                        format!(
+                            "elevation {} azimuth {}: the sun must be above the horizon (0, 90] degrees",
+                            s.elevation, s.azimuth
+                        ),
+                        "give degrees above the horizon and clockwise from grid north",
+                    ));
+                }
+            }
+            (None, None) => {}
+        }
+        if let Some(v) = self.conditions.visibility_m {
+            positive(&format!("{key}.conditions.visibility_m"), v)?;
+        }
+        Ok(())
+    }
+}
+
+/// Whether two paths name the same file (compared as written, and canonically when both exist).
+fn same_path(a: &Path, b: &Path) -> bool {
+    a == b
+        || matches!(
+            (a.canonicalize(), b.canonicalize()),
+            (Ok(x), Ok(y)) if x == y
+        )
+}
+
+/// An error about the value of `key`.
+fn key_error(key: &str, problem: String, fix: &str) -> Error {
+    let e = Error::msg(format!("{key} {problem}"));
+    if fix.is_empty() {
+        e
+    } else {
+        e.fix(fix)
+    }
+}
+
+/// An error unless `v` is a positive finite number.
+fn positive(key: &str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(key_error(key, format!("is {v}, not a positive number"), ""))
+    }
+}
+
+/// An error unless `t` is an RFC 3339 time.
+fn check_time(key: &str, t: &str) -> Result<()> {
+    crate::sun::parse_time(t).map(|_| ()).map_err(|_| {
+        key_error(
+            key,
+            format!("{t:?} is not an RFC 3339 time"),
+            "write it like 2026-06-21T10:00:00Z (the offset is required)",
+        )
+    })
+}
+
+/// TOML's error as one line: the line number, the key path when TOML names it, the message.
+fn toml_error(text: &str, e: &toml::de::Error) -> Error {
+    let line = e
+        .span()
+        .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
+    let message = e.message().trim().replace('\n', " ");
+    match line {
+        Some(n) => Error::msg(format!("line {n}: {message}")),
+        None => Error::msg(message),
+    }
+    .fix("see schemas/scene.schema.json and samples/scene.toml")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+version = 1
+
+[database]
+dir = "db"
+
+[terrain]
+dem = "dem.tif"
+ortho = "ortho.tif"
+photo_time = "2026-09-15T08:30:00Z"
+
+[buildings]
+footprints = "buildings.geojson"
+
+[objects.tree]
+kind = "cone"
+height = 10
+radius = 2.5
+voxel = 0.25
+
+[[placements]]
+object = "tree"
+at = [500066, 5300130]
+heading = 50
+
+[products.day]
+sensor = "visual"
+tiles = "day.dbt"
+time = "2026-09-15T08:30:00Z"
+
+[products.low-sun]
+sensor = "visual"
+tiles = "low.dbt"
+sun = { elevation = 5, azimuth = 250 }
+conditions = { visibility_m = 2000 }
+"#;
+
+    fn error_of(text: &str) -> String {
+        Scene::parse(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_complete_scene_reads_with_its_defaults() {
+        let s = Scene::parse(GOOD).unwrap();
+        assert_eq!(s.products.len(), 2);
+        assert_eq!(
+            s.objects["tree"],
+            ObjectSpec::Cone {
+                height: 10.0,
+                radius: 2.5,
+                voxel: 0.25,
+                seed: 1,
+                vary: 0.2
+            }
+        );
+        assert_eq!(s.placements[0].heading, 50.0);
+        assert_eq!(s.products["low-sun"].conditions.visibility_m, Some(2000.0));
+        assert_eq!(s.products["day"].conditions, Conditions::default());
+    }
+
+    #[test]
+    fn an_unknown_key_is_named_with_its_line() {
+        let text = GOOD.replace("heading = 50", "heading = 50\nheadnig = 3");
+        let e = error_of(&text);
+        let line = text.lines().position(|l| l.contains("headnig")).unwrap() + 1;
+        assert!(
+            e.contains("`headnig`") && e.contains(&format!("line {line}:")),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "one line: {e}");
+    }
+
+    #[test]
+    fn a_placement_of_an_undeclared_object_names_the_key() {
+        let e = error_of(&GOOD.replace("object = \"tree\"", "object = \"oak\""));
+        assert!(
+            e.contains("placements[0].object") && e.contains("\"oak\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_products_name_the_key() {
+        let e = error_of(&GOOD.replace(
+            "sensor = \"visual\"\ntiles = \"day.dbt\"",
+            "sensor = \"radar\"\ntiles = \"day.dbt\"",
+        ));
+        assert!(
+            e.contains("products.day.sensor") && e.contains("radar"),
+            "{e}"
+        );
+        let both = GOOD.replace(
+            "sun = { elevation = 5, azimuth = 250 }",
+            "sun = { elevation = 5, azimuth = 250 }\ntime = \"2026-09-15T18:00:00Z\"",
+        );
+        assert!(error_of(&both).contains("products.low-sun gives both time and sun"));
+        let below = GOOD.replace("elevation = 5,", "elevation = -2,");
+        assert!(error_of(&below).contains("products.low-sun.sun"));
+        let bad_time = GOOD.replace(
+            "time = \"2026-09-15T08:30:00Z\"\n\n[products.low",
+            "time = \"noon\"\n\n[products.low",
+        );
+        assert!(
+            error_of(&bad_time).contains("products.day.time"),
+            "{}",
+            error_of(&bad_time)
+        );
+        let none = GOOD[..GOOD.find("[products.day]").unwrap()].to_string() + "[products]\n";
+        assert!(error_of(&none).contains("products is empty"));
+    }
+
+    #[test]
+    fn buildings_need_the_photo_time() {
+        let e = error_of(&GOOD.replace("photo_time = \"2026-09-15T08:30:00Z\"\n", ""));
+        assert!(
+            e.contains("buildings") && e.contains("terrain.photo_time"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn values_out_of_range_name_the_key() {
+        assert!(error_of(&GOOD.replace("voxel = 0.25", "voxel = 0")).contains("objects.tree.voxel"));
+        assert!(error_of(&GOOD.replace("version = 1", "version = 2")).contains("version is 2"));
+        let e = error_of(&GOOD.replace("dir = \"db\"", "dir = \"db\"\ncell = -1"));
+        assert!(e.contains("database.cell"), "{e}");
+    }
+
+    #[test]
+    fn paths_resolve_against_the_scene_and_outputs_must_not_clash() {
+        let dir = tempfile::tempdir().unwrap();
+        for f in ["dem.tif", "ortho.tif", "buildings.geojson"] {
+            std::fs::write(dir.path().join(f), b"x").unwrap();
+        }
+        let path = dir.path().join("scene.toml");
+        std::fs::write(&path, GOOD).unwrap();
+        let s = Scene::read(&path).unwrap();
+        assert_eq!(s.terrain.dem, dir.path().join("dem.tif"));
+        assert_eq!(s.products["day"].tiles, dir.path().join("day.dbt"));
+
+        std::fs::write(
+            &path,
+            GOOD.replace("tiles = \"low.dbt\"", "tiles = \"day.dbt\""),
+        )
+        .unwrap();
+        let e = Scene::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("products.low-sun.tiles") && e.contains("products.day.tiles"),
+            "{e}"
+        );
+        std::fs::write(
+            &path,
+            GOOD.replace("tiles = \"low.dbt\"", "tiles = \"dem.tif\""),
+        )
+        .unwrap();
+        let e = Scene::read(&path).unwrap_err().to_string();
+        assert!(e.contains("terrain.dem"), "a cycle: {e}");
+
+        std::fs::remove_file(dir.path().join("ortho.tif")).unwrap();
+        std::fs::write(&path, GOOD).unwrap();
+        let e = Scene::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("terrain.ortho") && e.contains("does not exist"),
+            "{e}"
+        );
+        assert!(e.contains("scene.toml"), "names the file: {e}");
+    }
+}

@@ -1,0 +1,6 @@
+//! Scenes: one file that says what a database holds and which products to build from it, for
+//! `dbms plan` and `dbms build`.
+
+pub mod file;
+
+pub use file::Scene;
