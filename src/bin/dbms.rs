@@ -34,6 +34,8 @@ enum Command {
     Info(cmd::info::Args),
     /// Make a synthetic voxel object: revolved tank, cone tree, or buildings extruded from footprints.
     Object(cmd::object::Args),
+    /// List the steps that build a scene file's products and which are out of date (--makefile: as make rules).
+    Plan(cmd::plan::Args),
     /// Place a voxel object in a database at X,Y[,Z] with a heading (recorded in the manifest).
     Place(cmd::place::Args),
     /// Build the render database: max-Z / average-colour levels as a paged tile file, shaded for a sun.
@@ -81,6 +83,7 @@ fn main() -> ExitCode {
         Command::Info(a) => cmd::info::run(a, &ctx),
         Command::Object(a) => cmd::object::run(a, &ctx),
         Command::Place(a) => cmd::place::run(a, &ctx),
+        Command::Plan(a) => cmd::plan::run(a, &ctx),
         Command::Pyramid(a) => cmd::pyramid::run(a, &ctx),
         Command::Render(a) => cmd::render::run(a, &ctx),
         Command::Sculpt(a) => cmd::sculpt::run(a, &ctx),

@@ -5,6 +5,7 @@ pub mod info;
 pub mod ingest;
 pub mod object;
 pub mod place;
+pub mod plan;
 pub mod pyramid;
 pub mod render;
 pub mod sample;
@@ -20,6 +21,20 @@ use dbms::progress::Progress;
 use dbms::sun::Sun;
 use serde::Serialize;
 use std::fmt::Display;
+
+/// Print `text` and a newline on stdout. A reader that stopped reading (`dbms ... | head`) ends
+/// the process quietly with success, as it would a filter; any other write error is reported.
+pub fn stdout(text: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = writeln!(out, "{text}").and_then(|()| out.flush()) {
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            eprintln!("dbms: error: cannot write the summary to stdout: {e}");
+            std::process::exit(1);
+        }
+        std::process::exit(0);
+    }
+}
 
 /// What every subcommand needs from the global options.
 pub struct Ctx {
@@ -39,12 +54,9 @@ impl Ctx {
     pub fn report<S: Serialize + Display>(&self, summary: &S) {
         if self.json {
             let json = serde_json::to_value(summary).expect("summaries serialise");
-            println!(
-                "{}",
-                serde_json::to_string_pretty(&json).expect("JSON value serialises")
-            );
+            stdout(&serde_json::to_string_pretty(&json).expect("JSON value serialises"));
         } else if !self.quiet {
-            println!("{summary}");
+            stdout(&summary.to_string());
         }
     }
 

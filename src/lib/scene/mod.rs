@@ -2,5 +2,7 @@
 //! `dbms plan` and `dbms build`.
 
 pub mod file;
+pub mod makefile;
+pub mod plan;
 
 pub use file::Scene;

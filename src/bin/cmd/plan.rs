@@ -1,0 +1,77 @@
+//! `dbms plan`: a scene's build steps, and which of them are out of date.
+
+use super::Ctx;
+use dbms::scene::plan::{self, PlannedStep};
+use dbms::scene::{makefile, Scene};
+use std::path::PathBuf;
+
+/// List the steps that build a scene file's products, each with its inputs and whether it is
+/// up to date (docs/scene.md).
+#[derive(clap::Args)]
+pub struct Args {
+    /// The scene file (TOML, schemas/scene.schema.json).
+    scene: PathBuf,
+    /// Print the steps as a Makefile instead (make runs the same commands).
+    #[arg(long, conflicts_with = "stamp")]
+    makefile: bool,
+    /// Record that step STEP has just run (what the Makefile's rules call after a step).
+    #[arg(long, value_name = "STEP")]
+    stamp: Option<String>,
+}
+
+pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
+    let scene = Scene::read(&args.scene)?;
+    if let Some(step) = &args.stamp {
+        return plan::stamp(&scene, step);
+    }
+    if args.makefile {
+        super::stdout(makefile::makefile(&scene, &args.scene).trim_end());
+        return Ok(());
+    }
+    ctx.report(&Planned {
+        scene: args.scene,
+        steps: plan::plan(&scene)?,
+    });
+    Ok(())
+}
+
+/// `dbms plan`'s summary.
+#[derive(serde::Serialize)]
+struct Planned {
+    scene: PathBuf,
+    steps: Vec<PlannedStep>,
+}
+
+impl std::fmt::Display for Planned {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let to_run = self.steps.iter().filter(|s| !s.up_to_date).count();
+        write!(
+            f,
+            "{}: {} steps, {}",
+            self.scene.display(),
+            self.steps.len(),
+            match to_run {
+                0 => "all up to date".to_string(),
+                n => format!("{n} to run"),
+            }
+        )?;
+        let width = self
+            .steps
+            .iter()
+            .map(|s| s.step.name.len())
+            .max()
+            .unwrap_or(0);
+        for s in &self.steps {
+            let status = match s.up_to_date {
+                true => "up to date".to_string(),
+                false => format!("runs: {}", s.why.join("; ")),
+            };
+            write!(
+                f,
+                "\n  {:width$}  {}  ({})",
+                s.step.name, status, s.step.does
+            )?;
+        }
+        Ok(())
+    }
+}

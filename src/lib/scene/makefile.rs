@@ -1,0 +1,97 @@
+//! A scene's steps as a Makefile, for teams that keep make in charge (`dbms plan --makefile`).
+//!
+//! Invariant: the Makefile runs the same command lines as the plan's steps, each rule's target
+//! is the step's stamp (written by `dbms plan SCENE --stamp STEP` after the step's commands
+//! succeeded), and a rule is out of date when the scene file, an input, or a stamp it runs after
+//! is newer. The database steps (ingest, heights, place) depend on every input of any of them, so
+//! make rebuilds the database from ingest whenever one of them has to run, as `dbms plan` does
+//! (placing adds to the database).
+
+use super::file::Scene;
+use super::plan::{steps, steps_dir};
+use std::fmt::Write;
+use std::path::Path;
+
+/// `word` quoted for the shell and make when it needs it (spaces, quotes, `$`).
+fn quote(word: &str) -> String {
+    let plain = word
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || "-_./:,=+@%".contains(c));
+    if plain && !word.is_empty() {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''").replace('$', "$$"))
+    }
+}
+
+/// The Makefile of `scene`, read from `scene_path`.
+pub fn makefile(scene: &Scene, scene_path: &Path) -> String {
+    let all = steps(scene);
+    let dir = steps_dir(scene);
+    let stamp = |name: &str| quote(&dir.join(format!("{name}.done")).display().to_string());
+    let scene_file = quote(&scene_path.display().to_string());
+    let database_inputs: Vec<String> = all
+        .iter()
+        .filter(|s| s.writes_database)
+        .flat_map(|s| s.inputs.iter().map(|p| quote(&p.display().to_string())))
+        .chain(
+            all.iter()
+                .filter(|s| s.name.starts_with("object."))
+                .map(|s| stamp(&s.name)),
+        )
+        .collect();
+    let mut m = String::new();
+    let _ = writeln!(
+        m,
+        "# The steps of {scene_file}, written by `dbms plan --makefile`."
+    );
+    let _ = writeln!(
+        m,
+        "# Run with `make -f FILE`; DBMS=/path/to/dbms to pick the binary."
+    );
+    let _ = writeln!(m, "DBMS ?= dbms\nSCENE := {scene_file}\n");
+    let _ = writeln!(m, ".DELETE_ON_ERROR:");
+    let products: Vec<String> = all
+        .iter()
+        .filter(|s| s.name.starts_with("product."))
+        .map(|s| stamp(&s.name))
+        .collect();
+    let _ = writeln!(m, "all: {}\n", products.join(" "));
+    for s in &all {
+        let mut deps = vec!["$(SCENE)".to_string()];
+        if s.name == "ingest" {
+            deps.extend(database_inputs.iter().cloned());
+        } else {
+            deps.extend(s.inputs.iter().map(|p| quote(&p.display().to_string())));
+        }
+        deps.extend(s.after.iter().map(|a| stamp(a)));
+        let _ = writeln!(m, "# {}: {}", s.name, s.does);
+        let _ = writeln!(m, "{}: {}", stamp(&s.name), deps.join(" "));
+        for o in &s.outputs {
+            if let Some(parent) = o.parent().filter(|p| !p.as_os_str().is_empty()) {
+                let _ = writeln!(m, "\tmkdir -p {}", quote(&parent.display().to_string()));
+            }
+        }
+        for c in &s.commands {
+            let args: Vec<String> = c.iter().map(|a| quote(a)).collect();
+            let _ = writeln!(m, "\t$(DBMS) {}", args.join(" "));
+        }
+        let _ = writeln!(m, "\t$(DBMS) plan --quiet $(SCENE) --stamp {}\n", s.name);
+    }
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn words_are_quoted_only_when_they_need_it() {
+        assert_eq!(quote("out/db"), "out/db");
+        assert_eq!(quote("500066,5300130"), "500066,5300130");
+        assert_eq!(quote("my dir/a b"), "'my dir/a b'");
+        assert_eq!(quote("it's"), "'it'\\''s'");
+        assert_eq!(quote("$HOME"), "'$$HOME'");
+        assert_eq!(quote(""), "''");
+    }
+}

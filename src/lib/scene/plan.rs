@@ -1,0 +1,394 @@
+//! The build graph of a scene: its steps, each an ordinary `dbms` command line, what each reads
+//! and writes, and whether it is up to date.
+//!
+//! Invariant: a step's key is a SHA-256 over the dbms version, the step's command lines, the
+//! content of every input file it reads that no step writes, and the keys of the steps it runs
+//! after; so a change to any of them changes the key of the step and of every step after it.
+//! A step is up to date when its stamp (`<database>.steps/<step>.done`, written only after the
+//! step succeeded) holds its current key and every output it writes exists.
+
+use super::file::{ObjectSpec, Scene};
+use crate::db::sha256_file;
+use crate::error::{Error, Result};
+use crate::io::atomic::AtomicFile;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// One step: the `dbms` command lines it runs, in order, and what it reads and writes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Step {
+    /// `ingest`, `heights`, `object.NAME`, `place`, `product.NAME`.
+    pub name: String,
+    /// What the step is for, in a few words.
+    pub does: String,
+    /// `dbms` arguments of each command line (without the program name).
+    pub commands: Vec<Vec<String>>,
+    /// Files the step reads that no step writes: their content is part of its key.
+    pub inputs: Vec<PathBuf>,
+    /// Files or directories the step writes.
+    pub outputs: Vec<PathBuf>,
+    /// Steps that must run before it.
+    pub after: Vec<String>,
+    /// The step changes the database in place (ingest, heights, place): when one of these runs,
+    /// all of them run again from ingest, since placing adds to what is there.
+    pub writes_database: bool,
+}
+
+/// A step with its key and status, as `dbms plan` reports it.
+#[derive(Debug, Clone, Serialize)]
+pub struct PlannedStep {
+    /// The step.
+    #[serde(flatten)]
+    pub step: Step,
+    /// The step's key (hex SHA-256, see the module doc).
+    pub key: String,
+    /// Whether the step's stamp holds its key and its outputs exist.
+    pub up_to_date: bool,
+    /// Why it would run; empty when up to date.
+    pub why: Vec<String>,
+}
+
+/// What a stamp records: the key, and what went into it, so a later plan can say what changed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Stamp {
+    key: String,
+    version: String,
+    commands: Vec<Vec<String>>,
+    inputs: BTreeMap<PathBuf, String>,
+    after: BTreeMap<String, String>,
+}
+
+/// The directory of a scene's stamps and intermediate files (objects, heights), beside its
+/// database: `<database.dir>.steps`.
+pub fn steps_dir(scene: &Scene) -> PathBuf {
+    let mut dir = scene.database.dir.clone().into_os_string();
+    dir.push(".steps");
+    PathBuf::from(dir)
+}
+
+fn s(v: impl ToString) -> String {
+    v.to_string()
+}
+
+/// The steps of `scene`, in an order that runs each after the steps it needs.
+pub fn steps(scene: &Scene) -> Vec<Step> {
+    let db = &scene.database.dir;
+    let work = steps_dir(scene);
+    let dbs = s(db.display());
+    let mut out = vec![ingest_step(scene)];
+    let mut last = "ingest".to_string();
+    if let (Some(b), Some(t)) = (&scene.buildings, &scene.terrain.photo_time) {
+        let heights = work.join("heights.geojson");
+        out.push(Step {
+            name: "heights".into(),
+            does: "building heights from the photo's shadows, into the database".into(),
+            commands: vec![vec![
+                s("shadow-height"),
+                s("--db"),
+                dbs.clone(),
+                s("--footprints"),
+                s(b.footprints.display()),
+                s("--time"),
+                t.clone(),
+                s("--apply"),
+                s("-o"),
+                s(heights.display()),
+            ]],
+            inputs: vec![b.footprints.clone()],
+            outputs: vec![heights],
+            after: vec![last],
+            writes_database: true,
+        });
+        last = "heights".into();
+    }
+    for (name, spec) in &scene.objects {
+        out.push(object_step(name, spec, &object_file(scene, name)));
+    }
+    if !scene.placements.is_empty() {
+        let commands = scene
+            .placements
+            .iter()
+            .map(|p| {
+                vec![
+                    s("place"),
+                    s("--db"),
+                    dbs.clone(),
+                    s("--object"),
+                    s(object_file(scene, &p.object).display()),
+                    s("--at"),
+                    format!("{},{}", p.at[0], p.at[1]),
+                    s("--heading"),
+                    s(p.heading),
+                ]
+            })
+            .collect();
+        let mut after = vec![last];
+        after.extend(scene.objects.keys().map(|n| format!("object.{n}")));
+        out.push(Step {
+            name: "place".into(),
+            does: format!("{} objects placed on the terrain", scene.placements.len()),
+            commands,
+            inputs: vec![],
+            outputs: vec![],
+            after,
+            writes_database: true,
+        });
+        last = "place".into();
+    }
+    for (name, p) in &scene.products {
+        let mut cmd = vec![s("pyramid"), s("--db"), dbs.clone()];
+        match (&p.time, &p.sun) {
+            (Some(t), _) => cmd.extend([s("--time"), t.clone()]),
+            (None, Some(sun)) => cmd.extend([
+                s("--sun-elevation"),
+                s(sun.elevation),
+                s("--sun-azimuth"),
+                s(sun.azimuth),
+            ]),
+            (None, None) => {}
+        }
+        cmd.extend([s("-o"), s(p.tiles.display())]);
+        out.push(Step {
+            name: format!("product.{name}"),
+            does: format!("the {} tile file", p.sensor),
+            commands: vec![cmd],
+            inputs: vec![],
+            outputs: vec![p.tiles.clone()],
+            after: vec![last.clone()],
+            writes_database: false,
+        });
+    }
+    out
+}
+
+/// Where the build writes object `name`.
+fn object_file(scene: &Scene, name: &str) -> PathBuf {
+    steps_dir(scene)
+        .join("objects")
+        .join(format!("{name}.dvox"))
+}
+
+fn ingest_step(scene: &Scene) -> Step {
+    let t = &scene.terrain;
+    let mut cmd = vec![
+        s("ingest"),
+        s("--dem"),
+        s(t.dem.display()),
+        s("--ortho"),
+        s(t.ortho.display()),
+    ];
+    if let Some(time) = &t.photo_time {
+        cmd.extend([s("--photo-time"), time.clone()]);
+    }
+    if let Some(cell) = scene.database.cell {
+        cmd.extend([s("--cell"), s(cell)]);
+    }
+    if let Some([a, b, c, d]) = scene.database.bounds {
+        cmd.extend([s("--bounds"), format!("{a},{b},{c},{d}")]);
+    }
+    // The database is built over from its inputs: later steps add to it (placements append).
+    cmd.extend([s("--overwrite"), s("-o"), s(scene.database.dir.display())]);
+    Step {
+        name: "ingest".into(),
+        does: "DEM and orthophoto onto the database grid".into(),
+        commands: vec![cmd],
+        inputs: vec![t.dem.clone(), t.ortho.clone()],
+        outputs: vec![scene.database.dir.clone()],
+        after: vec![],
+        writes_database: true,
+    }
+}
+
+fn object_step(name: &str, spec: &ObjectSpec, file: &Path) -> Step {
+    let mut cmd = vec![s("object")];
+    match spec {
+        ObjectSpec::Cone {
+            height,
+            radius,
+            voxel,
+            seed,
+            vary,
+        } => cmd.extend([
+            s("cone"),
+            s("--height"),
+            s(height),
+            s("--radius"),
+            s(radius),
+            s("--voxel"),
+            s(voxel),
+            s("--seed"),
+            s(seed),
+            s("--vary"),
+            s(vary),
+        ]),
+        ObjectSpec::Revolve { profile, voxel } => {
+            let profile: Vec<String> = profile.iter().map(|[r, z]| format!("{r}:{z}")).collect();
+            cmd.extend([
+                s("revolve"),
+                s("--profile"),
+                profile.join(","),
+                s("--voxel"),
+                s(voxel),
+            ])
+        }
+    }
+    cmd.extend([s("-o"), s(file.display())]);
+    Step {
+        name: format!("object.{name}"),
+        does: "a synthetic voxel object".into(),
+        commands: vec![cmd],
+        inputs: vec![],
+        outputs: vec![file.to_path_buf()],
+        after: vec![],
+        writes_database: false,
+    }
+}
+
+/// The steps of `scene` with their keys and whether each is up to date (stamps read from
+/// [`steps_dir`]).
+pub fn plan(scene: &Scene) -> Result<Vec<PlannedStep>> {
+    let dir = steps_dir(scene);
+    let mut stamps: BTreeMap<String, Stamp> = BTreeMap::new();
+    let mut planned: Vec<PlannedStep> = Vec::new();
+    for step in steps(scene) {
+        let stamp = stamp_of(&step, &stamps)?;
+        let old = read_stamp(&dir.join(format!("{}.done", step.name)));
+        let mut why = reasons(&stamp, old.as_ref());
+        if why.is_empty() {
+            if let Some(o) = step.outputs.iter().find(|o| !o.exists()) {
+                why.push(format!("{} is missing", o.display()));
+            }
+        }
+        stamps.insert(step.name.clone(), stamp.clone());
+        planned.push(PlannedStep {
+            up_to_date: false,
+            key: stamp.key,
+            step,
+            why,
+        });
+    }
+    // Placing adds to the database: any of its steps running means all of them, from ingest.
+    let rebuild = planned
+        .iter()
+        .any(|p| p.step.writes_database && !p.why.is_empty());
+    for k in 0..planned.len() {
+        if planned[k].why.is_empty() {
+            let before: Vec<String> = planned[..k]
+                .iter()
+                .filter(|p| planned[k].step.after.contains(&p.step.name) && !p.up_to_date)
+                .map(|p| p.step.name.clone())
+                .collect();
+            let p = &mut planned[k];
+            if rebuild && p.step.writes_database {
+                p.why
+                    .push("the database is built again from ingest (placing adds to it)".into());
+            } else if !before.is_empty() {
+                p.why.push(format!("runs after {}", before.join(", ")));
+            }
+        }
+        planned[k].up_to_date = planned[k].why.is_empty();
+    }
+    Ok(planned)
+}
+
+/// The stamp `step` would leave now, with the keys of the steps before it.
+fn stamp_of(step: &Step, before: &BTreeMap<String, Stamp>) -> Result<Stamp> {
+    let inputs: BTreeMap<PathBuf, String> = step
+        .inputs
+        .iter()
+        .map(|p| Ok((p.clone(), sha256_file(p)?)))
+        .collect::<Result<_>>()?;
+    let after: BTreeMap<String, String> = step
+        .after
+        .iter()
+        .map(|n| (n.clone(), before[n].key.clone()))
+        .collect();
+    let version = env!("CARGO_PKG_VERSION").to_string();
+    let mut h = Sha256::new();
+    h.update(version.as_bytes());
+    for c in &step.commands {
+        h.update([1]);
+        for a in c {
+            h.update(a.as_bytes());
+            h.update([0]);
+        }
+    }
+    for (p, sum) in inputs.iter() {
+        h.update(p.to_string_lossy().as_bytes());
+        h.update(sum.as_bytes());
+    }
+    for (n, k) in after.iter() {
+        h.update(n.as_bytes());
+        h.update(k.as_bytes());
+    }
+    let key: String = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+    Ok(Stamp {
+        key,
+        version,
+        commands: step.commands.clone(),
+        inputs,
+        after,
+    })
+}
+
+fn read_stamp(path: &Path) -> Option<Stamp> {
+    let text = std::fs::read_to_string(path).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+/// Why a step whose stamp would be `now` runs, given the stamp it left last time.
+fn reasons(now: &Stamp, old: Option<&Stamp>) -> Vec<String> {
+    let Some(old) = old else {
+        return vec!["never built".into()];
+    };
+    if old.key == now.key {
+        return vec![];
+    }
+    let mut why = Vec::new();
+    if old.version != now.version {
+        why.push(format!(
+            "dbms {} built it, this is {}",
+            old.version, now.version
+        ));
+    }
+    if old.commands != now.commands {
+        why.push("its options changed".into());
+    }
+    for (p, sum) in &now.inputs {
+        if old.inputs.get(p) != Some(sum) {
+            why.push(format!("{} changed", p.display()));
+        }
+    }
+    for (n, k) in &now.after {
+        if old.after.get(n) != Some(k) {
+            why.push(format!("{n} changed"));
+        }
+    }
+    if why.is_empty() {
+        why.push("its stamp is from another plan".into());
+    }
+    why
+}
+
+/// Record that step `name` of `scene` has just run: its stamp, written atomically.
+pub fn stamp(scene: &Scene, name: &str) -> Result<()> {
+    let mut keys = BTreeMap::new();
+    for step in steps(scene) {
+        let stamp = stamp_of(&step, &keys)?;
+        if step.name == name {
+            let dir = steps_dir(scene);
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            let path = dir.join(format!("{name}.done"));
+            let mut f = AtomicFile::create(&path)?;
+            let text = serde_json::to_string_pretty(&stamp).expect("a stamp serialises");
+            writeln!(f.writer(), "{text}").map_err(|e| Error::io(&path, e))?;
+            return f.commit();
+        }
+        keys.insert(step.name.clone(), stamp);
+    }
+    Err(Error::msg(format!("the scene has no step {name:?}"))
+        .fix("dbms plan SCENE lists its steps"))
+}

@@ -1,0 +1,253 @@
+//! `dbms plan` on a scene file: the steps, up to date or not and why, and the Makefile that runs
+//! them, whose tile file is byte for byte the one the same commands give stage by stage.
+
+#[path = "support/cli.rs"]
+mod cli;
+
+use cli::{dbms, dbms_in};
+use std::path::Path;
+use std::process::Command;
+
+const SUN: &str = "2026-09-15T08:30:00Z";
+
+/// A scene over the sample at `scene/` (relative to the scene file): two trees, one product.
+fn scene_toml(heading: f64) -> String {
+    format!(
+        r#"version = 1
+[database]
+dir = "build/db"
+[terrain]
+dem = "scene/dem.tif"
+ortho = "scene/ortho.tif"
+photo_time = "{SUN}"
+[buildings]
+footprints = "scene/buildings.geojson"
+[objects.tree]
+kind = "cone"
+height = 10
+radius = 2.5
+voxel = 0.5
+[[placements]]
+object = "tree"
+at = [500030, 5300030]
+heading = {heading}
+[[placements]]
+object = "tree"
+at = [500050, 5300040]
+[products.day]
+sensor = "visual"
+tiles = "build/day.dbt"
+time = "{SUN}"
+"#
+    )
+}
+
+fn ok(out: std::process::Output, what: &str) -> String {
+    assert!(
+        out.status.success(),
+        "{what}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// The same pipeline, command by command, into `dir/manual`; returns the tile file's bytes.
+fn stage_by_stage(dir: &Path, heading: f64) -> Vec<u8> {
+    let run = |args: &[&str]| ok(dbms_in(dir, args), &args.join(" "));
+    run(&[
+        "-q",
+        "ingest",
+        "--dem",
+        "scene/dem.tif",
+        "--ortho",
+        "scene/ortho.tif",
+    ]
+    .iter()
+    .chain(&["--photo-time", SUN, "--overwrite", "-o", "manual/db"])
+    .copied()
+    .collect::<Vec<_>>());
+    run(&[
+        "-q",
+        "shadow-height",
+        "--db",
+        "manual/db",
+        "--footprints",
+        "scene/buildings.geojson",
+        "--time",
+        SUN,
+        "--apply",
+        "-o",
+        "manual/heights.geojson",
+    ]);
+    run(&[
+        "-q",
+        "object",
+        "cone",
+        "--height",
+        "10",
+        "--radius",
+        "2.5",
+        "--voxel",
+        "0.5",
+        "--seed",
+        "1",
+        "--vary",
+        "0.2",
+        "-o",
+        "manual/tree.dvox",
+    ]);
+    let h = heading.to_string();
+    run(&[
+        "-q",
+        "place",
+        "--db",
+        "manual/db",
+        "--object",
+        "manual/tree.dvox",
+        "--at",
+        "500030,5300030",
+        "--heading",
+        &h,
+    ]);
+    run(&[
+        "-q",
+        "place",
+        "--db",
+        "manual/db",
+        "--object",
+        "manual/tree.dvox",
+        "--at",
+        "500050,5300040",
+        "--heading",
+        "0",
+    ]);
+    run(&[
+        "-q",
+        "pyramid",
+        "--db",
+        "manual/db",
+        "--time",
+        SUN,
+        "-o",
+        "manual/day.dbt",
+    ]);
+    std::fs::read(dir.join("manual/day.dbt")).unwrap()
+}
+
+fn make(dir: &Path) -> String {
+    let makefile = ok(
+        dbms_in(dir, &["plan", "scene.toml", "--makefile"]),
+        "plan --makefile",
+    );
+    std::fs::write(dir.join("Makefile.scene"), makefile).unwrap();
+    let out = Command::new("make")
+        .args([
+            "-f",
+            "Makefile.scene",
+            &format!("DBMS={}", env!("CARGO_BIN_EXE_dbms")),
+        ])
+        .current_dir(dir)
+        .output()
+        .expect("make is on PATH (the README's main job needs it too)");
+    ok(out, "make -f Makefile.scene")
+}
+
+#[test]
+fn the_makefile_builds_what_the_stages_build_and_an_edit_reruns_what_depends_on_it() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    ok(
+        dbms(&[
+            "-q",
+            "sample",
+            "--size",
+            "160",
+            "-o",
+            dir.join("scene").to_str().unwrap(),
+        ]),
+        "sample",
+    );
+    std::fs::write(dir.join("scene.toml"), scene_toml(30.0)).unwrap();
+
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.starts_with("scene.toml: 5 steps, 5 to run"), "{plan}");
+    assert!(plan.contains("never built"), "{plan}");
+
+    make(dir);
+    let built = std::fs::read(dir.join("build/day.dbt")).unwrap();
+    assert!(
+        built == stage_by_stage(dir, 30.0),
+        "the scene's tile file differs from the stages'"
+    );
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
+    assert!(make(dir).contains("Nothing to be done"));
+
+    // Moving one tree: the objects stay, the database steps and the product run again.
+    std::fs::write(dir.join("scene.toml"), scene_toml(75.0)).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&ok(
+        dbms_in(dir, &["--json", "plan", "scene.toml"]),
+        "plan --json",
+    ))
+    .unwrap();
+    let status: Vec<(String, bool)> = json["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| {
+            (
+                s["name"].as_str().unwrap().to_string(),
+                s["up_to_date"].as_bool().unwrap(),
+            )
+        })
+        .collect();
+    let want = [
+        ("ingest", false),
+        ("heights", false),
+        ("object.tree", true),
+        ("place", false),
+        ("product.day", false),
+    ];
+    assert_eq!(status, want.map(|(n, u)| (n.to_string(), u)));
+    assert_eq!(json["steps"][3]["why"][0], "its options changed");
+    make(dir);
+    let rebuilt = std::fs::read(dir.join("build/day.dbt")).unwrap();
+    assert!(rebuilt != built, "the move changed the database");
+    assert!(
+        rebuilt == stage_by_stage(dir, 75.0),
+        "an edit rebuilds to what a full build gives"
+    );
+}
+
+#[test]
+fn bad_scene_files_are_one_line_errors_naming_the_key() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    let cases = [
+        (
+            "version = 1\n[database]\ndir = \"db\"\nfoo = 1\n",
+            "line 4: unknown field `foo`",
+        ),
+        (
+            "version = 1\n[database]\ndir = \"db\"\n",
+            "missing field `terrain`",
+        ),
+    ];
+    for (text, want) in cases {
+        std::fs::write(dir.join("bad.toml"), text).unwrap();
+        let out = dbms_in(dir, &["plan", "bad.toml"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(want) && err.contains("bad.toml"),
+            "{err}"
+        );
+        assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    }
+    std::fs::write(dir.join("s.toml"), scene_toml(0.0)).unwrap();
+    let out = dbms_in(dir, &["plan", "s.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("terrain.dem") && err.contains("does not exist"),
+        "{err}"
+    );
+}
