@@ -251,3 +251,59 @@ fn bad_scene_files_are_one_line_errors_naming_the_key() {
         "{err}"
     );
 }
+
+#[test]
+fn build_runs_what_is_out_of_date_and_names_a_failing_step() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    ok(
+        dbms(&[
+            "-q",
+            "sample",
+            "--size",
+            "160",
+            "-o",
+            dir.join("scene").to_str().unwrap(),
+        ]),
+        "sample",
+    );
+    std::fs::write(dir.join("scene.toml"), scene_toml(30.0)).unwrap();
+    let ran = |dir: &Path| -> Vec<String> {
+        let out = ok(dbms_in(dir, &["--json", "build", "scene.toml"]), "build");
+        let json: serde_json::Value = serde_json::from_str(&out).unwrap();
+        let mut ran: Vec<String> = json["ran"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_str().unwrap().to_string())
+            .collect();
+        ran.sort();
+        ran
+    };
+    assert_eq!(ran(dir).len(), 5);
+    let built = std::fs::read(dir.join("build/day.dbt")).unwrap();
+    assert!(
+        built == stage_by_stage(dir, 30.0),
+        "build gives the stages' tile file"
+    );
+    assert!(ran(dir).is_empty(), "an unchanged scene builds nothing");
+    let text = ok(dbms_in(dir, &["build", "scene.toml"]), "build");
+    assert!(text.contains("nothing to do"), "{text}");
+
+    std::fs::write(dir.join("scene.toml"), scene_toml(75.0)).unwrap();
+    assert_eq!(ran(dir), ["heights", "ingest", "place", "product.day"]);
+    assert!(std::fs::read(dir.join("build/day.dbt")).unwrap() == stage_by_stage(dir, 75.0));
+
+    // A step that fails stops the build with one line naming it; nothing after it runs.
+    std::fs::write(dir.join("scene/buildings.geojson"), "not json").unwrap();
+    let out = dbms_in(dir, &["build", "scene.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("step heights failed") && err.contains("buildings.geojson"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("product.day  runs"), "{plan}");
+}

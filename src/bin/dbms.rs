@@ -28,6 +28,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Build a scene file's products: run the steps `dbms plan` lists as out of date.
+    Build(cmd::build::Args),
     /// Register a DEM and an orthophoto onto one database grid (creates the database).
     Ingest(cmd::ingest::Args),
     /// Show what a database holds: grid, layers, checksums, stages run.
@@ -79,6 +81,7 @@ fn main() -> ExitCode {
         wait: cli.wait,
     };
     let result: dbms::Result<()> = match cli.command {
+        Command::Build(a) => cmd::build::run(a, &ctx),
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),
         Command::Object(a) => cmd::object::run(a, &ctx),

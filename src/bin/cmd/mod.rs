@@ -1,6 +1,7 @@
 //! One module per subcommand: its clap `Args` and its `run`. Each stays thin: parse, call the
 //! library, report. Shared output rules live in [`Ctx`].
 
+pub mod build;
 pub mod info;
 pub mod ingest;
 pub mod object;
