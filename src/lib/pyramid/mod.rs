@@ -16,6 +16,7 @@
 
 pub mod base;
 pub mod cascade;
+pub mod effects;
 pub mod export;
 pub mod reduce;
 pub mod shade;
@@ -255,7 +256,9 @@ fn sun_effects<'a>(
     )?;
     let record = match &effects {
         Some(fx) => fx.record(),
-        None => shade::EffectsRecord::none(opts.sun, photo_sun, opts.shadow_factor),
+        None => {
+            shade::EffectsRecord::none(opts.sun, photo_sun, opts.shadow_factor, buildings, objects)
+        }
     };
     Ok((effects, record))
 }

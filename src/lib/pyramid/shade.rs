@@ -36,6 +36,7 @@
 
 mod detected;
 
+use super::effects::{self, Situation, Skipped};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::raster::band_rows;
@@ -91,6 +92,7 @@ pub struct Effects<'a> {
     wall_cells: usize,
     lambert: bool,
     applied: Vec<&'static str>,
+    skipped: Vec<Skipped>,
 }
 
 /// Does a sun need effects at all? `sun: None` → nothing (no work).
@@ -136,7 +138,7 @@ pub fn prepare<'a>(
         true => Some(detected::detect(colour, buildings)?),
         false => None,
     };
-    let applied = applied(same_sun, photo_sun.is_some(), objects, all);
+    let (applied, skipped) = effects::decide(&situation(Some(sun), photo_sun, buildings, objects));
     let mut fx = Effects {
         s: sun.direction_enu(),
         sun,
@@ -154,6 +156,7 @@ pub fn prepare<'a>(
         wall_cells: 0,
         lambert: !same_sun,
         applied,
+        skipped,
     };
     fx.wall_cells = fx.count_walls()?;
     Ok(Some(fx))
@@ -171,30 +174,21 @@ fn same_size(g: &Grid, gc: &Grid) -> Result<()> {
     Ok(())
 }
 
-/// The effects [`prepare`] applies, in the order they are applied, for a sun that is or is
-/// not the photo's own (`same_sun`), with or without a recorded photo sun, over `objects` and
-/// everything raised (`all`).
-fn applied(same_sun: bool, photo_sun: bool, objects: &Raised, all: &Raised) -> Vec<&'static str> {
-    let mut applied = Vec::new();
-    if !same_sun {
-        applied.extend(["cast_shadows", "terrain_lambert"]);
-        if photo_sun {
-            applied.extend([
-                "photo_shadow_detection",
-                "photo_shadow_compensation",
-                "photo_shading_compensation",
-            ]);
-        }
-    } else if !objects.is_empty() {
-        applied.push("object_shadows");
+/// What the effects registry decides on for a requested `sun`, the photo's own `photo_sun`
+/// (when known) and what stands on the terrain.
+pub fn situation(
+    sun: Option<Sun>,
+    photo_sun: Option<Sun>,
+    buildings: &Raised,
+    objects: &Raised,
+) -> Situation {
+    Situation {
+        sun: sun.is_some(),
+        photo_sun: photo_sun.is_some(),
+        same_sun: matches!((sun, photo_sun), (Some(s), Some(p)) if same(&p, &s)),
+        buildings: !buildings.is_empty(),
+        objects: !objects.is_empty(),
     }
-    if !all.is_empty() {
-        applied.push("wall_shading");
-    }
-    if !objects.is_empty() {
-        applied.push("object_shading");
-    }
-    applied
 }
 
 /// `colour` lit by an effects factor: channels × `factor`, rounded, at most 255; alpha kept.
@@ -219,6 +213,8 @@ pub struct EffectsRecord {
     pub shadow_factor: f64,
     /// The effects applied, in the order they are applied; empty when nothing was done.
     pub applied: Vec<&'static str>,
+    /// The effects not applied, each with why ([`effects::decide`]).
+    pub skipped: Vec<Skipped>,
     /// Why nothing was done, or the cells the prepared effects cover.
     #[serde(flatten)]
     pub outcome: Outcome,
@@ -265,8 +261,17 @@ pub enum Outcome {
 }
 
 impl EffectsRecord {
-    /// The record when no sun was given or nothing was needed: which sun, nothing applied.
-    pub fn none(sun: Option<Sun>, photo_sun: Option<Sun>, shadow_factor: f64) -> EffectsRecord {
+    /// The record when no sun was given or nothing was needed: which sun, nothing applied, and
+    /// why each effect was not (over `buildings` and `objects`).
+    pub fn none(
+        sun: Option<Sun>,
+        photo_sun: Option<Sun>,
+        shadow_factor: f64,
+        buildings: &Raised,
+        objects: &Raised,
+    ) -> EffectsRecord {
+        let (applied, skipped) = effects::decide(&situation(sun, photo_sun, buildings, objects));
+        debug_assert!(applied.is_empty(), "prepare runs whenever an effect would");
         let reason = match sun {
             None => "no sun given",
             Some(_) => "the photo's own sun and nothing the photo did not see",
@@ -275,7 +280,8 @@ impl EffectsRecord {
             sun: sun.map(SunAngles::from),
             photo_sun: photo_sun.map(SunAngles::from),
             shadow_factor,
-            applied: Vec::new(),
+            applied,
+            skipped,
             outcome: Outcome::Skipped { reason },
         }
     }
@@ -324,6 +330,7 @@ impl Effects<'_> {
             photo_sun: self.photo.map(|p| p.0.into()),
             shadow_factor: self.factor,
             applied: self.applied.clone(),
+            skipped: self.skipped.clone(),
             outcome: Outcome::Prepared {
                 shadow_cells: self.new_shadow.as_ref().map(ShadowBits::count),
                 photo_shadow_cells: self.photo_shadow.as_ref().map(ShadowBits::count),
@@ -589,9 +596,11 @@ mod tests {
     fn no_sun_prepares_nothing() {
         let t = terrain(8, 8, |c, _| c as f32);
         assert!(bare(None, None, 0.5, &t).is_none());
-        let r = json(&EffectsRecord::none(None, None, 0.5));
+        let r = json(&EffectsRecord::none(None, None, 0.5, none(), none()));
         assert_eq!(r["applied"], json!([]));
         assert!(r["sun"].is_null());
+        assert_eq!(r["skipped"].as_array().unwrap().len(), effects::EFFECTS.len());
+        assert_eq!(r["skipped"][0], json!({"effect": "cast_shadows", "why": "no sun given"}));
     }
 
     #[test]
