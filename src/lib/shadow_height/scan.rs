@@ -56,102 +56,193 @@ pub fn scan(
     max_len: f64,
     tan_e: f64,
 ) -> Scan {
-    let n = (-u.1, u.0);
-    let b = fp.bbox();
-    let o = ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0);
-    let proj = |p: (f64, f64)| {
-        let d = (p.0 - o.0, p.1 - o.1);
-        (d.0 * u.0 + d.1 * u.1, d.0 * n.0 + d.1 * n.1)
-    };
-    let (t_min, t_max) =
-        fp.rings
-            .iter()
-            .flatten()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), &p| {
-                let t = proj(p).1;
-                (a.min(t), z.max(t))
-            });
-    let ts: Vec<f64> = if t_max - t_min > 2.0 * cell + spacing {
-        let k = ((t_max - t_min - 2.0 * cell) / spacing).floor() as usize;
-        (0..=k).map(|i| t_min + cell + i as f64 * spacing).collect()
-    } else {
-        vec![(t_min + t_max) / 2.0]
-    };
+    let frame = Frame::new(fp, u);
+    let ts = frame.line_offsets(fp, cell, spacing);
     let mut out = Scan {
         lines: ts.len(),
-        origin: o,
+        origin: frame.o,
         ..Scan::default()
     };
+    let lines = ShadowWalk {
+        local,
+        u,
+        cell,
+        max_len,
+        tan_e,
+    };
     for t in ts {
-        // The line's last exit from the polygon: the largest s of its edge crossings.
-        let exit = fp
-            .edges()
-            .filter_map(|(a, b)| {
-                let ((sa, ta), (sb, tb)) = (proj(a), proj(b));
-                ((ta <= t) != (tb <= t)).then(|| sa + (t - ta) / (tb - ta) * (sb - sa))
-            })
-            .fold(f64::NEG_INFINITY, f64::max);
+        let exit = frame.last_exit(fp, t);
         if !exit.is_finite() {
             out.lines -= 1;
             continue;
         }
-        let start = (o.0 + exit * u.0 + t * n.0, o.1 + exit * u.1 + t * n.1);
+        match lines.follow(frame.point(exit, t), &mut out.at_window_edge) {
+            LineEnd::Cut => out.cut += 1,
+            LineEnd::OnOther => out.on_other += 1,
+            LineEnd::Valid {
+                length,
+                tip_roof,
+                seen_shadow,
+            } => {
+                out.lengths.push(length);
+                out.line_t.push(t);
+                out.tip_roofs.push(tip_roof);
+                out.with_shadow += seen_shadow as usize;
+            }
+        }
+    }
+    out
+}
+
+/// Where the scan lines run: positions as metres along the shadow direction `u` and across it
+/// (along `n = (−u.north, u.east)`), from the footprint's bounding-box centre `o`.
+struct Frame {
+    /// The origin, world metres ([`Scan::origin`]).
+    o: (f64, f64),
+    /// The unit shadow direction (east, north).
+    u: (f64, f64),
+    /// The unit direction across the shadow, `(−u.north, u.east)`.
+    n: (f64, f64),
+}
+
+impl Frame {
+    /// The frame of footprint `fp`'s lines along the unit shadow direction `u`.
+    fn new(fp: &Footprint, u: (f64, f64)) -> Frame {
+        let b = fp.bbox();
+        Frame {
+            o: ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0),
+            u,
+            n: (-u.1, u.0),
+        }
+    }
+
+    /// World point `p` (metres) as metres along `u` and across (along `n`) from the origin.
+    fn proj(&self, p: (f64, f64)) -> (f64, f64) {
+        let (o, u, n) = (self.o, self.u, self.n);
+        let d = (p.0 - o.0, p.1 - o.1);
+        (d.0 * u.0 + d.1 * u.1, d.0 * n.0 + d.1 * n.1)
+    }
+
+    /// The world point `s` metres along `u` and `t` across from the origin.
+    fn point(&self, s: f64, t: f64) -> (f64, f64) {
+        let (o, u, n) = (self.o, self.u, self.n);
+        (o.0 + s * u.0 + t * n.0, o.1 + s * u.1 + t * n.1)
+    }
+
+    /// The lines' offsets across the shadow (along `n`), metres: every `spacing` from one
+    /// `cell` inside `fp`'s lower extreme tangent while a `cell` or more inside the upper; the
+    /// middle line alone when `fp` is too narrow for that.
+    fn line_offsets(&self, fp: &Footprint, cell: f64, spacing: f64) -> Vec<f64> {
+        let (t_min, t_max) =
+            fp.rings
+                .iter()
+                .flatten()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), &p| {
+                    let t = self.proj(p).1;
+                    (a.min(t), z.max(t))
+                });
+        if t_max - t_min > 2.0 * cell + spacing {
+            let k = ((t_max - t_min - 2.0 * cell) / spacing).floor() as usize;
+            (0..=k).map(|i| t_min + cell + i as f64 * spacing).collect()
+        } else {
+            vec![(t_min + t_max) / 2.0]
+        }
+    }
+
+    /// Where the line `t` metres across leaves `fp` last, metres along `u`: the largest of its
+    /// edge crossings (−∞ when it crosses none).
+    fn last_exit(&self, fp: &Footprint, t: f64) -> f64 {
+        fp.edges()
+            .filter_map(|(a, b)| {
+                let ((sa, ta), (sb, tb)) = (self.proj(a), self.proj(b));
+                ((ta <= t) != (tb <= t)).then(|| sa + (t - ta) / (tb - ta) * (sb - sa))
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+}
+
+/// How one scan line ended (the module's invariant).
+enum LineEnd {
+    /// Dropped: the shadow left the window or the longest shadow sought, or ended in or within
+    /// a cell of unusable cells.
+    Cut,
+    /// Dropped: the shadow reached another footprint or ended on a lit cell against one.
+    OnOther,
+    /// Valid: the shadow's length and the roof it implies over the real terrain (terrain at
+    /// the tip + length · tan e; NaN where the tip has no terrain height), metres, and whether
+    /// the line crossed a shadow cell.
+    Valid {
+        length: f64,
+        tip_roof: f64,
+        seen_shadow: bool,
+    },
+}
+
+/// What every scan line of one footprint walks: the cells of `local` along the unit shadow
+/// direction `u` (east, north), with the cell size and the longest shadow sought (metres) and
+/// tan(elevation).
+struct ShadowWalk<'a> {
+    local: &'a Local,
+    u: (f64, f64),
+    cell: f64,
+    max_len: f64,
+    tan_e: f64,
+}
+
+impl ShadowWalk<'_> {
+    /// Walk the line from `start` (world metres, where it leaves the footprint) to its end.
+    /// Sets `at_window_edge` when it reads a cell on the window's border or past it
+    /// ([`Scan::at_window_edge`]).
+    fn follow(&self, start: (f64, f64), at_window_edge: &mut bool) -> LineEnd {
+        let (local, cell) = (self.local, self.cell);
         let mut seen_shadow = false;
         // Where the line last left unusable cells (metres along it): a shadow ending within a
         // cell of them has an unknown end; one merely passing through them goes on.
         let mut unusable_until = f64::NEG_INFINITY;
         // Where the line last left its own footprint's cells or edge cells, metres.
         let mut roof_until = 0.0f64;
-        let mut walk = cells_along(local, start, u);
+        let mut walk = cells_along(local, start, self.u);
         loop {
             let (x, x_out, cell_at) = walk.next().expect("a walk along a unit vector never ends");
             // Past the longest shadow sought beyond the footprint and its edge cells (a line
             // grazing an oblique edge may cross several).
-            if x > roof_until + max_len + cell {
-                out.cut += 1;
-                break;
+            if x > roof_until + self.max_len + cell {
+                return LineEnd::Cut;
             }
-            out.at_window_edge |= on_border(local, cell_at);
+            *at_window_edge |= on_border(local, cell_at);
             let class = cell_at.map(|(c, r)| {
                 let i = r * local.grid.width + c;
                 (i, local.class[i])
             });
             match class {
-                None => {
-                    out.cut += 1;
-                    break;
-                }
+                None => return LineEnd::Cut,
                 Some((_, Class::Unusable)) => unusable_until = x_out,
-                Some((_, Class::Other)) => {
-                    out.on_other += 1;
-                    break;
-                }
+                Some((_, Class::Other)) => return LineEnd::OnOther,
                 // The own roof, or a cell it covers in part: not yet the shadow's end.
                 Some((_, Class::Own | Class::Edge)) => roof_until = x_out,
                 Some((_, Class::Shadow)) => seen_shadow = true,
                 Some((i, Class::Lit)) => {
-                    if x - unusable_until < cell {
-                        out.cut += 1;
+                    return if x - unusable_until < cell {
+                        LineEnd::Cut
                     } else if meets_other(
                         local,
                         cell_at.unwrap(),
                         &mut walk,
                         x + cell,
-                        &mut out.at_window_edge,
+                        at_window_edge,
                     ) {
-                        out.on_other += 1;
+                        LineEnd::OnOther
                     } else {
-                        out.lengths.push(x);
-                        out.line_t.push(t);
-                        out.tip_roofs.push(local.heights[i] as f64 + x * tan_e);
-                        out.with_shadow += seen_shadow as usize;
-                    }
-                    break;
+                        LineEnd::Valid {
+                            length: x,
+                            tip_roof: local.heights[i] as f64 + x * self.tan_e,
+                            seen_shadow,
+                        }
+                    };
                 }
             }
         }
     }
-    out
 }
 
 /// Whether the lit cell `at` ending a line's shadow is within a cell of another footprint: one
