@@ -243,21 +243,62 @@ fn best_fit(
     if observed.iter().sum::<f64>() == 0.0 {
         return None;
     }
-    let n = brightness.len() as f64;
-    let sb: f64 = brightness.iter().sum();
-    let syy = brightness.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
-    if syy.is_nan() || syy <= 0.0 {
+    let fit = LineFit::new(brightness, step)?;
+    let (at_start, floor) = fit.bucket_starts(buckets);
+    let (score, next) = fit.best_end(buckets, &at_start, floor)?;
+    if score <= 0.0 {
         return None;
     }
-    // The sums over the covered sub-points: of fractions, squared fractions (per cell), and
-    // fraction × brightness.
-    #[derive(Clone, Copy, Default)]
-    struct Sums {
-        s: f64,
-        ss: f64,
-        sb: f64,
+    let (lo, hi) = answer_interval(buckets, next, z_hi);
+    Some(refined(lo, hi, &buckets.events[..next], observed, step))
+}
+
+/// The sums over the covered sub-points: of fractions, squared fractions (per cell), and
+/// fraction × brightness.
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    s: f64,
+    ss: f64,
+    sb: f64,
+}
+
+/// [`best_fit`]'s least-squares line through the cells' (synthetic fraction, brightness): the
+/// brightness and its sums, which every height's score shares.
+struct LineFit<'a> {
+    /// Each cell's brightness (shadow index).
+    brightness: &'a [f64],
+    /// What one sub-point adds to its cell's synthetic fraction: 1 / sub-points a cell.
+    step: f64,
+    /// The number of cells.
+    n: f64,
+    /// The sum of the brightness.
+    sb: f64,
+    /// The brightness's sum of squares about its mean.
+    syy: f64,
+}
+
+impl<'a> LineFit<'a> {
+    /// The fit to `brightness` with sub-points `step` of a cell each; `None` without any
+    /// spread of brightness.
+    fn new(brightness: &'a [f64], step: f64) -> Option<LineFit<'a>> {
+        let n = brightness.len() as f64;
+        let sb: f64 = brightness.iter().sum();
+        let syy = brightness.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
+        if syy.is_nan() || syy <= 0.0 {
+            return None;
+        }
+        Some(LineFit {
+            brightness,
+            step,
+            n,
+            sb,
+            syy,
+        })
     }
-    let score = |m: &Sums| {
+
+    /// The score of the fractions summed in `m`: the line's R² (0 to 1), 0 unless it falls.
+    fn score(&self, m: &Sums) -> f64 {
+        let (n, sb, syy) = (self.n, self.sb, self.syy);
         let sxx = m.ss - m.s * m.s / n;
         let sxy = m.sb - m.s * sb / n;
         if sxy < 0.0 && sxx > 0.0 {
@@ -265,34 +306,13 @@ fn best_fit(
         } else {
             0.0
         }
-    };
-    let add = |m: &mut Sums, covered: &mut [u32], i: usize| {
-        let before = covered[i] as f64 * step;
-        let after = before + step;
-        covered[i] += 1;
-        m.s += step;
-        m.ss += after * after - before * before;
-        m.sb += step * brightness[i];
-    };
-    let count = buckets.start.len() - 1;
-    // First sweep: the sums at each bucket's start, and the best score at a bucket's end.
-    let mut covered = vec![0u32; brightness.len()];
-    let mut at_start = Vec::with_capacity(count + 1);
-    let mut sums = Sums::default();
-    let mut floor = 0.0f64;
-    for b in 0..count {
-        at_start.push(sums);
-        for k in buckets.of(b) {
-            add(&mut sums, &mut covered, buckets.events[k].cell());
-        }
-        if !buckets.of(b).is_empty() {
-            floor = floor.max(score(&sums));
-        }
     }
-    at_start.push(sums);
-    // Inside a bucket every sum lies between its values at the two ends (they only grow),
-    // so the score is at most the largest |sxy|² over the smallest sxx.
-    let bound = |a: &Sums, z: &Sums| {
+
+    /// A bound on the score anywhere between the sums `a` and `z` at a bucket's two ends:
+    /// every sum lies between its values there (they only grow), so the score is at most the
+    /// largest |sxy|² over the smallest sxx.
+    fn bound(&self, a: &Sums, z: &Sums) -> f64 {
+        let (n, sb, syy) = (self.n, self.sb, self.syy);
         let sxy = a.sb - z.s * sb / n;
         let sxx = a.ss - z.s * z.s / n;
         if sxy >= 0.0 {
@@ -302,40 +322,86 @@ fn best_fit(
         } else {
             sxy * sxy / (sxx * syy) * (1.0 + 1e-9)
         }
-    };
-    // Second sweep: the buckets that may hold the answer sorted and scored event by event.
-    covered.fill(0);
-    let mut best: Option<(f64, usize)> = None; // (score, events before the answer's end)
-    for b in 0..count {
-        let range = buckets.of(b);
-        if bound(&at_start[b], &at_start[b + 1]) < floor - SCORE_SKIP {
-            for k in range {
-                covered[buckets.events[k].cell()] += 1;
+    }
+
+    /// One more sub-point of cell `i` in the synthetic shadow: added to `m`, counted in
+    /// `covered` (sub-points covered per cell).
+    fn add(&self, m: &mut Sums, covered: &mut [u32], i: usize) {
+        let step = self.step;
+        let before = covered[i] as f64 * step;
+        let after = before + step;
+        covered[i] += 1;
+        m.s += step;
+        m.ss += after * after - before * before;
+        m.sb += step * self.brightness[i];
+    }
+
+    /// The first sweep, bucket by bucket in any order within: the sums at each bucket's start
+    /// (and after the last), and the best score at the end of a bucket with events.
+    fn bucket_starts(&self, buckets: &Buckets) -> (Vec<Sums>, f64) {
+        let count = buckets.start.len() - 1;
+        let mut covered = vec![0u32; self.brightness.len()];
+        let mut at_start = Vec::with_capacity(count + 1);
+        let mut sums = Sums::default();
+        let mut floor = 0.0f64;
+        for b in 0..count {
+            at_start.push(sums);
+            for k in buckets.of(b) {
+                self.add(&mut sums, &mut covered, buckets.events[k].cell());
             }
-            continue;
+            if !buckets.of(b).is_empty() {
+                floor = floor.max(self.score(&sums));
+            }
         }
-        buckets.events[range.clone()].sort_unstable();
-        let mut sums = at_start[b];
-        for k in range.clone() {
-            let e = buckets.events[k];
-            add(&mut sums, &mut covered, e.cell());
-            if k + 1 < range.end && buckets.events[k + 1].0 >> 32 == e.0 >> 32 {
+        at_start.push(sums);
+        (at_start, floor)
+    }
+
+    /// The second sweep: the buckets that may hold the answer (their [`Self::bound`] not below
+    /// `floor`, the best end score, by more than [`SCORE_SKIP`]) sorted and scored event by
+    /// event from their sums `at_start`. Returns the best score and the number of events up to
+    /// the answer's end, in the buckets' new order; `None` when no event is swept.
+    fn best_end(
+        &self,
+        buckets: &mut Buckets,
+        at_start: &[Sums],
+        floor: f64,
+    ) -> Option<(f64, usize)> {
+        let mut covered = vec![0u32; self.brightness.len()];
+        let mut best: Option<(f64, usize)> = None;
+        for b in 0..buckets.start.len() - 1 {
+            let range = buckets.of(b);
+            if self.bound(&at_start[b], &at_start[b + 1]) < floor - SCORE_SKIP {
+                for k in range {
+                    covered[buckets.events[k].cell()] += 1;
+                }
                 continue;
             }
-            let s = score(&sums);
-            if best.is_none_or(|b| s > b.0 + SCORE_TIE) {
-                best = Some((s, k + 1));
+            buckets.events[range.clone()].sort_unstable();
+            let mut sums = at_start[b];
+            for k in range.clone() {
+                let e = buckets.events[k];
+                self.add(&mut sums, &mut covered, e.cell());
+                if k + 1 < range.end && buckets.events[k + 1].0 >> 32 == e.0 >> 32 {
+                    continue;
+                }
+                let s = self.score(&sums);
+                if best.is_none_or(|b| s > b.0 + SCORE_TIE) {
+                    best = Some((s, k + 1));
+                }
             }
         }
+        best
     }
-    let (score, next) = best?;
-    if score <= 0.0 {
-        return None;
-    }
+}
+
+/// The heights (metres) of the answer whose synthetic shadow is the first `next` events of
+/// `buckets` (sorted up to there): from their last threshold to the next one — the smallest
+/// after the answer in its bucket (sorted: the next event), or in the next bucket with events
+/// (maybe unsorted) when the answer ended its own — or `z_hi` after the last.
+fn answer_interval(buckets: &Buckets, next: usize, z_hi: f64) -> (f64, f64) {
     let events = &buckets.events;
     let lo = events[next - 1].threshold();
-    // The next threshold: the smallest after the answer in its bucket (sorted: the next
-    // event), or in the next bucket with events (maybe unsorted) when the answer ended its own.
     let hi = if next == events.len() {
         z_hi
     } else {
@@ -346,7 +412,7 @@ fn best_fit(
             .fold(f64::INFINITY, f64::min)
     }
     .max(lo);
-    Some(refined(lo, hi, &events[..next], observed, step))
+    (lo, hi)
 }
 
 /// The answer between thresholds `lo` and `hi` (metres): their middle, with the IoU of the
