@@ -299,6 +299,12 @@ impl<'a> Shifts<'a> {
 /// The shift (within ±`max_shift_m` metres on each axis) that best fits `fp` to its roof in
 /// `colour` with shadows cast along `away` (world east, north, away from the sun); `None` when
 /// the outline is mostly off the grid or on nodata.
+///
+/// Whole pixels first (their scores are the search's background, whose median the peak is
+/// judged against), then the half pixels around the best: a quarter of the evaluations of a
+/// half-pixel grid, and the contrast (read [`ACROSS`] = ¾ pixel each side of the outline) is
+/// more than a pixel wide, so the whole-pixel best lies beside the peak. Then the eighths
+/// around that, whose top plateau's centre is the estimate ([`plateau_centre`]).
 pub fn estimate(
     fp: &Footprint,
     colour: &RowBand<[u8; 4]>,
@@ -309,12 +315,44 @@ pub fn estimate(
     let t = &colour.grid.transform;
     let (cx, cy) = (t.cell_x, t.cell_y); // metres per pixel (cy < 0 for north-up)
     let reach = (max_shift_m / cx.abs().max(cy.abs())).max(0.0); // pixels
-                                                                 // Whole pixels first (their scores are the search's background, whose median the peak is
-                                                                 // judged against), then the half pixels around the best: a quarter of the evaluations of a
-                                                                 // half-pixel grid, and the contrast (read ACROSS = ¾ pixel each side of the outline) is
-                                                                 // more than a pixel wide, so the whole-pixel best lies beside the peak.
-                                                                 // Every pixel the search can read: the samples moved up to the reach and the fine search's
-                                                                 // ¾ pixel, read ¾ pixel across, with the bilinear neighbour.
+    let luma = search_luma(colour, &samples, reach);
+    let (scores, whole) = whole_pixel_search(&luma, &samples, reach);
+    let half = half_pixel_search(&luma, &samples, whole?, reach)?;
+    let median = super::scan::median(&scores)?;
+    let top = plateau_centre(&luma, &samples, half, median);
+    Some(Shift {
+        east_m: top.x * cx,
+        north_m: top.y * cy,
+        peak_ratio: if median > 0.0 {
+            top.score / median
+        } else {
+            1.0
+        },
+    })
+}
+
+/// A shift the search scored: its contrast ([`Shifts::contrast`]) and the shift, pixels
+/// (along the columns and the rows).
+#[derive(Clone, Copy)]
+struct Candidate {
+    score: f64,
+    x: f64,
+    y: f64,
+}
+
+/// Keep in `best` the better of it and `c`: the higher score, or on a tie the smaller shift.
+fn keep_best(best: &mut Option<Candidate>, c: Candidate) {
+    if best.is_none_or(|b| {
+        c.score > b.score || (c.score == b.score && c.x.hypot(c.y) < b.x.hypot(b.y))
+    }) {
+        *best = Some(c);
+    }
+}
+
+/// The luminance of every pixel the search of `samples` can read: the samples moved up to
+/// `reach` pixels and the fine search's ¾ pixel, read ¾ pixel across, with the bilinear
+/// neighbour.
+fn search_luma(colour: &RowBand<[u8; 4]>, samples: &[Sample], reach: f64) -> Luma {
     let (x0, y0, x1, y1) = samples.iter().fold(
         (
             f64::INFINITY,
@@ -332,37 +370,62 @@ pub fn estimate(
         },
     );
     let m = reach + 4.0;
-    let luma = Luma::new(
+    Luma::new(
         colour,
         ((x0 - m).floor() as i64, (x1 + m).ceil() as i64),
         ((y0 - m).floor() as i64, (y1 + m).ceil() as i64),
-    );
+    )
+}
+
+/// The shifts by whole pixels within `reach` pixels, read on every other sample (a sample a
+/// cell): they only seed the finer searches and give the background, and are most of the
+/// evaluations. Returns every contrast read (the background), and the best shift, if any.
+fn whole_pixel_search(
+    luma: &Luma,
+    samples: &[Sample],
+    reach: f64,
+) -> (Vec<f64>, Option<Candidate>) {
     let whole = reach.floor() as i64;
-    let half = (reach * 2.0).floor() / 2.0; // the largest half-pixel shift searched
     let mut scores = Vec::new();
-    let mut best: Option<(f64, f64, f64)> = None; // (score, sx, sy) in pixels
-    let consider = |best: &mut Option<(f64, f64, f64)>, s: f64, sx: f64, sy: f64| {
-        if best.is_none_or(|b| s > b.0 || (s == b.0 && sx.hypot(sy) < b.1.hypot(b.2))) {
-            *best = Some((s, sx, sy));
-        }
-    };
-    // The whole pixels read every other sample (a sample a cell): they only seed the finer
-    // searches and give the background, and are most of the evaluations. The best of them is
-    // scored again on every sample before the finer ones are compared with it.
+    let mut best = None;
     let sparse: Vec<Sample> = samples.iter().step_by(2).copied().collect();
-    let pixels = Shifts::new(&luma, &sparse, (0.0, 0.0), 1.0, whole as usize);
+    let pixels = Shifts::new(luma, &sparse, (0.0, 0.0), 1.0, whole as usize);
     for j in -whole..=whole {
         for i in -whole..=whole {
             let at = ((i + whole) as usize, (j + whole) as usize);
             if let Some(s) = pixels.contrast(at.0, at.1) {
                 scores.push(s);
-                consider(&mut best, s, i as f64, j as f64);
+                keep_best(
+                    &mut best,
+                    Candidate {
+                        score: s,
+                        x: i as f64,
+                        y: j as f64,
+                    },
+                );
             }
         }
     }
-    let (_, wx, wy) = best?;
-    let halves = Shifts::new(&luma, &samples, (wx, wy), 0.5, 1);
-    best = halves.contrast(1, 1).map(|s| (s, wx, wy));
+    (scores, best)
+}
+
+/// The best of the half-pixel shifts around the whole-pixel best `whole`, all read on every
+/// sample (`whole` itself scored again first); none beyond the largest half-pixel shift
+/// within `reach` pixels. `None` when none can be read.
+fn half_pixel_search(
+    luma: &Luma,
+    samples: &[Sample],
+    whole: Candidate,
+    reach: f64,
+) -> Option<Candidate> {
+    let (wx, wy) = (whole.x, whole.y);
+    let half = (reach * 2.0).floor() / 2.0; // the largest half-pixel shift searched
+    let halves = Shifts::new(luma, samples, (wx, wy), 0.5, 1);
+    let mut best = halves.contrast(1, 1).map(|s| Candidate {
+        score: s,
+        x: wx,
+        y: wy,
+    });
     for j in -1..=1 {
         for i in -1..=1 {
             let (sx, sy) = (wx + i as f64 / 2.0, wy + j as f64 / 2.0);
@@ -370,27 +433,37 @@ pub fn estimate(
                 continue;
             }
             if let Some(s) = halves.contrast((i + 1) as usize, (j + 1) as usize) {
-                consider(&mut best, s, sx, sy);
+                keep_best(
+                    &mut best,
+                    Candidate {
+                        score: s,
+                        x: sx,
+                        y: sy,
+                    },
+                );
             }
         }
     }
-    let (_, gx, gy) = best?;
-    let median = super::scan::median(&scores)?;
-    // Refine to an eighth of a pixel within ¾ pixel of the best, then take the centre of the
-    // top: every shift scoring within PLATEAU of the peak (over the search's median). A sharp
-    // edge's contrast is flat for ±¼ pixel around it ([`ACROSS`]); the first maximum found
-    // there sat at the plateau's west or north end, ¼ pixel off. The eighths are scored ring
-    // by ring out from the centre, and no further once a whole ring is below the top: the
-    // plateau around the best has ended (most are ±¼ pixel, three rings of six).
+    best
+}
+
+/// The centre of the top around the half-pixel best `half`, refined to an eighth of a pixel
+/// within ¾ pixel of it: the mean shift (pixels) of every shift scoring within `PLATEAU` of
+/// the peak (over the search's `median`), with the peak's score. A sharp edge's contrast is
+/// flat for ±¼ pixel around it ([`ACROSS`]); the first maximum found there sat at the
+/// plateau's west or north end, ¼ pixel off. The eighths are scored ring by ring out from the
+/// centre, and no further once a whole ring is below the top: the plateau around the best has
+/// ended (most are ±¼ pixel, three rings of six).
+fn plateau_centre(luma: &Luma, samples: &[Sample], half: Candidate, median: f64) -> Candidate {
     const PLATEAU: f64 = 0.02;
+    let (gx, gy) = (half.x, half.y);
     let floor_of = |s0: f64| s0 - PLATEAU * (s0 - median).max(0.0);
-    // ((row, column) on the eighths' grid, (score, sx, sy)).
-    type Scored = ((i64, i64), (f64, f64, f64));
     // The grid of eighths is made for the usual three rings first, for all six when needed.
     const RINGS: i64 = 6;
-    let eighths = |k: i64| (k, Shifts::new(&luma, &samples, (gx, gy), 0.125, k as usize));
+    let eighths = |k: i64| (k, Shifts::new(luma, samples, (gx, gy), 0.125, k as usize));
     let mut grid = eighths(3);
-    let mut fine: Vec<Scored> = Vec::new();
+    // ((row, column) on the eighths' grid, the shift scored).
+    let mut fine: Vec<((i64, i64), Candidate)> = Vec::new();
     let mut s0 = f64::NEG_INFINITY;
     for ring in 0..=RINGS {
         if ring > grid.0 {
@@ -406,7 +479,12 @@ pub fn estimate(
                 let (col, row) = ((i + grid.0) as usize, (j + grid.0) as usize);
                 if let Some(s) = grid.1.contrast(col, row) {
                     ring_best = ring_best.max(s);
-                    fine.push(((j, i), (s, sx, sy)));
+                    let c = Candidate {
+                        score: s,
+                        x: sx,
+                        y: sy,
+                    };
+                    fine.push(((j, i), c));
                 }
             }
         }
@@ -419,15 +497,17 @@ pub fn estimate(
     // raster order, as the whole grid was.
     fine.sort_by_key(|f| f.0);
     let floor = floor_of(s0);
-    let top: Vec<&(f64, f64, f64)> = fine.iter().map(|f| &f.1).filter(|f| f.0 >= floor).collect();
+    let top: Vec<&Candidate> = fine
+        .iter()
+        .map(|f| &f.1)
+        .filter(|f| f.score >= floor)
+        .collect();
     let k = top.len() as f64;
-    let bx = top.iter().map(|f| f.1).sum::<f64>() / k;
-    let by = top.iter().map(|f| f.2).sum::<f64>() / k;
-    Some(Shift {
-        east_m: bx * cx,
-        north_m: by * cy,
-        peak_ratio: if median > 0.0 { s0 / median } else { 1.0 },
-    })
+    Candidate {
+        score: s0,
+        x: top.iter().map(|f| f.x).sum::<f64>() / k,
+        y: top.iter().map(|f| f.y).sum::<f64>() / k,
+    }
 }
 
 /// The scene's shift: the component-wise median of the estimates that count; `None` when none
