@@ -554,11 +554,8 @@ pub fn with_camera(
     let radial: Vec<(f64, f64)> = footprints
         .iter()
         .map(|f| {
-            let b = f.bbox();
-            let (dx, dy) = (
-                (b.0 + b.2) / 2.0 - camera.east,
-                (b.1 + b.3) / 2.0 - camera.north,
-            );
+            let (x, y) = bbox_centre(f);
+            let (dx, dy) = (x - camera.east, y - camera.north);
             let r = dx.hypot(dy);
             if r > 0.0 {
                 (dx / r, dy / r)
@@ -636,10 +633,6 @@ pub fn estimate_camera(
     ground_z: f64,
     cell: f64,
 ) -> Option<PerspectiveCentre> {
-    let centre = |f: &Footprint| {
-        let b = f.bbox();
-        ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0)
-    };
     let tried: Vec<(usize, f64)> = (0..footprints.len())
         .filter_map(|k| match (shifts[k], heights[k]) {
             (Some(s), Some(h)) if s.counts() && h > 0.0 => Some((k, h)),
@@ -649,26 +642,83 @@ pub fn estimate_camera(
     if tried.len() < MIN_CAMERA_BUILDINGS {
         return None;
     }
-    let n = tried.len() as f64;
-    let origin = tried.iter().fold((0.0, 0.0), |o, &(k, _)| {
-        let c = centre(&footprints[k]);
-        (o.0 + c.0 / n, o.1 + c.1 / n)
-    });
-    // The two rows of building k: (coefficients of [gx, gy, a, mx, my], observed shift).
-    let rows = |k: usize, h: f64| {
-        let (cx, cy) = centre(&footprints[k]);
-        let (px, py) = (cx - origin.0, cy - origin.1);
-        let s = shifts[k].unwrap();
+    let fit = LeanFit::new(footprints, shifts, &tried);
+    let first = fit.solve(&tried)?;
+    let kept: Vec<(usize, f64)> = tried
+        .iter()
+        .copied()
+        .filter(|&(k, h)| fit.residual(&first, k, h) <= cell)
+        .collect();
+    if kept.len() < MIN_CAMERA_BUILDINGS || 3 * kept.len() < 2 * tried.len() {
+        return None;
+    }
+    let x = fit.solve(&kept)?;
+    let (a, m) = (x[2], (x[3], x[4]));
+    let tallest = kept.iter().map(|&(_, h)| h).fold(0.0, f64::max);
+    if a.is_nan() || a <= 0.0 || 1.0 / a <= 2.0 * tallest {
+        return None;
+    }
+    fit.explains(&x, &kept, cell).then(|| PerspectiveCentre {
+        east: fit.origin.0 + m.0 / a,
+        north: fit.origin.1 + m.1 / a,
+        z: ground_z + 1.0 / a,
+    })
+}
+
+/// [`estimate_camera`]'s linear model of the buildings' shifts, `s = g + a·h·p − h·m` in the
+/// unknowns `x = [gx, gy, a, mx, my]`, with the positions `p` from `origin`. Buildings are
+/// given as (index, height above the ground in metres).
+struct LeanFit<'a> {
+    footprints: &'a [Footprint],
+    shifts: &'a [Option<Shift>],
+    /// The mean of the bounding-box centres of the buildings tried, world metres.
+    origin: (f64, f64),
+}
+
+impl<'a> LeanFit<'a> {
+    /// The model of the buildings `tried` (each with a clear shift), positions from their mean
+    /// centre.
+    fn new(
+        footprints: &'a [Footprint],
+        shifts: &'a [Option<Shift>],
+        tried: &[(usize, f64)],
+    ) -> LeanFit<'a> {
+        let n = tried.len() as f64;
+        let origin = tried.iter().fold((0.0, 0.0), |o, &(k, _)| {
+            let c = bbox_centre(&footprints[k]);
+            (o.0 + c.0 / n, o.1 + c.1 / n)
+        });
+        LeanFit {
+            footprints,
+            shifts,
+            origin,
+        }
+    }
+
+    /// Building `k`'s position from the origin, metres (east, north).
+    fn position(&self, k: usize) -> (f64, f64) {
+        let (cx, cy) = bbox_centre(&self.footprints[k]);
+        (cx - self.origin.0, cy - self.origin.1)
+    }
+
+    /// The two rows of building `k` (`h` metres high): the coefficients of
+    /// `[gx, gy, a, mx, my]` and the observed shift, metres, east then north.
+    fn rows(&self, k: usize, h: f64) -> [([f64; 5], f64); 2] {
+        let (px, py) = self.position(k);
+        let s = self.shifts[k].unwrap();
         [
             ([1.0, 0.0, h * px, -h, 0.0], s.east_m),
             ([0.0, 1.0, h * py, 0.0, -h], s.north_m),
         ]
-    };
-    let solve = |use_: &[(usize, f64)]| -> Option<[f64; 5]> {
+    }
+
+    /// The least-squares `x` over the buildings `used` (normal equations); `None` when they
+    /// do not determine it.
+    fn solve(&self, used: &[(usize, f64)]) -> Option<[f64; 5]> {
         let mut ata = [[0.0; 5]; 5];
         let mut atb = [0.0; 5];
-        for &(k, h) in use_ {
-            for (a, b) in rows(k, h) {
+        for &(k, h) in used {
+            for (a, b) in self.rows(k, h) {
                 for i in 0..5 {
                     atb[i] += a[i] * b;
                     for j in 0..5 {
@@ -678,52 +728,53 @@ pub fn estimate_camera(
             }
         }
         solve5(ata, atb)
-    };
-    let residual = |x: &[f64; 5], k: usize, h: f64| {
-        let r = rows(k, h).map(|(a, b)| (0..5).map(|i| a[i] * x[i]).sum::<f64>() - b);
+    }
+
+    /// How far building `k`'s (`h` metres high) observed shift is from the one `x` gives,
+    /// metres.
+    fn residual(&self, x: &[f64; 5], k: usize, h: f64) -> f64 {
+        let r = self
+            .rows(k, h)
+            .map(|(a, b)| (0..5).map(|i| a[i] * x[i]).sum::<f64>() - b);
         r[0].hypot(r[1])
-    };
-    let first = solve(&tried)?;
-    let kept: Vec<(usize, f64)> = tried
-        .iter()
-        .copied()
-        .filter(|&(k, h)| residual(&first, k, h) <= cell)
-        .collect();
-    if kept.len() < MIN_CAMERA_BUILDINGS || 3 * kept.len() < 2 * tried.len() {
-        return None;
     }
-    let x = solve(&kept)?;
-    let (a, m) = (x[2], (x[3], x[4]));
-    let tallest = kept.iter().map(|&(_, h)| h).fold(0.0, f64::max);
-    if a.is_nan() || a <= 0.0 || 1.0 / a <= 2.0 * tallest {
-        return None;
+
+    /// Whether `x` explains the shifts of the buildings `kept`: the sum of their squared
+    /// residuals at most a quarter of the shifts' scatter about their mean, and some lean
+    /// (`a·h·p − h·m`) over `cell` metres.
+    fn explains(&self, x: &[f64; 5], kept: &[(usize, f64)], cell: f64) -> bool {
+        let (a, m) = (x[2], (x[3], x[4]));
+        let mean = kept.iter().fold((0.0, 0.0), |o, &(k, _)| {
+            let s = self.shifts[k].unwrap();
+            let n = kept.len() as f64;
+            (o.0 + s.east_m / n, o.1 + s.north_m / n)
+        });
+        let scatter: f64 = kept
+            .iter()
+            .map(|&(k, _)| {
+                let s = self.shifts[k].unwrap();
+                (s.east_m - mean.0).powi(2) + (s.north_m - mean.1).powi(2)
+            })
+            .sum();
+        let unexplained: f64 = kept
+            .iter()
+            .map(|&(k, h)| self.residual(x, k, h).powi(2))
+            .sum();
+        let largest_lean = kept
+            .iter()
+            .map(|&(k, h)| {
+                let (px, py) = self.position(k);
+                (a * h * px - h * m.0).hypot(a * h * py - h * m.1)
+            })
+            .fold(0.0, f64::max);
+        unexplained <= 0.25 * scatter && largest_lean > cell
     }
-    let mean = kept.iter().fold((0.0, 0.0), |o, &(k, _)| {
-        let s = shifts[k].unwrap();
-        let n = kept.len() as f64;
-        (o.0 + s.east_m / n, o.1 + s.north_m / n)
-    });
-    let scatter: f64 = kept
-        .iter()
-        .map(|&(k, _)| {
-            let s = shifts[k].unwrap();
-            (s.east_m - mean.0).powi(2) + (s.north_m - mean.1).powi(2)
-        })
-        .sum();
-    let unexplained: f64 = kept.iter().map(|&(k, h)| residual(&x, k, h).powi(2)).sum();
-    let largest_lean = kept
-        .iter()
-        .map(|&(k, h)| {
-            let (cx, cy) = centre(&footprints[k]);
-            let (px, py) = (cx - origin.0, cy - origin.1);
-            (a * h * px - h * m.0).hypot(a * h * py - h * m.1)
-        })
-        .fold(0.0, f64::max);
-    (unexplained <= 0.25 * scatter && largest_lean > cell).then(|| PerspectiveCentre {
-        east: origin.0 + m.0 / a,
-        north: origin.1 + m.1 / a,
-        z: ground_z + 1.0 / a,
-    })
+}
+
+/// The centre of `f`'s bounding box, world metres (east, north).
+fn bbox_centre(f: &Footprint) -> (f64, f64) {
+    let b = f.bbox();
+    ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0)
 }
 
 /// Fewest buildings [`estimate_camera`] rests a perspective centre on (five unknowns, two
