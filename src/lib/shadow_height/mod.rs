@@ -742,13 +742,81 @@ struct Caster {
     rows: Range<usize>,
 }
 
+impl Caster {
+    /// Mark the cells of grid rows `rows` that this footprint's shadow covers (by `rays`, over
+    /// `terrain`, the band holding them) in `chunk`, those rows' cells of the band's marks
+    /// ([`neighbour_shadows`]).
+    fn mark(
+        &self,
+        chunk: &mut [u32],
+        rows: Range<usize>,
+        terrain: &RowBand<f32>,
+        rays: &ShadowRays,
+    ) {
+        let grid = terrain.grid;
+        let w = grid.width;
+        for r in self.rows.start.max(rows.start)..self.rows.end.min(rows.end) {
+            let Some(columns) = hull_columns(grid, &self.hull, r) else {
+                continue;
+            };
+            for c in columns {
+                let z = *terrain.at(r * w + c) as f64;
+                if rays.shade(&self.walls, self.roof, grid.cell_centre(c, r), z) {
+                    let v = &mut chunk[(r - rows.start) * w + c];
+                    *v = match *v {
+                        0 => self.id,
+                        v if v == self.id => v,
+                        _ => MANY_SHADOWS,
+                    };
+                }
+            }
+        }
+    }
+}
+
+/// The columns of row `r` of `grid` that the convex `hull` (world metres) may cover: its span
+/// along the row's centre line, a column more each side, clipped to the grid; `None` when the
+/// centre line misses it.
+fn hull_columns(grid: &Grid, hull: &[(f64, f64)], r: usize) -> Option<Range<usize>> {
+    let t = &grid.transform;
+    let (_, y) = grid.cell_centre(0, r);
+    let (x0, x1) = footprint::hull_span(hull, y)?;
+    let (c0, _) = t.world_to_pixel(x0, y);
+    let (c1, _) = t.world_to_pixel(x1, y);
+    let wf = grid.width as f64;
+    let (c0, c1) = (c0.min(c1), c0.max(c1));
+    let c0 = (c0 - 1.0).floor().clamp(0.0, wf) as usize;
+    let c1 = (c1 + 1.0).ceil().clamp(0.0, wf) as usize;
+    Some(c0..c1)
+}
+
+/// How a footprint's shadow is decided for a ground point: by the ray from it toward the sun,
+/// followed at most `reach` metres, rising `tan_e` (the tangent of the sun's elevation)
+/// metres a metre.
+struct ShadowRays {
+    tan_e: f64,
+    reach: f64,
+}
+
+impl ShadowRays {
+    /// Whether ground point `p` (world metres) at terrain height `z` (metres) is in the shadow
+    /// of a footprint with `walls` (toward the sun) and roof `roof` (absolute metres): its ray
+    /// toward the sun meets the walls `t` metres away, within `reach`, below the roof
+    /// (`z + t · tan e < roof`, [`refine::Walls::first`]).
+    fn shade(&self, walls: &refine::Walls, roof: f64, p: (f64, f64), z: f64) -> bool {
+        walls
+            .first(p)
+            .is_some_and(|t| t <= self.reach && z + t * self.tan_e < roof)
+    }
+}
+
 /// Per cell of `terrain`'s band: which footprint's shadow at its roof (`roofs`, absolute
 /// metres) covers the ground there — the footprint's id (index + 1), [`MANY_SHADOWS`] for
 /// more than one, 0 for none. A footprint shades ground point `p` at terrain height `z` when
 /// the ray from `p` toward the sun meets its walls within [`reach`] metres (`t`) below its roof:
-/// `z + t · tan e < roof` ([`refine::Walls::first`]). Each footprint is tried on the cells of its
+/// `z + t · tan e < roof` ([`ShadowRays::shade`]). Each footprint is tried on the cells of its
 /// outline swept toward the shadow as far as its roof's shadow can reach over the band's
-/// lowest ground: the work is the shadows' area, not footprints × window.
+/// lowest ground ([`band_casters`]): the work is the shadows' area, not footprints × window.
 fn neighbour_shadows<'a>(
     terrain: &RowBand<'a, f32>,
     footprints: &[Footprint],
@@ -760,6 +828,41 @@ fn neighbour_shadows<'a>(
     let grid = terrain.grid;
     let rows = terrain.rows();
     let w = grid.width;
+    let rays = ShadowRays {
+        tan_e: sun.elevation_deg.to_radians().tan(),
+        reach,
+    };
+    let casters = band_casters(terrain, footprints, roofs, shadows, sun, reach);
+    // Marked in chunks of rows, in parallel: a cell's mark does not depend on the order its
+    // shadows are cast in.
+    const CHUNK_ROWS: usize = 32;
+    let mut by = vec![0u32; rows.len() * w];
+    by.par_chunks_mut(CHUNK_ROWS * w)
+        .enumerate()
+        .for_each(|(n, chunk)| {
+            let start = rows.start + n * CHUNK_ROWS;
+            let end = start + chunk.len() / w;
+            for caster in &casters {
+                caster.mark(chunk, start..end, terrain, &rays);
+            }
+        });
+    RowBand::new(grid, rows, by)
+}
+
+/// The footprints whose shadow at their roof (`roofs`, absolute metres; none for the
+/// unmeasured) can reach `terrain`'s band: among those whose box swept over `reach` metres
+/// away from the sun (`shadows`) meets it, those whose roof's shadow over the band's lowest
+/// ground has a length (at most `reach` metres), each with its outline swept that far.
+fn band_casters(
+    terrain: &RowBand<f32>,
+    footprints: &[Footprint],
+    roofs: &[Option<f64>],
+    shadows: &BoxIndex,
+    sun: &Sun,
+    reach: f64,
+) -> Vec<Caster> {
+    let grid = terrain.grid;
+    let rows = terrain.rows();
     let z_min = terrain
         .values()
         .iter()
@@ -768,9 +871,8 @@ fn neighbour_shadows<'a>(
         .fold(f32::INFINITY, f32::min) as f64;
     let tan_e = sun.elevation_deg.to_radians().tan();
     let toward = sun.direction();
-    let t = &grid.transform;
     let band_box = grid_box(grid, rows.clone());
-    let casters: Vec<Caster> = shadows
+    shadows
         .meeting(band_box)
         .into_par_iter()
         .filter_map(|k| {
@@ -792,53 +894,7 @@ fn neighbour_shadows<'a>(
                 rows: span,
             })
         })
-        .collect();
-    // Marked in chunks of rows, in parallel: a cell's mark does not depend on the order its
-    // shadows are cast in.
-    const CHUNK_ROWS: usize = 32;
-    let mut by = vec![0u32; rows.len() * w];
-    by.par_chunks_mut(CHUNK_ROWS * w)
-        .enumerate()
-        .for_each(|(n, chunk)| {
-            let start = rows.start + n * CHUNK_ROWS;
-            let end = start + chunk.len() / w;
-            for caster in &casters {
-                let Caster {
-                    id,
-                    roof,
-                    walls,
-                    hull,
-                    rows: covered,
-                } = caster;
-                for r in covered.start.max(start)..covered.end.min(end) {
-                    let (_, y) = grid.cell_centre(0, r);
-                    let Some((x0, x1)) = footprint::hull_span(hull, y) else {
-                        continue;
-                    };
-                    let (c0, _) = t.world_to_pixel(x0, y);
-                    let (c1, _) = t.world_to_pixel(x1, y);
-                    let wf = w as f64;
-                    let (c0, c1) = (c0.min(c1), c0.max(c1));
-                    let c0 = (c0 - 1.0).floor().clamp(0.0, wf) as usize;
-                    let c1 = (c1 + 1.0).ceil().clamp(0.0, wf) as usize;
-                    for c in c0..c1 {
-                        let z = *terrain.at(r * w + c) as f64;
-                        let under = walls
-                            .first(grid.cell_centre(c, r))
-                            .is_some_and(|d| d <= reach && z + d * tan_e < *roof);
-                        if under {
-                            let v = &mut chunk[(r - start) * w + c];
-                            *v = match *v {
-                                0 => *id,
-                                v if v == *id => v,
-                                _ => MANY_SHADOWS,
-                            };
-                        }
-                    }
-                }
-            }
-        });
-    RowBand::new(grid, rows, by)
+        .collect()
 }
 
 /// See [`neighbour_shadows`]: a cell more than one footprint's shadow covers.
@@ -1354,8 +1410,8 @@ impl PassInputs<'_> {
 
     /// Whether ground point `p` at terrain height `z` (metres) is in the shadow of one of the
     /// `neighbours` (walls toward the sun, roof): its ray toward the sun meets the walls below
-    /// the roof within [`Self::reach`] (as [`neighbour_shadows`] decides it for the ground);
-    /// `tan_e` is the tangent of the sun's elevation.
+    /// the roof within [`Self::reach`] ([`ShadowRays::shade`], as [`neighbour_shadows`] decides
+    /// it for the ground); `tan_e` is the tangent of the sun's elevation.
     fn in_shadow_of(
         &self,
         neighbours: &[(refine::Walls, f64)],
@@ -1363,11 +1419,13 @@ impl PassInputs<'_> {
         z: f64,
         tan_e: f64,
     ) -> bool {
-        neighbours.iter().any(|(walls, roof)| {
-            walls
-                .first(p)
-                .is_some_and(|t| t <= self.reach && z + t * tan_e < *roof)
-        })
+        let rays = ShadowRays {
+            tan_e,
+            reach: self.reach,
+        };
+        neighbours
+            .iter()
+            .any(|(walls, roof)| rays.shade(walls, *roof, p, z))
     }
 
     /// The histogram of ground bins ([`BandLayers::ground`]) over the open cells of window `win`:
