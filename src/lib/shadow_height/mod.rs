@@ -1457,6 +1457,36 @@ impl PassInputs<'_> {
         full: crate::grid::Window,
         source: Threshold,
     ) -> (Local, Option<f64>) {
+        let cells = self.window_cells(id, &win);
+        let base = own_edge(cells.base, fp, lean, &self.grid.window_grid(&win));
+        // Open ground: from the mask, or below the local threshold of the shadow index. Either
+        // way a cell is shadow when its ground bin is below `cut` (a mask's shadow is bin 0, its
+        // lit ground 255; a threshold is a bin boundary, `split + ½`, so comparing bins is
+        // comparing indices).
+        let (cut, threshold) = match (self.band.mask.as_ref(), source) {
+            (Some(_), _) => (0.5, None),
+            (None, Threshold::Known(t)) => (t.unwrap_or(f64::NEG_INFINITY), t),
+            (None, Threshold::Open(open)) => {
+                let edges = edge_cells(&base, &win, self.grid.width);
+                let threshold = self.window_threshold(id, fp, open, &edges, &full);
+                (threshold.unwrap_or(f64::NEG_INFINITY), threshold)
+            }
+        };
+        let class = self.classes(id, &win, &base, &cells.ground, cut);
+        (
+            Local {
+                win,
+                grid: self.grid.window_grid(&win),
+                class,
+                heights: cells.heights,
+                index: Vec::new(),
+            },
+            threshold,
+        )
+    }
+
+    /// The band's cells of footprint `id`'s window `win`, row-major: see [`WindowCells`].
+    fn window_cells(&self, id: u32, win: &crate::grid::Window) -> WindowCells {
         let w = self.grid.width;
         let band = self.band;
         let n = win.width * win.height;
@@ -1478,48 +1508,80 @@ impl PassInputs<'_> {
                 },
             ));
         }
-        let base = own_edge(base, fp, lean, &self.grid.window_grid(&win));
-        // Open ground: from the mask, or below the local threshold of the shadow index. Either
-        // way a cell is shadow when its ground bin is below `cut` (a mask's shadow is bin 0, its
-        // lit ground 255; a threshold is a bin boundary, `split + ½`, so comparing bins is
-        // comparing indices).
-        let (cut, threshold) = match (band.mask.as_ref(), source) {
-            (Some(_), _) => (0.5, None),
-            (None, Threshold::Known(t)) => (t.unwrap_or(f64::NEG_INFINITY), t),
-            (None, Threshold::Open(open)) => {
-                // The whole window's open cells but the footprint's edge cells.
-                let mut hist = *open;
-                let edges: Vec<usize> = (0..n)
-                    .filter(|&k| base[k] == Some(Class::Edge))
-                    .map(|k| (win.row + k / win.width) * w + win.col + k % win.width)
-                    .collect();
-                for &i in &edges {
-                    hist[*band.ground.at(i) as usize] -= 1;
-                }
-                let threshold = detect::otsu_threshold_of(&hist, 1.0).or_else(|| {
-                    let index =
-                        |k: usize| (full.row + k / full.width) * w + full.col + k % full.width;
-                    let open: Vec<(usize, f64)> = (0..full.width * full.height)
-                        .filter(|&k| {
-                            let i = index(k);
-                            *band.ground.at(i) != NOT_OPEN && edges.binary_search(&i).is_err()
-                        })
-                        .map(|k| (k, detect::shadow_index(*band.colour.at(index(k)))))
-                        .collect();
-                    let others: Vec<&Footprint> = self
-                        .reaching(id, window_box(self.grid, &full))
-                        .map(|j| &self.footprints[j])
-                        .collect();
-                    self.placed_weak_threshold(fp, &others, &open, |k| {
-                        let i = index(k);
-                        self.grid.cell_centre(i % w, i / w)
-                    })
-                });
-                (threshold.unwrap_or(f64::NEG_INFINITY), threshold)
-            }
-        };
-        // Ground in a neighbour's shadow (second pass) is unusable; it still counted above for
-        // the threshold, where it is shadow like any other.
+        WindowCells {
+            heights,
+            ground,
+            base,
+        }
+    }
+
+    /// The detection threshold (on the shadow index) of footprint `id`'s (`fp`'s) window
+    /// `full`, from `open`, its open cells' histogram ([`Self::open_histogram`]), less the
+    /// footprint's `edges` (whole-grid indices, ascending): Otsu's, or else a weak split where
+    /// the footprint's shadow can fall ([`Self::placed_weak_threshold`]); `None` for neither.
+    fn window_threshold(
+        &self,
+        id: u32,
+        fp: &Footprint,
+        open: &[u64; 256],
+        edges: &[usize],
+        full: &crate::grid::Window,
+    ) -> Option<f64> {
+        let mut hist = *open;
+        for &i in edges {
+            hist[*self.band.ground.at(i) as usize] -= 1;
+        }
+        detect::otsu_threshold_of(&hist, 1.0)
+            .or_else(|| self.weak_window_threshold(id, fp, edges, full))
+    }
+
+    /// [`Self::placed_weak_threshold`] for footprint `id` (`fp`) over the open cells of window
+    /// `full` but its `edges` (whole-grid indices, ascending), against the other footprints
+    /// whose shadow may reach the window.
+    fn weak_window_threshold(
+        &self,
+        id: u32,
+        fp: &Footprint,
+        edges: &[usize],
+        full: &crate::grid::Window,
+    ) -> Option<f64> {
+        let w = self.grid.width;
+        let band = self.band;
+        let open: Vec<(usize, f64)> = (0..full.width * full.height)
+            .filter(|&k| {
+                let i = grid_index(full, w, k);
+                *band.ground.at(i) != NOT_OPEN && edges.binary_search(&i).is_err()
+            })
+            .map(|k| {
+                (
+                    k,
+                    detect::shadow_index(*band.colour.at(grid_index(full, w, k))),
+                )
+            })
+            .collect();
+        let others: Vec<&Footprint> = self
+            .reaching(id, window_box(self.grid, full))
+            .map(|j| &self.footprints[j])
+            .collect();
+        self.placed_weak_threshold(fp, &others, &open, |k| {
+            let i = grid_index(full, w, k);
+            self.grid.cell_centre(i % w, i / w)
+        })
+    }
+
+    /// The class of each cell of footprint `id`'s window `win`: its `base` class where it has
+    /// one; else, on open ground, unusable where a neighbour's shadow covers it (second pass:
+    /// it still counted for the threshold, where it is shadow like any other), shadow where its
+    /// `ground` bin is below `cut`, lit otherwise.
+    fn classes(
+        &self,
+        id: u32,
+        win: &crate::grid::Window,
+        base: &[Option<Class>],
+        ground: &[u16],
+        cut: f64,
+    ) -> Vec<Class> {
+        let w = self.grid.width;
         let shaders: Vec<u32> = match self.shaders {
             Some(s) => (win.row..win.row + win.height)
                 .flat_map(|r| s.span(r * w + win.col, win.width).iter().copied())
@@ -1527,7 +1589,7 @@ impl PassInputs<'_> {
             None => Vec::new(),
         };
         let shaded = |k: usize| shaders.get(k).is_some_and(|&v| v != 0 && v != id);
-        let class = (0..n)
+        (0..win.width * win.height)
             .map(|k| {
                 base[k].unwrap_or_else(|| {
                     if shaded(k) {
@@ -1539,17 +1601,7 @@ impl PassInputs<'_> {
                     }
                 })
             })
-            .collect();
-        (
-            Local {
-                win,
-                grid: self.grid.window_grid(&win),
-                class,
-                heights,
-                index: Vec::new(),
-            },
-            threshold,
-        )
+            .collect()
     }
 
     /// The shadow index of `local`'s open cells ([`Class::Lit`], [`Class::Shadow`]: the only
@@ -1571,6 +1623,33 @@ impl PassInputs<'_> {
             })
             .collect()
     }
+}
+
+/// A window's cells as [`PassInputs::classify`] reads them from the band for one footprint,
+/// row-major.
+struct WindowCells {
+    /// Terrain heights, metres (NaN = nodata).
+    heights: Vec<f32>,
+    /// Ground bins ([`BandLayers::ground`]).
+    ground: Vec<u16>,
+    /// What the footprints make of each cell: [`Class::Own`] under this footprint,
+    /// [`Class::Other`] under another, [`Class::Unusable`] where the ground is not open, `None`
+    /// on open ground.
+    base: Vec<Option<Class>>,
+}
+
+/// The whole-grid index of offset `k` (row-major) in window `win` of a grid `w` cells wide.
+fn grid_index(win: &crate::grid::Window, w: usize, k: usize) -> usize {
+    (win.row + k / win.width) * w + win.col + k % win.width
+}
+
+/// The whole-grid indices (ascending) of window `win`'s cells that `base` (one optional class
+/// per window cell, row-major) makes [`Class::Edge`]; `w` is the grid's width.
+fn edge_cells(base: &[Option<Class>], win: &crate::grid::Window, w: usize) -> Vec<usize> {
+    (0..base.len())
+        .filter(|&k| base[k] == Some(Class::Edge))
+        .map(|k| grid_index(win, w, k))
+        .collect()
 }
 
 #[cfg(test)]
