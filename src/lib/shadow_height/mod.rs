@@ -438,6 +438,34 @@ pub fn measure(
     sun: &Sun,
     opts: &Options,
 ) -> Result<Vec<std::result::Result<Measurement, String>>> {
+    check_run(inputs, opts)?;
+    // Shadows of the bare terrain: where a building's shadow cannot be told from the hill's.
+    let terrain_shadow = ShadowBits::cast(inputs.terrain, sun, |_, _| ())?;
+    let passes = Passes::new(*inputs, footprints, sun, opts, terrain_shadow);
+    // Pass 1 sketches every building on its own; pass 2 measures them, with the ground the
+    // others' shadows cover at their pass-1 roofs (plus their uncertainty) unusable: a shadow
+    // merging into a taller neighbour's would otherwise be measured to the end of the
+    // neighbour's.
+    let no_roofs = vec![None; footprints.len()];
+    let first = passes.run(&no_roofs, true, None)?;
+    let roofs: Vec<Option<f64>> = first
+        .iter()
+        .map(|m| {
+            m.as_ref()
+                .ok()
+                .and_then(|m| Some(m.roof_z? + m.uncertainty_m))
+        })
+        .collect();
+    let thresholds: Vec<Option<f64>> = first
+        .iter()
+        .map(|m| m.as_ref().ok().and_then(|m| m.threshold))
+        .collect();
+    passes.run(&roofs, false, Some(&thresholds))
+}
+
+/// Whether [`measure`] can run: the colour, elevation and any mask on one grid, and the
+/// options in range; the error says what is not.
+fn check_run(inputs: &Inputs, opts: &Options) -> Result<()> {
     let grid = inputs.terrain.grid();
     if inputs.colour.grid() != grid {
         return Err(
@@ -467,27 +495,131 @@ pub fn measure(
             opts.max_height_m
         )));
     }
-    // Shadows of the bare terrain: where a building's shadow cannot be told from the hill's.
-    let terrain_shadow = ShadowBits::cast(inputs.terrain, sun, |_, _| ())?;
-    let reach = reach(grid, sun, opts);
-    let (dx, dy) = sun.direction();
-    let away = (-dx * reach, -dy * reach);
-    let extent = grid_box(grid, 0..grid.height);
-    let (cx, cy) = grid.cell_size();
-    let bucket = (reach / 2.0).max(32.0 * cx.max(cy));
-    let boxes: Vec<Box2> = footprints.iter().map(|f| f.bbox()).collect();
-    let shadows = BoxIndex::new(
-        boxes.iter().map(|&b| swept(b, away)).collect(),
-        swept(extent, away),
-        bucket,
-    );
-    let outlines = BoxIndex::new(boxes, extent, 32.0 * cx.max(cy));
-    let needs: Vec<Range<usize>> = footprints
+    Ok(())
+}
+
+/// What both passes of [`measure`] share: the inputs, the footprints and where each one's
+/// outline and shadow may lie, and the rows each one's measurement reads.
+struct Passes<'a> {
+    inputs: Inputs<'a>,
+    footprints: &'a [Footprint],
+    sun: &'a Sun,
+    opts: &'a Options,
+    /// The longest shadow sought, metres ([`reach`]).
+    reach: f64,
+    /// The bare terrain's cast shadow over the whole grid.
+    terrain_shadow: ShadowBits,
+    /// Every footprint's box swept over [`Self::reach`] away from the sun.
+    shadows: BoxIndex,
+    /// Every footprint's box.
+    outlines: BoxIndex,
+    /// Per footprint, the rows its measurement reads ([`rows_read`]).
+    needs: Vec<Range<usize>>,
+}
+
+impl<'a> Passes<'a> {
+    /// The passes over `footprints` in `inputs` lit by `sun`, whose bare terrain casts
+    /// `terrain_shadow`.
+    fn new(
+        inputs: Inputs<'a>,
+        footprints: &'a [Footprint],
+        sun: &'a Sun,
+        opts: &'a Options,
+        terrain_shadow: ShadowBits,
+    ) -> Passes<'a> {
+        let grid = inputs.terrain.grid();
+        let reach = reach(grid, sun, opts);
+        let (dx, dy) = sun.direction();
+        let away = (-dx * reach, -dy * reach);
+        let extent = grid_box(grid, 0..grid.height);
+        let (cx, cy) = grid.cell_size();
+        let bucket = (reach / 2.0).max(32.0 * cx.max(cy));
+        let boxes: Vec<Box2> = footprints.iter().map(|f| f.bbox()).collect();
+        let shadows = BoxIndex::new(
+            boxes.iter().map(|&b| swept(b, away)).collect(),
+            swept(extent, away),
+            bucket,
+        );
+        let outlines = BoxIndex::new(boxes, extent, 32.0 * cx.max(cy));
+        let needs = rows_read(grid, footprints, inputs.leans, (-dx, -dy), reach);
+        Passes {
+            inputs,
+            footprints,
+            sun,
+            opts,
+            reach,
+            terrain_shadow,
+            shadows,
+            outlines,
+            needs,
+        }
+    }
+
+    /// One pass over every footprint, band by band, with the others' `roofs`, `sketch` and the
+    /// first pass's `thresholds` as [`PassInputs`] takes them; one result per footprint, in
+    /// order.
+    fn run(
+        &self,
+        roofs: &[Option<f64>],
+        sketch: bool,
+        thresholds: Option<&[Option<f64>]>,
+    ) -> Result<Vec<std::result::Result<Measurement, String>>> {
+        let grid = self.inputs.terrain.grid();
+        let footprints = self.footprints;
+        let max_rows = rows_in(self.opts.band_cells, grid.width);
+        in_bands(&self.needs, max_rows, |rows, members| {
+            let band = BandLayers::read(
+                &self.inputs,
+                rows,
+                footprints,
+                &self.outlines,
+                &self.terrain_shadow,
+            )?;
+            let shaders = roofs.iter().any(Option::is_some).then(|| {
+                let (sun, reach) = (self.sun, self.reach);
+                neighbour_shadows(&band.terrain, footprints, roofs, &self.shadows, sun, reach)
+            });
+            let pass_inputs = PassInputs {
+                grid,
+                band: &band,
+                shaders: shaders.as_ref(),
+                leans: self.inputs.leans,
+                sun: self.sun,
+                opts: self.opts,
+                reach: self.reach,
+                footprints,
+                roofs,
+                sketch,
+                thresholds,
+                shadows: &self.shadows,
+            };
+            Ok(members
+                .par_iter()
+                .map(|&k| {
+                    pass_inputs.measure_footprint(k as u32 + 1, &footprints[k], band.cells_of(k))
+                })
+                .collect())
+        })
+    }
+}
+
+/// Per footprint, the rows of `grid` its measurement reads: those of its window reaching
+/// `reach` metres along `u` (the way shadows fall, unit east, north) and those of its outline
+/// moved by its lean (`leans`, metres; none for an orthophoto) with a row either side, where
+/// the photo shows its roof.
+fn rows_read(
+    grid: &Grid,
+    footprints: &[Footprint],
+    leans: Option<&[(f64, f64)]>,
+    u: (f64, f64),
+    reach: f64,
+) -> Vec<Range<usize>> {
+    footprints
         .iter()
         .enumerate()
         .map(|(k, f)| {
-            let win = local::window_for(grid, f.bbox(), (-dx, -dy), reach, 3);
-            let lean = inputs.leans.map_or((0.0, 0.0), |l| l[k]);
+            let win = local::window_for(grid, f.bbox(), u, reach, 3);
+            let lean = leans.map_or((0.0, 0.0), |l| l[k]);
             let seen = box_rows(grid, register::moved(f, lean.0, lean.1).bbox(), 1.0);
             let classified = win.row..win.row + win.height;
             match (classified.is_empty(), seen.is_empty()) {
@@ -496,62 +628,7 @@ pub fn measure(
                 _ => classified.start.min(seen.start)..classified.end.max(seen.end),
             }
         })
-        .collect();
-    let pass = |roofs: &[Option<f64>], sketch: bool, thresholds: Option<&[Option<f64>]>| {
-        in_bands(
-            &needs,
-            rows_in(opts.band_cells, grid.width),
-            |rows, members| {
-                let band = BandLayers::read(inputs, rows, footprints, &outlines, &terrain_shadow)?;
-                let shaders = roofs.iter().any(Option::is_some).then(|| {
-                    neighbour_shadows(&band.terrain, footprints, roofs, &shadows, sun, reach)
-                });
-                let pass_inputs = PassInputs {
-                    grid,
-                    band: &band,
-                    shaders: shaders.as_ref(),
-                    leans: inputs.leans,
-                    sun,
-                    opts,
-                    reach,
-                    footprints,
-                    roofs,
-                    sketch,
-                    thresholds,
-                    shadows: &shadows,
-                };
-                Ok(members
-                    .par_iter()
-                    .map(|&k| {
-                        pass_inputs.measure_footprint(
-                            k as u32 + 1,
-                            &footprints[k],
-                            band.cells_of(k),
-                        )
-                    })
-                    .collect())
-            },
-        )
-    };
-    // Pass 1 sketches every building on its own; pass 2 measures them, with the ground the
-    // others' shadows cover at their pass-1 roofs (plus their uncertainty) unusable: a shadow
-    // merging into a taller neighbour's would otherwise be measured to the end of the
-    // neighbour's.
-    let no_roofs = vec![None; footprints.len()];
-    let first = pass(&no_roofs, true, None)?;
-    let roofs: Vec<Option<f64>> = first
-        .iter()
-        .map(|m| {
-            m.as_ref()
-                .ok()
-                .and_then(|m| Some(m.roof_z? + m.uncertainty_m))
-        })
-        .collect();
-    let thresholds: Vec<Option<f64>> = first
-        .iter()
-        .map(|m| m.as_ref().ok().and_then(|m| m.threshold))
-        .collect();
-    pass(&roofs, false, Some(&thresholds))
+        .collect()
 }
 
 /// The longest shadow sought, metres: that of a `max_height_m` building, at most
