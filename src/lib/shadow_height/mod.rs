@@ -374,19 +374,56 @@ pub fn register_and_measure(
         camera,
         opts.band_cells,
     )?;
-    let off = (0..given.len()).filter(|&k| reg.off_photo(k, cell)).count();
+    if camera.is_some() || !may_be_perspective(&reg, cell) {
+        return run(reg, moved);
+    }
+    match camera_from_heights(inputs, given, sun, opts, &reg, cell)? {
+        None => run(reg, moved),
+        Some(cam) => {
+            let (mut reg, moved) = register_footprints(
+                inputs.colour,
+                given,
+                sun,
+                max_shift_m,
+                Some(&cam),
+                opts.band_cells,
+            )?;
+            reg.camera = Some((cam, true));
+            run(reg, moved)
+        }
+    }
+}
+
+/// Whether the photo registered as `reg` may be a perspective one: at least
+/// [`register::MIN_CAMERA_BUILDINGS`] of its footprints, and [`register::MIN_CAMERA_FRACTION`]
+/// of those with a clear estimate, are off the scene's shift by more than `cell` metres
+/// ([`Registration::off_photo`]).
+fn may_be_perspective(reg: &Registration, cell: f64) -> bool {
+    let off = (0..reg.buildings.len())
+        .filter(|&k| reg.off_photo(k, cell))
+        .count();
     let clear = reg
         .buildings
         .iter()
         .flatten()
         .filter(|s| s.counts())
         .count();
-    if camera.is_some()
-        || off < register::MIN_CAMERA_BUILDINGS
-        || (off as f64) < register::MIN_CAMERA_FRACTION * clear as f64
-    {
-        return run(reg, moved);
-    }
+    off >= register::MIN_CAMERA_BUILDINGS
+        && (off as f64) >= register::MIN_CAMERA_FRACTION * clear as f64
+}
+
+/// The perspective centre that explains the footprints' own shifts (`reg`, for the footprints
+/// `given`) by their heights measured as given ([`register::estimate_camera`], from the
+/// heights no flag doubts, over the median ground under the footprints; `cell` metres); `None`
+/// when none does.
+fn camera_from_heights(
+    inputs: &Inputs,
+    given: &[Footprint],
+    sun: &Sun,
+    opts: &Options,
+    reg: &Registration,
+    cell: f64,
+) -> Result<Option<register::PerspectiveCentre>> {
     let as_given = measure(inputs, given, sun, opts)?;
     let trusted = |m: &Measurement| {
         let f = &m.flags;
@@ -405,24 +442,9 @@ pub fn register_and_measure(
         .iter()
         .filter_map(|m| m.as_ref().ok().map(|m| m.ground_z))
         .collect();
-    let estimated = scan::median(&grounds).and_then(|ground_z| {
+    Ok(scan::median(&grounds).and_then(|ground_z| {
         register::estimate_camera(given, &reg.buildings, &heights, ground_z, cell)
-    });
-    match estimated {
-        None => run(reg, moved),
-        Some(cam) => {
-            let (mut reg, moved) = register_footprints(
-                inputs.colour,
-                given,
-                sun,
-                max_shift_m,
-                Some(&cam),
-                opts.band_cells,
-            )?;
-            reg.camera = Some((cam, true));
-            run(reg, moved)
-        }
-    }
+    }))
 }
 
 /// Measure every footprint. The outer error is for the whole run (grids that differ, a grid in
