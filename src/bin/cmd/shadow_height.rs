@@ -6,8 +6,9 @@ use dbms::error::Error;
 use dbms::io::atomic::AtomicFile;
 use dbms::raster::RowSource;
 use dbms::shadow_height::{self as sh, output};
+use dbms::sun::Sun;
 use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Measure building heights from their shadows (first estimate L·tan(elevation), refined by
 /// casting each footprint's shadow over the real terrain) and write them as GeoJSON.
@@ -58,28 +59,12 @@ pub struct Args {
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let db = Database::open(&args.db)?;
-    // Default: the photo's own sun, from the time ingest recorded.
-    let sun = match args.sun.resolve(&db)? {
-        Some(sun) => sun,
-        None => dbms::sun::photo_sun(&db)?.ok_or_else(|| {
-            Error::file(
-                &args.db,
-                "no sun given and the database records no photo time",
-            )
-            .fix("give --time or --sun-elevation and --sun-azimuth")
-        })?,
-    };
-    let inputs: Vec<&std::path::Path> = std::iter::once(args.footprints.as_path())
+    let sun = resolve_sun(&args, &db)?;
+    let inputs: Vec<&Path> = std::iter::once(args.footprints.as_path())
         .chain(args.shadow_mask.as_deref())
         .collect();
     dbms::io::atomic::check_outputs(&[&args.output], &inputs)?;
-    let features = sh::read_footprints(&args.footprints)?;
-    let vertices = features.iter().filter_map(|f| f.footprint.as_ref().ok());
-    dbms::geojson::require_grid_crs(
-        &args.footprints,
-        db.grid(),
-        vertices.flat_map(|f| f.rings.iter().flatten().copied()),
-    )?;
+    let features = read_features(&args.footprints, &db)?;
     // Read band by band while measuring: a city's grid need not fit in memory.
     let terrain = db.elevation_rows()?;
     let colour = db.colour_rows()?;
@@ -88,17 +73,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .as_deref()
         .map(|p| sh::read_mask(p, db.grid()))
         .transpose()?;
-    let given: Vec<sh::Footprint> = features
-        .iter()
-        .filter_map(|f| f.footprint.clone().ok())
-        .collect();
-    if !(args.max_shift.is_finite() && args.max_shift >= 0.0) {
-        return Err(Error::msg(format!(
-            "--max-shift {} is not a distance in metres",
-            args.max_shift
-        ))
-        .fix("give 0 (footprints as given) or the largest misregistration, e.g. 3"));
-    }
+    check_max_shift(args.max_shift)?;
     let camera = args.camera.as_deref().map(parse_camera).transpose()?;
     let inputs = sh::Inputs {
         terrain: &terrain,
@@ -112,14 +87,72 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         sub_points: args.sub_points,
         ..sh::Options::default()
     };
-    let (registration, measured) = sh::register_and_measure(
+    let (registration, results) = sh::measure_features(
         &inputs,
-        &given,
+        &features,
         &sun,
         &opts,
         args.max_shift,
         camera.as_ref(),
     )?;
+    log_registration(ctx, &registration);
+    ctx.warn_all(&skipped(&args.footprints, &results));
+
+    let doc = output::heights_geojson(&features, &results, &registration, &sun, db.grid().crs.epsg);
+    let summary = Measured::new(&args, &sun, &results, &db);
+    let apply = args
+        .apply
+        .then(|| stage_params(&args, &sun, &registration, summary.measured));
+    write_heights(
+        &args.output,
+        &doc,
+        apply.map(|params| (&db, params)),
+        ctx.wait,
+    )?;
+    ctx.report(&summary);
+    Ok(())
+}
+
+/// The sun the options give, or by default the photo's own, from the time ingest recorded.
+fn resolve_sun(args: &Args, db: &Database) -> dbms::Result<Sun> {
+    match args.sun.resolve(db)? {
+        Some(sun) => Ok(sun),
+        None => dbms::sun::photo_sun(db)?.ok_or_else(|| {
+            Error::file(
+                &args.db,
+                "no sun given and the database records no photo time",
+            )
+            .fix("give --time or --sun-elevation and --sun-azimuth")
+        }),
+    }
+}
+
+/// The features of the footprint file `path`, whose footprints must be in `db`'s CRS.
+fn read_features(path: &Path, db: &Database) -> dbms::Result<Vec<sh::InputFeature>> {
+    let features = sh::read_footprints(path)?;
+    let vertices = features.iter().filter_map(|f| f.footprint.as_ref().ok());
+    dbms::geojson::require_grid_crs(
+        path,
+        db.grid(),
+        vertices.flat_map(|f| f.rings.iter().flatten().copied()),
+    )?;
+    Ok(features)
+}
+
+/// `--max-shift`: a distance in metres, 0 or more.
+fn check_max_shift(max_shift: f64) -> dbms::Result<()> {
+    if !(max_shift.is_finite() && max_shift >= 0.0) {
+        return Err(Error::msg(format!(
+            "--max-shift {max_shift} is not a distance in metres"
+        ))
+        .fix("give 0 (footprints as given) or the largest misregistration, e.g. 3"));
+    }
+    Ok(())
+}
+
+/// Log what the registration found: the footprints' shift onto the photo, and a perspective
+/// centre estimated from the buildings' leans.
+fn log_registration(ctx: &Ctx, registration: &sh::Registration) {
     if let Some((e, n, k)) = registration.scene {
         ctx.log(format!(
             "footprints moved {e:+.2} m east, {n:+.2} m north onto the photo (median of {k} buildings)"
@@ -131,50 +164,54 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             c.east, c.north, c.z
         ));
     }
-    let results = output::per_feature(&features, measured);
-    let file = args.footprints.display();
-    let skipped: Vec<String> = (results.iter().enumerate())
+}
+
+/// One warning for each feature of the footprint file `file` that could not be measured
+/// (`results`: one per feature).
+fn skipped(file: &Path, results: &[Result<sh::Measurement, String>]) -> Vec<String> {
+    let file = file.display();
+    (results.iter().enumerate())
         .filter_map(|(k, r)| r.as_ref().err().map(|e| (k, e)))
         .map(|(k, e)| format!("{file}: feature {k}: {e}; skipped, the others go on"))
-        .collect();
-    ctx.warn_all(&skipped);
+        .collect()
+}
 
-    let doc = output::heights_geojson(&features, &results, &registration, &sun, db.grid().crs.epsg);
-    // Written and synced now (a full disk fails here, before the database changes), renamed
-    // into place only after --apply's change committed: a failed apply leaves no heights file
-    // for `make` to take as up to date.
-    let mut heights_file = AtomicFile::create(&args.output)?;
-    output::write_text(&doc, heights_file.writer()).map_err(|e| Error::io(&args.output, e))?;
+/// The `shadow-height` stage's record for `--apply`: the options and the sun used, the
+/// `buildings` written, and what the registration found.
+fn stage_params(
+    args: &Args,
+    sun: &Sun,
+    registration: &sh::Registration,
+    buildings: usize,
+) -> serde_json::Value {
+    json!({
+        "footprints": args.footprints, "sun": SunUsed::new(sun, &args.sun),
+        "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": buildings,
+        "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
+        "max_shift_m": args.max_shift, "camera": args.camera,
+        "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
+        "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
+    })
+}
+
+/// Write the heights document `doc` to `path` and, with `apply` (the database measured and
+/// the stage's record), its buildings into the database ([`output::apply_buildings`]). The
+/// file is written and synced first (a full disk fails there, before the database changes)
+/// and renamed into place only after the database's change committed: a failed apply leaves
+/// no heights file for `make` to take as up to date.
+fn write_heights(
+    path: &Path,
+    doc: &serde_json::Value,
+    apply: Option<(&Database, serde_json::Value)>,
+    wait: std::time::Duration,
+) -> dbms::Result<()> {
+    let mut heights_file = AtomicFile::create(path)?;
+    output::write_text(doc, heights_file.writer()).map_err(|e| Error::io(path, e))?;
     let heights_file = heights_file.stage()?;
-    let count = |f: &dyn Fn(&sh::Measurement) -> bool| {
-        results.iter().filter(|r| r.as_ref().is_ok_and(f)).count()
-    };
-    let heights = count(&|m| m.height_m.is_some());
-    let flagged = count(&|m| !m.flags.names().is_empty());
-    let failed = results.iter().filter(|r| r.is_err()).count();
-    if args.apply {
-        let params = json!({
-            "footprints": args.footprints, "sun": SunUsed::new(&sun, &args.sun),
-            "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": heights,
-            "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
-            "max_shift_m": args.max_shift, "camera": args.camera,
-            "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
-            "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),
-        });
-        output::apply_buildings(&db, &doc, params, ctx.wait)?;
+    if let Some((db, params)) = apply {
+        output::apply_buildings(db, doc, params, wait)?;
     }
-    heights_file.commit()?;
-    ctx.report(&Measured {
-        sun: SunUsed::new(&sun, &args.sun),
-        output: args.output,
-        features: results.len(),
-        measured: heights,
-        flagged,
-        failed,
-        applied: args.apply,
-        db: db.dir.clone(),
-    });
-    Ok(())
+    heights_file.commit()
 }
 
 /// `EAST,NORTH,Z` metres.
@@ -204,6 +241,31 @@ struct Measured {
     applied: bool,
     #[serde(skip)]
     db: PathBuf,
+}
+
+impl Measured {
+    /// The summary of `results` (one per feature of the footprint file) for `args`, measured
+    /// in `db` with `sun`.
+    fn new(
+        args: &Args,
+        sun: &Sun,
+        results: &[Result<sh::Measurement, String>],
+        db: &Database,
+    ) -> Measured {
+        let count = |f: &dyn Fn(&sh::Measurement) -> bool| {
+            results.iter().filter(|r| r.as_ref().is_ok_and(f)).count()
+        };
+        Measured {
+            sun: SunUsed::new(sun, &args.sun),
+            output: args.output.clone(),
+            features: results.len(),
+            measured: count(&|m| m.height_m.is_some()),
+            flagged: count(&|m| !m.flags.names().is_empty()),
+            failed: results.iter().filter(|r| r.is_err()).count(),
+            applied: args.apply,
+            db: db.dir.clone(),
+        }
+    }
 }
 
 impl std::fmt::Display for Measured {

@@ -447,6 +447,27 @@ fn camera_from_heights(
     }))
 }
 
+/// [`register_and_measure`] for the features of a footprint file ([`read_footprints`]): their
+/// valid footprints registered and measured. Returns the registration (an estimate per valid
+/// footprint) and one result per feature, in order: its measurement, or why its footprint is
+/// unusable or could not be measured ([`output::per_feature`]).
+pub fn measure_features(
+    inputs: &Inputs,
+    features: &[InputFeature],
+    sun: &Sun,
+    opts: &Options,
+    max_shift_m: f64,
+    camera: Option<&register::PerspectiveCentre>,
+) -> Result<(Registration, Vec<std::result::Result<Measurement, String>>)> {
+    let given: Vec<Footprint> = features
+        .iter()
+        .filter_map(|f| f.footprint.clone().ok())
+        .collect();
+    let (registration, measured) =
+        register_and_measure(inputs, &given, sun, opts, max_shift_m, camera)?;
+    Ok((registration, output::per_feature(features, measured)))
+}
+
 /// Measure every footprint. The outer error is for the whole run (grids that differ, a grid in
 /// degrees); the inner one is a one-line reason a footprint could not be measured.
 ///
