@@ -12,7 +12,7 @@ use crate::crs::Crs;
 use crate::grid::Grid;
 use crate::raster::{Colour, Elevation, Raster};
 use crate::shadow_height::Footprint;
-use crate::standing::{rasterise_prisms, Prism};
+use crate::standing::{rasterise_prisms, Prism, RaisedCell};
 use crate::sun::Sun;
 use rayon::prelude::*;
 
@@ -121,9 +121,10 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
     let crs = Crs::epsg(32632);
     let top = ORIGIN_Y + h as f64 * spec.cell;
     let grid = Grid::north_up(ORIGIN_X, top, spec.cell, w, h, crs.clone());
-    let ground =
-        |x: f64, y: f64| BASE_Z + spec.slope.0 * (x - ORIGIN_X) + spec.slope.1 * (y - ORIGIN_Y);
-    let terrain = Raster::new(grid.clone(), cells(&grid, |x, y| ground(x, y) as f32));
+    let terrain = Raster::new(
+        grid.clone(),
+        cells(&grid, |x, y| spec.ground_z(x, y) as f32),
+    );
     let rings: Vec<Vec<(f64, f64)>> = spec.buildings.iter().map(|b| b.ring()).collect();
     let footprints: Vec<Footprint> = rings
         .iter()
@@ -132,48 +133,83 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
     let roof_z: Vec<f64> = rings
         .iter()
         .zip(&spec.buildings)
-        .map(|(r, b)| {
-            let under = rasterise_prisms(
-                &grid,
-                &[Prism {
-                    rings: vec![r.clone()],
-                    roof_z: 0.0,
-                }],
-            );
-            let g = under
-                .iter()
-                .map(|c| terrain.data[c.index] as f64)
-                .fold(f64::NEG_INFINITY, f64::max);
-            g + b.height_m
-        })
+        .map(|(r, b)| highest_under(&terrain, r) + b.height_m)
         .collect();
 
     let k = spec.supersample.max(1);
     let fine = Grid::north_up(ORIGIN_X, top, spec.cell / k as f64, w * k, h * k, crs);
+    let roof = roof_mask(&fine, &rings);
+    let shadow = shadowed(spec, &fine, &roof_z);
+    let colour = box_average(&fine_photo(&roof, &shadow), &grid, k);
+    let height_m = spec.buildings.iter().map(|b| b.height_m).collect();
+    SynthScene {
+        terrain,
+        colour: Raster::new(grid, colour),
+        footprints,
+        height_m,
+        roof_z,
+    }
+}
+
+impl SynthSpec {
+    /// The terrain's height (metres) at world point `(x, y)`: the plane through
+    /// [`BASE_Z`] at the scene's south-west corner with the spec's slope.
+    fn ground_z(&self, x: f64, y: f64) -> f64 {
+        BASE_Z + self.slope.0 * (x - ORIGIN_X) + self.slope.1 * (y - ORIGIN_Y)
+    }
+}
+
+/// The cells of `grid` whose centre the polygon `ring` (world metres) holds.
+fn cells_under(grid: &Grid, ring: &[(f64, f64)]) -> Vec<RaisedCell> {
+    rasterise_prisms(
+        grid,
+        &[Prism {
+            rings: vec![ring.to_vec()],
+            roof_z: 0.0,
+        }],
+    )
+}
+
+/// The highest terrain (metres) under the footprint `ring` (world metres): the module's
+/// convention, over the cell centres it holds.
+fn highest_under(terrain: &Elevation, ring: &[(f64, f64)]) -> f64 {
+    cells_under(&terrain.grid, ring)
+        .iter()
+        .map(|c| terrain.data[c.index] as f64)
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// Per cell of the `fine` grid, whether one of the footprints `rings` holds its centre.
+fn roof_mask(fine: &Grid, rings: &[Vec<(f64, f64)>]) -> Vec<bool> {
     let mut roof = vec![false; fine.len()];
-    for r in &rings {
-        for c in rasterise_prisms(
-            &fine,
-            &[Prism {
-                rings: vec![r.clone()],
-                roof_z: 0.0,
-            }],
-        ) {
+    for r in rings {
+        for c in cells_under(fine, r) {
             roof[c.index] = true;
         }
     }
+    roof
+}
+
+/// Per cell of the `fine` grid, whether its centre is in shadow: its ray toward the sun enters
+/// a building below its roof (`roof_z`, absolute metres), or the plane rises toward the sun
+/// faster than the rays and shadows itself everywhere.
+fn shadowed(spec: &SynthSpec, fine: &Grid, roof_z: &[f64]) -> Vec<bool> {
     let tan_e = spec.sun.elevation_deg.to_radians().tan();
     let toward_sun = spec.sun.direction();
-    // The plane shadows itself everywhere when it rises toward the sun faster than the rays.
     let plane_dark = spec.slope.0 * toward_sun.0 + spec.slope.1 * toward_sun.1 > tan_e;
-    let shadow: Vec<bool> = cells(&fine, |x, y| {
+    cells(fine, |x, y| {
         plane_dark
-            || spec.buildings.iter().zip(&roof_z).any(|(b, &z)| {
+            || spec.buildings.iter().zip(roof_z).any(|(b, &z)| {
                 b.ray_entry((x, y), toward_sun)
-                    .is_some_and(|t| ground(x, y) + t * tan_e < z)
+                    .is_some_and(|t| spec.ground_z(x, y) + t * tan_e < z)
             })
-    });
-    let fine_rgb: Vec<[f64; 3]> = (0..fine.len())
+    })
+}
+
+/// The photo's RGB (0–255) at each fine cell: roof or [`grass`], the ground darkened by
+/// [`SHADOW_FACTOR`] where `shadow` says (a roof is never in shadow).
+fn fine_photo(roof: &[bool], shadow: &[bool]) -> Vec<[f64; 3]> {
+    (0..roof.len())
         .into_par_iter()
         .map(|i| {
             let base = if roof[i] {
@@ -188,8 +224,14 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
             };
             [base[0] * f, base[1] * f, base[2] * f]
         })
-        .collect();
-    let colour: Vec<[u8; 4]> = (0..grid.len())
+        .collect()
+}
+
+/// The photo on `grid`: each cell the mean of its `k × k` cells of `fine_rgb` (row-major on a
+/// grid `k` times as fine each way), rounded, opaque.
+fn box_average(fine_rgb: &[[f64; 3]], grid: &Grid, k: usize) -> Vec<[u8; 4]> {
+    let w = grid.width;
+    (0..grid.len())
         .into_par_iter()
         .map(|i| {
             let (c, r) = (i % w, i / w);
@@ -208,15 +250,7 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
                 255,
             ]
         })
-        .collect();
-    let height_m = spec.buildings.iter().map(|b| b.height_m).collect();
-    SynthScene {
-        terrain,
-        colour: Raster::new(grid, colour),
-        footprints,
-        height_m,
-        roof_z,
-    }
+        .collect()
 }
 
 /// Grass-like texture: a hashed ±15 % brightness variation per fine cell.
