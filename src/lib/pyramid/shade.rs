@@ -599,8 +599,14 @@ mod tests {
         let r = json(&EffectsRecord::none(None, None, 0.5, none(), none()));
         assert_eq!(r["applied"], json!([]));
         assert!(r["sun"].is_null());
-        assert_eq!(r["skipped"].as_array().unwrap().len(), effects::EFFECTS.len());
-        assert_eq!(r["skipped"][0], json!({"effect": "cast_shadows", "why": "no sun given"}));
+        assert_eq!(
+            r["skipped"].as_array().unwrap().len(),
+            effects::EFFECTS.len()
+        );
+        assert_eq!(
+            r["skipped"][0],
+            json!({"effect": "cast_shadows", "why": "no sun given"})
+        );
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //! A step is up to date when its stamp (`<database>.steps/<step>.done`, written only after the
 //! step succeeded) holds its current key and every output it writes exists.
 
-use super::file::{ObjectSpec, Scene};
+use super::file::{ObjectSpec, Product, Scene};
 use crate::db::sha256_file;
 use crate::error::{Error, Result};
 use crate::io::atomic::AtomicFile;
@@ -75,93 +75,116 @@ fn s(v: impl ToString) -> String {
 
 /// The steps of `scene`, in an order that runs each after the steps it needs.
 pub fn steps(scene: &Scene) -> Vec<Step> {
-    let db = &scene.database.dir;
-    let work = steps_dir(scene);
-    let dbs = s(db.display());
     let mut out = vec![ingest_step(scene)];
-    let mut last = "ingest".to_string();
-    if let (Some(b), Some(t)) = (&scene.buildings, &scene.terrain.photo_time) {
-        let heights = work.join("heights.geojson");
-        out.push(Step {
-            name: "heights".into(),
-            does: "building heights from the photo's shadows, into the database".into(),
-            commands: vec![vec![
-                s("shadow-height"),
-                s("--db"),
-                dbs.clone(),
-                s("--footprints"),
-                s(b.footprints.display()),
-                s("--time"),
-                t.clone(),
-                s("--apply"),
-                s("-o"),
-                s(heights.display()),
-            ]],
-            inputs: vec![b.footprints.clone()],
-            outputs: vec![heights],
-            after: vec![last],
-            writes_database: true,
-        });
-        last = "heights".into();
+    if let Some(heights) = heights_step(scene) {
+        out.push(heights);
     }
     for (name, spec) in &scene.objects {
         out.push(object_step(name, spec, &object_file(scene, name)));
     }
-    if !scene.placements.is_empty() {
-        let commands = scene
-            .placements
-            .iter()
-            .map(|p| {
-                vec![
-                    s("place"),
-                    s("--db"),
-                    dbs.clone(),
-                    s("--object"),
-                    s(object_file(scene, &p.object).display()),
-                    s("--at"),
-                    format!("{},{}", p.at[0], p.at[1]),
-                    s("--heading"),
-                    s(p.heading),
-                ]
-            })
-            .collect();
-        let mut after = vec![last];
-        after.extend(scene.objects.keys().map(|n| format!("object.{n}")));
-        out.push(Step {
-            name: "place".into(),
-            does: format!("{} objects placed on the terrain", scene.placements.len()),
-            commands,
-            inputs: vec![],
-            outputs: vec![],
-            after,
-            writes_database: true,
-        });
-        last = "place".into();
+    let database_steps: Vec<String> = out
+        .iter()
+        .filter(|s| s.writes_database)
+        .map(|s| s.name.clone())
+        .collect();
+    let mut last = database_steps.last().expect("ingest").clone();
+    if let Some(place) = place_step(scene, &last) {
+        last = place.name.clone();
+        out.push(place);
     }
     for (name, p) in &scene.products {
-        let mut cmd = vec![s("pyramid"), s("--db"), dbs.clone()];
-        match (&p.time, &p.sun) {
-            (Some(t), _) => cmd.extend([s("--time"), t.clone()]),
-            (None, Some(sun)) => cmd.extend([
-                s("--sun-elevation"),
-                s(sun.elevation),
-                s("--sun-azimuth"),
-                s(sun.azimuth),
-            ]),
-            (None, None) => {}
-        }
-        cmd.extend([s("-o"), s(p.tiles.display())]);
-        out.push(Step {
-            name: format!("product.{name}"),
-            does: format!("the {} tile file", p.sensor),
-            commands: vec![cmd],
-            inputs: vec![],
-            outputs: vec![p.tiles.clone()],
-            after: vec![last.clone()],
-            writes_database: false,
-        });
+        out.push(product_step(scene, name, p, &last));
     }
     out
+}
+
+/// `shadow-height --apply` for the scene's buildings, after ingest; `None` without buildings.
+fn heights_step(scene: &Scene) -> Option<Step> {
+    let (Some(b), Some(t)) = (&scene.buildings, &scene.terrain.photo_time) else {
+        return None;
+    };
+    let heights = steps_dir(scene).join("heights.geojson");
+    Some(Step {
+        name: "heights".into(),
+        does: "building heights from the photo's shadows, into the database".into(),
+        commands: vec![vec![
+            s("shadow-height"),
+            s("--db"),
+            s(scene.database.dir.display()),
+            s("--footprints"),
+            s(b.footprints.display()),
+            s("--time"),
+            t.clone(),
+            s("--apply"),
+            s("-o"),
+            s(heights.display()),
+        ]],
+        inputs: vec![b.footprints.clone()],
+        outputs: vec![heights],
+        after: vec!["ingest".into()],
+        writes_database: true,
+    })
+}
+
+/// One `place` per placement, after the database step `last` and every object; `None` without
+/// placements.
+fn place_step(scene: &Scene, last: &str) -> Option<Step> {
+    if scene.placements.is_empty() {
+        return None;
+    }
+    let commands = scene
+        .placements
+        .iter()
+        .map(|p| {
+            vec![
+                s("place"),
+                s("--db"),
+                s(scene.database.dir.display()),
+                s("--object"),
+                s(object_file(scene, &p.object).display()),
+                s("--at"),
+                format!("{},{}", p.at[0], p.at[1]),
+                s("--heading"),
+                s(p.heading),
+            ]
+        })
+        .collect();
+    let mut after = vec![last.to_string()];
+    after.extend(scene.objects.keys().map(|n| format!("object.{n}")));
+    Some(Step {
+        name: "place".into(),
+        does: format!("{} objects placed on the terrain", scene.placements.len()),
+        commands,
+        inputs: vec![],
+        outputs: vec![],
+        after,
+        writes_database: true,
+    })
+}
+
+/// The pyramid of product `name` for its sun, after the last database step `last`.
+fn product_step(scene: &Scene, name: &str, p: &Product, last: &str) -> Step {
+    let mut cmd = vec![s("pyramid"), s("--db"), s(scene.database.dir.display())];
+    match (&p.time, &p.sun) {
+        (Some(t), _) => cmd.extend([s("--time"), t.clone()]),
+        (None, Some(sun)) => cmd.extend([
+            s("--sun-elevation"),
+            s(sun.elevation),
+            s("--sun-azimuth"),
+            s(sun.azimuth),
+        ]),
+        (None, None) => {}
+    }
+    cmd.extend([s("-o"), s(p.tiles.display())]);
+    Step {
+        name: format!("product.{name}"),
+        does: format!("the {} tile file", p.sensor),
+        commands: vec![cmd],
+        inputs: vec![],
+        outputs: vec![p.tiles.clone()],
+        after: vec![last.to_string()],
+        writes_database: false,
+    }
 }
 
 /// Where the build writes object `name`.
