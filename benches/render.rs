@@ -229,8 +229,12 @@ fn terrain(c: usize, r: usize) -> (f32, [u8; 4]) {
         + 3.0 * (x * 0.05).sin() * (y * 0.043).sin();
     let (bx, by) = (c % 200, r % 200);
     let h = ((c / 200) * 7919 + (r / 200) * 104_729) % 97;
-    let building =
-        bx > 60 && bx < 140 && by > 60 && by < 140 && (bx / 20 + by / 20) % 2 == 0 && h % 3 == 0;
+    let building = bx > 60
+        && bx < 140
+        && by > 60
+        && by < 140
+        && (bx / 20 + by / 20) % 2 == 0
+        && h.is_multiple_of(3);
     let z = if building {
         ground + 8.0 + (h % 33) as f32
     } else {

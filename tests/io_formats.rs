@@ -38,7 +38,7 @@ fn rgb(c: usize, r: usize) -> [u8; 3] {
 }
 
 fn alpha(c: usize, r: usize) -> u8 {
-    if (c + r) % 5 == 0 {
+    if (c + r).is_multiple_of(5) {
         0
     } else {
         255

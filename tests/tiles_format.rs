@@ -49,7 +49,7 @@ impl Fixture {
                 (0..l.width * l.height)
                     .map(|i| {
                         let r = mix(seed ^ mix(l.level as u64) ^ (i as u64) << 8);
-                        if r % 8 == 0 {
+                        if r.is_multiple_of(8) {
                             Cell {
                                 max_z: f32::NAN,
                                 colour: [0; 4],
@@ -87,7 +87,7 @@ impl Fixture {
             }
         }
         let r = mix(self.seed ^ ((level * 1000 + ty * 31 + tx) as u64));
-        if r % 3 == 0 {
+        if r.is_multiple_of(3) {
             page.bricks = Some(
                 (0..(r % 50) as usize)
                     .map(|i| (r >> (i % 56)) as u8)

@@ -298,8 +298,12 @@ fn rough(c: usize, r: usize) -> (f32, [u8; 4]) {
         ^ (r as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
     let h = h ^ (h >> 29);
     let base = 8.0 * ((c as f32 * 0.07).sin() + (r as f32 * 0.05).cos());
-    let spike = if h % 23 == 0 { (h % 17) as f32 } else { 0.0 };
-    let z = if h % 97 == 0 {
+    let spike = if h.is_multiple_of(23) {
+        (h % 17) as f32
+    } else {
+        0.0
+    };
+    let z = if h.is_multiple_of(97) {
         f32::NAN
     } else {
         base + spike + (h % 5) as f32 * 0.25

@@ -175,7 +175,7 @@ mod tests {
     fn hard_case_a_small_shadow_on_two_tone_ground_is_still_found() {
         // Grass (~90) and soil (~110) in equal parts, 3 % shadow (0.45 × grass): plain Otsu
         // splits grass from soil (ratio ~0.8, refused); the retry on the dark side finds the shadow.
-        let ground = |i: usize| if (i / 7) % 2 == 0 { 85.0 } else { 105.0 } + (i % 11) as f64;
+        let ground = |i: usize| if (i / 7).is_multiple_of(2) { 85.0 } else { 105.0 } + (i % 11) as f64;
         let cells = (0..10_000).map(|i| {
             if i % 33 == 0 {
                 40.0 + (i % 5) as f64

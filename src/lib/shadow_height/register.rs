@@ -302,9 +302,9 @@ impl<'a> Shifts<'a> {
 ///
 /// Whole pixels first (their scores are the search's background, whose median the peak is
 /// judged against), then the half pixels around the best: a quarter of the evaluations of a
-/// half-pixel grid, and the contrast (read [`ACROSS`] = ¾ pixel each side of the outline) is
+/// half-pixel grid, and the contrast (read `ACROSS` = ¾ pixel each side of the outline) is
 /// more than a pixel wide, so the whole-pixel best lies beside the peak. Then the eighths
-/// around that, whose top plateau's centre is the estimate ([`plateau_centre`]).
+/// around that, whose top plateau's centre is the estimate (`plateau_centre`).
 pub fn estimate(
     fp: &Footprint,
     colour: &RowBand<[u8; 4]>,

@@ -326,7 +326,7 @@ fn entry_problem(
     if e.flags & !KNOWN_FLAGS != 0 {
         return Some(format!("has unknown flags {:#x}", e.flags));
     }
-    if e.offset % align != 0 || e.offset < align_up(data_start, align) {
+    if !e.offset.is_multiple_of(align) || e.offset < align_up(data_start, align) {
         return Some(format!("has a misplaced offset {}", e.offset));
     }
     if e.offset

@@ -134,7 +134,9 @@ impl Sink {
 /// Whether `bytes` at file offset `at` meet `O_DIRECT`'s alignment (memory, length, offset).
 fn direct_ok(bytes: &[u8], at: u64) -> bool {
     let a = MEMORY_ALIGN;
-    (bytes.as_ptr() as usize) % a == 0 && bytes.len() % a == 0 && at % a as u64 == 0
+    (bytes.as_ptr() as usize).is_multiple_of(a)
+        && bytes.len().is_multiple_of(a)
+        && at.is_multiple_of(a as u64)
 }
 
 /// A second, write-only handle of `path` with `O_DIRECT`, if the file system supports it.

@@ -193,7 +193,7 @@ impl<T: TiffSample> GeoTiffWriter<T> {
     pub fn push_rows(&mut self, mut cells: &[T]) -> Result<()> {
         let (w, h) = (self.grid.width, self.grid.height);
         let n = cells.len() / w;
-        if cells.len() % w != 0 || self.rows_done + n > h {
+        if !cells.len().is_multiple_of(w) || self.rows_done + n > h {
             return Err(Error::file(
                 self.out.path(),
                 format!(
