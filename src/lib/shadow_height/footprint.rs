@@ -120,6 +120,12 @@ impl Footprint {
         bbox_of(&self.rings)
     }
 
+    /// The centre of the bounding box `(x, y)`, world metres.
+    pub fn bbox_centre(&self) -> (f64, f64) {
+        let b = self.bbox();
+        ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0)
+    }
+
     /// Row-major indices of the cells of `grid` whose centre is inside (the database's
     /// rasterisation rule, as `gdal_rasterize`'s).
     pub fn cells(&self, grid: &Grid) -> Vec<usize> {

@@ -554,7 +554,7 @@ pub fn with_camera(
     let radial: Vec<(f64, f64)> = footprints
         .iter()
         .map(|f| {
-            let (x, y) = bbox_centre(f);
+            let (x, y) = f.bbox_centre();
             let (dx, dy) = (x - camera.east, y - camera.north);
             let r = dx.hypot(dy);
             if r > 0.0 {
@@ -685,7 +685,7 @@ impl<'a> LeanFit<'a> {
     ) -> LeanFit<'a> {
         let n = tried.len() as f64;
         let origin = tried.iter().fold((0.0, 0.0), |o, &(k, _)| {
-            let c = bbox_centre(&footprints[k]);
+            let c = footprints[k].bbox_centre();
             (o.0 + c.0 / n, o.1 + c.1 / n)
         });
         LeanFit {
@@ -697,7 +697,7 @@ impl<'a> LeanFit<'a> {
 
     /// Building `k`'s position from the origin, metres (east, north).
     fn position(&self, k: usize) -> (f64, f64) {
-        let (cx, cy) = bbox_centre(&self.footprints[k]);
+        let (cx, cy) = self.footprints[k].bbox_centre();
         (cx - self.origin.0, cy - self.origin.1)
     }
 
@@ -772,11 +772,6 @@ impl<'a> LeanFit<'a> {
 }
 
 /// The centre of `f`'s bounding box, world metres (east, north).
-fn bbox_centre(f: &Footprint) -> (f64, f64) {
-    let b = f.bbox();
-    ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0)
-}
-
 /// Fewest buildings [`estimate_camera`] rests a perspective centre on (five unknowns, two
 /// equations a building, and one more building than the bare minimum to show a misfit).
 pub const MIN_CAMERA_BUILDINGS: usize = 4;

@@ -108,9 +108,8 @@ struct Frame {
 impl Frame {
     /// The frame of footprint `fp`'s lines along the unit shadow direction `u`.
     fn new(fp: &Footprint, u: (f64, f64)) -> Frame {
-        let b = fp.bbox();
         Frame {
-            o: ((b.0 + b.2) / 2.0, (b.1 + b.3) / 2.0),
+            o: fp.bbox_centre(),
             u,
             n: (-u.1, u.0),
         }
