@@ -152,10 +152,10 @@ fn make(dir: &Path) -> String {
     ok(out, "make -f Makefile.scene")
 }
 
-#[test]
-fn the_makefile_builds_what_the_stages_build_and_an_edit_reruns_what_depends_on_it() {
+/// A temporary directory holding a small generated sample (`scene/`) and `scene.toml` over it.
+fn sample_with_scene() -> tempfile::TempDir {
     let t = tempfile::tempdir().unwrap();
-    let dir = t.path();
+    let scene = t.path().join("scene");
     ok(
         dbms(&[
             "-q",
@@ -163,11 +163,18 @@ fn the_makefile_builds_what_the_stages_build_and_an_edit_reruns_what_depends_on_
             "--size",
             "160",
             "-o",
-            dir.join("scene").to_str().unwrap(),
+            scene.to_str().unwrap(),
         ]),
         "sample",
     );
-    std::fs::write(dir.join("scene.toml"), scene_toml(30.0)).unwrap();
+    std::fs::write(t.path().join("scene.toml"), scene_toml(30.0)).unwrap();
+    t
+}
+
+#[test]
+fn the_makefile_builds_what_the_stages_build_and_an_edit_reruns_what_depends_on_it() {
+    let t = sample_with_scene();
+    let dir = t.path();
 
     let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
     assert!(plan.starts_with("scene.toml: 5 steps, 5 to run"), "{plan}");
@@ -254,20 +261,8 @@ fn bad_scene_files_are_one_line_errors_naming_the_key() {
 
 #[test]
 fn build_runs_what_is_out_of_date_and_names_a_failing_step() {
-    let t = tempfile::tempdir().unwrap();
+    let t = sample_with_scene();
     let dir = t.path();
-    ok(
-        dbms(&[
-            "-q",
-            "sample",
-            "--size",
-            "160",
-            "-o",
-            dir.join("scene").to_str().unwrap(),
-        ]),
-        "sample",
-    );
-    std::fs::write(dir.join("scene.toml"), scene_toml(30.0)).unwrap();
     let ran = |dir: &Path| -> Vec<String> {
         let out = ok(dbms_in(dir, &["--json", "build", "scene.toml"]), "build");
         let json: serde_json::Value = serde_json::from_str(&out).unwrap();
