@@ -274,7 +274,9 @@ fn placed_voxel_objects_are_merged_with_partial_cells_for_overhangs() {
     format::write(&db.dir.join("arch.dvox"), &obj, "test arch").unwrap();
     let sha256 = dbms::db::sha256_file(&db.dir.join("arch.dvox")).unwrap();
     // Anchor (bottom-face centre) at world (500 120.0, 5 299 980.5, ground 201.0).
+    let id = db.manifest.new_placement_id();
     db.manifest.objects.push(PlacedObject {
+        id,
         file: "arch.dvox".into(),
         sha256,
         x: 500_120.0,
@@ -583,7 +585,9 @@ fn arch_db(dir: &Path, with_arch: bool) -> Database {
         });
         format::write(&db.dir.join("arch.dvox"), &obj, "test arch").unwrap();
         let sha256 = dbms::db::sha256_file(&db.dir.join("arch.dvox")).unwrap();
+        let id = db.manifest.new_placement_id();
         db.manifest.objects.push(PlacedObject {
+            id,
             file: "arch.dvox".into(),
             sha256,
             x: 500_120.0,

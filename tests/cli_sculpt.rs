@@ -916,3 +916,150 @@ fn object_and_sculpt_outputs_that_would_destroy_something_are_refused() {
     assert!(ok, "{err}");
     assert!(dir.path().join("s.ply").exists());
 }
+
+/// `place --points` places one object per point in one change; ids are stable, never reused,
+/// and `--remove` / `--move` address them; the pyramid of the bulk placements is the pyramid of
+/// the same placements made one by one.
+#[test]
+fn placements_in_bulk_have_stable_ids_and_can_be_moved_or_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir_all(&a).unwrap();
+    std::fs::create_dir_all(&b).unwrap();
+    let (one, bulk) = (database(&a), database(&b));
+    let tree = dir.path().join("tree.dvox");
+    let t = tree.to_str().unwrap();
+    let cone = [
+        "object", "cone", "--height", "6", "--radius", "2", "--voxel", "0.5",
+    ];
+    assert!(run(&[&cone[..], &["--seed", "3", "-o", t]].concat()).0);
+    let points = [
+        (500003.5, 5299997.0, 0.0),
+        (500010.0, 5299995.5, 90.0),
+        (500016.0, 5299992.0, 200.0),
+    ];
+    let features: Vec<Value> = points
+        .iter()
+        .map(|&(x, y, h)| serde_json::json!({"type": "Feature", "geometry": {"type": "Point", "coordinates": [x, y]}, "properties": {"heading": h}}))
+        .collect();
+    let geojson = dir.path().join("trees.geojson");
+    let fc = serde_json::json!({"type": "FeatureCollection", "features": features});
+    std::fs::write(&geojson, fc.to_string()).unwrap();
+
+    let b = bulk.to_str().unwrap();
+    let (ok, out, err) = run(&[
+        "--json",
+        "place",
+        "--db",
+        b,
+        "--object",
+        t,
+        "--points",
+        geojson.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let placed: Value = serde_json::from_str(&out).unwrap();
+    let ids: Vec<u64> = placed["placements"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [1, 2, 3]);
+    for &(x, y, h) in &points {
+        let (ok, _, err) = run(&[
+            "place",
+            "--db",
+            one.to_str().unwrap(),
+            "--object",
+            t,
+            "--at",
+            &format!("{x},{y}"),
+            "--heading",
+            &h.to_string(),
+        ]);
+        assert!(ok, "{err}");
+    }
+    let pyramid = |db: &Path| {
+        let out = db.with_extension("dbt");
+        let (ok, _, err) = run(&[
+            "pyramid",
+            "-q",
+            "--db",
+            db.to_str().unwrap(),
+            "--sun-elevation",
+            "40",
+            "--sun-azimuth",
+            "135",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(ok, "{err}");
+        std::fs::read(out).unwrap()
+    };
+    assert!(
+        pyramid(&one) == pyramid(&bulk),
+        "bulk placing builds what one-by-one placing builds"
+    );
+    let manifest = |db: &Path| -> Value {
+        serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap()
+    };
+    let places = |m: &Value| {
+        m["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|s| s["name"] == "place")
+            .count()
+    };
+    assert_eq!(places(&manifest(&bulk)), 1, "one change for the whole file");
+
+    // Remove 2, move 3, place another: ids 1, 3, 4 — 2 is never given again.
+    assert!(run(&["place", "--db", b, "--remove", "2"]).0);
+    let (ok, out, err) = run(&[
+        "--json",
+        "place",
+        "--db",
+        b,
+        "--move",
+        "3",
+        "--at",
+        "500012,5299994,20",
+    ]);
+    assert!(ok, "{err}");
+    let moved: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(
+        (
+            moved["id"].as_u64(),
+            moved["x"].as_f64(),
+            moved["z"].as_f64(),
+            moved["heading_deg"].as_f64()
+        ),
+        (Some(3), Some(500012.0), Some(20.0), Some(200.0))
+    );
+    assert!(run(&["place", "--db", b, "--object", t, "--at", "500004,5299996"]).0);
+    let m = manifest(&bulk);
+    let ids: Vec<u64> = m["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["id"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ids, [1, 3, 4]);
+    let (ok, _, err) = run(&["info", "--verify", b]);
+    assert!(ok, "{err}");
+
+    // An id that is not there, and a point without an object: one-line errors, nothing written.
+    let before = std::fs::read(bulk.join("manifest.json")).unwrap();
+    let (ok, _, err) = run(&["place", "--db", b, "--remove", "2"]);
+    assert!(
+        !ok && err.contains("has no placement 2") && err.trim_end().lines().count() == 1,
+        "{err}"
+    );
+    let (ok, _, err) = run(&["place", "--db", b, "--points", geojson.to_str().unwrap()]);
+    assert!(
+        !ok && err.contains("feature 0") && err.contains("no --object"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(bulk.join("manifest.json")).unwrap(), before);
+}

@@ -216,7 +216,9 @@ fn placed_objects_cast_shadows_unless_terrain_only() {
     let file = dir.path().join("tower.dvox");
     format::write(&file, &tower, "test tower").unwrap();
     let mut db = Database::open(dir.path()).unwrap();
+    let id = db.manifest.new_placement_id();
     db.manifest.objects.push(PlacedObject {
+        id,
         file: "tower.dvox".into(),
         sha256: dbms::db::sha256_file(&file).unwrap(),
         x: 500_050.5,

@@ -73,6 +73,7 @@ impl Database {
             centre,
             layers: BTreeMap::new(),
             objects: Vec::new(),
+            last_placement_id: 0,
             provenance: Provenance {
                 inputs,
                 dbms_version: env!("CARGO_PKG_VERSION").to_string(),

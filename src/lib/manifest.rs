@@ -41,6 +41,10 @@ pub struct Manifest {
     /// Voxel objects placed in the scene, in placement order.
     #[serde(default)]
     pub objects: Vec<PlacedObject>,
+    /// The largest placement id ever given (removed placements included), so ids are never
+    /// reused; 0 before the first.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub last_placement_id: u64,
     /// Where the database came from.
     pub provenance: Provenance,
     /// Stages that have run, in order (ingest first).
@@ -49,6 +53,10 @@ pub struct Manifest {
     /// ([`Manifest::content_sha256`]); absent in manifests of dbms before 0.x's transactions.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub checksum: Option<String>,
+}
+
+fn is_zero(v: &u64) -> bool {
+    *v == 0
 }
 
 impl Manifest {
@@ -110,6 +118,10 @@ pub struct Layer {
 /// A voxel object placed in the scene (by `dbms place`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PlacedObject {
+    /// The placement's id: unique in the database, never reused, kept when it moves
+    /// (`dbms place --move ID`). Manifests written before ids get them in placement order.
+    #[serde(default)]
+    pub id: u64,
     /// Object file relative to the database directory.
     pub file: String,
     /// SHA-256 of the object file.
@@ -194,7 +206,7 @@ impl Manifest {
             }
             _ => Error::io(&path, e),
         })?;
-        let manifest: Manifest = serde_json::from_str(&text).map_err(|e| {
+        let mut manifest: Manifest = serde_json::from_str(&text).map_err(|e| {
             Error::file(&path, format!("not a valid dbms manifest: {e}"))
                 .fix("re-create the database with `dbms ingest`")
         })?;
@@ -223,6 +235,7 @@ impl Manifest {
                 .fix("undo the edit, or re-create the database with `dbms ingest`"));
             }
         }
+        manifest.number_placements();
         if let Some((file, _)) = manifest.files().find(|(f, _)| !inside(f)) {
             return Err(Error::file(
                 &path,
@@ -231,6 +244,24 @@ impl Manifest {
             .fix("re-create the database with `dbms ingest`"));
         }
         Ok(manifest)
+    }
+
+    /// Give every placement without an id (from a dbms before ids) a new one, in placement
+    /// order.
+    fn number_placements(&mut self) {
+        let largest = self.objects.iter().map(|o| o.id).max().unwrap_or(0);
+        self.last_placement_id = self.last_placement_id.max(largest);
+        for k in 0..self.objects.len() {
+            if self.objects[k].id == 0 {
+                self.objects[k].id = self.new_placement_id();
+            }
+        }
+    }
+
+    /// A placement id never given before in this database (ids start at 1).
+    pub fn new_placement_id(&mut self) -> u64 {
+        self.last_placement_id += 1;
+        self.last_placement_id
     }
 
     /// Whether the database owns file `name` of its directory: the manifest, the lock, or a

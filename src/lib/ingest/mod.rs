@@ -178,6 +178,7 @@ fn write_database(
             let m = &mut change.db.manifest;
             m.layers = old.layers;
             m.objects = old.objects;
+            m.last_placement_id = old.last_placement_id;
             m.stages = old.stages;
         } else if !opts.overwrite && added > 0 {
             return Err(Error::file(

@@ -16,10 +16,11 @@
 
 use super::format;
 use super::object::VoxelObject;
-use crate::db::{sha256_file, Database, PlacedObject, Stage};
+use crate::db::{sha256_file, Change, Database, PlacedObject, Stage};
 use crate::error::{Error, Result};
 use crate::raster::{Elevation, RowSource};
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 /// How far (metres) a placement's given height may lie below the lowest or above the highest
 /// terrain of the database: a kilometre, more than any structure is tall.
@@ -42,6 +43,22 @@ pub fn ground_height(dem: &Elevation, x: f64, y: f64) -> Option<f64> {
     (!z.is_nan()).then_some(z)
 }
 
+/// One object to place: its file, where its anchor goes (`x`, `y` in the database CRS; `z`
+/// absolute metres, or the ground's when `None`) and its heading (degrees clockwise from north).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placement {
+    /// The voxel object file (.dvox).
+    pub object: PathBuf,
+    /// World x of the anchor.
+    pub x: f64,
+    /// World y of the anchor.
+    pub y: f64,
+    /// Absolute height of the anchor, metres; `None`: the terrain's.
+    pub z: Option<f64>,
+    /// Degrees clockwise from north.
+    pub heading_deg: f64,
+}
+
 /// Place the object at `object_path` in the database in `dir` with its anchor at `(x, y)` and
 /// height `z` (absolute metres, or the ground's when `None`), turned by `heading_deg`: one
 /// change under the database's lock (waiting up to `wait` for it), so placements made at the
@@ -55,13 +72,166 @@ pub fn place(
     z: Option<f64>,
     heading_deg: f64,
 ) -> Result<PlacedObject> {
-    if !(x.is_finite() && y.is_finite() && z.is_none_or(f64::is_finite) && heading_deg.is_finite())
-    {
-        return Err(Error::msg("--at and --heading must be finite numbers")
-            .fix("e.g. --at 500120.5,5000340,0 --heading 30"));
+    let one = Placement {
+        object: object_path.to_path_buf(),
+        x,
+        y,
+        z,
+        heading_deg,
+    };
+    Ok(place_all(dir, wait, std::slice::from_ref(&one))?.remove(0))
+}
+
+/// Place every one of `placements` in the database in `dir` in one change under its lock: all
+/// or none. Each distinct object file is read (and so checked) and stored once, the terrain is
+/// read once, and each placement gets a new id ([`crate::manifest::Manifest::new_placement_id`]). Errors name
+/// the placement by its position.
+pub fn place_all(
+    dir: &Path,
+    wait: std::time::Duration,
+    placements: &[Placement],
+) -> Result<Vec<PlacedObject>> {
+    for p in placements {
+        check_finite(p.x, p.y, p.z, p.heading_deg)?;
     }
     let mut change = Database::begin(dir, wait)?;
+    require_projected(&change.db)?;
+    // Everything is checked before anything is written: the objects, then every position.
+    let mut objects: BTreeMap<&Path, (String, usize)> = BTreeMap::new();
+    for p in placements {
+        if !objects.contains_key(p.object.as_path()) {
+            let (obj, _): (VoxelObject, _) = format::read(&p.object)?;
+            objects.insert(&p.object, (sha256_file(&p.object)?, obj.len()));
+        }
+    }
+    let db = &change.db;
+    let ground = match placements.iter().any(|p| p.z.is_none()) {
+        true => Some(db.read_elevation()?),
+        false => None,
+    };
+    let heights = placements
+        .iter()
+        .map(|p| {
+            require_inside(db, p.x, p.y)?;
+            match (p.z, &ground) {
+                (Some(z), _) => require_near_terrain(db, z),
+                (None, Some(dem)) => ground_height(dem, p.x, p.y).ok_or_else(|| {
+                    Error::file(
+                        &db.dir,
+                        format!("no terrain height at {},{} (nodata)", p.x, p.y),
+                    )
+                    .fix("give the height as --at X,Y,Z")
+                }),
+                (None, None) => unreachable!("the terrain is read when a height is missing"),
+            }
+        })
+        .collect::<Result<Vec<f64>>>()?;
+    let mut files: BTreeMap<&Path, String> = BTreeMap::new();
+    for (path, (sha256, _)) in &objects {
+        files.insert(path, store_object(&mut change, path, sha256)?);
+    }
     let db = &mut change.db;
+    let mut placed = Vec::with_capacity(placements.len());
+    for (p, z) in placements.iter().zip(heights) {
+        let object = PlacedObject {
+            id: db.manifest.new_placement_id(),
+            file: files[p.object.as_path()].clone(),
+            sha256: objects[p.object.as_path()].0.clone(),
+            x: p.x,
+            y: p.y,
+            z,
+            heading_deg: p.heading_deg.rem_euclid(360.0),
+        };
+        db.manifest.objects.push(object.clone());
+        placed.push(object);
+    }
+    let params = match placed.as_slice() {
+        [one] => serde_json::json!({
+            "id": one.id, "object": one.file, "x": one.x, "y": one.y, "z": one.z,
+            "heading_deg": one.heading_deg, "voxels": objects[placements[0].object.as_path()].1,
+        }),
+        many => serde_json::json!({
+            "placements": many.len(),
+            "objects": objects.len(),
+            "ids": [many.first().map(|p| p.id), many.last().map(|p| p.id)],
+        }),
+    };
+    db.record_stage(Stage::now("place", params));
+    change.commit()?;
+    Ok(placed)
+}
+
+/// Remove placement `id` from the database in `dir` (its object file stays, as other
+/// placements may use it); returns what was removed.
+pub fn remove(dir: &Path, wait: std::time::Duration, id: u64) -> Result<PlacedObject> {
+    let mut change = Database::begin(dir, wait)?;
+    let db = &mut change.db;
+    let k = position_of(db, id)?;
+    let removed = db.manifest.objects.remove(k);
+    db.record_stage(Stage::now("place", serde_json::json!({ "removed": id })));
+    change.commit()?;
+    Ok(removed)
+}
+
+/// Move placement `id` of the database in `dir` to `(x, y)` and height `z` (absolute metres, or
+/// the ground's when `None`), keeping its id, object and heading (or `heading_deg` when
+/// given); returns it as moved.
+pub fn move_to(
+    dir: &Path,
+    wait: std::time::Duration,
+    id: u64,
+    (x, y, z): (f64, f64, Option<f64>),
+    heading_deg: Option<f64>,
+) -> Result<PlacedObject> {
+    check_finite(x, y, z, heading_deg.unwrap_or(0.0))?;
+    let mut change = Database::begin(dir, wait)?;
+    let db = &mut change.db;
+    let k = position_of(db, id)?;
+    require_inside(db, x, y)?;
+    let z = match z {
+        Some(z) => require_near_terrain(db, z)?,
+        None => ground_height(&db.read_elevation()?, x, y).ok_or_else(|| {
+            Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)"))
+                .fix("give the height as --at X,Y,Z")
+        })?,
+    };
+    let o = &mut db.manifest.objects[k];
+    (o.x, o.y, o.z) = (x, y, z);
+    if let Some(h) = heading_deg {
+        o.heading_deg = h.rem_euclid(360.0);
+    }
+    let moved = o.clone();
+    db.record_stage(Stage::now(
+        "place",
+        serde_json::json!({ "moved": id, "x": x, "y": y, "z": z, "heading_deg": moved.heading_deg }),
+    ));
+    change.commit()?;
+    Ok(moved)
+}
+
+/// Where placement `id` is in the manifest's list, or an error naming the ids there are.
+fn position_of(db: &Database, id: u64) -> Result<usize> {
+    db.manifest
+        .objects
+        .iter()
+        .position(|o| o.id == id)
+        .ok_or_else(|| {
+            let n = db.manifest.objects.len();
+            Error::file(&db.dir, format!("has no placement {id} ({n} placements)"))
+                .fix("dbms info DB --json lists the placements with their ids")
+        })
+}
+
+fn check_finite(x: f64, y: f64, z: Option<f64>, heading_deg: f64) -> Result<()> {
+    if x.is_finite() && y.is_finite() && z.is_none_or(f64::is_finite) && heading_deg.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::msg("--at and --heading must be finite numbers")
+            .fix("e.g. --at 500120.5,5000340,0 --heading 30"))
+    }
+}
+
+fn require_projected(db: &Database) -> Result<()> {
     if db.grid().crs.geographic {
         return Err(Error::file(
             &db.dir,
@@ -69,8 +239,10 @@ pub fn place(
         )
         .fix("ingest onto a projected CRS (e.g. UTM)"));
     }
-    // Read (and so check) the object before touching the database.
-    let (obj, _): (VoxelObject, _) = format::read(object_path)?;
+    Ok(())
+}
+
+fn require_inside(db: &Database, x: f64, y: f64) -> Result<()> {
     if db.grid().cell_at(x, y).is_none() {
         let b = db.grid().bounds();
         return Err(Error::msg(format!(
@@ -79,43 +251,69 @@ pub fn place(
         ))
         .fix("give a position inside the database"));
     }
-    let z = match z {
-        Some(z) => require_near_terrain(db, z)?,
-        None => ground_height(&db.read_elevation()?, x, y).ok_or_else(|| {
-            Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)"))
-                .fix("give the height as --at X,Y,Z")
-        })?,
-    };
-    let sha256 = sha256_file(object_path)?;
-    let stem = object_path
+    Ok(())
+}
+
+/// Store the object at `path` (SHA-256 `sha256`) in the database under its content-addressed
+/// name, once (placing one tree many times stores it once); returns that name.
+fn store_object(change: &mut Change, path: &Path, sha256: &str) -> Result<String> {
+    let stem = path
         .file_stem()
         .and_then(|s| s.to_str())
         .unwrap_or("object");
     let file = format!("objects/{stem}-{}.dvox", &sha256[..12]);
-    let dest = db.dir.join(&file);
+    let dest = change.db.dir.join(&file);
     if !dest.exists() {
-        let dir = db.dir.join("objects");
+        let dir = change.db.dir.join("objects");
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let bytes = std::fs::read(object_path).map_err(|e| Error::io(object_path, e))?;
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         crate::io::atomic::write_bytes_atomic(&dest, &bytes)?;
         change.wrote(&file);
     }
-    let db = &mut change.db;
-    let placed = PlacedObject {
-        file,
-        sha256,
-        x,
-        y,
-        z,
-        heading_deg: heading_deg.rem_euclid(360.0),
-    };
-    db.manifest.objects.push(placed.clone());
-    db.record_stage(Stage::now(
-        "place",
-        serde_json::json!({ "object": placed.file, "x": x, "y": y, "z": z, "heading_deg": placed.heading_deg, "voxels": obj.len() }),
-    ));
-    change.commit()?;
-    Ok(placed)
+    Ok(file)
+}
+
+/// The placements of a GeoJSON FeatureCollection of Points (`[x, y]` or `[x, y, z]` in the
+/// database CRS): each feature's object is its `object` property (a path relative to the
+/// GeoJSON file) or `default_object`, its heading the `heading` property (degrees, default 0).
+pub fn read_points(path: &Path, default_object: Option<&Path>) -> Result<Vec<Placement>> {
+    let fix =
+        "give a FeatureCollection of Point features with optional object and heading properties";
+    let features = crate::geojson::read_features(path, fix)?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    features
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let bad = |what: &str| Error::file(path, format!("feature {i}: {what}")).fix(fix);
+            let coords = f
+                .pointer("/geometry/coordinates")
+                .and_then(|c| c.as_array())
+                .filter(|_| f.pointer("/geometry/type").and_then(|t| t.as_str()) == Some("Point"))
+                .ok_or_else(|| bad("not a Point"))?;
+            let v: Vec<f64> = coords.iter().filter_map(|c| c.as_f64()).collect();
+            if !(v.len() == 2 || v.len() == 3) || v.len() != coords.len() {
+                return Err(bad("coordinates are not [x, y] or [x, y, z] numbers"));
+            }
+            let object = match f.pointer("/properties/object") {
+                Some(o) => base.join(o.as_str().ok_or_else(|| bad("object is not a path"))?),
+                None => default_object
+                    .ok_or_else(|| bad("no object property, and no --object given"))?
+                    .to_path_buf(),
+            };
+            let heading_deg = match f.pointer("/properties/heading") {
+                Some(h) => h.as_f64().ok_or_else(|| bad("heading is not a number"))?,
+                None => 0.0,
+            };
+            Ok(Placement {
+                object,
+                x: v[0],
+                y: v[1],
+                z: v.get(2).copied(),
+                heading_deg,
+            })
+        })
+        .collect()
 }
 
 /// `z` (absolute metres), when within [`Z_MARGIN_M`] of the terrain's range in `db`.
