@@ -97,30 +97,20 @@ fn stage_by_stage(dir: &Path, heading: f64) -> Vec<u8> {
         "manual/tree.dvox",
     ]);
     let h = heading.to_string();
-    run(&[
-        "-q",
-        "place",
-        "--db",
-        "manual/db",
-        "--object",
-        "manual/tree.dvox",
-        "--at",
-        "500030,5300030",
-        "--heading",
-        &h,
-    ]);
-    run(&[
-        "-q",
-        "place",
-        "--db",
-        "manual/db",
-        "--object",
-        "manual/tree.dvox",
-        "--at",
-        "500050,5300040",
-        "--heading",
-        "0",
-    ]);
+    for (at, heading) in [("500030,5300030", h.as_str()), ("500050,5300040", "0")] {
+        run(&[
+            "-q",
+            "place",
+            "--db",
+            "manual/db",
+            "--object",
+            "manual/tree.dvox",
+            "--at",
+            at,
+            "--heading",
+            heading,
+        ]);
+    }
     run(&[
         "-q",
         "pyramid",
