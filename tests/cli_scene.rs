@@ -272,6 +272,17 @@ fn build_runs_what_is_out_of_date_and_names_a_failing_step() {
         "build gives the stages' tile file"
     );
     assert!(ran(dir).is_empty(), "an unchanged scene builds nothing");
+    // Touched but not changed: the content decides, so still nothing to build.
+    let later = std::time::SystemTime::now() + std::time::Duration::from_secs(5);
+    let dem = std::fs::File::options()
+        .write(true)
+        .open(dir.join("scene/dem.tif"))
+        .unwrap();
+    dem.set_modified(later).unwrap();
+    assert!(
+        ran(dir).is_empty(),
+        "a touched input with the same content builds nothing"
+    );
     let text = ok(dbms_in(dir, &["build", "scene.toml"]), "build");
     assert!(text.contains("nothing to do"), "{text}");
 

@@ -5,7 +5,8 @@
 //! content of every input file it reads that no step writes, and the keys of the steps it runs
 //! after; so a change to any of them changes the key of the step and of every step after it.
 //! A step is up to date when its stamp (`<database>.steps/<step>.done`, written only after the
-//! step succeeded) holds its current key and every output it writes exists.
+//! step succeeded) holds its current key and every output it writes exists. An input's hash is
+//! taken again only when its size or modification time differ from those its stamp recorded.
 
 use super::file::{ObjectSpec, Product, Scene};
 use crate::db::sha256_file;
@@ -57,8 +58,44 @@ struct Stamp {
     key: String,
     version: String,
     commands: Vec<Vec<String>>,
-    inputs: BTreeMap<PathBuf, String>,
+    inputs: BTreeMap<PathBuf, InputSum>,
     after: BTreeMap<String, String>,
+}
+
+/// An input file's content hash, with the size and modification time it was taken at: a later
+/// plan reuses the hash while both are unchanged, so a gigabyte DEM is read once a build, not
+/// once a step. The key depends on the hash alone: a file touched without a change of content
+/// leaves its steps up to date.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct InputSum {
+    sha256: String,
+    size: u64,
+    modified_ns: u128,
+}
+
+impl InputSum {
+    /// The sum of the file at `path`, reusing `known`'s hash when its size and modification
+    /// time are the file's.
+    fn of(path: &Path, known: Option<&InputSum>) -> Result<InputSum> {
+        let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+        let modified_ns = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map_or(0, |d| d.as_nanos());
+        let size = meta.len();
+        let sha256 = match known {
+            Some(k) if k.size == size && k.modified_ns == modified_ns && modified_ns != 0 => {
+                k.sha256.clone()
+            }
+            _ => sha256_file(path)?,
+        };
+        Ok(InputSum {
+            sha256,
+            size,
+            modified_ns,
+        })
+    }
 }
 
 /// The directory of a scene's stamps and intermediate files (objects, heights), beside its
@@ -277,8 +314,8 @@ pub fn plan(scene: &Scene) -> Result<Vec<PlannedStep>> {
     let mut stamps: BTreeMap<String, Stamp> = BTreeMap::new();
     let mut planned: Vec<PlannedStep> = Vec::new();
     for step in steps(scene) {
-        let stamp = stamp_of(&step, &stamps)?;
         let old = read_stamp(&dir.join(format!("{}.done", step.name)));
+        let stamp = stamp_of(&step, &stamps, old.as_ref())?;
         let mut why = reasons(&stamp, old.as_ref());
         if why.is_empty() {
             if let Some(o) = step.outputs.iter().find(|o| !o.exists()) {
@@ -317,12 +354,16 @@ pub fn plan(scene: &Scene) -> Result<Vec<PlannedStep>> {
     Ok(planned)
 }
 
-/// The stamp `step` would leave now, with the keys of the steps before it.
-fn stamp_of(step: &Step, before: &BTreeMap<String, Stamp>) -> Result<Stamp> {
-    let inputs: BTreeMap<PathBuf, String> = step
+/// The stamp `step` would leave now, with the keys of the steps before it; `old`, the stamp it
+/// left last time, lends the hashes of inputs that have not changed size or time since.
+fn stamp_of(step: &Step, before: &BTreeMap<String, Stamp>, old: Option<&Stamp>) -> Result<Stamp> {
+    let inputs: BTreeMap<PathBuf, InputSum> = step
         .inputs
         .iter()
-        .map(|p| Ok((p.clone(), sha256_file(p)?)))
+        .map(|p| {
+            let known = old.and_then(|o| o.inputs.get(p));
+            Ok((p.clone(), InputSum::of(p, known)?))
+        })
         .collect::<Result<_>>()?;
     let after: BTreeMap<String, String> = step
         .after
@@ -341,7 +382,7 @@ fn stamp_of(step: &Step, before: &BTreeMap<String, Stamp>) -> Result<Stamp> {
     }
     for (p, sum) in inputs.iter() {
         h.update(p.to_string_lossy().as_bytes());
-        h.update(sum.as_bytes());
+        h.update(sum.sha256.as_bytes());
     }
     for (n, k) in after.iter() {
         h.update(n.as_bytes());
@@ -381,7 +422,7 @@ fn reasons(now: &Stamp, old: Option<&Stamp>) -> Vec<String> {
         why.push("its options changed".into());
     }
     for (p, sum) in &now.inputs {
-        if old.inputs.get(p) != Some(sum) {
+        if old.inputs.get(p).map(|o| &o.sha256) != Some(&sum.sha256) {
             why.push(format!("{} changed", p.display()));
         }
     }
@@ -398,11 +439,12 @@ fn reasons(now: &Stamp, old: Option<&Stamp>) -> Vec<String> {
 
 /// Record that step `name` of `scene` has just run: its stamp, written atomically.
 pub fn stamp(scene: &Scene, name: &str) -> Result<()> {
+    let dir = steps_dir(scene);
     let mut keys = BTreeMap::new();
     for step in steps(scene) {
-        let stamp = stamp_of(&step, &keys)?;
+        let old = read_stamp(&dir.join(format!("{}.done", step.name)));
+        let stamp = stamp_of(&step, &keys, old.as_ref())?;
         if step.name == name {
-            let dir = steps_dir(scene);
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
             let path = dir.join(format!("{name}.done"));
             let mut f = AtomicFile::create(&path)?;
@@ -414,4 +456,35 @@ pub fn stamp(scene: &Scene, name: &str) -> Result<()> {
     }
     Err(Error::msg(format!("the scene has no step {name:?}"))
         .fix("dbms plan SCENE lists its steps"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_input_is_hashed_again_only_when_its_size_or_time_changed() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("dem.tif");
+        std::fs::write(&path, b"first").unwrap();
+        let first = InputSum::of(&path, None).unwrap();
+        assert_eq!(first.sha256, sha256_file(&path).unwrap());
+        // Same size, same time, other bytes: the recorded hash is reused (no read).
+        let time = std::fs::metadata(&path).unwrap().modified().unwrap();
+        std::fs::write(&path, b"fir5t").unwrap();
+        std::fs::File::options()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_modified(time)
+            .unwrap();
+        assert_eq!(InputSum::of(&path, Some(&first)).unwrap(), first);
+        // A new time: hashed again.
+        let later = time + std::time::Duration::from_secs(1);
+        let f = std::fs::File::options().write(true).open(&path).unwrap();
+        f.set_modified(later).unwrap();
+        let again = InputSum::of(&path, Some(&first)).unwrap();
+        assert_eq!(again.sha256, sha256_file(&path).unwrap());
+        assert_ne!(again.sha256, first.sha256);
+    }
 }
