@@ -7,7 +7,7 @@
 //! same line the Makefile of `dbms plan --makefile` runs, so both ways build the same bytes.
 
 use super::file::Scene;
-use super::plan::{plan, stamp, PlannedStep};
+use super::plan::{plan, stamp_planned, PlannedStep};
 use crate::error::{Error, Result};
 use crate::progress::Progress;
 use serde::Serialize;
@@ -54,7 +54,7 @@ pub fn build(scene: &Scene, exe: &Path, jobs: usize, progress: &Progress) -> Res
                 let tx = tx.clone();
                 running += 1;
                 scope.spawn(move || {
-                    let result = run_step(step, exe).and_then(|()| stamp(scene, &step.step.name));
+                    let result = run_step(step, exe).and_then(|()| stamp_planned(scene, step));
                     let _ = tx.send((step.step.name.clone(), result));
                 });
             }

@@ -8,7 +8,7 @@
 //! (placing adds to the database).
 
 use super::file::Scene;
-use super::plan::{steps, steps_dir};
+use super::plan::{stamp_path, steps, steps_dir};
 use std::fmt::Write;
 use std::path::Path;
 
@@ -28,7 +28,7 @@ fn quote(word: &str) -> String {
 pub fn makefile(scene: &Scene, scene_path: &Path) -> String {
     let all = steps(scene);
     let dir = steps_dir(scene);
-    let stamp = |name: &str| quote(&dir.join(format!("{name}.done")).display().to_string());
+    let stamp = |name: &str| quote(&stamp_path(&dir, name).display().to_string());
     let scene_file = quote(&scene_path.display().to_string());
     let database_inputs: Vec<String> = all
         .iter()

@@ -44,12 +44,25 @@ pub struct PlannedStep {
     /// The step.
     #[serde(flatten)]
     pub step: Step,
-    /// The step's key (hex SHA-256, see the module doc).
-    pub key: String,
+    /// The stamp the step leaves when it runs now (JSON: its key, hex SHA-256, see the module
+    /// doc).
+    #[serde(rename = "key", serialize_with = "key_only")]
+    stamp: Stamp,
     /// Whether the step's stamp holds its key and its outputs exist.
     pub up_to_date: bool,
     /// Why it would run; empty when up to date.
     pub why: Vec<String>,
+}
+
+fn key_only<S: serde::Serializer>(stamp: &Stamp, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(&stamp.key)
+}
+
+impl PlannedStep {
+    /// The step's key (hex SHA-256, see the module doc).
+    pub fn key(&self) -> &str {
+        &self.stamp.key
+    }
 }
 
 /// What a stamp records: the key, and what went into it, so a later plan can say what changed.
@@ -307,25 +320,44 @@ fn object_step(name: &str, spec: &ObjectSpec, file: &Path) -> Step {
     }
 }
 
+/// Where the stamp of step `name` is, in a scene's [`steps_dir`] `dir`.
+pub fn stamp_path(dir: &Path, name: &str) -> PathBuf {
+    dir.join(format!("{name}.done"))
+}
+
+/// Each step of `scene` up to and including `until` (all of them when `None`), with the stamp
+/// it leaves when it runs now and the stamp it left last time.
+fn stamps(scene: &Scene, until: Option<&str>) -> Result<Vec<(Step, Stamp, Option<Stamp>)>> {
+    let dir = steps_dir(scene);
+    let mut keys: BTreeMap<String, Stamp> = BTreeMap::new();
+    let mut out = Vec::new();
+    for step in steps(scene) {
+        let old = read_stamp(&stamp_path(&dir, &step.name));
+        let stamp = stamp_of(&step, &keys, old.as_ref())?;
+        keys.insert(step.name.clone(), stamp.clone());
+        let last = until == Some(step.name.as_str());
+        out.push((step, stamp, old));
+        if last {
+            break;
+        }
+    }
+    Ok(out)
+}
+
 /// The steps of `scene` with their keys and whether each is up to date (stamps read from
 /// [`steps_dir`]).
 pub fn plan(scene: &Scene) -> Result<Vec<PlannedStep>> {
-    let dir = steps_dir(scene);
-    let mut stamps: BTreeMap<String, Stamp> = BTreeMap::new();
     let mut planned: Vec<PlannedStep> = Vec::new();
-    for step in steps(scene) {
-        let old = read_stamp(&dir.join(format!("{}.done", step.name)));
-        let stamp = stamp_of(&step, &stamps, old.as_ref())?;
+    for (step, stamp, old) in stamps(scene, None)? {
         let mut why = reasons(&stamp, old.as_ref());
         if why.is_empty() {
             if let Some(o) = step.outputs.iter().find(|o| !o.exists()) {
                 why.push(format!("{} is missing", o.display()));
             }
         }
-        stamps.insert(step.name.clone(), stamp.clone());
         planned.push(PlannedStep {
             up_to_date: false,
-            key: stamp.key,
+            stamp,
             step,
             why,
         });
@@ -388,7 +420,7 @@ fn stamp_of(step: &Step, before: &BTreeMap<String, Stamp>, old: Option<&Stamp>) 
         h.update(n.as_bytes());
         h.update(k.as_bytes());
     }
-    let key: String = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+    let key = crate::manifest::hex(&h.finalize());
     Ok(Stamp {
         key,
         version,
@@ -437,25 +469,30 @@ fn reasons(now: &Stamp, old: Option<&Stamp>) -> Vec<String> {
     why
 }
 
-/// Record that step `name` of `scene` has just run: its stamp, written atomically.
+/// Record that step `name` of `scene` has just run: its stamp, written atomically (what the
+/// Makefile's rules call; [`super::build`] writes the planned step's own).
 pub fn stamp(scene: &Scene, name: &str) -> Result<()> {
-    let dir = steps_dir(scene);
-    let mut keys = BTreeMap::new();
-    for step in steps(scene) {
-        let old = read_stamp(&dir.join(format!("{}.done", step.name)));
-        let stamp = stamp_of(&step, &keys, old.as_ref())?;
-        if step.name == name {
-            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-            let path = dir.join(format!("{name}.done"));
-            let mut f = AtomicFile::create(&path)?;
-            let text = serde_json::to_string_pretty(&stamp).expect("a stamp serialises");
-            writeln!(f.writer(), "{text}").map_err(|e| Error::io(&path, e))?;
-            return f.commit();
-        }
-        keys.insert(step.name.clone(), stamp);
+    let mut stamps = stamps(scene, Some(name))?;
+    match stamps.pop() {
+        Some((step, stamp, _)) if step.name == name => write_stamp(scene, &step.name, &stamp),
+        _ => Err(Error::msg(format!("the scene has no step {name:?}"))
+            .fix("dbms plan SCENE lists its steps")),
     }
-    Err(Error::msg(format!("the scene has no step {name:?}"))
-        .fix("dbms plan SCENE lists its steps"))
+}
+
+/// Record that the planned step `p` of `scene` has just run.
+pub fn stamp_planned(scene: &Scene, p: &PlannedStep) -> Result<()> {
+    write_stamp(scene, &p.step.name, &p.stamp)
+}
+
+fn write_stamp(scene: &Scene, name: &str, stamp: &Stamp) -> Result<()> {
+    let dir = steps_dir(scene);
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    let path = stamp_path(&dir, name);
+    let mut f = AtomicFile::create(&path)?;
+    let text = serde_json::to_string_pretty(stamp).expect("a stamp serialises");
+    writeln!(f.writer(), "{text}").map_err(|e| Error::io(&path, e))?;
+    f.commit()
 }
 
 #[cfg(test)]
