@@ -111,20 +111,7 @@ pub fn place_all(
     };
     let heights = placements
         .iter()
-        .map(|p| {
-            require_inside(db, p.x, p.y)?;
-            match (p.z, &ground) {
-                (Some(z), _) => require_near_terrain(db, z),
-                (None, Some(dem)) => ground_height(dem, p.x, p.y).ok_or_else(|| {
-                    Error::file(
-                        &db.dir,
-                        format!("no terrain height at {},{} (nodata)", p.x, p.y),
-                    )
-                    .fix("give the height as --at X,Y,Z")
-                }),
-                (None, None) => unreachable!("the terrain is read when a height is missing"),
-            }
-        })
+        .map(|p| anchor_height(db, ground.as_ref(), p.x, p.y, p.z))
         .collect::<Result<Vec<f64>>>()?;
     let mut files: BTreeMap<&Path, String> = BTreeMap::new();
     for (path, (sha256, _)) in &objects {
@@ -187,14 +174,11 @@ pub fn move_to(
     let mut change = Database::begin(dir, wait)?;
     let db = &mut change.db;
     let k = position_of(db, id)?;
-    require_inside(db, x, y)?;
-    let z = match z {
-        Some(z) => require_near_terrain(db, z)?,
-        None => ground_height(&db.read_elevation()?, x, y).ok_or_else(|| {
-            Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)"))
-                .fix("give the height as --at X,Y,Z")
-        })?,
+    let ground = match z {
+        Some(_) => None,
+        None => Some(db.read_elevation()?),
     };
+    let z = anchor_height(db, ground.as_ref(), x, y, z)?;
     let o = &mut db.manifest.objects[k];
     (o.x, o.y, o.z) = (x, y, z);
     if let Some(h) = heading_deg {
@@ -240,6 +224,26 @@ fn require_projected(db: &Database) -> Result<()> {
         .fix("ingest onto a projected CRS (e.g. UTM)"));
     }
     Ok(())
+}
+
+/// The anchor's height at `(x, y)` inside the database: `z` when given and near the terrain,
+/// else the terrain's (`ground`, read by the caller whenever `z` is `None`).
+fn anchor_height(
+    db: &Database,
+    ground: Option<&Elevation>,
+    x: f64,
+    y: f64,
+    z: Option<f64>,
+) -> Result<f64> {
+    require_inside(db, x, y)?;
+    match (z, ground) {
+        (Some(z), _) => require_near_terrain(db, z),
+        (None, Some(dem)) => ground_height(dem, x, y).ok_or_else(|| {
+            Error::file(&db.dir, format!("no terrain height at {x},{y} (nodata)"))
+                .fix("give the height as --at X,Y,Z")
+        }),
+        (None, None) => unreachable!("the terrain is read when a height is missing"),
+    }
 }
 
 fn require_inside(db: &Database, x: f64, y: f64) -> Result<()> {
