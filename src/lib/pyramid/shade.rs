@@ -112,9 +112,9 @@ pub fn prepare<'a>(
 ) -> Result<Option<Effects<'a>>> {
     let Some(sun) = sun else { return Ok(None) };
     same_size(terrain.grid(), colour.grid())?;
-    let same_sun = photo_sun.is_some_and(|p| same(&p, &sun));
-    let nothing_unseen = buildings.is_empty() && objects.is_empty();
-    if same_sun && nothing_unseen {
+    let seen = situation(Some(sun), photo_sun, buildings, objects);
+    let same_sun = seen.same_sun;
+    if same_sun && !seen.buildings && !seen.objects {
         // The photo holds every shadow and all shading for this sun: nothing to do.
         return Ok(None);
     }
@@ -138,7 +138,7 @@ pub fn prepare<'a>(
         true => Some(detected::detect(colour, buildings)?),
         false => None,
     };
-    let (applied, skipped) = effects::decide(&situation(Some(sun), photo_sun, buildings, objects));
+    let (applied, skipped) = effects::decide(&seen);
     let mut fx = Effects {
         s: sun.direction_enu(),
         sun,
