@@ -357,15 +357,7 @@ impl<const N: usize> Tolerant<N> {
         }
         // The nearest crossing, and every axis the ray meets a boundary of at that time.
         let times = self.next_times;
-        let (m, t_out) =
-            times
-                .iter()
-                .copied()
-                .enumerate()
-                .fold(
-                    (0, f64::INFINITY),
-                    |best, (a, t)| if t < best.1 { (a, t) } else { best },
-                );
+        let (m, t_out) = nearest(&times);
         let here = Visit {
             cell: self.cell,
             t_in: self.t_in,
@@ -396,6 +388,19 @@ impl<const N: usize> Tolerant<N> {
         self.t_in = t_out;
         Some(here)
     }
+}
+
+/// The axis of the nearest crossing among `times` (the first of equals) and its time; `+∞`
+/// (axis 0) when the ray crosses nothing.
+#[inline]
+fn nearest<const N: usize>(times: &[f64; N]) -> (usize, f64) {
+    let mut best = (0, f64::INFINITY);
+    for (a, &t) in times.iter().enumerate() {
+        if t < best.1 {
+            best = (a, t);
+        }
+    }
+    best
 }
 
 /// The next boundary (in the caller's cells) along an axis from `cell` of cells `scale` wide,
@@ -513,12 +518,7 @@ impl<const N: usize> Iterator for ExactWalk<N> {
         if self.done {
             return None;
         }
-        let mut t_out = f64::INFINITY;
-        for &t in &self.next_times {
-            if t < t_out {
-                t_out = t;
-            }
-        }
+        let (_, t_out) = nearest(&self.next_times);
         let here = Visit {
             cell: self.cell,
             t_in: self.t_in,
