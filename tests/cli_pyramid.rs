@@ -283,6 +283,7 @@ fn placed_voxel_objects_are_merged_with_partial_cells_for_overhangs() {
         y: 5_299_980.5,
         z: 201.0,
         heading_deg: 0.0,
+        scale: 1.0,
     });
     db.save().unwrap();
     let out = dir.path().join("t.dbt");
@@ -594,6 +595,7 @@ fn arch_db(dir: &Path, with_arch: bool) -> Database {
             y: 5_299_980.5,
             z: 201.0,
             heading_deg: 0.0,
+            scale: 1.0,
         });
         db.save().unwrap();
     }

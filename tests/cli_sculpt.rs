@@ -1063,3 +1063,92 @@ fn placements_in_bulk_have_stable_ids_and_can_be_moved_or_removed() {
     );
     assert_eq!(std::fs::read(bulk.join("manifest.json")).unwrap(), before);
 }
+
+/// `--scale` sizes an object about its anchor: twice the scale stands twice as tall over four
+/// times the cells; `--move --scale` changes it, and the manifest keeps it.
+#[test]
+fn a_placement_scales_its_object_about_the_anchor() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = database(dir.path());
+    let b = db.to_str().unwrap();
+    let tree = dir.path().join("tree.dvox");
+    let t = tree.to_str().unwrap();
+    let cone = [
+        "object", "cone", "--height", "6", "--radius", "2", "--voxel", "0.5",
+    ];
+    assert!(run(&[&cone[..], &["--seed", "3", "-o", t]].concat()).0);
+    // Height over the ground and raised cells of the database's one placement.
+    let measure = || -> (f64, u64) {
+        let out = dir.path().join("t.dbt");
+        let (ok, summary, err) =
+            run(&["--json", "pyramid", "--db", b, "-o", out.to_str().unwrap()]);
+        assert!(ok, "{err}");
+        let summary: Value = serde_json::from_str(&summary).unwrap();
+        let r = dbms::tiles::TileReader::open(&out, 8).unwrap();
+        // The tip stands over the anchor, the corner of cells 9 and 10 of rows 4 and 5.
+        let mut max = f64::MIN;
+        for (col, row) in [(9, 4), (10, 4), (9, 5), (10, 5)] {
+            max = max.max(r.cell(0, col, row).unwrap().unwrap().max_z as f64);
+        }
+        let m: Value =
+            serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+        let z = m["objects"][0]["z"].as_f64().unwrap();
+        (max - z, summary["object_cells"].as_u64().unwrap())
+    };
+    let (ok, out, err) = run(&[
+        "--json",
+        "place",
+        "--db",
+        b,
+        "--object",
+        t,
+        "--at",
+        "500010,5299995",
+    ]);
+    assert!(ok, "{err}");
+    let id = serde_json::from_str::<Value>(&out).unwrap()["id"]
+        .as_u64()
+        .unwrap()
+        .to_string();
+    let (height, cells) = measure();
+    assert!(height > 4.0 && height <= 6.0 + 1e-3, "{height}");
+    let (ok, out, err) = run(&[
+        "--json",
+        "place",
+        "--db",
+        b,
+        "--move",
+        &id,
+        "--at",
+        "500010,5299995",
+        "--scale",
+        "2",
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(serde_json::from_str::<Value>(&out).unwrap()["scale"], 2.0);
+    let (height2, cells2) = measure();
+    assert!(
+        (height2 - 2.0 * height).abs() < 1e-3,
+        "{height} → {height2}"
+    );
+    let ratio = cells2 as f64 / cells as f64;
+    assert!((3.5..4.5).contains(&ratio), "{cells} → {cells2} cells");
+    let (ok, _, err) = run(&["info", "--verify", b]);
+    assert!(ok, "{err}");
+
+    let (ok, _, err) = run(&[
+        "place",
+        "--db",
+        b,
+        "--object",
+        t,
+        "--at",
+        "500010,5299995",
+        "--scale",
+        "0",
+    ]);
+    assert!(
+        !ok && err.contains("scale 0") && err.trim_end().lines().count() == 1,
+        "{err}"
+    );
+}

@@ -225,6 +225,7 @@ fn placed_objects_cast_shadows_unless_terrain_only() {
         y: 5_300_000.0 - 25.5,
         z: 100.0,
         heading_deg: 0.0,
+        scale: 1.0,
     });
     db.save().unwrap();
 

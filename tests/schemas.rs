@@ -73,12 +73,44 @@ fn ingest_manifest_matches_its_schema() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // With a scaled placement in it.
+    let tree = t.path().join("tree.dvox");
+    let (tree, db_arg) = (tree.to_str().unwrap(), db.to_str().unwrap());
+    let cone = [
+        "object", "cone", "--height", "2", "--radius", "1", "--voxel", "0.5", "-o", tree,
+    ];
+    let place = [
+        "place",
+        "--db",
+        db_arg,
+        "--object",
+        tree,
+        "--at",
+        "500010,5299995",
+        "--scale",
+        "1.5",
+    ];
+    for args in [&cone[..], &place[..]] {
+        let out = Command::new(env!("CARGO_BIN_EXE_dbms"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["objects"][0]["scale"], 1.5);
     assert_valid(&schema("manifest.schema.json"), &manifest, "manifest.json");
     // And a broken manifest is caught: the schema is not vacuous.
     let mut bad = manifest.clone();
     bad["layers"]["elevation"]["sha256"] = serde_json::json!("not-a-hash");
+    assert!(!schema("manifest.schema.json").is_valid(&bad));
+    let mut bad = manifest.clone();
+    bad["objects"][0]["scale"] = serde_json::json!(0);
     assert!(!schema("manifest.schema.json").is_valid(&bad));
 }
 
@@ -155,6 +187,13 @@ fn scene_files_match_their_schema() {
             "day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"\nsun = { elevation = 30, azimuth = 100 }\n",
         ),
         text.replace("version = 1", "version = 2"),
+        text.replace("heading = 50", "heading = 50\nscale = 0"),
+        text.replace("heading = 50", "heading = 50\nseed = 4"),
+        text.replace("heading = 50", "heading = 50\npoints = \"trees.geojson\""),
+        text.replace(
+            "at = [500066, 5300130]\nheading = 50",
+            "points = \"trees.geojson\"\nheading = 50",
+        ),
     ];
     for b in &bad {
         assert_ne!(b, &text, "each bad document changes the sample");

@@ -135,6 +135,18 @@ pub struct PlacedObject {
     pub z: f64,
     /// Rotation about the vertical axis, degrees clockwise from north (0 = object's +y points north).
     pub heading_deg: f64,
+    /// Size factor about the anchor (> 0): voxel edge and every voxel's offset from the anchor
+    /// times this. 1 (the default) is left out of the manifest.
+    #[serde(default = "unit_scale", skip_serializing_if = "is_unit_scale")]
+    pub scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+fn is_unit_scale(v: &f64) -> bool {
+    *v == 1.0
 }
 
 /// Inputs and tool that made the database.

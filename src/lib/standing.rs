@@ -409,21 +409,24 @@ pub struct PlacedVoxels {
 }
 
 /// A placed object's voxels relative to its anchor (the centre of its grid's bottom face, which
-/// `dbms place` puts at the placement point): local centres in metres, world origin in CRS
-/// units with z in metres.
+/// `dbms place` puts at the placement point), scaled about it by the placement's `scale`:
+/// local centres in metres, world origin in CRS units with z in metres.
 pub fn placed_voxels(obj: &VoxelObject, placed: &PlacedObject) -> PlacedVoxels {
-    let a = obj.anchor();
+    let (a, k) = (obj.anchor(), placed.scale);
     let voxels = obj
         .voxels()
         .map(|([x, y, z], rgb)| {
             let c = obj.grid.centre(x, y, z);
-            ([c[0] - a[0], c[1] - a[1], c[2] - a[2]], rgb)
+            (
+                [(c[0] - a[0]) * k, (c[1] - a[1]) * k, (c[2] - a[2]) * k],
+                rgb,
+            )
         })
         .collect();
     PlacedVoxels {
         origin: [placed.x, placed.y, placed.z],
         heading_deg: placed.heading_deg,
-        voxel_size: obj.grid.voxel_size,
+        voxel_size: obj.grid.voxel_size * k,
         voxels,
     }
 }

@@ -95,11 +95,15 @@ impl std::fmt::Display for DatabaseInfo<'_> {
         if !m.objects.is_empty() {
             writeln!(f, "objects:")?;
             for o in &m.objects {
-                writeln!(
+                write!(
                     f,
-                    "  {} at ({}, {}, {}) heading {} deg",
-                    o.file, o.x, o.y, o.z, o.heading_deg
+                    "  {}: {} at ({}, {}, {}) heading {} deg",
+                    o.id, o.file, o.x, o.y, o.z, o.heading_deg
                 )?;
+                match o.scale {
+                    1.0 => writeln!(f)?,
+                    k => writeln!(f, " scale {k}")?,
+                }
             }
         }
         write!(f, "stages: {}", self.stages.join(", "))?;

@@ -1,7 +1,7 @@
 //! `dbms place`: put a voxel object into a database.
 
 use super::Ctx;
-use dbms::voxel::place::{move_to, place, place_all, read_points, remove};
+use dbms::voxel::place::{move_to, place_all, read_points, remove, Placement, Variation};
 use std::path::PathBuf;
 
 /// Place a voxel object in a database, recorded in the manifest for the pyramid stage.
@@ -20,12 +20,24 @@ pub struct Args {
     /// Rotation about the vertical, degrees clockwise from north.
     #[arg(long, allow_hyphen_values = true)]
     heading: Option<f64>,
+    /// Size factor about the anchor (2: twice as large); with --move, the new one.
+    #[arg(long)]
+    scale: Option<f64>,
     /// Place one object per Point of this GeoJSON FeatureCollection (properties: `object`, a
-    /// path relative to the file; `heading`, degrees), all in one change.
-    #[arg(long, value_name = "FILE.geojson", conflicts_with_all = ["at", "heading", "remove", "move_id"])]
+    /// path relative to the file; `heading`, degrees; `scale`), all in one change.
+    #[arg(long, value_name = "FILE.geojson", conflicts_with_all = ["at", "heading", "scale", "remove", "move_id"])]
     points: Option<PathBuf>,
+    /// With --points: points without a `heading` get a random one (seeded by --seed).
+    #[arg(long, requires = "points")]
+    random_heading: bool,
+    /// With --points: points without a `scale` get one uniform in MIN..MAX (seeded by --seed).
+    #[arg(long, value_name = "MIN,MAX", requires = "points")]
+    scale_range: Option<String>,
+    /// Seed of --random-heading and --scale-range: same seed and points, same placements.
+    #[arg(long, default_value_t = 0, requires = "points")]
+    seed: u64,
     /// Remove placement ID (ids: `dbms info DB --json`).
-    #[arg(long, value_name = "ID", conflicts_with_all = ["object", "at", "heading", "move_id"])]
+    #[arg(long, value_name = "ID", conflicts_with_all = ["object", "at", "heading", "scale", "move_id"])]
     remove: Option<u64>,
     /// Move placement ID to --at (and turn it to --heading when given).
     #[arg(
@@ -35,6 +47,22 @@ pub struct Args {
         conflicts_with = "object"
     )]
     move_id: Option<u64>,
+}
+
+/// `--scale-range MIN,MAX` as numbers.
+fn parse_range(range: &str) -> dbms::Result<(f64, f64)> {
+    match range
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<Vec<f64>, _>>()
+        .as_deref()
+    {
+        Ok(&[lo, hi]) => Ok((lo, hi)),
+        _ => Err(
+            dbms::Error::msg(format!("--scale-range {range}: expected MIN,MAX"))
+                .fix("e.g. --scale-range 0.8,1.25"),
+        ),
+    }
 }
 
 /// `--at X,Y[,Z]` as numbers.
@@ -58,11 +86,23 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     } else if let Some(id) = args.move_id {
         let at = parse_at(args.at.as_deref().expect("clap requires --at"))?;
         (
-            vec![move_to(&args.db, ctx.wait, id, at, args.heading)?],
+            vec![move_to(
+                &args.db,
+                ctx.wait,
+                id,
+                at,
+                args.heading,
+                args.scale,
+            )?],
             "moved",
         )
     } else if let Some(points) = &args.points {
-        let placements = read_points(points, args.object.as_deref())?;
+        let vary = Variation {
+            seed: args.seed,
+            random_heading: args.random_heading,
+            scale_range: args.scale_range.as_deref().map(parse_range).transpose()?,
+        };
+        let placements = read_points(points, args.object.as_deref(), &vary)?;
         let progress = ctx.progress(placements.len() as u64, "placements");
         let placed = place_all(&args.db, ctx.wait, &placements)?;
         progress.inc(placed.len() as u64);
@@ -76,11 +116,15 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             .fix("see dbms place --help"));
         };
         let (x, y, z) = parse_at(at)?;
-        let heading = args.heading.unwrap_or(0.0);
-        (
-            vec![place(&args.db, ctx.wait, object, x, y, z, heading)?],
-            "placed",
-        )
+        let one = Placement {
+            object: object.clone(),
+            x,
+            y,
+            z,
+            heading_deg: args.heading.unwrap_or(0.0),
+            scale: args.scale.unwrap_or(1.0),
+        };
+        (place_all(&args.db, ctx.wait, &[one])?, "placed")
     };
     ctx.report(&Placed {
         objects,
@@ -121,7 +165,7 @@ impl std::fmt::Display for Placed {
         match self.objects.as_slice() {
             [p] => write!(
                 f,
-                "{} {} (placement {}) at ({}, {}, {}) heading {} deg in {}",
+                "{} {} (placement {}) at ({}, {}, {}) heading {} deg{} in {}",
                 self.action,
                 p.file,
                 p.id,
@@ -129,6 +173,10 @@ impl std::fmt::Display for Placed {
                 p.y,
                 p.z,
                 p.heading_deg,
+                match p.scale {
+                    1.0 => String::new(),
+                    k => format!(" scale {k}"),
+                },
                 self.db.display()
             ),
             many => write!(

@@ -3,7 +3,8 @@
 //! # Rules
 //! * The object's **anchor** (centre of the bottom face of its grid, [`VoxelObject::anchor`])
 //!   goes to world `(x, y, z)`; the object turns about the vertical through the anchor by
-//!   `heading` degrees clockwise seen from above (0 = the object's +y stays north).
+//!   `heading` degrees clockwise seen from above (0 = the object's +y stays north), and is
+//!   sized about the anchor by `scale` (> 0; the voxel edge and every voxel's offset times it).
 //! * `z` is the given absolute height, or else the terrain height at `(x, y)`: bilinear between
 //!   the four nearest elevation cell centres (clamped at the grid edge); nodata there is an error.
 //! * A given `z` must lie within [`Z_MARGIN_M`] of the terrain's range (its lowest and highest
@@ -44,7 +45,8 @@ pub fn ground_height(dem: &Elevation, x: f64, y: f64) -> Option<f64> {
 }
 
 /// One object to place: its file, where its anchor goes (`x`, `y` in the database CRS; `z`
-/// absolute metres, or the ground's when `None`) and its heading (degrees clockwise from north).
+/// absolute metres, or the ground's when `None`), its heading (degrees clockwise from north)
+/// and its size factor about the anchor.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Placement {
     /// The voxel object file (.dvox).
@@ -57,29 +59,8 @@ pub struct Placement {
     pub z: Option<f64>,
     /// Degrees clockwise from north.
     pub heading_deg: f64,
-}
-
-/// Place the object at `object_path` in the database in `dir` with its anchor at `(x, y)` and
-/// height `z` (absolute metres, or the ground's when `None`), turned by `heading_deg`: one
-/// change under the database's lock (waiting up to `wait` for it), so placements made at the
-/// same time are all kept.
-pub fn place(
-    dir: &Path,
-    wait: std::time::Duration,
-    object_path: &Path,
-    x: f64,
-    y: f64,
-    z: Option<f64>,
-    heading_deg: f64,
-) -> Result<PlacedObject> {
-    let one = Placement {
-        object: object_path.to_path_buf(),
-        x,
-        y,
-        z,
-        heading_deg,
-    };
-    Ok(place_all(dir, wait, std::slice::from_ref(&one))?.remove(0))
+    /// Size factor about the anchor, > 0 (1: the object as made).
+    pub scale: f64,
 }
 
 /// Place every one of `placements` in the database in `dir` in one change under its lock: all
@@ -93,6 +74,7 @@ pub fn place_all(
 ) -> Result<Vec<PlacedObject>> {
     for p in placements {
         check_finite(p.x, p.y, p.z, p.heading_deg)?;
+        check_scale(p.scale)?;
     }
     let mut change = Database::begin(dir, wait)?;
     require_projected(&change.db)?;
@@ -128,6 +110,7 @@ pub fn place_all(
             y: p.y,
             z,
             heading_deg: p.heading_deg.rem_euclid(360.0),
+            scale: p.scale,
         };
         db.manifest.objects.push(object.clone());
         placed.push(object);
@@ -135,7 +118,8 @@ pub fn place_all(
     let params = match placed.as_slice() {
         [one] => serde_json::json!({
             "id": one.id, "object": one.file, "x": one.x, "y": one.y, "z": one.z,
-            "heading_deg": one.heading_deg, "voxels": objects[placements[0].object.as_path()].1,
+            "heading_deg": one.heading_deg, "scale": one.scale,
+            "voxels": objects[placements[0].object.as_path()].1,
         }),
         many => serde_json::json!({
             "placements": many.len(),
@@ -161,16 +145,18 @@ pub fn remove(dir: &Path, wait: std::time::Duration, id: u64) -> Result<PlacedOb
 }
 
 /// Move placement `id` of the database in `dir` to `(x, y)` and height `z` (absolute metres, or
-/// the ground's when `None`), keeping its id, object and heading (or `heading_deg` when
-/// given); returns it as moved.
+/// the ground's when `None`), keeping its id, object, heading and scale (or `heading_deg` and
+/// `scale` when given); returns it as moved.
 pub fn move_to(
     dir: &Path,
     wait: std::time::Duration,
     id: u64,
     (x, y, z): (f64, f64, Option<f64>),
     heading_deg: Option<f64>,
+    scale: Option<f64>,
 ) -> Result<PlacedObject> {
     check_finite(x, y, z, heading_deg.unwrap_or(0.0))?;
+    scale.map(check_scale).transpose()?;
     let mut change = Database::begin(dir, wait)?;
     let db = &mut change.db;
     let k = position_of(db, id)?;
@@ -184,10 +170,16 @@ pub fn move_to(
     if let Some(h) = heading_deg {
         o.heading_deg = h.rem_euclid(360.0);
     }
+    if let Some(k) = scale {
+        o.scale = k;
+    }
     let moved = o.clone();
     db.record_stage(Stage::now(
         "place",
-        serde_json::json!({ "moved": id, "x": x, "y": y, "z": z, "heading_deg": moved.heading_deg }),
+        serde_json::json!({
+            "moved": id, "x": x, "y": y, "z": z,
+            "heading_deg": moved.heading_deg, "scale": moved.scale,
+        }),
     ));
     change.commit()?;
     Ok(moved)
@@ -212,6 +204,18 @@ fn check_finite(x: f64, y: f64, z: Option<f64>, heading_deg: f64) -> Result<()> 
     } else {
         Err(Error::msg("--at and --heading must be finite numbers")
             .fix("e.g. --at 500120.5,5000340,0 --heading 30"))
+    }
+}
+
+/// A size factor must be a positive finite number.
+fn check_scale(scale: f64) -> Result<()> {
+    if scale.is_finite() && scale > 0.0 {
+        Ok(())
+    } else {
+        Err(
+            Error::msg(format!("scale {scale}: must be a positive number"))
+                .fix("1 places the object as made, 2 twice as large"),
+        )
     }
 }
 
@@ -277,12 +281,82 @@ fn store_object(change: &mut Change, path: &Path, sha256: &str) -> Result<String
     Ok(file)
 }
 
+/// Seeded variation of the placements read from a point layer ([`read_points`]), for the
+/// features that do not set the property themselves. A feature's draws depend only on the
+/// seed and its position in the file ([`uniform`]): same seed and file, same placements.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Variation {
+    /// Seed of the per-feature random numbers.
+    pub seed: u64,
+    /// Features without a `heading` get one uniform in [0, 360) degrees (else 0).
+    pub random_heading: bool,
+    /// Features without a `scale` get one uniform in `[min, max]` (else 1).
+    pub scale_range: Option<(f64, f64)>,
+}
+
+impl Variation {
+    /// No variation: heading 0 and scale 1 where a feature gives none.
+    pub const NONE: Variation = Variation {
+        seed: 0,
+        random_heading: false,
+        scale_range: None,
+    };
+
+    /// An error unless the scale range is `0 < min <= max`, both finite.
+    pub fn check(&self) -> Result<()> {
+        match self.scale_range {
+            Some((lo, hi)) if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) => {
+                Err(Error::msg(format!(
+                    "--scale-range {lo},{hi}: must be two positive numbers, the smaller first"
+                ))
+                .fix("e.g. --scale-range 0.8,1.25"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The heading (degrees) and scale of feature `index` when it gives neither.
+    fn draw(&self, index: u64) -> (f64, f64) {
+        let heading = match self.random_heading {
+            true => 360.0 * uniform(self.seed, index, 0),
+            false => 0.0,
+        };
+        let scale = match self.scale_range {
+            Some((lo, hi)) => lo + (hi - lo) * uniform(self.seed, index, 1),
+            None => 1.0,
+        };
+        (heading, scale)
+    }
+}
+
+/// A number uniform in [0, 1) for draw `draw` of feature `index` under `seed`: the SplitMix64
+/// finaliser (Steele, Lea & Flood, OOPSLA 2014) chained over the three, top 53 bits. A pure
+/// function, so a feature's draws do not depend on the others or the order they are made in,
+/// and the same on every platform and dbms version (a generator crate's streams may change).
+pub fn uniform(seed: u64, index: u64, draw: u64) -> f64 {
+    let z = splitmix64(splitmix64(splitmix64(seed) ^ index) ^ draw);
+    (z >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// The SplitMix64 output for state `z` (the state advanced by the golden gamma, then mixed).
+fn splitmix64(z: u64) -> u64 {
+    let z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    let z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 /// The placements of a GeoJSON FeatureCollection of Points (`[x, y]` or `[x, y, z]` in the
-/// database CRS): each feature's object is its `object` property (a path relative to the
-/// GeoJSON file) or `default_object`, its heading the `heading` property (degrees, default 0).
-pub fn read_points(path: &Path, default_object: Option<&Path>) -> Result<Vec<Placement>> {
-    let fix =
-        "give a FeatureCollection of Point features with optional object and heading properties";
+/// database CRS). Per feature: its object is its `object` property (a path relative to the
+/// GeoJSON file) or `default_object`; its `heading` (degrees) and `scale` (> 0) properties, or
+/// else what `vary` draws for it.
+pub fn read_points(
+    path: &Path,
+    default_object: Option<&Path>,
+    vary: &Variation,
+) -> Result<Vec<Placement>> {
+    vary.check()?;
+    let fix = "give a FeatureCollection of Point features with optional object, heading and scale properties";
     let features = crate::geojson::read_features(path, fix)?;
     let base = path.parent().unwrap_or(Path::new(""));
     features
@@ -305,16 +379,25 @@ pub fn read_points(path: &Path, default_object: Option<&Path>) -> Result<Vec<Pla
                     .ok_or_else(|| bad("no object property, and no --object given"))?
                     .to_path_buf(),
             };
-            let heading_deg = match f.pointer("/properties/heading") {
-                Some(h) => h.as_f64().ok_or_else(|| bad("heading is not a number"))?,
-                None => 0.0,
+            let number = |name: &str| match f.pointer(&format!("/properties/{name}")) {
+                Some(h) => h
+                    .as_f64()
+                    .map(Some)
+                    .ok_or_else(|| bad(&format!("{name} is not a number"))),
+                None => Ok(None),
             };
+            let (heading, scale) = vary.draw(i as u64);
+            let scale = number("scale")?.unwrap_or(scale);
+            if !(scale.is_finite() && scale > 0.0) {
+                return Err(bad(&format!("scale {scale} is not a positive number")));
+            }
             Ok(Placement {
                 object,
                 x: v[0],
                 y: v[1],
                 z: v.get(2).copied(),
-                heading_deg,
+                heading_deg: number("heading")?.unwrap_or(heading),
+                scale,
             })
         })
         .collect()
@@ -365,5 +448,131 @@ mod tests {
         let mut holes = dem.clone();
         holes.data[1] = f32::NAN;
         assert_eq!(ground_height(&holes, 1010.0, 1990.0), None);
+    }
+
+    #[test]
+    fn splitmix64_matches_the_reference_generator() {
+        // The first outputs of Vigna's splitmix64.c seeded with 0 (its state advances by the
+        // gamma before each output).
+        assert_eq!(splitmix64(0), 0xE220_A839_7B1D_CDAF);
+        assert_eq!(splitmix64(0x9E37_79B9_7F4A_7C15), 0x6E78_9E6A_A1B9_65F4);
+    }
+
+    #[test]
+    fn uniform_draws_are_pure_in_range_and_even() {
+        let n = 100_000;
+        let draws: Vec<f64> = (0..n).map(|i| uniform(7, i, 0)).collect();
+        assert!(draws.iter().all(|u| (0.0..1.0).contains(u)));
+        let mean = draws.iter().sum::<f64>() / n as f64;
+        assert!((mean - 0.5).abs() < 0.005, "mean {mean}");
+        // Ten bins each within 5 % of n / 10.
+        let mut bins = [0usize; 10];
+        for u in &draws {
+            bins[(u * 10.0) as usize] += 1;
+        }
+        assert!(
+            bins.iter().all(|&b| b.abs_diff(n as usize / 10) < 500),
+            "{bins:?}"
+        );
+        assert_eq!(uniform(7, 3, 0), draws[3]);
+        assert_ne!(uniform(7, 3, 1), draws[3], "draws of one feature differ");
+        assert_ne!(uniform(8, 3, 0), draws[3], "seeds differ");
+    }
+
+    fn points_file(dir: &Path, features: &[serde_json::Value]) -> PathBuf {
+        let path = dir.join("points.geojson");
+        let fc = serde_json::json!({"type": "FeatureCollection", "features": features});
+        std::fs::write(&path, fc.to_string()).unwrap();
+        path
+    }
+
+    fn point(x: f64, properties: serde_json::Value) -> serde_json::Value {
+        serde_json::json!({"type": "Feature", "geometry": {"type": "Point", "coordinates": [x, 0.0]}, "properties": properties})
+    }
+
+    #[test]
+    fn point_layers_vary_by_seed_and_features_keep_their_own_values() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut features: Vec<_> = (0..500)
+            .map(|i| point(i as f64, serde_json::json!({})))
+            .collect();
+        features[10] = point(10.0, serde_json::json!({"heading": 33.0, "scale": 3.0}));
+        let path = points_file(dir.path(), &features);
+        let tree = Path::new("tree.dvox");
+        let vary = |seed| Variation {
+            seed,
+            random_heading: true,
+            scale_range: Some((0.5, 2.0)),
+        };
+        let a = read_points(&path, Some(tree), &vary(7)).unwrap();
+        assert_eq!(
+            a,
+            read_points(&path, Some(tree), &vary(7)).unwrap(),
+            "same seed, same placements"
+        );
+        let b = read_points(&path, Some(tree), &vary(8)).unwrap();
+        assert!(
+            a.iter().zip(&b).filter(|(a, b)| a != b).count() > 490,
+            "another seed, others"
+        );
+        assert_eq!(
+            (a[10].heading_deg, a[10].scale),
+            (33.0, 3.0),
+            "the feature's own values win"
+        );
+        assert!(a.iter().all(|p| (0.0..360.0).contains(&p.heading_deg)));
+        let scales: Vec<f64> = a
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != 10)
+            .map(|(_, p)| p.scale)
+            .collect();
+        assert!(scales.iter().all(|k| (0.5..=2.0).contains(k)));
+        let (lo, hi) = scales
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(lo, hi), &k| (lo.min(k), hi.max(k)));
+        assert!(
+            lo < 0.55 && hi > 1.95,
+            "the whole range is drawn: {lo}..{hi}"
+        );
+        let none = read_points(&path, Some(tree), &Variation::NONE).unwrap();
+        assert!(none
+            .iter()
+            .enumerate()
+            .all(|(i, p)| i == 10 || (p.heading_deg, p.scale) == (0.0, 1.0)));
+    }
+
+    #[test]
+    fn bad_scales_are_one_line_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = points_file(
+            dir.path(),
+            &[point(0.0, serde_json::json!({"scale": -1.0}))],
+        );
+        let e = read_points(&path, Some(Path::new("t.dvox")), &Variation::NONE)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("feature 0") && e.contains("scale -1"), "{e}");
+        let path = points_file(
+            dir.path(),
+            &[point(0.0, serde_json::json!({"scale": "big"}))],
+        );
+        let e = read_points(&path, Some(Path::new("t.dvox")), &Variation::NONE)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("scale is not a number"), "{e}");
+        for range in [(2.0, 1.0), (0.0, 1.0), (1.0, f64::INFINITY)] {
+            let vary = Variation {
+                scale_range: Some(range),
+                ..Variation::NONE
+            };
+            let e = read_points(&path, Some(Path::new("t.dvox")), &vary)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("--scale-range") && e.lines().count() == 1, "{e}");
+        }
+        assert!(
+            check_scale(0.0).is_err() && check_scale(f64::NAN).is_err() && check_scale(0.5).is_ok()
+        );
     }
 }
