@@ -303,3 +303,118 @@ fn build_runs_what_is_out_of_date_and_names_a_failing_step() {
     let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
     assert!(plan.contains("product.day  runs"), "{plan}");
 }
+
+/// A placement by point layer places one object per point with the seeded variation the
+/// command gives, and the point layer is an input: editing it rebuilds the placements.
+#[test]
+fn a_point_layer_placement_varies_by_seed_and_its_file_is_an_input() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let points = |xs: &[f64]| {
+        let features: Vec<serde_json::Value> = xs
+            .iter()
+            .map(|x| serde_json::json!({"type": "Feature", "geometry": {"type": "Point", "coordinates": [x, 5300030.0]}, "properties": {}}))
+            .collect();
+        let fc = serde_json::json!({"type": "FeatureCollection", "features": features});
+        std::fs::write(dir.join("trees.geojson"), fc.to_string()).unwrap();
+    };
+    points(&[500030.0, 500040.0, 500050.0]);
+    let text = scene_toml(0.0).replace(
+        "at = [500030, 5300030]\nheading = 0\n",
+        "points = \"trees.geojson\"\nrandom_heading = true\nscale_range = [0.5, 1.5]\nseed = 9\n",
+    );
+    assert_ne!(text, scene_toml(0.0));
+    std::fs::write(dir.join("scene.toml"), &text).unwrap();
+    ok(dbms_in(dir, &["-q", "build", "scene.toml"]), "build");
+    let placed = |db: &str| -> Vec<(f64, f64)> {
+        let m: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join(db).join("manifest.json")).unwrap())
+                .unwrap();
+        m["objects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|o| {
+                (
+                    o["heading_deg"].as_f64().unwrap(),
+                    o["scale"].as_f64().unwrap_or(1.0),
+                )
+            })
+            .collect()
+    };
+    let built = placed("build/db");
+    assert_eq!(built.len(), 4, "three points and one tree at a place");
+    assert!(
+        built[..3]
+            .iter()
+            .all(|&(h, k)| h != 0.0 && (0.5..=1.5).contains(&k)),
+        "{built:?}"
+    );
+    assert_eq!(built[3], (0.0, 1.0));
+
+    // The command on its own draws the same.
+    let run = |args: &[&str]| ok(dbms_in(dir, args), &args.join(" "));
+    run(&[
+        "-q",
+        "ingest",
+        "--dem",
+        "scene/dem.tif",
+        "--ortho",
+        "scene/ortho.tif",
+        "-o",
+        "manual",
+    ]);
+    run(&[
+        "-q",
+        "object",
+        "cone",
+        "--height",
+        "10",
+        "--radius",
+        "2.5",
+        "--voxel",
+        "0.5",
+        "--seed",
+        "1",
+        "--vary",
+        "0.2",
+        "-o",
+        "tree.dvox",
+    ]);
+    run(&[
+        "-q",
+        "place",
+        "--db",
+        "manual",
+        "--object",
+        "tree.dvox",
+        "--points",
+        "trees.geojson",
+        "--random-heading",
+        "--scale-range",
+        "0.5,1.5",
+        "--seed",
+        "9",
+    ]);
+    assert_eq!(placed("manual"), built[..3]);
+
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
+    points(&[500030.0, 500040.0]);
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(dbms_in(dir, &["--json", "plan", "scene.toml"]), "plan")).unwrap();
+    let place = json["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "place")
+        .unwrap();
+    assert_eq!(place["up_to_date"], false);
+    assert!(
+        place["why"][0]
+            .as_str()
+            .unwrap()
+            .contains("trees.geojson changed"),
+        "{place}"
+    );
+}

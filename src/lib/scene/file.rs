@@ -111,17 +111,103 @@ fn default_vary() -> f64 {
     0.2
 }
 
-/// `[[placements]]`: one object stood on the terrain.
+/// `[[placements]]`: one object stood on the terrain at `at`, or one per point of a GeoJSON
+/// point layer `points` (exactly one of the two).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Placement {
-    /// The name of an object in `[objects]`.
+    /// The name of an object in `[objects]` (with `points`: for points without an `object`).
     pub object: String,
     /// Where its origin goes, `[x, y]` in the database CRS.
-    pub at: [f64; 2],
-    /// Rotation clockwise from grid north, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub at: Option<[f64; 2]>,
+    /// Rotation clockwise from grid north, degrees (with `at`).
     #[serde(default)]
     pub heading: f64,
+    /// Size factor about the anchor, > 0 (with `at`).
+    #[serde(default = "unit_scale")]
+    pub scale: f64,
+    /// A GeoJSON FeatureCollection of Points: one object each (`dbms place --points`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub points: Option<PathBuf>,
+    /// With `points`: points without a `heading` get a random one.
+    #[serde(default)]
+    pub random_heading: bool,
+    /// With `points`: points without a `scale` get one uniform in `[min, max]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale_range: Option<[f64; 2]>,
+    /// With `points`: the seed of `random_heading` and `scale_range`.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+impl Placement {
+    /// Exactly one of `at` and `points`, each with only its own keys, and numbers in range.
+    fn check(&self, key: &str) -> Result<()> {
+        let with_points = [
+            ("random_heading", self.random_heading),
+            ("scale_range", self.scale_range.is_some()),
+            ("seed", self.seed != 0),
+        ];
+        let with_at = [
+            ("heading", self.heading != 0.0),
+            ("scale", self.scale != 1.0),
+        ];
+        let (only, other) = match (self.at, &self.points) {
+            (Some(_), None) => (with_points, "points"),
+            (None, Some(_)) => (
+                [with_at[0], with_at[1], ("", false)],
+                "at (give heading and scale as the points' properties)",
+            ),
+            _ => {
+                return Err(key_error(
+                    key,
+                    "needs exactly one of at and points".into(),
+                    "at = [x, y] places one object; points = \"FILE.geojson\" one per point",
+                ))
+            }
+        };
+        if let Some((name, _)) = only.iter().find(|(_, given)| *given) {
+            return Err(key_error(
+                &format!("{key}.{name}"),
+                format!("goes only with {other}"),
+                "",
+            ));
+        }
+        let at = self.at.unwrap_or([0.0; 2]);
+        if at
+            .iter()
+            .chain([&self.heading, &self.scale])
+            .any(|v| !v.is_finite())
+        {
+            return Err(key_error(
+                key,
+                "has a value that is not a number".into(),
+                "",
+            ));
+        }
+        if self.scale <= 0.0 {
+            return Err(key_error(
+                &format!("{key}.scale"),
+                format!("is {}, not above 0", self.scale),
+                "1 places the object as made",
+            ));
+        }
+        if let Some([lo, hi]) = self.scale_range {
+            if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) {
+                return Err(key_error(
+                    &format!("{key}.scale_range"),
+                    format!("is [{lo}, {hi}]"),
+                    "give [min, max] with 0 < min <= max",
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// `[products.NAME]`: one tile file for one sensor under one sun and its conditions.
@@ -229,13 +315,7 @@ impl Scene {
                     "declare it as [objects.NAME], or fix the name",
                 ));
             }
-            if p.at.iter().chain([&p.heading]).any(|v| !v.is_finite()) {
-                return Err(key_error(
-                    &key,
-                    "has a value that is not a number".into(),
-                    "",
-                ));
-            }
+            p.check(&key)?;
         }
         if self.products.is_empty() {
             return Err(key_error(
@@ -266,6 +346,11 @@ impl Scene {
         for p in self.products.values_mut() {
             resolve(&mut p.tiles);
         }
+        for p in &mut self.placements {
+            if let Some(points) = &mut p.points {
+                resolve(points);
+            }
+        }
     }
 
     /// The inputs exist, and no output is an input or another output.
@@ -276,6 +361,14 @@ impl Scene {
         ];
         if let Some(b) = &self.buildings {
             inputs.push(("buildings.footprints", &b.footprints));
+        }
+        let keys: Vec<String> = (0..self.placements.len())
+            .map(|k| format!("placements[{k}].points"))
+            .collect();
+        for (key, p) in keys.iter().zip(&self.placements) {
+            if let Some(points) = &p.points {
+                inputs.push((key, points));
+            }
         }
         for (key, path) in &inputs {
             if !path.is_file() {

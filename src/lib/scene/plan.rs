@@ -186,26 +186,49 @@ fn place_step(scene: &Scene, last: &str) -> Option<Step> {
         .placements
         .iter()
         .map(|p| {
-            vec![
+            let mut c = vec![
                 s("place"),
                 s("--db"),
                 s(scene.database.dir.display()),
                 s("--object"),
                 s(object_file(scene, &p.object).display()),
-                s("--at"),
-                format!("{},{}", p.at[0], p.at[1]),
-                s("--heading"),
-                s(p.heading),
-            ]
+            ];
+            match (&p.at, &p.points) {
+                (Some([x, y]), _) => {
+                    c.extend([s("--at"), format!("{x},{y}"), s("--heading"), s(p.heading)]);
+                    if p.scale != 1.0 {
+                        c.extend([s("--scale"), s(p.scale)]);
+                    }
+                }
+                (None, Some(points)) => {
+                    c.extend([s("--points"), s(points.display())]);
+                    if p.random_heading {
+                        c.push(s("--random-heading"));
+                    }
+                    if let Some([lo, hi]) = p.scale_range {
+                        c.extend([s("--scale-range"), format!("{lo},{hi}")]);
+                    }
+                    if p.seed != 0 {
+                        c.extend([s("--seed"), s(p.seed)]);
+                    }
+                }
+                (None, None) => unreachable!("Scene::check requires at or points"),
+            }
+            c
         })
+        .collect();
+    let inputs = scene
+        .placements
+        .iter()
+        .filter_map(|p| p.points.clone())
         .collect();
     let mut after = vec![last.to_string()];
     after.extend(scene.objects.keys().map(|n| format!("object.{n}")));
     Some(Step {
         name: "place".into(),
-        does: format!("{} objects placed on the terrain", scene.placements.len()),
+        does: format!("{} placements on the terrain", scene.placements.len()),
         commands,
-        inputs: vec![],
+        inputs,
         outputs: vec![],
         after,
         writes_database: true,
