@@ -266,6 +266,19 @@ fn build_runs_what_is_out_of_date_and_names_a_failing_step() {
         ran
     };
     assert_eq!(ran(dir).len(), 5);
+    // Each step's time is recorded: the plan's estimate of what a rerun costs.
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(dbms_in(dir, &["--json", "plan", "scene.toml"]), "plan")).unwrap();
+    let times: Vec<f64> = json["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["last_seconds"].as_f64().unwrap())
+        .collect();
+    assert!(
+        times.len() == 5 && times.iter().all(|&t| t > 0.0),
+        "{times:?}"
+    );
     let built = std::fs::read(dir.join("build/day.dbt")).unwrap();
     assert!(
         built == stage_by_stage(dir, 30.0),
@@ -287,6 +300,11 @@ fn build_runs_what_is_out_of_date_and_names_a_failing_step() {
     assert!(text.contains("nothing to do"), "{text}");
 
     std::fs::write(dir.join("scene.toml"), scene_toml(75.0)).unwrap();
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(
+        plan.contains("4 to run (about") && plan.contains("s last time"),
+        "{plan}"
+    );
     assert_eq!(ran(dir), ["heights", "ingest", "place", "product.day"]);
     assert!(std::fs::read(dir.join("build/day.dbt")).unwrap() == stage_by_stage(dir, 75.0));
 

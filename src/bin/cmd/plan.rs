@@ -42,6 +42,27 @@ struct Planned {
     steps: Vec<PlannedStep>,
 }
 
+impl Planned {
+    /// The cost of the steps to run by their last builds: ` (about 21.0 s by their last
+    /// builds)`, saying how many were never timed; empty when none was.
+    fn estimate(&self) -> String {
+        let to_run = self.steps.iter().filter(|s| !s.up_to_date);
+        let timed: Vec<f64> = to_run.clone().filter_map(|s| s.last_seconds).collect();
+        let untimed = to_run.count() - timed.len();
+        match (timed.is_empty(), untimed) {
+            (true, _) => String::new(),
+            (false, 0) => format!(
+                " (about {:.1} s by their last builds)",
+                timed.iter().sum::<f64>()
+            ),
+            (false, n) => format!(
+                " (at least {:.1} s by their last builds; {n} never timed)",
+                timed.iter().sum::<f64>()
+            ),
+        }
+    }
+}
+
 impl std::fmt::Display for Planned {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let to_run = self.steps.iter().filter(|s| !s.up_to_date).count();
@@ -52,7 +73,7 @@ impl std::fmt::Display for Planned {
             self.steps.len(),
             match to_run {
                 0 => "all up to date".to_string(),
-                n => format!("{n} to run"),
+                n => format!("{n} to run{}", self.estimate()),
             }
         )?;
         let width = self
@@ -66,9 +87,13 @@ impl std::fmt::Display for Planned {
                 true => "up to date".to_string(),
                 false => format!("runs: {}", s.why.join("; ")),
             };
+            let took = match s.last_seconds {
+                Some(t) => format!("; took {t:.1} s last time"),
+                None => String::new(),
+            };
             write!(
                 f,
-                "\n  {:width$}  {}  ({})",
+                "\n  {:width$}  {}  ({}{took})",
                 s.step.name, status, s.step.does
             )?;
         }

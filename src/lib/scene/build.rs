@@ -54,7 +54,9 @@ pub fn build(scene: &Scene, exe: &Path, jobs: usize, progress: &Progress) -> Res
                 let tx = tx.clone();
                 running += 1;
                 scope.spawn(move || {
-                    let result = run_step(step, exe).and_then(|()| stamp_planned(scene, step));
+                    let clock = std::time::Instant::now();
+                    let result = run_step(step, exe)
+                        .and_then(|()| stamp_planned(scene, step, clock.elapsed().as_secs_f64()));
                     let _ = tx.send((step.step.name.clone(), result));
                 });
             }

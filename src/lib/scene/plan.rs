@@ -52,6 +52,10 @@ pub struct PlannedStep {
     pub up_to_date: bool,
     /// Why it would run; empty when up to date.
     pub why: Vec<String>,
+    /// Wall-clock seconds the step took the last time `dbms build` ran it (its estimated cost:
+    /// the same step on inputs of about the same size); `None` when never built that way (the
+    /// Makefile's rules do not time their steps).
+    pub last_seconds: Option<f64>,
 }
 
 fn key_only<S: serde::Serializer>(stamp: &Stamp, s: S) -> std::result::Result<S::Ok, S::Error> {
@@ -73,6 +77,10 @@ struct Stamp {
     commands: Vec<Vec<String>>,
     inputs: BTreeMap<PathBuf, InputSum>,
     after: BTreeMap<String, String>,
+    /// Wall-clock seconds the step's commands took, when `dbms build` ran them (not part of
+    /// the key).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    seconds: Option<f64>,
 }
 
 /// An input file's content hash, with the size and modification time it was taken at: a later
@@ -380,6 +388,7 @@ pub fn plan(scene: &Scene) -> Result<Vec<PlannedStep>> {
         }
         planned.push(PlannedStep {
             up_to_date: false,
+            last_seconds: old.and_then(|o| o.seconds),
             stamp,
             step,
             why,
@@ -450,6 +459,7 @@ fn stamp_of(step: &Step, before: &BTreeMap<String, Stamp>, old: Option<&Stamp>) 
         commands: step.commands.clone(),
         inputs,
         after,
+        seconds: None,
     })
 }
 
@@ -503,9 +513,14 @@ pub fn stamp(scene: &Scene, name: &str) -> Result<()> {
     }
 }
 
-/// Record that the planned step `p` of `scene` has just run.
-pub fn stamp_planned(scene: &Scene, p: &PlannedStep) -> Result<()> {
-    write_stamp(scene, &p.step.name, &p.stamp)
+/// Record that the planned step `p` of `scene` has just run, taking `seconds` of wall-clock
+/// time.
+pub fn stamp_planned(scene: &Scene, p: &PlannedStep, seconds: f64) -> Result<()> {
+    let stamp = Stamp {
+        seconds: Some(seconds),
+        ..p.stamp.clone()
+    };
+    write_stamp(scene, &p.step.name, &stamp)
 }
 
 fn write_stamp(scene: &Scene, name: &str, stamp: &Stamp) -> Result<()> {
