@@ -46,6 +46,8 @@ pub struct RowSweep {
     offsets: Vec<usize>,
     /// `offset(frame height − 1)`.
     max_offset: usize,
+    /// Frame columns a line moves per frame row, [0, 1].
+    drift: f64,
     /// Rise of the ray toward the sun per frame row, metres.
     rise: f64,
     /// The sun at the zenith: no column can block a vertical ray.
@@ -91,6 +93,7 @@ impl RowSweep {
             flip_col: minor > 0.0,
             offsets,
             max_offset,
+            drift,
             rise: step_m * sun.elevation_deg.to_radians().tan(),
             overhead,
             horizon: if overhead {
@@ -138,6 +141,44 @@ impl RowSweep {
             step(h, z, rise);
             before
         });
+    }
+
+    /// Pass over the next `n` rows without sweeping them: the lines they hold start on the
+    /// rows after with an empty horizon, as if those `n` rows were nodata and far below.
+    ///
+    /// # Panics
+    /// When fewer than `n` rows are left.
+    pub fn skip(&mut self, n: usize) {
+        assert!(
+            self.pushed + n <= self.height,
+            "RowSweep: skipping past the last row"
+        );
+        self.pushed += n;
+    }
+
+    /// How many grid rows, in the order rows are pushed, a chain `z − k · rise` falling by
+    /// `drop` metres can span: rows farther toward the sun than this cannot lift a horizon
+    /// by `drop` over the cells it reaches. `usize::MAX` for an infinite drop; 0 at the zenith.
+    pub fn rows_upstream(&self, drop: f64) -> usize {
+        if self.overhead || drop <= 0.0 {
+            return 0;
+        }
+        if !drop.is_finite() {
+            return usize::MAX;
+        }
+        // Steps along a line (frame rows) before the chain has fallen by `drop`.
+        let steps = (drop / self.rise).ceil() + 1.0;
+        if steps >= self.height.max(self.width) as f64 {
+            return usize::MAX;
+        }
+        let steps = steps as usize;
+        match self.transposed {
+            // One frame row a step: one grid row.
+            false => steps,
+            // A step is a grid column; between two frame rows `steps` apart a line moves at
+            // most offset(steps) + 1 frame columns (grid rows).
+            true => offset(steps, self.drift) + 1,
+        }
     }
 
     /// Rise of the ray toward the sun per frame row, metres (0 at the zenith): where a cell
