@@ -245,7 +245,7 @@ mod tests {
         ] {
             let sun = Sun::new(45.0, az).unwrap();
             // The tip, 100 m from the tower away from the sun: rows grow southward.
-            let tip = 150.0 + 95.0 * (az as f64).to_radians().cos();
+            let tip = 150.0 + 95.0 * az.to_radians().cos();
             let rows = (tip as usize - 3)..(tip as usize + 4);
             let whole = ShadowBits::cast(&dem, &sun, |_, _| ()).unwrap();
             let part = ShadowBits::cast_rows(&dem, &sun, |_, _| (), rows.clone(), 100.0).unwrap();
