@@ -194,6 +194,17 @@ fn scene_files_match_their_schema() {
             "at = [500066, 5300130]\nheading = 50",
             "points = \"trees.geojson\"\nheading = 50",
         ),
+        // Present keys count, whatever their value: as the schema says.
+        text.replace("heading = 50", "heading = 50\nseed = 0"),
+        text.replace("heading = 50", "heading = 50\nrandom_heading = false"),
+        text.replace(
+            "at = [500066, 5300130]\nheading = 50",
+            "points = \"trees.geojson\"\nheading = 0",
+        ),
+        text.replace(
+            "at = [500066, 5300130]\nheading = 50",
+            "points = \"trees.geojson\"\nscale = 1",
+        ),
     ];
     for b in &bad {
         assert_ne!(b, &text, "each bad document changes the sample");

@@ -141,6 +141,16 @@ pub struct PlacedObject {
     pub scale: f64,
 }
 
+impl PlacedObject {
+    /// ` scale K` when the scale is not 1, else nothing: for one-line summaries.
+    pub fn scale_note(&self) -> String {
+        match self.scale {
+            1.0 => String::new(),
+            k => format!(" scale {k}"),
+        }
+    }
+}
+
 fn unit_scale() -> f64 {
     1.0
 }

@@ -95,15 +95,17 @@ impl std::fmt::Display for DatabaseInfo<'_> {
         if !m.objects.is_empty() {
             writeln!(f, "objects:")?;
             for o in &m.objects {
-                write!(
+                writeln!(
                     f,
-                    "  {}: {} at ({}, {}, {}) heading {} deg",
-                    o.id, o.file, o.x, o.y, o.z, o.heading_deg
+                    "  {}: {} at ({}, {}, {}) heading {} deg{}",
+                    o.id,
+                    o.file,
+                    o.x,
+                    o.y,
+                    o.z,
+                    o.heading_deg,
+                    o.scale_note()
                 )?;
-                match o.scale {
-                    1.0 => writeln!(f)?,
-                    k => writeln!(f, " scale {k}")?,
-                }
             }
         }
         write!(f, "stages: {}", self.stages.join(", "))?;

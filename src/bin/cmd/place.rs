@@ -173,10 +173,7 @@ impl std::fmt::Display for Placed {
                 p.y,
                 p.z,
                 p.heading_deg,
-                match p.scale {
-                    1.0 => String::new(),
-                    k => format!(" scale {k}"),
-                },
+                p.scale_note(),
                 self.db.display()
             ),
             many => write!(

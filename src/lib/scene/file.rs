@@ -9,6 +9,7 @@
 //! TOML gives one, the line.
 
 use crate::error::{Error, Result};
+use crate::voxel::place::{valid_scale, valid_scale_range};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -121,47 +122,46 @@ pub struct Placement {
     /// Where its origin goes, `[x, y]` in the database CRS.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub at: Option<[f64; 2]>,
-    /// Rotation clockwise from grid north, degrees (with `at`).
-    #[serde(default)]
-    pub heading: f64,
-    /// Size factor about the anchor, > 0 (with `at`).
-    #[serde(default = "unit_scale")]
-    pub scale: f64,
+    /// Rotation clockwise from grid north, degrees (with `at`; default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading: Option<f64>,
+    /// Size factor about the anchor, > 0 (with `at`; default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<f64>,
     /// A GeoJSON FeatureCollection of Points: one object each (`dbms place --points`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub points: Option<PathBuf>,
-    /// With `points`: points without a `heading` get a random one.
-    #[serde(default)]
-    pub random_heading: bool,
+    /// With `points`: points without a `heading` get a random one (default false).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub random_heading: Option<bool>,
     /// With `points`: points without a `scale` get one uniform in `[min, max]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale_range: Option<[f64; 2]>,
-    /// With `points`: the seed of `random_heading` and `scale_range`.
-    #[serde(default)]
-    pub seed: u64,
-}
-
-fn unit_scale() -> f64 {
-    1.0
+    /// With `points`: the seed of `random_heading` and `scale_range` (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
 }
 
 impl Placement {
     /// Exactly one of `at` and `points`, each with only its own keys, and numbers in range.
     fn check(&self, key: &str) -> Result<()> {
         let with_points = [
-            ("random_heading", self.random_heading),
+            ("random_heading", self.random_heading.is_some()),
             ("scale_range", self.scale_range.is_some()),
-            ("seed", self.seed != 0),
+            ("seed", self.seed.is_some()),
         ];
         let with_at = [
-            ("heading", self.heading != 0.0),
-            ("scale", self.scale != 1.0),
+            ("heading", self.heading.is_some()),
+            ("scale", self.scale.is_some()),
         ];
-        let (only, other) = match (self.at, &self.points) {
-            (Some(_), None) => (with_points, "points"),
+        let (given, fix) = match (self.at, &self.points) {
+            (Some(_), None) => (
+                with_points.iter().find(|k| k.1),
+                "it goes with points = \"FILE.geojson\", not at: remove it",
+            ),
             (None, Some(_)) => (
-                [with_at[0], with_at[1], ("", false)],
-                "at (give heading and scale as the points' properties)",
+                with_at.iter().find(|k| k.1),
+                "it goes with at, not points: give it as each point's property instead",
             ),
             _ => {
                 return Err(key_error(
@@ -171,40 +171,37 @@ impl Placement {
                 ))
             }
         };
-        if let Some((name, _)) = only.iter().find(|(_, given)| *given) {
+        if let Some((name, _)) = given {
             return Err(key_error(
                 &format!("{key}.{name}"),
-                format!("goes only with {other}"),
-                "",
+                "is not allowed here".into(),
+                fix,
             ));
         }
         let at = self.at.unwrap_or([0.0; 2]);
-        if at
-            .iter()
-            .chain([&self.heading, &self.scale])
-            .any(|v| !v.is_finite())
-        {
+        if at.iter().chain(&self.heading).any(|v| !v.is_finite()) {
             return Err(key_error(
                 key,
                 "has a value that is not a number".into(),
                 "",
             ));
         }
-        if self.scale <= 0.0 {
+        if let Some(k) = self.scale.filter(|&k| !valid_scale(k)) {
             return Err(key_error(
                 &format!("{key}.scale"),
-                format!("is {}, not above 0", self.scale),
+                format!("is {k}, not a number above 0"),
                 "1 places the object as made",
             ));
         }
-        if let Some([lo, hi]) = self.scale_range {
-            if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) {
-                return Err(key_error(
-                    &format!("{key}.scale_range"),
-                    format!("is [{lo}, {hi}]"),
-                    "give [min, max] with 0 < min <= max",
-                ));
-            }
+        if let Some([lo, hi]) = self
+            .scale_range
+            .filter(|&[lo, hi]| !valid_scale_range(lo, hi))
+        {
+            return Err(key_error(
+                &format!("{key}.scale_range"),
+                format!("is [{lo}, {hi}]"),
+                "give [min, max] with 0 < min <= max",
+            ));
         }
         Ok(())
     }
@@ -588,7 +585,7 @@ conditions = { visibility_m = 2000 }
                 vary: 0.2
             }
         );
-        assert_eq!(s.placements[0].heading, 50.0);
+        assert_eq!(s.placements[0].heading, Some(50.0));
         assert_eq!(s.products["low-sun"].conditions.visibility_m, Some(2000.0));
         assert_eq!(s.products["day"].conditions, Conditions::default());
     }

@@ -12,6 +12,7 @@ use super::file::{ObjectSpec, Product, Scene};
 use crate::db::sha256_file;
 use crate::error::{Error, Result};
 use crate::io::atomic::AtomicFile;
+use crate::voxel::place::Variation;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
@@ -53,8 +54,8 @@ pub struct PlannedStep {
     /// Why it would run; empty when up to date.
     pub why: Vec<String>,
     /// Wall-clock seconds the step took the last time `dbms build` ran it (its estimated cost:
-    /// the same step on inputs of about the same size); `None` when never built that way (the
-    /// Makefile's rules do not time their steps).
+    /// the same step on inputs of about the same size); `None` when its last run was not by
+    /// `dbms build` (the Makefile's rules do not time their steps) or it never ran.
     pub last_seconds: Option<f64>,
 }
 
@@ -203,21 +204,22 @@ fn place_step(scene: &Scene, last: &str) -> Option<Step> {
             ];
             match (&p.at, &p.points) {
                 (Some([x, y]), _) => {
-                    c.extend([s("--at"), format!("{x},{y}"), s("--heading"), s(p.heading)]);
-                    if p.scale != 1.0 {
-                        c.extend([s("--scale"), s(p.scale)]);
+                    let heading = p.heading.unwrap_or(0.0);
+                    c.extend([s("--at"), format!("{x},{y}"), s("--heading"), s(heading)]);
+                    if let Some(k) = p.scale.filter(|&k| k != 1.0) {
+                        c.extend([s("--scale"), s(k)]);
                     }
                 }
                 (None, Some(points)) => {
                     c.extend([s("--points"), s(points.display())]);
-                    if p.random_heading {
+                    if p.random_heading == Some(true) {
                         c.push(s("--random-heading"));
                     }
                     if let Some([lo, hi]) = p.scale_range {
                         c.extend([s("--scale-range"), format!("{lo},{hi}")]);
                     }
-                    if p.seed != 0 {
-                        c.extend([s("--seed"), s(p.seed)]);
+                    if let Some(seed) = p.seed.filter(|&n| n != 0) {
+                        c.extend([s("--seed"), s(seed)]);
                     }
                 }
                 (None, None) => unreachable!("Scene::check requires at or points"),
@@ -225,11 +227,21 @@ fn place_step(scene: &Scene, last: &str) -> Option<Step> {
             c
         })
         .collect();
-    let inputs = scene
-        .placements
-        .iter()
-        .filter_map(|p| p.points.clone())
-        .collect();
+    // A point layer and the object files its features name themselves (read here; one that
+    // cannot be read is the place step's error when it runs).
+    let mut inputs: Vec<PathBuf> = Vec::new();
+    for p in &scene.placements {
+        if let Some(points) = &p.points {
+            inputs.push(points.clone());
+            let own =
+                crate::voxel::place::read_points(points, Some(Path::new("")), &Variation::NONE);
+            for placed in own.iter().flatten() {
+                if placed.object != Path::new("") && !inputs.contains(&placed.object) {
+                    inputs.push(placed.object.clone());
+                }
+            }
+        }
+    }
     let mut after = vec![last.to_string()];
     after.extend(scene.objects.keys().map(|n| format!("object.{n}")));
     Some(Step {
@@ -561,5 +573,30 @@ mod tests {
         let again = InputSum::of(&path, Some(&first)).unwrap();
         assert_eq!(again.sha256, sha256_file(&path).unwrap());
         assert_ne!(again.sha256, first.sha256);
+    }
+
+    /// The object files a point layer's features name are inputs of the place step, so
+    /// editing one places again.
+    #[test]
+    fn a_point_layers_own_objects_are_inputs_of_the_place_step() {
+        let dir = tempfile::tempdir().unwrap();
+        let points = dir.path().join("trees.geojson");
+        let fc = r#"{"type": "FeatureCollection", "features": [
+            {"type": "Feature", "geometry": {"type": "Point", "coordinates": [1, 2]}, "properties": {"object": "oak.dvox"}},
+            {"type": "Feature", "geometry": {"type": "Point", "coordinates": [3, 4]}, "properties": {}}]}"#;
+        std::fs::write(&points, fc).unwrap();
+        let text = format!(
+            "version = 1\n[database]\ndir = \"db\"\n[terrain]\ndem = \"d.tif\"\northo = \"o.tif\"\n\
+             [objects.tree]\nkind = \"cone\"\nheight = 5\nradius = 1\nvoxel = 0.5\n\
+             [[placements]]\nobject = \"tree\"\npoints = {:?}\n\
+             [products.day]\nsensor = \"visual\"\ntiles = \"day.dbt\"\n",
+            points.to_str().unwrap()
+        );
+        let scene = Scene::parse(&text).unwrap();
+        let place = steps(&scene)
+            .into_iter()
+            .find(|s| s.name == "place")
+            .unwrap();
+        assert_eq!(place.inputs, [points.clone(), dir.path().join("oak.dvox")]);
     }
 }

@@ -34,6 +34,9 @@ impl ShadowBits {
     /// below `top` and has fallen under the lowest valid height in `rows` by the time it gets
     /// there shadows nothing in them (a millimetre of margin covers the chains' rounding).
     /// `top = +inf` sweeps from the grid's edge.
+    ///
+    /// # Panics
+    /// When `rows` reaches past the grid's last row (a programming error).
     pub fn cast_rows(
         terrain: &dyn RowSource<f32>,
         sun: &Sun,
@@ -44,6 +47,7 @@ impl ShadowBits {
         let g = terrain.grid();
         let (w, h) = (g.width, g.height);
         let mut bits = vec![0u64; (w * h).div_ceil(64)];
+        assert!(rows.end <= h, "cast_rows: rows {rows:?} of a grid of {h}");
         let mut sweep = RowSweep::new(g, sun)?;
         if rows.is_empty() {
             return Ok(ShadowBits { bits });
@@ -277,7 +281,7 @@ mod tests {
             let part = ShadowBits::cast_rows(&counted, &sun, |_, _| (), 190..210, 6.0).unwrap();
             let read = counted.rows.load(Ordering::Relaxed);
             // The window twice (its lowest height, then the sweep) and the rows before it a
-            // shadow can come from: 6 m at a rise of 1 m a step (a little more off the axes).
+            // shadow can come from: 6 m at a rise of 1 m a step (fewer rows off the axes).
             assert!(
                 read <= 2 * 20 + 12,
                 "{read} rows read for a 20-row window, azimuth {az}"

@@ -207,15 +207,24 @@ fn check_finite(x: f64, y: f64, z: Option<f64>, heading_deg: f64) -> Result<()> 
     }
 }
 
-/// A size factor must be a positive finite number.
+/// Whether `scale` is a size factor: finite and above 0.
+pub fn valid_scale(scale: f64) -> bool {
+    scale.is_finite() && scale > 0.0
+}
+
+/// Whether `[lo, hi]` is a range of size factors: both valid, `lo <= hi`.
+pub fn valid_scale_range(lo: f64, hi: f64) -> bool {
+    valid_scale(lo) && valid_scale(hi) && lo <= hi
+}
+
+/// An error unless `scale` is a size factor ([`valid_scale`]).
 fn check_scale(scale: f64) -> Result<()> {
-    if scale.is_finite() && scale > 0.0 {
-        Ok(())
-    } else {
-        Err(
-            Error::msg(format!("scale {scale}: must be a positive number"))
+    match valid_scale(scale) {
+        true => Ok(()),
+        false => Err(
+            Error::msg(format!("--scale {scale}: must be a number above 0"))
                 .fix("1 places the object as made, 2 twice as large"),
-        )
+        ),
     }
 }
 
@@ -305,12 +314,10 @@ impl Variation {
     /// An error unless the scale range is `0 < min <= max`, both finite.
     pub fn check(&self) -> Result<()> {
         match self.scale_range {
-            Some((lo, hi)) if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) => {
-                Err(Error::msg(format!(
-                    "--scale-range {lo},{hi}: must be two positive numbers, the smaller first"
-                ))
-                .fix("e.g. --scale-range 0.8,1.25"))
-            }
+            Some((lo, hi)) if !valid_scale_range(lo, hi) => Err(Error::msg(format!(
+                "--scale-range {lo},{hi}: must be two positive numbers, the smaller first"
+            ))
+            .fix("e.g. --scale-range 0.8,1.25")),
             _ => Ok(()),
         }
     }
@@ -388,7 +395,7 @@ pub fn read_points(
             };
             let (heading, scale) = vary.draw(i as u64);
             let scale = number("scale")?.unwrap_or(scale);
-            if !(scale.is_finite() && scale > 0.0) {
+            if !valid_scale(scale) {
                 return Err(bad(&format!("scale {scale} is not a positive number")));
             }
             Ok(Placement {
