@@ -93,12 +93,14 @@ pub struct Effects<'a> {
     lambert: bool,
     applied: Vec<&'static str>,
     skipped: Vec<Skipped>,
+    /// The grid rows prepared ([`Window`]).
+    rows: std::ops::Range<usize>,
 }
 
 /// Does a sun need effects at all? `sun: None` → nothing (no work).
 /// `photo_sun` is the orthophoto's own sun when the database records it; `colour` is the
 /// orthophoto on the terrain's grid, read (twice, band by band) only when the two suns differ,
-/// to detect the photo's shadows.
+/// to detect the photo's shadows. Prepared for every row of the grid.
 #[allow(clippy::too_many_arguments)]
 pub fn prepare<'a>(
     sun: Option<Sun>,
@@ -109,6 +111,46 @@ pub fn prepare<'a>(
     buildings: &'a Raised,
     objects: &'a Raised,
     all: &'a Raised,
+) -> Result<Option<Effects<'a>>> {
+    let window = Window {
+        rows: 0..terrain.grid().height,
+        top: f64::INFINITY,
+    };
+    let raised = [buildings, objects, all];
+    prepare_window(
+        sun,
+        photo_sun,
+        shadow_factor,
+        terrain,
+        colour,
+        raised,
+        window,
+    )
+}
+
+/// The grid rows effects are prepared for, and a bound on every surface height anywhere
+/// (terrain or raised, metres): the casts sweep only from where a shadow can reach the rows
+/// ([`ShadowBits::cast_rows`]); `+inf` sweeps from the grid's edge.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Window {
+    /// The rows.
+    pub rows: std::ops::Range<usize>,
+    /// No surface is higher, metres.
+    pub top: f64,
+}
+
+/// [`prepare`] for the rows of `window` only: [`Effects::shade_band`] gives there, bit for bit,
+/// what the whole grid's effects give, and may be asked only for bands within them; the
+/// record's counts are the window's. `[buildings, objects, all]` must hold everything raised
+/// on the rows the casts sweep (the window, and toward the sun as far as a shadow reaches).
+pub fn prepare_window<'a>(
+    sun: Option<Sun>,
+    photo_sun: Option<Sun>,
+    shadow_factor: f64,
+    terrain: &'a dyn RowSource<f32>,
+    colour: &dyn RowSource<[u8; 4]>,
+    [buildings, objects, all]: [&'a Raised; 3],
+    window: Window,
 ) -> Result<Option<Effects<'a>>> {
     let Some(sun) = sun else { return Ok(None) };
     same_size(terrain.grid(), colour.grid())?;
@@ -121,14 +163,15 @@ pub fn prepare<'a>(
     let photo_apart = !objects.is_empty() && photo_sun.is_some();
     // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
     let photo_cast = photo_sun.filter(|_| !same_sun || photo_apart);
+    let cast = |sun: &Sun, laid: &Raised| {
+        let overlay = |start, row: &mut [f32]| laid.lay_over(start, row);
+        ShadowBits::cast_rows(terrain, sun, overlay, window.rows.clone(), window.top)
+    };
     let (new_shadow, photo_shadow) = rayon::join(
-        || ShadowBits::cast(terrain, &sun, |start, row| all.lay_over(start, row)),
+        || cast(&sun, all),
         || {
             photo_cast
-                .map(|p| {
-                    let laid = if photo_apart { buildings } else { all };
-                    ShadowBits::cast(terrain, &p, |start, row| laid.lay_over(start, row))
-                })
+                .map(|p| cast(&p, if photo_apart { buildings } else { all }))
                 .transpose()
         },
     );
@@ -157,6 +200,7 @@ pub fn prepare<'a>(
         lambert: !same_sun,
         applied,
         skipped,
+        rows: window.rows,
     };
     fx.wall_cells = fx.count_walls()?;
     Ok(Some(fx))
@@ -323,7 +367,8 @@ impl Surfaces {
 }
 
 impl Effects<'_> {
-    /// What was applied, for the tile header and the manifest.
+    /// What was applied, for the tile header and the manifest (the counts: of the rows
+    /// prepared).
     pub fn record(&self) -> EffectsRecord {
         EffectsRecord {
             sun: Some(self.sun.into()),
@@ -340,15 +385,17 @@ impl Effects<'_> {
         }
     }
 
-    /// Raised cells with at least one exposed vertical face, counted band by band.
+    /// Raised cells of the prepared rows with at least one exposed vertical face, counted
+    /// band by band.
     fn count_walls(&self) -> Result<usize> {
         let g = self.terrain.grid();
         let (w, per_band) = (g.width, band_rows(g.width));
-        let bands: Vec<usize> = (0..g.height).step_by(per_band).collect();
+        let end = self.rows.end;
+        let bands: Vec<usize> = self.rows.clone().step_by(per_band).collect();
         bands
             .into_par_iter()
             .map(|row0| {
-                let rows = per_band.min(g.height - row0);
+                let rows = per_band.min(end - row0);
                 let cells = self.all.range(row0 * w, (row0 + rows) * w);
                 if cells.is_empty() {
                     return Ok(0);
@@ -365,9 +412,17 @@ impl Effects<'_> {
     /// Multiply the colours of level-0 rows `row0..` (a band of `colour.len() / width` rows) by
     /// each cell's `I_new / I_photo` (see [`lit`]); nodata cells are left alone. Returns the
     /// factors, row-major over the band, for whatever else the band colours (voxel runs).
+    ///
+    /// # Panics
+    /// When the band reaches outside the rows prepared ([`prepare_window`]).
     pub fn shade_band(&self, row0: usize, colour: &mut [[u8; 4]]) -> Result<Vec<f64>> {
         let w = self.terrain.grid().width;
         let rows = colour.len() / w;
+        assert!(
+            self.rows.start <= row0 && row0 + rows <= self.rows.end,
+            "shade_band: rows {row0}.. outside the prepared {:?}",
+            self.rows
+        );
         let band = self.band(row0, rows)?;
         let mut factors = vec![1.0; colour.len()];
         colour
@@ -386,7 +441,14 @@ impl Effects<'_> {
     }
 
     /// `I_new / I_photo` of one cell (reads its three rows: for tests and single cells).
+    ///
+    /// # Panics
+    /// When the row is outside the rows prepared ([`prepare_window`]).
     pub fn factor_at(&self, col: usize, row: usize) -> Result<f64> {
+        assert!(
+            self.rows.contains(&row),
+            "factor_at: row {row} not prepared"
+        );
         Ok(self.factor(&self.band(row, 1)?, col, row))
     }
 
@@ -813,5 +875,61 @@ mod tests {
         assert_eq!(fx.factor_at(45, 73).unwrap(), 1.0);
         // Within the photo's shadow of that block: compensated.
         assert!((fx.factor_at(57, 73).unwrap() - 2.0).abs() < 1e-12);
+    }
+
+    /// Effects prepared for a window of rows shade it as the whole grid's effects do, on hills
+    /// with a building and a placed object: the photo's own sun (objects' shadows apart), another
+    /// sun (the photo's shadows detected and cast), and a sun with no photo sun known.
+    #[test]
+    fn effects_for_a_window_of_rows_shade_it_as_the_whole_grids_do() {
+        let n = 40;
+        let t = terrain(n, n, |c, r| (c as f32 * 0.3).sin() * 2.0 + r as f32 * 0.1);
+        let p = Prism {
+            rings: vec![vec![(8.0, 8.0), (13.0, 8.0), (13.0, 14.0), (8.0, 14.0)]],
+            roof_z: 12.0,
+        };
+        let b = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
+        let cells = [(25, 20), (26, 20), (25, 21), (26, 21)].map(|(c, r)| RaisedCell {
+            index: t.grid.index(c, r),
+            top_z: 9.0,
+            colour: Some([50, 60, 70, 255]),
+            partial: false,
+        });
+        let o = Raised::new(cells.to_vec(), &t);
+        let mut both = b.cells().to_vec();
+        both.extend(o.cells());
+        let all = Raised::new(both, &t);
+        let top = 12.0 + 0.1 * n as f64 + 2.0;
+        let cases = [
+            (sun(30.0, 200.0), Some(sun(30.0, 200.0))),
+            (sun(25.0, 300.0), Some(sun(35.0, 90.0))),
+            (sun(60.0, 45.0), None),
+        ];
+        for (now, photo) in cases {
+            let ortho = photo_of(&t, &b, &photo.unwrap_or(now), 0.5);
+            let raised = [&b, &o, &all];
+            let full = prepare(Some(now), photo, 0.5, &t, &ortho, &b, &o, &all)
+                .unwrap()
+                .unwrap();
+            for rows in [0..n, 10..17, 33..n, 0..5, 21..22] {
+                let window = Window {
+                    rows: rows.clone(),
+                    top,
+                };
+                let part = prepare_window(Some(now), photo, 0.5, &t, &ortho, raised, window)
+                    .unwrap()
+                    .unwrap();
+                let band = |fx: &Effects, row0: usize, k: usize| {
+                    let mut c = ortho.data[row0 * n..(row0 + k) * n].to_vec();
+                    let factors = fx.shade_band(row0, &mut c).unwrap();
+                    (c, factors)
+                };
+                let k = rows.len();
+                assert!(
+                    band(&part, rows.start, k) == band(&full, rows.start, k),
+                    "rows {rows:?}, sun {now:?}, photo {photo:?}"
+                );
+            }
+        }
     }
 }
