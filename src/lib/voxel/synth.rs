@@ -14,6 +14,7 @@ use super::grid::VoxelGrid;
 use super::object::VoxelObject;
 use super::occupancy::AtomicOccupancy;
 use crate::error::{Error, Result};
+use crate::num::SplitMix;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -93,24 +94,6 @@ fn inside_ring(ring: &[[f64; 2]], q: [f64; 2]) -> bool {
         j = i;
     }
     inside
-}
-
-/// A SplitMix64 generator: a tiny, well-mixed, reproducible stream.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[-1, 1)`.
-    fn signed(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
 }
 
 /// Parameters of a cone tree (metres, colours 8-bit RGB).
