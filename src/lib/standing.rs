@@ -31,6 +31,8 @@ use crate::grid::Grid;
 use crate::raster::{Elevation, RowSource};
 use crate::voxel::object::VoxelObject;
 use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::ops::Range;
 use std::path::Path;
 
 /// The terrain height of a cell by row-major index (metres, NaN = nodata), for the cells
@@ -448,18 +450,44 @@ impl Standing {
     /// nodata), sampled only under them, in bands of `band_rows` rows. Errors name the
     /// buildings layer or object file that cannot be read.
     pub fn read(db: &Database, terrain: &dyn RowSource<f32>, band_rows: usize) -> Result<Standing> {
+        Standing::read_rows(db, terrain, band_rows, 0..terrain.grid().height)
+    }
+
+    /// [`read`](Self::read) for grid rows `rows`: there, cell for cell what the whole read
+    /// gives (cells outside may be missing). Only the buildings and placements whose footprint
+    /// can reach one of the rows ([`reaches_rows`]) are rasterised; each object file is read
+    /// once, however often it is placed.
+    pub fn read_rows(
+        db: &Database,
+        terrain: &dyn RowSource<f32>,
+        band_rows: usize,
+        rows: Range<usize>,
+    ) -> Result<Standing> {
         let grid = terrain.grid();
         let prism_cells = match db.manifest.layers.contains_key(crate::db::BUILDINGS) {
-            true => rasterise_prisms(
-                grid,
-                &read_buildings(&db.layer_path(crate::db::BUILDINGS)?)?,
-            ),
+            true => {
+                let mut prisms = read_buildings(&db.layer_path(crate::db::BUILDINGS)?)?;
+                prisms.retain(|p| {
+                    let ys = p.rings.iter().flatten().map(|v| v.1);
+                    let (lo, hi) = ys.fold((f64::MAX, f64::MIN), |(l, h), y| (l.min(y), h.max(y)));
+                    reaches_rows(grid, (lo + hi) / 2.0, (hi - lo) / 2.0, &rows)
+                });
+                rasterise_prisms(grid, &prisms)
+            }
             false => Vec::new(),
         };
+        let mut files: BTreeMap<&str, (VoxelObject, f64)> = BTreeMap::new();
         let mut placed = Vec::new();
         for p in &db.manifest.objects {
-            let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
-            placed.push(placed_voxels(&obj, p));
+            if !files.contains_key(p.file.as_str()) {
+                let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
+                let reach = object_reach(&obj);
+                files.insert(&p.file, (obj, reach));
+            }
+            let (obj, reach) = &files[p.file.as_str()];
+            if reaches_rows(grid, p.y, reach * p.scale, &rows) {
+                placed.push(placed_voxels(obj, p));
+            }
         }
         let mut under: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
         for obj in &placed {
@@ -475,6 +503,29 @@ impl Standing {
             all,
         })
     }
+}
+
+/// How far (metres) the cells an object marks can lie from its anchor, horizontally: its
+/// farthest voxel centre plus half a voxel's diagonal (times the placement's scale).
+pub fn object_reach(obj: &VoxelObject) -> f64 {
+    let a = obj.anchor();
+    let far = obj.voxels().fold(0.0f64, |far, ([x, y, z], _)| {
+        let c = obj.grid.centre(x, y, z);
+        far.max((c[0] - a[0]).hypot(c[1] - a[1]))
+    });
+    far + obj.grid.voxel_size * std::f64::consts::FRAC_1_SQRT_2
+}
+
+/// Whether something within `reach` metres of world northing `y` can mark a cell of grid rows
+/// `rows` (a row of margin either side for rounding).
+pub fn reaches_rows(grid: &Grid, y: f64, reach: f64, rows: &Range<usize>) -> bool {
+    let t = &grid.transform;
+    let (a, b) = (
+        (y + reach - t.origin_y) / t.cell_y,
+        (y - reach - t.origin_y) / t.cell_y,
+    );
+    let (first, last) = (a.min(b).floor() - 1.0, a.max(b).floor() + 1.0);
+    last >= rows.start as f64 && first < rows.end as f64
 }
 
 /// The cells an object marks (see the module doc for the footprint), sorted: the cells whose
@@ -908,5 +959,68 @@ mod tests {
                 proptest::prop_assert_eq!(by_runs, truth, "z {}", z);
             }
         }
+    }
+
+    /// The placements [`reaches_rows`] keeps for a window of rows raise, in those rows, exactly
+    /// the cells and runs all placements raise: trees of several scales and headings (the axes,
+    /// diagonals and others), some straddling the window's edges, on sloping ground.
+    #[test]
+    fn placements_that_reach_a_window_raise_all_of_it() {
+        use crate::voxel::synth::{cone_tree, TreeParams};
+        let p = TreeParams {
+            height: 6.0,
+            radius: 2.0,
+            trunk_fraction: 0.25,
+            trunk_radius: 0.3,
+            vary: 0.2,
+            crown: [30, 90, 40],
+            trunk: [80, 60, 40],
+            seed: 5,
+        };
+        let (tree, _) = cone_tree(&p, 0.5).unwrap();
+        let reach = object_reach(&tree);
+        let g = Grid::north_up(500_000.0, 5_300_040.0, 0.5, 80, 80, Crs::epsg(32632));
+        let t = Elevation::new(
+            g.clone(),
+            (0..80 * 80).map(|i| (i % 80) as f32 * 0.05).collect(),
+        );
+        let placements: Vec<PlacedObject> = (0..40u64)
+            .map(|i| PlacedObject {
+                id: i + 1,
+                file: "tree.dvox".into(),
+                sha256: String::new(),
+                x: 500_000.0 + 40.0 * crate::num::splitmix64(i) as f64 / u64::MAX as f64,
+                y: 5_300_000.0 + 40.0 * crate::num::splitmix64(i + 100) as f64 / u64::MAX as f64,
+                z: 1.0,
+                heading_deg: [0.0, 45.0, 90.0, 33.0, 180.0][i as usize % 5],
+                scale: [1.0, 0.5, 1.7][i as usize % 3],
+            })
+            .collect();
+        let placed = |keep: &dyn Fn(&PlacedObject) -> bool| -> Raised {
+            let kept: Vec<PlacedVoxels> = placements
+                .iter()
+                .filter(|p| keep(p))
+                .map(|p| placed_voxels(&tree, p))
+                .collect();
+            Raised::objects(&g, &kept, &t)
+        };
+        let all = placed(&|_| true);
+        for rows in [0..80, 10..20, 0..1, 79..80, 35..36, 50..80] {
+            let part = placed(&|p| reaches_rows(&g, p.y, reach * p.scale, &rows));
+            let (lo, hi) = (rows.start * 80, rows.end * 80);
+            assert!(
+                !all.range(lo, hi).is_empty(),
+                "rows {rows:?} hold something"
+            );
+            assert_eq!(part.range(lo, hi), all.range(lo, hi), "rows {rows:?}");
+            for c in all.range(lo, hi) {
+                assert_eq!(part.runs(c.index), all.runs(c.index), "cell {}", c.index);
+            }
+        }
+        // Not vacuous: a window drops the placements far from it.
+        let few = placements
+            .iter()
+            .filter(|p| reaches_rows(&g, p.y, reach * p.scale, &(10..20)));
+        assert!(few.count() < placements.len() / 2);
     }
 }
