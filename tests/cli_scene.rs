@@ -10,6 +10,12 @@ use std::process::Command;
 
 const SUN: &str = "2026-09-15T08:30:00Z";
 
+/// `dbms object` arguments of the scene's tree (its `[objects.tree]`), without the output.
+const TREE: [&str; 13] = [
+    "-q", "object", "cone", "--height", "10", "--radius", "2.5", "--voxel", "0.5", "--seed", "1",
+    "--vary", "0.2",
+];
+
 /// A scene over the sample at `scene/` (relative to the scene file): two trees, one product.
 fn scene_toml(heading: f64) -> String {
     format!(
@@ -79,23 +85,7 @@ fn stage_by_stage(dir: &Path, heading: f64) -> Vec<u8> {
         "-o",
         "manual/heights.geojson",
     ]);
-    run(&[
-        "-q",
-        "object",
-        "cone",
-        "--height",
-        "10",
-        "--radius",
-        "2.5",
-        "--voxel",
-        "0.5",
-        "--seed",
-        "1",
-        "--vary",
-        "0.2",
-        "-o",
-        "manual/tree.dvox",
-    ]);
+    run(&[&TREE[..], &["-o", "manual/tree.dvox"]].concat());
     let h = heading.to_string();
     for (at, heading) in [("500030,5300030", h.as_str()), ("500050,5300040", "0")] {
         run(&[
@@ -382,23 +372,7 @@ fn a_point_layer_placement_varies_by_seed_and_its_file_is_an_input() {
         "-o",
         "manual",
     ]);
-    run(&[
-        "-q",
-        "object",
-        "cone",
-        "--height",
-        "10",
-        "--radius",
-        "2.5",
-        "--voxel",
-        "0.5",
-        "--seed",
-        "1",
-        "--vary",
-        "0.2",
-        "-o",
-        "tree.dvox",
-    ]);
+    run(&[&TREE[..], &["-o", "tree.dvox"]].concat());
     run(&[
         "-q",
         "place",

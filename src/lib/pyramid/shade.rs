@@ -723,6 +723,27 @@ mod tests {
         assert_eq!(c[30 + 25], [200, 100, 50, 255], "beyond the shadow");
     }
 
+    /// A solid object `top_z` metres high on `cells` (column, row) of `t`, and it with the
+    /// buildings `b`: `(objects, all)`.
+    fn with_object(
+        t: &Elevation,
+        b: &Raised,
+        cells: [(usize, usize); 4],
+        top_z: f32,
+    ) -> (Raised, Raised) {
+        let cells = cells.map(|(c, r)| RaisedCell {
+            index: t.grid.index(c, r),
+            top_z,
+            colour: Some([50, 60, 70, 255]),
+            partial: false,
+        });
+        let o = Raised::new(cells.to_vec(), t);
+        let mut both = b.cells().to_vec();
+        both.extend(o.cells());
+        let all = Raised::new(both, t);
+        (o, all)
+    }
+
     fn building_scene() -> (Elevation, Raised) {
         let t = terrain(20, 20, |_, _| 0.0);
         let p = Prism {
@@ -757,16 +778,7 @@ mod tests {
     fn photo_sun_with_a_placed_object_darkens_only_the_objects_new_shadow() {
         let (t, b) = building_scene();
         // A 2 × 2 cell, 8 m object south-west of the building, not seen by the photo.
-        let cells = [(3, 15), (4, 15), (3, 16), (4, 16)].map(|(c, r)| RaisedCell {
-            index: t.grid.index(c, r),
-            top_z: 8.0,
-            colour: Some([50, 60, 70, 255]),
-            partial: false,
-        });
-        let o = Raised::new(cells.to_vec(), &t);
-        let mut both = b.cells().to_vec();
-        both.extend(o.cells());
-        let all = Raised::new(both, &t);
+        let (o, all) = with_object(&t, &b, [(3, 15), (4, 15), (3, 16), (4, 16)], 8.0);
         let s = sun(45.0, 90.0);
         let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), &b, &o, &all)
             .unwrap()
@@ -889,16 +901,7 @@ mod tests {
             roof_z: 12.0,
         };
         let b = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
-        let cells = [(25, 20), (26, 20), (25, 21), (26, 21)].map(|(c, r)| RaisedCell {
-            index: t.grid.index(c, r),
-            top_z: 9.0,
-            colour: Some([50, 60, 70, 255]),
-            partial: false,
-        });
-        let o = Raised::new(cells.to_vec(), &t);
-        let mut both = b.cells().to_vec();
-        both.extend(o.cells());
-        let all = Raised::new(both, &t);
+        let (o, all) = with_object(&t, &b, [(25, 20), (26, 20), (25, 21), (26, 21)], 9.0);
         let top = 12.0 + 0.1 * n as f64 + 2.0;
         let cases = [
             (sun(30.0, 200.0), Some(sun(30.0, 200.0))),
