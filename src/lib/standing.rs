@@ -450,30 +450,28 @@ impl Standing {
     /// nodata), sampled only under them, in bands of `band_rows` rows. Errors name the
     /// buildings layer or object file that cannot be read.
     pub fn read(db: &Database, terrain: &dyn RowSource<f32>, band_rows: usize) -> Result<Standing> {
-        Standing::read_rows(db, terrain, band_rows, 0..terrain.grid().height)
+        let g = terrain.grid();
+        Standing::read_window(db, terrain, band_rows, 0..g.height, 0..g.width)
     }
 
-    /// [`read`](Self::read) for grid rows `rows`: there, cell for cell what the whole read
-    /// gives (cells outside may be missing). Only the buildings and placements whose footprint
-    /// can reach one of the rows ([`reaches_rows`]) are rasterised; each object file is read
-    /// once, however often it is placed.
-    pub fn read_rows(
+    /// [`read`](Self::read) for the cells of grid rows `rows` and columns `cols`: there, cell
+    /// for cell what the whole read gives (placed objects outside may be missing). Only the
+    /// placements whose footprint can reach the window ([`reaches`]) are rasterised, each
+    /// object file read once however often it is placed; every building is kept (prisms are
+    /// cheap, and the photo's shadow detection judges the whole grid by where roofs are).
+    pub fn read_window(
         db: &Database,
         terrain: &dyn RowSource<f32>,
         band_rows: usize,
         rows: Range<usize>,
+        cols: Range<usize>,
     ) -> Result<Standing> {
         let grid = terrain.grid();
         let prism_cells = match db.manifest.layers.contains_key(crate::db::BUILDINGS) {
-            true => {
-                let mut prisms = read_buildings(&db.layer_path(crate::db::BUILDINGS)?)?;
-                prisms.retain(|p| {
-                    let ys = p.rings.iter().flatten().map(|v| v.1);
-                    let (lo, hi) = ys.fold((f64::MAX, f64::MIN), |(l, h), y| (l.min(y), h.max(y)));
-                    reaches_rows(grid, (lo + hi) / 2.0, (hi - lo) / 2.0, &rows)
-                });
-                rasterise_prisms(grid, &prisms)
-            }
+            true => rasterise_prisms(
+                grid,
+                &read_buildings(&db.layer_path(crate::db::BUILDINGS)?)?,
+            ),
             false => Vec::new(),
         };
         let mut files: BTreeMap<&str, (VoxelObject, f64)> = BTreeMap::new();
@@ -485,7 +483,7 @@ impl Standing {
                 files.insert(&p.file, (obj, reach));
             }
             let (obj, reach) = &files[p.file.as_str()];
-            if reaches_rows(grid, p.y, reach * p.scale, &rows) {
+            if reaches(grid, [p.x, p.y], reach * p.scale, &rows, &cols) {
                 placed.push(placed_voxels(obj, p));
             }
         }
@@ -516,16 +514,22 @@ pub fn object_reach(obj: &VoxelObject) -> f64 {
     far + obj.grid.voxel_size * std::f64::consts::FRAC_1_SQRT_2
 }
 
-/// Whether something within `reach` metres of world northing `y` can mark a cell of grid rows
-/// `rows` (a row of margin either side for rounding).
-pub fn reaches_rows(grid: &Grid, y: f64, reach: f64, rows: &Range<usize>) -> bool {
+/// Whether something within `reach` metres of world point `[x, y]` can mark a cell of grid
+/// rows `rows` and columns `cols` (a cell of margin on every side for rounding).
+pub fn reaches(
+    grid: &Grid,
+    [x, y]: [f64; 2],
+    reach: f64,
+    rows: &Range<usize>,
+    cols: &Range<usize>,
+) -> bool {
     let t = &grid.transform;
-    let (a, b) = (
-        (y + reach - t.origin_y) / t.cell_y,
-        (y - reach - t.origin_y) / t.cell_y,
-    );
-    let (first, last) = (a.min(b).floor() - 1.0, a.max(b).floor() + 1.0);
-    last >= rows.start as f64 && first < rows.end as f64
+    let within = |v: f64, origin: f64, cell: f64, span: &Range<usize>| {
+        let (a, b) = ((v + reach - origin) / cell, (v - reach - origin) / cell);
+        let (first, last) = (a.min(b).floor() - 1.0, a.max(b).floor() + 1.0);
+        last >= span.start as f64 && first < span.end as f64
+    };
+    within(y, t.origin_y, t.cell_y, rows) && within(x, t.origin_x, t.cell_x, cols)
 }
 
 /// The cells an object marks (see the module doc for the footprint), sorted: the cells whose
@@ -961,9 +965,9 @@ mod tests {
         }
     }
 
-    /// The placements [`reaches_rows`] keeps for a window of rows raise, in those rows, exactly
-    /// the cells and runs all placements raise: trees of several scales and headings (the axes,
-    /// diagonals and others), some straddling the window's edges, on sloping ground.
+    /// The placements [`reaches`] keeps for a window raise, in it, exactly the cells and runs
+    /// all placements raise: trees of several scales and headings (the axes, diagonals and
+    /// others), some straddling the window's edges, on sloping ground.
     #[test]
     fn placements_that_reach_a_window_raise_all_of_it() {
         use crate::voxel::synth::{cone_tree, TreeParams};
@@ -1005,22 +1009,37 @@ mod tests {
             Raised::objects(&g, &kept, &t)
         };
         let all = placed(&|_| true);
-        for rows in [0..80, 10..20, 0..1, 79..80, 35..36, 50..80] {
-            let part = placed(&|p| reaches_rows(&g, p.y, reach * p.scale, &rows));
+        let windows = [
+            (0..80, 0..80),
+            (10..20, 0..80),
+            (0..1, 0..80),
+            (79..80, 0..80),
+            (35..36, 0..80),
+            (50..80, 0..80),
+            (10..20, 30..45),
+            (0..80, 79..80),
+            (40..41, 0..1),
+            (20..60, 60..80),
+        ];
+        for (rows, cols) in windows {
+            let part = placed(&|p| reaches(&g, [p.x, p.y], reach * p.scale, &rows, &cols));
+            let inside = |c: &&RaisedCell| cols.contains(&(c.index % 80));
             let (lo, hi) = (rows.start * 80, rows.end * 80);
+            let want: Vec<&RaisedCell> = all.range(lo, hi).iter().filter(inside).collect();
+            let got: Vec<&RaisedCell> = part.range(lo, hi).iter().filter(inside).collect();
             assert!(
-                !all.range(lo, hi).is_empty(),
-                "rows {rows:?} hold something"
+                !want.is_empty(),
+                "window {rows:?} × {cols:?} holds something"
             );
-            assert_eq!(part.range(lo, hi), all.range(lo, hi), "rows {rows:?}");
-            for c in all.range(lo, hi) {
+            assert_eq!(got, want, "window {rows:?} × {cols:?}");
+            for c in want {
                 assert_eq!(part.runs(c.index), all.runs(c.index), "cell {}", c.index);
             }
         }
         // Not vacuous: a window drops the placements far from it.
         let few = placements
             .iter()
-            .filter(|p| reaches_rows(&g, p.y, reach * p.scale, &(10..20)));
-        assert!(few.count() < placements.len() / 2);
+            .filter(|p| reaches(&g, [p.x, p.y], reach * p.scale, &(10..20), &(30..45)));
+        assert!(few.count() < placements.len() / 3);
     }
 }

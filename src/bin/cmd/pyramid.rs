@@ -33,6 +33,12 @@ pub struct Args {
     /// Also write every level as GeoTIFF here (level<N>_maxz.tif, level<N>_colour.tif).
     #[arg(long)]
     export_levels: Option<PathBuf>,
+    /// Keep a ledger beside the tile file (TILES.ledger.json) and make again only the pages
+    /// that buildings or placements changed since the build it records touch; the rest are
+    /// copied. The tile file is byte for byte a full build's; without a usable ledger (or with
+    /// --export-levels) every page is made, and the summary says why.
+    #[arg(long)]
+    incremental: bool,
     /// Output tile file.
     #[arg(short, long)]
     output: PathBuf,
@@ -50,6 +56,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         shadow_factor: args.shadow_factor,
         compression: Compression::parse(&args.compression)?,
         export_levels: args.export_levels,
+        incremental: args.incremental,
     };
     let progress = ctx.progress(0, "pyramid");
     ctx.report(&build_pyramid(

@@ -114,6 +114,11 @@ impl Staged {
         &self.path
     }
 
+    /// Where the file is until it is renamed: to read back what was written.
+    pub fn written(&self) -> &Path {
+        &self.tmp
+    }
+
     /// Rename the file over its destination.
     pub fn commit(self) -> Result<()> {
         self.tmp

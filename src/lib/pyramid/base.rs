@@ -30,25 +30,32 @@ pub struct Level0<'a> {
     raised: &'a Raised,
     /// Sun effects, when a sun was given and the scene calls for any.
     effects: Option<&'a Effects<'a>>,
-    /// Cells of the bands cut so far where only one of elevation and colour is valid.
-    half_valid: AtomicUsize,
+    /// Page edge, cells: half-valid cells are counted per page.
+    page: usize,
+    /// Cells of the bands cut so far where only one of elevation and colour is valid, per
+    /// page (row-major over the level's pages).
+    half_valid: Vec<AtomicUsize>,
 }
 
 impl<'a> Level0<'a> {
     /// Level 0 of `terrain` and `colour` (on the same grid) with `raised` merged in and
-    /// `effects` applied.
+    /// `effects` applied, cut into pages of `page` cells for its counts.
     pub fn new(
         terrain: &'a dyn RowSource<f32>,
         colour: &'a dyn RowSource<[u8; 4]>,
         raised: &'a Raised,
         effects: Option<&'a Effects<'a>>,
+        page: usize,
     ) -> Level0<'a> {
+        let g = terrain.grid();
+        let pages = g.width.div_ceil(page) * g.height.div_ceil(page);
         Level0 {
             terrain,
             colour,
             raised,
             effects,
-            half_valid: AtomicUsize::new(0),
+            page,
+            half_valid: (0..pages).map(|_| AtomicUsize::new(0)).collect(),
         }
     }
 
@@ -75,20 +82,21 @@ impl<'a> Level0<'a> {
             .iter()
             .map(|rc| out.colour[rc.index - start])
             .collect();
-        let half_valid: usize = out
-            .max_z
+        let pages_x = w.div_ceil(self.page);
+        out.max_z
             .par_chunks_mut(w)
             .zip(out.colour.par_chunks_mut(w))
             .zip(out.state.par_chunks_mut(w))
             .enumerate()
-            .map(|(r, ((zs, cs), ss))| {
+            .for_each(|(r, ((zs, cs), ss))| {
                 let start = (row0 + r) * w;
                 let mut raised = self.raised.range(start, start + w).iter().peekable();
-                let mut half_valid = 0;
+                let mut half_valid = vec![0; pages_x];
                 for col in 0..w {
                     let lifted = raised.next_if(|rc| rc.index == start + col);
                     if zs[col].is_nan() || cs[col][3] == 0 {
-                        half_valid += usize::from(zs[col].is_nan() != (cs[col][3] == 0));
+                        half_valid[col / self.page] +=
+                            usize::from(zs[col].is_nan() != (cs[col][3] == 0));
                         zs[col] = f32::NAN;
                         cs[col] = [0; 4];
                         continue;
@@ -106,10 +114,11 @@ impl<'a> Level0<'a> {
                         None => ss[col] = STATE_OPAQUE,
                     }
                 }
-                half_valid
-            })
-            .sum();
-        self.half_valid.fetch_add(half_valid, Ordering::Relaxed);
+                let first = (row0 + r) / self.page * pages_x;
+                for (n, counter) in half_valid.iter().zip(&self.half_valid[first..]) {
+                    counter.fetch_add(*n, Ordering::Relaxed);
+                }
+            });
         let factors = match self.effects {
             Some(fx) => Some(fx.shade_band(row0, &mut out.colour)?),
             None => None,
@@ -160,7 +169,16 @@ impl<'a> Level0<'a> {
     /// Cells dropped, in the bands cut so far, because only one of elevation and colour is
     /// valid there.
     pub fn half_valid_cells(&self) -> usize {
-        self.half_valid.load(Ordering::Relaxed)
+        self.half_valid
+            .iter()
+            .map(|n| n.load(Ordering::Relaxed))
+            .sum()
+    }
+
+    /// [`half_valid_cells`](Self::half_valid_cells) of level-0 page `(tx, ty)`.
+    pub fn half_valid_in_page(&self, tx: usize, ty: usize) -> usize {
+        let pages_x = self.terrain.grid().width.div_ceil(self.page);
+        self.half_valid[ty * pages_x + tx].load(Ordering::Relaxed)
     }
 }
 
@@ -205,7 +223,7 @@ mod tests {
             voxels: vec![([0.0, 0.0, 15.5], [7, 7, 7])],
         };
         let raised = building.union(&Raised::objects(&t.grid, &[lintel], &t), &t);
-        let l0 = Level0::new(&t, &c, &raised, None);
+        let l0 = Level0::new(&t, &c, &raised, None, 2);
         let band = l0.band(0, 2).unwrap();
         assert_eq!(l0.half_valid_cells(), 2);
         let b = &band.rows;
@@ -287,7 +305,7 @@ mod tests {
             crate::pyramid::shade::prepare(Some(sun), None, 0.5, &t, &c, &block, &objects, &all)
                 .unwrap()
                 .unwrap();
-        let l0 = Level0::new(&t, &c, &all, Some(&fx));
+        let l0 = Level0::new(&t, &c, &all, Some(&fx), 4);
         let band = l0.band(0, 12).unwrap();
         assert_eq!(band.columns.len(), 6);
         let mut lit_differently = 0;

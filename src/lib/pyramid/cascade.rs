@@ -177,7 +177,7 @@ where
 
 /// Cut one page-row of `level` into pages (nodata padding at the edges), each with the bricks of
 /// its `columns` (band-local indices) if it has any, and emit them, in parallel.
-fn emit_page_row<R, E>(
+pub(super) fn emit_page_row<R, E>(
     info: &TileSetInfo,
     level: usize,
     ty: usize,

@@ -12,12 +12,15 @@
 //! * [`base`]: level-0 bands with both merged in;
 //! * [`reduce`] and [`cascade`]: the coarser levels, streamed page-row by page-row to the
 //!   tile writer ([`crate::tiles::TileWriter`]);
-//! * [`export`]: every level as GeoTIFF (`--export-levels`).
+//! * [`export`]: every level as GeoTIFF (`--export-levels`);
+//! * [`incremental`]: only the pages an edit touches made again (`--incremental`), the rest
+//!   copied from the earlier tile file its ledger describes.
 
 pub mod base;
 pub mod cascade;
 pub mod effects;
 pub mod export;
+pub mod incremental;
 pub mod reduce;
 pub mod shade;
 
@@ -53,6 +56,9 @@ pub struct PyramidOptions {
     pub compression: Compression,
     /// Write every level as GeoTIFF into this directory.
     pub export_levels: Option<PathBuf>,
+    /// Keep a ledger beside the tile file and, when the earlier tile file's ledger allows,
+    /// make again only the pages changed since ([`incremental`]).
+    pub incremental: bool,
 }
 
 impl Default for PyramidOptions {
@@ -65,6 +71,7 @@ impl Default for PyramidOptions {
             shadow_factor: shade::DEFAULT_SHADOW_FACTOR,
             compression: Compression::None,
             export_levels: None,
+            incremental: false,
         }
     }
 }
@@ -78,6 +85,13 @@ pub struct PyramidSummary {
     pub levels: Vec<(usize, usize)>,
     /// Pages written.
     pub pages: usize,
+    /// Pages made (the others were copied from the earlier tile file): all of them in a full
+    /// build.
+    pub pages_rebuilt: usize,
+    /// With `--incremental`, why every page was made (no ledger, options changed, ...);
+    /// absent when only the changed pages were.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub full_build: Option<String>,
     /// Level-0 cells raised by buildings.
     pub building_cells: usize,
     /// Level-0 cells covered by placed objects.
@@ -109,6 +123,12 @@ impl std::fmt::Display for PyramidSummary {
             sizes.join(", "),
             self.pages
         )?;
+        if self.pages_rebuilt < self.pages {
+            write!(f, " ({} made again, the rest copied)", self.pages_rebuilt)?;
+        }
+        if let Some(why) = &self.full_build {
+            write!(f, "\nfull build: {why}")?;
+        }
         let applied = &self.effects.applied;
         match applied.is_empty() {
             true => write!(f, "\neffects: none")?,
@@ -171,6 +191,17 @@ pub fn build_pyramid(
             .collect();
         crate::io::atomic::check_outputs(&outputs, &[])?;
     }
+    let mut full_build = None;
+    if opts.incremental {
+        let attempt = match &opts.export_levels {
+            Some(_) => Err("--export-levels writes every level".to_string()),
+            None => incremental_build(db, wait, out, opts, &info, progress)?,
+        };
+        match attempt {
+            Ok(summary) => return Ok(summary),
+            Err(why) => full_build = Some(why),
+        }
+    }
     let mut lap = stopwatch();
     let mut seconds = Timings::default();
     // The layers are read band by band (each band's tiles decoded in parallel), never whole.
@@ -178,18 +209,15 @@ pub fn build_pyramid(
     seconds.read = lap();
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
-    let crate::standing::Standing {
-        buildings,
-        objects,
-        all,
-    } = crate::standing::Standing::read(db, &terrain, opts.page_size)?;
+    let standing = crate::standing::Standing::read(db, &terrain, opts.page_size)?;
+    let (buildings, objects, all) = (&standing.buildings, &standing.objects, &standing.all);
 
     let (effects, effects_record) =
-        sun_effects(db, opts, &terrain, &colour, [&buildings, &objects, &all])?;
+        sun_effects(db, opts, &terrain, &colour, [buildings, objects, all])?;
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
 
-    let level0 = base::Level0::new(&terrain, &colour, &all, effects.as_ref());
+    let level0 = base::Level0::new(&terrain, &colour, all, effects.as_ref(), opts.page_size);
     let (writer, exporter) = write_levels(&info, &level0, out, opts, progress)?;
     seconds.levels = lap();
     // Every output is finished under its temporary name, and all are renamed together once the
@@ -200,7 +228,26 @@ pub fn build_pyramid(
         None => Vec::new(),
     };
     let exported: Vec<PathBuf> = staged.iter().map(|s| s.path().to_path_buf()).collect();
-    staged.push(writer.stage()?);
+    let tiles = writer.stage()?;
+    if opts.incremental {
+        // The ledger of what the tile file was built from, for the next incremental build.
+        let pages = (0..info.levels[0].pages_y)
+            .flat_map(|ty| (0..info.levels[0].pages_x).map(move |tx| (tx, ty)))
+            .map(|page| incremental::page_stats(&info, page, &standing, &level0, effects.as_ref()))
+            .collect();
+        let ledger = incremental::Ledger {
+            format: incremental::LEDGER_FORMAT.into(),
+            version: 1,
+            key: incremental::key(db, &info, opts, photo_sun_for(db, opts)?),
+            raised: [!buildings.is_empty(), !objects.is_empty()],
+            tiles: incremental::stamp(&tiles)?,
+            terrain: incremental::terrain_range(&terrain)?,
+            things: incremental::things(db)?,
+            pages,
+        };
+        staged.push(incremental::stage_ledger(out, &ledger)?);
+    }
+    staged.push(tiles);
     progress.finish();
     seconds.finish = lap();
 
@@ -208,6 +255,8 @@ pub fn build_pyramid(
         tiles: out.to_path_buf(),
         levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
         pages: info.page_count(),
+        pages_rebuilt: info.page_count(),
+        full_build,
         building_cells: buildings.len(),
         object_cells: objects.len(),
         partial_cells: all.cells().iter().filter(|c| c.partial).count(),
@@ -237,13 +286,7 @@ fn sun_effects<'a>(
     colour: &dyn RowSource<[u8; 4]>,
     [buildings, objects, all]: [&'a Raised; 3],
 ) -> Result<(Option<shade::Effects<'a>>, shade::EffectsRecord)> {
-    // The photo's sun matters only against a requested one (a night-time photo_time must not
-    // stop a build without a sun).
-    let photo_sun = if opts.sun.is_some() {
-        crate::sun::photo_sun(db)?
-    } else {
-        None
-    };
+    let photo_sun = photo_sun_for(db, opts)?;
     let effects = shade::prepare(
         opts.sun,
         photo_sun,
@@ -261,6 +304,138 @@ fn sun_effects<'a>(
         }
     };
     Ok((effects, record))
+}
+
+/// The photo's sun when it matters: only against a requested one (a night-time photo_time
+/// must not stop a build without a sun).
+fn photo_sun_for(db: &Database, opts: &PyramidOptions) -> Result<Option<Sun>> {
+    match opts.sun {
+        Some(_) => crate::sun::photo_sun(db),
+        None => Ok(None),
+    }
+}
+
+/// [`build_pyramid`] making again only the pages changed since the earlier build of `out`
+/// ([`incremental`]), or why it cannot (a full build follows).
+fn incremental_build(
+    db: &Database,
+    wait: std::time::Duration,
+    out: &Path,
+    opts: &PyramidOptions,
+    info: &TileSetInfo,
+    progress: &Progress,
+) -> Result<std::result::Result<PyramidSummary, String>> {
+    use incremental::PageStats;
+    let mut lap = stopwatch();
+    let mut seconds = Timings::default();
+    let photo_sun = photo_sun_for(db, opts)?;
+    let key = incremental::key(db, info, opts, photo_sun);
+    let earlier = match incremental::earlier(out, &key) {
+        Ok(e) => e,
+        Err(why) => return Ok(Err(why)),
+    };
+    let before = &earlier.ledger;
+    let things = incremental::things(db)?;
+    seconds.read = lap();
+
+    let seen = shade::situation_of(opts.sun, photo_sun, before.raised);
+    let effects_run = seen.sun && !(seen.same_sun && !seen.buildings && !seen.objects);
+    let suns: Vec<Sun> = match effects_run {
+        true => opts.sun.into_iter().chain(photo_sun).collect(),
+        false => Vec::new(),
+    };
+    let detect = effects_run && seen.photo_sun && !seen.same_sun;
+    let [low, high] = before.terrain;
+    let touched = incremental::touched_pages(info, &before.things, &things, low, &suns, detect);
+    let touched = match touched {
+        Ok(t) => t,
+        Err(why) => return Ok(Err(why)),
+    };
+    let top = things.iter().map(|t| t.top).fold(high, f64::max);
+    let made = incremental::rebuild_level0(
+        db,
+        info,
+        opts,
+        photo_sun,
+        &touched,
+        &suns,
+        before.terrain,
+        top,
+        before.raised,
+    )?;
+    let mut pages = before.pages.clone();
+    let mut level0 = std::collections::HashMap::new();
+    for ((tx, ty), (page, stats)) in made {
+        pages[ty * info.levels[0].pages_x + tx] = stats;
+        level0.insert((tx, ty), page);
+    }
+    let total = pages.iter().fold(PageStats::default(), |a, &b| a + b);
+    let raised = [total.building_cells > 0, total.object_cells > 0];
+    if raised != before.raised {
+        return Ok(Err(
+            "buildings or objects now raise cells where none did, or none where some did (the effects that run change)".into(),
+        ));
+    }
+    let effects_record = match effects_run {
+        true => {
+            let (applied, skipped) = effects::decide(&seen);
+            shade::EffectsRecord {
+                sun: opts.sun.map(Into::into),
+                photo_sun: photo_sun.map(Into::into),
+                shadow_factor: opts.shadow_factor,
+                applied,
+                skipped,
+                outcome: shade::Outcome::Prepared(total.effects.unwrap_or_default()),
+            }
+        }
+        false => shade::EffectsRecord::none_seen(opts.sun, photo_sun, opts.shadow_factor, &seen),
+    };
+    let mut info = info.clone();
+    info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
+    seconds.prepare = lap();
+
+    let new = incremental::NewPages::new(&info, &earlier.tiles, level0)?;
+    let writer = TileWriter::create(out, info.clone())?;
+    progress.phase(info.page_count() as u64, "pyramid");
+    incremental::write_pages(&info, &new, &earlier.tiles, &writer, progress)?;
+    seconds.levels = lap();
+    let tiles = writer.stage()?;
+    let ledger = incremental::Ledger {
+        format: incremental::LEDGER_FORMAT.into(),
+        version: 1,
+        key,
+        raised,
+        tiles: incremental::stamp(&tiles)?,
+        terrain: before.terrain,
+        things,
+        pages,
+    };
+    let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
+    progress.finish();
+    seconds.finish = lap();
+
+    let summary = PyramidSummary {
+        tiles: out.to_path_buf(),
+        levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
+        pages: info.page_count(),
+        pages_rebuilt: new.len(),
+        full_build: None,
+        building_cells: total.building_cells,
+        object_cells: total.object_cells,
+        partial_cells: total.partial_cells,
+        half_valid_cells: total.half_valid_cells,
+        effects: effects_record,
+        exported: Vec::new(),
+        seconds,
+    };
+    let mut change = Database::begin(&db.dir, wait)?;
+    change.db.record_stage(Stage::now(
+        "pyramid",
+        stage_params(out, opts, &info, &summary),
+    ));
+    change.commit()?;
+    crate::io::atomic::commit_all(staged)?;
+    Ok(Ok(summary))
 }
 
 /// Before any work: the tile file must not be a special file or one of the database's, and the

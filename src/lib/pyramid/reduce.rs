@@ -54,7 +54,7 @@ impl Block {
 
     /// One child's height and state.
     #[inline]
-    fn add(&mut self, max_z: f32, state: u8) {
+    pub(super) fn add(&mut self, max_z: f32, state: u8) {
         // f32::max ignores a NaN operand: NaN only when every child is NaN.
         self.max_z = self.max_z.max(max_z);
         self.any_filled |= state != STATE_EMPTY;

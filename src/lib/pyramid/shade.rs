@@ -46,6 +46,7 @@ use crate::standing::Raised;
 use crate::sun::Sun;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::ops::Range;
 
 /// Default shadow factor `F`: a shadowed surface gets this fraction of the light of a sunlit
 /// one. 0.45 is typical of aerial photos on clear days (skylight); the patent's example, 0.02,
@@ -88,8 +89,8 @@ pub struct Effects<'a> {
     /// The photo's shadows as the photo shows them ([`detected`]): with a different sun, what
     /// is compensated on the ground instead of `photo_shadow`.
     detected: Option<ShadowBits>,
-    /// Raised cells with an exposed vertical face.
-    wall_cells: usize,
+    /// Raised cells of the prepared rows with an exposed vertical face, ascending cell index.
+    walls: Vec<usize>,
     lambert: bool,
     applied: Vec<&'static str>,
     skipped: Vec<Skipped>,
@@ -115,6 +116,7 @@ pub fn prepare<'a>(
     let window = Window {
         rows: 0..terrain.grid().height,
         top: f64::INFINITY,
+        raised_anywhere: None,
     };
     let raised = [buildings, objects, all];
     prepare_window(
@@ -137,6 +139,10 @@ pub struct Window {
     pub rows: std::ops::Range<usize>,
     /// No surface is higher, metres.
     pub top: f64,
+    /// Whether buildings and placed objects stand anywhere on the grid, `[buildings, objects]`,
+    /// when the raised sets given hold only those near the window (the effects that run depend
+    /// on the whole grid); `None`: the raised sets are the whole grid's.
+    pub raised_anywhere: Option<[bool; 2]>,
 }
 
 /// [`prepare`] for the rows of `window` only: [`Effects::shade_band`] gives there, bit for bit,
@@ -154,13 +160,16 @@ pub fn prepare_window<'a>(
 ) -> Result<Option<Effects<'a>>> {
     let Some(sun) = sun else { return Ok(None) };
     same_size(terrain.grid(), colour.grid())?;
-    let seen = situation(Some(sun), photo_sun, buildings, objects);
+    let mut seen = situation(Some(sun), photo_sun, buildings, objects);
+    if let Some([b, o]) = window.raised_anywhere {
+        (seen.buildings, seen.objects) = (b, o);
+    }
     let same_sun = seen.same_sun;
     if same_sun && !seen.buildings && !seen.objects {
         // The photo holds every shadow and all shading for this sun: nothing to do.
         return Ok(None);
     }
-    let photo_apart = !objects.is_empty() && photo_sun.is_some();
+    let photo_apart = seen.objects && photo_sun.is_some();
     // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
     let photo_cast = photo_sun.filter(|_| !same_sun || photo_apart);
     let cast = |sun: &Sun, laid: &Raised| {
@@ -196,13 +205,13 @@ pub fn prepare_window<'a>(
         new_shadow,
         photo_shadow,
         detected,
-        wall_cells: 0,
+        walls: Vec::new(),
         lambert: !same_sun,
         applied,
         skipped,
         rows: window.rows,
     };
-    fx.wall_cells = fx.count_walls()?;
+    fx.walls = fx.find_walls()?;
     Ok(Some(fx))
 }
 
@@ -226,12 +235,18 @@ pub fn situation(
     buildings: &Raised,
     objects: &Raised,
 ) -> Situation {
+    situation_of(sun, photo_sun, [!buildings.is_empty(), !objects.is_empty()])
+}
+
+/// [`situation`] when whether buildings and objects raise any cell is known,
+/// `[buildings, objects]`.
+pub fn situation_of(sun: Option<Sun>, photo_sun: Option<Sun>, [b, o]: [bool; 2]) -> Situation {
     Situation {
         sun: sun.is_some(),
         photo_sun: photo_sun.is_some(),
         same_sun: matches!((sun, photo_sun), (Some(s), Some(p)) if same(&p, &s)),
-        buildings: !buildings.is_empty(),
-        objects: !objects.is_empty(),
+        buildings: b,
+        objects: o,
     }
 }
 
@@ -282,6 +297,56 @@ impl From<Sun> for SunAngles {
     }
 }
 
+/// The cell counts of an [`EffectsRecord`] whose effects were prepared, over the whole grid or a
+/// part of it ([`Effects::counts_in`]): the whole grid's are the sums of its parts'.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize)]
+pub struct Counts {
+    /// Cells in the new surface's cast shadow; `None` when not cast.
+    pub shadow_cells: Option<usize>,
+    /// Cells in the cast for the photo's sun over the surface the photo saw; `None` when not
+    /// cast.
+    pub photo_shadow_cells: Option<usize>,
+    /// Cells of the photo's shadows as found in the photo; `None` when not detected.
+    pub detected_photo_shadow_cells: Option<usize>,
+    /// Raised cells with an exposed vertical face.
+    pub wall_cells: usize,
+}
+
+impl std::ops::Add for Counts {
+    type Output = Counts;
+    fn add(self, o: Counts) -> Counts {
+        let add = |a: Option<usize>, b: Option<usize>| match (a, b) {
+            (None, None) => None,
+            (a, b) => Some(a.unwrap_or(0) + b.unwrap_or(0)),
+        };
+        Counts {
+            shadow_cells: add(self.shadow_cells, o.shadow_cells),
+            photo_shadow_cells: add(self.photo_shadow_cells, o.photo_shadow_cells),
+            detected_photo_shadow_cells: add(
+                self.detected_photo_shadow_cells,
+                o.detected_photo_shadow_cells,
+            ),
+            wall_cells: self.wall_cells + o.wall_cells,
+        }
+    }
+}
+
+impl std::ops::Sub for Counts {
+    type Output = Counts;
+    fn sub(self, o: Counts) -> Counts {
+        let sub = |a: Option<usize>, b: Option<usize>| a.map(|a| a - b.unwrap_or(0));
+        Counts {
+            shadow_cells: sub(self.shadow_cells, o.shadow_cells),
+            photo_shadow_cells: sub(self.photo_shadow_cells, o.photo_shadow_cells),
+            detected_photo_shadow_cells: sub(
+                self.detected_photo_shadow_cells,
+                o.detected_photo_shadow_cells,
+            ),
+            wall_cells: self.wall_cells - o.wall_cells,
+        }
+    }
+}
+
 /// How an [`EffectsRecord`] ends: nothing to do and why, or cell counts of what was prepared.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
@@ -291,17 +356,8 @@ pub enum Outcome {
         /// Why, in words.
         reason: &'static str,
     },
-    /// Effects were prepared; each count is `None` when that cast was not needed.
-    Prepared {
-        /// Cells in the new surface's cast shadow.
-        shadow_cells: Option<usize>,
-        /// Cells in the cast for the photo's sun over the surface the photo saw.
-        photo_shadow_cells: Option<usize>,
-        /// Cells of the photo's shadows as found in the photo.
-        detected_photo_shadow_cells: Option<usize>,
-        /// Raised cells with an exposed vertical face.
-        wall_cells: usize,
-    },
+    /// Effects were prepared: the cells they cover.
+    Prepared(Counts),
 }
 
 impl EffectsRecord {
@@ -314,7 +370,18 @@ impl EffectsRecord {
         buildings: &Raised,
         objects: &Raised,
     ) -> EffectsRecord {
-        let (applied, skipped) = effects::decide(&situation(sun, photo_sun, buildings, objects));
+        let seen = situation(sun, photo_sun, buildings, objects);
+        EffectsRecord::none_seen(sun, photo_sun, shadow_factor, &seen)
+    }
+
+    /// [`none`](Self::none) for what the registry decided on, `seen`.
+    pub fn none_seen(
+        sun: Option<Sun>,
+        photo_sun: Option<Sun>,
+        shadow_factor: f64,
+        seen: &Situation,
+    ) -> EffectsRecord {
+        let (applied, skipped) = effects::decide(seen);
         debug_assert!(applied.is_empty(), "prepare runs whenever an effect would");
         let reason = match sun {
             None => "no sun given",
@@ -376,18 +443,45 @@ impl Effects<'_> {
             shadow_factor: self.factor,
             applied: self.applied.clone(),
             skipped: self.skipped.clone(),
-            outcome: Outcome::Prepared {
+            outcome: Outcome::Prepared(Counts {
                 shadow_cells: self.new_shadow.as_ref().map(ShadowBits::count),
                 photo_shadow_cells: self.photo_shadow.as_ref().map(ShadowBits::count),
                 detected_photo_shadow_cells: self.detected.as_ref().map(ShadowBits::count),
-                wall_cells: self.wall_cells,
-            },
+                wall_cells: self.walls.len(),
+            }),
         }
     }
 
-    /// Raised cells of the prepared rows with at least one exposed vertical face, counted
-    /// band by band.
-    fn count_walls(&self) -> Result<usize> {
+    /// The record's counts over the cells of columns `cols` and rows `rows` only (rows within
+    /// the rows prepared): what a part of the grid adds to the whole record's.
+    pub fn counts_in(&self, cols: Range<usize>, rows: Range<usize>) -> Counts {
+        let w = self.terrain.grid().width;
+        let mask = |m: &Option<ShadowBits>| {
+            m.as_ref().map(|m| {
+                rows.clone()
+                    .map(|r| cols.clone().filter(|&c| m.get(r * w + c)).count())
+                    .sum()
+            })
+        };
+        let walls = rows
+            .clone()
+            .map(|r| {
+                let (a, b) = (r * w + cols.start, r * w + cols.end);
+                let lo = self.walls.partition_point(|&i| i < a);
+                self.walls.partition_point(|&i| i < b) - lo
+            })
+            .sum();
+        Counts {
+            shadow_cells: mask(&self.new_shadow),
+            photo_shadow_cells: mask(&self.photo_shadow),
+            detected_photo_shadow_cells: mask(&self.detected),
+            wall_cells: walls,
+        }
+    }
+
+    /// Raised cells of the prepared rows with at least one exposed vertical face, ascending,
+    /// found band by band.
+    fn find_walls(&self) -> Result<Vec<usize>> {
         let g = self.terrain.grid();
         let (w, per_band) = (g.width, band_rows(g.width));
         let end = self.rows.end;
@@ -398,15 +492,17 @@ impl Effects<'_> {
                 let rows = per_band.min(end - row0);
                 let cells = self.all.range(row0 * w, (row0 + rows) * w);
                 if cells.is_empty() {
-                    return Ok(0);
+                    return Ok(Vec::new());
                 }
                 let band = self.band(row0, rows)?;
                 Ok(cells
                     .iter()
                     .filter(|c| !self.faces(&band, c.index % w, c.index / w).is_empty())
-                    .count())
+                    .map(|c| c.index)
+                    .collect::<Vec<usize>>())
             })
-            .sum()
+            .collect::<Result<Vec<Vec<usize>>>>()
+            .map(|bands| bands.concat())
     }
 
     /// Multiply the colours of level-0 rows `row0..` (a band of `colour.len() / width` rows) by

@@ -97,6 +97,12 @@ impl TileReader {
         self.preamble.index_offset
     }
 
+    /// CRC-32 of the header and of the index, as the preamble records them: together with the
+    /// file's length, what tells one tile file from another without reading its pages.
+    pub fn checksums(&self) -> (u32, u32) {
+        (self.preamble.header_crc, self.preamble.index_crc)
+    }
+
     /// All index entries, in index order (see [`TileSetInfo::index_position`]).
     pub fn entries(&self) -> &[IndexEntry] {
         &self.index
@@ -174,7 +180,30 @@ impl TileReader {
     }
 
     /// Read, check and decode the page at index position `pos`.
+    /// Page `(level, tx, ty)` as stored (possibly compressed), checked against its CRC but not
+    /// decoded, with its index entry: what a writer of the same tile set copies unchanged
+    /// ([`super::TileWriter::write_stored`]). Not cached.
+    pub fn stored(&self, level: usize, tx: usize, ty: usize) -> Result<(IndexEntry, Vec<u8>)> {
+        let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
+            Error::file(
+                &self.path,
+                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
+            )
+        })?;
+        Ok((self.index[pos], self.read_stored(pos)?))
+    }
+
     fn load(&self, pos: usize) -> Result<Page> {
+        let e = self.index[pos];
+        let stored = self.read_stored(pos)?;
+        let (level, tx, ty) = self.info.page_at(pos).expect("position within the index");
+        let name = format!("page (level {level}, {tx}, {ty})");
+        page::decode(&self.layout, &stored, e.raw_len, e.flags)
+            .map_err(|problem| Error::file(&self.path, format!("{name} {problem}")).fix(REBUILD))
+    }
+
+    /// The stored bytes of the page at index position `pos`, their CRC checked.
+    fn read_stored(&self, pos: usize) -> Result<Vec<u8>> {
         let e = self.index[pos];
         let (level, tx, ty) = self.info.page_at(pos).expect("position within the index");
         let name = format!("page (level {level}, {tx}, {ty})");
@@ -194,8 +223,7 @@ impl TileReader {
         if crc32fast::hash(&stored) != e.crc {
             return Err(Error::file(&self.path, format!("{name} checksum mismatch")).fix(REBUILD));
         }
-        page::decode(&self.layout, &stored, e.raw_len, e.flags)
-            .map_err(|problem| Error::file(&self.path, format!("{name} {problem}")).fix(REBUILD))
+        Ok(stored)
     }
 }
 

@@ -291,7 +291,62 @@ impl TileWriter {
         page::check(&self.info, level, tx, ty, page).map_err(|e| e.in_file(&self.path))?;
         let enc = page::encode(&self.layout, page, self.info.compression)
             .map_err(|e| e.in_file(&self.path))?;
-        let stored_len = enc.stored.len() as u32; // ≤ raw_len (lz4 kept only when smaller)
+        let record = Stored {
+            at: 0,
+            stored_len: enc.stored.len() as u32, // ≤ raw_len (lz4 kept only when smaller)
+            raw_len: enc.raw_len,
+            crc: enc.crc,
+            flags: enc.flags,
+        };
+        self.put(pos, (level, tx, ty), record, enc.stored)
+    }
+
+    /// Write page `(level, tx, ty)` as `stored` bytes with the index `entry` they were read with
+    /// ([`super::TileReader::stored`]) from a tile file of the same description: the page copied
+    /// unchanged, without decoding or encoding it. The same checks on the position and on
+    /// writing twice as [`write_page`](Self::write_page); the bytes must match the entry's
+    /// length and CRC.
+    pub fn write_stored(
+        &self,
+        level: usize,
+        tx: usize,
+        ty: usize,
+        entry: IndexEntry,
+        stored: Vec<u8>,
+    ) -> Result<()> {
+        let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
+            Error::file(
+                &self.path,
+                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
+            )
+        })?;
+        if stored.len() != entry.stored_len as usize || crc32fast::hash(&stored) != entry.crc {
+            return Err(Error::file(
+                &self.path,
+                format!(
+                    "internal: page (level {level}, {tx}, {ty}) copied with a wrong length or CRC"
+                ),
+            ));
+        }
+        let record = Stored {
+            at: 0,
+            stored_len: entry.stored_len,
+            raw_len: entry.raw_len,
+            crc: entry.crc,
+            flags: entry.flags,
+        };
+        self.put(pos, (level, tx, ty), record, stored.into())
+    }
+
+    /// Place page `pos` (`record` without its offset yet) and queue its bytes for the I/O thread.
+    fn put(
+        &self,
+        pos: usize,
+        (level, tx, ty): (usize, usize, usize),
+        mut record: Stored,
+        stored: StoredBytes,
+    ) -> Result<()> {
+        let stored_len = record.stored_len;
         let at = {
             let mut slots = self.slots.lock().unwrap_or_else(|p| p.into_inner());
             if slots.pages[pos].is_some() {
@@ -308,16 +363,11 @@ impl TileWriter {
                     at
                 }
             };
-            slots.pages[pos] = Some(Stored {
-                at,
-                stored_len,
-                raw_len: enc.raw_len,
-                crc: enc.crc,
-                flags: enc.flags,
-            });
+            record.at = at;
+            slots.pages[pos] = Some(record);
             at
         };
-        self.io.send(enc.stored, at).map_err(|e| {
+        self.io.send(stored, at).map_err(|e| {
             Error::io(&self.path, e).fix("check the free space in the output's directory")
         })
     }
