@@ -96,16 +96,21 @@ fn pyramid(db: &Path, out: &Path, extra: &[&str]) -> Value {
 
 /// Every effects record matches schemas/pyramid-effects.schema.json.
 fn check_effects_schema(effects: &Value) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/pyramid-effects.schema.json");
+    check_schema("pyramid-effects", effects);
+}
+
+/// `doc` matches schemas/NAME.schema.json.
+fn check_schema(name: &str, doc: &Value) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("schemas/{name}.schema.json"));
     let schema: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let v = jsonschema::validator_for(&schema).unwrap();
     let errors: Vec<String> = v
-        .iter_errors(effects)
+        .iter_errors(doc)
         .map(|e| format!("{e} at {}", e.instance_path()))
         .collect();
     assert!(
         errors.is_empty(),
-        "effects record does not match its schema: {errors:?}\n{effects}"
+        "{name} does not match its schema: {errors:?}\n{doc}"
     );
 }
 
@@ -699,4 +704,213 @@ fn a_pyramid_arch_renders_open_under_its_lintel() {
     assert!((open as f64 - 10.25f64.hypot(1.55)).abs() < 1e-3, "{open}");
     assert_eq!(open.to_bits(), range(&tn, eye, &att).to_bits());
     assert_eq!(range(&tw, "500119.5,5299970.25,203.5", "0,0,0"), 9.75);
+}
+
+/// One edit of what stands on the terrain, for the incremental property test.
+#[derive(Debug, Clone)]
+enum Edit {
+    /// Place the mushroom at a cell, turned by a heading, scaled.
+    Add(usize, usize, f64, f64),
+    /// Move the placement at this position in the list (modulo its length) to a cell.
+    Move(usize, usize, usize),
+    /// Remove the placement at this position (modulo).
+    Remove(usize),
+    /// Replace the buildings layer: squares at cells with roof heights above the slope.
+    Buildings(Vec<(usize, usize, f64)>),
+}
+
+fn edit() -> impl proptest::strategy::Strategy<Value = Edit> {
+    use proptest::prelude::*;
+    prop_oneof![
+        (0..W, 0..H, 0.0..360.0f64, 0.5..2.0f64).prop_map(|(c, r, h, k)| Edit::Add(c, r, h, k)),
+        (0..8usize, 0..W, 0..H).prop_map(|(i, c, r)| Edit::Move(i, c, r)),
+        (0..8usize).prop_map(Edit::Remove),
+        proptest::collection::vec((0..W - 8, 0..H - 8, 3.0..30.0f64), 0..3)
+            .prop_map(Edit::Buildings),
+    ]
+}
+
+/// A 3 × 3 m cap on a 1 m stem, 4 m tall: an overhang, so its cells are partial.
+fn mushroom(dir: &Path) -> (String, String) {
+    use dbms::voxel::{format, grid::VoxelGrid, object::VoxelObject};
+    let grid = VoxelGrid::new([0.0, 0.0, 0.0], 1.0, [3, 3, 4]).unwrap();
+    let obj = VoxelObject::from_fn(grid, |p, _| {
+        let (x, y, z) = (p[0], p[1], p[2]);
+        let stem = (1.0..2.0).contains(&x) && (1.0..2.0).contains(&y);
+        (z >= 3.0 || stem).then_some([150, 40, 30])
+    });
+    format::write(&dir.join("mushroom.dvox"), &obj, "test mushroom").unwrap();
+    let sha = dbms::db::sha256_file(&dir.join("mushroom.dvox")).unwrap();
+    ("mushroom.dvox".into(), sha)
+}
+
+/// Apply `edit` to the database's placements and buildings layer.
+fn apply(db: &mut Database, edit: &Edit, object: &(String, String)) {
+    let world = |c: usize, r: usize| (500_000.5 + c as f64, 5_300_000.0 - 0.5 - r as f64);
+    let ground = |r: usize| 200.0 + r as f64 * 0.05;
+    let objects = &mut db.manifest.objects;
+    match edit {
+        Edit::Add(c, r, heading, scale) => {
+            let (x, y) = world(*c, *r);
+            let id = db.manifest.last_placement_id + 1;
+            db.manifest.last_placement_id = id;
+            db.manifest.objects.push(PlacedObject {
+                id,
+                file: object.0.clone(),
+                sha256: object.1.clone(),
+                x,
+                y,
+                z: if *c < 40 { 212.0 } else { ground(*r) },
+                heading_deg: *heading,
+                scale: *scale,
+            });
+        }
+        Edit::Move(i, c, r) if !objects.is_empty() => {
+            let n = objects.len();
+            let p = &mut objects[i % n];
+            (p.x, p.y) = world(*c, *r);
+            p.z = if *c < 40 { 212.0 } else { ground(*r) };
+        }
+        Edit::Remove(i) if !objects.is_empty() => {
+            let n = objects.len();
+            objects.remove(i % n);
+        }
+        Edit::Move(..) | Edit::Remove(_) => {}
+        Edit::Buildings(squares) => {
+            let features: Vec<Value> = squares
+                .iter()
+                .enumerate()
+                .map(|(k, &(c, r, h))| {
+                    let (x0, y0) = (500_000.0 + c as f64, 5_300_000.0 - r as f64 - 6.0);
+                    let ring = json!([
+                        [x0, y0],
+                        [x0 + 6.0, y0],
+                        [x0 + 6.0, y0 + 6.0],
+                        [x0, y0 + 6.0],
+                        [x0, y0]
+                    ]);
+                    json!({"type": "Feature", "properties": {"id": k, "roof_z": 212.0 + h},
+                           "geometry": {"type": "Polygon", "coordinates": [ring]}})
+                })
+                .collect();
+            let doc = json!({"type": "FeatureCollection", "features": features});
+            std::fs::write(db.dir.join("buildings.geojson"), doc.to_string()).unwrap();
+            db.set_layer("buildings", "buildings", "buildings.geojson", None)
+                .unwrap();
+        }
+    }
+    db.save().unwrap();
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig { cases: 24, ..Default::default() })]
+
+    /// An incremental pyramid after any sequence of edits (placements added, moved, removed;
+    /// buildings replaced) is byte for byte the full build of the edited database, under no
+    /// sun, the photo's own sun and another sun (photo shadows detected), for factors 2 and 4.
+    #[test]
+    fn incremental_builds_are_byte_identical_to_full_builds(
+        trees in proptest::collection::vec((0..W, 0..H, 0.0..360.0f64, 0.5..2.0f64), 2..5),
+        buildings in proptest::collection::vec((0..W - 8, 0..H - 8, 3.0..30.0f64), 0..3),
+        edits in proptest::collection::vec(edit(), 1..4),
+        sun in 0..3usize,
+        factor in proptest::sample::select(vec!["2", "4"]),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let t = "2026-06-21T10:00:00Z";
+        let mut db = make_db(dir.path(), Some(t));
+        let object = mushroom(&db.dir);
+        let sun_args: &[&str] = match sun {
+            0 => &[],
+            1 => &["--time", t],
+            _ => &["--sun-elevation", "25", "--sun-azimuth", "200"],
+        };
+        let mut extra = vec!["--factor", factor];
+        extra.extend_from_slice(sun_args);
+        let mut incremental = extra.clone();
+        incremental.push("--incremental");
+        for &(c, r, heading, scale) in &trees {
+            apply(&mut db, &Edit::Add(c, r, heading, scale), &object);
+        }
+        apply(&mut db, &Edit::Buildings(buildings.clone()), &object);
+        let (a, b) = (dir.path().join("a.dbt"), dir.path().join("b.dbt"));
+        let s = pyramid(&db.dir, &a, &incremental);
+        proptest::prop_assert!(s["full_build"].as_str().unwrap().contains("no ledger"));
+        for e in &edits {
+            let had = db.manifest.objects.len();
+            apply(&mut db, e, &object);
+            let s = pyramid(&db.dir, &a, &incremental);
+            let full = pyramid(&db.dir, &b, &extra);
+            proptest::prop_assert!(
+                std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(),
+                "after {:?} ({}): incremental and full tile files differ", e, s
+            );
+            for key in ["building_cells", "object_cells", "partial_cells", "effects"] {
+                proptest::prop_assert_eq!(&s[key], &full[key]);
+            }
+            // Not vacuous: a placement edit that leaves objects standing is incremental.
+            if !matches!(e, Edit::Buildings(_)) && had > 1 {
+                proptest::prop_assert!(s.get("full_build").is_none(), "after {:?}: {}", e, s);
+            }
+        }
+    }
+}
+
+/// Moving one placement rebuilds only the pages near it; options that change make a full
+/// build that says why; a ledger of another tile file is not trusted.
+#[test]
+fn an_edit_rebuilds_only_its_pages_and_a_changed_option_everything() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = make_db(dir.path(), None);
+    let object = mushroom(&db.dir);
+    apply(&mut db, &Edit::Add(120, 20, 0.0, 1.0), &object);
+    apply(&mut db, &Edit::Add(20, 90, 0.0, 1.0), &object);
+    let out = dir.path().join("t.dbt");
+    let args = [
+        "--incremental",
+        "--sun-elevation",
+        "40",
+        "--sun-azimuth",
+        "90",
+    ];
+    let s = pyramid(&db.dir, &out, &args);
+    assert_eq!(s["pages_rebuilt"], s["pages"]);
+    let ledger_path = dir.path().join("t.dbt.ledger.json");
+    let ledger: Value = serde_json::from_slice(&std::fs::read(&ledger_path).unwrap()).unwrap();
+    check_schema("pyramid-ledger", &ledger);
+    apply(&mut db, &Edit::Move(0, 125, 24), &object);
+    let s = pyramid(&db.dir, &out, &args);
+    assert!(s.get("full_build").is_none(), "{s}");
+    // Page 32: the mushroom's page and, west of it, where its shadow falls; one page per
+    // coarse level above them (5 × 4 pages at level 0, 3 × 2 at level 1, one at level 2).
+    let rebuilt = s["pages_rebuilt"].as_u64().unwrap();
+    assert!((2..=5).contains(&rebuilt), "{s}");
+    // Nothing changed: nothing made again, the same bytes.
+    let before = std::fs::read(&out).unwrap();
+    let s = pyramid(&db.dir, &out, &args);
+    assert_eq!(s["pages_rebuilt"], json!(0));
+    assert_eq!(std::fs::read(&out).unwrap(), before);
+    // Another sun: every page.
+    let s = pyramid(
+        &db.dir,
+        &out,
+        &[
+            "--incremental",
+            "--sun-elevation",
+            "41",
+            "--sun-azimuth",
+            "90",
+        ],
+    );
+    assert!(s["full_build"].as_str().unwrap().contains("sun"), "{s}");
+    // A tile file replaced behind the ledger's back: not trusted.
+    pyramid(&db.dir, &out, &[]);
+    let s = pyramid(&db.dir, &out, &["--incremental"]);
+    assert!(
+        s["full_build"]
+            .as_str()
+            .unwrap()
+            .contains("not the tile file its ledger describes"),
+        "{s}"
+    );
 }

@@ -1014,6 +1014,7 @@ mod tests {
                 let window = Window {
                     rows: rows.clone(),
                     top,
+                    raised_anywhere: None,
                 };
                 let part = prepare_window(Some(now), photo, 0.5, &t, &ortho, raised, window)
                     .unwrap()

@@ -268,7 +268,8 @@ fn product_step(scene: &Scene, name: &str, p: &Product, last: &str) -> Step {
         ]),
         (None, None) => {}
     }
-    cmd.extend([s("-o"), s(p.tiles.display())]);
+    // After an edit of buildings or placements only the pages it touches are made again.
+    cmd.extend([s("--incremental"), s("-o"), s(p.tiles.display())]);
     Step {
         name: format!("product.{name}"),
         does: format!("the {} tile file", p.sensor),
