@@ -885,6 +885,14 @@ fn an_edit_rebuilds_only_its_pages_and_a_changed_option_everything() {
     // coarse level above them (5 × 4 pages at level 0, 3 × 2 at level 1, one at level 2).
     let rebuilt = s["pages_rebuilt"].as_u64().unwrap();
     assert!((2..=5).contains(&rebuilt), "{s}");
+    // A move by one cell within its page keeps every page's length: the file changes in place,
+    // still byte for byte a full build.
+    apply(&mut db, &Edit::Move(0, 126, 24), &object);
+    let s = pyramid(&db.dir, &out, &args);
+    assert_eq!(s["in_place"], json!(true), "{s}");
+    let full = dir.path().join("full.dbt");
+    pyramid(&db.dir, &full, &args[1..]);
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&full).unwrap());
     // Nothing changed: nothing made again, the same bytes.
     let before = std::fs::read(&out).unwrap();
     let s = pyramid(&db.dir, &out, &args);

@@ -481,6 +481,11 @@ impl<'a> NewPages<'a> {
         self.pages.get(&(level, tx, ty)).map(|p| &**p)
     }
 
+    /// Every page made again, with its `(level, tx, ty)`.
+    pub fn iter(&self) -> impl Iterator<Item = ((usize, usize, usize), &Page)> {
+        self.pages.iter().map(|(&k, p)| (k, &**p))
+    }
+
     /// How many pages were made again.
     pub fn len(&self) -> usize {
         self.pages.len()

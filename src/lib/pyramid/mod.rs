@@ -88,6 +88,9 @@ pub struct PyramidSummary {
     /// Pages made (the others were copied from the earlier tile file): all of them in a full
     /// build.
     pub pages_rebuilt: usize,
+    /// Whether the earlier tile file was changed in place (only the pages made again and its
+    /// front written: every other page kept its offset) rather than written anew.
+    pub in_place: bool,
     /// With `--incremental`, why every page was made (no ledger, options changed, ...);
     /// absent when only the changed pages were.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -124,7 +127,11 @@ impl std::fmt::Display for PyramidSummary {
             self.pages
         )?;
         if self.pages_rebuilt < self.pages {
-            write!(f, " ({} made again, the rest copied)", self.pages_rebuilt)?;
+            let rest = match self.in_place {
+                true => "the file changed in place",
+                false => "the rest copied",
+            };
+            write!(f, " ({} made again, {rest})", self.pages_rebuilt)?;
         }
         if let Some(why) = &self.full_build {
             write!(f, "\nfull build: {why}")?;
@@ -163,10 +170,11 @@ pub struct Timings {
     /// Buildings, objects and sun effects (shadow casts) prepared for the whole grid.
     pub prepare: f64,
     /// The hierarchy: level-0 bands (the layers decoded band by band), reductions, pages encoded
-    /// and written by the tile writer.
+    /// and written by the tile writer. Incremental: the pages made again (coarse cells folded).
     pub levels: f64,
     /// The tile writer's finish (index and fsync; a copy into canonical order only with lz4 or
-    /// bricks) and the export's (the renames come after the manifest's change).
+    /// bricks) and the export's (the renames come after the manifest's change). Incremental:
+    /// the file changed in place or written anew, and the ledger.
     pub finish: f64,
 }
 
@@ -256,6 +264,7 @@ pub fn build_pyramid(
         levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
         pages: info.page_count(),
         pages_rebuilt: info.page_count(),
+        in_place: false,
         full_build,
         building_cells: buildings.len(),
         object_cells: objects.len(),
@@ -395,11 +404,19 @@ fn incremental_build(
     seconds.prepare = lap();
 
     let new = incremental::NewPages::new(&info, &earlier.tiles, level0)?;
-    let writer = TileWriter::create(out, info.clone())?;
-    progress.phase(info.page_count() as u64, "pyramid");
-    incremental::write_pages(&info, &new, &earlier.tiles, &writer, progress)?;
     seconds.levels = lap();
-    let tiles = writer.stage()?;
+    // In place when every other page keeps its offset, else a new file with them copied.
+    let replaced: Vec<_> = new.iter().collect();
+    let in_place = crate::tiles::update_in_place(out, &info, &earlier.tiles, &replaced)?;
+    let (tiles, in_place) = match in_place {
+        Some(tiles) => (tiles, true),
+        None => {
+            let writer = TileWriter::create(out, info.clone())?;
+            progress.phase(info.page_count() as u64, "pyramid");
+            incremental::write_pages(&info, &new, &earlier.tiles, &writer, progress)?;
+            (writer.stage()?, false)
+        }
+    };
     let ledger = incremental::Ledger {
         format: incremental::LEDGER_FORMAT.into(),
         version: 1,
@@ -419,6 +436,7 @@ fn incremental_build(
         levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
         pages: info.page_count(),
         pages_rebuilt: new.len(),
+        in_place,
         full_build: None,
         building_cells: total.building_cells,
         object_cells: total.object_cells,

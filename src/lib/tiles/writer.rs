@@ -194,20 +194,53 @@ struct Stored {
     flags: u32,
 }
 
+impl Stored {
+    /// What [`place`] needs: the stored length and whether the page has bricks.
+    fn slot(&self) -> (u64, bool) {
+        (self.stored_len as u64, self.flags & page::FLAG_BRICKS != 0)
+    }
+
+    fn of(e: &IndexEntry) -> Stored {
+        Stored {
+            at: e.offset,
+            stored_len: e.stored_len,
+            raw_len: e.raw_len,
+            crc: e.crc,
+            flags: e.flags,
+        }
+    }
+}
+
 /// Where the index starts and ends for a header of `header_len` bytes and `pages` pages.
 fn index_span(header_len: usize, pages: usize) -> (u64, u64) {
     let index_offset = align_up(PREAMBLE_LEN as u64 + header_len as u64, 8);
     (index_offset, index_offset + (pages * ENTRY_LEN) as u64)
 }
 
-/// Canonical offsets (by index position) of pages of the given stored lengths, and the file's end.
-fn place(info: &TileSetInfo, index_end: u64, stored_len: impl Fn(usize) -> u64) -> (Vec<u64>, u64) {
+/// A page with a bricks blob is followed by zero padding up to a multiple of this many bytes
+/// from its offset: room for its blob to grow or shrink when an edit moves voxels, so that the
+/// pages after it keep their offsets and an incremental build can rewrite the page in place
+/// ([`update_in_place`]). Pages without bricks all have one length and need none.
+pub const BRICKS_SLOT: u64 = 64 << 10;
+
+/// Canonical offsets (by index position) of pages of the given stored lengths and bricks flags,
+/// and the file's end (the end of the last page's bytes: no trailing padding).
+fn place(
+    info: &TileSetInfo,
+    index_end: u64,
+    stored: impl Fn(usize) -> (u64, bool),
+) -> (Vec<u64>, u64) {
     let mut offsets = vec![0; info.page_count()];
-    let mut end = index_end;
+    let (mut next, mut end) = (index_end, index_end);
     for pos in storage_order(info) {
-        let offset = align_up(end, info.alignment);
+        let offset = align_up(next, info.alignment);
+        let (len, bricks) = stored(pos);
         offsets[pos] = offset;
-        end = offset + stored_len(pos);
+        end = offset + len;
+        next = match bricks {
+            true => offset + align_up(len, BRICKS_SLOT),
+            false => end,
+        };
     }
     (offsets, end)
 }
@@ -236,7 +269,7 @@ impl TileWriter {
         let (plan, target, len) = match info.compression {
             Compression::None => {
                 let fixed = layout.fixed_len as u64;
-                let (plan, end) = place(&info, index_end, |_| fixed);
+                let (plan, end) = place(&info, index_end, |_| (fixed, false));
                 crate::io::atomic::clear_stale_temps(dir);
                 let tmp = tempfile::Builder::new()
                     .prefix(&crate::io::atomic::temp_prefix())
@@ -387,7 +420,7 @@ impl TileWriter {
         let slots = self.slots.into_inner().unwrap_or_else(|p| p.into_inner());
         let pages = every_page(slots, &self.info, &self.path)?;
         let (index_offset, index_end) = index_span(self.header.len(), pages.len());
-        let (offsets, end) = place(&self.info, index_end, |pos| pages[pos].stored_len as u64);
+        let (offsets, end) = place(&self.info, index_end, |pos| pages[pos].slot());
         let front = front_matter(&self.header, &pages, &offsets, index_offset, end);
         let path = &self.path;
         let in_place = pages.iter().zip(&offsets).all(|(p, &o)| p.at == o);
@@ -405,6 +438,90 @@ impl TileWriter {
             }
         }
     }
+}
+
+/// The tile file `path`, open in `earlier`, changed in place to describe `info` with `pages`
+/// replaced (every other page kept as stored), when that leaves every kept page at its offset:
+/// then the result is byte for byte what a [`TileWriter`] of `info` and the same pages writes,
+/// and it is staged (`Some`) for renaming back to `path`. `None` when a page would move (the
+/// caller writes the file anew); nothing was touched then.
+///
+/// The file is first renamed to a temporary name in its directory, so no reader that opens
+/// `path` meets it half-written and a run killed while patching leaves no `path` at all (a
+/// `make` target is missing, not up to date); a reader that already had it open sees the
+/// pages change. Only the replaced pages, the front (preamble, header, index) and the file's
+/// length are written.
+pub fn update_in_place(
+    path: &Path,
+    info: &TileSetInfo,
+    earlier: &super::TileReader,
+    pages: &[((usize, usize, usize), &Page)],
+) -> Result<Option<Staged>> {
+    if earlier.info().compression != info.compression
+        || earlier.info().page_count() != info.page_count()
+    {
+        return Ok(None);
+    }
+    let layout = Layout::of(info);
+    let mut records: Vec<Stored> = earlier.entries().iter().map(Stored::of).collect();
+    let encoded: Vec<(usize, page::Encoded)> = pages
+        .iter()
+        .map(|&((level, tx, ty), page)| {
+            let pos = info
+                .index_position(level, tx, ty)
+                .expect("a page of the tile set");
+            page::check(info, level, tx, ty, page).map_err(|e| e.in_file(path))?;
+            let enc = page::encode(&layout, page, info.compression).map_err(|e| e.in_file(path))?;
+            Ok((pos, enc))
+        })
+        .collect::<Result<_>>()?;
+    for (pos, enc) in &encoded {
+        let old = records[*pos];
+        records[*pos] = Stored {
+            at: old.at,
+            stored_len: enc.stored.len() as u32,
+            raw_len: enc.raw_len,
+            crc: enc.crc,
+            flags: enc.flags,
+        };
+    }
+    let header = serde_json::to_vec_pretty(info).expect("header serialises");
+    let (index_offset, index_end) = index_span(header.len(), records.len());
+    let (offsets, end) = place(info, index_end, |pos| records[pos].slot());
+    if records.iter().zip(&offsets).any(|(r, &o)| r.at != o) {
+        return Ok(None);
+    }
+    let front = front_matter(&header, &records, &offsets, index_offset, end);
+    let first = offsets.iter().copied().min().unwrap_or(end);
+    let io = |e| Error::io(path, e);
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let tmp = tempfile::Builder::new()
+        .prefix(&crate::io::atomic::temp_prefix())
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(io)?
+        .into_temp_path();
+    std::fs::rename(path, &tmp).map_err(io)?;
+    let f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&tmp)
+        .map_err(io)?;
+    // Each replaced page, zero-filled to the end of what its slot held before.
+    for (pos, enc) in &encoded {
+        let old = earlier.entries()[*pos].stored_len as usize;
+        let mut bytes = enc.stored.to_vec();
+        bytes.resize(bytes.len().max(old), 0);
+        f.write_all_at(&bytes, offsets[*pos]).map_err(io)?;
+    }
+    let mut front = front;
+    front.resize(front.len().max(first as usize), 0);
+    f.write_all_at(&front, 0).map_err(io)?;
+    f.set_len(end).map_err(io)?;
+    f.sync_all().map_err(io)?;
+    Ok(Some(Staged::new(path, tmp)?))
 }
 
 /// Every page's record, by index position; an error naming the first page never written.
