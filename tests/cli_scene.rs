@@ -410,3 +410,77 @@ fn a_point_layer_placement_varies_by_seed_and_its_file_is_an_input() {
         "{place}"
     );
 }
+
+/// Two products under two suns are one step: what stands on the terrain is read once and the
+/// cast for the photo's sun both need is made once (the second product's record in the
+/// manifest says what it took from the first); each tile file is the one its own
+/// `dbms pyramid` makes.
+#[test]
+fn two_products_share_what_they_have_in_common() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let dusk = "2026-09-15T15:30:00Z";
+    let text = scene_toml(30.0)
+        + &format!(
+            "[products.dusk]\nsensor = \"visual\"\ntiles = \"build/dusk.dbt\"\ntime = \"{dusk}\"\n"
+        );
+    std::fs::write(dir.join("scene.toml"), text).unwrap();
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("product.day+dusk"), "{plan}");
+    ok(dbms_in(dir, &["-q", "build", "scene.toml"]), "build");
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("build/db/manifest.json")).unwrap())
+            .unwrap();
+    let stages = manifest["stages"].as_array().unwrap();
+    let last = |tiles: &str| {
+        stages
+            .iter()
+            .rev()
+            .find(|s| {
+                s["name"] == "pyramid" && s["params"]["tiles"].as_str().unwrap().ends_with(tiles)
+            })
+            .unwrap_or_else(|| panic!("a pyramid stage for {tiles}: {manifest}"))
+            .clone()
+    };
+    let reused = |s: &serde_json::Value| -> Vec<String> {
+        let list = s["params"]["reused"].as_array();
+        list.map(|l| l.iter().map(|v| v.as_str().unwrap().to_string()).collect())
+            .unwrap_or_default()
+    };
+    assert!(
+        reused(&last("day.dbt")).is_empty(),
+        "the first product makes all it needs"
+    );
+    let took = reused(&last("dusk.dbt"));
+    assert!(
+        took.iter()
+            .any(|r| r.starts_with("what stands on the terrain"))
+            && took
+                .iter()
+                .any(|r| r.contains("over terrain and buildings")),
+        "{took:?}"
+    );
+    // The dusk product casts its own sun: that is not shared.
+    assert_eq!(took.len(), 2, "{took:?}");
+    ok(
+        dbms_in(
+            dir,
+            &[
+                "-q",
+                "pyramid",
+                "--db",
+                "build/db",
+                "--time",
+                dusk,
+                "-o",
+                "alone.dbt",
+            ],
+        ),
+        "pyramid",
+    );
+    assert!(
+        std::fs::read(dir.join("alone.dbt")).unwrap()
+            == std::fs::read(dir.join("build/dusk.dbt")).unwrap(),
+        "a shared build gives each product's own tile file"
+    );
+}

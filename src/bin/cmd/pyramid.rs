@@ -2,7 +2,9 @@
 
 use super::Ctx;
 use dbms::db::Database;
-use dbms::pyramid::{build_pyramid, PyramidOptions, DEFAULT_FACTOR, DEFAULT_PAGE};
+use dbms::pyramid::{build_pyramids, Product, PyramidOptions, PyramidSummary};
+use dbms::pyramid::{DEFAULT_FACTOR, DEFAULT_PAGE};
+use dbms::sun::Sun;
 use dbms::tiles::Compression;
 use std::path::PathBuf;
 
@@ -42,6 +44,66 @@ pub struct Args {
     /// Output tile file.
     #[arg(short, long)]
     output: PathBuf,
+    /// Another product built in the same run, TILES@SUN: its tile file and its sun, a UTC time
+    /// (RFC 3339), ELEVATION/AZIMUTH in degrees, or `none`. Repeatable. What stands on the
+    /// terrain is read once, and a cast (or the photo's detected shadows) one product made
+    /// serves the others that need the same; each summary's `reused` says what it took.
+    #[arg(long, value_name = "TILES@SUN")]
+    product: Vec<String>,
+}
+
+/// The product `TILES@SUN` of `--product` over `db`.
+fn product(text: &str, db: &Database) -> dbms::Result<Product> {
+    let bad = |problem: &str| {
+        dbms::Error::msg(format!("--product {text}: {problem}"))
+            .fix("give TILES@TIME (RFC 3339 UTC), TILES@ELEVATION/AZIMUTH (degrees) or TILES@none")
+    };
+    let (tiles, sun) = text
+        .rsplit_once('@')
+        .ok_or_else(|| bad("no @ before the sun"))?;
+    if tiles.is_empty() {
+        return Err(bad("no tile file before the @"));
+    }
+    let sun = match sun.split_once('/') {
+        _ if sun == "none" => None,
+        Some((e, a)) => {
+            let angle = |v: &str| {
+                v.trim()
+                    .parse::<f64>()
+                    .map_err(|_| bad("the angles are not numbers"))
+            };
+            Some(Sun::new(angle(e)?, angle(a)?)?)
+        }
+        None => Some(dbms::sun::at_database_centre(db, sun)?),
+    };
+    Ok(Product {
+        tiles: PathBuf::from(tiles),
+        sun,
+    })
+}
+
+/// The summaries of a run: one product's as before, several as a list.
+struct Built(Vec<PyramidSummary>);
+
+impl serde::Serialize for Built {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self.0.as_slice() {
+            [one] => one.serialize(s),
+            all => all.serialize(s),
+        }
+    }
+}
+
+impl std::fmt::Display for Built {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (k, summary) in self.0.iter().enumerate() {
+            if k > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{summary}")?;
+        }
+        Ok(())
+    }
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -58,13 +120,15 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         export_levels: args.export_levels,
         incremental: args.incremental,
     };
+    let mut products = vec![Product {
+        tiles: args.output.clone(),
+        sun,
+    }];
+    for text in &args.product {
+        products.push(product(text, &db)?);
+    }
     let progress = ctx.progress(0, "pyramid");
-    ctx.report(&build_pyramid(
-        &db,
-        ctx.wait,
-        &args.output,
-        &opts,
-        &progress,
-    )?);
+    let built = build_pyramids(&db, ctx.wait, &products, &opts, &progress)?;
+    ctx.report(&Built(built));
     Ok(())
 }

@@ -301,10 +301,17 @@ mod tests {
         );
         let all = block.union(&objects, &t);
         let sun = crate::sun::Sun::new(20.0, 90.0).unwrap();
-        let fx =
-            crate::pyramid::shade::prepare(Some(sun), None, 0.5, &t, &c, &block, &objects, &all)
-                .unwrap()
-                .unwrap();
+        let fx = crate::pyramid::shade::prepare(
+            Some(sun),
+            None,
+            0.5,
+            &t,
+            &c,
+            [&block, &objects, &all],
+            None,
+        )
+        .unwrap()
+        .unwrap();
         let l0 = Level0::new(&t, &c, &all, Some(&fx), 4);
         let band = l0.band(0, 12).unwrap();
         assert_eq!(band.columns.len(), 6);

@@ -95,6 +95,10 @@ pub struct PyramidSummary {
     /// absent when only the changed pages were.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub full_build: Option<String>,
+    /// In a run of several products ([`build_pyramids`]), what this one took from an earlier
+    /// one instead of making it again, in words (casts, detected shadows, what stands).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub reused: Vec<String>,
     /// Level-0 cells raised by buildings.
     pub building_cells: usize,
     /// Level-0 cells covered by placed objects.
@@ -135,6 +139,9 @@ impl std::fmt::Display for PyramidSummary {
         }
         if let Some(why) = &self.full_build {
             write!(f, "\nfull build: {why}")?;
+        }
+        if !self.reused.is_empty() {
+            write!(f, "\nshared: {}", self.reused.join("; "))?;
         }
         let applied = &self.effects.applied;
         match applied.is_empty() {
@@ -178,6 +185,15 @@ pub struct Timings {
     pub finish: f64,
 }
 
+/// One product of a pyramid run: a tile file shaded for one sun.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Product {
+    /// The tile file.
+    pub tiles: PathBuf,
+    /// The sun to shade for; `None` applies no effect at all.
+    pub sun: Option<Sun>,
+}
+
 /// Build the tile file `out` for the database `db` and record a `pyramid` stage in its manifest
 /// (one change at the end, waiting up to `wait` for the database's lock: changes made while the
 /// pyramid was built are kept).
@@ -186,6 +202,63 @@ pub fn build_pyramid(
     wait: std::time::Duration,
     out: &Path,
     opts: &PyramidOptions,
+    progress: &Progress,
+) -> Result<PyramidSummary> {
+    let product = Product {
+        tiles: out.to_path_buf(),
+        sun: opts.sun,
+    };
+    let mut built = build_pyramids(db, wait, &[product], opts, progress)?;
+    Ok(built.remove(0))
+}
+
+/// [`build_pyramid`] for several products of `db` in one run, in order, each with `opts` but its
+/// own sun: what stands on the terrain is read once, and a cast or the photo's detected shadows
+/// one product made serve every later product that needs the same ([`shade::Shared`]); each
+/// summary's `reused` says what it took from an earlier one. Each product is committed when it
+/// is built: an error stops the run, and the products before it stay built.
+pub fn build_pyramids(
+    db: &Database,
+    wait: std::time::Duration,
+    products: &[Product],
+    opts: &PyramidOptions,
+    progress: &Progress,
+) -> Result<Vec<PyramidSummary>> {
+    if products.len() > 1 && opts.export_levels.is_some() {
+        return Err(Error::msg("--export-levels with more than one product")
+            .fix("export the levels of one product at a time"));
+    }
+    let tiles: Vec<&Path> = products.iter().map(|p| p.tiles.as_path()).collect();
+    crate::io::atomic::check_outputs(&tiles, &[])?;
+    let shared = Shared {
+        effects: shade::Shared::default(),
+        standing: std::sync::OnceLock::new(),
+    };
+    products
+        .iter()
+        .map(|p| {
+            let opts = PyramidOptions {
+                sun: p.sun,
+                ..opts.clone()
+            };
+            build_product(db, wait, &p.tiles, &opts, &shared, progress)
+        })
+        .collect()
+}
+
+/// What the products of one run share: the sun effects' work and what stands on the terrain.
+struct Shared {
+    effects: shade::Shared,
+    standing: std::sync::OnceLock<crate::standing::Standing>,
+}
+
+/// One product of [`build_pyramids`].
+fn build_product(
+    db: &Database,
+    wait: std::time::Duration,
+    out: &Path,
+    opts: &PyramidOptions,
+    shared: &Shared,
     progress: &Progress,
 ) -> Result<PyramidSummary> {
     check_request(out, opts)?;
@@ -217,11 +290,23 @@ pub fn build_pyramid(
     seconds.read = lap();
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
-    let standing = crate::standing::Standing::read(db, &terrain, opts.page_size)?;
+    let mut reused = Vec::new();
+    let standing = match shared.standing.get() {
+        Some(s) => {
+            reused.push("what stands on the terrain (buildings and placed objects)".to_string());
+            s
+        }
+        None => {
+            let read = crate::standing::Standing::read(db, &terrain, opts.page_size)?;
+            shared.standing.get_or_init(|| read)
+        }
+    };
     let (buildings, objects, all) = (&standing.buildings, &standing.objects, &standing.all);
 
+    let raised = [buildings, objects, all];
     let (effects, effects_record) =
-        sun_effects(db, opts, &terrain, &colour, [buildings, objects, all])?;
+        sun_effects(db, opts, &terrain, &colour, raised, &shared.effects)?;
+    reused.extend(shared.effects.take_reused());
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
 
@@ -266,6 +351,7 @@ pub fn build_pyramid(
         pages_rebuilt: info.page_count(),
         in_place: false,
         full_build,
+        reused,
         building_cells: buildings.len(),
         object_cells: objects.len(),
         partial_cells: all.cells().iter().filter(|c| c.partial).count(),
@@ -294,6 +380,7 @@ fn sun_effects<'a>(
     terrain: &'a dyn RowSource<f32>,
     colour: &dyn RowSource<[u8; 4]>,
     [buildings, objects, all]: [&'a Raised; 3],
+    shared: &shade::Shared,
 ) -> Result<(Option<shade::Effects<'a>>, shade::EffectsRecord)> {
     let photo_sun = photo_sun_for(db, opts)?;
     let effects = shade::prepare(
@@ -302,9 +389,8 @@ fn sun_effects<'a>(
         opts.shadow_factor,
         terrain,
         colour,
-        buildings,
-        objects,
-        all,
+        [buildings, objects, all],
+        Some(shared),
     )?;
     let record = match &effects {
         Some(fx) => fx.record(),
@@ -438,6 +524,7 @@ fn incremental_build(
         pages_rebuilt: new.len(),
         in_place,
         full_build: None,
+        reused: Vec::new(),
         building_cells: total.building_cells,
         object_cells: total.object_cells,
         partial_cells: total.partial_cells,
@@ -495,6 +582,7 @@ fn stage_params(
         "compression": opts.compression.name(), "export_levels": opts.export_levels,
         "effects": info.effects,
         "building_cells": summary.building_cells, "object_cells": summary.object_cells,
+        "reused": summary.reused,
         "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
     })
 }

@@ -46,7 +46,9 @@ use crate::standing::Raised;
 use crate::sun::Sun;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::collections::HashMap;
 use std::ops::Range;
+use std::sync::{Arc, Mutex};
 
 /// Default shadow factor `F`: a shadowed surface gets this fraction of the light of a sunlit
 /// one. 0.45 is typical of aerial photos on clear days (skylight); the patent's example, 0.02,
@@ -83,12 +85,12 @@ pub struct Effects<'a> {
     all: &'a Raised,
     /// The photo's surface (terrain + buildings) differs from the new one and is shaded apart.
     photo_apart: bool,
-    new_shadow: Option<ShadowBits>,
+    new_shadow: Option<Arc<ShadowBits>>,
     /// The cast for the photo's sun (over the surface the photo saw).
-    photo_shadow: Option<ShadowBits>,
+    photo_shadow: Option<Arc<ShadowBits>>,
     /// The photo's shadows as the photo shows them ([`detected`]): with a different sun, what
     /// is compensated on the ground instead of `photo_shadow`.
-    detected: Option<ShadowBits>,
+    detected: Option<Arc<ShadowBits>>,
     /// Raised cells of the prepared rows with an exposed vertical face, ascending cell index.
     walls: Vec<usize>,
     lambert: bool,
@@ -101,7 +103,9 @@ pub struct Effects<'a> {
 /// Does a sun need effects at all? `sun: None` → nothing (no work).
 /// `photo_sun` is the orthophoto's own sun when the database records it; `colour` is the
 /// orthophoto on the terrain's grid, read (twice, band by band) only when the two suns differ,
-/// to detect the photo's shadows. Prepared for every row of the grid.
+/// to detect the photo's shadows. Prepared for every row of the grid. With `shared`, a cast or
+/// detection another product of the same run already made (same sun, same surface) is taken
+/// from it instead of made again, and noted as reused.
 #[allow(clippy::too_many_arguments)]
 pub fn prepare<'a>(
     sun: Option<Sun>,
@@ -109,9 +113,8 @@ pub fn prepare<'a>(
     shadow_factor: f64,
     terrain: &'a dyn RowSource<f32>,
     colour: &dyn RowSource<[u8; 4]>,
-    buildings: &'a Raised,
-    objects: &'a Raised,
-    all: &'a Raised,
+    [buildings, objects, all]: [&'a Raised; 3],
+    shared: Option<&Shared>,
 ) -> Result<Option<Effects<'a>>> {
     let window = Window {
         rows: 0..terrain.grid().height,
@@ -119,15 +122,76 @@ pub fn prepare<'a>(
         raised_anywhere: None,
     };
     let raised = [buildings, objects, all];
-    prepare_window(
-        sun,
-        photo_sun,
-        shadow_factor,
+    prepare_rows(
+        (sun, photo_sun, shadow_factor),
         terrain,
         colour,
         raised,
         window,
+        shared,
     )
+}
+
+/// What products of one run share: the casts made so far, by sun and surface, and the photo's
+/// detected shadows (they depend only on the photo and the buildings), each made once however
+/// many products need it; and what each product took from another. Only for effects prepared
+/// for the whole grid, over the same terrain and raised cells.
+#[derive(Default)]
+pub struct Shared {
+    casts: Mutex<HashMap<(u64, u64, &'static str), Arc<ShadowBits>>>,
+    detected: Mutex<Option<Arc<ShadowBits>>>,
+    reused: Mutex<Vec<String>>,
+}
+
+impl Shared {
+    /// The cast for `sun` over `surface` ("all" or "buildings"), made by `make` the first time.
+    fn cast(
+        &self,
+        sun: &Sun,
+        surface: &'static str,
+        make: impl FnOnce() -> Result<ShadowBits>,
+    ) -> Result<Arc<ShadowBits>> {
+        let key = (
+            sun.elevation_deg.to_bits(),
+            sun.azimuth_deg.to_bits(),
+            surface,
+        );
+        if let Some(bits) = lock(&self.casts).get(&key) {
+            lock(&self.reused).push(format!(
+                "the cast for the sun at {:.2}° elevation, {:.2}° azimuth over {}",
+                sun.elevation_deg,
+                sun.azimuth_deg,
+                match surface {
+                    "all" => "terrain, buildings and objects",
+                    _ => "terrain and buildings",
+                }
+            ));
+            return Ok(bits.clone());
+        }
+        let bits = Arc::new(make()?);
+        lock(&self.casts).insert(key, bits.clone());
+        Ok(bits)
+    }
+
+    /// The photo's detected shadows, made by `make` the first time.
+    fn detected(&self, make: impl FnOnce() -> Result<ShadowBits>) -> Result<Arc<ShadowBits>> {
+        if let Some(bits) = lock(&self.detected).as_ref() {
+            lock(&self.reused).push("the photo's detected shadows".into());
+            return Ok(bits.clone());
+        }
+        let bits = Arc::new(make()?);
+        *lock(&self.detected) = Some(bits.clone());
+        Ok(bits)
+    }
+
+    /// What was taken from earlier products since the last call, in words.
+    pub fn take_reused(&self) -> Vec<String> {
+        std::mem::take(&mut *lock(&self.reused))
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// The grid rows effects are prepared for, and a bound on every surface height anywhere
@@ -155,8 +219,21 @@ pub fn prepare_window<'a>(
     shadow_factor: f64,
     terrain: &'a dyn RowSource<f32>,
     colour: &dyn RowSource<[u8; 4]>,
+    raised: [&'a Raised; 3],
+    window: Window,
+) -> Result<Option<Effects<'a>>> {
+    let suns = (sun, photo_sun, shadow_factor);
+    prepare_rows(suns, terrain, colour, raised, window, None)
+}
+
+/// [`prepare_window`], taking casts and detections from `shared` when given.
+fn prepare_rows<'a>(
+    (sun, photo_sun, shadow_factor): (Option<Sun>, Option<Sun>, f64),
+    terrain: &'a dyn RowSource<f32>,
+    colour: &dyn RowSource<[u8; 4]>,
     [buildings, objects, all]: [&'a Raised; 3],
     window: Window,
+    shared: Option<&Shared>,
 ) -> Result<Option<Effects<'a>>> {
     let Some(sun) = sun else { return Ok(None) };
     same_size(terrain.grid(), colour.grid())?;
@@ -172,23 +249,32 @@ pub fn prepare_window<'a>(
     let photo_apart = seen.objects && photo_sun.is_some();
     // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
     let photo_cast = photo_sun.filter(|_| !same_sun || photo_apart);
-    let cast = |sun: &Sun, laid: &Raised| {
-        let overlay = |start, row: &mut [f32]| laid.lay_over(start, row);
-        ShadowBits::cast_rows(terrain, sun, overlay, window.rows.clone(), window.top)
+    let cast = |sun: &Sun, surface: &'static str| {
+        let laid = if surface == "all" { all } else { buildings };
+        let make = || {
+            let overlay = |start, row: &mut [f32]| laid.lay_over(start, row);
+            ShadowBits::cast_rows(terrain, sun, overlay, window.rows.clone(), window.top)
+        };
+        match shared {
+            Some(s) => s.cast(sun, surface, make),
+            None => make().map(Arc::new),
+        }
     };
     let (new_shadow, photo_shadow) = rayon::join(
-        || cast(&sun, all),
+        || cast(&sun, "all"),
         || {
             photo_cast
-                .map(|p| cast(&p, if photo_apart { buildings } else { all }))
+                .map(|p| cast(&p, if photo_apart { "buildings" } else { "all" }))
                 .transpose()
         },
     );
     let (new_shadow, photo_shadow) = (Some(new_shadow?), photo_shadow?);
     // A different sun: the photo's shadows on the ground are found in the photo itself.
-    let detected = match photo_sun.is_some() && !same_sun {
-        true => Some(detected::detect(colour, buildings)?),
-        false => None,
+    let detect = || detected::detect(colour, buildings);
+    let detected = match (photo_sun.is_some() && !same_sun, shared) {
+        (false, _) => None,
+        (true, Some(s)) => Some(s.detected(detect)?),
+        (true, None) => Some(Arc::new(detect()?)),
     };
     let (applied, skipped) = effects::decide(&seen);
     let mut fx = Effects {
@@ -331,22 +417,6 @@ impl std::ops::Add for Counts {
     }
 }
 
-impl std::ops::Sub for Counts {
-    type Output = Counts;
-    fn sub(self, o: Counts) -> Counts {
-        let sub = |a: Option<usize>, b: Option<usize>| a.map(|a| a - b.unwrap_or(0));
-        Counts {
-            shadow_cells: sub(self.shadow_cells, o.shadow_cells),
-            photo_shadow_cells: sub(self.photo_shadow_cells, o.photo_shadow_cells),
-            detected_photo_shadow_cells: sub(
-                self.detected_photo_shadow_cells,
-                o.detected_photo_shadow_cells,
-            ),
-            wall_cells: self.wall_cells - o.wall_cells,
-        }
-    }
-}
-
 /// How an [`EffectsRecord`] ends: nothing to do and why, or cell counts of what was prepared.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
@@ -444,9 +514,9 @@ impl Effects<'_> {
             applied: self.applied.clone(),
             skipped: self.skipped.clone(),
             outcome: Outcome::Prepared(Counts {
-                shadow_cells: self.new_shadow.as_ref().map(ShadowBits::count),
-                photo_shadow_cells: self.photo_shadow.as_ref().map(ShadowBits::count),
-                detected_photo_shadow_cells: self.detected.as_ref().map(ShadowBits::count),
+                shadow_cells: self.new_shadow.as_deref().map(ShadowBits::count),
+                photo_shadow_cells: self.photo_shadow.as_deref().map(ShadowBits::count),
+                detected_photo_shadow_cells: self.detected.as_deref().map(ShadowBits::count),
                 wall_cells: self.walls.len(),
             }),
         }
@@ -456,7 +526,7 @@ impl Effects<'_> {
     /// the rows prepared): what a part of the grid adds to the whole record's.
     pub fn counts_in(&self, cols: Range<usize>, rows: Range<usize>) -> Counts {
         let w = self.terrain.grid().width;
-        let mask = |m: &Option<ShadowBits>| {
+        let mask = |m: &Option<Arc<ShadowBits>>| {
             m.as_ref().map(|m| {
                 rows.clone()
                     .map(|r| cols.clone().filter(|&c| m.get(r * w + c)).count())
@@ -747,7 +817,16 @@ mod tests {
         factor: f64,
         t: &Elevation,
     ) -> Option<Effects<'_>> {
-        prepare(sun, photo_sun, factor, t, &plain(t), none(), none(), none()).unwrap()
+        prepare(
+            sun,
+            photo_sun,
+            factor,
+            t,
+            &plain(t),
+            [none(), none(), none()],
+            None,
+        )
+        .unwrap()
     }
 
     #[test]
@@ -772,7 +851,7 @@ mod tests {
         let t = terrain(8, 8, |_, _| 0.0);
         let c = plain(&terrain(8, 7, |_, _| 0.0));
         let s = Some(sun(30.0, 90.0));
-        let e = prepare(s, s, 0.5, &t, &c, none(), none(), none())
+        let e = prepare(s, s, 0.5, &t, &c, [none(), none(), none()], None)
             .err()
             .unwrap();
         assert!(e.to_string().contains("8 × 7"), "{e}");
@@ -856,9 +935,17 @@ mod tests {
         let s = sun(35.0, 90.0);
         // Nothing raised: nothing at all to do.
         assert!(bare(Some(s), Some(s), 0.5, &t).is_none());
-        let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), &b, none(), &b)
-            .unwrap()
-            .unwrap();
+        let fx = prepare(
+            Some(s),
+            Some(s),
+            0.5,
+            &t,
+            &plain(&t),
+            [&b, none(), &b],
+            None,
+        )
+        .unwrap()
+        .unwrap();
         assert_eq!(json(&fx.record())["applied"], json!(["wall_shading"]));
         // Ground in the building's shadow (west of it) and plain ground: unchanged.
         assert_eq!(fx.factor_at(6, 10).unwrap(), 1.0);
@@ -876,7 +963,7 @@ mod tests {
         // A 2 × 2 cell, 8 m object south-west of the building, not seen by the photo.
         let (o, all) = with_object(&t, &b, [(3, 15), (4, 15), (3, 16), (4, 16)], 8.0);
         let s = sun(45.0, 90.0);
-        let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), &b, &o, &all)
+        let fx = prepare(Some(s), Some(s), 0.5, &t, &plain(&t), [&b, &o, &all], None)
             .unwrap()
             .unwrap();
         assert_eq!(
@@ -919,9 +1006,17 @@ mod tests {
         let (t, b) = building_scene();
         let (photo, now) = (sun(35.0, 90.0), sun(35.0, 270.0));
         let ortho = photo_of(&t, &b, &photo, 0.5);
-        let fx = prepare(Some(now), Some(photo), 0.5, &t, &ortho, &b, none(), &b)
-            .unwrap()
-            .unwrap();
+        let fx = prepare(
+            Some(now),
+            Some(photo),
+            0.5,
+            &t,
+            &ortho,
+            [&b, none(), &b],
+            None,
+        )
+        .unwrap()
+        .unwrap();
         let applied = json(&fx.record())["applied"].clone();
         assert!(
             applied
@@ -966,9 +1061,17 @@ mod tests {
             ),
             &t,
         );
-        let fx = prepare(Some(now), Some(photo), 0.5, &t, &ortho, &db, none(), &db)
-            .unwrap()
-            .unwrap();
+        let fx = prepare(
+            Some(now),
+            Some(photo),
+            0.5,
+            &t,
+            &ortho,
+            [&db, none(), &db],
+            None,
+        )
+        .unwrap()
+        .unwrap();
         let r = json(&fx.record());
         assert!(r["applied"]
             .as_array()
@@ -1007,7 +1110,7 @@ mod tests {
         for (now, photo) in cases {
             let ortho = photo_of(&t, &b, &photo.unwrap_or(now), 0.5);
             let raised = [&b, &o, &all];
-            let full = prepare(Some(now), photo, 0.5, &t, &ortho, &b, &o, &all)
+            let full = prepare(Some(now), photo, 0.5, &t, &ortho, [&b, &o, &all], None)
                 .unwrap()
                 .unwrap();
             for rows in [0..n, 10..17, 33..n, 0..5, 21..22] {

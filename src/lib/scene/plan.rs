@@ -8,7 +8,7 @@
 //! step succeeded) holds its current key and every output it writes exists. An input's hash is
 //! taken again only when its size or modification time differ from those its stamp recorded.
 
-use super::file::{ObjectSpec, Product, Scene};
+use super::file::{ObjectSpec, Scene};
 use crate::db::sha256_file;
 use crate::error::{Error, Result};
 use crate::io::atomic::AtomicFile;
@@ -151,8 +151,8 @@ pub fn steps(scene: &Scene) -> Vec<Step> {
         last = place.name.clone();
         out.push(place);
     }
-    for (name, p) in &scene.products {
-        out.push(product_step(scene, name, p, &last));
+    if !scene.products.is_empty() {
+        out.push(product_step(scene, &last));
     }
     out
 }
@@ -255,10 +255,17 @@ fn place_step(scene: &Scene, last: &str) -> Option<Step> {
     })
 }
 
-/// The pyramid of product `name` for its sun, after the last database step `last`.
-fn product_step(scene: &Scene, name: &str, p: &Product, last: &str) -> Step {
+/// The pyramids of the scene's products, after the last database step `last`: one
+/// `dbms pyramid` for all of them (`--product` for each after the first), so they share what
+/// stands on the terrain and every cast or detection more than one needs is made once. Named
+/// `product.NAME`, or `product.A+B+...` for several.
+fn product_step(scene: &Scene, last: &str) -> Step {
     let mut cmd = vec![s("pyramid"), s("--db"), s(scene.database.dir.display())];
-    match (&p.time, &p.sun) {
+    // After an edit of buildings or placements only the pages it touches are made again.
+    cmd.push(s("--incremental"));
+    let mut products = scene.products.iter();
+    let (_, first) = products.next().expect("a scene with products");
+    match (&first.time, &first.sun) {
         (Some(t), _) => cmd.extend([s("--time"), t.clone()]),
         (None, Some(sun)) => cmd.extend([
             s("--sun-elevation"),
@@ -268,14 +275,31 @@ fn product_step(scene: &Scene, name: &str, p: &Product, last: &str) -> Step {
         ]),
         (None, None) => {}
     }
-    // After an edit of buildings or placements only the pages it touches are made again.
-    cmd.extend([s("--incremental"), s("-o"), s(p.tiles.display())]);
+    cmd.extend([s("-o"), s(first.tiles.display())]);
+    for (_, p) in products {
+        let sun = match (&p.time, &p.sun) {
+            (Some(t), _) => t.clone(),
+            (None, Some(sun)) => format!("{}/{}", sun.elevation, sun.azimuth),
+            (None, None) => s("none"),
+        };
+        cmd.extend([s("--product"), format!("{}@{sun}", p.tiles.display())]);
+    }
+    let names: Vec<&str> = scene.products.keys().map(String::as_str).collect();
+    let sensors: std::collections::BTreeSet<&str> =
+        scene.products.values().map(|p| p.sensor.as_str()).collect();
+    let sensors: Vec<&str> = sensors.into_iter().collect();
     Step {
-        name: format!("product.{name}"),
-        does: format!("the {} tile file", p.sensor),
+        name: format!("product.{}", names.join("+")),
+        does: match names.len() {
+            1 => format!("the {} tile file", sensors.join(", ")),
+            n => format!(
+                "the {n} {} tile files, sharing what they have in common",
+                sensors.join(", ")
+            ),
+        },
         commands: vec![cmd],
         inputs: vec![],
-        outputs: vec![p.tiles.clone()],
+        outputs: scene.products.values().map(|p| p.tiles.clone()).collect(),
         after: vec![last.to_string()],
         writes_database: false,
     }
