@@ -35,6 +35,8 @@ pub struct Level0<'a> {
     /// Cells of the bands cut so far where only one of elevation and colour is valid, per
     /// page (row-major over the level's pages).
     half_valid: Vec<AtomicUsize>,
+    /// The columns effects are applied in (all but for [`only_columns`](Self::only_columns)).
+    shaded: std::ops::Range<usize>,
 }
 
 impl<'a> Level0<'a> {
@@ -56,7 +58,15 @@ impl<'a> Level0<'a> {
             effects,
             page,
             half_valid: (0..pages).map(|_| AtomicUsize::new(0)).collect(),
+            shaded: 0..g.width,
         }
+    }
+
+    /// This level 0 with the effects applied in columns `cols` only: for a caller that keeps
+    /// only cells there (an incremental build's pages), the rest is not worth shading.
+    pub fn only_columns(mut self, cols: std::ops::Range<usize>) -> Level0<'a> {
+        self.shaded = cols;
+        self
     }
 
     /// Level-0 rows `row0 .. row0 + rows` and the columns of their partial cells.
@@ -120,7 +130,7 @@ impl<'a> Level0<'a> {
                 }
             });
         let factors = match self.effects {
-            Some(fx) => Some(fx.shade_band(row0, &mut out.colour)?),
+            Some(fx) => Some(fx.shade_band(row0, &mut out.colour, self.shaded.clone())?),
             None => None,
         };
         let columns = self.columns(row0, &out, &photo, factors.as_deref());

@@ -422,7 +422,8 @@ pub fn rebuild_level0(
             raised,
             window,
         )?;
-        let level0 = Level0::new(&terrain, &colour, &standing.all, fx.as_ref(), p);
+        let level0 = Level0::new(&terrain, &colour, &standing.all, fx.as_ref(), p)
+            .only_columns(cols.clone());
         let Band {
             rows: base,
             columns,

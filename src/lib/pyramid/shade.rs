@@ -576,12 +576,18 @@ impl Effects<'_> {
     }
 
     /// Multiply the colours of level-0 rows `row0..` (a band of `colour.len() / width` rows) by
-    /// each cell's `I_new / I_photo` (see [`lit`]); nodata cells are left alone. Returns the
-    /// factors, row-major over the band, for whatever else the band colours (voxel runs).
+    /// each cell's `I_new / I_photo` (see [`lit`]), in the columns `cols` only; nodata cells
+    /// and other columns are left alone. Returns the factors, row-major over the band (1
+    /// outside `cols`), for whatever else the band colours (voxel runs).
     ///
     /// # Panics
     /// When the band reaches outside the rows prepared ([`prepare_window`]).
-    pub fn shade_band(&self, row0: usize, colour: &mut [[u8; 4]]) -> Result<Vec<f64>> {
+    pub fn shade_band(
+        &self,
+        row0: usize,
+        colour: &mut [[u8; 4]],
+        cols: Range<usize>,
+    ) -> Result<Vec<f64>> {
         let w = self.terrain.grid().width;
         let rows = colour.len() / w;
         assert!(
@@ -596,7 +602,8 @@ impl Effects<'_> {
             .zip(factors.par_chunks_mut(w))
             .enumerate()
             .for_each(|(r, (line, ks))| {
-                for (col, (c, k)) in line.iter_mut().zip(ks).enumerate() {
+                let (line, ks) = (&mut line[cols.clone()], &mut ks[cols.clone()]);
+                for (col, (c, k)) in (cols.start..).zip(line.iter_mut().zip(ks)) {
                     if c[3] != 0 {
                         *k = self.factor(&band, col, row0 + r);
                         *c = lit(*c, *k);
@@ -862,7 +869,7 @@ mod tests {
         let t = terrain(8, 8, |_, _| 10.0);
         let fx = bare(Some(sun(30.0, 135.0)), None, 0.5, &t).unwrap();
         let mut c = vec![[100, 150, 200, 255]; 64];
-        fx.shade_band(0, &mut c).unwrap();
+        fx.shade_band(0, &mut c, 0..t.grid().width).unwrap();
         assert!(c.iter().all(|p| *p == [100, 150, 200, 255]));
         assert_eq!(json(&fx.record())["shadow_cells"], json!(0));
     }
@@ -893,7 +900,7 @@ mod tests {
         let t = terrain(30, 3, |c, _| if c <= 3 { 10.0 } else { 0.0 });
         let fx = bare(Some(sun(45.0, 270.0)), None, 0.5, &t).unwrap();
         let mut c = vec![[200, 100, 50, 255]; 90];
-        fx.shade_band(0, &mut c).unwrap();
+        fx.shade_band(0, &mut c, 0..t.grid().width).unwrap();
         assert_eq!(c[31 + 5], [100, 50, 25, 255], "in the cliff's shadow");
         assert_eq!(c[30 + 25], [200, 100, 50, 255], "beyond the shadow");
     }
@@ -1124,7 +1131,7 @@ mod tests {
                     .unwrap();
                 let band = |fx: &Effects, row0: usize, k: usize| {
                     let mut c = ortho.data[row0 * n..(row0 + k) * n].to_vec();
-                    let factors = fx.shade_band(row0, &mut c).unwrap();
+                    let factors = fx.shade_band(row0, &mut c, 0..t.grid().width).unwrap();
                     (c, factors)
                 };
                 let k = rows.len();
