@@ -197,6 +197,39 @@ impl<'a, T: Clone> RowBand<'a, T> {
     }
 }
 
+/// A row source that keeps rows of another in memory: a read within them is a slice of what
+/// was read once, any other goes to the source. For a stage that reads the same rows several
+/// times (casts, walls, level 0 of an incremental pyramid).
+pub struct CachedRows<'a, T: Clone> {
+    band: RowBand<'a, T>,
+    src: &'a dyn RowSource<T>,
+}
+
+impl<'a, T: Clone> CachedRows<'a, T> {
+    /// `src` with its rows `rows` read now and kept.
+    pub fn new(src: &'a dyn RowSource<T>, rows: std::ops::Range<usize>) -> Result<Self> {
+        Ok(CachedRows {
+            band: RowBand::read(src, rows)?,
+            src,
+        })
+    }
+}
+
+impl<T: Clone + Sync> RowSource<T> for CachedRows<'_, T> {
+    fn grid(&self) -> &Grid {
+        self.src.grid()
+    }
+
+    fn read_rows(&self, row0: usize, rows: usize) -> Result<Cow<'_, [T]>> {
+        let kept = self.band.rows();
+        if kept.start <= row0 && row0 + rows <= kept.end {
+            let w = self.src.grid().width;
+            return Ok(Cow::Borrowed(self.band.span(row0 * w, rows * w)));
+        }
+        self.src.read_rows(row0, rows)
+    }
+}
+
 impl Elevation {
     /// Number of nodata (NaN) cells.
     pub fn nodata_count(&self) -> usize {

@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::io::atomic::{AtomicFile, Staged};
 use crate::progress::Progress;
-use crate::raster::{band_rows, RowSource};
+use crate::raster::{band_rows, CachedRows, RowSource};
 use crate::standing::{object_reach, read_buildings, Prism, Raised, Standing};
 use crate::sun::Sun;
 use crate::tiles::{Page, TileReader, TileSetInfo, TileWriter};
@@ -44,6 +44,9 @@ pub const LEDGER_FORMAT: &str = "dbms-pyramid-ledger";
 /// Cells of margin around what an edit touches: normals and walls look one cell away, and
 /// rounding of the swept shadow gets the other.
 const MARGIN: i64 = 2;
+/// Most terrain cells an incremental build keeps decoded while it makes a run of page rows
+/// again (64 M cells, 256 MB).
+const KEPT_TERRAIN_CELLS: usize = 64 << 20;
 
 /// The ledger of tile file `tiles`: `TILES.ledger.json` beside it.
 pub fn ledger_path(tiles: &Path) -> PathBuf {
@@ -394,19 +397,40 @@ pub fn rebuild_level0(
     let g = &info.grid;
     let p = info.page_size;
     let reach = shade_reach(g, top, terrain_range[0], suns);
-    let mut by_row: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    let mut by_row: BTreeMap<usize, BTreeSet<usize>> = BTreeMap::new();
     for &(tx, ty) in touched {
-        by_row.entry(ty).or_default().push(tx);
+        by_row.entry(ty).or_default().insert(tx);
+    }
+    // Runs of consecutive touched page rows: each run's placements are read and its effects
+    // prepared once, for all its rows and columns.
+    let mut runs: Vec<Vec<(usize, BTreeSet<usize>)>> = Vec::new();
+    for (ty, txs) in by_row {
+        match runs.last_mut() {
+            Some(run) if run.last().is_some_and(|(last, _)| last + 1 == ty) => run.push((ty, txs)),
+            _ => runs.push(vec![(ty, txs)]),
+        }
     }
     let mut out = HashMap::new();
-    for (ty, txs) in by_row {
-        let rows = ty * p..((ty + 1) * p).min(g.height);
-        let cols = txs[0] * p..((txs[txs.len() - 1] + 1) * p).min(g.width);
+    for run in runs {
+        let rows = run[0].0 * p..((run[run.len() - 1].0 + 1) * p).min(g.height);
+        let txs = run.iter().flat_map(|(_, txs)| txs.iter().copied());
+        let (lo, hi) = txs.fold((usize::MAX, 0), |(lo, hi), tx| (lo.min(tx), hi.max(tx)));
+        let cols = lo * p..((hi + 1) * p).min(g.width);
         let near = |r: &Range<usize>, n: usize| {
             r.start.saturating_sub(reach)..r.end.saturating_add(reach).min(n)
         };
-        let standing =
-            Standing::read_window(db, &terrain, p, near(&rows, g.height), near(&cols, g.width))?;
+        // Every step below reads the terrain of these rows (the casts as far up-sun as a
+        // shadow reaches): decoded once, when that is not more than a few bands.
+        let around = near(&rows, g.height);
+        let kept = match around.len() * g.width <= KEPT_TERRAIN_CELLS {
+            true => Some(CachedRows::new(&terrain, around.clone())?),
+            false => None,
+        };
+        let terrain: &dyn RowSource<f32> = match &kept {
+            Some(k) => k,
+            None => &terrain,
+        };
+        let standing = Standing::read_window(db, terrain, p, around, near(&cols, g.width))?;
         let window = shade::Window {
             rows: rows.clone(),
             top,
@@ -417,29 +441,31 @@ pub fn rebuild_level0(
             opts.sun,
             photo_sun,
             opts.shadow_factor,
-            &terrain,
+            terrain,
             &colour,
             raised,
             window,
         )?;
-        let level0 = Level0::new(&terrain, &colour, &standing.all, fx.as_ref(), p)
-            .only_columns(cols.clone());
-        let Band {
-            rows: base,
-            columns,
-        } = level0.band(rows.start, rows.len())?;
-        let keep: BTreeSet<usize> = txs.iter().copied().collect();
-        let pages = Mutex::new(Vec::new());
-        emit_page_row(info, 0, ty, &base, Some(&columns), &|_, tx, _, page| {
-            if keep.contains(&tx) {
-                let stats = page_stats(info, (tx, ty), &standing, &level0, fx.as_ref());
-                let mut pages = pages.lock().unwrap_or_else(|e| e.into_inner());
-                pages.push((tx, page.clone(), stats));
+        let level0 =
+            Level0::new(terrain, &colour, &standing.all, fx.as_ref(), p).only_columns(cols.clone());
+        for (ty, keep) in run {
+            let band_rows = ty * p..((ty + 1) * p).min(g.height);
+            let Band {
+                rows: base,
+                columns,
+            } = level0.band(band_rows.start, band_rows.len())?;
+            let pages = Mutex::new(Vec::new());
+            emit_page_row(info, 0, ty, &base, Some(&columns), &|_, tx, _, page| {
+                if keep.contains(&tx) {
+                    let stats = page_stats(info, (tx, ty), &standing, &level0, fx.as_ref());
+                    let mut pages = pages.lock().unwrap_or_else(|e| e.into_inner());
+                    pages.push((tx, page.clone(), stats));
+                }
+                Ok(())
+            })?;
+            for (tx, page, stats) in pages.into_inner().unwrap_or_else(|e| e.into_inner()) {
+                out.insert((tx, ty), (page, stats));
             }
-            Ok(())
-        })?;
-        for (tx, page, stats) in pages.into_inner().unwrap_or_else(|e| e.into_inner()) {
-            out.insert((tx, ty), (page, stats));
         }
     }
     Ok(out)
