@@ -360,15 +360,23 @@ fn build_product(
         exported,
         seconds,
     };
-    let mut change = Database::begin(&db.dir, wait)?;
-    change.db.record_stage(Stage::now(
-        "pyramid",
-        stage_params(out, opts, &info, &summary),
-    ));
-    change.commit()?;
-    // The tile file last: a rename that fails leaves it out, not the levels without it.
-    crate::io::atomic::commit_all(staged)?;
+    commit(db, wait, staged, stage_params(out, opts, &info, &summary))?;
     Ok(summary)
+}
+
+/// Record the `pyramid` stage with `params` in the database (waiting up to `wait` for its
+/// lock), then rename the run's `staged` outputs into place, the tile file last (a rename that
+/// fails leaves it out, not the levels or the ledger without it).
+fn commit(
+    db: &Database,
+    wait: std::time::Duration,
+    staged: Vec<crate::io::atomic::Staged>,
+    params: serde_json::Value,
+) -> Result<()> {
+    let mut change = Database::begin(&db.dir, wait)?;
+    change.db.record_stage(Stage::now("pyramid", params));
+    change.commit()?;
+    crate::io::atomic::commit_all(staged)
 }
 
 /// The sun effects `opts` asks for over the terrain and what stands on it (`standing`:
@@ -533,13 +541,7 @@ fn incremental_build(
         exported: Vec::new(),
         seconds,
     };
-    let mut change = Database::begin(&db.dir, wait)?;
-    change.db.record_stage(Stage::now(
-        "pyramid",
-        stage_params(out, opts, &info, &summary),
-    ));
-    change.commit()?;
-    crate::io::atomic::commit_all(staged)?;
+    commit(db, wait, staged, stage_params(out, opts, &info, &summary))?;
     Ok(Ok(summary))
 }
 
