@@ -922,3 +922,61 @@ fn an_edit_rebuilds_only_its_pages_and_a_changed_option_everything() {
         "{s}"
     );
 }
+
+/// A run killed while it changes the tile file in place leaves no tile file (a make target
+/// missing, not stale) and a temporary file the next run clears; that run builds every page
+/// again, byte for byte a full build.
+#[test]
+fn a_run_killed_while_changing_the_file_in_place_leaves_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = make_db(dir.path(), None);
+    let object = mushroom(&db.dir);
+    apply(&mut db, &Edit::Add(120, 20, 0.0, 1.0), &object);
+    let out = dir.path().join("t.dbt");
+    pyramid(&db.dir, &out, &["--incremental"]);
+    apply(&mut db, &Edit::Move(0, 121, 20), &object);
+    let args = [
+        "pyramid",
+        "--db",
+        db.dir.to_str().unwrap(),
+        "--incremental",
+        "--page",
+        "32",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    let killed = Command::new(env!("CARGO_BIN_EXE_dbms"))
+        .args(args)
+        .env("DBMS_FAULT", "tiles-in-place")
+        .output()
+        .unwrap();
+    assert!(!killed.status.success());
+    assert!(!out.exists(), "no half-changed tile file under its name");
+    let temps = || {
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".tmp")
+            })
+            .count()
+    };
+    assert_eq!(
+        temps(),
+        1,
+        "the killed run's file is left under a temporary name"
+    );
+    let s = pyramid(&db.dir, &out, &["--incremental"]);
+    assert!(s["full_build"].is_string(), "{s}");
+    assert_eq!(
+        temps(),
+        0,
+        "the next run clears the dead run's temporary file"
+    );
+    let full = dir.path().join("full.dbt");
+    pyramid(&db.dir, &full, &[]);
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&full).unwrap());
+}

@@ -516,6 +516,7 @@ pub fn update_in_place(
         bytes.resize(bytes.len().max(old), 0);
         f.write_all_at(&bytes, offsets[*pos]).map_err(io)?;
     }
+    crate::db::fault_point("tiles-in-place");
     let mut front = front;
     front.resize(front.len().max(first as usize), 0);
     f.write_all_at(&front, 0).map_err(io)?;
