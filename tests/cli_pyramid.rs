@@ -924,7 +924,7 @@ fn an_edit_rebuilds_only_its_pages_and_a_changed_option_everything() {
 }
 
 /// A run killed while it changes the tile file in place leaves no tile file (a make target
-/// missing, not stale) and a temporary file the next run clears; that run builds every page
+/// missing, not stale) and temporary files the next run clears; that run builds every page
 /// again, byte for byte a full build.
 #[test]
 fn a_run_killed_while_changing_the_file_in_place_leaves_none() {
@@ -966,8 +966,8 @@ fn a_run_killed_while_changing_the_file_in_place_leaves_none() {
     };
     assert_eq!(
         temps(),
-        1,
-        "the killed run's file is left under a temporary name"
+        2,
+        "the killed run's tile file and ledger are left under temporary names"
     );
     let s = pyramid(&db.dir, &out, &["--incremental"]);
     assert!(s["full_build"].is_string(), "{s}");

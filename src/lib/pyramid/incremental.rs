@@ -288,6 +288,15 @@ pub fn earlier(out: &Path, key: &serde_json::Value) -> std::result::Result<Earli
             out.display()
         ));
     }
+    let level0 = &tiles.info().levels[0];
+    if ledger.pages.len() != level0.pages_x * level0.pages_y {
+        return Err(format!(
+            "{} counts {} level-0 pages, the tile file has {}",
+            path.display(),
+            ledger.pages.len(),
+            level0.pages_x * level0.pages_y
+        ));
+    }
     if &ledger.key != key {
         return Err("the options, the sun or the database's terrain or photo changed".into());
     }
@@ -410,6 +419,8 @@ pub fn rebuild_level0(
             _ => runs.push(vec![(ty, txs)]),
         }
     }
+    // The photo's detected shadows (when they run) are the same for every run of rows.
+    let shared = shade::Shared::default();
     let mut out = HashMap::new();
     for run in runs {
         let rows = run[0].0 * p..((run[run.len() - 1].0 + 1) * p).min(g.height);
@@ -445,6 +456,7 @@ pub fn rebuild_level0(
             &colour,
             raised,
             window,
+            Some(&shared),
         )?;
         let level0 =
             Level0::new(terrain, &colour, &standing.all, fx.as_ref(), p).only_columns(cols.clone());

@@ -442,12 +442,13 @@ fn incremental_build(
     seconds.read = lap();
 
     let seen = shade::situation_of(opts.sun, photo_sun, before.raised);
-    let effects_run = seen.sun && !(seen.same_sun && !seen.buildings && !seen.objects);
-    let suns: Vec<Sun> = match effects_run {
-        true => opts.sun.into_iter().chain(photo_sun).collect(),
-        false => Vec::new(),
+    let casts = opts.sun.and_then(|_| shade::Casts::of(&seen, photo_sun));
+    let effects_run = casts.is_some();
+    let suns: Vec<Sun> = match casts {
+        Some(c) => opts.sun.into_iter().chain(c.photo).collect(),
+        None => Vec::new(),
     };
-    let detect = effects_run && seen.photo_sun && !seen.same_sun;
+    let detect = casts.is_some_and(|c| c.detect);
     let [low, high] = before.terrain;
     let touched = incremental::touched_pages(info, &before.things, &things, low, &suns, detect);
     let touched = match touched {
@@ -497,40 +498,30 @@ fn incremental_build(
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
 
-    let new = incremental::NewPages::new(&info, &earlier.tiles, level0)?;
-    seconds.levels = lap();
-    // In place when every other page keeps its offset, else a new file with them copied.
-    let replaced: Vec<_> = new.iter().collect();
-    let in_place = crate::tiles::update_in_place(out, &info, &earlier.tiles, &replaced)?;
-    let (tiles, in_place) = match in_place {
-        Some(tiles) => (tiles, true),
-        None => {
-            let writer = TileWriter::create(out, info.clone())?;
-            progress.phase(info.page_count() as u64, "pyramid");
-            incremental::write_pages(&info, &new, &earlier.tiles, &writer, progress)?;
-            (writer.stage()?, false)
-        }
+    // The earlier file's pages are trusted by their header and index CRCs; one that turns out
+    // damaged when read (a coarse page folded, a page copied) makes a full build.
+    let damaged = |e: Error| format!("the earlier tile file cannot serve: {e}");
+    let new = match incremental::NewPages::new(&info, &earlier.tiles, level0) {
+        Ok(new) => new,
+        Err(e) => return Ok(Err(damaged(e))),
     };
-    let ledger = incremental::Ledger {
+    seconds.levels = lap();
+    let mut ledger = incremental::Ledger {
         format: incremental::LEDGER_FORMAT.into(),
         version: 1,
         key,
         raised,
-        tiles: incremental::stamp(&tiles)?,
+        tiles: [0; 3],
         terrain: before.terrain,
         things,
         pages,
     };
-    let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
-    progress.finish();
-    seconds.finish = lap();
-
-    let summary = PyramidSummary {
+    let mut summary = PyramidSummary {
         tiles: out.to_path_buf(),
         levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
         pages: info.page_count(),
         pages_rebuilt: new.len(),
-        in_place,
+        in_place: false,
         full_build: None,
         reused: Vec::new(),
         building_cells: total.building_cells,
@@ -541,7 +532,39 @@ fn incremental_build(
         exported: Vec::new(),
         seconds,
     };
-    commit(db, wait, staged, stage_params(out, opts, &info, &summary))?;
+    // In place when every other page keeps its offset, else a new file with them copied.
+    let replaced: Vec<_> = new.iter().collect();
+    match crate::tiles::InPlace::plan(out, &info, &earlier.tiles, &replaced)? {
+        Some(change) => {
+            ledger.tiles = change.stamp();
+            let ledger = incremental::stage_ledger(out, &ledger)?;
+            summary.in_place = true;
+            // The database's lock first: the tile file is away from its name only while it
+            // is changed, not while this run waits for another.
+            let mut record = Database::begin(&db.dir, wait)?;
+            let tiles = change.apply()?;
+            summary.seconds.finish = lap();
+            progress.finish();
+            let params = stage_params(out, opts, &info, &summary);
+            record.db.record_stage(Stage::now("pyramid", params));
+            record.commit()?;
+            crate::io::atomic::commit_all(vec![ledger, tiles])?;
+        }
+        None => {
+            let writer = TileWriter::create(out, info.clone())?;
+            progress.phase(info.page_count() as u64, "pyramid");
+            let copied = incremental::write_pages(&info, &new, &earlier.tiles, &writer, progress);
+            if let Err(e) = copied {
+                return Ok(Err(damaged(e)));
+            }
+            let tiles = writer.stage()?;
+            ledger.tiles = incremental::stamp(&tiles)?;
+            let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
+            summary.seconds.finish = lap();
+            progress.finish();
+            commit(db, wait, staged, stage_params(out, opts, &info, &summary))?;
+        }
+    }
     Ok(Ok(summary))
 }
 

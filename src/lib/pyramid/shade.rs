@@ -138,23 +138,31 @@ pub fn prepare<'a>(
 /// for the whole grid, over the same terrain and raised cells.
 #[derive(Default)]
 pub struct Shared {
-    casts: Mutex<HashMap<(u64, u64, &'static str), Arc<ShadowBits>>>,
+    casts: Mutex<HashMap<CastKey, Arc<ShadowBits>>>,
     detected: Mutex<Option<Arc<ShadowBits>>>,
     reused: Mutex<Vec<String>>,
 }
 
+/// A cast's sun (bits of its angles), surface ("all" or "buildings"), rows and height bound.
+type CastKey = (u64, u64, &'static str, usize, usize, u64);
+
 impl Shared {
-    /// The cast for `sun` over `surface` ("all" or "buildings"), made by `make` the first time.
+    /// The cast for `sun` over `surface` ("all" or "buildings") for the rows of `window`, made
+    /// by `make` the first time.
     fn cast(
         &self,
         sun: &Sun,
         surface: &'static str,
+        window: &Window,
         make: impl FnOnce() -> Result<ShadowBits>,
     ) -> Result<Arc<ShadowBits>> {
         let key = (
             sun.elevation_deg.to_bits(),
             sun.azimuth_deg.to_bits(),
             surface,
+            window.rows.start,
+            window.rows.end,
+            window.top.to_bits(),
         );
         if let Some(bits) = lock(&self.casts).get(&key) {
             lock(&self.reused).push(format!(
@@ -213,6 +221,7 @@ pub struct Window {
 /// what the whole grid's effects give, and may be asked only for bands within them; the
 /// record's counts are the window's. `[buildings, objects, all]` must hold everything raised
 /// on the rows the casts sweep (the window, and toward the sun as far as a shadow reaches).
+#[allow(clippy::too_many_arguments)]
 pub fn prepare_window<'a>(
     sun: Option<Sun>,
     photo_sun: Option<Sun>,
@@ -221,9 +230,40 @@ pub fn prepare_window<'a>(
     colour: &dyn RowSource<[u8; 4]>,
     raised: [&'a Raised; 3],
     window: Window,
+    shared: Option<&Shared>,
 ) -> Result<Option<Effects<'a>>> {
     let suns = (sun, photo_sun, shadow_factor);
-    prepare_rows(suns, terrain, colour, raised, window, None)
+    prepare_rows(suns, terrain, colour, raised, window, shared)
+}
+
+/// What the effects cast for a requested sun over what the registry decided on, `seen`: the
+/// one rule [`prepare_window`] follows and an incremental build reckons shadows' reach by.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Casts {
+    /// The photo's sun is cast too (its sun differs, or objects' new shadows must be told
+    /// apart from the photo's).
+    pub photo: Option<Sun>,
+    /// The photo's sun is cast over terrain and buildings only (objects stand: the photo never
+    /// saw them), not over everything.
+    pub photo_over_buildings: bool,
+    /// The photo's shadows are detected in the photo (its sun differs from the requested one).
+    pub detect: bool,
+}
+
+impl Casts {
+    /// The casts for `seen` (a sun requested) and the photo's own sun when known; `None` when
+    /// nothing runs: the photo's own sun with nothing raised (the photo holds it all).
+    pub fn of(seen: &Situation, photo_sun: Option<Sun>) -> Option<Casts> {
+        if seen.same_sun && !seen.buildings && !seen.objects {
+            return None;
+        }
+        let photo_over_buildings = seen.objects && photo_sun.is_some();
+        Some(Casts {
+            photo: photo_sun.filter(|_| !seen.same_sun || photo_over_buildings),
+            photo_over_buildings,
+            detect: photo_sun.is_some() && !seen.same_sun,
+        })
+    }
 }
 
 /// [`prepare_window`], taking casts and detections from `shared` when given.
@@ -242,13 +282,10 @@ fn prepare_rows<'a>(
         (seen.buildings, seen.objects) = (b, o);
     }
     let same_sun = seen.same_sun;
-    if same_sun && !seen.buildings && !seen.objects {
-        // The photo holds every shadow and all shading for this sun: nothing to do.
+    let Some(casts) = Casts::of(&seen, photo_sun) else {
         return Ok(None);
-    }
-    let photo_apart = seen.objects && photo_sun.is_some();
-    // The photo's shadows: needed when its sun differs, or to tell objects' new shadows apart.
-    let photo_cast = photo_sun.filter(|_| !same_sun || photo_apart);
+    };
+    let (photo_apart, photo_cast) = (casts.photo_over_buildings, casts.photo);
     let cast = |sun: &Sun, surface: &'static str| {
         let laid = if surface == "all" { all } else { buildings };
         let make = || {
@@ -256,7 +293,7 @@ fn prepare_rows<'a>(
             ShadowBits::cast_rows(terrain, sun, overlay, window.rows.clone(), window.top)
         };
         match shared {
-            Some(s) => s.cast(sun, surface, make),
+            Some(s) => s.cast(sun, surface, &window, make),
             None => make().map(Arc::new),
         }
     };
@@ -271,7 +308,7 @@ fn prepare_rows<'a>(
     let (new_shadow, photo_shadow) = (Some(new_shadow?), photo_shadow?);
     // A different sun: the photo's shadows on the ground are found in the photo itself.
     let detect = || detected::detect(colour, buildings);
-    let detected = match (photo_sun.is_some() && !same_sun, shared) {
+    let detected = match (casts.detect, shared) {
         (false, _) => None,
         (true, Some(s)) => Some(s.detected(detect)?),
         (true, None) => Some(Arc::new(detect()?)),
@@ -1126,7 +1163,7 @@ mod tests {
                     top,
                     raised_anywhere: None,
                 };
-                let part = prepare_window(Some(now), photo, 0.5, &t, &ortho, raised, window)
+                let part = prepare_window(Some(now), photo, 0.5, &t, &ortho, raised, window, None)
                     .unwrap()
                     .unwrap();
                 let band = |fx: &Effects, row0: usize, k: usize| {

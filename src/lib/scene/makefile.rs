@@ -53,7 +53,7 @@ pub fn makefile(scene: &Scene, scene_path: &Path) -> String {
     let _ = writeln!(m, ".DELETE_ON_ERROR:");
     let products: Vec<String> = all
         .iter()
-        .filter(|s| s.name.starts_with("product."))
+        .filter(|s| s.name.starts_with("product"))
         .map(|s| stamp(&s.name))
         .collect();
     let _ = writeln!(m, "all: {}\n", products.join(" "));

@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 /// One step: the `dbms` command lines it runs, in order, and what it reads and writes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Step {
-    /// `ingest`, `heights`, `object.NAME`, `place`, `product.NAME`.
+    /// `ingest`, `heights`, `object.NAME`, `place`, `product.NAME` (`products` for several).
     pub name: String,
     /// What the step is for, in a few words.
     pub does: String,
@@ -258,7 +258,7 @@ fn place_step(scene: &Scene, last: &str) -> Option<Step> {
 /// The pyramids of the scene's products, after the last database step `last`: one
 /// `dbms pyramid` for all of them (`--product` for each after the first), so they share what
 /// stands on the terrain and every cast or detection more than one needs is made once. Named
-/// `product.NAME`, or `product.A+B+...` for several.
+/// `product.NAME`, or `products` for several.
 fn product_step(scene: &Scene, last: &str) -> Step {
     let mut cmd = vec![s("pyramid"), s("--db"), s(scene.database.dir.display())];
     // After an edit of buildings or placements only the pages it touches are made again.
@@ -289,12 +289,16 @@ fn product_step(scene: &Scene, last: &str) -> Step {
         scene.products.values().map(|p| p.sensor.as_str()).collect();
     let sensors: Vec<&str> = sensors.into_iter().collect();
     Step {
-        name: format!("product.{}", names.join("+")),
+        name: match names.as_slice() {
+            [one] => format!("product.{one}"),
+            _ => "products".into(),
+        },
         does: match names.len() {
             1 => format!("the {} tile file", sensors.join(", ")),
             n => format!(
-                "the {n} {} tile files, sharing what they have in common",
-                sensors.join(", ")
+                "the {n} {} tile files {}, sharing what they have in common",
+                sensors.join(", "),
+                names.join(", ")
             ),
         },
         commands: vec![cmd],

@@ -35,4 +35,4 @@ pub use page::{
     Cell, Page, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE, STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL,
 };
 pub use reader::{ReaderStats, TileReader};
-pub use writer::{update_in_place, TileWriter, BRICKS_SLOT};
+pub use writer::{bricks_slot, InPlace, TileWriter};

@@ -217,11 +217,16 @@ fn index_span(header_len: usize, pages: usize) -> (u64, u64) {
     (index_offset, index_offset + (pages * ENTRY_LEN) as u64)
 }
 
-/// A page with a bricks blob is followed by zero padding up to a multiple of this many bytes
-/// from its offset: room for its blob to grow or shrink when an edit moves voxels, so that the
-/// pages after it keep their offsets and an incremental build can rewrite the page in place
-/// ([`update_in_place`]). Pages without bricks all have one length and need none.
-pub const BRICKS_SLOT: u64 = 64 << 10;
+/// After a page with a bricks blob the next page starts at the page's offset plus its length
+/// rounded up to a multiple of this many bytes: room for the blob to grow or shrink when an
+/// edit moves voxels, so that the pages after it keep their offsets and an incremental build
+/// can change just this page in place ([`InPlace`]). A sixteenth of a page without bricks, as
+/// a power of two, and at least the alignment: 64 KiB for pages of 256 (whose 589 824 bytes
+/// are 9 × 64 KiB), 4 KiB for 64 and below. Pages without bricks need none.
+pub fn bricks_slot(info: &TileSetInfo) -> u64 {
+    let fixed = Layout::of(info).fixed_len as u64;
+    (fixed / 16).next_power_of_two().max(info.alignment)
+}
 
 /// Canonical offsets (by index position) of pages of the given stored lengths and bricks flags,
 /// and the file's end (the end of the last page's bytes: no trailing padding).
@@ -231,6 +236,7 @@ fn place(
     stored: impl Fn(usize) -> (u64, bool),
 ) -> (Vec<u64>, u64) {
     let mut offsets = vec![0; info.page_count()];
+    let slot = bricks_slot(info);
     let (mut next, mut end) = (index_end, index_end);
     for pos in storage_order(info) {
         let offset = align_up(next, info.alignment);
@@ -238,7 +244,7 @@ fn place(
         offsets[pos] = offset;
         end = offset + len;
         next = match bricks {
-            true => offset + align_up(len, BRICKS_SLOT),
+            true => offset + align_up(len, slot),
             false => end,
         };
     }
@@ -440,89 +446,115 @@ impl TileWriter {
     }
 }
 
-/// The tile file `path`, open in `earlier`, changed in place to describe `info` with `pages`
-/// replaced (every other page kept as stored), when that leaves every kept page at its offset:
-/// then the result is byte for byte what a [`TileWriter`] of `info` and the same pages writes,
-/// and it is staged (`Some`) for renaming back to `path`. `None` when a page would move (the
-/// caller writes the file anew); nothing was touched then.
-///
-/// The file is first renamed to a temporary name in its directory, so no reader that opens
-/// `path` meets it half-written and a run killed while patching leaves no `path` at all (a
-/// `make` target is missing, not up to date); a reader that already had it open sees the
-/// pages change. Only the replaced pages, the front (preamble, header, index) and the file's
-/// length are written.
-pub fn update_in_place(
-    path: &Path,
-    info: &TileSetInfo,
-    earlier: &super::TileReader,
-    pages: &[((usize, usize, usize), &Page)],
-) -> Result<Option<Staged>> {
-    if earlier.info().compression != info.compression
-        || earlier.info().page_count() != info.page_count()
-    {
-        return Ok(None);
-    }
-    let layout = Layout::of(info);
-    let mut records: Vec<Stored> = earlier.entries().iter().map(Stored::of).collect();
-    let encoded: Vec<(usize, page::Encoded)> = pages
-        .iter()
-        .map(|&((level, tx, ty), page)| {
+/// A change of the tile file `path` in place: `pages` replaced, every other page kept as
+/// stored, planned by [`InPlace::plan`] only when that leaves every kept page at its offset,
+/// so the result is byte for byte what a [`TileWriter`] of the same description and pages
+/// writes. Nothing is touched until [`apply`](Self::apply).
+pub struct InPlace {
+    path: PathBuf,
+    /// `(index position, encoded page, stored length of the page it replaces)`.
+    pages: Vec<(usize, u64, page::Encoded, usize)>,
+    /// Preamble, header and index, zero-padded to the first page.
+    front: Vec<u8>,
+    end: u64,
+    checksums: (u32, u32),
+}
+
+impl InPlace {
+    /// The change of `path` (open in `earlier`) to describe `info` with `pages` replaced, or
+    /// `None` when a page would move (the caller writes the file anew).
+    pub fn plan(
+        path: &Path,
+        info: &TileSetInfo,
+        earlier: &super::TileReader,
+        pages: &[((usize, usize, usize), &Page)],
+    ) -> Result<Option<InPlace>> {
+        if earlier.info().compression != info.compression
+            || earlier.info().page_count() != info.page_count()
+        {
+            return Ok(None);
+        }
+        let layout = Layout::of(info);
+        let mut records: Vec<Stored> = earlier.entries().iter().map(Stored::of).collect();
+        let mut encoded = Vec::with_capacity(pages.len());
+        for &((level, tx, ty), page) in pages {
             let pos = info
                 .index_position(level, tx, ty)
                 .expect("a page of the tile set");
             page::check(info, level, tx, ty, page).map_err(|e| e.in_file(path))?;
             let enc = page::encode(&layout, page, info.compression).map_err(|e| e.in_file(path))?;
-            Ok((pos, enc))
-        })
-        .collect::<Result<_>>()?;
-    for (pos, enc) in &encoded {
-        let old = records[*pos];
-        records[*pos] = Stored {
-            at: old.at,
-            stored_len: enc.stored.len() as u32,
-            raw_len: enc.raw_len,
-            crc: enc.crc,
-            flags: enc.flags,
+            let old = records[pos];
+            records[pos] = Stored {
+                at: old.at,
+                stored_len: enc.stored.len() as u32,
+                raw_len: enc.raw_len,
+                crc: enc.crc,
+                flags: enc.flags,
+            };
+            encoded.push((pos, old.at, enc, old.stored_len as usize));
+        }
+        let header = serde_json::to_vec_pretty(info).expect("header serialises");
+        let (index_offset, index_end) = index_span(header.len(), records.len());
+        let (offsets, end) = place(info, index_end, |pos| records[pos].slot());
+        if records.iter().zip(&offsets).any(|(r, &o)| r.at != o) {
+            return Ok(None);
+        }
+        let mut front = front_matter(&header, &records, &offsets, index_offset, end);
+        let index = &front[index_offset as usize..];
+        let checksums = (crc32fast::hash(&header), crc32fast::hash(index));
+        let first = offsets.iter().copied().min().unwrap_or(end);
+        front.resize(front.len().max(first as usize), 0);
+        Ok(Some(InPlace {
+            path: path.to_path_buf(),
+            pages: encoded,
+            front,
+            end,
+            checksums,
+        }))
+    }
+
+    /// `[file length, header CRC, index CRC]` of the file once changed.
+    pub fn stamp(&self) -> [u64; 3] {
+        [self.end, self.checksums.0 as u64, self.checksums.1 as u64]
+    }
+
+    /// Change the file: rename it to a temporary name in its directory, write the replaced
+    /// pages (each zero-filled to the end of what its slot held before), the front and the
+    /// length, sync it, and stage it for renaming back. While it is changed it is not at
+    /// `path`: no reader that opens `path` meets it half-written, and a run that fails or is
+    /// killed meanwhile leaves no `path` at all (a `make` target missing, not stale). A reader
+    /// that already had it open reads the replaced pages through the old index and reports
+    /// them as damaged; another hard link to the file changes with it.
+    pub fn apply(self) -> Result<Staged> {
+        let path = &self.path;
+        let io = |e| Error::io(path, e);
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
         };
+        crate::io::atomic::clear_stale_temps(dir);
+        let tmp = tempfile::Builder::new()
+            .prefix(&crate::io::atomic::temp_prefix())
+            .suffix(".tmp")
+            .tempfile_in(dir)
+            .map_err(io)?
+            .into_temp_path();
+        std::fs::rename(path, &tmp).map_err(io)?;
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&tmp)
+            .map_err(io)?;
+        for (_, at, enc, old_len) in &self.pages {
+            let mut bytes = enc.stored.to_vec();
+            bytes.resize(bytes.len().max(*old_len), 0);
+            f.write_all_at(&bytes, *at).map_err(io)?;
+        }
+        crate::db::fault_point("tiles-in-place");
+        f.write_all_at(&self.front, 0).map_err(io)?;
+        f.set_len(self.end).map_err(io)?;
+        f.sync_all().map_err(io)?;
+        Staged::new(path, tmp)
     }
-    let header = serde_json::to_vec_pretty(info).expect("header serialises");
-    let (index_offset, index_end) = index_span(header.len(), records.len());
-    let (offsets, end) = place(info, index_end, |pos| records[pos].slot());
-    if records.iter().zip(&offsets).any(|(r, &o)| r.at != o) {
-        return Ok(None);
-    }
-    let front = front_matter(&header, &records, &offsets, index_offset, end);
-    let first = offsets.iter().copied().min().unwrap_or(end);
-    let io = |e| Error::io(path, e);
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .prefix(&crate::io::atomic::temp_prefix())
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(io)?
-        .into_temp_path();
-    std::fs::rename(path, &tmp).map_err(io)?;
-    let f = std::fs::OpenOptions::new()
-        .write(true)
-        .open(&tmp)
-        .map_err(io)?;
-    // Each replaced page, zero-filled to the end of what its slot held before.
-    for (pos, enc) in &encoded {
-        let old = earlier.entries()[*pos].stored_len as usize;
-        let mut bytes = enc.stored.to_vec();
-        bytes.resize(bytes.len().max(old), 0);
-        f.write_all_at(&bytes, offsets[*pos]).map_err(io)?;
-    }
-    crate::db::fault_point("tiles-in-place");
-    let mut front = front;
-    front.resize(front.len().max(first as usize), 0);
-    f.write_all_at(&front, 0).map_err(io)?;
-    f.set_len(end).map_err(io)?;
-    f.sync_all().map_err(io)?;
-    Ok(Some(Staged::new(path, tmp)?))
 }
 
 /// Every page's record, by index position; an error naming the first page never written.
