@@ -326,7 +326,7 @@ fn build_product(
         // The ledger of what the tile file was built from, for the next incremental build.
         let pages = (0..info.levels[0].pages_y)
             .flat_map(|ty| (0..info.levels[0].pages_x).map(move |tx| (tx, ty)))
-            .map(|page| incremental::page_stats(&info, page, &standing, &level0, effects.as_ref()))
+            .map(|page| incremental::page_stats(&info, page, standing, &level0, effects.as_ref()))
             .collect();
         let ledger = incremental::Ledger {
             format: incremental::LEDGER_FORMAT.into(),
