@@ -151,12 +151,33 @@ impl Raised {
 
     /// The placed voxel objects rasterised (see the module doc for footprints and the ground
     /// tolerance) and merged per cell into runs.
+    ///
+    /// Merged one band of [`OBJECT_BAND_ROWS`] rows at a time, each from the objects that can
+    /// reach it: the pieces of every object at once are 24 bytes per voxel and cell it marks,
+    /// gigabytes for a forest. A cell's runs depend only on its own pieces, all of which fall
+    /// in its band, so the result is the same as one merge of everything.
     pub fn objects(grid: &Grid, objects: &[PlacedVoxels], terrain: &impl TerrainAt) -> Raised {
-        let pieces = objects
-            .iter()
-            .flat_map(|o| object_pieces(grid, o, terrain))
-            .collect();
-        Raised::merge(pieces, terrain)
+        let w = grid.width;
+        let reach: Vec<Range<usize>> = objects.iter().map(|o| object_rows(grid, o)).collect();
+        let mut out = Raised::default();
+        for row0 in (0..grid.height).step_by(OBJECT_BAND_ROWS) {
+            let rows = row0..(row0 + OBJECT_BAND_ROWS).min(grid.height);
+            let (a, b) = (rows.start * w, rows.end * w);
+            let pieces: Vec<Piece> = objects
+                .iter()
+                .zip(&reach)
+                .filter(|(_, r)| r.start < rows.end && rows.start < r.end)
+                .flat_map(|(o, _)| object_pieces(grid, o, terrain))
+                .filter(|p| (a..b).contains(&p.index))
+                .collect();
+            if pieces.is_empty() {
+                continue;
+            }
+            let band = Raised::merge(pieces, terrain);
+            out.cells.extend(band.cells);
+            out.columns.extend(band.columns);
+        }
+        out
     }
 
     /// Everything of `self` and `other` in one set: per cell the union of their solid runs.
@@ -573,6 +594,26 @@ fn object_pieces(grid: &Grid, obj: &PlacedVoxels, terrain: &impl TerrainAt) -> V
         .collect()
 }
 
+/// Rows per band in which [`Raised::objects`] merges placed objects' pieces.
+pub const OBJECT_BAND_ROWS: usize = 256;
+
+/// The grid rows (clipped to the grid) holding every cell `obj` can mark: its anchor's row
+/// give or take its farthest voxel centre plus half a voxel's diagonal, and a row of margin.
+fn object_rows(grid: &Grid, obj: &PlacedVoxels) -> Range<usize> {
+    let far = obj
+        .voxels
+        .iter()
+        .fold(0.0f64, |far, (l, _)| far.max(l[0].hypot(l[1])));
+    let reach = far + obj.voxel_size * std::f64::consts::FRAC_1_SQRT_2;
+    let t = &grid.transform;
+    let (ra, rb) = (
+        (obj.origin[1] + reach - t.origin_y) / t.cell_y,
+        (obj.origin[1] - reach - t.origin_y) / t.cell_y,
+    );
+    let clip = |v: f64| v.clamp(0.0, grid.height as f64) as usize;
+    clip(ra.min(rb).floor() - 1.0)..clip(ra.max(rb).floor() + 2.0)
+}
+
 /// The cells one voxel (local centre `[u, v, _]`) marks: the cell holding its centre and every
 /// cell whose centre lies in its footprint rotated by the heading; sorted, no repeats.
 fn voxel_cells(grid: &Grid, obj: &PlacedVoxels, [u, v, _]: [f64; 3]) -> Vec<usize> {
@@ -963,6 +1004,55 @@ mod tests {
                 proptest::prop_assert_eq!(by_runs, truth, "z {}", z);
             }
         }
+    }
+
+    /// Merging objects band by band gives what one merge of all their pieces gives: trees of
+    /// several scales and headings straddling band edges (rows 255/256, 511/512) and the grid's.
+    #[test]
+    fn objects_merged_by_bands_are_one_merge_of_everything() {
+        use crate::voxel::synth::{cone_tree, TreeParams};
+        let p = TreeParams {
+            height: 6.0,
+            radius: 2.0,
+            trunk_fraction: 0.25,
+            trunk_radius: 0.3,
+            vary: 0.2,
+            crown: [30, 90, 40],
+            trunk: [80, 60, 40],
+            seed: 9,
+        };
+        let (tree, _) = cone_tree(&p, 0.5).unwrap();
+        let g = Grid::north_up(500_000.0, 5_300_300.0, 0.5, 40, 600, Crs::epsg(32632));
+        let t = Elevation::new(
+            g.clone(),
+            (0..40 * 600).map(|i| (i / 40) as f32 * 0.01).collect(),
+        );
+        let rows = [0.3, 127.6, 128.0, 252.0, 255.5, 256.0, 260.0, 300.0, 505.0, 511.9, 599.0];
+        let placed: Vec<PlacedVoxels> = rows
+            .iter()
+            .enumerate()
+            .map(|(i, &row)| {
+                let placement = PlacedObject {
+                    id: i as u64 + 1,
+                    file: "tree.dvox".into(),
+                    sha256: String::new(),
+                    x: 500_005.0 + 2.5 * i as f64,
+                    y: 5_300_300.0 - row * 0.5,
+                    z: 1.0,
+                    heading_deg: [0.0, 45.0, 90.0, 33.0][i % 4],
+                    scale: [1.0, 0.5, 1.7][i % 3],
+                };
+                placed_voxels(&tree, &placement)
+            })
+            .collect();
+        let banded = Raised::objects(&g, &placed, &t);
+        let pieces = placed
+            .iter()
+            .flat_map(|o| object_pieces(&g, o, &t))
+            .collect();
+        let whole = Raised::merge(pieces, &t);
+        assert!(banded.len() > 100);
+        assert_eq!(banded, whole);
     }
 
     /// The placements [`reaches`] keeps for a window raise, in it, exactly the cells and runs
