@@ -34,6 +34,7 @@ use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::Path;
+use std::sync::Arc;
 
 /// The terrain height of a cell by row-major index (metres, NaN = nodata), for the cells
 /// something stands on: a whole raster in memory, or a [`TerrainSample`] of just those cells.
@@ -425,32 +426,50 @@ pub struct PlacedVoxels {
     pub origin: [f64; 3],
     /// Degrees clockwise from north of the object's +v axis.
     pub heading_deg: f64,
-    /// Voxel edge, metres.
+    /// Voxel edge, metres (scaled).
     pub voxel_size: f64,
-    /// Occupied voxels: local centre and RGB colour.
-    pub voxels: Vec<([f64; 3], [u8; 3])>,
+    /// Occupied voxels: centre relative to the local origin before scaling (metres) and RGB
+    /// colour; one list shared by every placement of an object ([`anchored_voxels`]).
+    pub voxels: Arc<[([f64; 3], [u8; 3])]>,
+    /// Factor on the voxels' offsets ([`PlacedVoxels::local`]).
+    pub scale: f64,
 }
 
-/// A placed object's voxels relative to its anchor (the centre of its grid's bottom face, which
-/// `dbms place` puts at the placement point), scaled about it by the placement's `scale`:
-/// local centres in metres, world origin in CRS units with z in metres.
-pub fn placed_voxels(obj: &VoxelObject, placed: &PlacedObject) -> PlacedVoxels {
-    let (a, k) = (obj.anchor(), placed.scale);
-    let voxels = obj
-        .voxels()
+impl PlacedVoxels {
+    /// The local centre (metres) of a voxel at `offset` from the origin: scaled.
+    #[inline]
+    pub fn local(&self, offset: [f64; 3]) -> [f64; 3] {
+        offset.map(|d| d * self.scale)
+    }
+}
+
+/// An object's voxels relative to its anchor (the centre of its grid's bottom face, which
+/// `dbms place` puts at the placement point), metres, with their colours: what every placement
+/// of the object shares.
+pub fn anchored_voxels(obj: &VoxelObject) -> Arc<[([f64; 3], [u8; 3])]> {
+    let a = obj.anchor();
+    obj.voxels()
         .map(|([x, y, z], rgb)| {
             let c = obj.grid.centre(x, y, z);
-            (
-                [(c[0] - a[0]) * k, (c[1] - a[1]) * k, (c[2] - a[2]) * k],
-                rgb,
-            )
+            ([c[0] - a[0], c[1] - a[1], c[2] - a[2]], rgb)
         })
-        .collect();
+        .collect()
+}
+
+/// A placed object's voxels (`anchored`: [`anchored_voxels`] of `obj`) scaled about its anchor
+/// by the placement's `scale`: local centres in metres, world origin in CRS units with z in
+/// metres.
+pub fn placed_voxels(
+    obj: &VoxelObject,
+    anchored: &Arc<[([f64; 3], [u8; 3])]>,
+    placed: &PlacedObject,
+) -> PlacedVoxels {
     PlacedVoxels {
         origin: [placed.x, placed.y, placed.z],
         heading_deg: placed.heading_deg,
-        voxel_size: obj.grid.voxel_size * k,
-        voxels,
+        voxel_size: obj.grid.voxel_size * placed.scale,
+        voxels: anchored.clone(),
+        scale: placed.scale,
     }
 }
 
@@ -495,17 +514,18 @@ impl Standing {
             ),
             false => Vec::new(),
         };
-        let mut files: BTreeMap<&str, (VoxelObject, f64)> = BTreeMap::new();
+        type Read = (VoxelObject, Arc<[([f64; 3], [u8; 3])]>, f64);
+        let mut files: BTreeMap<&str, Read> = BTreeMap::new();
         let mut placed = Vec::new();
         for p in &db.manifest.objects {
             if !files.contains_key(p.file.as_str()) {
                 let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
-                let reach = object_reach(&obj);
-                files.insert(&p.file, (obj, reach));
+                let (anchored, reach) = (anchored_voxels(&obj), object_reach(&obj));
+                files.insert(&p.file, (obj, anchored, reach));
             }
-            let (obj, reach) = &files[p.file.as_str()];
+            let (obj, anchored, reach) = &files[p.file.as_str()];
             if reaches(grid, [p.x, p.y], reach * p.scale, &rows, &cols) {
-                placed.push(placed_voxels(obj, p));
+                placed.push(placed_voxels(obj, anchored, p));
             }
         }
         let mut under: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
@@ -559,7 +579,7 @@ pub fn object_cells(grid: &Grid, obj: &PlacedVoxels) -> Vec<usize> {
     let mut cells: Vec<usize> = obj
         .voxels
         .par_iter()
-        .flat_map_iter(|v| voxel_cells(grid, obj, v.0))
+        .flat_map_iter(|v| voxel_cells(grid, obj, obj.local(v.0)))
         .collect();
     cells.par_sort_unstable();
     cells.dedup();
@@ -572,7 +592,8 @@ fn object_pieces(grid: &Grid, obj: &PlacedVoxels, terrain: &impl TerrainAt) -> V
     let half = obj.voxel_size / 2.0;
     obj.voxels
         .par_iter()
-        .flat_map_iter(|&(local, [r, g, b])| {
+        .flat_map_iter(|&(offset, [r, g, b])| {
+            let local = obj.local(offset);
             let (bottom, top) = (
                 obj.origin[2] + local[2] - half,
                 obj.origin[2] + local[2] + half,
@@ -600,10 +621,10 @@ pub const OBJECT_BAND_ROWS: usize = 256;
 /// The grid rows (clipped to the grid) holding every cell `obj` can mark: its anchor's row
 /// give or take its farthest voxel centre plus half a voxel's diagonal, and a row of margin.
 fn object_rows(grid: &Grid, obj: &PlacedVoxels) -> Range<usize> {
-    let far = obj
-        .voxels
-        .iter()
-        .fold(0.0f64, |far, (l, _)| far.max(l[0].hypot(l[1])));
+    let far = obj.voxels.iter().fold(0.0f64, |far, (d, _)| {
+        let l = obj.local(*d);
+        far.max(l[0].hypot(l[1]))
+    });
     let reach = far + obj.voxel_size * std::f64::consts::FRAC_1_SQRT_2;
     let t = &grid.transform;
     let (ra, rb) = (
@@ -738,7 +759,8 @@ mod tests {
             origin: [5.0, 5.0, 100.0],
             heading_deg,
             voxel_size: 1.0,
-            voxels,
+            voxels: voxels.into(),
+            scale: 1.0,
         }
     }
 
@@ -901,7 +923,8 @@ mod tests {
             origin: [5.0, 5.0, 100.0],
             heading_deg: 0.0,
             voxel_size: 3.0,
-            voxels: vec![([0.0, 0.0, 1.5], [1, 2, 3])],
+            voxels: vec![([0.0, 0.0, 1.5], [1, 2, 3])].into(),
+            scale: 1.0,
         };
         let r = Raised::objects(&t.grid, &[obj], &t);
         // Footprint 3.5..6.5: centres 3.5 (edge, inside), 4.5, 5.5, 6.5 (edge) → 4 × 4 cells.
@@ -945,6 +968,7 @@ mod tests {
                     )
                 })
                 .collect(),
+            scale: 1.0,
         };
         let prism = Prism {
             rings: vec![square(2.0, 2.0, 9.0, 6.0)],
@@ -1027,7 +1051,9 @@ mod tests {
             g.clone(),
             (0..40 * 600).map(|i| (i / 40) as f32 * 0.01).collect(),
         );
-        let rows = [0.3, 127.6, 128.0, 252.0, 255.5, 256.0, 260.0, 300.0, 505.0, 511.9, 599.0];
+        let rows = [
+            0.3, 127.6, 128.0, 252.0, 255.5, 256.0, 260.0, 300.0, 505.0, 511.9, 599.0,
+        ];
         let placed: Vec<PlacedVoxels> = rows
             .iter()
             .enumerate()
@@ -1042,7 +1068,7 @@ mod tests {
                     heading_deg: [0.0, 45.0, 90.0, 33.0][i % 4],
                     scale: [1.0, 0.5, 1.7][i % 3],
                 };
-                placed_voxels(&tree, &placement)
+                placed_voxels(&tree, &anchored_voxels(&tree), &placement)
             })
             .collect();
         let banded = Raised::objects(&g, &placed, &t);
@@ -1094,7 +1120,7 @@ mod tests {
             let kept: Vec<PlacedVoxels> = placements
                 .iter()
                 .filter(|p| keep(p))
-                .map(|p| placed_voxels(&tree, p))
+                .map(|p| placed_voxels(&tree, &anchored_voxels(&tree), p))
                 .collect();
             Raised::objects(&g, &kept, &t)
         };

@@ -230,7 +230,8 @@ mod tests {
             origin: [2.5, 0.5, 0.0],
             heading_deg: 0.0,
             voxel_size: 1.0,
-            voxels: vec![([0.0, 0.0, 15.5], [7, 7, 7])],
+            voxels: vec![([0.0, 0.0, 15.5], [7, 7, 7])].into(),
+            scale: 1.0,
         };
         let raised = building.union(&Raised::objects(&t.grid, &[lintel], &t), &t);
         let l0 = Level0::new(&t, &c, &raised, None, 2);
@@ -296,6 +297,7 @@ mod tests {
             voxels: (0..6)
                 .map(|u| ([u as f64, 0.0, 4.5], [80, 40, 20]))
                 .collect(),
+            scale: 1.0,
         };
         let objects = Raised::objects(&t.grid, &[lintel], &t);
         let block = Raised::new(
