@@ -1030,12 +1030,9 @@ mod tests {
         }
     }
 
-    /// Merging objects band by band gives what one merge of all their pieces gives: trees of
-    /// several scales and headings straddling band edges (rows 255/256, 511/512) and the grid's.
-    #[test]
-    fn objects_merged_by_bands_are_one_merge_of_everything() {
-        use crate::voxel::synth::{cone_tree, TreeParams};
-        let p = TreeParams {
+    /// A 6 m cone tree of 0.5 m voxels, seeded (its crown varies).
+    fn test_tree(seed: u64) -> VoxelObject {
+        let p = crate::voxel::synth::TreeParams {
             height: 6.0,
             radius: 2.0,
             trunk_fraction: 0.25,
@@ -1043,9 +1040,16 @@ mod tests {
             vary: 0.2,
             crown: [30, 90, 40],
             trunk: [80, 60, 40],
-            seed: 9,
+            seed,
         };
-        let (tree, _) = cone_tree(&p, 0.5).unwrap();
+        crate::voxel::synth::cone_tree(&p, 0.5).unwrap().0
+    }
+
+    /// Merging objects band by band gives what one merge of all their pieces gives: trees of
+    /// several scales and headings straddling band edges (rows 255/256, 511/512) and the grid's.
+    #[test]
+    fn objects_merged_by_bands_are_one_merge_of_everything() {
+        let tree = test_tree(9);
         let g = Grid::north_up(500_000.0, 5_300_300.0, 0.5, 40, 600, Crs::epsg(32632));
         let t = Elevation::new(
             g.clone(),
@@ -1086,18 +1090,7 @@ mod tests {
     /// others), some straddling the window's edges, on sloping ground.
     #[test]
     fn placements_that_reach_a_window_raise_all_of_it() {
-        use crate::voxel::synth::{cone_tree, TreeParams};
-        let p = TreeParams {
-            height: 6.0,
-            radius: 2.0,
-            trunk_fraction: 0.25,
-            trunk_radius: 0.3,
-            vary: 0.2,
-            crown: [30, 90, 40],
-            trunk: [80, 60, 40],
-            seed: 5,
-        };
-        let (tree, _) = cone_tree(&p, 0.5).unwrap();
+        let tree = test_tree(5);
         let reach = object_reach(&tree);
         let g = Grid::north_up(500_000.0, 5_300_040.0, 0.5, 80, 80, Crs::epsg(32632));
         let t = Elevation::new(
