@@ -303,9 +303,10 @@ pub fn earlier(out: &Path, key: &serde_json::Value) -> std::result::Result<Earli
     Ok(Earlier { tiles, ledger })
 }
 
-/// The level-0 pages an edit from `old` to `new` things touches, or why all must be rebuilt.
-/// `suns`: the suns whose shadows the effects cast (none without effects); `detect`: whether
-/// the photo's shadows are detected (they depend on every roof).
+/// The level-0 pages an edit from `old` to `new` things touches. `suns`: the suns whose
+/// shadows the effects cast (none without effects); `detect`: whether the photo's shadows are
+/// detected (a building's roof cells are not judged, so its edit moves the detector's
+/// thresholds within [`shade::DETECTION_REACH`] cells of it).
 pub fn touched_pages(
     info: &TileSetInfo,
     old: &[Thing],
@@ -313,7 +314,7 @@ pub fn touched_pages(
     terrain_min: f64,
     suns: &[Sun],
     detect: bool,
-) -> std::result::Result<BTreeSet<(usize, usize)>, String> {
+) -> BTreeSet<(usize, usize)> {
     let (was, is) = (tally(old), tally(new));
     let changed = old
         .iter()
@@ -325,10 +326,11 @@ pub fn touched_pages(
     let (p, g) = (info.page_size, &info.grid);
     let mut pages = BTreeSet::new();
     for t in changed {
-        if detect && t.what.starts_with("building") {
-            return Err("a building changed and the photo's shadows are detected over the whole grid (every roof counts)".into());
-        }
-        let [c0, r0, c1, r1] = touched_cells(g, t, terrain_min, suns);
+        let judged = match detect && t.what.starts_with("building") {
+            true => shade::DETECTION_REACH as i64,
+            false => 0,
+        };
+        let [c0, r0, c1, r1] = touched_cells(g, t, terrain_min, suns, judged);
         if c0 >= c1 || r0 >= r1 {
             continue;
         }
@@ -338,7 +340,7 @@ pub fn touched_pages(
             }
         }
     }
-    Ok(pages)
+    pages
 }
 
 /// How many times each thing stands in `things`.
@@ -350,11 +352,17 @@ fn tally(things: &[Thing]) -> BTreeMap<&str, i64> {
     m
 }
 
-/// The cells `thing` marks and, for each of `suns`, the cells its shadow can fall on, with
-/// [`MARGIN`]: `[col0, row0, col1, row1]` within the grid.
-fn touched_cells(g: &Grid, thing: &Thing, terrain_min: f64, suns: &[Sun]) -> [usize; 4] {
+/// The cells `thing` marks (and `around` cells more each side) and, for each of `suns`, the
+/// cells its shadow can fall on, with [`MARGIN`]: `[col0, row0, col1, row1]` within the grid.
+fn touched_cells(
+    g: &Grid,
+    thing: &Thing,
+    terrain_min: f64,
+    suns: &[Sun],
+    around: i64,
+) -> [usize; 4] {
     let [c0, r0, c1, r1] = thing.cells.map(|v| v as i64);
-    let mut b = [c0, r0, c1, r1];
+    let mut b = [c0 - around, r0 - around, c1 + around, r1 + around];
     let t = &g.transform;
     for sun in suns {
         let (el, az) = (sun.elevation_deg.to_radians(), sun.azimuth_deg.to_radians());

@@ -451,10 +451,6 @@ fn incremental_build(
     let detect = casts.is_some_and(|c| c.detect);
     let [low, high] = before.terrain;
     let touched = incremental::touched_pages(info, &before.things, &things, low, &suns, detect);
-    let touched = match touched {
-        Ok(t) => t,
-        Err(why) => return Ok(Err(why)),
-    };
     let top = things.iter().map(|t| t.top).fold(high, f64::max);
     let made = incremental::rebuild_level0(
         db,
