@@ -29,19 +29,7 @@ impl AtomicFile {
     /// [`AtomicFile::create`] without [`check_output`], for the database's own files, which
     /// only a [`crate::db::Change`] writes.
     pub(crate) fn create_unchecked(path: &Path) -> Result<AtomicFile> {
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        clear_stale_temps(dir);
-        let tmp = tempfile::Builder::new()
-            .prefix(&temp_prefix())
-            .suffix(".tmp")
-            .tempfile_in(dir)
-            .map_err(|e| {
-                Error::io(dir, e).fix("check that the output directory exists and is writable")
-            })?;
-        let (file, tmp) = tmp.into_parts();
+        let (file, tmp) = temp_beside(path)?.into_parts();
         Ok(AtomicFile {
             path: path.to_path_buf(),
             file: BufWriter::with_capacity(1 << 20, file),
@@ -172,6 +160,28 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// one's — also on a disk shared between machines.
 pub(crate) fn temp_prefix() -> String {
     format!(".dbms-{}-{}-", host(), std::process::id())
+}
+
+/// The directory an output `path` is written in (`.` for a bare file name).
+pub(crate) fn output_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// A new temporary file in `path`'s directory, named [`temp_prefix`]`….tmp` so a later run can
+/// clear it if this one is killed (after clearing what killed runs left there).
+pub(crate) fn temp_beside(path: &Path) -> Result<tempfile::NamedTempFile> {
+    let dir = output_dir(path);
+    clear_stale_temps(dir);
+    tempfile::Builder::new()
+        .prefix(&temp_prefix())
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|e| {
+            Error::io(dir, e).fix("check that the output directory exists and is writable")
+        })
 }
 
 /// This machine's host name (Linux; empty elsewhere, where nothing is ever cleared).

@@ -263,10 +263,7 @@ impl TileWriter {
             ));
         }
         crate::io::atomic::check_output(path)?;
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
+        let dir = crate::io::atomic::output_dir(path);
         let cannot =
             |e| Error::io(dir, e).fix("check that the output directory exists and is writable");
         let layout = Layout::of(&info);
@@ -276,12 +273,7 @@ impl TileWriter {
             Compression::None => {
                 let fixed = layout.fixed_len as u64;
                 let (plan, end) = place(&info, index_end, |_| (fixed, false));
-                crate::io::atomic::clear_stale_temps(dir);
-                let tmp = tempfile::Builder::new()
-                    .prefix(&crate::io::atomic::temp_prefix())
-                    .suffix(".tmp")
-                    .tempfile_in(dir)
-                    .map_err(cannot)?;
+                let tmp = crate::io::atomic::temp_beside(path)?;
                 (Some(plan), Target::Direct(tmp), end)
             }
             Compression::Lz4 => (
@@ -528,17 +520,7 @@ impl InPlace {
     pub fn apply(self) -> Result<Staged> {
         let path = &self.path;
         let io = |e| Error::io(path, e);
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        crate::io::atomic::clear_stale_temps(dir);
-        let tmp = tempfile::Builder::new()
-            .prefix(&crate::io::atomic::temp_prefix())
-            .suffix(".tmp")
-            .tempfile_in(dir)
-            .map_err(io)?
-            .into_temp_path();
+        let tmp = crate::io::atomic::temp_beside(path)?.into_temp_path();
         std::fs::rename(path, &tmp).map_err(io)?;
         let f = std::fs::OpenOptions::new()
             .write(true)
