@@ -564,13 +564,24 @@ pub fn reaches(
     rows: &Range<usize>,
     cols: &Range<usize>,
 ) -> bool {
+    let [c0, r0, c1, r1] = box_cells(grid, [x - reach, y - reach, x + reach, y + reach]);
+    r0 < rows.end && rows.start < r1 && c0 < cols.end && cols.start < c1
+}
+
+/// The cells something inside the world box `[min_x, min_y, max_x, max_y]` can mark, with a
+/// cell of margin on every side for rounding, clipped to the grid: `[col0, row0, col1, row1]`,
+/// ends exclusive (empty when the box is off the grid).
+pub fn box_cells(grid: &Grid, [x0, y0, x1, y1]: [f64; 4]) -> [usize; 4] {
     let t = &grid.transform;
-    let within = |v: f64, origin: f64, cell: f64, span: &Range<usize>| {
-        let (a, b) = ((v + reach - origin) / cell, (v - reach - origin) / cell);
-        let (first, last) = (a.min(b).floor() - 1.0, a.max(b).floor() + 1.0);
-        last >= span.start as f64 && first < span.end as f64
-    };
-    within(y, t.origin_y, t.cell_y, rows) && within(x, t.origin_x, t.cell_x, cols)
+    let (ca, cb) = ((x0 - t.origin_x) / t.cell_x, (x1 - t.origin_x) / t.cell_x);
+    let (ra, rb) = ((y0 - t.origin_y) / t.cell_y, (y1 - t.origin_y) / t.cell_y);
+    let clip = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
+    [
+        clip(ca.min(cb).floor() - 1.0, grid.width),
+        clip(ra.min(rb).floor() - 1.0, grid.height),
+        clip(ca.max(cb).floor() + 2.0, grid.width),
+        clip(ra.max(rb).floor() + 2.0, grid.height),
+    ]
 }
 
 /// The cells an object marks (see the module doc for the footprint), sorted: the cells whose
@@ -626,13 +637,9 @@ fn object_rows(grid: &Grid, obj: &PlacedVoxels) -> Range<usize> {
         far.max(l[0].hypot(l[1]))
     });
     let reach = far + obj.voxel_size * std::f64::consts::FRAC_1_SQRT_2;
-    let t = &grid.transform;
-    let (ra, rb) = (
-        (obj.origin[1] + reach - t.origin_y) / t.cell_y,
-        (obj.origin[1] - reach - t.origin_y) / t.cell_y,
-    );
-    let clip = |v: f64| v.clamp(0.0, grid.height as f64) as usize;
-    clip(ra.min(rb).floor() - 1.0)..clip(ra.max(rb).floor() + 2.0)
+    let [x, y] = [obj.origin[0], obj.origin[1]];
+    let [_, r0, _, r1] = box_cells(grid, [x - reach, y - reach, x + reach, y + reach]);
+    r0..r1
 }
 
 /// The cells one voxel (local centre `[u, v, _]`) marks: the cell holding its centre and every

@@ -29,7 +29,7 @@ use crate::grid::Grid;
 use crate::io::atomic::{AtomicFile, Staged};
 use crate::progress::Progress;
 use crate::raster::{band_rows, CachedRows, RowSource};
-use crate::standing::{object_reach, read_buildings, Prism, Raised, Standing};
+use crate::standing::{box_cells, object_reach, read_buildings, Prism, Raised, Standing};
 use crate::sun::Sun;
 use crate::tiles::{Page, TileReader, TileSetInfo, TileWriter};
 use rayon::prelude::*;
@@ -205,7 +205,7 @@ pub fn things(db: &Database) -> Result<Vec<Thing>> {
                 "placement {} {} {} {:?} {:?} {:?} {:?} {:?}",
                 p.id, p.file, p.sha256, p.x, p.y, p.z, p.heading_deg, p.scale
             ),
-            cells: cells_of(grid, [p.x - r, p.y - r, p.x + r, p.y + r]),
+            cells: box_cells(grid, [p.x - r, p.y - r, p.x + r, p.y + r]),
             top: p.z + height * p.scale,
         });
     }
@@ -224,24 +224,9 @@ fn building(grid: &Grid, prism: &Prism) -> Thing {
             "building {}",
             crate::manifest::hex(&Sha256::digest(text.as_bytes()))
         ),
-        cells: cells_of(grid, b),
+        cells: box_cells(grid, b),
         top: prism.roof_z,
     }
-}
-
-/// The cells a world box `[min_x, min_y, max_x, max_y]` can mark, a cell of margin each side,
-/// within the grid: `[col0, row0, col1, row1]`, ends exclusive.
-fn cells_of(grid: &Grid, [x0, y0, x1, y1]: [f64; 4]) -> [usize; 4] {
-    let t = &grid.transform;
-    let (ca, cb) = ((x0 - t.origin_x) / t.cell_x, (x1 - t.origin_x) / t.cell_x);
-    let (ra, rb) = ((y0 - t.origin_y) / t.cell_y, (y1 - t.origin_y) / t.cell_y);
-    let clip = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
-    [
-        clip(ca.min(cb).floor() - 1.0, grid.width),
-        clip(ra.min(rb).floor() - 1.0, grid.height),
-        clip(ca.max(cb).floor() + 2.0, grid.width),
-        clip(ra.max(rb).floor() + 2.0, grid.height),
-    ]
 }
 
 /// Lowest and highest valid height of `terrain`, metres (`[0, 0]` when none is valid), read
