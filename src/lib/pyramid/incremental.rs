@@ -29,7 +29,9 @@ use crate::grid::Grid;
 use crate::io::atomic::{AtomicFile, Staged};
 use crate::progress::Progress;
 use crate::raster::{band_rows, CachedRows, RowSource};
-use crate::standing::{box_cells, object_reach, read_buildings, Prism, Raised, Standing};
+use crate::standing::{
+    box_cells, object_reach, read_buildings, Prism, Raised, RaisedCell, Standing,
+};
 use crate::sun::Sun;
 use crate::tiles::{Page, TileReader, TileSetInfo, TileWriter};
 use rayon::prelude::*;
@@ -115,10 +117,7 @@ impl std::ops::Add for PageStats {
             object_cells: self.object_cells + o.object_cells,
             partial_cells: self.partial_cells + o.partial_cells,
             half_valid_cells: self.half_valid_cells + o.half_valid_cells,
-            effects: match (self.effects, o.effects) {
-                (None, None) => None,
-                (a, b) => Some(a.unwrap_or_default() + b.unwrap_or_default()),
-            },
+            effects: shade::add_optional(self.effects, o.effects),
         }
     }
 }
@@ -134,16 +133,18 @@ pub fn page_stats(
 ) -> PageStats {
     let (cols, rows) = page_cells(info, tx, ty);
     let w = info.grid.width;
-    let cells = |set: &Raised| -> Vec<bool> {
+    let count = |set: &Raised, keep: fn(&RaisedCell) -> bool| -> usize {
         rows.clone()
-            .flat_map(|r| set.range(r * w + cols.start, r * w + cols.end))
-            .map(|c| c.partial)
-            .collect()
+            .map(|r| {
+                let row = set.range(r * w + cols.start, r * w + cols.end);
+                row.iter().filter(|c| keep(c)).count()
+            })
+            .sum()
     };
     PageStats {
-        building_cells: cells(&standing.buildings).len(),
-        object_cells: cells(&standing.objects).len(),
-        partial_cells: cells(&standing.all).into_iter().filter(|&p| p).count(),
+        building_cells: count(&standing.buildings, |_| true),
+        object_cells: count(&standing.objects, |_| true),
+        partial_cells: count(&standing.all, |c| c.partial),
         half_valid_cells: level0.half_valid_in_page(tx, ty),
         effects: effects.map(|fx| fx.counts_in(cols, rows)),
     }

@@ -476,20 +476,9 @@ fn incremental_build(
             "buildings or objects now raise cells where none did, or none where some did (the effects that run change)".into(),
         ));
     }
-    let effects_record = match effects_run {
-        true => {
-            let (applied, skipped) = effects::decide(&seen);
-            shade::EffectsRecord {
-                sun: opts.sun.map(Into::into),
-                photo_sun: photo_sun.map(Into::into),
-                shadow_factor: opts.shadow_factor,
-                applied,
-                skipped,
-                outcome: shade::Outcome::Prepared(total.effects.unwrap_or_default()),
-            }
-        }
-        false => shade::EffectsRecord::none_seen(opts.sun, photo_sun, opts.shadow_factor, &seen),
-    };
+    let counts = effects_run.then(|| total.effects.unwrap_or_default());
+    let effects_record =
+        shade::EffectsRecord::decided(opts.sun, photo_sun, opts.shadow_factor, &seen, counts);
     let mut info = info.clone();
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();

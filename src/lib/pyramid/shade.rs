@@ -444,10 +444,7 @@ pub struct Counts {
 impl std::ops::Add for Counts {
     type Output = Counts;
     fn add(self, o: Counts) -> Counts {
-        let add = |a: Option<usize>, b: Option<usize>| match (a, b) {
-            (None, None) => None,
-            (a, b) => Some(a.unwrap_or(0) + b.unwrap_or(0)),
-        };
+        let add = add_optional;
         Counts {
             shadow_cells: add(self.shadow_cells, o.shadow_cells),
             photo_shadow_cells: add(self.photo_shadow_cells, o.photo_shadow_cells),
@@ -457,6 +454,17 @@ impl std::ops::Add for Counts {
             ),
             wall_cells: self.wall_cells + o.wall_cells,
         }
+    }
+}
+
+/// The sum of two counts either of which may be absent (not made): absent only when both are.
+pub fn add_optional<T: std::ops::Add<Output = T> + Default>(
+    a: Option<T>,
+    b: Option<T>,
+) -> Option<T> {
+    match (a, b) {
+        (None, None) => None,
+        (a, b) => Some(a.unwrap_or_default() + b.unwrap_or_default()),
     }
 }
 
@@ -484,21 +492,30 @@ impl EffectsRecord {
         objects: &Raised,
     ) -> EffectsRecord {
         let seen = situation(sun, photo_sun, buildings, objects);
-        EffectsRecord::none_seen(sun, photo_sun, shadow_factor, &seen)
+        EffectsRecord::decided(sun, photo_sun, shadow_factor, &seen, None)
     }
 
-    /// [`none`](Self::none) for what the registry decided on, `seen`.
-    pub fn none_seen(
+    /// The record of what the registry decided on, `seen`: with the `counts` of the effects
+    /// prepared, or `None` when nothing was (and why).
+    pub fn decided(
         sun: Option<Sun>,
         photo_sun: Option<Sun>,
         shadow_factor: f64,
         seen: &Situation,
+        counts: Option<Counts>,
     ) -> EffectsRecord {
         let (applied, skipped) = effects::decide(seen);
-        debug_assert!(applied.is_empty(), "prepare runs whenever an effect would");
-        let reason = match sun {
-            None => "no sun given",
-            Some(_) => "the photo's own sun and nothing the photo did not see",
+        let outcome = match counts {
+            Some(counts) => Outcome::Prepared(counts),
+            None => {
+                debug_assert!(applied.is_empty(), "prepare runs whenever an effect would");
+                Outcome::Skipped {
+                    reason: match sun {
+                        None => "no sun given",
+                        Some(_) => "the photo's own sun and nothing the photo did not see",
+                    },
+                }
+            }
         };
         EffectsRecord {
             sun: sun.map(SunAngles::from),
@@ -506,7 +523,7 @@ impl EffectsRecord {
             shadow_factor,
             applied,
             skipped,
-            outcome: Outcome::Skipped { reason },
+            outcome,
         }
     }
 }
