@@ -360,20 +360,22 @@ fn build_product(
         exported,
         seconds,
     };
-    commit(db, wait, staged, stage_params(out, opts, &info, &summary))?;
+    let params = stage_params(out, opts, &info, &summary);
+    commit(db, wait, || Ok((staged, params)))?;
     Ok(summary)
 }
 
-/// Record the `pyramid` stage with `params` in the database (waiting up to `wait` for its
-/// lock), then rename the run's `staged` outputs into place, the tile file last (a rename that
-/// fails leaves it out, not the levels or the ledger without it).
+/// Take the database's lock (waiting up to `wait`), `finish` the run's outputs (staged, with
+/// the `pyramid` stage's params), record the stage, then rename the outputs into place, the
+/// tile file last (a rename that fails leaves it out, not the levels or the ledger without
+/// it). Whatever `finish` does happens under the lock, not while this run waits for another.
 fn commit(
     db: &Database,
     wait: std::time::Duration,
-    staged: Vec<crate::io::atomic::Staged>,
-    params: serde_json::Value,
+    finish: impl FnOnce() -> Result<(Vec<crate::io::atomic::Staged>, serde_json::Value)>,
 ) -> Result<()> {
     let mut change = Database::begin(&db.dir, wait)?;
+    let (staged, params) = finish()?;
     change.db.record_stage(Stage::now("pyramid", params));
     change.commit()?;
     crate::io::atomic::commit_all(staged)
@@ -524,16 +526,17 @@ fn incremental_build(
             ledger.tiles = change.stamp();
             let ledger = incremental::stage_ledger(out, &ledger)?;
             summary.in_place = true;
-            // The database's lock first: the tile file is away from its name only while it
-            // is changed, not while this run waits for another.
-            let mut record = Database::begin(&db.dir, wait)?;
-            let tiles = change.apply()?;
-            summary.seconds.finish = lap();
-            progress.finish();
-            let params = stage_params(out, opts, &info, &summary);
-            record.db.record_stage(Stage::now("pyramid", params));
-            record.commit()?;
-            crate::io::atomic::commit_all(vec![ledger, tiles])?;
+            // Changed under the database's lock: the tile file is away from its name only
+            // while it is changed, not while this run waits for another.
+            commit(db, wait, || {
+                let tiles = change.apply()?;
+                summary.seconds.finish = lap();
+                progress.finish();
+                Ok((
+                    vec![ledger, tiles],
+                    stage_params(out, opts, &info, &summary),
+                ))
+            })?;
         }
         None => {
             let writer = TileWriter::create(out, info.clone())?;
@@ -547,7 +550,8 @@ fn incremental_build(
             let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
             summary.seconds.finish = lap();
             progress.finish();
-            commit(db, wait, staged, stage_params(out, opts, &info, &summary))?;
+            let params = stage_params(out, opts, &info, &summary);
+            commit(db, wait, || Ok((staged, params)))?;
         }
     }
     Ok(Ok(summary))
