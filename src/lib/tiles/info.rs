@@ -316,6 +316,21 @@ impl TileSetInfo {
         (tx < l.pages_x && ty < l.pages_y).then(|| self.level_base(level) + ty * l.pages_x + tx)
     }
 
+    /// [`index_position`](Self::index_position), or the error of the tile file `path` for a
+    /// page outside the tile set.
+    pub(crate) fn page_position(
+        &self,
+        path: &std::path::Path,
+        (level, tx, ty): (usize, usize, usize),
+    ) -> Result<usize> {
+        self.index_position(level, tx, ty).ok_or_else(|| {
+            Error::file(
+                path,
+                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
+            )
+        })
+    }
+
     /// The page `(level, tx, ty)` at index position `pos` (inverse of
     /// [`index_position`](Self::index_position)), or `None` beyond the last page.
     pub fn page_at(&self, mut pos: usize) -> Option<(usize, usize, usize)> {

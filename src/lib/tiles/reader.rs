@@ -118,12 +118,7 @@ impl TileReader {
     /// Page `(level, tx, ty)`, from the cache or read and checked. Errors on a page outside the
     /// tile set, a checksum mismatch, undecodable data or a read failure, naming the page.
     pub fn page(&self, level: usize, tx: usize, ty: usize) -> Result<Arc<Page>> {
-        let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
-            Error::file(
-                &self.path,
-                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
-            )
-        })?;
+        let pos = self.info.page_position(&self.path, (level, tx, ty))?;
         if let Some(page) = self.cache.get(pos) {
             self.cache_hits.fetch_add(1, Ordering::Relaxed);
             return Ok(page);
@@ -184,12 +179,7 @@ impl TileReader {
     /// decoded, with its index entry: what a writer of the same tile set copies unchanged
     /// ([`super::TileWriter::write_stored`]). Not cached.
     pub fn stored(&self, level: usize, tx: usize, ty: usize) -> Result<(IndexEntry, Vec<u8>)> {
-        let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
-            Error::file(
-                &self.path,
-                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
-            )
-        })?;
+        let pos = self.info.page_position(&self.path, (level, tx, ty))?;
         Ok((self.index[pos], self.read_stored(pos)?))
     }
 

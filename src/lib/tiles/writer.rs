@@ -313,12 +313,7 @@ impl TileWriter {
     /// exactly once. Errors on a page outside the tile set, a page written twice, layers of the
     /// wrong length, padding cells that are not nodata, or an unknown state value.
     pub fn write_page(&self, level: usize, tx: usize, ty: usize, page: &Page) -> Result<()> {
-        let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
-            Error::file(
-                &self.path,
-                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
-            )
-        })?;
+        let pos = self.info.page_position(&self.path, (level, tx, ty))?;
         page::check(&self.info, level, tx, ty, page).map_err(|e| e.in_file(&self.path))?;
         let enc = page::encode(&self.layout, page, self.info.compression)
             .map_err(|e| e.in_file(&self.path))?;
@@ -345,12 +340,7 @@ impl TileWriter {
         entry: IndexEntry,
         stored: Vec<u8>,
     ) -> Result<()> {
-        let pos = self.info.index_position(level, tx, ty).ok_or_else(|| {
-            Error::file(
-                &self.path,
-                format!("page (level {level}, {tx}, {ty}) is outside the tile set"),
-            )
-        })?;
+        let pos = self.info.page_position(&self.path, (level, tx, ty))?;
         if stored.len() != entry.stored_len as usize || crc32fast::hash(&stored) != entry.crc {
             return Err(Error::file(
                 &self.path,
