@@ -31,6 +31,8 @@ pub mod grid;
 pub mod ingest;
 pub mod io;
 pub mod manifest;
+pub mod material;
+pub mod moon;
 pub mod num;
 pub mod progress;
 pub mod pyramid;
@@ -45,6 +47,7 @@ pub mod standing;
 pub mod sun;
 #[doc(hidden)]
 pub mod testing;
+pub mod thermal;
 pub mod tiles;
 pub mod voxel;
 pub mod walk;
