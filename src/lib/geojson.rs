@@ -97,6 +97,29 @@ pub fn polygons(geometry: &Value) -> std::result::Result<Vec<Vec<Ring>>, String>
         .collect()
 }
 
+/// The polylines of a LineString or MultiLineString geometry, each as its vertices (at least
+/// two); or why it has none.
+pub fn lines(geometry: &Value) -> std::result::Result<Vec<Ring>, String> {
+    let coords = geometry
+        .get("coordinates")
+        .ok_or("geometry has no coordinates")?;
+    let parts = match geometry.get("type").and_then(Value::as_str) {
+        Some("LineString") => Some(vec![coords.clone()]),
+        Some("MultiLineString") => coords.as_array().cloned(),
+        other => {
+            return Err(format!(
+                "geometry type {other:?} is not LineString or MultiLineString"
+            ))
+        }
+    };
+    let bad = || "bad line coordinates (need [[x, y], [x, y], ...] of finite numbers)".to_string();
+    let lines = rings(&Value::Array(parts.ok_or_else(bad)?)).ok_or_else(bad)?;
+    match lines.iter().all(|l| l.len() >= 2) {
+        true => Ok(lines),
+        false => Err("a line has fewer than two vertices".into()),
+    }
+}
+
 fn rings(poly: &Value) -> Option<Vec<Ring>> {
     poly.as_array()?
         .iter()
@@ -117,6 +140,20 @@ fn rings(poly: &Value) -> Option<Vec<Ring>> {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn lines_and_multilines() {
+        let one = json!({"type": "LineString", "coordinates": [[0, 0], [1, 2]]});
+        assert_eq!(lines(&one).unwrap(), vec![vec![(0.0, 0.0), (1.0, 2.0)]]);
+        let two = json!({"type": "MultiLineString", "coordinates": [[[0, 0], [1, 0]], [[5, 5], [6, 6], [7, 5]]]});
+        assert_eq!(lines(&two).unwrap().len(), 2);
+        let short = json!({"type": "LineString", "coordinates": [[0, 0]]});
+        assert!(lines(&short).unwrap_err().contains("fewer than two"));
+        let text = json!({"type": "LineString", "coordinates": [[0, "a"], [1, 2]]});
+        assert!(lines(&text).unwrap_err().contains("finite numbers"));
+        let point = json!({"type": "Point", "coordinates": [0, 0]});
+        assert!(lines(&point).unwrap_err().contains("not LineString"));
+    }
 
     #[test]
     fn polygons_and_multipolygons_keep_rings_in_order() {

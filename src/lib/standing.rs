@@ -364,57 +364,65 @@ pub fn read_buildings(path: &Path) -> Result<Vec<Prism>> {
 }
 
 /// The cells of `grid` whose centres are inside each prism, raised to its roof (opaque, photo
-/// colour). Scanline fill per row: the crossings of every ring edge with the row's centre line,
-/// sorted, filled pairwise (even-odd).
+/// colour), by [`polygon_cells`].
 pub fn rasterise_prisms(grid: &Grid, prisms: &[Prism]) -> Vec<RaisedCell> {
     prisms
         .par_iter()
         .flat_map_iter(|prism| {
-            let mut out = Vec::new();
-            let t = &grid.transform;
-            // Only the rows the prism's y extent can reach.
-            let ys = prism.rings.iter().flatten().map(|p| p.1);
-            let (y_lo, y_hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
-                (a.min(y), b.max(y))
-            });
-            let (p0, p1) = (
-                grid.transform.world_to_pixel(0.0, y_lo).1,
-                grid.transform.world_to_pixel(0.0, y_hi).1,
-            );
-            let first = (p0.min(p1).floor().max(0.0) as usize).min(grid.height);
-            let last = (p0.max(p1).ceil().max(0.0) as usize).min(grid.height);
-            for row in first..last {
-                let y = t.origin_y + (row as f64 + 0.5) * t.cell_y;
-                let mut xs: Vec<f64> = Vec::new();
-                for ring in &prism.rings {
-                    for (k, &(x0, y0)) in ring.iter().enumerate() {
-                        let (x1, y1) = ring[(k + 1) % ring.len()];
-                        // Half-open in y so a vertex on the line is counted once.
-                        if (y0 <= y) != (y1 <= y) {
-                            xs.push(x0 + (y - y0) / (y1 - y0) * (x1 - x0));
-                        }
-                    }
-                }
-                xs.sort_by(f64::total_cmp);
-                for pair in xs.chunks_exact(2) {
-                    // Columns whose centre x is in [pair[0], pair[1]).
-                    let c0 = ((pair[0] - t.origin_x) / t.cell_x - 0.5).ceil().max(0.0) as usize;
-                    let c1 = ((pair[1] - t.origin_x) / t.cell_x - 0.5)
-                        .ceil()
-                        .clamp(0.0, grid.width as f64) as usize;
-                    for col in c0..c1.max(c0) {
-                        out.push(RaisedCell {
-                            index: grid.index(col, row),
-                            top_z: prism.roof_z as f32,
-                            colour: None,
-                            partial: false,
-                        });
-                    }
-                }
-            }
-            out
+            polygon_cells(grid, &prism.rings)
+                .into_iter()
+                .map(|index| RaisedCell {
+                    index,
+                    top_z: prism.roof_z as f32,
+                    colour: None,
+                    partial: false,
+                })
         })
         .collect()
+}
+
+/// The indices of the cells of `grid` whose centres are inside the polygon `rings` (CRS units;
+/// even-odd rule, so holes are just rings), row by row. Scanline fill per row: the crossings of
+/// every ring edge with the row's centre line, sorted, filled pairwise; a centre exactly on a
+/// left edge is inside, on a right edge outside.
+pub fn polygon_cells(grid: &Grid, rings: &[Vec<(f64, f64)>]) -> Vec<usize> {
+    let mut out = Vec::new();
+    let t = &grid.transform;
+    // Only the rows the polygon's y extent can reach.
+    let ys = rings.iter().flatten().map(|p| p.1);
+    let (y_lo, y_hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+        (a.min(y), b.max(y))
+    });
+    let (p0, p1) = (
+        grid.transform.world_to_pixel(0.0, y_lo).1,
+        grid.transform.world_to_pixel(0.0, y_hi).1,
+    );
+    let first = (p0.min(p1).floor().max(0.0) as usize).min(grid.height);
+    let last = (p0.max(p1).ceil().max(0.0) as usize).min(grid.height);
+    let mut xs: Vec<f64> = Vec::new();
+    for row in first..last {
+        let y = t.origin_y + (row as f64 + 0.5) * t.cell_y;
+        xs.clear();
+        for ring in rings {
+            for (k, &(x0, y0)) in ring.iter().enumerate() {
+                let (x1, y1) = ring[(k + 1) % ring.len()];
+                // Half-open in y so a vertex on the line is counted once.
+                if (y0 <= y) != (y1 <= y) {
+                    xs.push(x0 + (y - y0) / (y1 - y0) * (x1 - x0));
+                }
+            }
+        }
+        xs.sort_by(f64::total_cmp);
+        for pair in xs.chunks_exact(2) {
+            // Columns whose centre x is in [pair[0], pair[1]).
+            let c0 = ((pair[0] - t.origin_x) / t.cell_x - 0.5).ceil().max(0.0) as usize;
+            let c1 = ((pair[1] - t.origin_x) / t.cell_x - 0.5)
+                .ceil()
+                .clamp(0.0, grid.width as f64) as usize;
+            out.extend((c0..c1.max(c0)).map(|col| grid.index(col, row)));
+        }
+    }
+    out
 }
 
 /// A voxel object placed in the world: cubic voxels of `voxel_size` metres at local centres

@@ -1,6 +1,8 @@
 //! Materials: what each database cell, building and voxel is made of, for the sensor
 //! databases (issue 18).
 //!
+//! * [`features`]: vector features (polygons, lines with a width) naming a material.
 //! * [`photo`]: a cell's material from its orthophoto colour, by fixed published rules.
 
+pub mod features;
 pub mod photo;
