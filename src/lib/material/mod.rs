@@ -1,8 +1,10 @@
 //! Materials: what each database cell, building and voxel is made of, for the sensor
 //! databases (issue 18).
 //!
+//! * [`cover`]: a land-cover raster's class codes at the database's cells.
 //! * [`features`]: vector features (polygons, lines with a width) naming a material.
 //! * [`photo`]: a cell's material from its orthophoto colour, by fixed published rules.
 
+pub mod cover;
 pub mod features;
 pub mod photo;
