@@ -63,7 +63,7 @@ pub struct PlannedBuilding {
 }
 
 /// Roof colours: terracotta, slate, tar, concrete, weathered copper.
-const ROOFS: [[u8; 3]; 5] = [
+pub const ROOFS: [[u8; 3]; 5] = [
     [156, 74, 58],
     [96, 98, 108],
     [62, 60, 64],

@@ -110,6 +110,9 @@ pub struct Scene {
     pub dem: Elevation,
     /// Orthophoto (alpha 255 everywhere).
     pub ortho: Colour,
+    /// What the generator painted in each orthophoto cell, as an index into
+    /// [`TRUTH_MATERIALS`]: the labels a material classification is scored against.
+    pub truth_materials: Raster<u8>,
     /// Buildings, by id.
     pub buildings: Vec<Building>,
     /// The sun of the orthophoto's shadows (azimuth from grid north, as they were cast).
@@ -158,7 +161,7 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
         .map(|(i, plan)| building(i as u32 + 1, plan, &dem_grid, &ground))
         .collect();
 
-    let (ortho, shadow_fraction) = render_ortho(
+    let (ortho, truth_materials, shadow_fraction) = render_ortho(
         options.seed,
         extent,
         &crs,
@@ -171,6 +174,7 @@ pub fn generate(options: SampleOptions) -> Result<Scene> {
         options,
         dem,
         ortho,
+        truth_materials,
         buildings,
         sun,
         grid_convergence_deg,
@@ -397,7 +401,26 @@ fn max_slope(dem: &Elevation) -> f64 {
         .reduce(|| 0.0, f64::max)
 }
 
-/// The orthophoto and the fraction of it in cast shadow.
+/// The material names of the generator's surfaces, indexed by [`Scene::truth_materials`]:
+/// road asphalt (its painted centre line included), grass where the grass–soil blend is under
+/// half soil, bare soil elsewhere, then one per roof colour of [`layout::ROOFS`] (terracotta
+/// and slate are tiles, tar is bitumen, concrete, weathered copper is sheet metal).
+pub const TRUTH_MATERIALS: [&str; 8] = [
+    "asphalt",
+    "grass",
+    "bare_soil",
+    "roof_tile",
+    "roof_tile",
+    "roof_bitumen",
+    "roof_concrete",
+    "roof_metal",
+];
+
+/// The index into [`TRUTH_MATERIALS`] of roof colour `k` of [`layout::ROOFS`].
+const ROOF_TRUTH: usize = 3;
+
+/// The orthophoto, what it shows (indices into [`TRUTH_MATERIALS`]) and the fraction of it in
+/// cast shadow.
 fn render_ortho(
     seed: u64,
     extent: f64,
@@ -406,7 +429,7 @@ fn render_ortho(
     ground: &(impl Fn(f64, f64) -> f64 + Sync),
     plans: &[PlannedBuilding],
     buildings: &[Building],
-) -> (Colour, f64) {
+) -> (Colour, Raster<u8>, f64) {
     let m = (extent / ORTHO_CELL_M).round() as usize;
     let grid = Grid::north_up(MIN_X, MIN_Y + extent, ORTHO_CELL_M, m, m, crs.clone());
     // Which building (index + 1) covers each cell centre; 0 = none.
@@ -441,7 +464,7 @@ fn render_ortho(
         .into_par_iter()
         .map(|i| {
             let rgb = match owner[i] {
-                0 => lit[i],
+                0 => lit[i].0,
                 o => roof_colour(texture_seed, plans[o as usize - 1].roof, i),
             };
             let k = if shadow[i] == SHADOW {
@@ -453,25 +476,37 @@ fn render_ortho(
             [c(rgb[0]), c(rgb[1]), c(rgb[2]), 255]
         })
         .collect();
+    let truth = (0..grid.len())
+        .map(|i| match owner[i] {
+            0 => lit[i].1,
+            o => {
+                let roof = plans[o as usize - 1].roof;
+                let k = layout::ROOFS.iter().position(|&c| c == roof);
+                (ROOF_TRUTH + k.expect("roofs come from ROOFS")) as u8
+            }
+        })
+        .collect();
     let shadowed = shadow.iter().filter(|&&s| s == SHADOW).count();
     (
-        Raster::new(grid, data),
+        Raster::new(grid.clone(), data),
+        Raster::new(grid, truth),
         shadowed as f64 / shadow.len() as f64,
     )
 }
 
 /// Lit colour of open ground at local `(x, y)`: asphalt with a dashed white centre line on the
-/// roads, elsewhere grass blending into bare soil, with fine texture.
-fn ground_colour(seed: u64, roads: &[Road], x: f64, y: f64) -> [u8; 3] {
+/// roads, elsewhere grass blending into bare soil, with fine texture; and what it is (an index
+/// into [`TRUTH_MATERIALS`]).
+fn ground_colour(seed: u64, roads: &[Road], x: f64, y: f64) -> ([u8; 3], u8) {
     let grain = noise::value_noise(seed ^ 1, x / 0.6, y / 0.6);
     for r in roads {
         let (across, along) = r.local(x, y);
         if across.abs() < ROAD_HALF_WIDTH {
             if across.abs() < 0.08 && along.rem_euclid(6.0) < 3.0 {
-                return [222, 222, 214];
+                return ([222, 222, 214], 0);
             }
             let g = 92.0 + 8.0 * grain;
-            return [g as u8, g as u8, (g + 4.0) as u8];
+            return ([g as u8, g as u8, (g + 4.0) as u8], 0);
         }
     }
     let soil = (0.5 + 0.9 * octaves(seed ^ 2, x, y, &[(40.0, 1.0), (9.0, 0.35)])).clamp(0.0, 1.0);
@@ -479,7 +514,7 @@ fn ground_colour(seed: u64, roads: &[Road], x: f64, y: f64) -> [u8; 3] {
     let grass = [74.0, 112.0, 48.0];
     let dirt = [132.0, 108.0, 78.0];
     let mix = |k: usize| (grass[k] + soil * (dirt[k] - grass[k]) + tuft).clamp(0.0, 255.0) as u8;
-    [mix(0), mix(1), mix(2)]
+    ([mix(0), mix(1), mix(2)], if soil < 0.5 { 1 } else { 2 })
 }
 
 /// A roof colour with a little per-cell grain (cell index `i` seeds it).
@@ -585,7 +620,7 @@ mod tests {
             let (x, y) = corner(toward);
             let (c, r) = s.ortho.grid.cell_at(x, y).unwrap();
             let (cx, cy) = s.ortho.grid.cell_centre(c, r);
-            let lit = ground_colour(texture_seed, &roads, cx - MIN_X, cy - MIN_Y);
+            let lit = ground_colour(texture_seed, &roads, cx - MIN_X, cy - MIN_Y).0;
             let k = if expect_shadow { SHADOW_FACTOR } else { 1.0 };
             let want = lit.map(|v| (v as f64 * k).round() as u8);
             assert_eq!(
