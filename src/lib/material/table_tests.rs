@@ -203,7 +203,7 @@ fn names_must_be_unique_snake_case() {
     }
     let e = broken(|v| material(v, "sand")["name"] = json!("rock"));
     assert!(
-        e.contains("material `rock` (id 5): name is used by another material"),
+        e.contains("material `rock` (id 6): name is used by another material"),
         "{e}"
     );
 }
