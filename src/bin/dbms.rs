@@ -34,6 +34,8 @@ enum Command {
     Ingest(cmd::ingest::Args),
     /// Show what a database holds: grid, layers, checksums, stages run.
     Info(cmd::info::Args),
+    /// The per-cell material layer: from roofs, vector features, land cover, then the photo.
+    Materials(cmd::materials::Args),
     /// Make a synthetic voxel object: revolved tank, cone tree, or buildings extruded from footprints.
     Object(cmd::object::Args),
     /// List the steps that build a scene file's products and which are out of date (--makefile: as make rules).
@@ -84,6 +86,7 @@ fn main() -> ExitCode {
         Command::Build(a) => cmd::build::run(a, &ctx),
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),
+        Command::Materials(a) => cmd::materials::run(a, &ctx),
         Command::Object(a) => cmd::object::run(a, &ctx),
         Command::Place(a) => cmd::place::run(a, &ctx),
         Command::Plan(a) => cmd::plan::run(a, &ctx),

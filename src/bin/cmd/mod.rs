@@ -4,6 +4,7 @@
 pub mod build;
 pub mod info;
 pub mod ingest;
+pub mod materials;
 pub mod object;
 pub mod place;
 pub mod plan;

@@ -6,9 +6,11 @@
 //! * [`table`]: the material table (format, checks, the shipped default with its sources).
 //! * [`cover`]: a land-cover raster's class codes at the database's cells.
 //! * [`features`]: vector features (polygons, lines with a width) naming a material.
+//! * [`layer`]: the material layer of a database (`dbms materials`), sources in precedence.
 //! * [`photo`]: a cell's material from its orthophoto colour, by fixed published rules.
 
 pub mod cover;
 pub mod features;
+pub mod layer;
 pub mod photo;
 pub mod table;

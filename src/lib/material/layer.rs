@@ -1,0 +1,343 @@
+//! The material layer (`dbms materials`): one material id per database cell, a byte GeoTIFF
+//! layer [`MATERIALS`] of the database, ids from its material table.
+//!
+//! Sources, in order of precedence (the first that says something decides a cell):
+//! 1. roofs: cells under a footprint of the database's `buildings` layer whose feature has a
+//!    `roof_material` property take that material;
+//! 2. vector features (`--features`, [`super::features`]: polygons, then lines with a width);
+//!    not under a footprint (a roof hides the ground a feature describes);
+//! 3. a land-cover raster (`--landcover`, [`super::cover`]) through a legend of the table
+//!    (`esa_worldcover`, `nlcd`, or the table's own); not under a footprint either;
+//! 4. the orthophoto ([`super::photo`]): roof rules under a footprint, ground rules elsewhere;
+//! 5. else [`UNCLASSIFIED`] (no photo there, or black).
+//!
+//! The table used is the shipped default, or `--table FILE`, which is copied into the database
+//! as layer [`MATERIAL_TABLE`] so later stages read the same numbers.
+//!
+//! Invariant: the layer is a pure function of the database's colour and buildings layers, the
+//! features, the land cover and the table; every id in it is [`UNCLASSIFIED`] or a material
+//! of that table.
+
+use super::table::{MaterialTable, UNCLASSIFIED};
+use super::{cover, features, photo};
+use crate::db::{Database, Stage};
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::raster::Raster;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The database layer name of the material ids.
+pub const MATERIALS: &str = "materials";
+/// The database layer name of a material table given with `--table`.
+pub const MATERIAL_TABLE: &str = "material_table";
+
+/// What `dbms materials` reads besides the database.
+#[derive(Debug, Clone, Default)]
+pub struct MaterialOptions {
+    /// GeoJSON files of features naming materials, in paint order.
+    pub features: Vec<PathBuf>,
+    /// A land-cover class raster and the legend (a name in the table) its codes follow.
+    pub landcover: Option<(PathBuf, String)>,
+    /// A material table file instead of the shipped default.
+    pub table: Option<PathBuf>,
+    /// How long to wait for the database's lock.
+    pub wait: std::time::Duration,
+}
+
+/// Cells decided by each source.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SourceCounts {
+    /// Roofs with a `roof_material`.
+    pub roofs: u64,
+    /// Vector features.
+    pub features: u64,
+    /// The land-cover raster.
+    pub landcover: u64,
+    /// The photo's roof rules (under a footprint without `roof_material`).
+    pub photo_roofs: u64,
+    /// The photo's ground rules.
+    pub photo_ground: u64,
+    /// No source.
+    pub unclassified: u64,
+}
+
+/// `dbms materials`' result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MaterialSummary {
+    /// Cells in the layer.
+    pub cells: u64,
+    /// Cells each source decided.
+    pub sources: SourceCounts,
+    /// Cells per material name (`unclassified` included when any).
+    pub materials: BTreeMap<String, u64>,
+    /// `default`, or the table file given.
+    pub table: String,
+    /// Land-cover codes the legend does not map, with their cell counts (those cells fell
+    /// through to the photo): a non-empty list often means the wrong legend.
+    pub landcover_unmapped: BTreeMap<u32, u64>,
+}
+
+impl std::fmt::Display for MaterialSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = &self.sources;
+        writeln!(
+            f,
+            "materials: {} cells (table {}): roofs {}, features {}, land cover {}, photo roofs {}, photo ground {}, unclassified {}",
+            self.cells, self.table, s.roofs, s.features, s.landcover, s.photo_roofs, s.photo_ground, s.unclassified
+        )?;
+        for (name, n) in &self.materials {
+            writeln!(
+                f,
+                "  {name:<16} {n:>10} cells  {:>5.1} %",
+                100.0 * *n as f64 / self.cells.max(1) as f64
+            )?;
+        }
+        if !self.landcover_unmapped.is_empty() {
+            let codes: Vec<String> = self.landcover_unmapped.keys().map(u32::to_string).collect();
+            writeln!(
+                f,
+                "  land-cover codes the legend does not map: {}",
+                codes.join(", ")
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Everything the classification reads, on one grid (row-major cells).
+pub struct Inputs<'a> {
+    /// The orthophoto colour (alpha 0 = no photo).
+    pub colour: &'a [[u8; 4]],
+    /// Cells under a building footprint.
+    pub roof: &'a [bool],
+    /// Roofs with a given material, then ground features, as painted.
+    pub roofs_given: &'a [features::Painted],
+    /// Ground features in paint order.
+    pub features: &'a [features::Painted],
+    /// Land-cover codes and the legend that maps them.
+    pub landcover: Option<(&'a [Option<u32>], &'a str)>,
+}
+
+/// The material id of every cell, by the precedence of the module doc, with the summary's
+/// counts (`table` names it as the summary shows).
+pub fn classify(
+    inputs: &Inputs,
+    table: &MaterialTable,
+    table_name: &str,
+) -> Result<(Vec<u8>, MaterialSummary)> {
+    let n = inputs.colour.len();
+    let mut ids: Vec<Option<u8>> = vec![None; n];
+    let mut sources = SourceCounts::default();
+    let id_of = |p: &features::Painted| {
+        table.id_of(&p.material).ok_or_else(|| {
+            Error::msg(format!(
+                "{}: material {:?} is not in the material table ({table_name})",
+                p.origin, p.material
+            ))
+            .fix(format!("use one of: {}", names(table.materials.iter().map(|m| &m.name))))
+        })
+    };
+    for p in inputs.roofs_given {
+        let id = id_of(p)?;
+        for &c in &p.cells {
+            if ids[c].is_none() {
+                sources.roofs += 1;
+            }
+            ids[c] = Some(id);
+        }
+    }
+    for p in inputs.features {
+        let id = id_of(p)?;
+        for &c in p.cells.iter().filter(|&&c| !inputs.roof[c]) {
+            if ids[c].is_none() {
+                sources.features += 1;
+            }
+            ids[c] = Some(id);
+        }
+    }
+    let mut unmapped = BTreeMap::new();
+    if let Some((codes, legend)) = inputs.landcover {
+        if !table.landcover.iter().any(|l| l.legend == legend) {
+            return Err(Error::msg(format!(
+                "land-cover legend {legend:?} is not in the material table ({table_name})"
+            ))
+            .fix(format!(
+                "use one of: {}",
+                names(table.landcover.iter().map(|l| &l.legend))
+            )));
+        }
+        for c in 0..n {
+            if ids[c].is_some() || inputs.roof[c] {
+                continue;
+            }
+            if let Some(code) = codes[c] {
+                match table.landcover_material(legend, code) {
+                    Some(id) => {
+                        ids[c] = Some(id);
+                        sources.landcover += 1;
+                    }
+                    None => *unmapped.entry(code).or_insert(0) += 1,
+                }
+            }
+        }
+    }
+    let photo_ids: BTreeMap<&str, u8> = photo::NAMES
+        .iter()
+        .map(|&name| {
+            let id = table.id_of(name).ok_or_else(|| {
+                Error::msg(format!(
+                    "the material table ({table_name}) has no {name:?}, which the photo classification gives"
+                ))
+                .fix("add it to the table (see docs/materials.md)")
+            })?;
+            Ok((name, id))
+        })
+        .collect::<Result<_>>()?;
+    let ids: Vec<u8> = ids
+        .into_iter()
+        .enumerate()
+        .map(|(c, id)| match id {
+            Some(id) => id,
+            None => match photo::classify(inputs.colour[c], inputs.roof[c]) {
+                Some(name) => {
+                    match inputs.roof[c] {
+                        true => sources.photo_roofs += 1,
+                        false => sources.photo_ground += 1,
+                    }
+                    photo_ids[name]
+                }
+                None => {
+                    sources.unclassified += 1;
+                    UNCLASSIFIED
+                }
+            },
+        })
+        .collect();
+    let mut materials = BTreeMap::new();
+    for &id in &ids {
+        let name = match table.by_id(id) {
+            Some(m) => m.name.clone(),
+            None => "unclassified".to_string(),
+        };
+        *materials.entry(name).or_insert(0) += 1;
+    }
+    let summary = MaterialSummary {
+        cells: n as u64,
+        sources,
+        materials,
+        table: table_name.to_string(),
+        landcover_unmapped: unmapped,
+    };
+    Ok((ids, summary))
+}
+
+/// `names` as a list for an error's fix.
+fn names<'a>(names: impl Iterator<Item = &'a String>) -> String {
+    names.map(String::as_str).collect::<Vec<_>>().join(", ")
+}
+
+/// The cells under the footprints of the database's buildings layer (if it has one), and
+/// those of footprints with a `roof_material`, as painted features.
+fn roofs(db: &Database) -> Result<(Vec<bool>, Vec<features::Painted>)> {
+    let grid = db.grid();
+    let mut roof = vec![false; grid.len()];
+    let mut given = Vec::new();
+    if !db.manifest.layers.contains_key(crate::db::BUILDINGS) {
+        return Ok((roof, given));
+    }
+    let path = db.layer_path(crate::db::BUILDINGS)?;
+    let fix = "re-run `dbms shadow-height --apply`";
+    for (i, f) in crate::geojson::read_features(&path, fix)?.iter().enumerate() {
+        let bad = |what: String| Error::file(&path, format!("feature {i}: {what}")).fix(fix);
+        let geometry = f.get("geometry").ok_or_else(|| bad("no geometry".into()))?;
+        let cells: Vec<usize> = crate::geojson::polygons(geometry)
+            .map_err(bad)?
+            .iter()
+            .flat_map(|rings| crate::standing::polygon_cells(grid, rings))
+            .collect();
+        cells.iter().for_each(|&c| roof[c] = true);
+        match f.pointer("/properties/roof_material") {
+            None | Some(serde_json::Value::Null) => {}
+            Some(serde_json::Value::String(m)) => given.push(features::Painted {
+                material: m.clone(),
+                origin: format!("{}: feature {i}", path.display()),
+                cells,
+            }),
+            Some(_) => return Err(bad("roof_material is not a string".into())),
+        }
+    }
+    Ok((roof, given))
+}
+
+/// Build the material layer of the database in `dir` and commit it (with the table, when one
+/// is given, and a `materials` stage) as one change.
+pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
+    let db = Database::open(dir)?;
+    let grid: Grid = db.grid().clone();
+    let (table, table_name) = match &opts.table {
+        Some(path) => (MaterialTable::read(path)?, path.display().to_string()),
+        None => (MaterialTable::default_table().clone(), "default".to_string()),
+    };
+    let colour = db.read_colour()?;
+    let (roof, roofs_given) = roofs(&db)?;
+    let painted = features::read(&opts.features, &grid)?;
+    let codes = match &opts.landcover {
+        Some((path, _)) => Some(cover::sample_codes(path, &grid)?),
+        None => None,
+    };
+    let inputs = Inputs {
+        colour: &colour.data,
+        roof: &roof,
+        roofs_given: &roofs_given,
+        features: &painted,
+        landcover: codes
+            .as_deref()
+            .zip(opts.landcover.as_ref().map(|(_, l)| l.as_str())),
+    };
+    let (ids, summary) = classify(&inputs, &table, &table_name)?;
+    let mut change = Database::begin(dir, opts.wait)?;
+    if change.db.manifest.layers.get(crate::db::COLOUR) != db.manifest.layers.get(crate::db::COLOUR)
+    {
+        return Err(Error::file(dir, "its colour layer was replaced while materials were classified")
+            .fix("run dbms materials again"));
+    }
+    let layer = Raster::new(grid, ids);
+    change.write_layer(MATERIALS, "materials", "tif", |path| {
+        crate::io::geotiff::write_u8(path, &layer, None)?;
+        Ok(None)
+    })?;
+    let mut inputs_record = Vec::new();
+    if let Some(path) = &opts.table {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        change.write_layer(MATERIAL_TABLE, "material-table", "json", |dest| {
+            crate::io::atomic::write_bytes_atomic(dest, &bytes)?;
+            Ok(None)
+        })?;
+    } else {
+        change.db.manifest.layers.remove(MATERIAL_TABLE);
+    }
+    for path in opts
+        .features
+        .iter()
+        .chain(opts.landcover.as_ref().map(|(p, _)| p))
+        .chain(&opts.table)
+    {
+        inputs_record.push(serde_json::json!({
+            "path": path.display().to_string(),
+            "sha256": crate::db::sha256_file(path)?,
+        }));
+    }
+    change.db.record_stage(Stage::now(
+        "materials",
+        serde_json::json!({
+            "inputs": inputs_record,
+            "legend": opts.landcover.as_ref().map(|(_, l)| l),
+            "table": summary.table,
+            "sources": summary.sources,
+        }),
+    ));
+    change.commit()?;
+    Ok(summary)
+}
