@@ -213,3 +213,29 @@ fn scene_files_match_their_schema() {
         assert!(dbms::scene::Scene::parse(b).is_err(), "dbms accepts:\n{b}");
     }
 }
+
+/// The built-in material table matches its schema, and the schema is not vacuous.
+#[test]
+fn default_material_table_matches_its_schema() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("src/lib/material/default-materials.json");
+    let table: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let v = schema("materials.schema.json");
+    assert_valid(&v, &table, "default-materials.json");
+    let mut bad = table.clone();
+    bad["materials"][0]["id"] = serde_json::json!(255);
+    assert!(!v.is_valid(&bad));
+    let mut bad = table.clone();
+    bad["materials"][3]["layers"][0]["sources"]
+        .as_object_mut()
+        .unwrap()
+        .remove("conductivity_w_per_m_k");
+    assert!(!v.is_valid(&bad));
+    let mut bad = table.clone();
+    bad["materials"][13]["bottom"]["h_w_per_m2_k"] = serde_json::json!(0);
+    assert!(!v.is_valid(&bad));
+    let mut bad = table;
+    bad["materials"][2]["name"] = serde_json::json!("Gravel");
+    assert!(!v.is_valid(&bad));
+}
