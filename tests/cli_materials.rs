@@ -1,0 +1,192 @@
+//! `dbms materials` end to end: a database made with the library, the layer read back.
+
+use dbms::crs::Crs;
+use dbms::db::{Database, COLOUR, ELEVATION};
+use dbms::grid::Grid;
+use dbms::io::geotiff;
+use dbms::material::table::MaterialTable;
+use dbms::raster::{Colour, Elevation, Raster};
+use std::path::Path;
+#[path = "support/cli.rs"]
+mod cli;
+use cli::dbms;
+
+const ORIGIN: (f64, f64) = (500_000.0, 5_300_020.0);
+
+/// A 40 × 20 database of 1 m cells: grass on the west half, a grey road colour on the east
+/// half, no photo in the last column, and a building (roof_material tile) over cells 2..4 of
+/// rows 2..4.
+fn database(dir: &Path) {
+    let grid = Grid::north_up(ORIGIN.0, ORIGIN.1, 1.0, 40, 20, Crs::epsg(32632));
+    let mut db = Database::create(dir, grid.clone(), vec![]).unwrap();
+    geotiff::write_f32(&dir.join("e.tif"), &Elevation::filled(grid.clone(), 100.0)).unwrap();
+    let colour: Colour = Raster::new(
+        grid.clone(),
+        (0..grid.len())
+            .map(|i| match i % 40 {
+                39 => [0, 0, 0, 0],
+                c if c < 20 => [74, 112, 48, 255],
+                _ => [92, 92, 96, 255],
+            })
+            .collect(),
+    );
+    geotiff::write_rgba8(&dir.join("c.tif"), &colour).unwrap();
+    db.set_layer(ELEVATION, "elevation", "e.tif", Some(0))
+        .unwrap();
+    db.set_layer(COLOUR, "colour", "c.tif", Some(20)).unwrap();
+    let (x, y) = ORIGIN;
+    let building = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"roof_z": 110.0, "roof_material": "roof_tile"},
+         "geometry": {"type": "Polygon", "coordinates": [[[x + 2.0, y - 2.0], [x + 4.0, y - 2.0], [x + 4.0, y - 4.0], [x + 2.0, y - 4.0], [x + 2.0, y - 2.0]]]}}]});
+    std::fs::write(dir.join("b.geojson"), building.to_string()).unwrap();
+    db.set_layer("buildings", "buildings", "b.geojson", None)
+        .unwrap();
+    db.save().unwrap();
+}
+
+fn layer(dir: &Path) -> Vec<u8> {
+    let db = Database::open(dir).unwrap();
+    let r = dbms::io::read_raster(&db.layer_path("materials").unwrap()).unwrap();
+    (0..r.grid.len()).map(|i| r.sample(i, 0) as u8).collect()
+}
+
+#[test]
+fn layer_from_roofs_features_and_photo() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    // A water polygon over the grass's first 10 columns, rows 10..20 (south half).
+    let (x, y) = ORIGIN;
+    let water = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"material": "water"},
+         "geometry": {"type": "Polygon", "coordinates": [[[x, y - 10.0], [x + 10.0, y - 10.0], [x + 10.0, y - 20.0], [x, y - 20.0], [x, y - 10.0]]]}}]});
+    let features = t.path().join("water.geojson");
+    std::fs::write(&features, water.to_string()).unwrap();
+    let o = dbms(&[
+        "materials",
+        "--db",
+        dir.to_str().unwrap(),
+        "--features",
+        features.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["cells"], 800);
+    assert_eq!(summary["sources"]["roofs"], 4);
+    assert_eq!(summary["sources"]["features"], 100);
+    assert_eq!(summary["sources"]["unclassified"], 20);
+    assert_eq!(summary["materials"]["water"], 100);
+    let ids = layer(&dir);
+    let table = MaterialTable::default_table();
+    let name = |c: usize, r: usize| {
+        table
+            .by_id(ids[r * 40 + c])
+            .map_or("unclassified", |m| m.name.as_str())
+    };
+    assert_eq!(name(2, 2), "roof_tile");
+    assert_eq!(name(3, 3), "roof_tile");
+    assert_eq!(name(5, 5), "grass");
+    assert_eq!(name(5, 15), "water");
+    assert_eq!(name(30, 15), "asphalt");
+    assert_eq!(name(39, 0), "unclassified");
+    // The stage is recorded with its inputs.
+    let db = Database::open(&dir).unwrap();
+    let stage = db.manifest.stages.last().unwrap();
+    assert_eq!(stage.name, "materials");
+    assert_eq!(stage.params["table"], "default");
+    assert!(stage.params["inputs"][0]["sha256"].is_string());
+    assert!(!db.manifest.layers.contains_key("material_table"));
+}
+
+#[test]
+fn landcover_and_a_table_of_ones_own() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    // WorldCover codes: 80 (water) on the west half, 10 (trees) on the east, 255 unmapped.
+    let grid = Grid::north_up(ORIGIN.0, ORIGIN.1, 10.0, 4, 2, Crs::epsg(32632));
+    let lc = t.path().join("lc.tif");
+    geotiff::write_u8(
+        &lc,
+        &Raster::new(grid, vec![80, 80, 10, 10, 80, 80, 10, 255]),
+        None,
+    )
+    .unwrap();
+    // The default table, copied: given with --table it is stored in the database.
+    let table = t.path().join("table.json");
+    std::fs::write(
+        &table,
+        include_str!("../src/lib/material/default-materials.json"),
+    )
+    .unwrap();
+    let o = dbms(&[
+        "materials",
+        "--db",
+        dir.to_str().unwrap(),
+        "--landcover",
+        lc.to_str().unwrap(),
+        "--legend",
+        "esa_worldcover",
+        "--table",
+        table.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // 800 cells − 4 roof cells; 100 cells (the south-east 10 × 10) have the unmapped 255.
+    assert_eq!(summary["sources"]["landcover"], 696);
+    assert_eq!(summary["landcover_unmapped"]["255"], 100);
+    let ids = layer(&dir);
+    let t2 = MaterialTable::default_table();
+    assert_eq!(t2.by_id(ids[15]).unwrap().name, "water");
+    assert_eq!(t2.by_id(ids[25]).unwrap().name, "forest");
+    assert_eq!(t2.by_id(ids[15 * 40 + 35]).unwrap().name, "asphalt"); // unmapped: the photo
+    let db = Database::open(&dir).unwrap();
+    assert!(db.manifest.layers.contains_key("material_table"));
+    db.verify().unwrap();
+}
+
+#[test]
+fn bad_input_is_a_one_line_error_and_changes_nothing() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    let before = std::fs::read(dir.join("manifest.json")).unwrap();
+    let lava = t.path().join("lava.geojson");
+    let (x, y) = ORIGIN;
+    std::fs::write(
+        &lava,
+        serde_json::json!({"type": "FeatureCollection", "features": [
+            {"type": "Feature", "properties": {"material": "lava"},
+             "geometry": {"type": "Polygon", "coordinates": [[[x, y], [x + 5.0, y], [x + 5.0, y - 5.0], [x, y]]]}}]})
+        .to_string(),
+    )
+    .unwrap();
+    let d = dir.to_str().unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["--features", lava.to_str().unwrap()],
+            "material \"lava\" is not in the material table",
+        ),
+        (&["--landcover", "lc.tif"], "--legend"),
+        (
+            &["--features", "missing.geojson"],
+            "missing.geojson: no such file",
+        ),
+        (
+            &["--table", lava.to_str().unwrap()],
+            "not a valid material table",
+        ),
+    ];
+    for (extra, expect) in cases {
+        let mut args = vec!["materials", "--db", d];
+        args.extend(extra);
+        let o = dbms(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(err.contains(expect), "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    }
+    assert_eq!(std::fs::read(dir.join("manifest.json")).unwrap(), before);
+}
