@@ -68,6 +68,8 @@ fn layer_from_roofs_features_and_photo() {
         dir.to_str().unwrap(),
         "--features",
         features.to_str().unwrap(),
+        "--preview",
+        t.path().join("m.png").to_str().unwrap(),
         "--json",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -90,6 +92,14 @@ fn layer_from_roofs_features_and_photo() {
     assert_eq!(name(5, 15), "water");
     assert_eq!(name(30, 15), "asphalt");
     assert_eq!(name(39, 0), "unclassified");
+    // The preview: each cell in its material's colour, black where unclassified.
+    let png = image::open(t.path().join("m.png")).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (40, 20));
+    assert_eq!(
+        png.get_pixel(5, 15).0,
+        table.by_name("water").unwrap().colour
+    );
+    assert_eq!(png.get_pixel(39, 0).0, [0, 0, 0]);
     // The stage is recorded with its inputs.
     let db = Database::open(&dir).unwrap();
     let stage = db.manifest.stages.last().unwrap();

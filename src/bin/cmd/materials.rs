@@ -26,6 +26,10 @@ pub struct Args {
     /// it is copied into the database for later stages.
     #[arg(long, value_name = "JSON")]
     table: Option<PathBuf>,
+    /// Also write the layer as a PNG to look at: each cell in its material's colour from the
+    /// table (black: unclassified).
+    #[arg(long, value_name = "PNG")]
+    preview: Option<PathBuf>,
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -36,6 +40,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             features: args.features,
             landcover: args.landcover.zip(args.legend),
             table: args.table,
+            preview: args.preview,
             wait: ctx.wait,
         },
     )?;

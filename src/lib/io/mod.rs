@@ -17,6 +17,7 @@ pub mod gdal;
 pub mod geotiff;
 pub mod image_world;
 pub mod input;
+pub mod png;
 
 use crate::crs::Crs;
 use crate::error::{Error, Result};

@@ -42,6 +42,8 @@ pub struct MaterialOptions {
     pub landcover: Option<(PathBuf, String)>,
     /// A material table file instead of the shipped default.
     pub table: Option<PathBuf>,
+    /// A PNG of the layer to look at: each cell in its material's colour (black: unclassified).
+    pub preview: Option<PathBuf>,
     /// How long to wait for the database's lock.
     pub wait: std::time::Duration,
 }
@@ -316,6 +318,7 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
         .fix("run dbms materials again"));
     }
     let layer = Raster::new(grid, ids);
+
     change.write_layer(MATERIALS, "materials", "tif", |path| {
         crate::io::geotiff::write_u8(path, &layer, None)?;
         Ok(None)
@@ -351,6 +354,15 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
         }),
     ));
     change.commit()?;
+    if let Some(png) = &opts.preview {
+        let rgb: Vec<u8> = layer
+            .data
+            .iter()
+            .flat_map(|&id| table.by_id(id).map_or([0; 3], |m| m.colour))
+            .collect();
+        let bytes = crate::io::png::encode_rgb(layer.grid.width, layer.grid.height, &rgb)?;
+        crate::io::atomic::write_bytes_atomic(png, &bytes)?;
+    }
     Ok(summary)
 }
 

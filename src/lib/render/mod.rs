@@ -728,17 +728,7 @@ impl Frame {
 
     /// The frame as PNG bytes (8-bit RGB; deterministic).
     pub fn png(&self) -> Result<Vec<u8>> {
-        use image::ImageEncoder;
-        let mut out = Vec::new();
-        image::codecs::png::PngEncoder::new(&mut out)
-            .write_image(
-                self.rgb_bytes(),
-                self.width as u32,
-                self.height as u32,
-                image::ExtendedColorType::Rgb8,
-            )
-            .map_err(|e| Error::msg(format!("encoding the PNG failed: {e}")))?;
-        Ok(out)
+        crate::io::png::encode_rgb(self.width, self.height, self.rgb_bytes())
     }
 
     /// Write the frame as a PNG file at `png` and, when `range` is given, its range image as

@@ -1,0 +1,18 @@
+//! 8-bit RGB PNG encoding: no alpha, no metadata, the same bytes for the same pixels.
+
+use crate::error::{Error, Result};
+use image::ImageEncoder;
+
+/// `rgb` (row-major, 3 bytes a pixel, `width × height` pixels) as PNG bytes.
+pub fn encode_rgb(width: usize, height: usize, rgb: &[u8]) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            rgb,
+            width as u32,
+            height as u32,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| Error::msg(format!("encoding the PNG failed: {e}")))?;
+    Ok(out)
+}
