@@ -18,6 +18,11 @@ mod grid;
 pub mod planck;
 mod surface;
 
+#[cfg(test)]
+mod analytic_tests;
+#[cfg(test)]
+mod feature_tests;
+
 pub use column::{Budget, Column, Periodic};
 pub use forcing::{brutsaert_clear_sky_longwave, mcadams_convection, Forcing, STEFAN_BOLTZMANN};
 pub use grid::GridSpec;
