@@ -249,7 +249,7 @@ impl Column {
         tolerance_k: f64,
         max_cycles: usize,
     ) -> Result<Periodic> {
-        if day.is_empty() || max_cycles == 0 || !(tolerance_k > 0.0) {
+        if day.is_empty() || max_cycles == 0 || !(tolerance_k > 0.0 && tolerance_k.is_finite()) {
             return Err(Error::msg(format!(
                 "a periodic run of {} steps, {max_cycles} cycles, tolerance {tolerance_k} K",
                 day.len()
@@ -259,7 +259,7 @@ impl Column {
         let mut last = vec![f64::NAN; day.len()];
         let mut change_k = f64::INFINITY;
         let mut cycles = 0;
-        while cycles < max_cycles && !(change_k < tolerance_k) {
+        while cycles < max_cycles && change_k >= tolerance_k {
             change_k = 0.0;
             for (f, prev) in day.iter().zip(last.iter_mut()) {
                 let t = self.step(f, dt_s)?;
