@@ -17,7 +17,7 @@ fn medium(thickness_m: f64) -> Layer {
 /// linear and the surface solves (1 − a)·S + ε·L↓ − ε·σ·T⁴ − h·(T − T_air) = k·(T − T_b)/D,
 /// solved here by bisection. Agreement to 1e-6 K: the discrete steady state of a homogeneous
 /// slab is exactly linear, so only round-off and the 1e-9 K Newton tolerance remain (mutation
-/// check: the linearisation's 3·a³ as 2·a³ converges to a different root, off by 6 K).
+/// check: the linearisation's 3·a³ as 2·a³ converges to a different root, off by 22 K).
 #[test]
 fn constant_forcing_settles_to_the_balance_equations_root() {
     let (a, eps, s, l, t_air, h, t_b, depth) = (0.2, 0.95, 600.0, 320.0, 295.0, 10.0, 285.0, 0.5);
