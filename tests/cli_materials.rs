@@ -1,4 +1,5 @@
-//! `dbms materials` end to end: a database made with the library, the layer read back.
+//! `dbms materials` end to end (a database made with the library, the layer read back), and
+//! `dbms thermal` over the layer.
 
 use dbms::crs::Crs;
 use dbms::db::{Database, COLOUR, ELEVATION};
@@ -199,4 +200,52 @@ fn bad_input_is_a_one_line_error_and_changes_nothing() {
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     }
     assert_eq!(std::fs::read(dir.join("manifest.json")).unwrap(), before);
+}
+
+/// `dbms thermal` at 14:00 and 22:00 local solar time (the database is at 9° E: UTC + 36 min)
+/// on the materials of [`database`]: asphalt hotter than grass by day; everything cooler at
+/// night; the building's roof over a room; nodata where unclassified.
+#[test]
+fn thermal_map_by_day_and_night() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    let d = dir.to_str().unwrap();
+    let o = dbms(&["materials", "--db", d, "-q"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let run = |time: &str, name: &str| {
+        let out = t.path().join(name);
+        let o = dbms(&[
+            "thermal",
+            "--db",
+            d,
+            "--time",
+            time,
+            "--step",
+            "1800",
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let r = dbms::io::read_raster(&out).unwrap();
+        let v: Vec<f64> = (0..r.grid.len()).map(|i| r.sample(i, 0)).collect();
+        (summary, v, r.nodata)
+    };
+    let (day, t14, nodata) = run("2026-07-01T13:24:00Z", "t14.tif");
+    let (night, t22, _) = run("2026-07-01T21:24:00Z", "t22.tif");
+    let mean = |s: &serde_json::Value, m: &str| s["materials"][m]["mean_k"].as_f64().unwrap();
+    assert!(mean(&day, "asphalt") > mean(&day, "grass") + 1.0, "{day}");
+    for m in ["asphalt", "grass", "roof_tile"] {
+        assert!(mean(&night, m) < mean(&day, m) - 3.0, "{m}: {night}");
+        // Between 250 K and 350 K: a physical surface on a 15 °C day.
+        assert!((250.0..350.0).contains(&mean(&day, m)), "{m}: {day}");
+    }
+    assert_eq!(day["steps"], 48);
+    assert_eq!(day["nodata_cells"], 20);
+    // The unclassified last column is nodata; a grass and an asphalt cell hold their map.
+    assert_eq!(Some(t14[39]), nodata);
+    assert!(t14[40 * 15 + 5] < t14[40 * 15 + 30]);
+    assert!(t22[40 * 15 + 30] < t14[40 * 15 + 30]);
 }

@@ -56,6 +56,8 @@ enum Command {
     Shadows(cmd::shadows::Args),
     /// Sun elevation, azimuth and zenith for a place (or a database's centre) and time (NREL SPA).
     Sun(cmd::sun::Args),
+    /// Surface temperature and 8–12 µm radiance of every cell at a time (thermal infrared).
+    Thermal(cmd::thermal::Args),
     /// Describe a paged tile file; --verify checks every page's checksum.
     Tiles(cmd::tiles::Args),
 }
@@ -97,6 +99,7 @@ fn main() -> ExitCode {
         Command::ShadowHeight(a) => cmd::shadow_height::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),
         Command::Sun(a) => cmd::sun::run(a, &ctx),
+        Command::Thermal(a) => cmd::thermal::run(a, &ctx),
         Command::Tiles(a) => cmd::tiles::run(a, &ctx),
     };
     match result {

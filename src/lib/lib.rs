@@ -48,6 +48,7 @@ pub mod sun;
 #[doc(hidden)]
 pub mod testing;
 pub mod thermal;
+pub mod thermal_map;
 pub mod tiles;
 pub mod voxel;
 pub mod walk;

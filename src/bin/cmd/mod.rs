@@ -15,6 +15,7 @@ pub mod sculpt;
 pub mod shadow_height;
 pub mod shadows;
 pub mod sun;
+pub mod thermal;
 pub mod tiles;
 
 use dbms::choice::Choice;

@@ -72,7 +72,7 @@ pub fn sample_codes(path: &Path, grid: &Grid) -> Result<Vec<Option<u32>>> {
     if let Some(bad) = (0..raster.samples.len())
         .step_by(band)
         .map(|i| raster.samples.get(i))
-        .find(|&v| !is_nodata(v) && !(v >= 0.0 && v.fract() == 0.0))
+        .find(|&v| !is_nodata(v) && (v.is_nan() || v < 0.0 || v.fract() != 0.0))
     {
         return Err(Error::file(
             path,

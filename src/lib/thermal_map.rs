@@ -1,0 +1,525 @@
+//! The `dbms thermal` stage: a database's surface temperature and 8–12 µm band radiance at a
+//! time, for the thermal-infrared sensor (issue 18, docs/thermal.md "The database's map").
+//!
+//! Every cell is a one-dimensional column of its material ([`crate::material`]) under the
+//! weather of one clear day, repeated until periodic ([`crate::thermal::Column::run_periodic`]:
+//! the preceding diurnal cycles), ending at the product's time. Each step of the day forces it
+//! with:
+//! * the sun (NREL SPA over the database centre) through a clear sky: direct normal irradiance
+//!   `1353 · 0.7^(AM^0.678)` W/m² (Meinel & Meinel 1976, *Applications of Solar Energy*, as
+//!   given by Honsberg & Bowden, PVEducation, "Air Mass"), air mass of Kasten & Young (1989,
+//!   *Applied Optics* 28(22)), on the cell's plane (terrain normal; roofs are flat) when the
+//!   cell is lit in the step's cast shadow (terrain, buildings and placed objects, the
+//!   `dbms shadows` cast); diffuse light on a horizontal plane of a tenth of the direct normal
+//!   (the same source's clear-sky rule), times the sky-view factor `(1 + n_z) / 2`;
+//! * the sky's long-wave from the air temperature and humidity (Brutsaert 1975), the air
+//!   temperature a sinusoid with its minimum at 03:00 and maximum at 15:00 local solar time,
+//!   convection from the wind (McAdams), saturation vapour pressure by Magnus' formula
+//!   (Alduchov & Eskridge 1996, *J. Appl. Meteor.* 35(4), eq. 21).
+//!
+//! Ground materials sit on deep ground at the day's mean air temperature; roofs over a room at
+//! the table's room temperature.
+//!
+//! Cells that share a material, a terrain normal (to 0.01 in each horizontal component) and a
+//! history of lit and shadowed steps share one column ("clusters"), so the cost grows with the
+//! variety of the scene, not its size.
+//!
+//! Invariant: the map is a pure function of the database (elevation, buildings, placements,
+//! materials and table), the time, the conditions and the numerical knobs; a nodata elevation
+//! or an unclassified cell is nodata (NaN) in both outputs.
+
+use crate::db::Database;
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::material::layer::{MATERIALS, MATERIAL_TABLE};
+use crate::material::table::{self, MaterialTable};
+use crate::raster::{band_rows, Raster, RowSource};
+use crate::shadow::ShadowBits;
+use crate::standing::{Raised, Standing};
+use crate::sun::{self, Observer, Sun, SunOptions};
+use crate::thermal::{self, planck, Column, Forcing, GridSpec, Surface};
+use chrono::{DateTime, Duration, Utc};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::{BTreeMap, HashMap};
+
+/// The most steps a day may have (one lit/shadowed bit per step and cell).
+pub const MAX_STEPS: usize = 128;
+
+/// The weather of the product's day.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Conditions {
+    /// Mean air temperature over the day, °C (also the deep-ground temperature).
+    pub air_mean_c: f64,
+    /// Daily air temperature range (maximum − minimum), K.
+    pub air_range_k: f64,
+    /// Wind speed, m/s.
+    pub wind_m_per_s: f64,
+    /// Relative humidity, 0..=1.
+    pub relative_humidity: f64,
+}
+
+impl Default for Conditions {
+    /// A mild clear day: 15 °C ± 5 K, 2 m/s, 60 % humidity.
+    fn default() -> Conditions {
+        Conditions {
+            air_mean_c: 15.0,
+            air_range_k: 10.0,
+            wind_m_per_s: 2.0,
+            relative_humidity: 0.6,
+        }
+    }
+}
+
+/// What to compute, and how finely.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThermalOptions {
+    /// The product's time (the end of the simulated day).
+    pub time: DateTime<Utc>,
+    /// The weather.
+    pub conditions: Conditions,
+    /// Length of a step, s; a day must be a whole number of steps, at most [`MAX_STEPS`].
+    pub step_s: f64,
+    /// The columns' grid.
+    pub grid: GridSpec,
+    /// Days are repeated until the surface temperature at every step changes less than this
+    /// between two days, K.
+    pub tolerance_k: f64,
+    /// ... or this many days have run.
+    pub max_days: usize,
+}
+
+impl ThermalOptions {
+    /// Defaults for `time`: 15-minute steps, the thermal module's default grid, 0.01 K, 30 days.
+    pub fn at(time: DateTime<Utc>) -> ThermalOptions {
+        ThermalOptions {
+            time,
+            conditions: Conditions::default(),
+            step_s: 900.0,
+            grid: GridSpec::default(),
+            tolerance_k: 0.01,
+            max_days: 30,
+        }
+    }
+}
+
+/// Surface temperature per material, K.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MaterialTemperature {
+    /// Cells of the material.
+    pub cells: u64,
+    /// Mean, minimum and maximum surface temperature, K.
+    pub mean_k: f64,
+    /// See `mean_k`.
+    pub min_k: f64,
+    /// See `mean_k`.
+    pub max_k: f64,
+}
+
+/// What [`thermal_map`] did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ThermalSummary {
+    /// The product's time, RFC 3339.
+    pub time: String,
+    /// The weather used.
+    pub conditions: Conditions,
+    /// Steps in the day, and how many had the sun up.
+    pub steps: usize,
+    /// See `steps`.
+    pub sunlit_steps: usize,
+    /// Distinct columns simulated.
+    pub clusters: usize,
+    /// The most days a column needed, and the largest change left between its last two, K.
+    pub days_max: usize,
+    /// See `days_max`.
+    pub change_k_max: f64,
+    /// Per material name.
+    pub materials: BTreeMap<String, MaterialTemperature>,
+    /// Cells left nodata (no elevation, or unclassified).
+    pub nodata_cells: u64,
+}
+
+/// The map: temperature (K) and band radiance (W·m⁻²·sr⁻¹, 8–12 µm) per cell, NaN = nodata.
+pub struct ThermalMap {
+    /// Surface temperature, K.
+    pub temperature_k: Raster<f32>,
+    /// Band radiance leaving the surface (emitted and reflected sky), W·m⁻²·sr⁻¹.
+    pub radiance: Raster<f32>,
+    /// The summary.
+    pub summary: ThermalSummary,
+}
+
+/// One step of the day, shared by every cell.
+struct Step {
+    /// Direction to the sun (grid east, north, up) and its direct normal irradiance, W/m²,
+    /// when it is up.
+    sun: Option<([f64; 3], f64)>,
+    /// Diffuse irradiance on a horizontal plane, W/m².
+    diffuse: f64,
+    air_k: f64,
+    longwave: f64,
+}
+
+/// Kasten & Young's (1989) relative air mass at zenith angle `zenith_deg`.
+fn air_mass(zenith_deg: f64) -> f64 {
+    1.0 / (zenith_deg.to_radians().cos() + 0.50572 * (96.07995 - zenith_deg).powf(-1.6364))
+}
+
+/// Saturation vapour pressure over water, Pa, at `t_c` °C (Magnus; Alduchov & Eskridge 1996).
+fn saturation_pa(t_c: f64) -> f64 {
+    610.94 * (17.625 * t_c / (t_c + 243.04)).exp()
+}
+
+/// The day's steps: step `k` ends at `time − (n − 1 − k) · step`, forced at its middle.
+fn steps(db: &Database, opts: &ThermalOptions, n: usize) -> Result<Vec<Step>> {
+    let (lat, lon, convergence) = db.centre_on_globe().ok_or_else(|| {
+        Error::file(&db.dir, "cannot place the grid centre on the globe").fix(
+            "a thermal map needs the sun through the day: give the database a CRS dbms can convert (UTM)",
+        )
+    })?;
+    let obs = Observer {
+        latitude_deg: lat,
+        longitude_deg: lon,
+        height_m: 0.0,
+    };
+    let c = opts.conditions;
+    let step = Duration::milliseconds((opts.step_s * 1000.0).round() as i64);
+    (0..n)
+        .map(|k| {
+            let mid = opts.time - step * (n - 1 - k) as i32 - step / 2;
+            let pos = sun::sun_position(&obs, mid, &SunOptions::default())?;
+            let sun = match pos.elevation_deg > 0.0 {
+                true => {
+                    let grid_sun = Sun::new(
+                        pos.elevation_deg,
+                        sun::grid_azimuth_deg(pos.azimuth_deg, convergence),
+                    )?;
+                    let dni = 1353.0 * 0.7f64.powf(air_mass(pos.zenith_deg).powf(0.678));
+                    Some((grid_sun.direction_enu(), dni))
+                }
+                false => None,
+            };
+            let diffuse = sun.map_or(0.0, |(_, dni)| 0.1 * dni);
+            // Local solar hours (longitude only: the equation of time is a quarter hour at most).
+            let seconds = mid.timestamp() as f64 + lon / 15.0 * 3600.0;
+            let hour = (seconds / 3600.0).rem_euclid(24.0);
+            let air_c = c.air_mean_c
+                + c.air_range_k / 2.0 * (std::f64::consts::TAU * (hour - 15.0) / 24.0).cos();
+            let air_k = air_c + 273.15;
+            let vapour = c.relative_humidity * saturation_pa(air_c);
+            Ok(Step {
+                sun,
+                diffuse,
+                air_k,
+                longwave: thermal::brutsaert_clear_sky_longwave(air_k, vapour)?,
+            })
+        })
+        .collect()
+}
+
+/// The thermal column of `m`, with deep ground at `deep_k`.
+fn surface_of(m: &table::Material, deep_k: f64) -> Surface {
+    Surface {
+        albedo: m.solar_albedo,
+        emissivity: m.emissivity,
+        layers: m
+            .layers
+            .iter()
+            .map(|l| thermal::Layer {
+                thickness_m: l.thickness_m,
+                conductivity_w_per_m_k: l.conductivity_w_per_m_k,
+                density_kg_per_m3: l.density_kg_per_m3,
+                specific_heat_j_per_kg_k: l.specific_heat_j_per_kg_k,
+            })
+            .collect(),
+        bottom: match &m.bottom {
+            table::Bottom::Deep => thermal::Bottom::Fixed {
+                temperature_k: deep_k,
+            },
+            table::Bottom::Interior {
+                temperature_k,
+                h_w_per_m2_k,
+                ..
+            } => thermal::Bottom::Convective {
+                coefficient_w_per_m2_k: *h_w_per_m2_k,
+                temperature_k: *temperature_k,
+            },
+        },
+    }
+}
+
+/// The database's material table: its own (`dbms materials --table`) or the default.
+fn table_of(db: &Database) -> Result<MaterialTable> {
+    match db.manifest.layers.contains_key(MATERIAL_TABLE) {
+        true => MaterialTable::read(&db.layer_path(MATERIAL_TABLE)?),
+        false => Ok(MaterialTable::default_table().clone()),
+    }
+}
+
+/// A column's identity: material, quantised normal and lit history (bit k: lit in step k).
+#[derive(Hash, PartialEq, Eq, Clone, Copy)]
+struct Key {
+    material: u8,
+    normal: [i16; 2],
+    lit: u128,
+}
+
+/// The thermal map of `db` for `opts`.
+pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
+    let per_day = 86_400.0 / opts.step_s;
+    let n = per_day.round() as usize;
+    let whole = per_day.is_finite() && (per_day - n as f64).abs() <= 1e-9;
+    if opts.step_s <= 0.0 || !whole || !(1..=MAX_STEPS).contains(&n) {
+        return Err(Error::msg(format!(
+            "--step {} s: a day must be a whole number of steps, at most {MAX_STEPS}",
+            opts.step_s
+        ))
+        .fix("e.g. --step 900 (96 steps) or 1800"));
+    }
+    let c = opts.conditions;
+    let humid = c.relative_humidity > 0.0 && c.relative_humidity <= 1.0;
+    if !humid || c.air_range_k.is_nan() || c.air_range_k < 0.0 {
+        return Err(Error::msg(format!(
+            "humidity {} and air temperature range {} K: humidity must be in (0, 1], the range ≥ 0",
+            c.relative_humidity, c.air_range_k
+        ))
+        .fix("e.g. --humidity 0.6 --air-range 10"));
+    }
+    if !db.manifest.layers.contains_key(MATERIALS) {
+        return Err(Error::file(&db.dir, "has no materials layer")
+            .fix("run `dbms materials --db DB` first"));
+    }
+    let table = table_of(db)?;
+    let terrain = db.elevation_rows()?;
+    let grid: Grid = terrain.grid().clone();
+    let standing = Standing::read(db, &terrain, band_rows(grid.width))?;
+    let raised: &Raised = &standing.all;
+    let materials_path = db.layer_path(MATERIALS)?;
+    let materials = crate::io::read_raster(&materials_path)?;
+    if (materials.grid.width, materials.grid.height) != (grid.width, grid.height) {
+        return Err(Error::file(&materials_path, "is not on the database grid")
+            .fix("run `dbms materials` again"));
+    }
+    let material: Vec<u8> = (0..grid.len())
+        .map(|i| materials.sample(i, 0) as u8)
+        .collect();
+    let days = steps(db, opts, n)?;
+
+    // Lit history: one cast per step with the sun up.
+    let mut lit = vec![0u128; grid.len()];
+    for (k, step) in days.iter().enumerate() {
+        let Some((dir, _)) = step.sun else { continue };
+        let elevation = dir[2].asin().to_degrees();
+        let azimuth = dir[0].atan2(dir[1]).to_degrees();
+        let sun = Sun::new(elevation, azimuth)?;
+        let bits = ShadowBits::cast(&terrain, &sun, |s, row| raised.lay_over(s, row))?;
+        lit.par_iter_mut().enumerate().for_each(|(i, l)| {
+            if !bits.get(i) {
+                *l |= 1 << k;
+            }
+        });
+    }
+
+    // Terrain normals (roofs and objects are flat tops), quantised to 0.01.
+    let heights = terrain.read_rows(0, grid.height)?.into_owned();
+    let mut on_top = vec![false; grid.len()];
+    raised.cells().iter().for_each(|c| on_top[c.index] = true);
+    let (cx, cy) = grid.cell_size();
+    let (w, h) = (grid.width, grid.height);
+    let normal = |i: usize| -> Option<[i16; 2]> {
+        if on_top[i] {
+            return Some([0, 0]);
+        }
+        let (col, row) = (i % w, i / w);
+        let z = |c: usize, r: usize| heights[r * w + c] as f64;
+        let (c0, c1) = (col.saturating_sub(1), (col + 1).min(w - 1));
+        let (r0, r1) = (row.saturating_sub(1), (row + 1).min(h - 1));
+        // Grid east and north slopes (rows run south on a north-up grid: cell_y < 0).
+        let dzdx = (z(c1, row) - z(c0, row)) / ((c1 - c0).max(1) as f64 * cx.abs());
+        let dzdy = (z(col, r0) - z(col, r1)) / ((r1 - r0).max(1) as f64 * cy.abs());
+        let norm = (dzdx * dzdx + dzdy * dzdy + 1.0).sqrt();
+        let q = |v: f64| (v / norm * 100.0).round() as i16;
+        (dzdx.is_finite() && dzdy.is_finite()).then(|| [q(-dzdx), q(-dzdy)])
+    };
+
+    // Cells into clusters.
+    let mut index: HashMap<Key, u32> = HashMap::new();
+    let mut keys: Vec<Key> = Vec::new();
+    let mut cluster = vec![u32::MAX; grid.len()];
+    let mut nodata_cells = 0u64;
+    for i in 0..grid.len() {
+        let m = material[i];
+        let (Some(nrm), Some(_)) = (normal(i).filter(|_| !heights[i].is_nan()), table.by_id(m))
+        else {
+            nodata_cells += 1;
+            continue;
+        };
+        let key = Key {
+            material: m,
+            normal: nrm,
+            lit: lit[i],
+        };
+        cluster[i] = *index.entry(key).or_insert_with(|| {
+            keys.push(key);
+            keys.len() as u32 - 1
+        });
+    }
+
+    // One periodic column per cluster: its temperature at the time, and its band radiance.
+    let deep_k = c.air_mean_c + 273.15;
+    let h_conv = thermal::mcadams_convection(c.wind_m_per_s)?;
+    let last = &days[n - 1];
+    let sky_band = {
+        // The sky as a blackbody at the temperature that emits its long-wave.
+        let t_sky = (last.longwave / thermal::STEFAN_BOLTZMANN).powf(0.25);
+        planck::band_radiance(t_sky, planck::BAND_8_12_UM)?
+    };
+    let solved: Vec<(f64, f64, usize, f64)> = keys
+        .par_iter()
+        .map(|key| {
+            let m = table
+                .by_id(key.material)
+                .expect("clustered cells have materials");
+            let nz = {
+                let [a, b] = key.normal.map(|v| v as f64 / 100.0);
+                (1.0 - a * a - b * b).max(0.0).sqrt()
+            };
+            let nrm = [
+                key.normal[0] as f64 / 100.0,
+                key.normal[1] as f64 / 100.0,
+                nz,
+            ];
+            let forcing: Vec<Forcing> = days
+                .iter()
+                .enumerate()
+                .map(|(k, s)| {
+                    let direct = match s.sun {
+                        Some((d, dni)) if key.lit >> k & 1 == 1 => {
+                            dni * (d[0] * nrm[0] + d[1] * nrm[1] + d[2] * nrm[2]).max(0.0)
+                        }
+                        _ => 0.0,
+                    };
+                    Forcing {
+                        shortwave_w_per_m2: direct + s.diffuse * (1.0 + nz) / 2.0,
+                        longwave_down_w_per_m2: s.longwave,
+                        air_temperature_k: s.air_k,
+                        convection_w_per_m2_k: h_conv,
+                    }
+                })
+                .collect();
+            let mut column = Column::new(&surface_of(m, deep_k), opts.grid, 1e-6, |_| deep_k)
+                .map_err(|e| Error::msg(format!("material {}: {}", m.name, e.problem)))?;
+            let run =
+                column.run_periodic(&forcing, opts.step_s, opts.tolerance_k, opts.max_days)?;
+            let t = *run.surface_k.last().expect("a day has steps");
+            let radiance =
+                planck::surface_band_radiance(t, m.emissivity, sky_band, planck::BAND_8_12_UM)?;
+            Ok((t, radiance, run.cycles, run.change_k))
+        })
+        .collect::<Result<_>>()?;
+
+    let value = |i: usize, f: fn(&(f64, f64, usize, f64)) -> f64| match cluster[i] {
+        u32::MAX => f32::NAN,
+        k => f(&solved[k as usize]) as f32,
+    };
+    let temperature: Vec<f32> = (0..grid.len()).map(|i| value(i, |s| s.0)).collect();
+    let radiance: Vec<f32> = (0..grid.len()).map(|i| value(i, |s| s.1)).collect();
+    let mut per: BTreeMap<String, MaterialTemperature> = BTreeMap::new();
+    for i in (0..grid.len()).filter(|&i| cluster[i] != u32::MAX) {
+        let name = &table.by_id(material[i]).expect("clustered").name;
+        let t = solved[cluster[i] as usize].0;
+        let e = per.entry(name.clone()).or_insert(MaterialTemperature {
+            cells: 0,
+            mean_k: 0.0,
+            min_k: f64::INFINITY,
+            max_k: f64::NEG_INFINITY,
+        });
+        e.cells += 1;
+        e.mean_k += t;
+        e.min_k = e.min_k.min(t);
+        e.max_k = e.max_k.max(t);
+    }
+    per.values_mut().for_each(|e| e.mean_k /= e.cells as f64);
+    let summary = ThermalSummary {
+        time: opts.time.to_rfc3339_opts(chrono::SecondsFormat::Secs, true),
+        conditions: c,
+        steps: n,
+        sunlit_steps: days.iter().filter(|s| s.sun.is_some()).count(),
+        clusters: keys.len(),
+        days_max: solved.iter().map(|s| s.2).max().unwrap_or(0),
+        change_k_max: solved.iter().map(|s| s.3).fold(0.0, f64::max),
+        materials: per,
+        nodata_cells,
+    };
+    Ok(ThermalMap {
+        temperature_k: Raster::new(grid.clone(), temperature),
+        radiance: Raster::new(grid, radiance),
+        summary,
+    })
+}
+
+impl std::fmt::Display for ThermalSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "thermal map at {}: {} steps a day ({} with the sun up), {} columns, up to {} days (last change {:.3} K)",
+            self.time, self.steps, self.sunlit_steps, self.clusters, self.days_max, self.change_k_max
+        )?;
+        for (name, m) in &self.materials {
+            writeln!(
+                f,
+                "  {name:<16} {:>9} cells  mean {:6.2} K ({:6.2} °C), {:6.2} .. {:6.2} K",
+                m.cells,
+                m.mean_k,
+                m.mean_k - 273.15,
+                m.min_k,
+                m.max_k
+            )?;
+        }
+        if self.nodata_cells > 0 {
+            writeln!(
+                f,
+                "  nodata (no elevation or unclassified): {} cells",
+                self.nodata_cells
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl ThermalMap {
+    /// Write the temperature (K) as a Float32 GeoTIFF at `temperature`, and when asked the
+    /// band radiance likewise and a picture of the temperature ("white hot": the coldest cell
+    /// black, the hottest white, linear in K; nodata dark red). Each file is written atomically.
+    pub fn write(
+        &self,
+        temperature: &std::path::Path,
+        radiance: Option<&std::path::Path>,
+        preview: Option<&std::path::Path>,
+    ) -> Result<()> {
+        crate::io::geotiff::write_f32(temperature, &self.temperature_k)?;
+        if let Some(path) = radiance {
+            crate::io::geotiff::write_f32(path, &self.radiance)?;
+        }
+        if let Some(path) = preview {
+            let valid = self.temperature_k.data.iter().filter(|t| !t.is_nan());
+            let (lo, hi) = valid.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| {
+                (a.min(t), b.max(t))
+            });
+            let span = (hi - lo).max(1e-6);
+            let rgb: Vec<u8> = self
+                .temperature_k
+                .data
+                .iter()
+                .flat_map(|&t| match t.is_nan() {
+                    true => [96, 0, 0],
+                    false => [((t - lo) / span * 255.0).round() as u8; 3],
+                })
+                .collect();
+            let g = &self.temperature_k.grid;
+            let bytes = crate::io::png::encode_rgb(g.width, g.height, &rgb)?;
+            crate::io::atomic::write_bytes_atomic(path, &bytes)?;
+        }
+        Ok(())
+    }
+}
