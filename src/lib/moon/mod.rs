@@ -40,7 +40,8 @@ pub struct MoonPosition {
     pub elevation_deg: f64,
     /// Degrees clockwise from true north, [0, 360).
     pub azimuth_deg: f64,
-    /// Distance from the observer to the Moon's centre, km (about 350 000..407 000).
+    /// Distance from the observer to the Moon's centre, km: 356 000..407 000 from the Earth's
+    /// centre, ± one Earth radius (6378 km) from the observer.
     pub distance_km: f64,
     /// Sun–Moon–Earth angle, degrees, [0, 180]: 0 at full moon, 180 at new moon (geocentric).
     pub phase_angle_deg: f64,

@@ -2,6 +2,8 @@
 
 use super::*;
 use crate::sun::parse_time;
+use chrono::{Duration, TimeZone};
+use proptest::prelude::*;
 
 fn at(s: &str) -> DateTime<Utc> {
     parse_time(s).unwrap()
@@ -343,4 +345,133 @@ fn matches_pyephem_with_our_delta_t() {
     let (de, da, dk) = worst_against_pyephem(|_| None);
     eprintln!("worst with our ΔT: elevation {de}, azimuth {da}, fraction {dk}");
     assert!(de < 0.01 && da < 0.01 && dk < 0.001, "{de} {da} {dk}");
+}
+
+/// Angle in degrees between two unit vectors.
+fn angle_between(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let dot: f64 = a.iter().zip(b.iter()).map(|(x, y)| x * y).sum();
+    dot.clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// The sky turns 0.2507° a minute and the Moon lags it; refraction stretches elevation by at most
+/// its steepest slope, in the sun's fade band just below the horizon (0.6° over 1°: slope 0.6).
+/// So 0.2507 × 1.7 = 0.43° per minute bounds an honest step; SPA's own switch-off (a 0.6° step)
+/// would show as 0.85°.
+const MAX_DEG_PER_MINUTE: f64 = 0.43;
+
+/// One-minute steps over two days at the poles, the equator, 70° N and a mid-latitude site,
+/// with refraction: the direction never jumps (moonrise and moonset included).
+#[test]
+fn direction_is_continuous_minute_by_minute() {
+    let t0 = at("2025-06-10T00:00:00Z");
+    for (lat, lon) in [
+        (90.0, 0.0),
+        (-90.0, 0.0),
+        (0.0, 179.9),
+        (70.0, 25.0),
+        (48.1, 11.6),
+    ] {
+        let o = obs(lat, lon, 0.0);
+        let mut prev = moon_position(&o, t0, &MoonOptions::default()).unwrap();
+        for m in 1..=2 * 24 * 60 {
+            let p = moon_position(&o, t0 + Duration::minutes(m), &MoonOptions::default()).unwrap();
+            let moved = angle_between(prev.direction_enu(), p.direction_enu());
+            assert!(
+                moved <= MAX_DEG_PER_MINUTE,
+                "lat {lat} minute {m}: moved {moved}° ({prev:?} -> {p:?})"
+            );
+            assert!((p.illuminated_fraction - prev.illuminated_fraction).abs() < 1e-4);
+            prev = p;
+        }
+    }
+}
+
+/// Full and new moons of January 2026 from PyEphem (`ephem.next_full_moon("2026/1/1")` =
+/// 2026-01-03 10:02:51 UTC, `next_new_moon` = 2026-01-18 19:51:55 UTC): nearly all lit and
+/// nearly all dark (the Moon passes up to 5° from the exact opposition and conjunction).
+#[test]
+fn fraction_at_full_and_new_moon() {
+    let o = obs(0.0, 0.0, 0.0);
+    let full = moon_position(&o, at("2026-01-03T10:02:51Z"), &MoonOptions::default()).unwrap();
+    let new = moon_position(&o, at("2026-01-18T19:51:55Z"), &MoonOptions::default()).unwrap();
+    assert!(full.illuminated_fraction > 0.998, "{full:?}");
+    assert!(new.illuminated_fraction < 0.002, "{new:?}");
+    // PyEphem's own phases at those instants: 99.861 % and 0.0868 %.
+    assert!((full.illuminated_fraction - 0.99861).abs() < 1e-3);
+    assert!((new.illuminated_fraction - 0.000868).abs() < 1e-3);
+}
+
+/// That full moon (declination +26.4°, near perigee at 365 947 km) seen high from 26.4° N where
+/// it transits: within the commonly cited 0.1–0.3 lux (Krieg 2021 measured up to 0.2 lux on the
+/// ground); and 0 lux where it is below the horizon.
+#[test]
+fn full_moon_lux_and_none_below_the_horizon() {
+    let t = at("2026-01-03T10:02:51Z");
+    let highest = (-180..180)
+        .map(|lon| {
+            moon_position(&obs(26.4, f64::from(lon), 0.0), t, &MoonOptions::default()).unwrap()
+        })
+        .max_by(|a, b| a.elevation_deg.total_cmp(&b.elevation_deg))
+        .unwrap();
+    assert!(highest.elevation_deg > 85.0, "{highest:?}");
+    let lux = highest
+        .light(DEFAULT_EXTINCTION_MAG_PER_AIRMASS)
+        .unwrap()
+        .horizontal_lux;
+    assert!((0.1..0.3).contains(&lux), "{lux} lux from {highest:?}");
+    // The antipode of the sub-lunar point sees no Moon.
+    let below = moon_position(&obs(-26.4, 0.0, 0.0), t, &MoonOptions::default()).unwrap();
+    let below = if below.elevation_deg < 0.0 {
+        below
+    } else {
+        moon_position(&obs(-26.4, 180.0, 0.0), t, &MoonOptions::default()).unwrap()
+    };
+    assert!(below.elevation_deg < 0.0);
+    assert_eq!(below.light(0.2).unwrap().horizontal_lux, 0.0);
+}
+
+#[test]
+fn bad_inputs_are_one_line_errors() {
+    let t = at("2026-06-21T10:00:00Z");
+    for (o, what) in [
+        (obs(95.0, 0.0, 0.0), "latitude"),
+        (obs(0.0, f64::NAN, 0.0), "longitude"),
+        (obs(0.0, 0.0, 1e7), "height"),
+    ] {
+        let e = moon_position(&o, t, &MoonOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(what) && e.contains("; ") && !e.contains('\n'),
+            "{e}"
+        );
+    }
+    let far = Utc.with_ymd_and_hms(7000, 1, 1, 0, 0, 0).unwrap();
+    assert!(moon_position(&obs(0.0, 0.0, 0.0), far, &MoonOptions::default()).is_err());
+}
+
+proptest! {
+    /// Anywhere, any time in 1950–2050: every field in its documented range, the direction a
+    /// unit vector that agrees with elevation and azimuth.
+    #[test]
+    fn in_range_everywhere(
+        lat in -90.0f64..=90.0,
+        lon in -180.0f64..=180.0,
+        height in 0.0f64..5000.0,
+        secs in -1_577_880_000i64..1_577_880_000i64,
+    ) {
+        let t = Utc.timestamp_opt(946_728_000 + secs, 0).unwrap();
+        let p = moon_position(&obs(lat, lon, height), t, &MoonOptions::default()).unwrap();
+        prop_assert!((-90.0..=90.0).contains(&p.elevation_deg), "{:?}", p);
+        prop_assert!((0.0..360.0).contains(&p.azimuth_deg), "{:?}", p);
+        prop_assert!((0.0..=1.0).contains(&p.illuminated_fraction), "{:?}", p);
+        prop_assert!((0.0..=180.0).contains(&p.phase_angle_deg), "{:?}", p);
+        prop_assert!((350_000.0..414_000.0).contains(&p.distance_km), "{:?}", p);
+        let d = p.direction_enu();
+        prop_assert!((d.iter().map(|x| x * x).sum::<f64>() - 1.0).abs() < 1e-12);
+        prop_assert!((d[2].asin().to_degrees() - p.elevation_deg).abs() < 1e-6);
+        let l = p.light(DEFAULT_EXTINCTION_MAG_PER_AIRMASS).unwrap();
+        prop_assert!(l.horizontal_lux >= 0.0 && l.horizontal_lux < 0.4, "{:?}", l);
+        prop_assert_eq!(l.horizontal_lux == 0.0, p.elevation_deg <= 0.0);
+    }
 }
