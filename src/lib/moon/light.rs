@@ -7,10 +7,10 @@
 //!
 //! Sources:
 //! * K. Krisciunas & B. E. Schaefer, "A model of the brightness of moonlight", PASP 103, 1033
-//!   (1991): the Moon's illuminance above the atmosphere at its mean distance, eq. 20,
+//!   (1991): the Moon's illuminance above the atmosphere at its mean distance,
 //!   I* = 10^(−0.4 (3.84 + 0.026 |i| + 4×10⁻⁹ i⁴)) foot-candles for phase angle i in degrees (from
 //!   the V magnitude −12.73 + 0.026 |i| + 4×10⁻⁹ i⁴, Allen 1973); the airmass
-//!   X = (1 − 0.96 sin² Z)^(−1/2) (their eq. 3); and the V-band extinction k = 0.172 mag per
+//!   X = (1 − 0.96 sin² Z)^(−1/2) (theirs); and the V-band extinction k = 0.172 mag per
 //!   airmass they use (Mauna Kea).
 //! * The moonless clear sky: the natural zenith sky luminance 174 µcd/m² (22.0 mag/arcsec², F.
 //!   Falchi et al., "The new world atlas of artificial night sky brightness", Science Advances 2,
@@ -39,7 +39,7 @@ pub fn night_sky_lux() -> f64 {
 /// The Moon's direct light, in pieces.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Moonlight {
-    /// Illuminance above the atmosphere on a surface facing the Moon, lux (K&S eq. 20 scaled by
+    /// Illuminance above the atmosphere on a surface facing the Moon, lux (K&S's I* scaled by
     /// (mean distance / distance)²); about 0.31 lux at full moon, 0.03 at quarter.
     pub exoatmospheric_lux: f64,
     /// Relative air mass along the line of sight, X = (1 − 0.96 sin² Z)^(−1/2), in [1, 5]; 5 at
@@ -123,7 +123,7 @@ pub fn moonlight(
 mod tests {
     use super::*;
 
-    /// K&S eq. 20 at full moon, mean distance: 10^(−0.4 × 3.84) fc = 0.02911 fc = 0.3133 lux; at
+    /// K&S's I* at full moon, mean distance: 10^(−0.4 × 3.84) fc = 0.02911 fc = 0.3133 lux; at
     /// the zenith through k = 0.172 (X = 1): × 10^(−0.0688) = 0.2674 lux.
     #[test]
     fn full_moon_overhead_at_mean_distance() {
