@@ -14,7 +14,7 @@
 //! * [`SunPosition::direction_enu`] points from the ground TO the sun, x east, y north, z up.
 
 mod delta_t;
-mod spa;
+pub(crate) mod spa;
 mod terms;
 
 use crate::db::Database;
@@ -290,7 +290,11 @@ fn within(what: &str, v: f64, lo: f64, hi: f64, fix: &str) -> Result<f64> {
 }
 
 /// Validates every input and converts it to SPA's.
-fn spa_input(obs: &Observer, utc: DateTime<Utc>, opts: &SunOptions) -> Result<spa::Input> {
+pub(crate) fn spa_input(
+    obs: &Observer,
+    utc: DateTime<Utc>,
+    opts: &SunOptions,
+) -> Result<spa::Input> {
     let latitude_deg = within(
         "latitude",
         obs.latitude_deg,

@@ -20,7 +20,7 @@ pub(super) const REFRACTION_FADE_DEG: f64 = 1.0;
 const J2000: f64 = 2451545.0;
 
 /// SPA inputs, in SPA's units. Validated by the caller.
-pub(super) struct Input {
+pub(crate) struct Input {
     /// UT1 days since J2000.0 (JD − 2451545), split off so no precision is lost in the JD's
     /// large integer part.
     pub days_j2000: f64,
@@ -41,7 +41,7 @@ pub(super) struct Input {
 /// against the paper.
 #[derive(Debug, Clone, Copy)]
 #[cfg_attr(not(test), allow(dead_code))]
-pub(super) struct Output {
+pub(crate) struct Output {
     /// Julian day (UT1).
     pub jd: f64,
     /// Earth heliocentric longitude L, latitude B, degrees; radius vector R, AU.
@@ -70,7 +70,7 @@ pub(super) struct Output {
 }
 
 /// Runs SPA for one instant and observer.
-pub(super) fn spa(inp: &Input) -> Output {
+pub(crate) fn spa(inp: &Input) -> Output {
     let jd = J2000 + inp.days_j2000;
     let jc = inp.days_j2000 / 36525.0;
     let jce = (inp.days_j2000 + inp.delta_t_s / 86400.0) / 36525.0;
@@ -176,7 +176,7 @@ pub(super) fn spa(inp: &Input) -> Output {
 /// Atmospheric refraction, degrees, at geometric elevation `e0` (degrees) for pressure `p`
 /// (mbar) and temperature `t` (°C): SPA's (Bennett-type) formula down to the cut-off where the
 /// sun's upper limb sets, then a linear fade to zero over [`REFRACTION_FADE_DEG`].
-fn refraction_deg(e0: f64, p: f64, t: f64) -> f64 {
+pub(crate) fn refraction_deg(e0: f64, p: f64, t: f64) -> f64 {
     let cutoff = -(SUN_RADIUS_DEG + HORIZON_REFRACTION_DEG);
     let bennett = |e: f64| {
         (p / 1010.0) * (283.0 / (273.0 + t)) * 1.02
@@ -227,12 +227,12 @@ fn nutation(jce: f64) -> (f64, f64) {
 }
 
 /// Horner evaluation of `c[0] + c[1] x + c[2] x² + …`.
-pub(super) fn poly(x: f64, c: &[f64]) -> f64 {
+pub(crate) fn poly(x: f64, c: &[f64]) -> f64 {
     c.iter().rev().fold(0.0, |acc, &k| acc * x + k)
 }
 
 /// Degrees reduced to [0, 360) (never 360.0 itself, even after rounding).
-pub(super) fn wrap_deg(d: f64) -> f64 {
+pub(crate) fn wrap_deg(d: f64) -> f64 {
     let w = d.rem_euclid(360.0);
     if w >= 360.0 {
         0.0
