@@ -130,7 +130,7 @@ fn tail(x: f64) -> f64 {
 /// (converges for x < 2π; 18 terms reach f64 precision up to x = 2).
 fn tail_by_complement(x: f64) -> f64 {
     let x2 = x * x;
-    let mut power = x2 * x2 * x2 * x; // x^(2k+3) for k = 1
+    let mut power = x2 * x2 * x; // x^(2k+3) for k = 1
     let mut head = x2 * x / 3.0 - x2 * x2 / 8.0;
     for (i, b) in BERNOULLI_OVER_FACTORIAL.iter().enumerate() {
         head += b * power / (2 * i + 5) as f64;
@@ -191,7 +191,7 @@ mod tests {
     #[test]
     fn both_series_agree_around_the_switch() {
         let whole = std::f64::consts::PI.powi(4) / 15.0;
-        for x in [1.0, 1.5, 1.9, 2.0, 2.1, 2.5, 3.0] {
+        for x in [0.5, 1.0, 1.5, 1.9, 2.0, 2.1] {
             let (a, b) = (tail_by_complement(x), tail_by_exponentials(x));
             assert!((a - b).abs() < 1e-15 * whole, "{x}: {a} {b}");
         }
