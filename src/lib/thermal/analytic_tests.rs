@@ -13,11 +13,12 @@ fn medium(thickness_m: f64) -> Layer {
     }
 }
 
-/// Constant forcing over one layer on a fixed-temperature bottom: after 83 days the profile is
-/// linear and the surface solves (1 − a)·S + ε·L↓ − ε·σ·T⁴ − h·(T − T_air) = k·(T − T_b)/D,
-/// solved here by bisection. Agreement to 1e-6 K: the discrete steady state of a homogeneous
+/// Constant forcing over one layer on a fixed-temperature bottom: after 83 days, and at once
+/// when settled, the profile is linear and the surface solves
+/// (1 − a)·S + ε·L↓ − ε·σ·T⁴ − h·(T − T_air) = k·(T − T_b)/D, solved here by bisection. Agreement to 1e-6 K: the discrete steady state of a homogeneous
 /// slab is exactly linear, so only round-off and the 1e-9 K Newton tolerance remain (mutation
-/// check: the linearisation's 3·a³ as 2·a³ converges to a different root, off by 22 K).
+/// check: the linearisation's 3·a³ as 2·a³ converges to a different root, off by 22 K;
+/// `settle` with a 1-hour step instead of an infinite one fails the settled column).
 #[test]
 fn constant_forcing_settles_to_the_balance_equations_root() {
     let (a, eps, s, l, t_air, h, t_b, depth) = (0.2, 0.95, 600.0, 320.0, 295.0, 10.0, 285.0, 0.5);
@@ -53,14 +54,18 @@ fn constant_forcing_settles_to_the_balance_equations_root() {
         }
     }
     let truth = 0.5 * (lo + hi);
-    assert!(
-        (column.surface_k() - truth).abs() < 1e-6,
-        "{} {truth}",
-        column.surface_k()
-    );
-    for (z, t) in column.depths_m().iter().zip(column.temperatures_k()) {
-        let linear = truth + (t_b - truth) * z / depth;
-        assert!((t - linear).abs() < 1e-6, "{z}: {t} {linear}");
+    let mut settled = Column::new(&surface, GridSpec::default(), 1e-9, |_| 280.0).unwrap();
+    settled.settle(&forcing).unwrap();
+    for column in [column, settled] {
+        assert!(
+            (column.surface_k() - truth).abs() < 1e-6,
+            "{} {truth}",
+            column.surface_k()
+        );
+        for (z, t) in column.depths_m().iter().zip(column.temperatures_k()) {
+            let linear = truth + (t_b - truth) * z / depth;
+            assert!((t - linear).abs() < 1e-6, "{z}: {t} {linear}");
+        }
     }
 }
 

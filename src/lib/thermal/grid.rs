@@ -28,8 +28,8 @@ pub struct GridSpec {
 }
 
 impl Default for GridSpec {
-    /// 5 mm at the surface, growing by 20 % per element: about 0.01 K of error on a
-    /// diurnal half-space with a 10-minute step (`docs/thermal.md`).
+    /// 5 mm at the surface, growing by 20 % per element (21 nodes in 1 m): 0.024 K of
+    /// amplitude error on a diurnal half-space swinging 8.3 K (`docs/thermal.md`).
     fn default() -> GridSpec {
         GridSpec {
             first_m: 0.005,

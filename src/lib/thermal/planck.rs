@@ -130,7 +130,7 @@ fn tail(x: f64) -> f64 {
 /// (converges for x < 2π; 18 terms reach f64 precision up to x = 2).
 fn tail_by_complement(x: f64) -> f64 {
     let x2 = x * x;
-    let mut power = x2 * x2 * x2 * x; // x^(2k+3) for k = 1
+    let mut power = x2 * x2 * x; // x^(2k+3) for k = 1
     let mut head = x2 * x / 3.0 - x2 * x2 / 8.0;
     for (i, b) in BERNOULLI_OVER_FACTORIAL.iter().enumerate() {
         head += b * power / (2 * i + 5) as f64;
@@ -191,26 +191,26 @@ mod tests {
     #[test]
     fn both_series_agree_around_the_switch() {
         let whole = std::f64::consts::PI.powi(4) / 15.0;
-        for x in [1.0, 1.5, 1.9, 2.0, 2.1, 2.5, 3.0] {
+        for x in [0.5, 1.0, 1.5, 1.9, 2.0, 2.1] {
             let (a, b) = (tail_by_complement(x), tail_by_exponentials(x));
             assert!((a - b).abs() < 1e-15 * whole, "{x}: {a} {b}");
         }
     }
 
     /// The series against a brute-force trapezoid of Planck's law (10⁶ panels: error ~1e-11),
-    /// and against references made with mpmath 1.3.0 (30 digits) as
+    /// and against references (here rounded to f64) made with mpmath 1.3.0 (30 digits) as
     /// `mp.quad(lambda l: 2*h*c**2/l**5/(mp.exp(h*c/(l*k*T))-1), [a, b])` with the exact
     /// CODATA 2018 h, c, k (mutation check: k = 1.380 648 52e-23, CODATA 2014, fails the
     /// references at 1e-12).
     #[test]
     fn bands_match_a_trapezoid_and_independent_references() {
         for (t, a, b, reference) in [
-            (300.0, 8e-6, 12e-6, 38.500_423_933_347_867_935),
-            (300.0, 8e-6, 14e-6, 54.933_461_376_839_687_841),
-            (300.0, 3e-6, 5e-6, 1.865_956_208_161_690_529_7),
-            (250.0, 8e-6, 12e-6, 14.559_300_975_419_021_511),
-            (300.0, 20e-6, 100e-6, 37.646_713_615_289_557_291), // x from 2.4 to 0.48
-            (1000.0, 8e-6, 12e-6, 1_602.829_863_463_345_375_4), // x from 1.8 to 1.2
+            (300.0, 8e-6, 12e-6, 38.500_423_933_347_87),
+            (300.0, 8e-6, 14e-6, 54.933_461_376_839_69),
+            (300.0, 3e-6, 5e-6, 1.865_956_208_161_690_5),
+            (250.0, 8e-6, 12e-6, 14.559_300_975_419_022),
+            (300.0, 20e-6, 100e-6, 37.646_713_615_289_556), // x from 2.4 to 0.48
+            (1000.0, 8e-6, 12e-6, 1_602.829_863_463_345_4), // x from 1.8 to 1.2
         ] {
             let band = Band {
                 low_m: a,

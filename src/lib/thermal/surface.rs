@@ -142,7 +142,8 @@ mod tests {
     #[test]
     fn bad_values_are_errors_that_name_them() {
         assert!(soil().validate().is_ok());
-        let cases: [(fn(&mut Surface), &str); 7] = [
+        type Break = fn(&mut Surface);
+        let cases: [(Break, &str); 7] = [
             (|s| s.albedo = 1.5, "albedo"),
             (|s| s.emissivity = 0.0, "emissivity"),
             (|s| s.layers.clear(), "no layers"),
