@@ -18,7 +18,10 @@
 //!   (Alduchov & Eskridge 1996, *J. Appl. Meteor.* 35(4), eq. 21).
 //!
 //! Ground materials sit on deep ground at the day's mean air temperature; roofs over a room at
-//! the table's room temperature.
+//! the table's room temperature. Materials with a surface resistance (vegetation, water)
+//! evaporate (FAO-56's Penman–Monteith latent heat, [`crate::thermal`]). Each column starts
+//! from its steady state under the day's mean forcing; each step is forced by the weather at
+//! its end (where backward Euler balances it).
 //!
 //! Cells that share a material, a terrain normal (to 0.01 in each horizontal component) and a
 //! history of lit and shadowed steps share one column ("clusters"), so the cost grows with the
@@ -157,6 +160,8 @@ struct Step {
     /// Diffuse irradiance on a horizontal plane, W/m².
     diffuse: f64,
     air_k: f64,
+    /// The air's water vapour pressure, Pa.
+    vapour: f64,
     longwave: f64,
 }
 
@@ -165,12 +170,8 @@ fn air_mass(zenith_deg: f64) -> f64 {
     1.0 / (zenith_deg.to_radians().cos() + 0.50572 * (96.07995 - zenith_deg).powf(-1.6364))
 }
 
-/// Saturation vapour pressure over water, Pa, at `t_c` °C (Magnus; Alduchov & Eskridge 1996).
-fn saturation_pa(t_c: f64) -> f64 {
-    610.94 * (17.625 * t_c / (t_c + 243.04)).exp()
-}
-
-/// The day's steps: step `k` ends at `time − (n − 1 − k) · step`, forced at its middle.
+/// The day's steps: step `k` ends at `time − (n − 1 − k) · step`, and is forced by the
+/// weather there (backward Euler balances the step's end: docs/thermal.md).
 fn steps(db: &Database, opts: &ThermalOptions, n: usize) -> Result<Vec<Step>> {
     let (lat, lon, convergence) = db.centre_on_globe().ok_or_else(|| {
         Error::file(&db.dir, "cannot place the grid centre on the globe").fix(
@@ -186,8 +187,8 @@ fn steps(db: &Database, opts: &ThermalOptions, n: usize) -> Result<Vec<Step>> {
     let step = Duration::milliseconds((opts.step_s * 1000.0).round() as i64);
     (0..n)
         .map(|k| {
-            let mid = opts.time - step * (n - 1 - k) as i32 - step / 2;
-            let pos = sun::sun_position(&obs, mid, &SunOptions::default())?;
+            let at = opts.time - step * (n - 1 - k) as i32;
+            let pos = sun::sun_position(&obs, at, &SunOptions::default())?;
             let sun = match pos.elevation_deg > 0.0 {
                 true => {
                     let grid_sun = Sun::new(
@@ -201,16 +202,17 @@ fn steps(db: &Database, opts: &ThermalOptions, n: usize) -> Result<Vec<Step>> {
             };
             let diffuse = sun.map_or(0.0, |(_, dni)| 0.1 * dni);
             // Local solar hours (longitude only: the equation of time is a quarter hour at most).
-            let seconds = mid.timestamp() as f64 + lon / 15.0 * 3600.0;
+            let seconds = at.timestamp() as f64 + lon / 15.0 * 3600.0;
             let hour = (seconds / 3600.0).rem_euclid(24.0);
             let air_c = c.air_mean_c
                 + c.air_range_k / 2.0 * (std::f64::consts::TAU * (hour - 15.0) / 24.0).cos();
             let air_k = air_c + 273.15;
-            let vapour = c.relative_humidity * saturation_pa(air_c);
+            let vapour = c.relative_humidity * thermal::saturation_vapour_pressure_pa(air_k).0;
             Ok(Step {
                 sun,
                 diffuse,
                 air_k,
+                vapour,
                 longwave: thermal::brutsaert_clear_sky_longwave(air_k, vapour)?,
             })
         })
@@ -232,6 +234,7 @@ fn surface_of(m: &table::Material, deep_k: f64) -> Surface {
                 specific_heat_j_per_kg_k: l.specific_heat_j_per_kg_k,
             })
             .collect(),
+        surface_resistance_s_per_m: m.surface_resistance_s_per_m,
         bottom: match &m.bottom {
             table::Bottom::Deep => thermal::Bottom::Fixed {
                 temperature_k: deep_k,
@@ -404,11 +407,21 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
                         longwave_down_w_per_m2: s.longwave,
                         air_temperature_k: s.air_k,
                         convection_w_per_m2_k: h_conv,
+                        vapour_pressure_pa: s.vapour,
                     }
                 })
                 .collect();
             let mut column = Column::new(&surface_of(m, deep_k), opts.grid, 1e-6, |_| deep_k)
                 .map_err(|e| Error::msg(format!("material {}: {}", m.name, e.problem)))?;
+            // Start from the steady state under the day's mean: about half the days to periodic.
+            let mean = |f: fn(&Forcing) -> f64| forcing.iter().map(f).sum::<f64>() / n as f64;
+            column.settle(&Forcing {
+                shortwave_w_per_m2: mean(|f| f.shortwave_w_per_m2),
+                longwave_down_w_per_m2: mean(|f| f.longwave_down_w_per_m2),
+                air_temperature_k: mean(|f| f.air_temperature_k),
+                convection_w_per_m2_k: h_conv,
+                vapour_pressure_pa: mean(|f| f.vapour_pressure_pa),
+            })?;
             let run =
                 column.run_periodic(&forcing, opts.step_s, opts.tolerance_k, opts.max_days)?;
             let t = *run.surface_k.last().expect("a day has steps");

@@ -76,6 +76,10 @@ pub struct Material {
     /// dimensionless, 0..=1; absent where no published value was found.
     #[serde(default)]
     pub nir_reflectance: Option<f64>,
+    /// Bulk surface resistance to evaporation, s/m (FAO-56's surface resistance): absent for
+    /// a dry surface (no latent heat), 0 for open water, 70 for well-watered grass.
+    #[serde(default)]
+    pub surface_resistance_s_per_m: Option<f64>,
     /// The column's layers, top first.
     pub layers: Vec<Layer>,
     /// What lies below the last layer.
@@ -401,9 +405,15 @@ fn check_material(m: &Material, source_ids: &HashSet<&str>) -> Result<(), (Strin
     if let Some(r) = m.nir_reflectance {
         in_range("nir_reflectance", r, 0.0, 1.0, false, "")?;
     }
+    if let Some(r) = m.surface_resistance_s_per_m {
+        in_range("surface_resistance_s_per_m", r, 0.0, 1e5, false, " s/m")?;
+    }
     let mut own = vec!["colour", "solar_albedo", "emissivity"];
     if m.nir_reflectance.is_some() {
         own.push("nir_reflectance");
+    }
+    if m.surface_resistance_s_per_m.is_some() {
+        own.push("surface_resistance_s_per_m");
     }
     check_sources("", &m.sources, &own, source_ids)?;
     if m.layers.is_empty() {

@@ -27,6 +27,7 @@ fn constant_forcing_settles_to_the_balance_equations_root() {
         emissivity: eps,
         layers: vec![medium(depth)],
         bottom: Bottom::Fixed { temperature_k: t_b },
+        surface_resistance_s_per_m: None,
     };
     let mut column = Column::new(&surface, GridSpec::default(), 1e-9, |_| 280.0).unwrap();
     let forcing = Forcing {
@@ -34,6 +35,7 @@ fn constant_forcing_settles_to_the_balance_equations_root() {
         longwave_down_w_per_m2: l,
         air_temperature_k: t_air,
         convection_w_per_m2_k: h,
+        vapour_pressure_pa: 1000.0,
     };
     for _ in 0..2000 {
         column.step(&forcing, 3600.0).unwrap();
@@ -69,6 +71,67 @@ fn constant_forcing_settles_to_the_balance_equations_root() {
     }
 }
 
+/// The same slab evaporating (surface resistance r_s): the surface solves the balance with
+/// the latent heat LE = (e_s(T) − e_a)/γ · h/(1 + h·r_s/(ρ·c_p)) subtracted, e_s by Magnus'
+/// formula written out here (not the module's), solved by bisection; for r_s = 0, 70 s/m and
+/// dry, to 1e-6 K, and the wetter the cooler (mutation check: γ taken as 6.74 instead of 67.4
+/// Pa/K fails all three wet cases).
+#[test]
+fn an_evaporating_slab_settles_to_the_balance_with_latent_heat() {
+    let (a, eps, s, l, t_air, h, t_b, depth, e_a) =
+        (0.2, 0.95, 600.0, 320.0, 295.0, 10.0, 285.0, 0.5, 1200.0);
+    let forcing = Forcing {
+        shortwave_w_per_m2: s,
+        longwave_down_w_per_m2: l,
+        air_temperature_k: t_air,
+        convection_w_per_m2_k: h,
+        vapour_pressure_pa: e_a,
+    };
+    let mut last = f64::INFINITY;
+    for r_s in [None, Some(70.0), Some(0.0)] {
+        let surface = Surface {
+            albedo: a,
+            emissivity: eps,
+            layers: vec![medium(depth)],
+            bottom: Bottom::Fixed { temperature_k: t_b },
+            surface_resistance_s_per_m: r_s,
+        };
+        let latent = |t: f64| match r_s {
+            None => 0.0,
+            Some(r) => {
+                let c = t - 273.15;
+                let e_s = 610.94 * (17.625 * c / (c + 243.04)).exp();
+                (e_s - e_a) / (0.665e-3 * 101_300.0) * h / (1.0 + h * r / 1206.0)
+            }
+        };
+        let balance = |t: f64| {
+            (1.0 - a) * s + eps * l
+                - eps * 5.670_374_419e-8 * t.powi(4)
+                - h * (t - t_air)
+                - latent(t)
+                - (t - t_b) / depth
+        };
+        let (mut lo, mut hi) = (200.0, 400.0);
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            if balance(mid) > 0.0 {
+                lo = mid
+            } else {
+                hi = mid
+            }
+        }
+        let truth = 0.5 * (lo + hi);
+        let mut column = Column::new(&surface, GridSpec::default(), 1e-9, |_| 280.0).unwrap();
+        let got = column.settle(&forcing).unwrap();
+        assert!((got - truth).abs() < 1e-6, "r_s {r_s:?}: {got} {truth}");
+        assert!(
+            got < last - 1.0,
+            "r_s {r_s:?}: {got} not cooler than {last}"
+        );
+        last = got;
+    }
+}
+
 /// Amplitude and phase of a surface or buried node's response to G₀·sin(ωt), against the
 /// half-space's T₀ + G₀/(I·√ω)·e^(−z/d)·sin(ωt − π/4 − z/d), d = √(2κ/ω), I = √(kρc).
 /// The column is 2 m deep (17 damping depths, so its held bottom is an infinite half-space to
@@ -85,6 +148,7 @@ pub(super) fn half_space_errors(spec: GridSpec, dt_s: f64) -> [f64; 4] {
         emissivity: 1.0,
         layers: vec![layer],
         bottom: Bottom::Fixed { temperature_k: t0 },
+        surface_resistance_s_per_m: None,
     };
     let mut column = Column::new(&surface, spec, 1e-9, |z| {
         t0 + amplitude * (-z / d).exp() * (-PI / 4.0 - z / d).sin()

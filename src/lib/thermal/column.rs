@@ -5,7 +5,12 @@
 //! neighbours,
 //!   C_i·(T_i' − T_i)/Δt = K_{i−1}·(T_{i−1}' − T_i') + K_i·(T_{i+1}' − T_i')
 //! at the new time (primes), and at the surface node adds the balance
-//!   F(T₀') = (1 − albedo)·S + ε·L↓ − ε·σ·T₀'⁴ − h·(T₀' − T_air).
+//!   F(T₀') = (1 − albedo)·S + ε·L↓ − ε·σ·T₀'⁴ − h·(T₀' − T_air) − LE(T₀'),
+//! where an evaporating surface (surface resistance r_s) loses the latent heat
+//!   LE(T) = (e_s(T) − e_air)/γ · h / (1 + h·r_s/(ρ·c_p))
+//! (the Penman–Monteith form of FAO-56, Allen et al. 1998, eqs. 3 and 8, with the aerodynamic
+//! resistance r_a = ρ·c_p/h of the same convective exchange: γ = 67.4 Pa/K at 101.3 kPa,
+//! ρ·c_p = 1206 J/(m³·K)); e_s is convex and increasing like T⁴ and is linearised with it.
 //! The tridiagonal system is eliminated from the bottom up (Thomas), which leaves every node
 //! as T_i' = p_i + q_i·T_{i−1}' and the surface as one scalar equation in T₀'; the only
 //! nonlinear term, T⁴, is linearised about the current iterate and Newton-iterated until an
@@ -16,7 +21,7 @@
 //! [`Budget`] closes to round-off: its emitted term is the linearised emission the converged
 //! solve used, which differs from ε·σ·T₀'⁴ by less than 6·ε·σ·T³·tolerance².
 
-use super::forcing::{Forcing, STEFAN_BOLTZMANN};
+use super::forcing::{saturation_vapour_pressure_pa, Forcing, STEFAN_BOLTZMANN};
 use super::grid::{Grid, GridSpec};
 use super::surface::Surface;
 use crate::{Error, Result};
@@ -24,6 +29,12 @@ use crate::{Error, Result};
 /// The most Newton iterations a step may take; the scalar surface equation is convex and
 /// increasing, so Newton converges monotonically after its first iterate and needs a handful.
 const MAX_NEWTON: usize = 50;
+
+/// The psychrometric constant γ at sea-level pressure 101.3 kPa, Pa/K (FAO-56, eq. 8:
+/// γ = 0.665·10⁻³·P).
+const PSYCHROMETRIC_PA_PER_K: f64 = 0.665e-3 * 101_300.0;
+/// Volumetric heat capacity of air ρ·c_p, J/(m³·K) (1.2 kg/m³ × 1005 J/(kg·K)).
+const AIR_HEAT_CAPACITY_J_PER_M3_K: f64 = 1206.0;
 
 /// Energy through a column's boundaries since it was made or [`Column::reset_budget`], J/m²,
 /// each positive in the direction its name says.
@@ -37,6 +48,9 @@ pub struct Budget {
     pub emitted_j_per_m2: f64,
     /// h·(T₀ − T_air)·Δt summed: given to the air.
     pub convected_j_per_m2: f64,
+    /// LE·Δt summed (as linearised by the converged Newton step): latent heat evaporated
+    /// (negative: dew).
+    pub evaporated_j_per_m2: f64,
     /// A prescribed surface flux (the flux-only boundary) summed: put in.
     pub prescribed_j_per_m2: f64,
     /// Through the bottom boundary, into the column.
@@ -51,6 +65,7 @@ impl Budget {
         self.shortwave_absorbed_j_per_m2 + self.longwave_absorbed_j_per_m2
             - self.emitted_j_per_m2
             - self.convected_j_per_m2
+            - self.evaporated_j_per_m2
             + self.prescribed_j_per_m2
             + self.bottom_in_j_per_m2
             - self.stored_j_per_m2
@@ -63,6 +78,7 @@ impl Budget {
             self.longwave_absorbed_j_per_m2,
             self.emitted_j_per_m2,
             self.convected_j_per_m2,
+            self.evaporated_j_per_m2,
             self.prescribed_j_per_m2,
             self.bottom_in_j_per_m2,
             self.stored_j_per_m2,
@@ -90,6 +106,8 @@ pub struct Periodic {
 pub struct Column {
     albedo: f64,
     emissivity: f64,
+    /// r_s, s/m, of an evaporating surface.
+    surface_resistance: Option<f64>,
     grid: Grid,
     /// Node temperatures, K, surface first.
     temperature: Vec<f64>,
@@ -110,6 +128,8 @@ struct Top {
     eps_sigma: f64,
     h: f64,
     air_k: f64,
+    /// An evaporating surface's LE(T) = coefficient·(e_s(T) − e_air): (W/(m²·Pa), Pa).
+    evaporation: Option<(f64, f64)>,
 }
 
 impl Column {
@@ -141,6 +161,7 @@ impl Column {
         let mut column = Column {
             albedo: surface.albedo,
             emissivity: surface.emissivity,
+            surface_resistance: surface.surface_resistance_s_per_m,
             grid,
             temperature,
             p: vec![0.0; n + 1],
@@ -211,6 +232,12 @@ impl Column {
             eps_sigma: self.emissivity * STEFAN_BOLTZMANN,
             h: forcing.convection_w_per_m2_k,
             air_k: forcing.air_temperature_k,
+            evaporation: self.surface_resistance.map(|r_s| {
+                let h = forcing.convection_w_per_m2_k;
+                let coefficient =
+                    h / (1.0 + h * r_s / AIR_HEAT_CAPACITY_J_PER_M3_K) / PSYCHROMETRIC_PA_PER_K;
+                (coefficient, forcing.vapour_pressure_pa)
+            }),
         }
     }
 
@@ -222,7 +249,7 @@ impl Column {
     pub fn settle(&mut self, forcing: &Forcing) -> Result<f64> {
         forcing.validate()?;
         let top = self.top(forcing);
-        let (surface, _) = self.solve(&top, 0.0)?;
+        let (surface, ..) = self.solve(&top, 0.0)?;
         self.reset_budget();
         Ok(surface)
     }
@@ -245,6 +272,7 @@ impl Column {
                 eps_sigma: 0.0,
                 h: 0.0,
                 air_k: 0.0,
+                evaporation: None,
             },
             dt_s,
         )
@@ -303,7 +331,7 @@ impl Column {
             return Err(Error::msg(format!("time step {dt_s} s is not positive"))
                 .fix("give the step in seconds, such as 600"));
         }
-        let (surface, emitted) = self.solve(top, 1.0 / dt_s)?;
+        let (surface, emitted, evaporated) = self.solve(top, 1.0 / dt_s)?;
         let g = &self.grid;
         let n = self.temperature.len();
         let b = &mut self.budget;
@@ -312,14 +340,16 @@ impl Column {
         b.prescribed_j_per_m2 += top.prescribed * dt_s;
         b.emitted_j_per_m2 += emitted * dt_s;
         b.convected_j_per_m2 += top.h * (surface - top.air_k) * dt_s;
+        b.evaporated_j_per_m2 += evaporated * dt_s;
         b.bottom_in_j_per_m2 +=
             g.conductance[n - 1] * (g.bottom_k - self.temperature[n - 1]) * dt_s;
         Ok(surface)
     }
 
     /// Solves the implicit system for the new profile with `inv_dt` = 1/Δt (0: the steady
-    /// state); returns the surface temperature and the emission the converged solve used.
-    fn solve(&mut self, top: &Top, inv_dt: f64) -> Result<(f64, f64)> {
+    /// state); returns the surface temperature and the emission and latent heat the converged
+    /// solve used, W/m².
+    fn solve(&mut self, top: &Top, inv_dt: f64) -> Result<(f64, f64, f64)> {
         let g = &self.grid;
         let n = self.temperature.len();
         let (t, p, q) = (&mut self.temperature, &mut self.p, &mut self.q);
@@ -345,10 +375,17 @@ impl Column {
             + top.h * top.air_k;
         let mut around = t[0];
         let mut surface = t[0];
+        let mut evaporated = 0.0;
         for iteration in 0.. {
-            // Emission linearised about `around`: εσ·(a⁴ + 4a³·(T − a)).
+            // Emission linearised about `around`: εσ·(a⁴ + 4a³·(T − a)); latent heat likewise:
+            // L(a) + L'(a)·(T − a).
             let a3 = top.eps_sigma * around * around * around;
-            surface = (beta + 3.0 * a3 * around) / (alpha + 4.0 * a3);
+            let (l, dl) = top.evaporation.map_or((0.0, 0.0), |(k, e_air)| {
+                let (e_s, de_s) = saturation_vapour_pressure_pa(around);
+                (k * (e_s - e_air), k * de_s)
+            });
+            surface = (beta + 3.0 * a3 * around - l + dl * around) / (alpha + 4.0 * a3 + dl);
+            evaporated = l + dl * (surface - around);
             if (surface - around).abs() <= self.newton_tolerance_k {
                 break;
             }
@@ -361,11 +398,11 @@ impl Column {
             }
             around = surface;
         }
-        let emitted = beta - alpha * surface;
+        let emitted = beta - alpha * surface - evaporated;
         t[0] = surface;
         for i in 1..n {
             t[i] = p[i] + q[i] * t[i - 1];
         }
-        Ok((surface, emitted))
+        Ok((surface, emitted, evaporated))
     }
 }

@@ -31,6 +31,7 @@ fn ground(albedo: f64, emissivity: f64, layers: Vec<Layer>) -> Surface {
     Surface {
         albedo,
         emissivity,
+        surface_resistance_s_per_m: None,
         layers,
         bottom: Bottom::Fixed {
             temperature_k: 288.0,
@@ -66,6 +67,7 @@ fn summer_day(dt_s: f64) -> Vec<Forcing> {
                 longwave_down_w_per_m2: brutsaert_clear_sky_longwave(air, 1200.0).unwrap(),
                 air_temperature_k: air,
                 convection_w_per_m2_k: h,
+                vapour_pressure_pa: 1000.0,
             }
         })
         .collect()
@@ -80,6 +82,7 @@ fn mean(day: &[Forcing]) -> Forcing {
         longwave_down_w_per_m2: sum(|f| f.longwave_down_w_per_m2),
         air_temperature_k: sum(|f| f.air_temperature_k),
         convection_w_per_m2_k: sum(|f| f.convection_w_per_m2_k),
+        vapour_pressure_pa: 1000.0,
     }
 }
 
@@ -108,6 +111,7 @@ fn the_energy_budget_closes_over_days() {
     let roof = Surface {
         albedo: 0.1,
         emissivity: 0.9,
+        surface_resistance_s_per_m: None,
         layers: vec![
             oke(0.01, 1050.0, 1460.0, 0.17),    // bituminous membrane
             oke(0.10, 30.0, 1400.0, 0.04),      // insulation board
@@ -123,14 +127,22 @@ fn the_energy_budget_closes_over_days() {
         0.95,
         vec![layer(0.1, ASPHALT), layer(0.9, CLAY_SATURATED)],
     );
+    // Grass transpiring at FAO-56's 70 s/m: latent heat in the budget too.
+    let grass = Surface {
+        surface_resistance_s_per_m: Some(70.0),
+        ..ground(0.22, 0.95, vec![layer(1.0, CLAY_SATURATED)])
+    };
     let day = summer_day(600.0);
-    for surface in [roof, road] {
+    for surface in [roof, road, grass] {
         let mut column = Column::new(&surface, GridSpec::default(), 1e-2, |_| 293.0).unwrap();
         for _ in 0..5 {
             column.run(&day, 600.0).unwrap();
         }
         let b = column.budget();
         assert!(b.bottom_in_j_per_m2.abs() > 1e5, "{b:?}");
+        if surface.surface_resistance_s_per_m.is_some() {
+            assert!(b.evaporated_j_per_m2 > 1e6, "{b:?}");
+        }
         assert!(
             b.residual_j_per_m2().abs() < 1e-9 * b.magnitude_j_per_m2(),
             "{} of {}",
@@ -167,8 +179,8 @@ fn a_periodic_run_reaches_its_own_cycle() {
 }
 
 /// At 14:00 a road (asphalt over soil) is warmer than grass (moist clay soil, grass albedo):
-/// lower albedo and lower inertia (1205 against 2210 J/(m²·K·s^½)). The model has no
-/// evaporation, which makes real grass cooler still (mutation check: swapping the albedos
+/// lower albedo and lower inertia (1205 against 2210 J/(m²·K·s^½)), even with the grass dry;
+/// transpiring, it is cooler still (mutation check: swapping the albedos
 /// leaves the road 0.1 K below the grass and fails; equal albedos alone still pass, on
 /// inertia).
 #[test]
@@ -182,8 +194,28 @@ fn asphalt_is_warmer_than_grass_in_the_afternoon() {
         ),
         dt,
     );
-    let grass = periodic_day(&ground(0.22, 0.95, vec![layer(1.0, CLAY_SATURATED)]), dt);
+    let dry = ground(0.22, 0.95, vec![layer(1.0, CLAY_SATURATED)]);
+    let grass = periodic_day(&dry, dt);
     let at_14 = (14.0 * 3600.0 / dt) as usize - 1; // the step that ends at 14:00
+                                                   // Transpiring (FAO-56's reference grass, r_s = 70 s/m) the same grass is cooler still, by
+                                                   // several kelvin at 14:00 (Oke 1987: vegetation's midday surface a few K above the air,
+                                                   // bare dry surfaces 10–20 K above); open water (r_s = 0) cooler than the transpiring grass.
+    let wet = |r_s| {
+        periodic_day(
+            &Surface {
+                surface_resistance_s_per_m: Some(r_s),
+                ..dry.clone()
+            },
+            dt,
+        )
+    };
+    let (transpiring, open) = (wet(70.0), wet(0.0));
+    eprintln!(
+        "14:00: transpiring grass {:.2} K, evaporating as open water {:.2} K",
+        transpiring[at_14], open[at_14]
+    );
+    assert!(transpiring[at_14] < grass[at_14] - 3.0);
+    assert!(open[at_14] < transpiring[at_14]);
     eprintln!(
         "14:00: road {:.2} K, grass {:.2} K",
         road[at_14], grass[at_14]

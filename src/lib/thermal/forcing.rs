@@ -23,6 +23,9 @@ pub struct Forcing {
     pub air_temperature_k: f64,
     /// Convective heat-transfer coefficient surface → air, W/(m²·K) (≥ 0).
     pub convection_w_per_m2_k: f64,
+    /// Water vapour pressure of the air, Pa (≥ 0): what an evaporating surface evaporates
+    /// against ([`Surface::surface_resistance_s_per_m`](super::Surface)).
+    pub vapour_pressure_pa: f64,
 }
 
 impl Forcing {
@@ -32,6 +35,7 @@ impl Forcing {
             ("shortwave irradiance", self.shortwave_w_per_m2),
             ("long-wave irradiance", self.longwave_down_w_per_m2),
             ("convection coefficient", self.convection_w_per_m2_k),
+            ("vapour pressure", self.vapour_pressure_pa),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return Err(
@@ -64,6 +68,15 @@ pub fn mcadams_convection(wind_m_per_s: f64) -> Result<f64> {
         .fix("give the wind speed in m/s, ≥ 0"));
     }
     Ok(5.7 + 3.8 * wind_m_per_s)
+}
+
+/// Saturation vapour pressure over water, Pa, at `temperature_k`, and its derivative, Pa/K:
+/// Magnus' formula 610.94·exp(17.625·t / (t + 243.04)), t in °C (Alduchov & Eskridge 1996,
+/// *J. Appl. Meteor.* 35(4), 601–609, eq. 21; within 0.4 % from −40 to 50 °C).
+pub fn saturation_vapour_pressure_pa(temperature_k: f64) -> (f64, f64) {
+    let t = temperature_k - 273.15;
+    let e = 610.94 * (17.625 * t / (t + 243.04)).exp();
+    (e, e * 17.625 * 243.04 / ((t + 243.04) * (t + 243.04)))
 }
 
 /// Clear-sky long-wave irradiance down at the ground, W/m²: ε_sky·σ·T⁴ with
@@ -118,6 +131,7 @@ mod tests {
             longwave_down_w_per_m2: 300.0,
             air_temperature_k: 290.0,
             convection_w_per_m2_k: 10.0,
+            vapour_pressure_pa: 1000.0,
         };
         assert!(ok.validate().is_ok());
         let e = Forcing {

@@ -164,6 +164,7 @@ mod tests {
         Surface {
             albedo: 0.1,
             emissivity: 0.9,
+            surface_resistance_s_per_m: None,
             layers: vec![layer(0.01, 0.2), layer(0.1, 0.04), layer(0.2, 1.5)],
             bottom: Bottom::Convective {
                 coefficient_w_per_m2_k: 8.0,

@@ -24,6 +24,9 @@ mod analytic_tests;
 mod feature_tests;
 
 pub use column::{Budget, Column, Periodic};
-pub use forcing::{brutsaert_clear_sky_longwave, mcadams_convection, Forcing, STEFAN_BOLTZMANN};
+pub use forcing::{
+    brutsaert_clear_sky_longwave, mcadams_convection, saturation_vapour_pressure_pa, Forcing,
+    STEFAN_BOLTZMANN,
+};
 pub use grid::GridSpec;
 pub use surface::{Bottom, Layer, Surface};

@@ -64,6 +64,10 @@ pub struct Surface {
     pub layers: Vec<Layer>,
     /// The boundary under the last layer.
     pub bottom: Bottom,
+    /// Bulk surface resistance to evaporation r_s, s/m (FAO-56's surface resistance, Allen et
+    /// al. 1998, eq. 3): `None` for a dry surface (no latent heat), 0 for open water, 70 for
+    /// FAO's well-watered reference grass.
+    pub surface_resistance_s_per_m: Option<f64>,
 }
 
 impl Surface {
@@ -77,6 +81,14 @@ impl Surface {
             return Err(
                 Error::msg(format!("emissivity {} is outside (0, 1]", self.emissivity)).fix(fix),
             );
+        }
+        if let Some(r) = self.surface_resistance_s_per_m {
+            if !(r >= 0.0 && r.is_finite()) {
+                return Err(Error::msg(format!(
+                    "surface resistance {r} s/m is negative or not a number"
+                ))
+                .fix(fix));
+            }
         }
         if self.layers.is_empty() {
             return Err(Error::msg("a surface with no layers").fix("give at least one layer"));
@@ -125,6 +137,7 @@ mod tests {
         Surface {
             albedo: 0.2,
             emissivity: 0.95,
+            surface_resistance_s_per_m: None,
             layers: vec![Layer {
                 thickness_m: 1.0,
                 conductivity_w_per_m_k: 1.0,
