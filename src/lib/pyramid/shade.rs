@@ -53,7 +53,7 @@ use std::sync::{Arc, Mutex};
 /// How far (cells) a change of which cells the photo's shadow detector judges (a building's
 /// roof raised, moved or removed) can change what it finds: the blocks whose threshold windows
 /// hold the changed cells, the bilinear blend to the block centres next to those, and a block
-/// for alignment ([`detected`]).
+/// for alignment (`detected`).
 pub const DETECTION_REACH: usize = (detected::REACH + 2) * detected::BLOCK;
 
 /// Default shadow factor `F`: a shadowed surface gets this fraction of the light of a sunlit

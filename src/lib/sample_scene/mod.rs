@@ -403,7 +403,7 @@ fn max_slope(dem: &Elevation) -> f64 {
 
 /// The material names of the generator's surfaces, indexed by [`Scene::truth_materials`]:
 /// road asphalt (its painted centre line included), grass where the grass–soil blend is under
-/// half soil, bare soil elsewhere, then one per roof colour of [`layout::ROOFS`] (terracotta
+/// half soil, bare soil elsewhere, then one per roof colour of `layout::ROOFS` (terracotta
 /// and slate are tiles, tar is bitumen, concrete, weathered copper is sheet metal).
 pub const TRUTH_MATERIALS: [&str; 8] = [
     "asphalt",
@@ -416,7 +416,7 @@ pub const TRUTH_MATERIALS: [&str; 8] = [
     "roof_metal",
 ];
 
-/// The index into [`TRUTH_MATERIALS`] of roof colour `k` of [`layout::ROOFS`].
+/// The index into [`TRUTH_MATERIALS`] of roof colour `k` of `layout::ROOFS`.
 const ROOF_TRUTH: usize = 3;
 
 /// The orthophoto, what it shows (indices into [`TRUTH_MATERIALS`]) and the fraction of it in

@@ -13,6 +13,20 @@ fn medium(thickness_m: f64) -> Layer {
     }
 }
 
+/// The root in 200..400 K of a balance that decreases with temperature, by bisection.
+fn root(balance: impl Fn(f64) -> f64) -> f64 {
+    let (mut lo, mut hi) = (200.0, 400.0);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if balance(mid) > 0.0 {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 /// Constant forcing over one layer on a fixed-temperature bottom: after 83 days, and at once
 /// when settled, the profile is linear and the surface solves
 /// (1 − a)·S + ε·L↓ − ε·σ·T⁴ − h·(T − T_air) = k·(T − T_b)/D, solved here by bisection. Agreement to 1e-6 K: the discrete steady state of a homogeneous
@@ -46,16 +60,7 @@ fn constant_forcing_settles_to_the_balance_equations_root() {
             - h * (t - t_air)
             - (t - t_b) / depth
     };
-    let (mut lo, mut hi) = (200.0, 400.0);
-    for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if balance(mid) > 0.0 {
-            lo = mid
-        } else {
-            hi = mid
-        }
-    }
-    let truth = 0.5 * (lo + hi);
+    let truth = root(balance);
     let mut settled = Column::new(&surface, GridSpec::default(), 1e-9, |_| 280.0).unwrap();
     settled.settle(&forcing).unwrap();
     for column in [column, settled] {
@@ -111,16 +116,7 @@ fn an_evaporating_slab_settles_to_the_balance_with_latent_heat() {
                 - latent(t)
                 - (t - t_b) / depth
         };
-        let (mut lo, mut hi) = (200.0, 400.0);
-        for _ in 0..100 {
-            let mid = 0.5 * (lo + hi);
-            if balance(mid) > 0.0 {
-                lo = mid
-            } else {
-                hi = mid
-            }
-        }
-        let truth = 0.5 * (lo + hi);
+        let truth = root(balance);
         let mut column = Column::new(&surface, GridSpec::default(), 1e-9, |_| 280.0).unwrap();
         let got = column.settle(&forcing).unwrap();
         assert!((got - truth).abs() < 1e-6, "r_s {r_s:?}: {got} {truth}");
