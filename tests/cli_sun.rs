@@ -341,3 +341,45 @@ fn place_is_lat_lon_or_db() {
         assert!(out.stdout.is_empty());
     }
 }
+
+/// `--moon` against PyEphem 4.2.1 (a case of `moon::tests::PYEPHEM`: 70° N, the moon 6° up,
+/// PyEphem's ΔT, no refraction): elevation and azimuth within 0.01°, the lit fraction within
+/// 0.001, and light on the ground; without `--moon` no `moon` key.
+#[test]
+fn moon_agrees_with_pyephem() {
+    let args = [
+        "sun",
+        "--lat",
+        "67.8697",
+        "--lon",
+        "-137.52",
+        "--height",
+        "2088.4",
+        "--time",
+        "2011-05-15T08:12:16Z",
+        "--delta-t",
+        "66.4191351505828",
+        "--no-refraction",
+    ];
+    let mut with = args.to_vec();
+    with.push("--moon");
+    let v = json(&with);
+    let m = &v["moon"];
+    assert!(
+        (f(m, "elevation_deg") - 6.448635593068798).abs() < 0.01,
+        "{m}"
+    );
+    assert!((f(m, "azimuth_deg") - 196.57224325632).abs() < 0.01, "{m}");
+    assert!(
+        (f(m, "illuminated_fraction") - 0.9348629760742188).abs() < 0.001,
+        "{m}"
+    );
+    assert!(f(&m["light"], "horizontal_lux") > 0.0, "{m}");
+    assert!(f(m, "night_sky_lux") > 0.0);
+    assert!(json(&args).get("moon").is_none());
+    let text = String::from_utf8(dbms(&with).stdout).unwrap();
+    assert!(
+        text.contains("moon:") && text.contains("lux on the ground"),
+        "{text}"
+    );
+}

@@ -8,7 +8,8 @@ use dbms::Error;
 use std::path::PathBuf;
 
 /// Sun elevation, azimuth (clockwise from true north) and zenith in degrees, by NREL SPA; with
-/// --db also the azimuth from grid north (true azimuth less the meridian convergence).
+/// --db also the azimuth from grid north (true azimuth less the meridian convergence); with
+/// --moon also the moon's place, phase and light on the ground (docs/moon.md).
 #[derive(clap::Args)]
 #[command(group = clap::ArgGroup::new("place").required(true).args(["lat", "db"]))]
 pub struct Args {
@@ -62,6 +63,14 @@ pub struct Args {
     /// Air temperature for refraction, degrees Celsius.
     #[arg(long, value_name = "C", default_value_t = Atmosphere::default().temperature_c, allow_negative_numbers = true)]
     temperature: f64,
+    /// Also the moon (Meeus ch. 47, same options): elevation, azimuth, distance, phase, and the
+    /// illuminance of moonlight and of the moonless night sky on a horizontal surface.
+    #[arg(long)]
+    moon: bool,
+    /// Atmospheric extinction for the moonlight, magnitudes per air mass (0.172: a high site;
+    /// 0.25–0.3 at sea level).
+    #[arg(long, value_name = "MAG", default_value_t = dbms::moon::DEFAULT_EXTINCTION_MAG_PER_AIRMASS, requires = "moon")]
+    extinction: f64,
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -102,6 +111,19 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let p = sun::sun_position(&observer, utc, &opts)?;
     let delta_t_s = args.delta_t.unwrap_or_else(|| sun::delta_t_model_s(utc));
     let time = utc.to_rfc3339_opts(SecondsFormat::AutoSi, true);
+    let moon = match args.moon {
+        false => None,
+        true => {
+            let position = dbms::moon::moon_position(&observer, utc, &opts)?;
+            Some(MoonReport {
+                grid_azimuth_deg: convergence_deg
+                    .map(|g| sun::grid_azimuth_deg(position.azimuth_deg, g)),
+                light: position.light(args.extinction)?,
+                night_sky_lux: dbms::moon::night_sky_lux(),
+                position,
+            })
+        }
+    };
 
     ctx.report(&SunReport {
         position: p,
@@ -121,8 +143,23 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             None => "Espenak & Meeus 2006 model",
         },
         delta_ut1_s: args.delta_ut1,
+        moon,
     });
     Ok(())
+}
+
+/// The moon, with `--moon`.
+#[derive(serde::Serialize)]
+struct MoonReport {
+    /// Elevation, azimuth from true north, distance, phase angle and lit fraction.
+    #[serde(flatten)]
+    position: dbms::moon::MoonPosition,
+    /// Azimuth from grid north (with `--db`), degrees.
+    grid_azimuth_deg: Option<f64>,
+    /// Moonlight above the air and on the ground.
+    light: dbms::moon::Moonlight,
+    /// The moonless clear night sky's illuminance on a horizontal surface, lux.
+    night_sky_lux: f64,
 }
 
 /// `dbms sun`'s summary: the position and everything it was computed from.
@@ -147,6 +184,8 @@ struct SunReport {
     delta_t_s: f64,
     delta_t_source: &'static str,
     delta_ut1_s: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    moon: Option<MoonReport>,
 }
 
 impl std::fmt::Display for SunReport {
@@ -168,6 +207,21 @@ impl std::fmt::Display for SunReport {
             write!(
                 f,
                 "\n  grid azimuth {a:8.6} deg (clockwise from grid north; convergence {g:+.6} deg)"
+            )?;
+        }
+        if let Some(m) = &self.moon {
+            let p = &m.position;
+            write!(
+                f,
+                "\nmoon:\n  elevation {:11.6} deg\n  azimuth   {:11.6} deg (clockwise from true north)\n  distance  {:11.1} km\n  phase angle {:9.4} deg, {:.1} % lit\n  moonlight {:.3e} lux on the ground (horizontal), {:.3e} lux above the air; moonless sky {:.1e} lux",
+                p.elevation_deg,
+                p.azimuth_deg,
+                p.distance_km,
+                p.phase_angle_deg,
+                100.0 * p.illuminated_fraction,
+                m.light.horizontal_lux,
+                m.light.exoatmospheric_lux,
+                m.night_sky_lux,
             )?;
         }
         Ok(())
