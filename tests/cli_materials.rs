@@ -6,7 +6,7 @@ use dbms::db::{Database, COLOUR, ELEVATION};
 use dbms::grid::Grid;
 use dbms::io::geotiff;
 use dbms::material::table::MaterialTable;
-use dbms::raster::{Colour, Elevation, Raster};
+use dbms::raster::{Colour, Raster};
 use std::path::Path;
 #[path = "support/cli.rs"]
 mod cli;
@@ -18,15 +18,21 @@ const ORIGIN: (f64, f64) = (500_000.0, 5_300_020.0);
 /// half, no photo in the last column, and a building (roof_material tile) over cells 2..4 of
 /// rows 2..4.
 fn database(dir: &Path) {
-    let grid = Grid::north_up(ORIGIN.0, ORIGIN.1, 1.0, 40, 20, Crs::epsg(32632));
+    database_over(dir, 40, 20, |_, _| 100.0);
+}
+
+/// [`database`] on a `w × h` grid with terrain heights `z(col, row)`.
+fn database_over(dir: &Path, w: usize, h: usize, z: impl Fn(usize, usize) -> f32) {
+    let grid = Grid::north_up(ORIGIN.0, ORIGIN.1, 1.0, w, h, Crs::epsg(32632));
     let mut db = Database::create(dir, grid.clone(), vec![]).unwrap();
-    geotiff::write_f32(&dir.join("e.tif"), &Elevation::filled(grid.clone(), 100.0)).unwrap();
+    let heights = (0..grid.len()).map(|i| z(i % w, i / w)).collect();
+    geotiff::write_f32(&dir.join("e.tif"), &Raster::new(grid.clone(), heights)).unwrap();
     let colour: Colour = Raster::new(
         grid.clone(),
         (0..grid.len())
-            .map(|i| match i % 40 {
-                39 => [0, 0, 0, 0],
-                c if c < 20 => [74, 112, 48, 255],
+            .map(|i| match i % w {
+                c if c == w - 1 => [0, 0, 0, 0],
+                c if c < w / 2 => [74, 112, 48, 255],
                 _ => [92, 92, 96, 255],
             })
             .collect(),
@@ -175,7 +181,7 @@ fn bad_input_is_a_one_line_error_and_changes_nothing() {
     )
     .unwrap();
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 5] = [
         (
             &["--features", lava.to_str().unwrap()],
             "material \"lava\" is not in the material table",
@@ -189,6 +195,8 @@ fn bad_input_is_a_one_line_error_and_changes_nothing() {
             &["--table", lava.to_str().unwrap()],
             "not a valid material table",
         ),
+        // Fails after the layer is made, before the commit: the database is unchanged.
+        (&["--preview", "/nonexistent/m.png"], "/nonexistent"),
     ];
     for (extra, expect) in cases {
         let mut args = vec!["materials", "--db", d];
@@ -248,4 +256,96 @@ fn thermal_map_by_day_and_night() {
     assert_eq!(Some(t14[39]), nodata);
     assert!(t14[40 * 15 + 5] < t14[40 * 15 + 30]);
     assert!(t22[40 * 15 + 30] < t14[40 * 15 + 30]);
+}
+
+/// Slopes facing the sun are warmer: a 41 × 41 pyramid of 45° faces, all asphalt, at 47.9° N.
+/// At local noon (11:24 UTC at 9° E) in July the south face is the warmest and the north the
+/// coolest; at 07:24 local the east face is warmer than the west. Fails if the normal's north
+/// or east component has the wrong sign.
+#[test]
+fn thermal_map_sees_the_slopes() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    let n = 41;
+    let peak = |c: usize, r: usize| {
+        let d = (c as i64 - 20).abs().max((r as i64 - 20).abs());
+        120.0 - d as f32
+    };
+    database_over(&dir, n, n, peak);
+    let (x, y) = ORIGIN;
+    let all = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"material": "asphalt"},
+         "geometry": {"type": "Polygon", "coordinates": [[[x, y], [x + 41.0, y], [x + 41.0, y - 41.0], [x, y - 41.0], [x, y]]]}}]});
+    let features = t.path().join("all.geojson");
+    std::fs::write(&features, all.to_string()).unwrap();
+    let d = dir.to_str().unwrap();
+    let o = dbms(&[
+        "materials",
+        "--db",
+        d,
+        "--features",
+        features.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Mean temperature of each face's inner cells: north (rows above the peak), east, south, west.
+    let faces = |time: &str| -> [f64; 4] {
+        let out = t.path().join("t.tif");
+        let o = dbms(&[
+            "thermal",
+            "--db",
+            d,
+            "--time",
+            time,
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r = dbms::io::read_raster(&out).unwrap();
+        let mut sum = [(0.0, 0); 4];
+        for row in 3..n - 3 {
+            for col in 3..n - 3 {
+                let (dc, dr) = (col as i64 - 20, row as i64 - 20);
+                let face = match () {
+                    _ if dr < 0 && dr.abs() > dc.abs() + 1 => 0,
+                    _ if dc > 0 && dc.abs() > dr.abs() + 1 => 1,
+                    _ if dr > 0 && dr.abs() > dc.abs() + 1 => 2,
+                    _ if dc < 0 && dc.abs() > dr.abs() + 1 => 3,
+                    _ => continue,
+                };
+                sum[face].0 += r.sample(row * n + col, 0);
+                sum[face].1 += 1;
+            }
+        }
+        sum.map(|(s, k)| s / k as f64)
+    };
+    let [north, east, south, west] = faces("2026-07-01T11:24:00Z");
+    assert!(
+        south > east.max(west) + 2.0 && north < east.min(west) - 2.0,
+        "{north} {east} {south} {west}"
+    );
+    let [_, east, _, west] = faces("2026-07-01T06:24:00Z");
+    assert!(east > west + 2.0, "morning: east {east} west {west}");
+    // Bad weather and clashing outputs are one-line errors naming the option; nothing is left.
+    let out = t.path().join("x.tif");
+    for (extra, expect) in [
+        (vec!["--air-temp", "nan"], "--air-temp NaN"),
+        (vec!["--humidity", "0"], "--humidity 0"),
+        (vec!["--step", "86400"], "--step 86400"),
+        (vec!["--radiance-out", out.to_str().unwrap()], "two outputs"),
+        (vec!["--radiance-out", "/nonexistent/r.tif"], "/nonexistent"),
+    ] {
+        let mut args = vec!["thermal", "--db", d, "--time", "2026-07-01T11:24:00Z"];
+        args.extend(["-o", out.to_str().unwrap()]);
+        args.extend(extra);
+        let o = dbms(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(expect),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(!out.exists(), "{args:?} left {}", out.display());
+    }
 }

@@ -48,6 +48,8 @@ use std::collections::{BTreeMap, HashMap};
 
 /// The most steps a day may have (one lit/shadowed bit per step and cell).
 pub const MAX_STEPS: usize = 128;
+/// The fewest: an hour a step (the sun moves 15° an hour).
+pub const MIN_STEPS: usize = 24;
 
 /// The weather of the product's day.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -60,6 +62,52 @@ pub struct Conditions {
     pub wind_m_per_s: f64,
     /// Relative humidity, 0..=1.
     pub relative_humidity: f64,
+}
+
+impl Conditions {
+    /// Each value in its range, or a one-line error naming the `dbms thermal` option.
+    pub fn check(&self) -> Result<()> {
+        let bad = |option: &str, v: f64, want: &str| {
+            Err(
+                Error::msg(format!("{option} {v}: give it {want}")).fix(format!(
+                    "e.g. the defaults: {}",
+                    Conditions::default().options()
+                )),
+            )
+        };
+        if !(self.air_mean_c.is_finite() && self.air_mean_c.abs() <= 100.0) {
+            return bad("--air-temp", self.air_mean_c, "in °C, within ±100");
+        }
+        if !(0.0..=60.0).contains(&self.air_range_k) {
+            return bad("--air-range", self.air_range_k, "in K, from 0 to 60");
+        }
+        if self.air_mean_c - self.air_range_k / 2.0 <= -100.0 {
+            return bad(
+                "--air-range",
+                self.air_range_k,
+                "so the minimum stays above −100 °C",
+            );
+        }
+        if !(0.0..=60.0).contains(&self.wind_m_per_s) {
+            return bad("--wind", self.wind_m_per_s, "in m/s, from 0 to 60");
+        }
+        if !(self.relative_humidity > 0.0 && self.relative_humidity <= 1.0) {
+            return bad(
+                "--humidity",
+                self.relative_humidity,
+                "as a fraction in (0, 1]",
+            );
+        }
+        Ok(())
+    }
+
+    /// The conditions as `dbms thermal` options.
+    fn options(&self) -> String {
+        format!(
+            "--air-temp {} --air-range {} --wind {} --humidity {}",
+            self.air_mean_c, self.air_range_k, self.wind_m_per_s, self.relative_humidity
+        )
+    }
 }
 
 impl Default for Conditions {
@@ -272,22 +320,15 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     let per_day = 86_400.0 / opts.step_s;
     let n = per_day.round() as usize;
     let whole = per_day.is_finite() && (per_day - n as f64).abs() <= 1e-9;
-    if opts.step_s <= 0.0 || !whole || !(1..=MAX_STEPS).contains(&n) {
+    if opts.step_s <= 0.0 || !whole || !(MIN_STEPS..=MAX_STEPS).contains(&n) {
         return Err(Error::msg(format!(
-            "--step {} s: a day must be a whole number of steps, at most {MAX_STEPS}",
+            "--step {} s: a day must be a whole number of steps, {MIN_STEPS} to {MAX_STEPS}",
             opts.step_s
         ))
         .fix("e.g. --step 900 (96 steps) or 1800"));
     }
     let c = opts.conditions;
-    let humid = c.relative_humidity > 0.0 && c.relative_humidity <= 1.0;
-    if !humid || c.air_range_k.is_nan() || c.air_range_k < 0.0 {
-        return Err(Error::msg(format!(
-            "humidity {} and air temperature range {} K: humidity must be in (0, 1], the range ≥ 0",
-            c.relative_humidity, c.air_range_k
-        ))
-        .fix("e.g. --humidity 0.6 --air-range 10"));
-    }
+    c.check()?;
     if !db.manifest.layers.contains_key(MATERIALS) {
         return Err(Error::file(&db.dir, "has no materials layer")
             .fix("run `dbms materials --db DB` first"));
@@ -327,22 +368,37 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     let heights = terrain.read_rows(0, grid.height)?.into_owned();
     let mut on_top = vec![false; grid.len()];
     raised.cells().iter().for_each(|c| on_top[c.index] = true);
-    let (cx, cy) = grid.cell_size();
+    let (cx, cy) = (grid.transform.cell_x, grid.transform.cell_y);
     let (w, h) = (grid.width, grid.height);
-    let normal = |i: usize| -> Option<[i16; 2]> {
+    // The slope along one axis, per metre of its world coordinate, from the cell's height and
+    // its neighbours' before and after it on the axis (`step` metres apart, signed): central
+    // where both are finite, one-sided where one is, level where neither is.
+    let slope =
+        |before: Option<f64>, here: f64, after: Option<f64>, step: f64| match (before, after) {
+            (Some(a), Some(b)) => (b - a) / (2.0 * step),
+            (Some(a), None) => (here - a) / step,
+            (None, Some(b)) => (b - here) / step,
+            (None, None) => 0.0,
+        };
+    // A valid cell's unit normal's east and north components, quantised to 0.01 (flat on
+    // roofs and objects' tops).
+    let normal = |i: usize| -> [i16; 2] {
         if on_top[i] {
-            return Some([0, 0]);
+            return [0, 0];
         }
         let (col, row) = (i % w, i / w);
-        let z = |c: usize, r: usize| heights[r * w + c] as f64;
-        let (c0, c1) = (col.saturating_sub(1), (col + 1).min(w - 1));
-        let (r0, r1) = (row.saturating_sub(1), (row + 1).min(h - 1));
-        // Grid east and north slopes (rows run south on a north-up grid: cell_y < 0).
-        let dzdx = (z(c1, row) - z(c0, row)) / ((c1 - c0).max(1) as f64 * cx.abs());
-        let dzdy = (z(col, r0) - z(col, r1)) / ((r1 - r0).max(1) as f64 * cy.abs());
+        let z = |c: usize, r: usize| Some(heights[r * w + c] as f64).filter(|v| v.is_finite());
+        let here = heights[i] as f64;
+        let west = col.checked_sub(1).and_then(|c| z(c, row));
+        let east = (col + 1 < w).then(|| z(col + 1, row)).flatten();
+        let up = row.checked_sub(1).and_then(|r| z(col, r));
+        let down = (row + 1 < h).then(|| z(col, row + 1)).flatten();
+        // World x grows with the column by cell_x, world y with the row by cell_y (< 0 north-up).
+        let dzdx = slope(west, here, east, cx);
+        let dzdy = slope(up, here, down, cy);
         let norm = (dzdx * dzdx + dzdy * dzdy + 1.0).sqrt();
         let q = |v: f64| (v / norm * 100.0).round() as i16;
-        (dzdx.is_finite() && dzdy.is_finite()).then(|| [q(-dzdx), q(-dzdy)])
+        [q(-dzdx), q(-dzdy)]
     };
 
     // Cells into clusters.
@@ -352,11 +408,11 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     let mut nodata_cells = 0u64;
     for i in 0..grid.len() {
         let m = material[i];
-        let (Some(nrm), Some(_)) = (normal(i).filter(|_| !heights[i].is_nan()), table.by_id(m))
-        else {
+        if heights[i].is_nan() || table.by_id(m).is_none() {
             nodata_cells += 1;
             continue;
-        };
+        }
+        let nrm = normal(i);
         let key = Key {
             material: m,
             normal: nrm,
@@ -503,16 +559,34 @@ impl std::fmt::Display for ThermalSummary {
 impl ThermalMap {
     /// Write the temperature (K) as a Float32 GeoTIFF at `temperature`, and when asked the
     /// band radiance likewise and a picture of the temperature ("white hot": the coldest cell
-    /// black, the hottest white, linear in K; nodata dark red). Each file is written atomically.
+    /// black, the hottest white, linear in K; nodata dark red). All are written and staged
+    /// first, then renamed into place together: a run that fails leaves none of them.
     pub fn write(
         &self,
         temperature: &std::path::Path,
         radiance: Option<&std::path::Path>,
         preview: Option<&std::path::Path>,
     ) -> Result<()> {
-        crate::io::geotiff::write_f32(temperature, &self.temperature_k)?;
+        let paths: Vec<&std::path::Path> = [Some(temperature), radiance, preview]
+            .into_iter()
+            .flatten()
+            .collect();
+        if let Some(p) = paths
+            .iter()
+            .enumerate()
+            .find_map(|(k, p)| paths[..k].contains(p).then_some(p))
+        {
+            return Err(Error::file(p, "is given for two outputs")
+                .fix("give -o, --radiance-out and --preview different paths"));
+        }
+        let tiff = |path: &std::path::Path, r: &Raster<f32>| {
+            let mut w = crate::io::geotiff::GeoTiffWriter::create_f32(path, &r.grid)?;
+            w.push_rows(&r.data)?;
+            w.stage()
+        };
+        let mut staged = vec![tiff(temperature, &self.temperature_k)?];
         if let Some(path) = radiance {
-            crate::io::geotiff::write_f32(path, &self.radiance)?;
+            staged.push(tiff(path, &self.radiance)?);
         }
         if let Some(path) = preview {
             let valid = self.temperature_k.data.iter().filter(|t| !t.is_nan());
@@ -531,8 +605,10 @@ impl ThermalMap {
                 .collect();
             let g = &self.temperature_k.grid;
             let bytes = crate::io::png::encode_rgb(g.width, g.height, &rgb)?;
-            crate::io::atomic::write_bytes_atomic(path, &bytes)?;
+            let mut file = crate::io::atomic::AtomicFile::create(path)?;
+            std::io::Write::write_all(file.writer(), &bytes).map_err(|e| Error::io(path, e))?;
+            staged.push(file.stage()?);
         }
-        Ok(())
+        crate::io::atomic::commit_all(staged)
     }
 }

@@ -52,28 +52,28 @@ pub fn sample_codes(path: &Path, grid: &Grid) -> Result<Vec<Option<u32>>> {
             .nodata
             .is_some_and(|n| n == v || (n.is_nan() && v.is_nan()))
     };
-    let codes: Vec<Option<u32>> = (0..grid.len())
+    // Each cell's pixel value, when its centre is on the raster: a code, nodata, or (Err) a
+    // value no class raster holds. Only the pixels under the grid are judged.
+    let sampled: Vec<std::result::Result<Option<u32>, f64>> = (0..grid.len())
         .into_par_iter()
         .map(|i| {
             let (x, y) = grid.cell_centre(i % grid.width, i / grid.width);
-            let (x, y) = match geographic {
-                false => (x, y),
-                true => {
-                    let (lat, lon) = grid.crs.to_lat_lon(x, y)?;
-                    (lon, lat)
-                }
+            let at = match geographic {
+                false => Some((x, y)),
+                true => grid.crs.to_lat_lon(x, y).map(|(lat, lon)| (lon, lat)),
             };
-            let (col, row) = src.cell_at(x, y)?;
+            let Some((col, row)) = at.and_then(|(x, y)| src.cell_at(x, y)) else {
+                return Ok(None);
+            };
             let v = raster.samples.get(src.index(col, row) * band);
-            (!is_nodata(v) && v >= 0.0 && v.fract() == 0.0 && v <= u32::MAX as f64)
-                .then_some(v as u32)
+            match () {
+                _ if is_nodata(v) => Ok(None),
+                _ if v >= 0.0 && v.fract() == 0.0 && v <= u32::MAX as f64 => Ok(Some(v as u32)),
+                _ => Err(v),
+            }
         })
         .collect();
-    if let Some(bad) = (0..raster.samples.len())
-        .step_by(band)
-        .map(|i| raster.samples.get(i))
-        .find(|&v| !is_nodata(v) && (v.is_nan() || v < 0.0 || v.fract() != 0.0))
-    {
+    if let Some(bad) = sampled.iter().find_map(|r| r.err()) {
         return Err(Error::file(
             path,
             format!("holds {bad}, not a class code (land cover holds non-negative integers)"),
@@ -82,7 +82,7 @@ pub fn sample_codes(path: &Path, grid: &Grid) -> Result<Vec<Option<u32>>> {
             "give a land-cover class raster (e.g. ESA WorldCover or NLCD), or set its nodata value",
         ));
     }
-    Ok(codes)
+    Ok(sampled.into_iter().map(|r| r.unwrap_or(None)).collect())
 }
 
 #[cfg(test)]

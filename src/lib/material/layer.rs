@@ -188,18 +188,10 @@ pub fn classify(
             }
         }
     }
-    let photo_ids: BTreeMap<&str, u8> = photo::NAMES
-        .iter()
-        .map(|&name| {
-            let id = table.id_of(name).ok_or_else(|| {
-                Error::msg(format!(
-                    "the material table ({table_name}) has no {name:?}, which the photo classification gives"
-                ))
-                .fix("add it to the table (see docs/materials.md)")
-            })?;
-            Ok((name, id))
-        })
-        .collect::<Result<_>>()?;
+    // A table needs the photo's classes only where the photo decides a cell.
+    let photo_ids: BTreeMap<&str, Option<u8>> =
+        photo::NAMES.iter().map(|&n| (n, table.id_of(n))).collect();
+    let mut missing: BTreeMap<&str, u64> = BTreeMap::new();
     let ids: Vec<u8> = ids
         .into_iter()
         .enumerate()
@@ -211,7 +203,10 @@ pub fn classify(
                         true => sources.photo_roofs += 1,
                         false => sources.photo_ground += 1,
                     }
-                    photo_ids[name]
+                    photo_ids[name].unwrap_or_else(|| {
+                        *missing.entry(name).or_insert(0) += 1;
+                        UNCLASSIFIED
+                    })
                 }
                 None => {
                     sources.unclassified += 1;
@@ -220,6 +215,17 @@ pub fn classify(
             },
         })
         .collect();
+    if !missing.is_empty() {
+        let list: Vec<String> = missing
+            .iter()
+            .map(|(n, k)| format!("{n} ({k} cells)"))
+            .collect();
+        return Err(Error::msg(format!(
+            "the material table ({table_name}) lacks classes the photo gives: {}",
+            list.join(", ")
+        ))
+        .fix("add them to the table, or cover those cells with --features or --landcover (docs/materials.md)"));
+    }
     let mut materials = BTreeMap::new();
     for &id in &ids {
         let name = match table.by_id(id) {
@@ -353,15 +359,25 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
             "sources": summary.sources,
         }),
     ));
+    // The picture is written and staged before the commit, renamed into place after it: a
+    // preview that cannot be written fails the run with the database unchanged.
+    let preview = match &opts.preview {
+        Some(png) => {
+            let rgb: Vec<u8> = layer
+                .data
+                .iter()
+                .flat_map(|&id| table.by_id(id).map_or([0; 3], |m| m.colour))
+                .collect();
+            let bytes = crate::io::png::encode_rgb(layer.grid.width, layer.grid.height, &rgb)?;
+            let mut file = crate::io::atomic::AtomicFile::create(png)?;
+            std::io::Write::write_all(file.writer(), &bytes).map_err(|e| Error::io(png, e))?;
+            Some(file.stage()?)
+        }
+        None => None,
+    };
     change.commit()?;
-    if let Some(png) = &opts.preview {
-        let rgb: Vec<u8> = layer
-            .data
-            .iter()
-            .flat_map(|&id| table.by_id(id).map_or([0; 3], |m| m.colour))
-            .collect();
-        let bytes = crate::io::png::encode_rgb(layer.grid.width, layer.grid.height, &rgb)?;
-        crate::io::atomic::write_bytes_atomic(png, &bytes)?;
+    if let Some(staged) = preview {
+        staged.commit()?;
     }
     Ok(summary)
 }
