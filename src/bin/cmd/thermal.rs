@@ -26,10 +26,10 @@ pub struct Args {
     /// Wind speed, m/s (convection: McAdams).
     #[arg(long, default_value_t = Conditions::default().wind_m_per_s)]
     wind: f64,
-    /// Relative humidity, 0..1 (the sky's long-wave: Brutsaert).
+    /// Relative humidity, a fraction in (0, 1] (the sky's long-wave: Brutsaert; evaporation).
     #[arg(long, default_value_t = Conditions::default().relative_humidity)]
     humidity: f64,
-    /// Time step, s (a day must be a whole number of steps, at most 128).
+    /// Time step, s (a day must be a whole number of steps, 24 to 128).
     #[arg(long, default_value_t = 900.0)]
     step: f64,
     /// Also write the 8–12 µm band radiance, W·m⁻²·sr⁻¹, as Float32 GeoTIFF.
