@@ -349,3 +349,52 @@ fn thermal_map_sees_the_slopes() {
         assert!(!out.exists(), "{args:?} left {}", out.display());
     }
 }
+
+/// A cell without a photo takes its material's colour in the pyramid: the last column of
+/// [`database`] has no photo; painted water, its level-0 cells are the table's water colour,
+/// opaque; without the materials layer they are nodata.
+#[test]
+fn pyramid_colours_cells_without_a_photo_by_their_material() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    let d = dir.to_str().unwrap();
+    let tiles = |name: &str| {
+        let out = t.path().join(name);
+        let o = dbms(&["pyramid", "--db", d, "-o", out.to_str().unwrap(), "-q"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        dbms::tiles::TileReader::open(&out, 16).unwrap()
+    };
+    let before = tiles("before.dbt");
+    let cell = before.cell(0, 39, 5).unwrap().unwrap();
+    assert_eq!(cell.colour[3], 0, "{cell:?}");
+    let (x, y) = ORIGIN;
+    let water = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"material": "water"},
+         "geometry": {"type": "Polygon", "coordinates": [[[x + 39.0, y], [x + 40.0, y], [x + 40.0, y - 20.0], [x + 39.0, y - 20.0], [x + 39.0, y]]]}}]});
+    let features = t.path().join("w.geojson");
+    std::fs::write(&features, water.to_string()).unwrap();
+    let o = dbms(&[
+        "materials",
+        "--db",
+        d,
+        "--features",
+        features.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let after = tiles("after.dbt");
+    let [r, g, b] = MaterialTable::default_table()
+        .by_name("water")
+        .unwrap()
+        .colour;
+    assert_eq!(
+        after.cell(0, 39, 5).unwrap().unwrap().colour,
+        [r, g, b, 255]
+    );
+    // Cells with a photo keep it.
+    assert_eq!(
+        after.cell(0, 5, 5).unwrap().unwrap().colour,
+        before.cell(0, 5, 5).unwrap().unwrap().colour
+    );
+}

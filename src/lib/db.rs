@@ -174,6 +174,11 @@ impl Database {
         self.layer_rows(COLOUR, SourceRaster::into_colour)
     }
 
+    /// A single-band byte layer (e.g. `materials`) read band by band ([`LayerRows`]).
+    pub fn byte_rows(&self, name: &str) -> Result<LayerRows<u8>> {
+        self.layer_rows(name, SourceRaster::into_bytes)
+    }
+
     fn layer_rows<T>(
         &self,
         name: &str,

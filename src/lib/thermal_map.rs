@@ -34,8 +34,8 @@
 use crate::db::Database;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::material::layer::{MATERIALS, MATERIAL_TABLE};
-use crate::material::table::{self, MaterialTable};
+use crate::material::layer::{table_of, MATERIALS};
+use crate::material::table;
 use crate::raster::{band_rows, Raster, RowSource};
 use crate::shadow::ShadowBits;
 use crate::standing::{Raised, Standing};
@@ -296,14 +296,6 @@ fn surface_of(m: &table::Material, deep_k: f64) -> Surface {
                 temperature_k: *temperature_k,
             },
         },
-    }
-}
-
-/// The database's material table: its own (`dbms materials --table`) or the default.
-fn table_of(db: &Database) -> Result<MaterialTable> {
-    match db.manifest.layers.contains_key(MATERIAL_TABLE) {
-        true => MaterialTable::read(&db.layer_path(MATERIAL_TABLE)?),
-        false => Ok(MaterialTable::default_table().clone()),
     }
 }
 

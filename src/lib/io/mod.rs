@@ -301,6 +301,21 @@ impl SourceRaster {
         .fix("select the bands: gdal_translate -b 1 -b 2 -b 3 in.tif out.tif"))
     }
 
+    /// The first band of a byte raster (a class or id layer), in place when it has one band.
+    /// Errors on other sample types.
+    pub fn into_bytes(self) -> Result<Raster<u8>> {
+        let (grid, bands) = (self.grid, self.bands);
+        match self.samples {
+            Samples::U8(v) if bands == 1 => Ok(Raster::new(grid, v)),
+            Samples::U8(v) => Ok(Raster::new(grid, v.into_iter().step_by(bands).collect())),
+            other => Err(Error::msg(format!(
+                "holds {} samples, not the bytes of a class layer",
+                other.type_name()
+            ))
+            .fix("write the layer as a Byte raster")),
+        }
+    }
+
     /// [`to_colour`](Self::to_colour), converting in place when the samples are RGBA bytes (a
     /// database's colour layer): no second copy of the band.
     pub fn into_colour(self) -> Result<Colour> {

@@ -244,6 +244,69 @@ pub fn classify(
     Ok((ids, summary))
 }
 
+/// The database's material table: its own (`dbms materials --table`) or the default.
+pub fn table_of(db: &Database) -> Result<MaterialTable> {
+    match db.manifest.layers.contains_key(MATERIAL_TABLE) {
+        true => MaterialTable::read(&db.layer_path(MATERIAL_TABLE)?),
+        false => Ok(MaterialTable::default_table().clone()),
+    }
+}
+
+/// The colour the stages draw: the photo, and where it has no colour (alpha 0) the colour of
+/// the cell's material from the table, opaque, when the database has a materials layer and the
+/// cell a material. Read band by band like the layers under it.
+pub struct ColourRows {
+    photo: crate::db::LayerRows<[u8; 4]>,
+    /// The materials layer and each id's colour (`None`: unclassified or not in the table).
+    materials: Option<(crate::db::LayerRows<u8>, Box<[Option<[u8; 4]>; 256]>)>,
+}
+
+/// The database's [`ColourRows`].
+pub fn colour_rows(db: &Database) -> Result<ColourRows> {
+    let materials = match db.manifest.layers.contains_key(MATERIALS) {
+        false => None,
+        true => {
+            let table = table_of(db)?;
+            let mut palette = Box::new([None; 256]);
+            for m in &table.materials {
+                let [r, g, b] = m.colour;
+                palette[m.id as usize] = Some([r, g, b, 255]);
+            }
+            Some((db.byte_rows(MATERIALS)?, palette))
+        }
+    };
+    Ok(ColourRows {
+        photo: db.colour_rows()?,
+        materials,
+    })
+}
+
+impl crate::raster::RowSource<[u8; 4]> for ColourRows {
+    fn grid(&self) -> &Grid {
+        self.photo.grid()
+    }
+
+    fn read_rows(&self, row0: usize, rows: usize) -> Result<std::borrow::Cow<'_, [[u8; 4]]>> {
+        let photo = self.photo.read_rows(row0, rows)?;
+        let Some((materials, palette)) = &self.materials else {
+            return Ok(photo);
+        };
+        if photo.iter().all(|c| c[3] != 0) {
+            return Ok(photo);
+        }
+        let ids = materials.read_rows(row0, rows)?;
+        let mut colour = photo.into_owned();
+        for (c, &id) in colour.iter_mut().zip(ids.iter()) {
+            if c[3] == 0 {
+                if let Some(fallback) = palette[id as usize] {
+                    *c = fallback;
+                }
+            }
+        }
+        Ok(std::borrow::Cow::Owned(colour))
+    }
+}
+
 /// `names` as a list for an error's fix.
 fn names<'a>(names: impl Iterator<Item = &'a String>) -> String {
     names.map(String::as_str).collect::<Vec<_>>().join(", ")

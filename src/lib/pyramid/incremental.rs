@@ -177,6 +177,9 @@ pub fn key(
         "shadow_factor": opts.shadow_factor,
         "elevation": sha(crate::db::ELEVATION),
         "colour": sha(crate::db::COLOUR),
+        // A cell without a photo takes its material's colour (`material::layer::ColourRows`).
+        "materials": sha(crate::material::layer::MATERIALS),
+        "material_table": sha(crate::material::layer::MATERIAL_TABLE),
     })
 }
 
@@ -396,7 +399,10 @@ pub fn rebuild_level0(
     top: f64,
     raised_anywhere: [bool; 2],
 ) -> Result<HashMap<(usize, usize), (Page, PageStats)>> {
-    let (terrain, colour) = (db.elevation_rows()?, db.colour_rows()?);
+    let (terrain, colour) = (
+        db.elevation_rows()?,
+        crate::material::layer::colour_rows(db)?,
+    );
     let g = &info.grid;
     let p = info.page_size;
     let reach = shade_reach(g, top, terrain_range[0], suns);

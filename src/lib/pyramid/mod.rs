@@ -286,7 +286,10 @@ fn build_product(
     let mut lap = stopwatch();
     let mut seconds = Timings::default();
     // The layers are read band by band (each band's tiles decoded in parallel), never whole.
-    let (terrain, colour) = (db.elevation_rows()?, db.colour_rows()?);
+    let (terrain, colour) = (
+        db.elevation_rows()?,
+        crate::material::layer::colour_rows(db)?,
+    );
     seconds.read = lap();
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
