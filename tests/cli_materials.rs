@@ -7,7 +7,8 @@ use dbms::grid::Grid;
 use dbms::io::geotiff;
 use dbms::material::table::MaterialTable;
 use dbms::raster::{Colour, Raster};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::Output;
 #[path = "support/cli.rs"]
 mod cli;
 use cli::dbms;
@@ -51,6 +52,25 @@ fn database_over(dir: &Path, w: usize, h: usize, z: impl Fn(usize, usize) -> f32
     db.save().unwrap();
 }
 
+/// `o`, which must be a success (else its stderr is the failure).
+fn ok(o: Output) -> Output {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    o
+}
+
+/// A GeoJSON file `dir/name` of one feature of `material`: the rectangle over columns
+/// `c0..c1` and rows `r0..r1` of the 1 m grids here (corner at [`ORIGIN`]).
+fn rectangle_of(dir: &Path, name: &str, material: &str, [c0, r0, c1, r1]: [f64; 4]) -> PathBuf {
+    let (x, y) = ORIGIN;
+    let ring = [[c0, r0], [c1, r0], [c1, r1], [c0, r1], [c0, r0]].map(|[c, r]| [x + c, y - r]);
+    let doc = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"material": material},
+         "geometry": {"type": "Polygon", "coordinates": [ring]}}]});
+    let path = dir.join(name);
+    std::fs::write(&path, doc.to_string()).unwrap();
+    path
+}
+
 fn layer(dir: &Path) -> Vec<u8> {
     let db = Database::open(dir).unwrap();
     let r = dbms::io::read_raster(&db.layer_path("materials").unwrap()).unwrap();
@@ -63,13 +83,8 @@ fn layer_from_roofs_features_and_photo() {
     let dir = t.path().join("db");
     database(&dir);
     // A water polygon over the grass's first 10 columns, rows 10..20 (south half).
-    let (x, y) = ORIGIN;
-    let water = serde_json::json!({"type": "FeatureCollection", "features": [
-        {"type": "Feature", "properties": {"material": "water"},
-         "geometry": {"type": "Polygon", "coordinates": [[[x, y - 10.0], [x + 10.0, y - 10.0], [x + 10.0, y - 20.0], [x, y - 20.0], [x, y - 10.0]]]}}]});
-    let features = t.path().join("water.geojson");
-    std::fs::write(&features, water.to_string()).unwrap();
-    let o = dbms(&[
+    let features = rectangle_of(t.path(), "water.geojson", "water", [0.0, 10.0, 10.0, 20.0]);
+    let o = ok(dbms(&[
         "materials",
         "--db",
         dir.to_str().unwrap(),
@@ -78,8 +93,7 @@ fn layer_from_roofs_features_and_photo() {
         "--preview",
         t.path().join("m.png").to_str().unwrap(),
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ]));
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(summary["cells"], 800);
     assert_eq!(summary["sources"]["roofs"], 4);
@@ -137,7 +151,7 @@ fn landcover_and_a_table_of_ones_own() {
         include_str!("../src/lib/material/default-materials.json"),
     )
     .unwrap();
-    let o = dbms(&[
+    let o = ok(dbms(&[
         "materials",
         "--db",
         dir.to_str().unwrap(),
@@ -148,8 +162,7 @@ fn landcover_and_a_table_of_ones_own() {
         "--table",
         table.to_str().unwrap(),
         "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ]));
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     // 800 cells − 4 roof cells; 100 cells (the south-east 10 × 10) have the unmapped 255.
     assert_eq!(summary["sources"]["landcover"], 696);
@@ -170,16 +183,7 @@ fn bad_input_is_a_one_line_error_and_changes_nothing() {
     let dir = t.path().join("db");
     database(&dir);
     let before = std::fs::read(dir.join("manifest.json")).unwrap();
-    let lava = t.path().join("lava.geojson");
-    let (x, y) = ORIGIN;
-    std::fs::write(
-        &lava,
-        serde_json::json!({"type": "FeatureCollection", "features": [
-            {"type": "Feature", "properties": {"material": "lava"},
-             "geometry": {"type": "Polygon", "coordinates": [[[x, y], [x + 5.0, y], [x + 5.0, y - 5.0], [x, y]]]}}]})
-        .to_string(),
-    )
-    .unwrap();
+    let lava = rectangle_of(t.path(), "lava.geojson", "lava", [0.0, 0.0, 5.0, 5.0]);
     let d = dir.to_str().unwrap();
     let cases: [(&[&str], &str); 5] = [
         (
@@ -219,11 +223,10 @@ fn thermal_map_by_day_and_night() {
     let dir = t.path().join("db");
     database(&dir);
     let d = dir.to_str().unwrap();
-    let o = dbms(&["materials", "--db", d, "-q"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ok(dbms(&["materials", "--db", d, "-q"]));
     let run = |time: &str, name: &str| {
         let out = t.path().join(name);
-        let o = dbms(&[
+        let o = ok(dbms(&[
             "thermal",
             "--db",
             d,
@@ -234,8 +237,7 @@ fn thermal_map_by_day_and_night() {
             "-o",
             out.to_str().unwrap(),
             "--json",
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        ]));
         let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         let r = dbms::io::read_raster(&out).unwrap();
         let v: Vec<f64> = (0..r.grid.len()).map(|i| r.sample(i, 0)).collect();
@@ -272,26 +274,20 @@ fn thermal_map_sees_the_slopes() {
         120.0 - d as f32
     };
     database_over(&dir, n, n, peak);
-    let (x, y) = ORIGIN;
-    let all = serde_json::json!({"type": "FeatureCollection", "features": [
-        {"type": "Feature", "properties": {"material": "asphalt"},
-         "geometry": {"type": "Polygon", "coordinates": [[[x, y], [x + 41.0, y], [x + 41.0, y - 41.0], [x, y - 41.0], [x, y]]]}}]});
-    let features = t.path().join("all.geojson");
-    std::fs::write(&features, all.to_string()).unwrap();
+    let features = rectangle_of(t.path(), "all.geojson", "asphalt", [0.0, 0.0, 41.0, 41.0]);
     let d = dir.to_str().unwrap();
-    let o = dbms(&[
+    ok(dbms(&[
         "materials",
         "--db",
         d,
         "--features",
         features.to_str().unwrap(),
         "-q",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ]));
     // Mean temperature of each face's inner cells: north (rows above the peak), east, south, west.
     let faces = |time: &str| -> [f64; 4] {
         let out = t.path().join("t.tif");
-        let o = dbms(&[
+        ok(dbms(&[
             "thermal",
             "--db",
             d,
@@ -300,8 +296,7 @@ fn thermal_map_sees_the_slopes() {
             "-o",
             out.to_str().unwrap(),
             "-q",
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        ]));
         let r = dbms::io::read_raster(&out).unwrap();
         let mut sum = [(0.0, 0); 4];
         for row in 3..n - 3 {
@@ -361,28 +356,28 @@ fn pyramid_colours_cells_without_a_photo_by_their_material() {
     let d = dir.to_str().unwrap();
     let tiles = |name: &str| {
         let out = t.path().join(name);
-        let o = dbms(&["pyramid", "--db", d, "-o", out.to_str().unwrap(), "-q"]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        ok(dbms(&[
+            "pyramid",
+            "--db",
+            d,
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+        ]));
         dbms::tiles::TileReader::open(&out, 16).unwrap()
     };
     let before = tiles("before.dbt");
     let cell = before.cell(0, 39, 5).unwrap().unwrap();
     assert_eq!(cell.colour[3], 0, "{cell:?}");
-    let (x, y) = ORIGIN;
-    let water = serde_json::json!({"type": "FeatureCollection", "features": [
-        {"type": "Feature", "properties": {"material": "water"},
-         "geometry": {"type": "Polygon", "coordinates": [[[x + 39.0, y], [x + 40.0, y], [x + 40.0, y - 20.0], [x + 39.0, y - 20.0], [x + 39.0, y]]]}}]});
-    let features = t.path().join("w.geojson");
-    std::fs::write(&features, water.to_string()).unwrap();
-    let o = dbms(&[
+    let features = rectangle_of(t.path(), "w.geojson", "water", [39.0, 0.0, 40.0, 20.0]);
+    ok(dbms(&[
         "materials",
         "--db",
         d,
         "--features",
         features.to_str().unwrap(),
         "-q",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ]));
     let after = tiles("after.dbt");
     let [r, g, b] = MaterialTable::default_table()
         .by_name("water")
