@@ -200,11 +200,20 @@ pub struct ThermalMap {
     pub summary: ThermalSummary,
 }
 
+/// The sun of a step when it is up.
+struct Sunlit {
+    /// The sun on the grid (what shadows are cast for).
+    sun: Sun,
+    /// `sun.direction_enu()` (grid east, north, up), kept for the columns' forcing.
+    toward: [f64; 3],
+    /// Direct normal irradiance, W/m².
+    dni: f64,
+}
+
 /// One step of the day, shared by every cell.
 struct Step {
-    /// Direction to the sun (grid east, north, up) and its direct normal irradiance, W/m²,
-    /// when it is up.
-    sun: Option<([f64; 3], f64)>,
+    /// The sun, when it is up.
+    sun: Option<Sunlit>,
     /// Diffuse irradiance on a horizontal plane, W/m².
     diffuse: f64,
     air_k: f64,
@@ -243,12 +252,15 @@ fn steps(db: &Database, opts: &ThermalOptions, n: usize) -> Result<Vec<Step>> {
                         pos.elevation_deg,
                         sun::grid_azimuth_deg(pos.azimuth_deg, convergence),
                     )?;
-                    let dni = 1353.0 * 0.7f64.powf(air_mass(pos.zenith_deg).powf(0.678));
-                    Some((grid_sun.direction_enu(), dni))
+                    Some(Sunlit {
+                        sun: grid_sun,
+                        toward: grid_sun.direction_enu(),
+                        dni: 1353.0 * 0.7f64.powf(air_mass(pos.zenith_deg).powf(0.678)),
+                    })
                 }
                 false => None,
             };
-            let diffuse = sun.map_or(0.0, |(_, dni)| 0.1 * dni);
+            let diffuse = sun.as_ref().map_or(0.0, |s| 0.1 * s.dni);
             // Local solar hours (longitude only: the equation of time is a quarter hour at most).
             let seconds = at.timestamp() as f64 + lon / 15.0 * 3600.0;
             let hour = (seconds / 3600.0).rem_euclid(24.0);
@@ -344,11 +356,8 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     // Lit history: one cast per step with the sun up.
     let mut lit = vec![0u128; grid.len()];
     for (k, step) in days.iter().enumerate() {
-        let Some((dir, _)) = step.sun else { continue };
-        let elevation = dir[2].asin().to_degrees();
-        let azimuth = dir[0].atan2(dir[1]).to_degrees();
-        let sun = Sun::new(elevation, azimuth)?;
-        let bits = ShadowBits::cast(&terrain, &sun, |s, row| raised.lay_over(s, row))?;
+        let Some(sunlit) = &step.sun else { continue };
+        let bits = ShadowBits::cast(&terrain, &sunlit.sun, |s, row| raised.lay_over(s, row))?;
         lit.par_iter_mut().enumerate().for_each(|(i, l)| {
             if !bits.get(i) {
                 *l |= 1 << k;
@@ -431,21 +440,15 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
             let m = table
                 .by_id(key.material)
                 .expect("clustered cells have materials");
-            let nz = {
-                let [a, b] = key.normal.map(|v| v as f64 / 100.0);
-                (1.0 - a * a - b * b).max(0.0).sqrt()
-            };
-            let nrm = [
-                key.normal[0] as f64 / 100.0,
-                key.normal[1] as f64 / 100.0,
-                nz,
-            ];
+            let [a, b] = key.normal.map(|v| v as f64 / 100.0);
+            let nz = (1.0 - a * a - b * b).max(0.0).sqrt();
+            let nrm = [a, b, nz];
             let forcing: Vec<Forcing> = days
                 .iter()
                 .enumerate()
                 .map(|(k, s)| {
-                    let direct = match s.sun {
-                        Some((d, dni)) if key.lit >> k & 1 == 1 => {
+                    let direct = match &s.sun {
+                        Some(Sunlit { toward: d, dni, .. }) if key.lit >> k & 1 == 1 => {
                             dni * (d[0] * nrm[0] + d[1] * nrm[1] + d[2] * nrm[2]).max(0.0)
                         }
                         _ => 0.0,
