@@ -342,15 +342,10 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     let grid: Grid = terrain.grid().clone();
     let standing = Standing::read(db, &terrain, band_rows(grid.width))?;
     let raised: &Raised = &standing.all;
-    let materials_path = db.layer_path(MATERIALS)?;
-    let materials = crate::io::read_raster(&materials_path)?;
-    if (materials.grid.width, materials.grid.height) != (grid.width, grid.height) {
-        return Err(Error::file(&materials_path, "is not on the database grid")
-            .fix("run `dbms materials` again"));
-    }
-    let material: Vec<u8> = (0..grid.len())
-        .map(|i| materials.sample(i, 0) as u8)
-        .collect();
+    let material = db
+        .byte_rows(MATERIALS)?
+        .read_rows(0, grid.height)?
+        .into_owned();
     let days = steps(db, opts, n)?;
 
     // Lit history: one cast per step with the sun up.
@@ -488,22 +483,33 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     };
     let temperature: Vec<f32> = (0..grid.len()).map(|i| value(i, |s| s.0)).collect();
     let radiance: Vec<f32> = (0..grid.len()).map(|i| value(i, |s| s.1)).collect();
-    let mut per: BTreeMap<String, MaterialTemperature> = BTreeMap::new();
+    let mut per_id = [(); 256].map(|_| MaterialTemperature {
+        cells: 0,
+        mean_k: 0.0,
+        min_k: f64::INFINITY,
+        max_k: f64::NEG_INFINITY,
+    });
     for i in (0..grid.len()).filter(|&i| cluster[i] != u32::MAX) {
-        let name = &table.by_id(material[i]).expect("clustered").name;
         let t = solved[cluster[i] as usize].0;
-        let e = per.entry(name.clone()).or_insert(MaterialTemperature {
-            cells: 0,
-            mean_k: 0.0,
-            min_k: f64::INFINITY,
-            max_k: f64::NEG_INFINITY,
-        });
+        let e = &mut per_id[material[i] as usize];
         e.cells += 1;
         e.mean_k += t;
         e.min_k = e.min_k.min(t);
         e.max_k = e.max_k.max(t);
     }
-    per.values_mut().for_each(|e| e.mean_k /= e.cells as f64);
+    let per: BTreeMap<String, MaterialTemperature> = per_id
+        .into_iter()
+        .enumerate()
+        .filter(|(_, e)| e.cells > 0)
+        .map(|(id, mut e)| {
+            e.mean_k /= e.cells as f64;
+            let name = &table
+                .by_id(id as u8)
+                .expect("clustered cells have materials")
+                .name;
+            (name.clone(), e)
+        })
+        .collect();
     let summary = ThermalSummary {
         time: opts.time.to_rfc3339_opts(chrono::SecondsFormat::Secs, true),
         conditions: c,

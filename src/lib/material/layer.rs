@@ -226,14 +226,15 @@ pub fn classify(
         ))
         .fix("add them to the table, or cover those cells with --features or --landcover (docs/materials.md)"));
     }
-    let mut materials = BTreeMap::new();
-    for &id in &ids {
-        let name = match table.by_id(id) {
-            Some(m) => m.name.clone(),
-            None => "unclassified".to_string(),
-        };
-        *materials.entry(name).or_insert(0) += 1;
-    }
+    let mut per_id = [0u64; 256];
+    ids.iter().for_each(|&id| per_id[id as usize] += 1);
+    let materials = (0..=255u8)
+        .filter(|&id| per_id[id as usize] > 0)
+        .map(|id| {
+            let name = table.by_id(id).map_or("unclassified", |m| m.name.as_str());
+            (name.to_string(), per_id[id as usize])
+        })
+        .collect();
     let summary = MaterialSummary {
         cells: n as u64,
         sources,
