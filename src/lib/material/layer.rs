@@ -259,8 +259,11 @@ pub fn table_of(db: &Database) -> Result<MaterialTable> {
 pub struct ColourRows {
     photo: crate::db::LayerRows<[u8; 4]>,
     /// The materials layer and each id's colour (`None`: unclassified or not in the table).
-    materials: Option<(crate::db::LayerRows<u8>, Box<[Option<[u8; 4]>; 256]>)>,
+    materials: Option<(crate::db::LayerRows<u8>, Palette)>,
 }
+
+/// Each material id's opaque colour (`None`: unclassified or not in the table).
+type Palette = Box<[Option<[u8; 4]>; 256]>;
 
 /// The database's [`ColourRows`].
 pub fn colour_rows(db: &Database) -> Result<ColourRows> {
