@@ -6,6 +6,7 @@
 //! could not recompute. The header JSON *is* this struct serialised (schema:
 //! `schemas/tiles-header.schema.json`).
 
+use super::sensor::SensorLayer;
 use crate::error::{Error, Result};
 use crate::grid::{GeoTransform, Grid};
 use serde::{Deserialize, Serialize};
@@ -109,7 +110,7 @@ pub struct LayerInfo {
 }
 
 impl LayerInfo {
-    fn new(
+    pub(crate) fn new(
         name: &str,
         kind: &str,
         bytes_per_cell: usize,
@@ -250,7 +251,9 @@ impl TileSetInfo {
                 )));
             }
         }
-        for want in standard_layers() {
+        // A sensor layer is optional, but when present it has its own type.
+        let sensor = self.sensor_layers().into_iter().map(SensorLayer::info);
+        for want in standard_layers().into_iter().chain(sensor) {
             match self.layers.iter().find(|l| l.name == want.name) {
                 Some(l) if l.kind == want.kind && l.bytes_per_cell == want.bytes_per_cell => {}
                 Some(l) => {
@@ -277,6 +280,31 @@ impl TileSetInfo {
             return Err(Error::msg("header's effects is not a JSON object"));
         }
         Ok(())
+    }
+
+    /// The sensor layers the layer table holds, in table order.
+    pub fn sensor_layers(&self) -> Vec<SensorLayer> {
+        let named = self
+            .layers
+            .iter()
+            .filter_map(|l| SensorLayer::named(&l.name));
+        named.collect()
+    }
+
+    /// This tile set with `layers` added after the standard layers, in [`SensorLayer::ALL`]'s
+    /// order (the only layer tables this dbms writes).
+    pub fn with_sensor_layers(mut self, layers: &[SensorLayer]) -> TileSetInfo {
+        let wanted = SensorLayer::ALL.into_iter().filter(|l| layers.contains(l));
+        self.layers = standard_layers();
+        self.layers.extend(wanted.map(SensorLayer::info));
+        self
+    }
+
+    /// Whether the layer table is one this dbms writes: the standard layers, then sensor
+    /// layers in [`SensorLayer::ALL`]'s order.
+    pub fn writable_layers(&self) -> bool {
+        let sensor = self.sensor_layers();
+        self.clone().with_sensor_layers(&sensor).layers == self.layers
     }
 
     /// The georeferenced grid of `level` (same corner as level 0, cells `factor^level` larger).

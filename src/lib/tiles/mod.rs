@@ -24,6 +24,7 @@ mod info;
 mod layout;
 mod page;
 mod reader;
+mod sensor;
 mod writer;
 
 pub use info::{
@@ -34,5 +35,6 @@ pub use layout::{morton, IndexEntry, ENTRY_LEN, MAGIC, PREAMBLE_LEN, VERSION};
 pub use page::{
     Cell, Page, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE, STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL,
 };
-pub use reader::{ReaderStats, TileReader};
+pub use reader::{PageFilter, ReaderStats, TileReader};
+pub use sensor::{SensorCells, SensorLayer, MATERIAL_NODATA};
 pub use writer::{bricks_slot, InPlace, TileWriter};

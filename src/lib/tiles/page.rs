@@ -5,6 +5,7 @@
 //! set; decoding what [`encode`] made gives back the same page bit for bit (NaN payloads too).
 
 use super::info::{Compression, TileSetInfo};
+use super::sensor::{SensorCells, SensorLayer};
 use crate::error::{Error, Result};
 
 /// A cell's `state`: defined with the voxel columns that a partial cell points to.
@@ -32,6 +33,8 @@ pub struct Page {
     pub state: Vec<u8>,
     /// Sparse voxel bricks of the page's partial cells; format defined by the voxel module.
     pub bricks: Option<Vec<u8>>,
+    /// The tile set's sensor layers, in its table's order (none in a visual-only tile set).
+    pub sensor: Vec<(SensorLayer, SensorCells)>,
 }
 
 /// One cell of one level, as [`TileReader::cell`](super::TileReader::cell) returns it.
@@ -54,7 +57,25 @@ impl Page {
             colour: vec![[0; 4]; n],
             state: vec![STATE_EMPTY; n],
             bricks: None,
+            sensor: Vec::new(),
         }
+    }
+
+    /// A nodata page with the sensor `layers` (all nodata too).
+    pub fn nodata_with(page_size: usize, layers: &[SensorLayer]) -> Page {
+        let n = page_size * page_size;
+        Page {
+            sensor: layers.iter().map(|&l| (l, l.nodata(n))).collect(),
+            ..Page::nodata(page_size)
+        }
+    }
+
+    /// The cells of sensor layer `layer`, when the page has it.
+    pub fn sensor(&self, layer: SensorLayer) -> Option<&SensorCells> {
+        self.sensor
+            .iter()
+            .find(|(l, _)| *l == layer)
+            .map(|(_, c)| c)
     }
 
     /// The cell at `(col, row)` within the page.
@@ -124,6 +145,8 @@ pub(crate) struct Layout {
     max_z: usize,
     colour: usize,
     state: usize,
+    /// Offset of each sensor layer of the table, in table order.
+    sensor: Vec<(SensorLayer, usize)>,
     /// `(offset, bytes_per_cell)` of every layer of the table, known or not.
     layers: Vec<(usize, usize)>,
     /// Bytes of all layers together; the bricks blob starts here.
@@ -135,8 +158,12 @@ impl Layout {
     pub fn of(info: &TileSetInfo) -> Layout {
         let cells = info.page_cells();
         let (mut at, mut offsets, mut layers) = (0, [0usize; 3], Vec::new());
+        let mut sensor = Vec::new();
         for l in &info.layers {
             layers.push((at, l.bytes_per_cell));
+            if let Some(s) = SensorLayer::named(&l.name) {
+                sensor.push((s, at));
+            }
             if let Some(i) = ["max_z", "colour", "state"]
                 .iter()
                 .position(|n| *n == l.name)
@@ -150,6 +177,7 @@ impl Layout {
             max_z: offsets[0],
             colour: offsets[1],
             state: offsets[2],
+            sensor,
             layers,
             fixed_len: at,
         }
@@ -175,6 +203,20 @@ pub(crate) fn check(
             page.state.len()
         )));
     }
+    let want: Vec<SensorLayer> = info.sensor_layers();
+    let have: Vec<SensorLayer> = page.sensor.iter().map(|(l, _)| *l).collect();
+    if have != want {
+        return Err(Error::msg(format!(
+            "{name} has the sensor layers {have:?}, the tile set {want:?}"
+        )));
+    }
+    if let Some((l, c)) = page.sensor.iter().find(|(_, c)| c.len() != n) {
+        return Err(Error::msg(format!(
+            "{name} has {} {} cells, expected {n}",
+            c.len(),
+            l.name()
+        )));
+    }
     if let Some(i) = page.state.iter().position(|&s| s > STATE_OPAQUE) {
         return Err(Error::msg(format!(
             "{name}: cell {i} has state {}, expected 0, 1 or 2",
@@ -186,6 +228,13 @@ pub(crate) fn check(
     for row in 0..p {
         for col in (if row < rows { cols } else { 0 })..p {
             let c = page.cell(p, col, row);
+            let i = row * p + col;
+            if let Some((l, _)) = page.sensor.iter().find(|(_, s)| !s.is_nodata(i)) {
+                return Err(Error::msg(format!(
+                    "{name}: padding cell ({col}, {row}) beyond the level's edge is not nodata in layer {}",
+                    l.name()
+                )));
+            }
             if !(c.max_z.is_nan() && c.colour[3] == 0 && c.state == STATE_EMPTY) {
                 return Err(Error::msg(format!(
                     "{name}: padding cell ({col}, {row}) beyond the level's edge is not nodata (NaN, alpha 0, state 0)"
@@ -211,6 +260,15 @@ pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> 
         .zip(&page.colour)
         .for_each(|(b, c)| b.copy_from_slice(c));
     raw[layout.state..][..layout.cells].copy_from_slice(&page.state);
+    for ((_, cells), (_, at)) in page.sensor.iter().zip(&layout.sensor) {
+        match cells {
+            SensorCells::Ids(ids) => raw[*at..][..n].copy_from_slice(ids),
+            SensorCells::Values(v) => raw[*at..][..4 * n]
+                .chunks_exact_mut(4)
+                .zip(v)
+                .for_each(|(b, x)| b.copy_from_slice(&x.to_bits().to_le_bytes())),
+        }
+    }
     raw[layout.fixed_len..].copy_from_slice(bricks);
     let raw_len = u32::try_from(raw.len()).map_err(|_| {
         Error::msg(format!(
@@ -306,6 +364,21 @@ pub(crate) fn decode(
         colour: words(&raw[layout.colour..], n, planar, |w| w),
         state: raw[layout.state..layout.state + n].to_vec(),
         bricks: (flags & FLAG_BRICKS != 0).then(|| raw[layout.fixed_len..].to_vec()),
+        sensor: layout
+            .sensor
+            .iter()
+            .map(|&(l, at)| {
+                let cells = match l {
+                    SensorLayer::Material => SensorCells::Ids(raw[at..at + n].to_vec()),
+                    SensorLayer::Temperature | SensorLayer::Radiance => {
+                        SensorCells::Values(words(&raw[at..], n, planar, |w| {
+                            f32::from_bits(u32::from_le_bytes(w))
+                        }))
+                    }
+                };
+                (l, cells)
+            })
+            .collect(),
     })
 }
 
@@ -362,6 +435,49 @@ mod tests {
         let e = encode(&layout, &Page::nodata(8), Compression::Lz4).unwrap();
         assert_eq!(e.flags, FLAG_LZ4 | FLAG_SHUFFLE);
         assert!(e.stored.len() < e.raw_len as usize);
+    }
+
+    #[test]
+    fn sensor_layers_round_trip_bit_exactly_and_padding_must_be_nodata() {
+        let layers = [SensorLayer::Material, SensorLayer::Temperature];
+        let info = info(10, 6, 8).with_sensor_layers(&layers);
+        let layout = Layout::of(&info);
+        let mut page = Page::nodata_with(8, &layers);
+        page.max_z[0] = 1.0;
+        page.sensor[0].1 = SensorCells::Ids((0..64).map(|i| (i % 7) as u8).collect());
+        let mut t: Vec<f32> = (0..64).map(|i| 273.15 + i as f32 / 3.0).collect();
+        t[5] = f32::from_bits(0x7fc0_0042);
+        page.sensor[1].1 = SensorCells::Values(t);
+        for c in [Compression::None, Compression::Lz4] {
+            let e = encode(&layout, &page, c).unwrap();
+            assert_eq!(e.raw_len as usize, 8 * 8 * (9 + 1 + 4));
+            let back = decode(&layout, &e.stored, e.raw_len, e.flags).unwrap();
+            assert_eq!(back.sensor[0], page.sensor[0]);
+            let bits = |p: &Page| -> Vec<u32> {
+                let v = p
+                    .sensor(SensorLayer::Temperature)
+                    .unwrap()
+                    .values()
+                    .unwrap();
+                v.iter().map(|x| x.to_bits()).collect()
+            };
+            assert_eq!(bits(&back), bits(&page));
+        }
+        // Page (0, 1, 0) has 2 valid columns: cell (2, 0) is padding.
+        let mut edge = Page::nodata_with(8, &layers);
+        check(&info, 0, 1, 0, &edge).unwrap();
+        edge.sensor[1].1 = SensorCells::Values({
+            let mut v = vec![f32::NAN; 64];
+            v[2] = 300.0;
+            v
+        });
+        let e = check(&info, 0, 1, 0, &edge).unwrap_err().to_string();
+        assert!(e.contains("(2, 0)") && e.contains("temperature"), "{e}");
+        // A page without the tile set's sensor layers is refused.
+        let e = check(&info, 0, 0, 0, &Page::nodata(8))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sensor layers"), "{e}");
     }
 
     #[test]

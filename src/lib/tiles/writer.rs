@@ -256,10 +256,10 @@ impl TileWriter {
     /// [`finish`](Self::finish); pages go to a hidden temporary file in the same directory.
     pub fn create(path: &Path, info: TileSetInfo) -> Result<TileWriter> {
         info.validate().map_err(|e| e.in_file(path))?;
-        if info.layers != super::info::standard_layers() {
+        if !info.writable_layers() {
             return Err(Error::file(
                 path,
-                "this dbms writes only the standard layers max_z, colour, state",
+                "this dbms writes only the standard layers max_z, colour, state, then any of the sensor layers material, temperature, radiance in that order",
             ));
         }
         crate::io::atomic::check_output(path)?;

@@ -1,0 +1,164 @@
+//! The per-sensor layers a tile set may carry after the standard three (issue 18): one
+//! geometry, with the cell attributes each sensor needs beside it.
+//!
+//! Invariant: a tile set's layer table is the standard layers followed by any of
+//! [`SensorLayer::ALL`] in that order, each with the [`LayerInfo`] [`SensorLayer::info`] gives;
+//! a page holds exactly those sensor layers, in table order, each `P²` cells. Padding cells
+//! (beyond the level's edge) hold the layer's nodata, like the standard layers.
+
+use super::info::LayerInfo;
+
+/// A per-cell layer for sensors other than the visual one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum SensorLayer {
+    /// Material id of the material table (u8): 0 unclassified, [`MATERIAL_NODATA`] where the
+    /// cell has no data. A coarse cell holds the id most of the valid level-0 cells of its
+    /// block have (ties to the lower id).
+    Material,
+    /// Surface temperature, kelvin (f32, NaN nodata). A coarse cell holds the mean over the
+    /// valid level-0 cells of its block.
+    Temperature,
+    /// Band radiance 8–12 µm, W·m⁻²·sr⁻¹ (f32, NaN nodata); coarse cells the block's mean.
+    Radiance,
+}
+
+/// What a material cell holds where the cell has no data (the materials layer's own nodata).
+pub const MATERIAL_NODATA: u8 = 255;
+
+impl SensorLayer {
+    /// Every sensor layer, in the order a layer table lists them.
+    pub const ALL: [SensorLayer; 3] = [
+        SensorLayer::Material,
+        SensorLayer::Temperature,
+        SensorLayer::Radiance,
+    ];
+
+    /// The layer's name in the header's table.
+    pub fn name(self) -> &'static str {
+        match self {
+            SensorLayer::Material => "material",
+            SensorLayer::Temperature => "temperature",
+            SensorLayer::Radiance => "radiance",
+        }
+    }
+
+    /// The layer's entry in the header's table.
+    pub fn info(self) -> LayerInfo {
+        match self {
+            SensorLayer::Material => LayerInfo::new(
+                "material",
+                "u8",
+                1,
+                "255",
+                "material id of the database's material table (0 unclassified); coarse levels hold the id most valid level-0 cells of the block have, ties to the lower id",
+            ),
+            SensorLayer::Temperature => LayerInfo::new(
+                "temperature",
+                "f32",
+                4,
+                "NaN",
+                "surface temperature, kelvin; coarse levels hold the mean over the block's valid level-0 cells",
+            ),
+            SensorLayer::Radiance => LayerInfo::new(
+                "radiance",
+                "f32",
+                4,
+                "NaN",
+                "surface radiance 8-12 um, W m-2 sr-1; coarse levels hold the mean over the block's valid level-0 cells",
+            ),
+        }
+    }
+
+    /// The sensor layer named `name`, if it is one.
+    pub fn named(name: &str) -> Option<SensorLayer> {
+        SensorLayer::ALL.into_iter().find(|l| l.name() == name)
+    }
+
+    /// The cells of this layer for `n` cells of nodata.
+    pub fn nodata(self, n: usize) -> SensorCells {
+        match self {
+            SensorLayer::Material => SensorCells::Ids(vec![MATERIAL_NODATA; n]),
+            SensorLayer::Temperature | SensorLayer::Radiance => {
+                SensorCells::Values(vec![f32::NAN; n])
+            }
+        }
+    }
+}
+
+/// The cells of one sensor layer of a page, row-major like the standard layers.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SensorCells {
+    /// Material ids ([`SensorLayer::Material`]).
+    Ids(Vec<u8>),
+    /// Physical values ([`SensorLayer::Temperature`], [`SensorLayer::Radiance`]); NaN nodata.
+    Values(Vec<f32>),
+}
+
+impl SensorCells {
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        match self {
+            SensorCells::Ids(v) => v.len(),
+            SensorCells::Values(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no cells.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether cell `i` holds its layer's nodata.
+    pub fn is_nodata(&self, i: usize) -> bool {
+        match self {
+            SensorCells::Ids(v) => v[i] == MATERIAL_NODATA,
+            SensorCells::Values(v) => v[i].is_nan(),
+        }
+    }
+
+    /// Set cells `range` to nodata.
+    pub fn clear(&mut self, range: std::ops::Range<usize>) {
+        match self {
+            SensorCells::Ids(v) => v[range].fill(MATERIAL_NODATA),
+            SensorCells::Values(v) => v[range].fill(f32::NAN),
+        }
+    }
+
+    /// The values, when this is a value layer.
+    pub fn values(&self) -> Option<&[f32]> {
+        match self {
+            SensorCells::Values(v) => Some(v),
+            SensorCells::Ids(_) => None,
+        }
+    }
+
+    /// The ids, when this is the material layer.
+    pub fn ids(&self) -> Option<&[u8]> {
+        match self {
+            SensorCells::Ids(v) => Some(v),
+            SensorCells::Values(_) => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_types_match_the_cells() {
+        for l in SensorLayer::ALL {
+            assert_eq!(SensorLayer::named(l.name()), Some(l));
+            let info = l.info();
+            assert_eq!(info.name, l.name());
+            let cells = l.nodata(3);
+            let width = match cells {
+                SensorCells::Ids(_) => 1,
+                SensorCells::Values(_) => 4,
+            };
+            assert_eq!(info.bytes_per_cell, width);
+            assert!((0..3).all(|i| cells.is_nodata(i)));
+        }
+        assert_eq!(SensorLayer::named("max_z"), None);
+    }
+}
