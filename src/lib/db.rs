@@ -179,13 +179,44 @@ impl Database {
         self.layer_rows(name, SourceRaster::into_bytes)
     }
 
+    /// A one-band `f32` GeoTIFF outside the database but on its grid (same size and corner
+    /// transform), e.g. the temperature map `dbms thermal` writes, read band by band; the
+    /// declared nodata becomes NaN.
+    pub fn values_on_grid(&self, path: &Path) -> Result<LayerRows<f32>> {
+        let rows = self.rows_of(path.to_path_buf(), SourceRaster::into_elevation_band)?;
+        let probe = crate::io::geotiff::read_rows(path, 0..1.min(rows.grid.height))?;
+        let (want, have) = (&self.grid().transform, &probe.grid.transform);
+        let (w, h) = (rows.grid.width, rows.grid.height);
+        if crate::io::geotiff::size(path)? != (w, h) || want != have {
+            return Err(Error::file(
+                path,
+                format!(
+                    "is not on the database grid ({w}x{h} cells of {} m from {:.3}, {:.3})",
+                    want.cell_x, want.origin_x, want.origin_y
+                ),
+            )
+            .fix(
+                "make it from this database (dbms thermal), or warp it onto the grid with gdalwarp",
+            ));
+        }
+        Ok(rows)
+    }
+
     fn layer_rows<T>(
         &self,
         name: &str,
         convert: fn(SourceRaster) -> Result<Raster<T>>,
     ) -> Result<LayerRows<T>> {
+        self.rows_of(self.layer_path(name)?, convert)
+    }
+
+    fn rows_of<T>(
+        &self,
+        path: PathBuf,
+        convert: fn(SourceRaster) -> Result<Raster<T>>,
+    ) -> Result<LayerRows<T>> {
         let rows = LayerRows {
-            path: self.layer_path(name)?,
+            path,
             grid: self.grid().clone(),
             convert,
         };

@@ -41,6 +41,18 @@ pub struct Args {
     /// --export-levels) every page is made, and the summary says why.
     #[arg(long)]
     incremental: bool,
+    /// Carry the database's materials layer (`dbms materials`) as the tile layer `material`:
+    /// coarse cells take the id most of their level-0 cells have.
+    #[arg(long)]
+    materials: bool,
+    /// Carry this temperature map (kelvin, on the database grid: `dbms thermal -o`) as the tile
+    /// layer `temperature`: coarse cells take the mean. For `dbms render --sensor ir`.
+    #[arg(long, value_name = "TIF")]
+    temperature: Option<PathBuf>,
+    /// Carry this 8-12 um radiance map (`dbms thermal --radiance-out`) as the tile layer
+    /// `radiance`: coarse cells take the mean.
+    #[arg(long, value_name = "TIF")]
+    radiance: Option<PathBuf>,
     /// Output tile file.
     #[arg(short, long)]
     output: PathBuf,
@@ -119,6 +131,11 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         compression: Compression::parse(&args.compression)?,
         export_levels: args.export_levels,
         incremental: args.incremental,
+        sensor: dbms::pyramid::SensorInputs {
+            material: args.materials,
+            temperature: args.temperature,
+            radiance: args.radiance,
+        },
     };
     let mut products = vec![Product {
         tiles: args.output.clone(),

@@ -11,6 +11,7 @@
 
 use super::cascade::Band;
 use super::reduce::BaseRows;
+use super::sensor::SensorSource;
 use super::shade::{lit, Effects};
 use crate::error::Result;
 use crate::raster::RowSource;
@@ -37,6 +38,8 @@ pub struct Level0<'a> {
     half_valid: Vec<AtomicUsize>,
     /// The columns effects are applied in (all but for [`only_columns`](Self::only_columns)).
     shaded: std::ops::Range<usize>,
+    /// Where the sensor layers come from, in the tile set's order.
+    sensor: Vec<SensorSource<'a>>,
 }
 
 impl<'a> Level0<'a> {
@@ -59,7 +62,15 @@ impl<'a> Level0<'a> {
             page,
             half_valid: (0..pages).map(|_| AtomicUsize::new(0)).collect(),
             shaded: 0..g.width,
+            sensor: Vec::new(),
         }
+    }
+
+    /// This level 0 with sensor layers from `sources` (in the tile set's order): each band
+    /// carries their values, nodata wherever the cell has no surface.
+    pub fn with_sensor(mut self, sources: Vec<SensorSource<'a>>) -> Level0<'a> {
+        self.sensor = sources;
+        self
     }
 
     /// This level 0 with the effects applied in columns `cols` only: for a caller that keeps
@@ -80,11 +91,13 @@ impl<'a> Level0<'a> {
             || self.terrain.read_rows(row0, rows),
             || self.colour.read_rows(row0, rows),
         );
+        let sensor = self.sensor.par_iter().map(|s| s.read(row0, rows));
         let mut out = BaseRows {
             width: w,
             max_z: terrain?.into_owned(),
             colour: colour?.into_owned(),
             state: vec![STATE_EMPTY; w * rows],
+            sensor: sensor.collect::<Result<_>>()?,
         };
         let start = row0 * w;
         let raised = self.raised.range(start, start + w * rows);
@@ -129,6 +142,10 @@ impl<'a> Level0<'a> {
                     counter.fetch_add(*n, Ordering::Relaxed);
                 }
             });
+        for s in &mut out.sensor {
+            let nodata = out.max_z.iter().enumerate().filter(|(_, z)| z.is_nan());
+            nodata.for_each(|(i, _)| s.clear(i));
+        }
         let factors = match self.effects {
             Some(fx) => Some(fx.shade_band(row0, &mut out.colour, self.shaded.clone())?),
             None => None,

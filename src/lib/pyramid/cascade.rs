@@ -193,10 +193,11 @@ where
     let w = rows.width();
     // One page buffer per worker, refilled for each page: no allocation (and no fresh-memory
     // page faults) per page.
+    let layers = info.sensor_layers();
     (0..info.levels[level].pages_x)
         .into_par_iter()
         .try_for_each_init(
-            || Page::nodata(p),
+            || Page::nodata_with(p, &layers),
             |page, tx| {
                 let cols = p.min(w - tx * p);
                 for r in 0..p {
@@ -213,6 +214,12 @@ where
                     page.max_z[o + valid..o + p].fill(f32::NAN);
                     page.colour[o + valid..o + p].fill([0; 4]);
                     page.state[o + valid..o + p].fill(STATE_EMPTY);
+                    for (rows, (_, cells)) in rows.sensor().iter().zip(&mut page.sensor) {
+                        if valid > 0 {
+                            rows.copy_run(r * w + tx * p, valid, cells, o);
+                        }
+                        cells.clear(o + valid..o + p);
+                    }
                 }
                 page.bricks = page_bricks(columns.unwrap_or(&[]), w, tx * p..tx * p + cols, p)
                     .map_err(|e| {
@@ -283,6 +290,7 @@ mod tests {
             max_z: base.max_z[r.clone()].to_vec(),
             colour: base.colour[r.clone()].to_vec(),
             state: base.state[r].to_vec(),
+            sensor: Vec::new(),
         }
     }
 

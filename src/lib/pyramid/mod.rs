@@ -22,6 +22,7 @@ pub mod effects;
 pub mod export;
 pub mod incremental;
 pub mod reduce;
+pub mod sensor;
 pub mod shade;
 
 use crate::db::{Database, Stage};
@@ -30,7 +31,7 @@ use crate::progress::Progress;
 use crate::raster::RowSource;
 use crate::standing::Raised;
 use crate::sun::Sun;
-use crate::tiles::{Compression, TileSetInfo, TileWriter};
+use crate::tiles::{Compression, SensorLayer, TileSetInfo, TileWriter};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -59,6 +60,63 @@ pub struct PyramidOptions {
     /// Keep a ledger beside the tile file and, when the earlier tile file's ledger allows,
     /// make again only the pages changed since ([`incremental`]).
     pub incremental: bool,
+    /// The sensor layers to carry beside the geometry ([`sensor`]); none by default.
+    pub sensor: SensorInputs,
+}
+
+/// Where the sensor layers of a tile set come from: each one asked for is a layer of the tile
+/// file ([`crate::tiles::SensorLayer`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SensorInputs {
+    /// Carry the database's `materials` layer (`dbms materials`) as `material`.
+    pub material: bool,
+    /// A temperature map on the database grid, kelvin (`dbms thermal -o`), as `temperature`.
+    pub temperature: Option<PathBuf>,
+    /// A radiance map on the database grid, W·m⁻²·sr⁻¹ (`dbms thermal --radiance-out`), as
+    /// `radiance`.
+    pub radiance: Option<PathBuf>,
+}
+
+impl SensorInputs {
+    /// The tile layers these give, in the tile set's order.
+    pub fn layers(&self) -> Vec<SensorLayer> {
+        let given = [
+            self.material,
+            self.temperature.is_some(),
+            self.radiance.is_some(),
+        ];
+        SensorLayer::ALL
+            .into_iter()
+            .zip(given)
+            .filter_map(|(l, g)| g.then_some(l))
+            .collect()
+    }
+
+    /// Whether any sensor layer is asked for.
+    pub fn any(&self) -> bool {
+        !self.layers().is_empty()
+    }
+
+    /// The inputs as the stage records them: each map's path and SHA-256.
+    fn record(&self, db: &Database) -> Result<serde_json::Value> {
+        let file = |p: &Option<PathBuf>| -> Result<serde_json::Value> {
+            Ok(match p {
+                Some(p) => serde_json::json!({ "file": p, "sha256": crate::db::sha256_file(p)? }),
+                None => serde_json::Value::Null,
+            })
+        };
+        let material = match self.material {
+            true => {
+                serde_json::json!({ "layer": crate::material::layer::MATERIALS, "sha256": crate::db::sha256_file(&db.layer_path(crate::material::layer::MATERIALS)?)? })
+            }
+            false => serde_json::Value::Null,
+        };
+        Ok(serde_json::json!({
+            "material": material,
+            "temperature": file(&self.temperature)?,
+            "radiance": file(&self.radiance)?,
+        }))
+    }
 }
 
 impl Default for PyramidOptions {
@@ -72,6 +130,7 @@ impl Default for PyramidOptions {
             compression: Compression::None,
             export_levels: None,
             incremental: false,
+            sensor: SensorInputs::default(),
         }
     }
 }
@@ -109,6 +168,8 @@ pub struct PyramidSummary {
     pub half_valid_cells: usize,
     /// The effects record (also in the tile header and the manifest).
     pub effects: shade::EffectsRecord,
+    /// The sensor layers the tile file carries beside the geometry.
+    pub sensor_layers: Vec<&'static str>,
     /// GeoTIFFs written by `--export-levels`.
     pub exported: Vec<PathBuf>,
     /// Where the time went (not recorded in the manifest: it would break reproducibility).
@@ -161,6 +222,9 @@ impl std::fmt::Display for PyramidSummary {
                 "\nnodata: {} cells had only one of elevation and colour",
                 self.half_valid_cells
             )?;
+        }
+        if !self.sensor_layers.is_empty() {
+            write!(f, "\nsensor layers: {}", self.sensor_layers.join(", "))?;
         }
         if !self.exported.is_empty() {
             write!(f, "\nexported {} GeoTIFFs", self.exported.len())?;
@@ -262,7 +326,8 @@ fn build_product(
     progress: &Progress,
 ) -> Result<PyramidSummary> {
     check_request(out, opts)?;
-    let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
+    let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?
+        .with_sensor_layers(&opts.sensor.layers());
     info.compression = opts.compression;
     if let Some(dir) = &opts.export_levels {
         // The levels' files are outputs too: none may be the tile file, or a special file.
@@ -276,6 +341,9 @@ fn build_product(
     if opts.incremental {
         let attempt = match &opts.export_levels {
             Some(_) => Err("--export-levels writes every level".to_string()),
+            None if opts.sensor.any() => {
+                Err("sensor layers are not in the incremental ledger yet".to_string())
+            }
             None => incremental_build(db, wait, out, opts, &info, progress)?,
         };
         match attempt {
@@ -290,6 +358,7 @@ fn build_product(
         db.elevation_rows()?,
         crate::material::layer::colour_rows(db)?,
     );
+    let sensor = SensorReaders::open(db, &opts.sensor)?;
     seconds.read = lap();
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
@@ -313,7 +382,8 @@ fn build_product(
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
 
-    let level0 = base::Level0::new(&terrain, &colour, all, effects.as_ref(), opts.page_size);
+    let level0 = base::Level0::new(&terrain, &colour, all, effects.as_ref(), opts.page_size)
+        .with_sensor(sensor.sources());
     let (writer, exporter) = write_levels(&info, &level0, out, opts, progress)?;
     seconds.levels = lap();
     // Every output is finished under its temporary name, and all are renamed together once the
@@ -360,12 +430,61 @@ fn build_product(
         partial_cells: all.cells().iter().filter(|c| c.partial).count(),
         half_valid_cells: level0.half_valid_cells(),
         effects: effects_record,
+        sensor_layers: info.sensor_layers().iter().map(|l| l.name()).collect(),
         exported,
         seconds,
     };
-    let params = stage_params(out, opts, &info, &summary);
+    let mut params = stage_params(out, opts, &info, &summary);
+    if opts.sensor.any() {
+        params["sensor"] = opts.sensor.record(db)?;
+    }
     commit(db, wait, || Ok((staged, params)))?;
     Ok(summary)
+}
+
+/// The opened sources of the sensor layers a build carries.
+struct SensorReaders {
+    material: Option<(crate::db::LayerRows<u8>, std::sync::Arc<sensor::Counted>)>,
+    temperature: Option<crate::db::LayerRows<f32>>,
+    radiance: Option<crate::db::LayerRows<f32>>,
+}
+
+impl SensorReaders {
+    /// Open what `inputs` asks for, checked against the database grid; the materials layer is
+    /// scanned once for the ids it holds.
+    fn open(db: &Database, inputs: &SensorInputs) -> Result<SensorReaders> {
+        let material = match inputs.material {
+            true => {
+                let rows = db.byte_rows(crate::material::layer::MATERIALS)?;
+                let counted = sensor::Counted::scan(&rows)?;
+                Some((rows, std::sync::Arc::new(counted)))
+            }
+            false => None,
+        };
+        let map = |p: &Option<PathBuf>| p.as_deref().map(|p| db.values_on_grid(p)).transpose();
+        Ok(SensorReaders {
+            material,
+            temperature: map(&inputs.temperature)?,
+            radiance: map(&inputs.radiance)?,
+        })
+    }
+
+    /// The level-0 sources, in the tile set's order.
+    fn sources(&self) -> Vec<sensor::SensorSource<'_>> {
+        let material = self
+            .material
+            .iter()
+            .map(|(rows, c)| sensor::SensorSource::Material(rows, c.clone()));
+        let values = [
+            (SensorLayer::Temperature, &self.temperature),
+            (SensorLayer::Radiance, &self.radiance),
+        ];
+        let values = values.into_iter().filter_map(|(l, rows)| {
+            let rows = rows.as_ref()?;
+            Some(sensor::SensorSource::Values(l, rows))
+        });
+        material.chain(values).collect()
+    }
 }
 
 /// Take the database's lock (waiting up to `wait`), `finish` the run's outputs (staged, with
@@ -519,6 +638,7 @@ fn incremental_build(
         partial_cells: total.partial_cells,
         half_valid_cells: total.half_valid_cells,
         effects: effects_record,
+        sensor_layers: Vec::new(),
         exported: Vec::new(),
         seconds,
     };

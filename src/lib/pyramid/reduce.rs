@@ -10,6 +10,7 @@
 //! integers — rounding never compounds across levels. Blocks at the right and bottom edges have
 //! fewer children (`ceil(W / f)` coarse cells), and only the children that exist count.
 
+use super::sensor::SensorRows;
 use crate::tiles::{STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL};
 use rayon::prelude::*;
 
@@ -25,6 +26,8 @@ pub trait LevelRows: Sync {
     /// `colour` (the displayed colour: alpha 255, or `[0; 4]` when no valid cell) and `state`
     /// (`tiles::STATE_*`), all as long.
     fn copy_run(&self, i: usize, max_z: &mut [f32], colour: &mut [[u8; 4]], state: &mut [u8]);
+    /// The sensor layers of these rows ([`super::sensor`]), in the tile set's order.
+    fn sensor(&self) -> &[SensorRows];
 }
 
 /// What a coarse cell gathers from its children: see the module doc for the rules.
@@ -84,6 +87,8 @@ pub struct BaseRows {
     pub colour: Vec<[u8; 4]>,
     /// Occupancy state of each cell.
     pub state: Vec<u8>,
+    /// The sensor layers' level-0 values (none for a visual-only tile set).
+    pub sensor: Vec<SensorRows>,
 }
 
 impl BaseRows {
@@ -95,6 +100,7 @@ impl BaseRows {
             max_z: vec![f32::NAN; n],
             colour: vec![[0; 4]; n],
             state: vec![STATE_EMPTY; n],
+            sensor: Vec::new(),
         }
     }
 }
@@ -125,6 +131,9 @@ impl LevelRows for BaseRows {
         colour.copy_from_slice(&self.colour[i..i + n]);
         state.copy_from_slice(&self.state[i..i + n]);
     }
+    fn sensor(&self) -> &[SensorRows] {
+        &self.sensor
+    }
 }
 
 /// Rows of a coarse level: exact maxima, integer colour sums and counts, states.
@@ -140,6 +149,8 @@ pub struct CoarseRows {
     pub count: Vec<u64>,
     /// Occupancy state.
     pub state: Vec<u8>,
+    /// The sensor layers' exact reductions ([`super::sensor`]).
+    pub sensor: Vec<SensorRows>,
 }
 
 impl CoarseRows {
@@ -158,6 +169,13 @@ impl CoarseRows {
         self.sum.extend(other.sum);
         self.count.extend(other.count);
         self.state.extend(other.state);
+        if self.sensor.is_empty() {
+            self.sensor = other.sensor;
+        } else {
+            for (s, o) in self.sensor.iter_mut().zip(other.sensor) {
+                s.append(o);
+            }
+        }
     }
 
     /// Drop the first `rows` rows.
@@ -167,6 +185,7 @@ impl CoarseRows {
         self.sum.drain(..n);
         self.count.drain(..n);
         self.state.drain(..n);
+        self.sensor.iter_mut().for_each(|s| s.drain(n));
     }
 
     /// Displayed colour of cell `i`: the rounded average, alpha 255; `[0; 4]` when no valid cell.
@@ -206,6 +225,9 @@ impl LevelRows for CoarseRows {
             *c = self.colour(i + k);
         }
     }
+    fn sensor(&self) -> &[SensorRows] {
+        &self.sensor
+    }
 }
 
 /// The rounded average colour `sum / count` (halves round up), alpha 255; nodata when `count == 0`.
@@ -232,6 +254,7 @@ pub fn reduce<R: LevelRows>(fine: &R, factor: usize) -> CoarseRows {
         sum: vec![[0; 3]; cw * ch],
         count: vec![0; cw * ch],
         state: vec![STATE_EMPTY; cw * ch],
+        sensor: fine.sensor().iter().map(|s| s.reduce(w, factor)).collect(),
     };
     if cw == 0 {
         return out;
@@ -271,6 +294,7 @@ mod tests {
             max_z: z.to_vec(),
             colour: colour.to_vec(),
             state: state.to_vec(),
+            sensor: Vec::new(),
         }
     }
 
@@ -317,6 +341,7 @@ mod tests {
             sum: vec![[300, 0, 0], [0, 0, 0]],
             count: vec![3, 1],
             state: vec![2, 2],
+            sensor: Vec::new(),
         };
         let r = reduce(&fine, 4);
         assert_eq!(r.colour(0), [75, 0, 0, 255]);

@@ -1,0 +1,409 @@
+//! Sensor layers through the hierarchy (issue 18): level 0 from the database's materials layer
+//! and the maps `dbms thermal` writes, and each coarse level's reduction of them.
+//!
+//! Invariant (as for the colour: no average of averages): a coarse cell's material is the id
+//! most valid level-0 cells of its block hold (ties to the lower id), from per-id counts carried
+//! up the cascade; a coarse temperature or radiance is the f64 sum of the f32 values of its
+//! block's valid level-0 cells divided by their count, rounded once to f32. A level-0 cell is
+//! valid in a sensor layer when it is valid in `max_z` and its own value is not nodata; a coarse
+//! cell with no valid level-0 cell is nodata.
+
+use crate::error::Result;
+use crate::raster::RowSource;
+use crate::tiles::{SensorCells, SensorLayer, MATERIAL_NODATA};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// The material ids a build counts: every id its materials layer holds, and 0 (unclassified)
+/// always, so there is at least one; ascending.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Counted {
+    /// The ids, ascending; never [`MATERIAL_NODATA`].
+    ids: Vec<u8>,
+    /// `slot[id]`: the position of `id` in `ids`, or `u8::MAX` when it is not counted.
+    slot: [u8; 256],
+}
+
+impl Counted {
+    /// The ids `ids` and 0 (any order, duplicates and [`MATERIAL_NODATA`] ignored).
+    pub fn new(ids: impl IntoIterator<Item = u8>) -> Counted {
+        let mut seen = [false; 256];
+        seen[0] = true;
+        ids.into_iter().for_each(|id| seen[id as usize] = true);
+        seen[MATERIAL_NODATA as usize] = false;
+        let ids: Vec<u8> = (0..=255u8).filter(|&i| seen[i as usize]).collect();
+        let mut slot = [u8::MAX; 256];
+        for (k, &id) in ids.iter().enumerate() {
+            slot[id as usize] = k as u8;
+        }
+        Counted { ids, slot }
+    }
+
+    /// Every id `rows` holds, read band by band.
+    pub fn scan(rows: &dyn RowSource<u8>) -> Result<Counted> {
+        let g = rows.grid();
+        let mut seen = [false; 256];
+        for row0 in (0..g.height).step_by(256) {
+            let band = rows.read_rows(row0, 256.min(g.height - row0))?;
+            band.iter().for_each(|&id| seen[id as usize] = true);
+        }
+        Ok(Counted::new((0..=255u8).filter(|&i| seen[i as usize])))
+    }
+
+    /// The majority of `counts` (one per counted id): the id with the most, the lower id on a
+    /// tie; [`MATERIAL_NODATA`] when every count is 0.
+    fn majority(&self, counts: &[u64]) -> u8 {
+        let mut best = (0, MATERIAL_NODATA);
+        for (&n, &id) in counts.iter().zip(&self.ids) {
+            if n > best.0 {
+                best = (n, id);
+            }
+        }
+        best.1
+    }
+}
+
+/// One sensor layer of a band of rows of one level.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorRows {
+    /// Which layer.
+    pub layer: SensorLayer,
+    /// Its cells.
+    pub data: SensorData,
+}
+
+/// The cells of a [`SensorRows`]: level 0 holds values, coarse levels what reduces exactly.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SensorData {
+    /// Level-0 material ids ([`MATERIAL_NODATA`] = nodata), and the ids a build counts.
+    Ids(Vec<u8>, Arc<Counted>),
+    /// Coarse material counts: for each cell, how many valid level-0 cells of its block hold
+    /// each counted id (`cells × ids` row-major).
+    Counts(Vec<u64>, Arc<Counted>),
+    /// Level-0 values (NaN = nodata).
+    Values(Vec<f32>),
+    /// Coarse sums of the block's valid level-0 values, and their count.
+    Sums(Vec<f64>, Vec<u64>),
+}
+
+impl SensorRows {
+    /// Number of cells held.
+    pub fn len(&self) -> usize {
+        match &self.data {
+            SensorData::Ids(v, _) => v.len(),
+            SensorData::Counts(v, c) => v.len() / c.ids.len(),
+            SensorData::Values(v) => v.len(),
+            SensorData::Sums(_, n) => n.len(),
+        }
+    }
+
+    /// Whether no cell is held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Make level-0 cell `i` nodata (its `max_z` is).
+    pub fn clear(&mut self, i: usize) {
+        match &mut self.data {
+            SensorData::Ids(v, _) => v[i] = MATERIAL_NODATA,
+            SensorData::Values(v) => v[i] = f32::NAN,
+            SensorData::Counts(..) | SensorData::Sums(..) => {
+                unreachable!("only level-0 cells are cleared")
+            }
+        }
+    }
+
+    /// Append the cells of `other` (same layer, same level) after these.
+    pub fn append(&mut self, other: SensorRows) {
+        match (&mut self.data, other.data) {
+            (SensorData::Counts(v, _), SensorData::Counts(o, _)) => v.extend(o),
+            (SensorData::Sums(s, n), SensorData::Sums(os, on)) => {
+                s.extend(os);
+                n.extend(on);
+            }
+            (SensorData::Ids(v, _), SensorData::Ids(o, _)) => v.extend(o),
+            (SensorData::Values(v), SensorData::Values(o)) => v.extend(o),
+            _ => unreachable!("rows of one layer and level"),
+        }
+    }
+
+    /// Drop the first `n` cells.
+    pub fn drain(&mut self, n: usize) {
+        match &mut self.data {
+            SensorData::Counts(v, c) => drop(v.drain(..n * c.ids.len())),
+            SensorData::Sums(s, c) => {
+                s.drain(..n);
+                c.drain(..n);
+            }
+            SensorData::Ids(v, _) => drop(v.drain(..n)),
+            SensorData::Values(v) => drop(v.drain(..n)),
+        }
+    }
+
+    /// Cells `i .. i + n` as a page stores them, into `out[o .. o + n]`.
+    pub fn copy_run(&self, i: usize, n: usize, out: &mut SensorCells, o: usize) {
+        match (&self.data, out) {
+            (SensorData::Ids(v, _), SensorCells::Ids(out)) => {
+                out[o..o + n].copy_from_slice(&v[i..i + n])
+            }
+            (SensorData::Counts(v, c), SensorCells::Ids(out)) => {
+                let k = c.ids.len();
+                for (j, cell) in out[o..o + n].iter_mut().enumerate() {
+                    *cell = c.majority(&v[(i + j) * k..(i + j + 1) * k]);
+                }
+            }
+            (SensorData::Values(v), SensorCells::Values(out)) => {
+                out[o..o + n].copy_from_slice(&v[i..i + n])
+            }
+            (SensorData::Sums(s, c), SensorCells::Values(out)) => {
+                for (j, cell) in out[o..o + n].iter_mut().enumerate() {
+                    *cell = mean(s[i + j], c[i + j]);
+                }
+            }
+            _ => unreachable!("a page's cells have the layer's type"),
+        }
+    }
+
+    /// These rows (`width` cells a row) reduced by `factor` in both directions: coarse cell
+    /// `(c, r)` gathers fine rows `r·f .. r·f + f` and columns `c·f .. c·f + f` (fewer at the
+    /// right and bottom edges). Parallel over coarse rows.
+    pub fn reduce(&self, width: usize, factor: usize) -> SensorRows {
+        let rows = self.len() / width.max(1);
+        let (cw, ch) = (width.div_ceil(factor), rows.div_ceil(factor));
+        let fine_rows = |r: usize| (r * factor)..((r + 1) * factor).min(rows);
+        let data = match &self.data {
+            SensorData::Ids(_, c) | SensorData::Counts(_, c) => {
+                let k = c.ids.len();
+                let mut counts = vec![0u64; cw * ch * k];
+                if cw > 0 {
+                    counts
+                        .par_chunks_mut(cw * k)
+                        .enumerate()
+                        .for_each(|(r, out)| {
+                            for fr in fine_rows(r) {
+                                for fc in 0..width {
+                                    let at = (fc / factor) * k;
+                                    self.count_into(fr * width + fc, &mut out[at..at + k]);
+                                }
+                            }
+                        });
+                }
+                SensorData::Counts(counts, c.clone())
+            }
+            SensorData::Values(_) | SensorData::Sums(..) => {
+                let (mut sum, mut count) = (vec![0.0; cw * ch], vec![0u64; cw * ch]);
+                if cw > 0 {
+                    sum.par_chunks_mut(cw)
+                        .zip(count.par_chunks_mut(cw))
+                        .enumerate()
+                        .for_each(|(r, (sum, count))| {
+                            for fr in fine_rows(r) {
+                                for fc in 0..width {
+                                    let (s, n) = self.sum_of(fr * width + fc);
+                                    sum[fc / factor] += s;
+                                    count[fc / factor] += n;
+                                }
+                            }
+                        });
+                }
+                SensorData::Sums(sum, count)
+            }
+        };
+        SensorRows {
+            layer: self.layer,
+            data,
+        }
+    }
+
+    /// Add cell `i`'s material counts to `out` (one per counted id).
+    #[inline]
+    fn count_into(&self, i: usize, out: &mut [u64]) {
+        match &self.data {
+            SensorData::Ids(v, c) => {
+                let slot = c.slot[v[i] as usize];
+                if slot != u8::MAX {
+                    out[slot as usize] += 1;
+                }
+            }
+            SensorData::Counts(v, c) => {
+                let k = c.ids.len();
+                out.iter_mut()
+                    .zip(&v[i * k..(i + 1) * k])
+                    .for_each(|(o, n)| *o += n);
+            }
+            _ => unreachable!("material rows"),
+        }
+    }
+
+    /// Cell `i`'s sum of valid level-0 values and their count.
+    #[inline]
+    fn sum_of(&self, i: usize) -> (f64, u64) {
+        match &self.data {
+            SensorData::Values(v) if v[i].is_nan() => (0.0, 0),
+            SensorData::Values(v) => (f64::from(v[i]), 1),
+            SensorData::Sums(s, n) => (s[i], n[i]),
+            _ => unreachable!("value rows"),
+        }
+    }
+}
+
+/// `sum / count` rounded to f32; NaN when `count` is 0.
+fn mean(sum: f64, count: u64) -> f32 {
+    match count {
+        0 => f32::NAN,
+        n => (sum / n as f64) as f32,
+    }
+}
+
+/// Where a level-0 sensor layer comes from.
+pub enum SensorSource<'a> {
+    /// The database's materials layer, and the ids it holds.
+    Material(&'a dyn RowSource<u8>, Arc<Counted>),
+    /// A map of values on the database grid (temperature or radiance), NaN = nodata.
+    Values(SensorLayer, &'a dyn RowSource<f32>),
+}
+
+impl SensorSource<'_> {
+    /// The layer it fills.
+    pub fn layer(&self) -> SensorLayer {
+        match self {
+            SensorSource::Material(..) => SensorLayer::Material,
+            SensorSource::Values(l, _) => *l,
+        }
+    }
+
+    /// Level-0 rows `row0 .. row0 + rows`, before the cells without a surface are cleared.
+    pub fn read(&self, row0: usize, rows: usize) -> Result<SensorRows> {
+        let data = match self {
+            SensorSource::Material(src, counted) => {
+                SensorData::Ids(src.read_rows(row0, rows)?.into_owned(), counted.clone())
+            }
+            SensorSource::Values(_, src) => {
+                SensorData::Values(src.read_rows(row0, rows)?.into_owned())
+            }
+        };
+        Ok(SensorRows {
+            layer: self.layer(),
+            data,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn page_cells(rows: &SensorRows) -> SensorCells {
+        let mut out = rows.layer.nodata(rows.len());
+        rows.copy_run(0, rows.len(), &mut out, 0);
+        out
+    }
+
+    /// The majority of the level-0 cells under coarse cell `(c, r)` of level `level`, counted
+    /// directly (the brute-force reference).
+    fn brute_majority(ids: &[u8], w: usize, f: usize, level: u32, c: usize, r: usize) -> u8 {
+        let (s, h) = (f.pow(level), ids.len() / w);
+        let mut n = [0u64; 256];
+        for row in r * s..((r + 1) * s).min(h) {
+            for col in c * s..((c + 1) * s).min(w) {
+                n[ids[row * w + col] as usize] += 1;
+            }
+        }
+        n[MATERIAL_NODATA as usize] = 0;
+        let best = (0..255)
+            .max_by_key(|&i| (n[i], std::cmp::Reverse(i)))
+            .unwrap();
+        if n[best] == 0 {
+            MATERIAL_NODATA
+        } else {
+            best as u8
+        }
+    }
+
+    fn brute_mean(v: &[f32], w: usize, f: usize, level: u32, c: usize, r: usize) -> f32 {
+        let (s, h) = (f.pow(level), v.len() / w);
+        let (mut sum, mut n) = (0.0f64, 0u64);
+        for row in r * s..((r + 1) * s).min(h) {
+            for col in c * s..((c + 1) * s).min(w) {
+                if !v[row * w + col].is_nan() {
+                    sum += f64::from(v[row * w + col]);
+                    n += 1;
+                }
+            }
+        }
+        mean(sum, n)
+    }
+
+    #[test]
+    fn majority_ties_go_to_the_lower_id_and_nodata_never_wins() {
+        let counted = Arc::new(Counted::new([0, 3, 7]));
+        let ids = vec![
+            7,
+            3,
+            3,
+            7,
+            MATERIAL_NODATA,
+            MATERIAL_NODATA,
+            0,
+            MATERIAL_NODATA,
+        ];
+        let rows = SensorRows {
+            layer: SensorLayer::Material,
+            data: SensorData::Ids(ids, counted),
+        };
+        // 4 × 2 cells reduced by 2: blocks {7, 3, nodata, nodata} and {3, 7, 0, nodata}.
+        let coarse = rows.reduce(4, 2);
+        assert_eq!(page_cells(&coarse), SensorCells::Ids(vec![3, 0]));
+        let all_nodata = SensorRows {
+            layer: SensorLayer::Material,
+            data: SensorData::Ids(vec![MATERIAL_NODATA; 4], Arc::new(Counted::new([]))),
+        };
+        assert_eq!(
+            page_cells(&all_nodata.reduce(2, 2)),
+            SensorCells::Ids(vec![MATERIAL_NODATA])
+        );
+    }
+
+    proptest! {
+        /// Every coarse level's majority and mean equal the brute-force ones over the cell's
+        /// whole level-0 block (exact, not a majority of majorities or a mean of means).
+        #[test]
+        fn cascaded_reductions_equal_the_level0_block_reductions(
+            w in 1usize..20, h in 1usize..20, f in 2usize..5,
+            seed in any::<u64>(),
+        ) {
+            let mut rng = crate::num::SplitMix(seed);
+            let ids: Vec<u8> = (0..w * h)
+                .map(|_| [0, 1, 2, 9, MATERIAL_NODATA][(rng.next_u64() % 5) as usize])
+                .collect();
+            let vals: Vec<f32> = (0..w * h)
+                .map(|_| match rng.next_u64() % 4 {
+                    0 => f32::NAN,
+                    k => 250.0 + k as f32 * 17.3 + (rng.next_u64() % 1000) as f32 / 7.0,
+                })
+                .collect();
+            let counted = Arc::new(Counted::new(ids.iter().copied()));
+            let mut m = SensorRows { layer: SensorLayer::Material, data: SensorData::Ids(ids.clone(), counted) };
+            let mut t = SensorRows { layer: SensorLayer::Temperature, data: SensorData::Values(vals.clone()) };
+            let mut width = w;
+            for level in 1..4u32 {
+                m = m.reduce(width, f);
+                t = t.reduce(width, f);
+                width = width.div_ceil(f);
+                let (SensorCells::Ids(mc), SensorCells::Values(tc)) = (page_cells(&m), page_cells(&t)) else {
+                    unreachable!()
+                };
+                for i in 0..mc.len() {
+                    let (c, r) = (i % width, i / width);
+                    prop_assert_eq!(mc[i], brute_majority(&ids, w, f, level, c, r));
+                    let want = brute_mean(&vals, w, f, level, c, r);
+                    prop_assert!(
+                        (tc[i].is_nan() && want.is_nan()) || (tc[i] - want).abs() <= 1e-4,
+                        "level {} cell {}: {} against {}", level, i, tc[i], want
+                    );
+                }
+            }
+        }
+    }
+}
