@@ -156,14 +156,22 @@ impl SunUsed {
 /// Parse three comma-separated numbers given to option `name` (`what` says what they are, for
 /// the error's fix).
 pub fn triple(name: &str, s: &str, what: &str) -> dbms::Result<[f64; 3]> {
+    numbers(name, s, what)
+}
+
+/// Parse `N` comma-separated numbers given to option `name` (`what` says what they are, for
+/// the error's fix).
+pub fn numbers<const N: usize>(name: &str, s: &str, what: &str) -> dbms::Result<[f64; N]> {
     let v: Vec<f64> = s
         .split(',')
         .map(|p| p.trim().parse::<f64>())
         .collect::<Result<_, _>>()
         .unwrap_or_default();
+    let count = ["none", "one", "two", "three", "four"].get(N).copied();
     v.try_into().map_err(|_| {
         dbms::Error::msg(format!(
-            "{name} {s}: expected three comma-separated numbers"
+            "{name} {s}: expected {} comma-separated numbers",
+            count.map_or(N.to_string(), str::to_string)
         ))
         .fix(format!("give {what}"))
     })

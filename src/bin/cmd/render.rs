@@ -3,6 +3,8 @@
 use super::Ctx;
 use dbms::grid::Bounds;
 use dbms::render::flight::FlightStats;
+use dbms::render::sensor::{IrScale, Sensor};
+use dbms::render::sky::Backdrop;
 use dbms::render::{self, Attitude, RenderStats, Traversal, ViewOptions, Viewpoint};
 use dbms::tiles::TileReader;
 use dbms::Error;
@@ -105,6 +107,14 @@ pub struct Args {
     /// With --path: also write every frame into this animated PNG (APNG), 1/--fps s each.
     #[arg(long, value_name = "FLIGHT.png", requires = "path")]
     animation: Option<PathBuf>,
+    /// What the view is drawn for: the daylight colours, or a sensor's layer of the tile set
+    /// (the geometry, and so the range image, is the same).
+    #[arg(long, value_parser = super::choice::<Sensor>(), default_value = "visual")]
+    sensor: Sensor,
+    /// With --sensor ir: the temperatures drawn black and white, MIN,MAX in kelvin (default:
+    /// the coldest and hottest cell of the coarsest level). Fix it to compare views.
+    #[arg(long, value_name = "MIN,MAX")]
+    ir_range: Option<String>,
     /// Pages kept in the reader's cache (each 9·P² bytes: 590 kB at P = 256).
     #[arg(long, default_value_t = 512)]
     cache_pages: usize,
@@ -137,7 +147,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .chain(args.range_out.as_deref())
         .collect();
     dbms::io::atomic::check_outputs(&outputs, &[&args.tiles])?;
-    let reader = TileReader::open(&args.tiles, args.cache_pages)?;
+    let (reader, backdrop) = open(&args)?;
     let frame = if args.top {
         let g = &reader.info().grid;
         let window = args
@@ -178,7 +188,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             width,
             height,
         };
-        render::render_view(&reader, &camera, &view_options(&args))?
+        render::render_view(&reader, &camera, &view_options(&args, backdrop))?
     };
     frame.write(&args.output, args.range_out.as_deref())?;
     ctx.report(&Rendered {
@@ -197,8 +207,30 @@ fn attitude(args: &Args) -> dbms::Result<Attitude> {
     Ok(Attitude { roll, pitch, yaw })
 }
 
-fn view_options(args: &Args) -> ViewOptions {
+/// The tile file, read for `--sensor` (its pages recoloured), and the view's backdrop.
+fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop)> {
+    if args.ir_range.is_some() && args.sensor != Sensor::Ir {
+        return Err(Error::msg("--ir-range is for --sensor ir").fix("add --sensor ir"));
+    }
+    let reader = TileReader::open(&args.tiles, args.cache_pages)?;
+    let ir_range = match &args.ir_range {
+        Some(s) => {
+            let [lo, hi] = super::numbers("--ir-range", s, "MIN,MAX in kelvin")?;
+            Some(IrScale::new(lo, hi)?)
+        }
+        None => None,
+    };
+    Ok(
+        match render::sensor::view(args.sensor, &reader, ir_range)? {
+            Some((filter, backdrop)) => (reader.with_filter(filter), backdrop),
+            None => (reader, Backdrop::Daylight),
+        },
+    )
+}
+
+fn view_options(args: &Args, backdrop: Backdrop) -> ViewOptions {
     ViewOptions {
+        backdrop,
         traversal: match args.traversal {
             TraversalArg::Hierarchical => Traversal::Hierarchical,
             TraversalArg::Level0 => Traversal::Level0,
@@ -228,12 +260,12 @@ fn fly(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         fixed_heading: args.fixed_heading,
     };
     let viewpoints = render::path::viewpoints(&waypoints, &flight, args.fov, width, height)?;
-    let reader = TileReader::open(&args.tiles, args.cache_pages)?;
+    let (reader, backdrop) = open(&args)?;
     let progress = ctx.progress(viewpoints.len() as u64, "frames");
     let stats = render::flight::fly(
         &reader,
         &viewpoints,
-        &view_options(&args),
+        &view_options(&args, backdrop),
         &args.output,
         args.animation.as_deref().map(|a| (a, args.fps)),
         &progress,

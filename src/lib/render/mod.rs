@@ -25,6 +25,7 @@ pub mod march;
 pub mod path;
 pub mod ray;
 pub mod sampler;
+pub mod sensor;
 pub mod sky;
 
 pub use camera::{Attitude, Viewpoint};
@@ -60,6 +61,8 @@ pub struct ViewOptions {
     pub repeat: bool,
     /// Range haze: distance at which `1 − 1/e` of a colour is haze, metres (`None`: off).
     pub visibility: Option<f64>,
+    /// The sky and the haze colour (daylight, or a sensor's: [`sensor::view`]).
+    pub backdrop: sky::Backdrop,
     /// Stop looking beyond this range, metres (`None`: the database's edge, or
     /// [`REPEAT_RANGE_DIAGONALS`] diagonals with `repeat`).
     pub max_range: Option<f64>,
@@ -83,6 +86,7 @@ impl Default for ViewOptions {
             lod: true,
             repeat: false,
             visibility: None,
+            backdrop: sky::Backdrop::Daylight,
             max_range: None,
             samples: 1,
             blend: false,
@@ -426,7 +430,7 @@ impl<'a> View<'a> {
             line.rays += 1;
             line.hits += u64::from(hit.is_some());
             let rgb = match self.n {
-                1 => colour(hit, ray, opts.visibility),
+                1 => colour(hit, ray, opts),
                 _ => self.supersample(i, j, &mut line, &mut sampler)?,
             };
             line.rgb.push(rgb);
@@ -456,7 +460,7 @@ impl<'a> View<'a> {
             let hit = line.march(&ray, span, sampler, &self.plan)?;
             line.rays += 1;
             line.hits += u64::from(hit.is_some());
-            let c = colour(hit, &ray, self.opts.visibility);
+            let c = colour(hit, &ray, self.opts);
             (0..3).for_each(|k| sum[k] += u32::from(c[k]));
         }
         let m = (n * n) as u32;
@@ -563,10 +567,10 @@ impl Line {
 }
 
 /// What `ray` shows: its hit, shaded and hazed, or the sky.
-fn colour(hit: Option<Hit>, ray: &Ray, visibility: Option<f64>) -> [u8; 3] {
+fn colour(hit: Option<Hit>, ray: &Ray, opts: &ViewOptions) -> [u8; 3] {
     match hit {
-        Some(h) => sky::shade(h.colour, h.face, h.t, visibility),
-        None => sky::sky(ray.sin_elevation()),
+        Some(h) => opts.backdrop.shade(h.colour, h.face, h.t, opts.visibility),
+        None => opts.backdrop.sky(ray.sin_elevation()),
     }
 }
 

@@ -124,15 +124,60 @@ pub fn face_factor(face: Face) -> f64 {
     }
 }
 
-/// The colour of a hit seen at `range` metres: the face-shaded cell colour, blended toward the
-/// horizon haze by `1 − exp(−range / visibility)` when a visibility (metres) is given.
-pub fn shade(colour: [u8; 4], face: Face, range: f64, visibility: Option<f64>) -> [u8; 3] {
-    let f = face_factor(face);
-    let a = visibility.map_or(0.0, |v| 1.0 - (-range / v).exp());
-    std::array::from_fn(|k| {
-        let c = colour[k] as f64 * f;
-        channel(c + (HORIZON[k] - c) * a)
-    })
+/// What a view shows where a ray hits nothing, and the colour range haze fades toward.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Backdrop {
+    /// Daylight: blue sky over the horizon haze ([`sky`]); haze fades to [`HORIZON`].
+    Daylight,
+    /// One colour for the whole sky and one for haze (a sensor's view).
+    Flat {
+        /// The sky, RGB.
+        sky: [u8; 3],
+        /// What haze fades toward, RGB.
+        haze: [f64; 3],
+    },
+}
+
+impl Backdrop {
+    /// The thermal-infrared backdrop for white-hot `scale`: a black sky (a clear sky's
+    /// brightness temperature lies tens of kelvin below any surface under it) and haze fading
+    /// toward the grey of the scale's middle, standing in for air near the ground's temperature.
+    pub fn infrared(scale: &super::sensor::IrScale) -> Backdrop {
+        let mid = scale.grey(((scale.min_k + scale.max_k) / 2.0) as f32)[0];
+        Backdrop::Flat {
+            sky: [0, 0, 0],
+            haze: [f64::from(mid); 3],
+        }
+    }
+
+    /// The sky's colour for a ray whose direction has vertical component `dz`.
+    pub fn sky(&self, dz: f64) -> [u8; 3] {
+        match self {
+            Backdrop::Daylight => sky(dz),
+            Backdrop::Flat { sky, .. } => *sky,
+        }
+    }
+
+    /// The colour of a hit seen at `range` metres: the face-shaded cell colour, blended toward
+    /// the haze colour by `1 − exp(−range / visibility)` when a visibility (metres) is given.
+    pub fn shade(
+        &self,
+        colour: [u8; 4],
+        face: Face,
+        range: f64,
+        visibility: Option<f64>,
+    ) -> [u8; 3] {
+        let haze = match self {
+            Backdrop::Daylight => HORIZON,
+            Backdrop::Flat { haze, .. } => *haze,
+        };
+        let f = face_factor(face);
+        let a = visibility.map_or(0.0, |v| 1.0 - (-range / v).exp());
+        std::array::from_fn(|k| {
+            let c = colour[k] as f64 * f;
+            channel(c + (haze[k] - c) * a)
+        })
+    }
 }
 
 #[cfg(test)]
@@ -211,14 +256,22 @@ mod tests {
     #[test]
     fn haze_grows_with_range() {
         let c = [0, 0, 0, 255];
-        assert_eq!(shade(c, Face::Top, 100.0, None), [0, 0, 0]);
+        let day = Backdrop::Daylight;
+        assert_eq!(day.shade(c, Face::Top, 100.0, None), [0, 0, 0]);
         assert!(
-            shade(c, Face::Top, 100.0, Some(1000.0))[0]
-                < shade(c, Face::Top, 5000.0, Some(1000.0))[0]
+            day.shade(c, Face::Top, 100.0, Some(1000.0))[0]
+                < day.shade(c, Face::Top, 5000.0, Some(1000.0))[0]
         );
         assert_eq!(
-            shade([100, 100, 100, 255], Face::WallV, 0.0, None),
+            day.shade([100, 100, 100, 255], Face::WallV, 0.0, None),
             [65, 65, 65]
         );
+        // A flat backdrop's haze takes over at long range; its sky is one colour.
+        let ir = Backdrop::Flat {
+            sky: [0, 0, 0],
+            haze: [128.0; 3],
+        };
+        assert_eq!(ir.shade(c, Face::Top, 1e9, Some(1000.0)), [128, 128, 128]);
+        assert_eq!(ir.sky(0.3), [0, 0, 0]);
     }
 }

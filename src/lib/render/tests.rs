@@ -118,7 +118,7 @@ fn ray_exactly_parallel_to_the_x_axis_hits_the_west_wall() {
         assert_eq!(f.range[centre(&f)], 29.5, "{t:?}");
         assert_eq!(
             f.rgb[centre(&f)],
-            sky::shade([255, 0, 0, 255], Face::WallU, 29.5, None)
+            sky::Backdrop::Daylight.shade([255, 0, 0, 255], Face::WallU, 29.5, None)
         );
     }
 }
@@ -137,7 +137,7 @@ fn ray_exactly_parallel_to_the_y_axis_hits_the_north_wall() {
         assert_eq!(f.range[centre(&f)], 26.25, "{t:?}");
         assert_eq!(
             f.rgb[centre(&f)],
-            sky::shade([255, 0, 0, 255], Face::WallV, 26.25, None)
+            sky::Backdrop::Daylight.shade([255, 0, 0, 255], Face::WallV, 26.25, None)
         );
     }
 }
@@ -708,7 +708,10 @@ fn a_ray_through_an_arch_opening_hits_what_is_behind_it() {
     let cam = camera([32.5, 10.25, 1.5], 0.0, 0.0, 0.0, 5, 5);
     let (range, rgb) = centre_hit(&with, &cam);
     assert_eq!(range, 47.75);
-    assert_eq!(rgb, sky::shade(BLUE, Face::WallV, 47.75, None));
+    assert_eq!(
+        rgb,
+        sky::Backdrop::Daylight.shade(BLUE, Face::WallV, 47.75, None)
+    );
     assert_eq!(
         range.to_bits(),
         centre_hit(&without, &cam).0.to_bits(),
@@ -718,7 +721,10 @@ fn a_ray_through_an_arch_opening_hits_what_is_behind_it() {
     let (range, rgb) = centre_hit(&with, &camera([32.5, 10.25, 3.5], 0.0, 0.0, 0.0, 5, 5));
     assert_eq!(
         (range, rgb),
-        (16.75, sky::shade(RED, Face::WallV, 16.75, None))
+        (
+            16.75,
+            sky::Backdrop::Daylight.shade(RED, Face::WallV, 16.75, None)
+        )
     );
     // 4.5 m up: over the arch, on to the wall again.
     assert_eq!(
@@ -742,7 +748,10 @@ fn a_ray_under_an_overhang_hits_the_ground_below_it() {
     let cam = camera([32.5, 10.25, 2.0], 0.0, pitch, 0.0, 5, 5);
     let (range, rgb) = centre_hit(&with, &cam);
     assert!((range as f64 - 20.75f64.hypot(2.0)).abs() < 1e-4, "{range}");
-    assert_eq!(rgb, sky::shade(GREY, Face::Top, range as f64, None));
+    assert_eq!(
+        rgb,
+        sky::Backdrop::Daylight.shade(GREY, Face::Top, range as f64, None)
+    );
     assert_eq!(range.to_bits(), centre_hit(&without, &cam).0.to_bits());
 }
 
@@ -752,7 +761,10 @@ fn a_rising_ray_under_an_overhang_hits_its_underside_and_the_eye_may_stand_there
     // Under the lintel, 1 m up, looking north 45° up: the lintel's bottom (3 m) 2 m ahead.
     let (range, rgb) = centre_hit(&with, &camera([32.5, 31.5, 1.0], 0.0, 45.0, 0.0, 5, 5));
     assert!((range as f64 - 2.0 * 2f64.sqrt()).abs() < 1e-5, "{range}");
-    assert_eq!(rgb, sky::shade(RED, Face::Bottom, range as f64, None));
+    assert_eq!(
+        rgb,
+        sky::Backdrop::Daylight.shade(RED, Face::Bottom, range as f64, None)
+    );
     // Inside the lintel is inside solid matter.
     let e = render_view(
         &with,

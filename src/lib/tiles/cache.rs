@@ -38,6 +38,11 @@ impl PageCache {
         self.tick.fetch_add(1, Ordering::Relaxed) + 1
     }
 
+    /// Most pages it holds.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
     /// The cached page at `pos`, marking it most recently used.
     pub fn get(&self, pos: usize) -> Option<Arc<Page>> {
         let pages = self.pages.read().unwrap_or_else(|p| p.into_inner());

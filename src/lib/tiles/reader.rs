@@ -32,10 +32,16 @@ pub struct TileReader {
     layout: Layout,
     index: Vec<IndexEntry>,
     cache: PageCache,
+    /// Applied to every page as it is read, before it is cached ([`TileReader::with_filter`]).
+    filter: Option<PageFilter>,
     pages_read: AtomicU64,
     bytes_read: AtomicU64,
     cache_hits: AtomicU64,
 }
+
+/// A change made to every page a reader hands out, e.g. a sensor view's colours
+/// ([`TileReader::with_filter`]): a pure function of the page, so cached pages stay right.
+pub type PageFilter = Arc<dyn Fn(&mut Page) + Send + Sync>;
 
 /// What a reader has done so far (for `dbms render --json`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -66,10 +72,19 @@ impl TileReader {
             layout,
             index,
             cache: PageCache::new(cache_pages),
+            filter: None,
             pages_read: AtomicU64::new(0),
             bytes_read: AtomicU64::new(0),
             cache_hits: AtomicU64::new(0),
         })
+    }
+
+    /// This reader with `filter` applied to every page [`page`](Self::page) and
+    /// [`cell`](Self::cell) hand out (pages already cached are dropped first).
+    pub fn with_filter(mut self, filter: PageFilter) -> TileReader {
+        self.cache = PageCache::new(self.cache.capacity());
+        self.filter = Some(filter);
+        self
     }
 
     /// The tile set's description (the header).
@@ -123,7 +138,11 @@ impl TileReader {
             self.cache_hits.fetch_add(1, Ordering::Relaxed);
             return Ok(page);
         }
-        let page = Arc::new(self.load(pos)?);
+        let mut page = self.load(pos)?;
+        if let Some(f) = &self.filter {
+            f(&mut page);
+        }
+        let page = Arc::new(page);
         self.cache.insert(pos, page.clone());
         Ok(page)
     }
