@@ -134,10 +134,14 @@ fn every_number_in_the_default_table_has_a_source() {
                             .is_some_and(|a| !a.is_empty() && a.iter().all(Value::is_number));
                     if numeric && k != "id" && k != "version" && k != "code" {
                         *numbers += 1;
-                        let src = o
-                            .get("sources")
-                            .and_then(|s| s.get(k))
-                            .and_then(Value::as_str);
+                        // A radar model names one `source` for all its coefficients.
+                        let src = if o.contains_key("model") {
+                            o.get("source").and_then(Value::as_str)
+                        } else {
+                            o.get("sources")
+                                .and_then(|s| s.get(k))
+                                .and_then(Value::as_str)
+                        };
                         assert!(
                             src.is_some_and(|s| ids.contains(&s)),
                             "{at}.{k} has no listed source"
