@@ -445,6 +445,14 @@ fn sensor_layers_reduce_exactly_and_draw_the_infrared_view() {
         info.sensor_layers(),
         [SensorLayer::Material, SensorLayer::Temperature]
     );
+    // The effects record says which sensor layers were made, and that a visual product made none.
+    let applied = |i: &dbms::tiles::TileSetInfo| i.effects["applied"].to_string();
+    assert_eq!(applied(&info), r#"["material_layer","temperature_layer"]"#);
+    let visual = dbms::tiles::TileReader::open(&p("visual.dbt"), 1).unwrap();
+    assert_eq!(applied(visual.info()), "[]");
+    let skipped = visual.info().effects["skipped"].to_string();
+    let not_asked = r#""effect":"material_layer","why":"not asked for (--materials)""#;
+    assert!(skipped.contains(not_asked), "{skipped}");
     let (w, h) = (40usize, 20usize);
     let level0_valid = |c: usize, r: usize| !reader.cell(0, c, r).unwrap().unwrap().max_z.is_nan();
     for (level, l) in info.levels.iter().enumerate() {

@@ -1,12 +1,16 @@
 //! The effects registry: every effect the pyramid can bake into a database, what it needs, which
-//! sensors call for it and what it produces, and the one decision of which run for a build.
+//! sensors call for it and what it produces, and the one decision of which run for a build;
+//! likewise the sensor layers a tile file may carry ([`LAYERS`]).
 //!
-//! Invariant: [`decide`] is the only place that says whether an effect runs; an effect runs
-//! exactly when every one of its needs holds, in the order of [`EFFECTS`], and every effect that
-//! does not run is reported with the first need that failed, in words. The sensor column is
+//! Invariant: [`decide`] is the only place that says whether an effect runs, and
+//! [`decide_layers`] whether a sensor layer is made; an effect runs exactly when every one of
+//! its needs holds, in the order of [`EFFECTS`], a layer exactly when it is asked for, and
+//! every effect or layer that is not is reported with why, in words. The sensor column is
 //! `../shared/reference/README.md`'s effect-by-sensor table (RADC-TR-81-190): the day visual
-//! channel calls for all of these; other sensors are not built yet.
+//! channel calls for all the effects; the infrared, night-vision and radar channels for the
+//! layers.
 
+use crate::tiles::SensorLayer;
 use serde::Serialize;
 
 /// What an effect needs of a build.
@@ -129,6 +133,53 @@ pub const EFFECTS: [Effect; 8] = [
     },
 ];
 
+/// A sensor layer a tile file may carry, as the registry lists it beside the effects.
+#[derive(Debug, Clone, Copy)]
+pub struct LayerEffect {
+    /// The tile layer.
+    pub layer: SensorLayer,
+    /// Its name in effects records.
+    pub name: &'static str,
+    /// The sensors whose products call for it.
+    pub sensors: &'static [&'static str],
+    /// Why it is not made when not asked for.
+    pub unasked: &'static str,
+}
+
+/// Every sensor layer, in the tile set's order. None is made unless asked for: a visual
+/// product does no sensor work, and its record says so.
+pub const LAYERS: [LayerEffect; 3] = [
+    LayerEffect {
+        layer: SensorLayer::Material,
+        name: "material_layer",
+        sensors: &["ir", "nvg", "radar"],
+        unasked: "not asked for (--materials)",
+    },
+    LayerEffect {
+        layer: SensorLayer::Temperature,
+        name: "temperature_layer",
+        sensors: &["ir"],
+        unasked: "no temperature map given (--temperature)",
+    },
+    LayerEffect {
+        layer: SensorLayer::Radiance,
+        name: "radiance_layer",
+        sensors: &["ir"],
+        unasked: "no radiance map given (--radiance)",
+    },
+];
+
+/// Which sensor layers a build makes (those `asked`, in order) and which not, with why.
+pub fn decide_layers(asked: &[SensorLayer]) -> (Vec<&'static str>, Vec<Skipped>) {
+    let (made, not): (Vec<&LayerEffect>, Vec<_>) =
+        LAYERS.iter().partition(|l| asked.contains(&l.layer));
+    let skipped = not.iter().map(|l| Skipped {
+        effect: l.name,
+        why: l.unasked,
+    });
+    (made.iter().map(|l| l.name).collect(), skipped.collect())
+}
+
 /// What a build has to work with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Situation {
@@ -221,6 +272,18 @@ mod tests {
                 assert!(skipped.iter().all(|k| k.why == "no sun given"));
             }
         }
+    }
+
+    #[test]
+    fn layers_are_made_only_when_asked_for_and_in_the_tile_sets_order() {
+        let (made, skipped) = decide_layers(&[]);
+        assert!(made.is_empty());
+        assert_eq!(skipped.len(), LAYERS.len());
+        let (made, skipped) = decide_layers(&[SensorLayer::Temperature, SensorLayer::Material]);
+        assert_eq!(made, ["material_layer", "temperature_layer"]);
+        assert_eq!(skipped[0].effect, "radiance_layer");
+        let order: Vec<SensorLayer> = LAYERS.iter().map(|l| l.layer).collect();
+        assert_eq!(order, SensorLayer::ALL);
     }
 
     #[test]

@@ -168,8 +168,6 @@ pub struct PyramidSummary {
     pub half_valid_cells: usize,
     /// The effects record (also in the tile header and the manifest).
     pub effects: shade::EffectsRecord,
-    /// The sensor layers the tile file carries beside the geometry.
-    pub sensor_layers: Vec<&'static str>,
     /// GeoTIFFs written by `--export-levels`.
     pub exported: Vec<PathBuf>,
     /// Where the time went (not recorded in the manifest: it would break reproducibility).
@@ -222,9 +220,6 @@ impl std::fmt::Display for PyramidSummary {
                 "\nnodata: {} cells had only one of elevation and colour",
                 self.half_valid_cells
             )?;
-        }
-        if !self.sensor_layers.is_empty() {
-            write!(f, "\nsensor layers: {}", self.sensor_layers.join(", "))?;
         }
         if !self.exported.is_empty() {
             write!(f, "\nexported {} GeoTIFFs", self.exported.len())?;
@@ -378,6 +373,7 @@ fn build_product(
     let raised = [buildings, objects, all];
     let (effects, effects_record) =
         sun_effects(db, opts, &terrain, &colour, raised, &shared.effects)?;
+    let effects_record = effects_record.with_layers(&opts.sensor.layers());
     reused.extend(shared.effects.take_reused());
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
@@ -430,7 +426,6 @@ fn build_product(
         partial_cells: all.cells().iter().filter(|c| c.partial).count(),
         half_valid_cells: level0.half_valid_cells(),
         effects: effects_record,
-        sensor_layers: info.sensor_layers().iter().map(|l| l.name()).collect(),
         exported,
         seconds,
     };
@@ -602,7 +597,8 @@ fn incremental_build(
     }
     let counts = effects_run.then(|| total.effects.unwrap_or_default());
     let effects_record =
-        shade::EffectsRecord::decided(opts.sun, photo_sun, opts.shadow_factor, &seen, counts);
+        shade::EffectsRecord::decided(opts.sun, photo_sun, opts.shadow_factor, &seen, counts)
+            .with_layers(&opts.sensor.layers());
     let mut info = info.clone();
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
@@ -638,7 +634,6 @@ fn incremental_build(
         partial_cells: total.partial_cells,
         half_valid_cells: total.half_valid_cells,
         effects: effects_record,
-        sensor_layers: Vec::new(),
         exported: Vec::new(),
         seconds,
     };

@@ -482,6 +482,16 @@ pub enum Outcome {
 }
 
 impl EffectsRecord {
+    /// This record with the sensor layers `asked` for (in the tile set's order) among the
+    /// applied, after the sun's effects, and the others among the skipped
+    /// ([`effects::decide_layers`]).
+    pub fn with_layers(mut self, asked: &[crate::tiles::SensorLayer]) -> EffectsRecord {
+        let (made, not) = effects::decide_layers(asked);
+        self.applied.extend(made);
+        self.skipped.extend(not);
+        self
+    }
+
     /// The record when no sun was given or nothing was needed: which sun, nothing applied, and
     /// why each effect was not (over `buildings` and `objects`).
     pub fn none(
