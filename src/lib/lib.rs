@@ -30,6 +30,7 @@ pub mod geojson;
 pub mod grid;
 pub mod ingest;
 pub mod io;
+pub mod lights;
 pub mod manifest;
 pub mod material;
 pub mod moon;

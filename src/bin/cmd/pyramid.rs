@@ -53,6 +53,11 @@ pub struct Args {
     /// `radiance`: coarse cells take the mean.
     #[arg(long, value_name = "TIF")]
     radiance: Option<PathBuf>,
+    /// Light points for the night sensors, a GeoJSON of Point features with intensity_cd
+    /// (candela) and optional height_m (above the terrain) and colour ([r, g, b]); carried in
+    /// the tile header for `dbms render --sensor nvg`.
+    #[arg(long, value_name = "GEOJSON")]
+    lights: Option<PathBuf>,
     /// Output tile file.
     #[arg(short, long)]
     output: PathBuf,
@@ -135,6 +140,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             material: args.materials,
             temperature: args.temperature,
             radiance: args.radiance,
+            lights: args.lights,
         },
     };
     let mut products = vec![Product {

@@ -133,11 +133,12 @@ pub const EFFECTS: [Effect; 8] = [
     },
 ];
 
-/// A sensor layer a tile file may carry, as the registry lists it beside the effects.
+/// A sensor layer a tile file may carry (or its light points), as the registry lists it
+/// beside the effects.
 #[derive(Debug, Clone, Copy)]
 pub struct LayerEffect {
-    /// The tile layer.
-    pub layer: SensorLayer,
+    /// The tile layer; `None` for the light points of the header.
+    pub layer: Option<SensorLayer>,
     /// Its name in effects records.
     pub name: &'static str,
     /// The sensors whose products call for it.
@@ -148,31 +149,40 @@ pub struct LayerEffect {
 
 /// Every sensor layer, in the tile set's order. None is made unless asked for: a visual
 /// product does no sensor work, and its record says so.
-pub const LAYERS: [LayerEffect; 3] = [
+pub const LAYERS: [LayerEffect; 4] = [
     LayerEffect {
-        layer: SensorLayer::Material,
+        layer: Some(SensorLayer::Material),
         name: "material_layer",
         sensors: &["ir", "nvg", "radar"],
         unasked: "not asked for (--materials)",
     },
     LayerEffect {
-        layer: SensorLayer::Temperature,
+        layer: Some(SensorLayer::Temperature),
         name: "temperature_layer",
         sensors: &["ir"],
         unasked: "no temperature map given (--temperature)",
     },
     LayerEffect {
-        layer: SensorLayer::Radiance,
+        layer: Some(SensorLayer::Radiance),
         name: "radiance_layer",
         sensors: &["ir"],
         unasked: "no radiance map given (--radiance)",
     },
+    LayerEffect {
+        layer: None,
+        name: "light_points",
+        sensors: &["nvg"],
+        unasked: "no light points given (--lights)",
+    },
 ];
 
-/// Which sensor layers a build makes (those `asked`, in order) and which not, with why.
-pub fn decide_layers(asked: &[SensorLayer]) -> (Vec<&'static str>, Vec<Skipped>) {
-    let (made, not): (Vec<&LayerEffect>, Vec<_>) =
-        LAYERS.iter().partition(|l| asked.contains(&l.layer));
+/// Which sensor layers a build makes (those `asked`, in order, and the light points when it
+/// has `lights`) and which not, with why.
+pub fn decide_layers(asked: &[SensorLayer], lights: bool) -> (Vec<&'static str>, Vec<Skipped>) {
+    let (made, not): (Vec<&LayerEffect>, Vec<_>) = LAYERS.iter().partition(|l| match l.layer {
+        Some(layer) => asked.contains(&layer),
+        None => lights,
+    });
     let skipped = not.iter().map(|l| Skipped {
         effect: l.name,
         why: l.unasked,
@@ -276,13 +286,17 @@ mod tests {
 
     #[test]
     fn layers_are_made_only_when_asked_for_and_in_the_tile_sets_order() {
-        let (made, skipped) = decide_layers(&[]);
+        let (made, skipped) = decide_layers(&[], false);
         assert!(made.is_empty());
         assert_eq!(skipped.len(), LAYERS.len());
-        let (made, skipped) = decide_layers(&[SensorLayer::Temperature, SensorLayer::Material]);
-        assert_eq!(made, ["material_layer", "temperature_layer"]);
+        let asked = [SensorLayer::Temperature, SensorLayer::Material];
+        let (made, skipped) = decide_layers(&asked, true);
+        assert_eq!(
+            made,
+            ["material_layer", "temperature_layer", "light_points"]
+        );
         assert_eq!(skipped[0].effect, "radiance_layer");
-        let order: Vec<SensorLayer> = LAYERS.iter().map(|l| l.layer).collect();
+        let order: Vec<SensorLayer> = LAYERS.iter().filter_map(|l| l.layer).collect();
         assert_eq!(order, SensorLayer::ALL);
     }
 

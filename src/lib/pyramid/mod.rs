@@ -75,6 +75,8 @@ pub struct SensorInputs {
     /// A radiance map on the database grid, W·m⁻²·sr⁻¹ (`dbms thermal --radiance-out`), as
     /// `radiance`.
     pub radiance: Option<PathBuf>,
+    /// Light points (GeoJSON, [`crate::lights`]) for the header's `lights`.
+    pub lights: Option<PathBuf>,
 }
 
 impl SensorInputs {
@@ -92,9 +94,9 @@ impl SensorInputs {
             .collect()
     }
 
-    /// Whether any sensor layer is asked for.
+    /// Whether any sensor layer or the light points are asked for.
     pub fn any(&self) -> bool {
-        !self.layers().is_empty()
+        !self.layers().is_empty() || self.lights.is_some()
     }
 
     /// The inputs as the stage records them: each map's path and SHA-256.
@@ -115,6 +117,7 @@ impl SensorInputs {
             "material": material,
             "temperature": file(&self.temperature)?,
             "radiance": file(&self.radiance)?,
+            "lights": file(&self.lights)?,
         }))
     }
 }
@@ -354,6 +357,12 @@ fn build_product(
         crate::material::layer::colour_rows(db)?,
     );
     let sensor = SensorReaders::open(db, &opts.sensor)?;
+    if let Some(path) = &opts.sensor.lights {
+        info.lights = crate::lights::read(path, &terrain)?;
+    }
+    if let Some((_, counted)) = &sensor.material {
+        info.materials = sensor::attributes(&crate::material::layer::table_of(db)?, counted);
+    }
     seconds.read = lap();
 
     // What stands on the terrain needs it only under itself: those cells are sampled first.
@@ -373,7 +382,8 @@ fn build_product(
     let raised = [buildings, objects, all];
     let (effects, effects_record) =
         sun_effects(db, opts, &terrain, &colour, raised, &shared.effects)?;
-    let effects_record = effects_record.with_layers(&opts.sensor.layers());
+    let effects_record =
+        effects_record.with_layers(&opts.sensor.layers(), opts.sensor.lights.is_some());
     reused.extend(shared.effects.take_reused());
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
@@ -598,7 +608,7 @@ fn incremental_build(
     let counts = effects_run.then(|| total.effects.unwrap_or_default());
     let effects_record =
         shade::EffectsRecord::decided(opts.sun, photo_sun, opts.shadow_factor, &seen, counts)
-            .with_layers(&opts.sensor.layers());
+            .with_layers(&opts.sensor.layers(), opts.sensor.lights.is_some());
     let mut info = info.clone();
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();

@@ -9,8 +9,9 @@
 //! cell with no valid level-0 cell is nodata.
 
 use crate::error::Result;
+use crate::material::table::MaterialTable;
 use crate::raster::RowSource;
-use crate::tiles::{SensorCells, SensorLayer, MATERIAL_NODATA};
+use crate::tiles::{MaterialAttributes, SensorCells, SensorLayer, MATERIAL_NODATA};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -61,6 +62,27 @@ impl Counted {
         }
         best.1
     }
+}
+
+/// What the sensor views need of each material `counted` holds (0 left out), from `table`:
+/// the NIR reflectance, or the solar albedo where the table has none (and `nir_from` says so).
+/// An id the table lacks gets neither: it is left out, and the view draws it as unclassified.
+pub fn attributes(table: &MaterialTable, counted: &Counted) -> Vec<MaterialAttributes> {
+    let known = counted.ids.iter().filter_map(|&id| table.by_id(id));
+    known
+        .map(|m| {
+            let (nir_reflectance, nir_from) = match m.nir_reflectance {
+                Some(r) => (r, "nir_reflectance"),
+                None => (m.solar_albedo, "solar_albedo"),
+            };
+            MaterialAttributes {
+                id: m.id,
+                name: m.name.clone(),
+                nir_reflectance,
+                nir_from: nir_from.into(),
+            }
+        })
+        .collect()
 }
 
 /// One sensor layer of a band of rows of one level.

@@ -482,11 +482,15 @@ pub enum Outcome {
 }
 
 impl EffectsRecord {
-    /// This record with the sensor layers `asked` for (in the tile set's order) among the
-    /// applied, after the sun's effects, and the others among the skipped
-    /// ([`effects::decide_layers`]).
-    pub fn with_layers(mut self, asked: &[crate::tiles::SensorLayer]) -> EffectsRecord {
-        let (made, not) = effects::decide_layers(asked);
+    /// This record with the sensor layers `asked` for (in the tile set's order) and the light
+    /// points when there are `lights` among the applied, after the sun's effects, and the
+    /// others among the skipped ([`effects::decide_layers`]).
+    pub fn with_layers(
+        mut self,
+        asked: &[crate::tiles::SensorLayer],
+        lights: bool,
+    ) -> EffectsRecord {
+        let (made, not) = effects::decide_layers(asked, lights);
         self.applied.extend(made);
         self.skipped.extend(not);
         self

@@ -6,7 +6,7 @@
 //! could not recompute. The header JSON *is* this struct serialised (schema:
 //! `schemas/tiles-header.schema.json`).
 
-use super::sensor::SensorLayer;
+use super::sensor::{LightPoint, MaterialAttributes, SensorLayer};
 use crate::error::{Error, Result};
 use crate::grid::{GeoTransform, Grid};
 use serde::{Deserialize, Serialize};
@@ -166,6 +166,13 @@ pub struct TileSetInfo {
     pub alignment: u64,
     /// The shading and shadow effects baked into the colours (free-form object the pyramid fills).
     pub effects: serde_json::Value,
+    /// Light points for the night sensors; absent (empty) unless the pyramid was given some.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<LightPoint>,
+    /// What the sensor views need of each material of the `material` layer; absent (empty)
+    /// without that layer.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub materials: Vec<MaterialAttributes>,
 }
 
 impl TileSetInfo {
@@ -209,6 +216,8 @@ impl TileSetInfo {
             page_order: PageOrder::CoarseFirstMorton,
             alignment: PAGE_ALIGN,
             effects: serde_json::json!({}),
+            lights: Vec::new(),
+            materials: Vec::new(),
         })
     }
 
@@ -279,6 +288,8 @@ impl TileSetInfo {
         if !self.effects.is_object() {
             return Err(Error::msg("header's effects is not a JSON object"));
         }
+        super::sensor::check_attributes(&self.lights, &self.materials)
+            .map_err(|e| Error::msg(format!("header: {e}")))?;
         Ok(())
     }
 

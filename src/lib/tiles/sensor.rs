@@ -7,6 +7,7 @@
 //! (beyond the level's edge) hold the layer's nodata, like the standard layers.
 
 use super::info::LayerInfo;
+use serde::{Deserialize, Serialize};
 
 /// A per-cell layer for sensors other than the visual one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -139,6 +140,66 @@ impl SensorCells {
             SensorCells::Values(_) => None,
         }
     }
+}
+
+/// A light point the night sensors show (runway and street lights), in the tile header.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LightPoint {
+    /// Easting, CRS units.
+    pub x: f64,
+    /// Northing, CRS units.
+    pub y: f64,
+    /// Height of the lamp, metres (the terrain's plus its height above it).
+    pub z: f64,
+    /// Luminous intensity, candela, the same in every direction.
+    pub intensity_cd: f64,
+    /// Colour, sRGB.
+    pub colour: [u8; 3],
+}
+
+/// What the sensor views need to know of one material of the `material` layer, in the tile
+/// header: the tile set is drawn without the database's material table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MaterialAttributes {
+    /// The id the `material` layer holds.
+    pub id: u8,
+    /// The material's name in the table.
+    pub name: String,
+    /// Reflectance in the 0.6–0.9 µm band of image intensifiers, dimensionless.
+    pub nir_reflectance: f64,
+    /// Where `nir_reflectance` comes from: `"nir_reflectance"` (the table's published value) or
+    /// `"solar_albedo"` (the table has none for the material: its broadband albedo stands in).
+    pub nir_from: String,
+}
+
+/// Check the header's light points and material attributes: finite positions, positive
+/// intensities, material ids unique and neither 0 nor [`MATERIAL_NODATA`], reflectances in
+/// [0, 1]. `Err` says what is wrong.
+pub(crate) fn check_attributes(
+    lights: &[LightPoint],
+    materials: &[MaterialAttributes],
+) -> Result<(), String> {
+    for (k, l) in lights.iter().enumerate() {
+        if ![l.x, l.y, l.z].iter().all(|v| v.is_finite())
+            || !(l.intensity_cd > 0.0 && l.intensity_cd.is_finite())
+        {
+            return Err(format!(
+                "light {k} has a position that is not finite or an intensity that is not positive"
+            ));
+        }
+    }
+    for (k, m) in materials.iter().enumerate() {
+        if m.id == 0 || m.id == MATERIAL_NODATA || materials[..k].iter().any(|o| o.id == m.id) {
+            return Err(format!("material id {} is reserved or listed twice", m.id));
+        }
+        if !(0.0..=1.0).contains(&m.nir_reflectance) {
+            return Err(format!(
+                "material {} has nir_reflectance {}, expected 0 to 1",
+                m.id, m.nir_reflectance
+            ));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
