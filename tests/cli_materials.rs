@@ -535,3 +535,107 @@ fn sensor_layers_reduce_exactly_and_draw_the_infrared_view() {
     let (o, _) = render("ir.dbt", "x.png", &["--ir-range", "280,330"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("--sensor ir"));
 }
+
+/// Night vision end to end: `dbms pyramid --materials --lights` writes the materials' NIR
+/// reflectances (or their albedo, marked) and the lights, stood on the terrain, into the tile
+/// header; `dbms render --sensor nvg` at full moon draws grass (NIR-bright) brighter than the
+/// road and shows the lamp in view; it needs --time and a material layer, and says so.
+#[test]
+fn night_vision_view_with_lights() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    let d = dir.to_str().unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    ok(dbms(&["materials", "--db", d, "-q"]));
+    let lights = t.path().join("lights.geojson");
+    let (x, y) = ORIGIN;
+    let doc = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"intensity_cd": 1500, "height_m": 6},
+         "geometry": {"type": "Point", "coordinates": [x + 30.5, y - 10.5]}}]});
+    std::fs::write(&lights, doc.to_string()).unwrap();
+    let (nvg, visual) = (t.path().join("nvg.dbt"), t.path().join("visual.dbt"));
+    let (nvg_s, lights_s) = (s(&nvg), s(&lights));
+    ok(dbms(&[
+        "pyramid",
+        "--db",
+        d,
+        "--materials",
+        "--lights",
+        &lights_s,
+        "-q",
+        "-o",
+        &nvg_s,
+    ]));
+    ok(dbms(&["pyramid", "--db", d, "-q", "-o", &s(&visual)]));
+    let info = dbms::tiles::TileReader::open(&nvg, 1)
+        .unwrap()
+        .info()
+        .clone();
+    assert_eq!(info.lights.len(), 1);
+    assert_eq!(info.lights[0].z, 106.0, "100 m terrain + 6 m");
+    let grass = info.materials.iter().find(|m| m.name == "grass").unwrap();
+    assert_eq!(
+        (grass.nir_from.as_str(), grass.nir_reflectance),
+        ("nir_reflectance", 0.31)
+    );
+    assert!(info.effects["applied"].to_string().contains("light_points"));
+    let schema = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/schemas/tiles-header.schema.json"
+    );
+    let schema: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(schema).unwrap()).unwrap();
+    let header = serde_json::to_value(&info).unwrap();
+    let errors: Vec<String> = jsonschema::validator_for(&schema)
+        .unwrap()
+        .iter_errors(&header)
+        .map(|e| e.to_string())
+        .collect();
+    assert!(errors.is_empty(), "{errors:?}");
+
+    // Looking east along row 10 from 5 m west of the grid, 30 m up, 45° down, at full moon
+    // (0.14 lux: above the knee, so a top's green is 255 · ρ / 0.6): the bottom row sees grass
+    // 10 m in, the centre row the east half's material 25 m in, and the lamp is in view.
+    let eye = format!("{},{},130", x - 5.0, y - 10.5);
+    let render = |tiles: &str, extra: &[&str]| {
+        let out = s(&t.path().join("v.png"));
+        let mut args = vec![
+            "render",
+            "--tiles",
+            tiles,
+            "--eye",
+            &eye,
+            "--attitude",
+            "0,-45,90",
+        ];
+        args.extend(["--size", "160x100", "--json", "-o", &out]);
+        args.extend(extra);
+        let o = dbms(&args);
+        (o, std::fs::read(&out).unwrap_or_default())
+    };
+    let full_moon = ["--sensor", "nvg", "--time", "2026-09-26T21:00:00Z"];
+    let (o, png) = render(&nvg_s, &full_moon);
+    let o = ok(o);
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["lights_drawn"], 1, "{summary}");
+    let img = image::load_from_memory(&png).unwrap().to_rgb8();
+    let green = |r: f64| (255.0 * (r / 0.6).min(1.0)).round() as u8;
+    let east = layer(&dir)[10 * 40 + 25];
+    let east = info.materials.iter().find(|m| m.id == east).unwrap();
+    assert_eq!(img.get_pixel(80, 99)[1], green(0.31), "grass");
+    assert_eq!(
+        img.get_pixel(80, 50)[1],
+        green(east.nir_reflectance),
+        "{}",
+        east.name
+    );
+    let (o, _) = render(&nvg_s, &["--sensor", "nvg"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("needs --time"));
+    let (o, _) = render(&s(&visual), &full_moon);
+    let e = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(
+        e.contains("no material layer") && e.contains("--materials"),
+        "{e}"
+    );
+}

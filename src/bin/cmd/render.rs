@@ -3,7 +3,7 @@
 use super::Ctx;
 use dbms::grid::Bounds;
 use dbms::render::flight::FlightStats;
-use dbms::render::sensor::{IrScale, Sensor};
+use dbms::render::sensor::{IrScale, NightScale, Sensor, SensorOptions};
 use dbms::render::sky::Backdrop;
 use dbms::render::{self, Attitude, RenderStats, Traversal, ViewOptions, Viewpoint};
 use dbms::tiles::TileReader;
@@ -115,6 +115,13 @@ pub struct Args {
     /// the coldest and hottest cell of the coarsest level). Fix it to compare views.
     #[arg(long, value_name = "MIN,MAX")]
     ir_range: Option<String>,
+    /// With --sensor nvg: the instant (RFC 3339 UTC), for the moon's position, phase and light.
+    #[arg(long, value_name = "RFC3339")]
+    time: Option<String>,
+    /// With --sensor nvg: atmospheric extinction for the moonlight, magnitudes per air mass
+    /// (0.172: a high site; 0.25-0.3 at sea level).
+    #[arg(long, value_name = "MAG", default_value_t = dbms::moon::DEFAULT_EXTINCTION_MAG_PER_AIRMASS)]
+    extinction: f64,
     /// Pages kept in the reader's cache (each 9·P² bytes: 590 kB at P = 256).
     #[arg(long, default_value_t = 512)]
     cache_pages: usize,
@@ -147,7 +154,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .chain(args.range_out.as_deref())
         .collect();
     dbms::io::atomic::check_outputs(&outputs, &[&args.tiles])?;
-    let (reader, backdrop) = open(&args)?;
+    let (reader, backdrop, night) = open(&args)?;
+    let mut lights_drawn = None;
     let frame = if args.top {
         let g = &reader.info().grid;
         let window = args
@@ -188,7 +196,11 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             width,
             height,
         };
-        render::render_view(&reader, &camera, &view_options(&args, backdrop))?
+        let mut frame = render::render_view(&reader, &camera, &view_options(&args, backdrop))?;
+        if let Some(night) = &night {
+            lights_drawn = Some(night.draw_lights(&mut frame, &camera, args.haze));
+        }
+        frame
     };
     frame.write(&args.output, args.range_out.as_deref())?;
     ctx.report(&Rendered {
@@ -196,6 +208,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         range_out: args.range_out,
         width: frame.width,
         height: frame.height,
+        lights_drawn,
         stats: frame.stats,
     });
     Ok(())
@@ -207,10 +220,14 @@ fn attitude(args: &Args) -> dbms::Result<Attitude> {
     Ok(Attitude { roll, pitch, yaw })
 }
 
-/// The tile file, read for `--sensor` (its pages recoloured), and the view's backdrop.
-fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop)> {
+/// The tile file, read for `--sensor` (its pages recoloured), the view's backdrop and, for
+/// night vision, its light.
+fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop, Option<NightScale>)> {
     if args.ir_range.is_some() && args.sensor != Sensor::Ir {
         return Err(Error::msg("--ir-range is for --sensor ir").fix("add --sensor ir"));
+    }
+    if args.time.is_some() && args.sensor != Sensor::Nvg {
+        return Err(Error::msg("--time is for --sensor nvg").fix("add --sensor nvg"));
     }
     let reader = TileReader::open(&args.tiles, args.cache_pages)?;
     let ir_range = match &args.ir_range {
@@ -220,12 +237,15 @@ fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop)> {
         }
         None => None,
     };
-    Ok(
-        match render::sensor::view(args.sensor, &reader, ir_range)? {
-            Some((filter, backdrop)) => (reader.with_filter(filter), backdrop),
-            None => (reader, Backdrop::Daylight),
-        },
-    )
+    let opts = SensorOptions {
+        ir_range,
+        time: args.time.clone(),
+        extinction_mag_per_airmass: args.extinction,
+    };
+    Ok(match render::sensor::view(args.sensor, &reader, &opts)? {
+        Some(v) => (reader.with_filter(v.filter), v.backdrop, v.night),
+        None => (reader, Backdrop::Daylight, None),
+    })
 }
 
 fn view_options(args: &Args, backdrop: Backdrop) -> ViewOptions {
@@ -260,7 +280,7 @@ fn fly(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         fixed_heading: args.fixed_heading,
     };
     let viewpoints = render::path::viewpoints(&waypoints, &flight, args.fov, width, height)?;
-    let (reader, backdrop) = open(&args)?;
+    let (reader, backdrop, _) = open(&args)?;
     let progress = ctx.progress(viewpoints.len() as u64, "frames");
     let stats = render::flight::fly(
         &reader,
@@ -288,6 +308,9 @@ struct Rendered {
     range_out: Option<PathBuf>,
     width: usize,
     height: usize,
+    /// With --sensor nvg: the light points drawn (the others are hidden or out of view).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    lights_drawn: Option<usize>,
     stats: RenderStats,
 }
 
@@ -308,7 +331,11 @@ impl std::fmt::Display for Rendered {
             s.reader.pages_read,
             s.reader.bytes_read,
             s.reader.cache_hits
-        )
+        )?;
+        match self.lights_drawn {
+            Some(n) => write!(f, "; {n} light points drawn"),
+            None => Ok(()),
+        }
     }
 }
 

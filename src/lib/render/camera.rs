@@ -161,6 +161,22 @@ impl Basis {
         (1.0 - 2.0 * y / self.height) * self.half_h
     }
 
+    /// Image point `(x, y)` (pixels from the top-left corner, as [`Basis::through`] takes
+    /// them) where the world direction `d` from the eye meets the image plane; `None` when `d`
+    /// does not point ahead of the camera.
+    pub fn project(&self, d: [f64; 3]) -> Option<(f64, f64)> {
+        let dot = |a: [f64; 3]| a[0] * d[0] + a[1] * d[1] + a[2] * d[2];
+        let f = dot(self.forward);
+        if !(f > 0.0) {
+            return None;
+        }
+        let (x, y) = (dot(self.right) / f, dot(self.up) / f);
+        Some((
+            (x / self.half_w + 1.0) * self.width / 2.0,
+            (1.0 - y / self.half_h) * self.height / 2.0,
+        ))
+    }
+
     /// `forward + x′·right + y′·up` ([`Basis::through`] with its terms computed once per image
     /// column and row, bit for bit the same).
     #[inline]
@@ -220,6 +236,26 @@ mod tests {
         // Looking north, rolled right wing down: the right-hand pixel column looks lower.
         let b = cam(20.0, 0.0, 0.0).basis();
         assert!(b.direction(2, 1)[2] < 0.0 && b.direction(0, 1)[2] > 0.0);
+    }
+
+    #[test]
+    fn project_inverts_through_and_refuses_what_is_behind() {
+        for (roll, pitch, yaw) in [(0.0, 0.0, 0.0), (10.0, -12.0, 40.0), (-5.0, 30.0, 271.0)] {
+            let b = Viewpoint {
+                eye: [0.0; 3],
+                attitude: Attitude { roll, pitch, yaw },
+                hfov: 60.0,
+                width: 640,
+                height: 400,
+            }
+            .basis();
+            for (x, y) in [(0.0, 0.0), (320.0, 200.0), (639.5, 12.25), (17.0, 399.0)] {
+                let d = b.through(x, y).map(|c| c * 37.0);
+                let (px, py) = b.project(d).unwrap();
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{px} {py}");
+                assert_eq!(b.project(d.map(|c| -c)), None);
+            }
+        }
     }
 
     #[test]

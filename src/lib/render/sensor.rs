@@ -5,12 +5,18 @@
 //! so the stepping, coherence and level selection of the visual view run unchanged and the
 //! frames of two sensors have the same range image. The infrared view draws each cell's
 //! temperature white-hot: [`IrScale::grey`] maps `min_k` to black and `max_k` to white,
-//! linearly, clamped; a cell with a surface but no temperature (unclassified) is dark red, as in
-//! `dbms thermal`'s preview; the voxel runs of a partial cell take its grey.
+//! linearly, clamped. The night-vision view draws each cell's NIR reflectance under the moon
+//! and the night sky through an image intensifier's automatic brightness control
+//! ([`NightScale`]), then the light points with their halos over the frame
+//! ([`NightScale::draw_lights`]). A cell with a surface but no attribute for the sensor
+//! (unclassified) is dark red in both, as in `dbms thermal`'s preview; the voxel runs of a
+//! partial cell take its colour.
 
 use super::sky::Backdrop;
+use super::{Frame, Viewpoint};
+use crate::choice::Choice;
 use crate::error::{Error, Result};
-use crate::tiles::{Page, PageFilter, SensorLayer, TileReader};
+use crate::tiles::{LightPoint, Page, PageFilter, SensorLayer, TileReader};
 use crate::voxel::columns::{PageColumns, Run};
 use std::sync::Arc;
 
@@ -23,11 +29,35 @@ crate::choice! {
         /// Thermal infrared, white-hot: the tile set's `temperature` layer (build it with
         /// `dbms pyramid --temperature`).
         Ir = "ir",
+        /// Night vision at --time: the `material` layer's NIR reflectance under the moon and
+        /// the night sky, and the header's light points (`dbms pyramid --materials --lights`).
+        Nvg = "nvg",
     }
 }
 
-/// Colour of a cell that has a surface but no temperature (an unclassified cell).
-pub const NO_TEMPERATURE: [u8; 4] = [96, 0, 0, 255];
+/// Colour of a cell that has a surface but no attribute for the sensor (an unclassified cell).
+pub const NO_ATTRIBUTE: [u8; 4] = [96, 0, 0, 255];
+
+/// What a sensor view is drawn with, besides the tile set.
+#[derive(Debug, Clone, Default)]
+pub struct SensorOptions {
+    /// The infrared scale (default: [`IrScale::of_tiles`]).
+    pub ir_range: Option<IrScale>,
+    /// The night-vision view's instant, RFC 3339 (required for it).
+    pub time: Option<String>,
+    /// Atmospheric extinction for the moonlight, magnitudes per air mass.
+    pub extinction_mag_per_airmass: f64,
+}
+
+/// How a sensor view draws a tile set.
+pub struct SensorView {
+    /// Recolours every page as it is read.
+    pub filter: PageFilter,
+    /// The sky and haze.
+    pub backdrop: Backdrop,
+    /// The night-vision view's light and display (light points drawn over the frame).
+    pub night: Option<NightScale>,
+}
 
 /// How temperatures map to grey in the infrared view.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,10 +108,10 @@ impl IrScale {
         IrScale::new(lo, hi)
     }
 
-    /// The white-hot grey of temperature `t` (kelvin); [`NO_TEMPERATURE`] for NaN.
+    /// The white-hot grey of temperature `t` (kelvin); [`NO_ATTRIBUTE`] for NaN.
     pub fn grey(&self, t: f32) -> [u8; 4] {
         if t.is_nan() {
-            return NO_TEMPERATURE;
+            return NO_ATTRIBUTE;
         }
         let x = (f64::from(t) - self.min_k) / (self.max_k - self.min_k);
         let g = super::sky::channel(255.0 * x.clamp(0.0, 1.0));
@@ -89,46 +119,89 @@ impl IrScale {
     }
 }
 
-/// The page filter and backdrop that draw `reader`'s tile set for `sensor`; `None` for the
-/// visual view (the pages as stored). `ir_range` fixes the infrared scale (else
-/// [`IrScale::of_tiles`]). Errors when the tile set lacks the layer the sensor needs.
+/// How to draw `reader`'s tile set for `sensor`; `None` for the visual view (the pages as
+/// stored). Errors when the tile set lacks what the sensor needs, naming the pyramid option.
 pub fn view(
     sensor: Sensor,
     reader: &TileReader,
-    ir_range: Option<IrScale>,
-) -> Result<Option<(PageFilter, Backdrop)>> {
+    opts: &SensorOptions,
+) -> Result<Option<SensorView>> {
+    let info = reader.info();
+    let needs = |layer: SensorLayer, option: &str| -> Result<()> {
+        match info.sensor_layers().contains(&layer) {
+            true => Ok(()),
+            false => Err(Error::file(
+                reader.path(),
+                format!(
+                    "has no {} layer for --sensor {}",
+                    layer.name(),
+                    sensor.name()
+                ),
+            )
+            .fix(format!("build the tile set with dbms pyramid {option}"))),
+        }
+    };
     match sensor {
         Sensor::Visual => Ok(None),
         Sensor::Ir => {
-            if !reader
-                .info()
-                .sensor_layers()
-                .contains(&SensorLayer::Temperature)
-            {
-                return Err(Error::file(reader.path(), "has no temperature layer for --sensor ir")
-                    .fix("build the tile set with dbms pyramid --temperature TEMP.tif (TEMP.tif from dbms thermal)"));
-            }
-            let scale = match ir_range {
+            needs(
+                SensorLayer::Temperature,
+                "--temperature TEMP.tif (TEMP.tif from dbms thermal)",
+            )?;
+            let scale = match opts.ir_range {
                 Some(s) => s,
                 None => IrScale::of_tiles(reader)?,
             };
-            let filter: PageFilter = Arc::new(move |page: &mut Page| recolour_ir(page, &scale));
-            Ok(Some((filter, Backdrop::infrared(&scale))))
+            let grey = move |t: f32| scale.grey(t);
+            Ok(Some(SensorView {
+                filter: Arc::new(move |page: &mut Page| {
+                    let Some(t) = page
+                        .sensor(SensorLayer::Temperature)
+                        .and_then(|c| c.values())
+                    else {
+                        return;
+                    };
+                    let colours: Vec<[u8; 4]> = t.iter().map(|&t| grey(t)).collect();
+                    recolour(page, &colours);
+                }),
+                backdrop: Backdrop::infrared(&scale),
+                night: None,
+            }))
+        }
+        Sensor::Nvg => {
+            needs(SensorLayer::Material, "--materials")?;
+            let time = opts.time.as_deref().ok_or_else(|| {
+                Error::msg("--sensor nvg needs --time: the moon's light depends on it")
+                    .fix("give the instant, e.g. --time 2026-09-26T21:00:00Z")
+            })?;
+            let night = NightScale::at(reader, time, opts.extinction_mag_per_airmass)?;
+            let mut reflectance = [f64::NAN; 256];
+            for m in &info.materials {
+                reflectance[m.id as usize] = m.nir_reflectance;
+            }
+            let scale = night.clone();
+            Ok(Some(SensorView {
+                filter: Arc::new(move |page: &mut Page| {
+                    let Some(ids) = page.sensor(SensorLayer::Material).and_then(|c| c.ids()) else {
+                        return;
+                    };
+                    let colours: Vec<[u8; 4]> = ids
+                        .iter()
+                        .map(|&id| scale.cell(reflectance[id as usize]))
+                        .collect();
+                    recolour(page, &colours);
+                }),
+                backdrop: night.backdrop(),
+                night: Some(night),
+            }))
         }
     }
 }
 
-/// Draw `page`'s cells (and its voxel runs) in their temperature's grey; cells without a
-/// surface (alpha 0) stay nodata.
-fn recolour_ir(page: &mut Page, scale: &IrScale) {
-    let Some(t) = page
-        .sensor(SensorLayer::Temperature)
-        .and_then(|c| c.values())
-    else {
-        return;
-    };
-    let grey: Vec<[u8; 4]> = t.iter().map(|&t| scale.grey(t)).collect();
-    for (c, g) in page.colour.iter_mut().zip(&grey) {
+/// Draw `page`'s cells in `colours` (one per cell) and its voxel runs in their cell's; cells
+/// without a surface (alpha 0) stay nodata.
+fn recolour(page: &mut Page, colours: &[[u8; 4]]) {
+    for (c, g) in page.colour.iter_mut().zip(colours) {
         if c[3] != 0 {
             *c = *g;
         }
@@ -145,7 +218,7 @@ fn recolour_ir(page: &mut Page, scale: &IrScale) {
             let runs: Vec<Run> = runs
                 .iter()
                 .map(|r| Run {
-                    colour: grey[cell],
+                    colour: colours[cell],
                     ..*r
                 })
                 .collect();
@@ -156,9 +229,269 @@ fn recolour_ir(page: &mut Page, scale: &IrScale) {
     }
 }
 
+/// The reflectance an intensifier's automatic brightness control draws white, at or above
+/// [`KNEE_LUX`]: a display choice, not a measurement.
+pub const WHITE_REFLECTANCE: f64 = 0.6;
+/// Scene illuminance, lux, below which the automatic brightness control has no gain left and
+/// the picture darkens in proportion (a display choice: image intensifiers hold their output
+/// down to about a clear starlit night).
+pub const KNEE_LUX: f64 = 1e-3;
+/// The green of the intensifier's phosphor, as fractions of a grey level (a display choice).
+pub const PHOSPHOR: [f64; 3] = [0.45, 1.0, 0.45];
+/// Largest halo radius around a light, as a fraction of the image width (a display choice).
+pub const HALO_MAX_FRACTION: f64 = 0.02;
+
+/// The night-vision view's light and display: the illuminance on the ground at the time, and
+/// how a reflectance under it is drawn.
+#[derive(Debug, Clone)]
+pub struct NightScale {
+    /// Moonlight on a horizontal surface, lux ([`crate::moon`]); 0 with the moon down.
+    pub moon_lux: f64,
+    /// The moonless night sky's illuminance, lux ([`crate::moon::night_sky_lux`]).
+    pub sky_lux: f64,
+    /// The tile set's light points.
+    pub lights: Vec<LightPoint>,
+}
+
+impl NightScale {
+    /// The light at the centre of `reader`'s grid at `time`.
+    pub fn at(reader: &TileReader, time: &str, extinction: f64) -> Result<NightScale> {
+        let g = &reader.info().grid;
+        let (cx, cy) = g.centre();
+        let (latitude_deg, longitude_deg) = g.crs.to_lat_lon(cx, cy).ok_or_else(|| {
+            Error::file(
+                reader.path(),
+                format!(
+                    "cannot place the grid centre on the globe ({})",
+                    g.crs.name()
+                ),
+            )
+            .fix("build the tile set from a database in a CRS dbms knows (UTM)")
+        })?;
+        let observer = crate::sun::Observer {
+            latitude_deg,
+            longitude_deg,
+            height_m: 0.0,
+        };
+        let utc = crate::sun::parse_time(time)?;
+        let moon = crate::moon::moon_position(&observer, utc, &Default::default())?;
+        Ok(NightScale {
+            moon_lux: moon.light(extinction)?.horizontal_lux,
+            sky_lux: crate::moon::night_sky_lux(),
+            lights: reader.info().lights.clone(),
+        })
+    }
+
+    /// Illuminance on a horizontal surface, lux.
+    pub fn illuminance_lux(&self) -> f64 {
+        self.moon_lux + self.sky_lux
+    }
+
+    /// The brightness (0 black, 1 white) of a Lambertian surface of reflectance `r` under
+    /// this light: `r·E / (WHITE_REFLECTANCE · max(E, KNEE_LUX))`, clamped.
+    pub fn brightness(&self, r: f64) -> f64 {
+        let e = self.illuminance_lux();
+        (r * e / (WHITE_REFLECTANCE * e.max(KNEE_LUX))).clamp(0.0, 1.0)
+    }
+
+    /// A cell of NIR reflectance `r` in the phosphor's green; [`NO_ATTRIBUTE`] for NaN.
+    fn cell(&self, r: f64) -> [u8; 4] {
+        if r.is_nan() {
+            return NO_ATTRIBUTE;
+        }
+        let [red, green, blue] = phosphor(self.brightness(r));
+        [red, green, blue, 255]
+    }
+
+    /// The night sky (its own luminance, the natural sky's zenith, compared with a white
+    /// surface's: a moonless sky is brighter than the ground under it) and haze toward it.
+    fn backdrop(&self) -> Backdrop {
+        let sky = phosphor(self.brightness(self.sky_lux / self.illuminance_lux()));
+        Backdrop::Flat {
+            sky,
+            haze: sky.map(f64::from),
+        }
+    }
+
+    /// Draw the light points `camera` sees in `frame`: each one whose pixel's range reaches it
+    /// (within 2 m or 5 % of its distance) adds a halo around its image point. The light's
+    /// irradiance at the eye, `I / d²` (thinned by `exp(−d / visibility)` with haze), is
+    /// compared with a white surface's through one pixel, `WHITE_REFLECTANCE · max(E,
+    /// KNEE_LUX) / π · Ω_pixel`: that ratio `q` gives the halo's brightness at `r` pixels,
+    /// `min(1, q / (1 + r)²)`, out to the radius `R` where it falls to one grey level or to
+    /// [`HALO_MAX_FRACTION`] of the width, whichever is less, faded by `(1 − (r / R)²)²` so
+    /// the halo has no hard rim. Returns how many lights were drawn.
+    pub fn draw_lights(
+        &self,
+        frame: &mut Frame,
+        camera: &Viewpoint,
+        visibility: Option<f64>,
+    ) -> usize {
+        let basis = camera.basis();
+        let (w, h) = (frame.width as f64, frame.height as f64);
+        let pixel_sr = (2.0 * (camera.hfov.to_radians() / 2.0).tan() / w).powi(2);
+        let white = WHITE_REFLECTANCE * self.illuminance_lux().max(KNEE_LUX) / std::f64::consts::PI
+            * pixel_sr;
+        let halo_max = (HALO_MAX_FRACTION * w).max(1.0);
+        let mut drawn = 0;
+        for l in &self.lights {
+            let d = [
+                l.x - camera.eye[0],
+                l.y - camera.eye[1],
+                l.z - camera.eye[2],
+            ];
+            let Some((x, y)) = basis.project(d) else {
+                continue;
+            };
+            if !(0.0..w).contains(&x) || !(0.0..h).contains(&y) {
+                continue;
+            }
+            let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let at = y as usize * frame.width + x as usize;
+            if f64::from(frame.range[at]) < dist - (0.05 * dist).max(2.0) {
+                continue; // behind something
+            }
+            let haze = visibility.map_or(1.0, |v| (-dist / v).exp());
+            let q = l.intensity_cd / (dist * dist) * haze / white;
+            let radius = ((255.0 * q).sqrt() - 1.0).clamp(0.0, halo_max);
+            drawn += 1;
+            let (i0, i1) = (
+                (x - radius).floor().max(0.0),
+                (x + radius).ceil().min(w - 1.0),
+            );
+            let (j0, j1) = (
+                (y - radius).floor().max(0.0),
+                (y + radius).ceil().min(h - 1.0),
+            );
+            for j in j0 as usize..=j1 as usize {
+                for i in i0 as usize..=i1 as usize {
+                    let r = ((i as f64 + 0.5 - x).powi(2) + (j as f64 + 0.5 - y).powi(2)).sqrt();
+                    if r > radius + 0.5 {
+                        continue;
+                    }
+                    let fade = (1.0 - (r / (radius + 0.5)).powi(2)).powi(2);
+                    let add = (q / (1.0 + r).powi(2)).min(1.0) * fade;
+                    let px = &mut frame.rgb[j * frame.width + i];
+                    for (c, t) in px.iter_mut().zip([0.8, 1.0, 0.8]) {
+                        *c = super::sky::channel(f64::from(*c) + 255.0 * add * t);
+                    }
+                }
+            }
+        }
+        drawn
+    }
+}
+
+/// Brightness `b` (0–1) in the phosphor's green.
+fn phosphor(b: f64) -> [u8; 3] {
+    PHOSPHOR.map(|t| super::sky::channel(255.0 * b * t))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::{Attitude, RenderStats};
+    use crate::tiles::ReaderStats;
+
+    /// A 64 × 48 frame looking north from the origin, everything at `range` metres.
+    fn frame(range: f32) -> (Frame, Viewpoint) {
+        let camera = Viewpoint {
+            eye: [0.0; 3],
+            attitude: Attitude {
+                roll: 0.0,
+                pitch: 0.0,
+                yaw: 0.0,
+            },
+            hfov: 60.0,
+            width: 64,
+            height: 48,
+        };
+        let stats = RenderStats {
+            rays: 0,
+            hits: 0,
+            cells_stepped: 0,
+            pages_touched: 0,
+            reader: ReaderStats {
+                pages_read: 0,
+                bytes_read: 0,
+                cache_hits: 0,
+            },
+            seconds: 0.0,
+            rays_per_second: 0.0,
+        };
+        let n = 64 * 48;
+        let frame = Frame {
+            width: 64,
+            height: 48,
+            rgb: vec![[0; 3]; n],
+            range: vec![range; n],
+            stats,
+        };
+        (frame, camera)
+    }
+
+    fn night(lights: Vec<LightPoint>) -> NightScale {
+        NightScale {
+            moon_lux: 0.1,
+            sky_lux: crate::moon::night_sky_lux(),
+            lights,
+        }
+    }
+
+    fn lamp(x: f64, y: f64) -> LightPoint {
+        LightPoint {
+            x,
+            y,
+            z: 0.0,
+            intensity_cd: 1500.0,
+            colour: [255, 255, 255],
+        }
+    }
+
+    #[test]
+    fn a_light_shows_where_nothing_nearer_hides_it_with_a_halo_brightest_at_its_centre() {
+        // 100 m ahead, on the view's axis: the centre of the frame.
+        let n = night(vec![lamp(0.0, 100.0)]);
+        let (mut open, camera) = frame(f32::INFINITY);
+        assert_eq!(n.draw_lights(&mut open, &camera, None), 1);
+        let at = |f: &Frame, i: usize, j: usize| f.rgb[j * 64 + i][1];
+        // The halo's radius is 2 % of the 64-pixel width: the four pixels at the lamp's image
+        // point (a pixel corner) are lit, fading outward; nothing farther.
+        assert!(at(&open, 32, 24) > 100 && at(&open, 31, 23) == at(&open, 32, 24));
+        assert!(at(&open, 33, 24) < at(&open, 32, 24));
+        assert_eq!(
+            at(&open, 35, 24),
+            0,
+            "the halo stays within 2 % of the width"
+        );
+        // A wall 50 m ahead hides it; the ground just behind the lamp does not.
+        let (mut walled, _) = frame(50.0);
+        assert_eq!(n.draw_lights(&mut walled, &camera, None), 0);
+        assert!(walled.rgb.iter().all(|p| *p == [0; 3]));
+        let (mut ground, _) = frame(99.0);
+        assert_eq!(n.draw_lights(&mut ground, &camera, None), 1);
+        // Behind the eye, or outside the field: not drawn.
+        let away = night(vec![lamp(0.0, -100.0), lamp(100.0, 10.0)]);
+        let (mut f, _) = frame(f32::INFINITY);
+        assert_eq!(away.draw_lights(&mut f, &camera, None), 0);
+    }
+
+    #[test]
+    fn brightness_follows_reflectance_and_darkens_only_below_the_knee() {
+        let full = night(vec![]);
+        assert!((full.brightness(0.3) - 0.5).abs() < 1e-12);
+        assert_eq!(full.brightness(0.9), 1.0);
+        let dark = NightScale {
+            moon_lux: 0.0,
+            sky_lux: KNEE_LUX / 4.0,
+            lights: vec![],
+        };
+        assert!((dark.brightness(0.3) - 0.125).abs() < 1e-12);
+        // A moonless sky outshines the ground under it; a moonlit one does not.
+        let sky = |n: &NightScale| n.brightness(n.sky_lux / n.illuminance_lux());
+        assert!(sky(&dark) > dark.brightness(0.6) - 1e-12);
+        assert!(sky(&full) < full.brightness(0.05));
+    }
 
     #[test]
     fn grey_is_linear_clamped_and_marks_missing_temperatures() {
@@ -168,7 +501,7 @@ mod tests {
         assert_eq!(s.grey(300.0), [128, 128, 128, 255]); // 127.5 rounds half away from zero
         assert_eq!(s.grey(200.0), [0, 0, 0, 255]);
         assert_eq!(s.grey(400.0), [255, 255, 255, 255]);
-        assert_eq!(s.grey(f32::NAN), NO_TEMPERATURE);
+        assert_eq!(s.grey(f32::NAN), NO_ATTRIBUTE);
         for (a, b) in [(300.0, 300.0), (310.0, 290.0), (f64::NAN, 300.0)] {
             let e = IrScale::new(a, b).unwrap_err().to_string();
             assert!(e.contains("--ir-range"), "{e}");
