@@ -248,6 +248,32 @@ impl Elevation {
     }
 }
 
+/// The unit upward normal `[east, north, up]` of the height field `heights` (metres, NaN
+/// nodata, row-major on `grid`) at cell `i`: the slope along each axis from the neighbours
+/// before and after the cell, central where both are valid, one-sided where one is, level where
+/// neither is (nor off the grid).
+pub fn surface_normal(heights: &[f32], grid: &Grid, i: usize) -> [f64; 3] {
+    let (w, h) = (grid.width, grid.height);
+    let (col, row) = (i % w, i / w);
+    let z = |c: usize, r: usize| Some(f64::from(heights[r * w + c])).filter(|v| v.is_finite());
+    let here = f64::from(heights[i]);
+    let slope = |before: Option<f64>, after: Option<f64>, step: f64| match (before, after) {
+        (Some(a), Some(b)) => (b - a) / (2.0 * step),
+        (Some(a), None) => (here - a) / step,
+        (None, Some(b)) => (b - here) / step,
+        (None, None) => 0.0,
+    };
+    let west = col.checked_sub(1).and_then(|c| z(c, row));
+    let east = (col + 1 < w).then(|| z(col + 1, row)).flatten();
+    let up = row.checked_sub(1).and_then(|r| z(col, r));
+    let down = (row + 1 < h).then(|| z(col, row + 1)).flatten();
+    // World x grows with the column by cell_x, world y with the row by cell_y (< 0 north-up).
+    let dzdx = slope(west, east, grid.transform.cell_x);
+    let dzdy = slope(up, down, grid.transform.cell_y);
+    let norm = (dzdx * dzdx + dzdy * dzdy + 1.0).sqrt();
+    [-dzdx / norm, -dzdy / norm, 1.0 / norm]
+}
+
 impl Colour {
     /// Number of nodata (alpha 0) cells.
     pub fn nodata_count(&self) -> usize {

@@ -364,37 +364,14 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     let heights = terrain.read_rows(0, grid.height)?.into_owned();
     let mut on_top = vec![false; grid.len()];
     raised.cells().iter().for_each(|c| on_top[c.index] = true);
-    let (cx, cy) = (grid.transform.cell_x, grid.transform.cell_y);
-    let (w, h) = (grid.width, grid.height);
-    // The slope along one axis, per metre of its world coordinate, from the cell's height and
-    // its neighbours' before and after it on the axis (`step` metres apart, signed): central
-    // where both are finite, one-sided where one is, level where neither is.
-    let slope =
-        |before: Option<f64>, here: f64, after: Option<f64>, step: f64| match (before, after) {
-            (Some(a), Some(b)) => (b - a) / (2.0 * step),
-            (Some(a), None) => (here - a) / step,
-            (None, Some(b)) => (b - here) / step,
-            (None, None) => 0.0,
-        };
     // A valid cell's unit normal's east and north components, quantised to 0.01 (flat on
     // roofs and objects' tops).
     let normal = |i: usize| -> [i16; 2] {
         if on_top[i] {
             return [0, 0];
         }
-        let (col, row) = (i % w, i / w);
-        let z = |c: usize, r: usize| Some(heights[r * w + c] as f64).filter(|v| v.is_finite());
-        let here = heights[i] as f64;
-        let west = col.checked_sub(1).and_then(|c| z(c, row));
-        let east = (col + 1 < w).then(|| z(col + 1, row)).flatten();
-        let up = row.checked_sub(1).and_then(|r| z(col, r));
-        let down = (row + 1 < h).then(|| z(col, row + 1)).flatten();
-        // World x grows with the column by cell_x, world y with the row by cell_y (< 0 north-up).
-        let dzdx = slope(west, here, east, cx);
-        let dzdy = slope(up, here, down, cy);
-        let norm = (dzdx * dzdx + dzdy * dzdy + 1.0).sqrt();
-        let q = |v: f64| (v / norm * 100.0).round() as i16;
-        [q(-dzdx), q(-dzdy)]
+        let [e, n, _] = crate::raster::surface_normal(&heights, &grid, i);
+        [e, n].map(|v| (v * 100.0).round() as i16)
     };
 
     // Cells into clusters.
