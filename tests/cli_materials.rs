@@ -639,3 +639,95 @@ fn night_vision_view_with_lights() {
         "{e}"
     );
 }
+
+/// `dbms radar` on [`database`]'s grass, road and 10 m building (cols 2..4, rows 2..4), X band,
+/// the radar to the west: level grass returns Nathanson's γ = −20 dB times cos(incidence) =
+/// sin(elevation); the ground east of the building is in radar shadow for 10 m / tan(elevation);
+/// the ground at the foot of its west wall is a dihedral; the road and the tile roof have no
+/// X-band model (NaN, listed); a ramp steeper than the radar's incidence lays over, a gentler
+/// one does not; bad requests are one-line errors.
+#[test]
+fn radar_backscatter_shadow_dihedral_and_layover() {
+    let t = tempfile::tempdir().unwrap();
+    let run = |dir: &Path, az: &str, el: &str| -> (Vec<f64>, Vec<u8>, serde_json::Value) {
+        let d = dir.to_str().unwrap();
+        let (s0, class) = (dir.join("s0.tif"), dir.join("class.tif"));
+        let o = ok(dbms(&[
+            "radar",
+            "--db",
+            d,
+            "--azimuth",
+            az,
+            "--elevation",
+            el,
+            "--band",
+            "X",
+            "--class-out",
+            class.to_str().unwrap(),
+            "-o",
+            s0.to_str().unwrap(),
+            "--json",
+        ]));
+        let s0 = dbms::io::read_raster(&s0).unwrap();
+        let c = dbms::io::read_raster(&class).unwrap();
+        let summary = serde_json::from_slice(&o.stdout).unwrap();
+        let value = |i| Some(s0.sample(i, 0)).filter(|v| Some(*v) != s0.nodata);
+        (
+            (0..s0.grid.len())
+                .map(|i| value(i).unwrap_or(f64::NAN))
+                .collect(),
+            (0..c.grid.len()).map(|i| c.sample(i, 0) as u8).collect(),
+            summary,
+        )
+    };
+    let dir = t.path().join("db");
+    database(&dir);
+    ok(dbms(&["materials", "--db", dir.to_str().unwrap(), "-q"]));
+    let (s0, class, summary) = run(&dir, "270", "45");
+    let at = |c: usize, r: usize| r * 40 + c;
+    let want = 0.01 * 45f64.to_radians().sin();
+    assert!((s0[at(10, 15)] - want).abs() < 1e-9, "{}", s0[at(10, 15)]);
+    assert_eq!(class[at(10, 15)], 1, "lit");
+    // Shadow: east of the 10 m building for 10 m (cols 4..14 of rows 2..4), not beyond.
+    assert!(
+        (4..13).all(|c| class[at(c, 3)] == 2),
+        "{:?}",
+        &class[at(0, 3)..at(20, 3)]
+    );
+    assert_eq!(class[at(15, 3)], 1);
+    assert_eq!(s0[at(6, 3)], 0.0);
+    // The foot of the west wall (col 1) is a dihedral; the roof (tile) has no model.
+    assert_eq!((class[at(1, 2)], class[at(1, 3)]), (4, 4));
+    assert_eq!(class[at(2, 2)], 6);
+    assert!(s0[at(2, 2)].is_nan());
+    let no_model = summary["no_model"].to_string();
+    assert!(no_model.contains("roof_tile"), "{summary}");
+
+    // A ramp rising 3 m per 1 m cell to the east (71.6°) faces a radar in the west: beyond a
+    // 60° incidence (elevation 30°) it lays over; within an 80° one (elevation 10°) it does not.
+    let ramp = t.path().join("ramp");
+    database_over(&ramp, 40, 20, |c, _| 100.0 + 3.0 * c as f32);
+    ok(dbms(&["materials", "--db", ramp.to_str().unwrap(), "-q"]));
+    let (_, steep, _) = run(&ramp, "270", "30");
+    assert_eq!(steep[at(10, 15)], 3, "layover");
+    let (_, gentle, _) = run(&ramp, "270", "10");
+    assert_eq!(gentle[at(10, 15)], 1, "lit");
+
+    let d = dir.to_str().unwrap();
+    for (args, want) in [
+        (vec!["--azimuth", "90", "--elevation", "0"], "elevation"),
+        (
+            vec!["--azimuth", "90", "--elevation", "30", "--band", "Q"],
+            "--band Q",
+        ),
+    ] {
+        let mut all = vec!["radar", "--db", d, "-o", "x.tif"];
+        all.extend(args);
+        let o = dbms(&all);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && e.contains(want) && e.lines().count() == 1,
+            "{e}"
+        );
+    }
+}

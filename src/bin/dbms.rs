@@ -58,6 +58,8 @@ enum Command {
     Sun(cmd::sun::Args),
     /// Surface temperature and 8–12 µm radiance of every cell at a time (thermal infrared).
     Thermal(cmd::thermal::Args),
+    /// Radar backscatter of every cell for a distant radar, with shadow, layover and dihedrals.
+    Radar(cmd::radar::Args),
     /// Describe a paged tile file; --verify checks every page's checksum.
     Tiles(cmd::tiles::Args),
 }
@@ -100,6 +102,7 @@ fn main() -> ExitCode {
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),
         Command::Sun(a) => cmd::sun::run(a, &ctx),
         Command::Thermal(a) => cmd::thermal::run(a, &ctx),
+        Command::Radar(a) => cmd::radar::run(a, &ctx),
         Command::Tiles(a) => cmd::tiles::run(a, &ctx),
     };
     match result {

@@ -37,6 +37,7 @@ pub mod moon;
 pub mod num;
 pub mod progress;
 pub mod pyramid;
+pub mod radar_map;
 pub mod raster;
 pub mod render;
 pub mod sample_scene;

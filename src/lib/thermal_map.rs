@@ -582,10 +582,7 @@ impl ThermalMap {
                 })
                 .collect();
             let g = &self.temperature_k.grid;
-            let bytes = crate::io::png::encode_rgb(g.width, g.height, &rgb)?;
-            let mut file = crate::io::atomic::AtomicFile::create(path)?;
-            std::io::Write::write_all(file.writer(), &bytes).map_err(|e| Error::io(path, e))?;
-            staged.push(file.stage()?);
+            staged.push(crate::io::png::stage_rgb(path, g.width, g.height, &rgb)?);
         }
         crate::io::atomic::commit_all(staged)
     }

@@ -9,6 +9,7 @@ pub mod object;
 pub mod place;
 pub mod plan;
 pub mod pyramid;
+pub mod radar;
 pub mod render;
 pub mod sample;
 pub mod sculpt;

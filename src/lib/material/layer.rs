@@ -435,10 +435,8 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
                 .iter()
                 .flat_map(|&id| table.by_id(id).map_or([0; 3], |m| m.colour))
                 .collect();
-            let bytes = crate::io::png::encode_rgb(layer.grid.width, layer.grid.height, &rgb)?;
-            let mut file = crate::io::atomic::AtomicFile::create(png)?;
-            std::io::Write::write_all(file.writer(), &bytes).map_err(|e| Error::io(png, e))?;
-            Some(file.stage()?)
+            let (w, h) = (layer.grid.width, layer.grid.height);
+            Some(crate::io::png::stage_rgb(png, w, h, &rgb)?)
         }
         None => None,
     };

@@ -135,6 +135,13 @@ pub struct Radar {
     pub models: Vec<RadarModel>,
 }
 
+impl Radar {
+    /// The σ⁰ model for `band`: the table's first for it (any polarisation), if any.
+    pub fn model_for(&self, band: Band) -> Option<&RadarModel> {
+        self.models.iter().find(|m| m.band() == band)
+    }
+}
+
 /// A radar band, by its IEEE letter designation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
 pub enum Band {
