@@ -328,8 +328,9 @@ fn preview_colour(s: f32, c: u8) -> [u8; 3] {
     }
 }
 
-/// σ⁰ (linear) as grey: [`PREVIEW_FLOOR_DB`] and below black, 0 dB and above white.
-fn grey_db(s: f32) -> u8 {
+/// σ⁰ (linear) as grey: [`PREVIEW_FLOOR_DB`] and below black (0: no return, too), 0 dB and
+/// above white, linear in dB between.
+pub fn grey_db(s: f32) -> u8 {
     if !(s > 0.0) {
         return 0;
     }

@@ -53,6 +53,10 @@ pub struct Args {
     /// `radiance`: coarse cells take the mean.
     #[arg(long, value_name = "TIF")]
     radiance: Option<PathBuf>,
+    /// Carry this radar σ⁰ map (linear, `dbms radar -o`) as the tile layer `backscatter`:
+    /// coarse cells take the mean power. For `dbms render --sensor radar`.
+    #[arg(long, value_name = "TIF")]
+    backscatter: Option<PathBuf>,
     /// Light points for the night sensors, a GeoJSON of Point features with intensity_cd
     /// (candela) and optional height_m (above the terrain) and colour ([r, g, b]); carried in
     /// the tile header for `dbms render --sensor nvg`.
@@ -140,6 +144,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             material: args.materials,
             temperature: args.temperature,
             radiance: args.radiance,
+            backscatter: args.backscatter,
             lights: args.lights,
         },
     };

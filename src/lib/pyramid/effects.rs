@@ -149,7 +149,7 @@ pub struct LayerEffect {
 
 /// Every sensor layer, in the tile set's order. None is made unless asked for: a visual
 /// product does no sensor work, and its record says so.
-pub const LAYERS: [LayerEffect; 4] = [
+pub const LAYERS: [LayerEffect; 5] = [
     LayerEffect {
         layer: Some(SensorLayer::Material),
         name: "material_layer",
@@ -167,6 +167,12 @@ pub const LAYERS: [LayerEffect; 4] = [
         name: "radiance_layer",
         sensors: &["ir"],
         unasked: "no radiance map given (--radiance)",
+    },
+    LayerEffect {
+        layer: Some(SensorLayer::Backscatter),
+        name: "backscatter_layer",
+        sensors: &["radar"],
+        unasked: "no backscatter map given (--backscatter)",
     },
     LayerEffect {
         layer: None,

@@ -75,6 +75,8 @@ pub struct SensorInputs {
     /// A radiance map on the database grid, W·m⁻²·sr⁻¹ (`dbms thermal --radiance-out`), as
     /// `radiance`.
     pub radiance: Option<PathBuf>,
+    /// A radar σ⁰ map on the database grid, linear (`dbms radar -o`), as `backscatter`.
+    pub backscatter: Option<PathBuf>,
     /// Light points (GeoJSON, [`crate::lights`]) for the header's `lights`.
     pub lights: Option<PathBuf>,
 }
@@ -86,6 +88,7 @@ impl SensorInputs {
             self.material,
             self.temperature.is_some(),
             self.radiance.is_some(),
+            self.backscatter.is_some(),
         ];
         SensorLayer::ALL
             .into_iter()
@@ -117,6 +120,7 @@ impl SensorInputs {
             "material": material,
             "temperature": file(&self.temperature)?,
             "radiance": file(&self.radiance)?,
+            "backscatter": file(&self.backscatter)?,
             "lights": file(&self.lights)?,
         }))
     }
@@ -452,6 +456,7 @@ struct SensorReaders {
     material: Option<(crate::db::LayerRows<u8>, std::sync::Arc<sensor::Counted>)>,
     temperature: Option<crate::db::LayerRows<f32>>,
     radiance: Option<crate::db::LayerRows<f32>>,
+    backscatter: Option<crate::db::LayerRows<f32>>,
 }
 
 impl SensorReaders {
@@ -471,6 +476,7 @@ impl SensorReaders {
             material,
             temperature: map(&inputs.temperature)?,
             radiance: map(&inputs.radiance)?,
+            backscatter: map(&inputs.backscatter)?,
         })
     }
 
@@ -483,6 +489,7 @@ impl SensorReaders {
         let values = [
             (SensorLayer::Temperature, &self.temperature),
             (SensorLayer::Radiance, &self.radiance),
+            (SensorLayer::Backscatter, &self.backscatter),
         ];
         let values = values.into_iter().filter_map(|(l, rows)| {
             let rows = rows.as_ref()?;

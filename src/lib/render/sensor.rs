@@ -32,6 +32,9 @@ crate::choice! {
         /// Night vision at --time: the `material` layer's NIR reflectance under the moon and
         /// the night sky, and the header's light points (`dbms pyramid --materials --lights`).
         Nvg = "nvg",
+        /// Radar backscatter: the `backscatter` layer's σ⁰ in dB, −30 dB black to 0 dB white
+        /// (`dbms pyramid --backscatter`, the map from `dbms radar`).
+        Radar = "radar",
     }
 }
 
@@ -165,6 +168,38 @@ pub fn view(
                     recolour(page, &colours);
                 }),
                 backdrop: Backdrop::infrared(&scale),
+                night: None,
+            }))
+        }
+        Sensor::Radar => {
+            needs(
+                SensorLayer::Backscatter,
+                "--backscatter S0.tif (S0.tif from dbms radar)",
+            )?;
+            Ok(Some(SensorView {
+                filter: Arc::new(|page: &mut Page| {
+                    let Some(s0) = page
+                        .sensor(SensorLayer::Backscatter)
+                        .and_then(|c| c.values())
+                    else {
+                        return;
+                    };
+                    let colours: Vec<[u8; 4]> = s0
+                        .iter()
+                        .map(|&s| match s.is_nan() {
+                            true => NO_ATTRIBUTE,
+                            false => {
+                                let g = crate::radar_map::grey_db(s);
+                                [g, g, g, 255]
+                            }
+                        })
+                        .collect();
+                    recolour(page, &colours);
+                }),
+                backdrop: Backdrop::Flat {
+                    sky: [0, 0, 0],
+                    haze: [0.0; 3],
+                },
                 night: None,
             }))
         }

@@ -370,7 +370,7 @@ pub(crate) fn decode(
             .map(|&(l, at)| {
                 let cells = match l {
                     SensorLayer::Material => SensorCells::Ids(raw[at..at + n].to_vec()),
-                    SensorLayer::Temperature | SensorLayer::Radiance => {
+                    SensorLayer::Temperature | SensorLayer::Radiance | SensorLayer::Backscatter => {
                         SensorCells::Values(words(&raw[at..], n, planar, |w| {
                             f32::from_bits(u32::from_le_bytes(w))
                         }))

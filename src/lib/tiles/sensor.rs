@@ -21,6 +21,9 @@ pub enum SensorLayer {
     Temperature,
     /// Band radiance 8–12 µm, W·m⁻²·sr⁻¹ (f32, NaN nodata); coarse cells the block's mean.
     Radiance,
+    /// Radar backscatter σ⁰, linear m²/m² (f32, NaN nodata: no model), for one radar's look;
+    /// coarse cells the block's mean power.
+    Backscatter,
 }
 
 /// What a material cell holds where the cell has no data (the materials layer's own nodata).
@@ -28,10 +31,11 @@ pub const MATERIAL_NODATA: u8 = 255;
 
 impl SensorLayer {
     /// Every sensor layer, in the order a layer table lists them.
-    pub const ALL: [SensorLayer; 3] = [
+    pub const ALL: [SensorLayer; 4] = [
         SensorLayer::Material,
         SensorLayer::Temperature,
         SensorLayer::Radiance,
+        SensorLayer::Backscatter,
     ];
 
     /// The layer's name in the header's table.
@@ -40,6 +44,7 @@ impl SensorLayer {
             SensorLayer::Material => "material",
             SensorLayer::Temperature => "temperature",
             SensorLayer::Radiance => "radiance",
+            SensorLayer::Backscatter => "backscatter",
         }
     }
 
@@ -67,6 +72,13 @@ impl SensorLayer {
                 "NaN",
                 "surface radiance 8-12 um, W m-2 sr-1; coarse levels hold the mean over the block's valid level-0 cells",
             ),
+            SensorLayer::Backscatter => LayerInfo::new(
+                "backscatter",
+                "f32",
+                4,
+                "NaN",
+                "radar backscatter sigma0, linear m2/m2, for the tile set's radar look; coarse levels hold the mean power over the block's valid level-0 cells",
+            ),
         }
     }
 
@@ -79,7 +91,7 @@ impl SensorLayer {
     pub fn nodata(self, n: usize) -> SensorCells {
         match self {
             SensorLayer::Material => SensorCells::Ids(vec![MATERIAL_NODATA; n]),
-            SensorLayer::Temperature | SensorLayer::Radiance => {
+            SensorLayer::Temperature | SensorLayer::Radiance | SensorLayer::Backscatter => {
                 SensorCells::Values(vec![f32::NAN; n])
             }
         }
