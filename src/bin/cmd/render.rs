@@ -280,12 +280,17 @@ fn fly(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         fixed_heading: args.fixed_heading,
     };
     let viewpoints = render::path::viewpoints(&waypoints, &flight, args.fov, width, height)?;
-    let (reader, backdrop, _) = open(&args)?;
+    let (reader, backdrop, night) = open(&args)?;
     let progress = ctx.progress(viewpoints.len() as u64, "frames");
     let stats = render::flight::fly(
         &reader,
         &viewpoints,
         &view_options(&args, backdrop),
+        &|frame: &mut render::Frame, camera: &Viewpoint| {
+            if let Some(night) = &night {
+                night.draw_lights(frame, camera, args.haze);
+            }
+        },
         &args.output,
         args.animation.as_deref().map(|a| (a, args.fps)),
         &progress,

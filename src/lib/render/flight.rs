@@ -39,13 +39,15 @@ pub fn frame_file(dir: &Path, k: usize) -> PathBuf {
     dir.join(format!("frame-{k:05}.png"))
 }
 
-/// Render `viewpoints` over `reader` with `opts`: frame `k` into [`frame_file`]`(dir, k)` (the
-/// directory is created), and, given `animation`, every frame into one animated PNG there,
-/// shown `1 / fps` seconds each, looping.
+/// Render `viewpoints` over `reader` with `opts`, each frame finished by `overlay` (e.g. the
+/// night-vision view's light points, [`super::sensor::NightScale::draw_lights`]): frame `k`
+/// into [`frame_file`]`(dir, k)` (the directory is created), and, given `animation`, every
+/// frame into one animated PNG there, shown `1 / fps` seconds each, looping.
 pub fn fly(
     reader: &TileReader,
     viewpoints: &[Viewpoint],
     opts: &ViewOptions,
+    overlay: &dyn Fn(&mut Frame, &Viewpoint),
     dir: &Path,
     animation: Option<(&Path, f64)>,
     progress: &Progress,
@@ -67,8 +69,9 @@ pub fn fly(
     };
     let (mut render_seconds, mut pages, mut pages_max, mut steps, mut rays) = (0.0, 0, 0, 0, 0);
     for (k, camera) in viewpoints.iter().enumerate() {
-        let frame = render_view(reader, camera, opts)
+        let mut frame = render_view(reader, camera, opts)
             .map_err(|e| Error::msg(format!("frame {k} (eye {:?}): {e}", camera.eye)))?;
+        overlay(&mut frame, camera);
         let s = &frame.stats;
         render_seconds += s.seconds;
         pages += s.reader.pages_read;
