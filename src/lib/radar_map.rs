@@ -283,14 +283,7 @@ impl RadarMap {
             .into_iter()
             .flatten()
             .collect();
-        if let Some(p) = paths
-            .iter()
-            .enumerate()
-            .find_map(|(k, p)| paths[..k].contains(p).then_some(p))
-        {
-            return Err(Error::file(p, "is given for two outputs")
-                .fix("give -o, --class-out and --preview different paths"));
-        }
+        crate::io::atomic::check_outputs(&paths, &[])?;
         let mut tiff = crate::io::geotiff::GeoTiffWriter::create_f32(sigma0, &self.sigma0.grid)?;
         tiff.push_rows(&self.sigma0.data)?;
         let mut staged = vec![tiff.stage()?];

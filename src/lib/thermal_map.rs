@@ -549,14 +549,7 @@ impl ThermalMap {
             .into_iter()
             .flatten()
             .collect();
-        if let Some(p) = paths
-            .iter()
-            .enumerate()
-            .find_map(|(k, p)| paths[..k].contains(p).then_some(p))
-        {
-            return Err(Error::file(p, "is given for two outputs")
-                .fix("give -o, --radiance-out and --preview different paths"));
-        }
+        crate::io::atomic::check_outputs(&paths, &[])?;
         let tiff = |path: &std::path::Path, r: &Raster<f32>| {
             let mut w = crate::io::geotiff::GeoTiffWriter::create_f32(path, &r.grid)?;
             w.push_rows(&r.data)?;
