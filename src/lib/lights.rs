@@ -11,7 +11,8 @@
 //! `height_m` must be absent.
 
 use crate::error::{Error, Result};
-use crate::raster::RowSource;
+use crate::raster::{band_rows, RowSource};
+use crate::standing::{TerrainAt, TerrainSample};
 use crate::tiles::LightPoint;
 use serde_json::Value;
 use std::path::Path;
@@ -22,6 +23,8 @@ pub fn read(path: &Path, terrain: &dyn RowSource<f32>) -> Result<Vec<LightPoint>
     let features = crate::geojson::read_features(path, fix)?;
     let grid = terrain.grid();
     let mut lights = Vec::new();
+    // Each light's feature, cell and height rule, for the terrain read below.
+    let mut placed = Vec::new();
     for (k, f) in features.iter().enumerate() {
         let bad = |problem: String| Error::file(path, format!("feature {k}: {problem}"));
         let props = f.get("properties").cloned().unwrap_or(Value::Null);
@@ -62,29 +65,53 @@ pub fn read(path: &Path, terrain: &dyn RowSource<f32>) -> Result<Vec<LightPoint>
                 ))
                 .fix("remove it, or give the database's CRS coordinates")
             })?;
-            let ground = terrain.read_rows(row, 1)?[col];
-            let z = match (p.get(2), height_m) {
+            let height = match (p.get(2), height_m) {
                 (Some(_), Some(_)) => {
                     return Err(bad("has both a third coordinate and height_m".into())
                         .fix("give the lamp's height one way: z in the coordinates or height_m above the terrain"))
                 }
-                (Some(&z), None) => z,
-                (None, h) if !ground.is_nan() => f64::from(ground) + h.unwrap_or(0.0),
-                (None, _) => {
-                    return Err(bad(format!("the light at ({x}, {y}) stands on nodata terrain"))
-                        .fix("move it onto the terrain, or give its height as a third coordinate"))
-                }
+                (Some(&z), None) => Height::Absolute(z),
+                (None, h) => Height::AboveTerrain(h.unwrap_or(0.0)),
             };
+            placed.push((k, row * grid.width + col, height));
             lights.push(LightPoint {
                 x,
                 y,
-                z,
+                z: f64::NAN,
                 intensity_cd,
                 colour,
             });
         }
     }
+    // The terrain under the lights, each band that holds one read once.
+    let under = placed.iter().map(|&(_, i, _)| i).collect();
+    let ground = TerrainSample::read(terrain, under, band_rows(grid.width))?;
+    for (light, &(k, i, height)) in lights.iter_mut().zip(&placed) {
+        light.z = match height {
+            Height::Absolute(z) => z,
+            Height::AboveTerrain(h) if !ground.at(i).is_nan() => f64::from(ground.at(i)) + h,
+            Height::AboveTerrain(_) => {
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "feature {k}: the light at ({}, {}) stands on nodata terrain",
+                        light.x, light.y
+                    ),
+                )
+                .fix("move it onto the terrain, or give its height as a third coordinate"))
+            }
+        };
+    }
     Ok(lights)
+}
+
+/// How high a lamp is.
+#[derive(Debug, Clone, Copy)]
+enum Height {
+    /// Metres, as given.
+    Absolute(f64),
+    /// Metres above the terrain under it.
+    AboveTerrain(f64),
 }
 
 /// `[r, g, b]` of integers 0–255.
