@@ -534,6 +534,26 @@ fn sensor_layers_reduce_exactly_and_draw_the_infrared_view() {
     );
     let (o, _) = render("ir.dbt", "x.png", &["--ir-range", "280,330"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("--sensor ir"));
+
+    // A map off the database grid (one column narrower, or shifted) is refused with the fix.
+    let off = |name: &str, w: usize, x0: f64| {
+        let grid = Grid::north_up(x0, ORIGIN.1, 1.0, w, 20, Crs::epsg(32632));
+        let path = p(name);
+        geotiff::write_f32(&path, &Raster::new(grid, vec![300.0; w * 20])).unwrap();
+        let path = s(&path);
+        let out = s(&p("off.dbt"));
+        dbms(&["pyramid", "--db", d, "--temperature", &path, "-o", &out])
+    };
+    for o in [
+        off("narrow.tif", 39, ORIGIN.0),
+        off("shifted.tif", 40, ORIGIN.0 + 0.5),
+    ] {
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && e.contains("not on the database grid") && e.contains("gdalwarp"),
+            "{e}"
+        );
+    }
 }
 
 /// Night vision end to end: `dbms pyramid --materials --lights` writes the materials' NIR

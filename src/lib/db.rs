@@ -183,10 +183,10 @@ impl Database {
     /// transform), e.g. the temperature map `dbms thermal` writes, read band by band; the
     /// declared nodata becomes NaN.
     pub fn values_on_grid(&self, path: &Path) -> Result<LayerRows<f32>> {
-        let rows = self.rows_of(path.to_path_buf(), SourceRaster::into_elevation_band)?;
-        let probe = crate::io::geotiff::read_rows(path, 0..1.min(rows.grid.height))?;
-        let (want, have) = (&self.grid().transform, &probe.grid.transform);
-        let (w, h) = (rows.grid.width, rows.grid.height);
+        let grid = self.grid();
+        let probe = crate::io::geotiff::read_rows(path, 0..1.min(grid.height))?;
+        let (want, have) = (&grid.transform, &probe.grid.transform);
+        let (w, h) = (grid.width, grid.height);
         if crate::io::geotiff::size(path)? != (w, h) || want != have {
             return Err(Error::file(
                 path,
@@ -195,11 +195,9 @@ impl Database {
                     want.cell_x, want.origin_x, want.origin_y
                 ),
             )
-            .fix(
-                "make it from this database (dbms thermal), or warp it onto the grid with gdalwarp",
-            ));
+            .fix("make it from this database (dbms thermal, dbms radar), or warp it onto the grid with gdalwarp"));
         }
-        Ok(rows)
+        self.rows_of(path.to_path_buf(), SourceRaster::into_elevation_band)
     }
 
     fn layer_rows<T>(

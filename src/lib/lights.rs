@@ -84,7 +84,11 @@ pub fn read(path: &Path, terrain: &dyn RowSource<f32>) -> Result<Vec<LightPoint>
         }
     }
     // The terrain under the lights, each band that holds one read once.
-    let under = placed.iter().map(|&(_, i, _)| i).collect();
+    let under = placed.iter().filter_map(|&(_, i, h)| match h {
+        Height::AboveTerrain(_) => Some(i),
+        Height::Absolute(_) => None,
+    });
+    let under = under.collect();
     let ground = TerrainSample::read(terrain, under, band_rows(grid.width))?;
     for (light, &(k, i, height)) in lights.iter_mut().zip(&placed) {
         light.z = match height {

@@ -119,10 +119,11 @@ pub struct Args {
     #[arg(long, value_name = "RFC3339")]
     time: Option<String>,
     /// With --sensor nvg: atmospheric extinction for the moonlight, magnitudes per air mass
-    /// (0.172: a high site; 0.25-0.3 at sea level).
-    #[arg(long, value_name = "MAG", default_value_t = dbms::moon::DEFAULT_EXTINCTION_MAG_PER_AIRMASS)]
-    extinction: f64,
-    /// Pages kept in the reader's cache (each 9·P² bytes: 590 kB at P = 256).
+    /// (default 0.172: a high site; 0.25-0.3 at sea level).
+    #[arg(long, value_name = "MAG")]
+    extinction: Option<f64>,
+    /// Pages kept in the reader's cache (each 9·P² bytes, 590 kB at P = 256, plus P² or 4·P²
+    /// per sensor layer).
     #[arg(long, default_value_t = 512)]
     cache_pages: usize,
     /// Output PNG (with --path: the directory of frame-NNNNN.png files, created if missing).
@@ -226,8 +227,10 @@ fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop, Option<NightScale>)>
     if args.ir_range.is_some() && args.sensor != Sensor::Ir {
         return Err(Error::msg("--ir-range is for --sensor ir").fix("add --sensor ir"));
     }
-    if args.time.is_some() && args.sensor != Sensor::Nvg {
-        return Err(Error::msg("--time is for --sensor nvg").fix("add --sensor nvg"));
+    if (args.time.is_some() || args.extinction.is_some()) && args.sensor != Sensor::Nvg {
+        return Err(
+            Error::msg("--time and --extinction are for --sensor nvg").fix("add --sensor nvg")
+        );
     }
     let reader = TileReader::open(&args.tiles, args.cache_pages)?;
     let ir_range = match &args.ir_range {
@@ -240,7 +243,9 @@ fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop, Option<NightScale>)>
     let opts = SensorOptions {
         ir_range,
         time: args.time.clone(),
-        extinction_mag_per_airmass: args.extinction,
+        extinction_mag_per_airmass: args
+            .extinction
+            .unwrap_or(dbms::moon::DEFAULT_EXTINCTION_MAG_PER_AIRMASS),
     };
     Ok(match render::sensor::view(args.sensor, &reader, &opts)? {
         Some(v) => (reader.with_filter(v.filter), v.backdrop, v.night),

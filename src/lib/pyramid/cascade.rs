@@ -214,7 +214,9 @@ where
                     page.max_z[o + valid..o + p].fill(f32::NAN);
                     page.colour[o + valid..o + p].fill([0; 4]);
                     page.state[o + valid..o + p].fill(STATE_EMPTY);
-                    for (rows, (_, cells)) in rows.sensor().iter().zip(&mut page.sensor) {
+                    debug_assert_eq!(rows.sensor().len(), page.sensor.len());
+                    for (rows, (layer, cells)) in rows.sensor().iter().zip(&mut page.sensor) {
+                        assert_eq!(rows.layer, *layer, "sensor rows in the tile set's order");
                         if valid > 0 {
                             rows.copy_run(r * w + tx * p, valid, cells, o);
                         }

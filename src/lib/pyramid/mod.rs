@@ -84,17 +84,13 @@ pub struct SensorInputs {
 impl SensorInputs {
     /// The tile layers these give, in the tile set's order.
     pub fn layers(&self) -> Vec<SensorLayer> {
-        let given = [
-            self.material,
-            self.temperature.is_some(),
-            self.radiance.is_some(),
-            self.backscatter.is_some(),
-        ];
-        SensorLayer::ALL
-            .into_iter()
-            .zip(given)
-            .filter_map(|(l, g)| g.then_some(l))
-            .collect()
+        let given = |l: &SensorLayer| match l {
+            SensorLayer::Material => self.material,
+            SensorLayer::Temperature => self.temperature.is_some(),
+            SensorLayer::Radiance => self.radiance.is_some(),
+            SensorLayer::Backscatter => self.backscatter.is_some(),
+        };
+        SensorLayer::ALL.into_iter().filter(given).collect()
     }
 
     /// Whether any sensor layer or the light points are asked for.
@@ -343,9 +339,9 @@ fn build_product(
     if opts.incremental {
         let attempt = match &opts.export_levels {
             Some(_) => Err("--export-levels writes every level".to_string()),
-            None if opts.sensor.any() => {
-                Err("sensor layers are not in the incremental ledger yet".to_string())
-            }
+            None if opts.sensor.any() => Err(
+                "sensor layers and light points are not in the incremental ledger yet".to_string(),
+            ),
             None => incremental_build(db, wait, out, opts, &info, progress)?,
         };
         match attempt {

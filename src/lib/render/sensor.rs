@@ -83,32 +83,34 @@ impl IrScale {
         Ok(IrScale { min_k, max_k })
     }
 
-    /// The scale spanning the coldest and hottest cell of the tile set's coarsest level (block
-    /// means: the level-0 extremes lie a little beyond them and are clamped).
+    /// The scale spanning the coldest and hottest cell of the coarsest level that has two
+    /// different temperatures (block means: the level-0 extremes lie a little beyond them and
+    /// are clamped); levels are read from the coarsest down, so a tile set whose top level is
+    /// one cell still scales by the level under it.
     pub fn of_tiles(reader: &TileReader) -> Result<IrScale> {
         let info = reader.info();
-        let top = info.levels.len() - 1;
-        let l = &info.levels[top];
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for ty in 0..l.pages_y {
-            for tx in 0..l.pages_x {
-                let page = reader.page(top, tx, ty)?;
-                let values = page
-                    .sensor(SensorLayer::Temperature)
-                    .and_then(|c| c.values());
-                for &t in values.into_iter().flatten().filter(|t| !t.is_nan()) {
-                    (lo, hi) = (lo.min(f64::from(t)), hi.max(f64::from(t)));
+        for (level, l) in info.levels.iter().enumerate().rev() {
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for ty in 0..l.pages_y {
+                for tx in 0..l.pages_x {
+                    let page = reader.page(level, tx, ty)?;
+                    let values = page
+                        .sensor(SensorLayer::Temperature)
+                        .and_then(|c| c.values());
+                    for &t in values.into_iter().flatten().filter(|t| !t.is_nan()) {
+                        (lo, hi) = (lo.min(f64::from(t)), hi.max(f64::from(t)));
+                    }
                 }
             }
+            if lo < hi {
+                return IrScale::new(lo, hi);
+            }
         }
-        if !(lo < hi) {
-            return Err(Error::file(
-                reader.path(),
-                "has no two different temperatures to scale the infrared view by",
-            )
-            .fix("give the scale with --ir-range MIN,MAX (kelvin)"));
-        }
-        IrScale::new(lo, hi)
+        Err(Error::file(
+            reader.path(),
+            "has no two different temperatures to scale the infrared view by",
+        )
+        .fix("give the scale with --ir-range MIN,MAX (kelvin)"))
     }
 
     /// The white-hot grey of temperature `t` (kelvin); [`NO_ATTRIBUTE`] for NaN.

@@ -20,6 +20,9 @@ pub const MAX_LEVELS: usize = 32;
 const MAX_GRID_SIDE: usize = 1 << 31;
 /// Most pages a tile set may have (the writer keeps 32 bytes of bookkeeping per page in memory).
 const MAX_PAGES: usize = 1 << 28;
+/// Largest JSON header a reader accepts, bytes (a real one is a few kilobytes; light points
+/// take about 110 bytes each), and so the largest a writer writes.
+pub const MAX_HEADER_LEN: u64 = 16 << 20;
 /// Alignment of every page's offset in the file, bytes (a memory page; direct I/O friendly).
 pub const PAGE_ALIGN: u64 = 4096;
 
@@ -267,8 +270,8 @@ impl TileSetInfo {
                 Some(l) if l.kind == want.kind && l.bytes_per_cell == want.bytes_per_cell => {}
                 Some(l) => {
                     return Err(Error::msg(format!(
-                        "layer {} has type {}, expected {}",
-                        l.name, l.kind, want.kind
+                        "layer {} has type {} of {} bytes per cell, expected {} of {}",
+                        l.name, l.kind, l.bytes_per_cell, want.kind, want.bytes_per_cell
                     )));
                 }
                 None => {

@@ -6,7 +6,7 @@
 //! positioned (`pread`), so one reader serves any number of threads without locking the file.
 
 use super::cache::PageCache;
-use super::info::TileSetInfo;
+use super::info::{TileSetInfo, MAX_HEADER_LEN};
 use super::layout::{align_up, IndexEntry, Preamble, ENTRY_LEN, PREAMBLE_LEN};
 use super::page::{self, Cell, Layout, Page, FLAG_BRICKS, FLAG_LZ4, KNOWN_FLAGS};
 use crate::error::{Error, Result};
@@ -19,8 +19,6 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-/// Largest JSON header a reader accepts, bytes (a real one is a few kilobytes).
-const MAX_HEADER_LEN: u64 = 16 << 20;
 const REBUILD: &str = "the file is corrupt, rebuild it with dbms pyramid";
 
 /// An open tile file. `Send + Sync`: share one behind an `Arc` (or by reference) between threads.

@@ -52,28 +52,28 @@ impl SensorLayer {
     pub fn info(self) -> LayerInfo {
         match self {
             SensorLayer::Material => LayerInfo::new(
-                "material",
+                self.name(),
                 "u8",
                 1,
                 "255",
                 "material id of the database's material table (0 unclassified); coarse levels hold the id most valid level-0 cells of the block have, ties to the lower id",
             ),
             SensorLayer::Temperature => LayerInfo::new(
-                "temperature",
+                self.name(),
                 "f32",
                 4,
                 "NaN",
                 "surface temperature, kelvin; coarse levels hold the mean over the block's valid level-0 cells",
             ),
             SensorLayer::Radiance => LayerInfo::new(
-                "radiance",
+                self.name(),
                 "f32",
                 4,
                 "NaN",
                 "surface radiance 8-12 um, W m-2 sr-1; coarse levels hold the mean over the block's valid level-0 cells",
             ),
             SensorLayer::Backscatter => LayerInfo::new(
-                "backscatter",
+                self.name(),
                 "f32",
                 4,
                 "NaN",
@@ -204,6 +204,12 @@ pub(crate) fn check_attributes(
         if m.id == 0 || m.id == MATERIAL_NODATA || materials[..k].iter().any(|o| o.id == m.id) {
             return Err(format!("material id {} is reserved or listed twice", m.id));
         }
+        if !["nir_reflectance", "solar_albedo"].contains(&m.nir_from.as_str()) {
+            return Err(format!(
+                "material {} has nir_from {:?}, expected \"nir_reflectance\" or \"solar_albedo\"",
+                m.id, m.nir_from
+            ));
+        }
         if !(0.0..=1.0).contains(&m.nir_reflectance) {
             return Err(format!(
                 "material {} has nir_reflectance {}, expected 0 to 1",
@@ -233,5 +239,58 @@ mod tests {
             assert!((0..3).all(|i| cells.is_nodata(i)));
         }
         assert_eq!(SensorLayer::named("max_z"), None);
+    }
+
+    #[test]
+    fn header_attributes_are_checked() {
+        let lamp = LightPoint {
+            x: 1.0,
+            y: 2.0,
+            z: 3.0,
+            intensity_cd: 10.0,
+            colour: [1, 2, 3],
+        };
+        let grass = MaterialAttributes {
+            id: 7,
+            name: "grass".into(),
+            nir_reflectance: 0.31,
+            nir_from: "nir_reflectance".into(),
+        };
+        check_attributes(&[lamp], &[grass.clone()]).unwrap();
+        let bad_lamps = [
+            LightPoint {
+                z: f64::NAN,
+                ..lamp
+            },
+            LightPoint {
+                intensity_cd: 0.0,
+                ..lamp
+            },
+        ];
+        for l in bad_lamps {
+            assert!(check_attributes(&[l], &[]).unwrap_err().contains("light 0"));
+        }
+        let bad = [
+            vec![grass.clone(), grass.clone()],
+            vec![MaterialAttributes {
+                id: 0,
+                ..grass.clone()
+            }],
+            vec![MaterialAttributes {
+                id: MATERIAL_NODATA,
+                ..grass.clone()
+            }],
+            vec![MaterialAttributes {
+                nir_reflectance: 1.5,
+                ..grass.clone()
+            }],
+            vec![MaterialAttributes {
+                nir_from: "guess".into(),
+                ..grass.clone()
+            }],
+        ];
+        for m in bad {
+            assert!(check_attributes(&[], &m).is_err(), "{m:?}");
+        }
     }
 }

@@ -268,6 +268,18 @@ impl TileWriter {
             |e| Error::io(dir, e).fix("check that the output directory exists and is writable");
         let layout = Layout::of(&info);
         let header = serde_json::to_vec_pretty(&info).expect("header serialises");
+        if header.len() as u64 > super::info::MAX_HEADER_LEN {
+            return Err(Error::file(
+                path,
+                format!(
+                    "the tile header would be {} bytes, over the format's {} ({} light points)",
+                    header.len(),
+                    super::info::MAX_HEADER_LEN,
+                    info.lights.len()
+                ),
+            )
+            .fix("give fewer light points (about 150 000 fit), or split the area into several databases"));
+        }
         let (_, index_end) = index_span(header.len(), info.page_count());
         let (plan, target, len) = match info.compression {
             Compression::None => {
@@ -656,6 +668,30 @@ mod tests {
         assert_eq!(&bytes[1..6], &[3; 5]);
         assert!(bytes[4096..3 * 4096].iter().all(|&b| b == 1));
         assert!(bytes[3 * 4096..].iter().all(|&b| b == 2));
+    }
+
+    /// A header no reader would accept (too many light points) is refused before anything is
+    /// written, with the light count and the fix.
+    #[test]
+    fn a_header_over_the_readers_limit_is_refused() {
+        let t = tempfile::tempdir().unwrap();
+        let grid = crate::grid::Grid::north_up(0.0, 100.0, 1.0, 8, 8, crate::crs::Crs::unknown());
+        let mut info = TileSetInfo::new(grid, 8, 4, None).unwrap();
+        let lamp = crate::tiles::LightPoint {
+            x: 1.123456789,
+            y: 2.123456789,
+            z: 3.123456789,
+            intensity_cd: 1500.5,
+            colour: [255, 200, 130],
+        };
+        info.lights = vec![lamp; 200_000];
+        let path = t.path().join("l.dbt");
+        let e = TileWriter::create(&path, info).err().unwrap().to_string();
+        assert!(
+            e.contains("200000 light points") && e.contains("fewer"),
+            "{e}"
+        );
+        assert!(!path.exists());
     }
 
     /// A write error on the I/O thread comes back from `send` or `close`, not lost.
