@@ -484,3 +484,78 @@ fn two_products_share_what_they_have_in_common() {
         "a shared build gives each product's own tile file"
     );
 }
+
+/// Sensor products in a scene file: one `materials` step, a `thermal.NAME` and `radar.NAME`
+/// step for the products that need a map, and each product's own `pyramid`; every tile file
+/// carries its sensor's layers (and the night one its lights), and the ir tile file is byte for
+/// byte what the same commands give by hand. A second plan has nothing to do.
+#[test]
+fn sensor_products_get_their_maps_and_layers() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let lights = r#"{"type": "FeatureCollection", "features": [{"type": "Feature",
+        "properties": {"intensity_cd": 1500, "height_m": 8},
+        "geometry": {"type": "Point", "coordinates": [500040.5, 5300040.5]}}]}"#;
+    std::fs::write(dir.join("lights.geojson"), lights).unwrap();
+    let ir_time = "2026-09-15T13:00:00Z";
+    let text = scene_toml(30.0)
+        + &format!(
+            "[products.ir]\nsensor = \"ir\"\ntiles = \"build/ir.dbt\"\ntime = \"{ir_time}\"\n\
+             [products.night]\nsensor = \"nvg\"\ntiles = \"build/night.dbt\"\nlights = \"lights.geojson\"\n\
+             [products.sar]\nsensor = \"radar\"\ntiles = \"build/sar.dbt\"\nradar = {{ azimuth = 220, elevation = 20 }}\n"
+        );
+    std::fs::write(dir.join("scene.toml"), text).unwrap();
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    for step in [
+        "materials",
+        "thermal.ir",
+        "radar.sar",
+        "product.ir",
+        "product.night",
+        "product.sar",
+        "product.day",
+    ] {
+        assert!(plan.contains(&format!("  {step} ")), "{step}: {plan}");
+    }
+    ok(dbms_in(dir, &["-q", "build", "scene.toml"]), "build");
+    let layers = |name: &str| {
+        let r = dbms::tiles::TileReader::open(&dir.join("build").join(name), 1).unwrap();
+        let names: Vec<&str> = r.info().sensor_layers().iter().map(|l| l.name()).collect();
+        (names.join(","), r.info().lights.len())
+    };
+    assert_eq!(layers("day.dbt"), (String::new(), 0));
+    assert_eq!(layers("ir.dbt"), ("material,temperature".into(), 0));
+    assert_eq!(layers("night.dbt"), ("material".into(), 1));
+    assert_eq!(layers("sar.dbt"), ("material,backscatter".into(), 0));
+    // By hand, on the database the build made: the same ir tile file.
+    let run = |args: &[&str]| ok(dbms_in(dir, args), &args.join(" "));
+    run(&[
+        "-q", "thermal", "--db", "build/db", "--time", ir_time, "-o", "t.tif",
+    ]);
+    run(&[
+        "-q",
+        "pyramid",
+        "--db",
+        "build/db",
+        "--materials",
+        "--temperature",
+        "t.tif",
+        "-o",
+        "ir.dbt",
+    ]);
+    assert!(
+        std::fs::read(dir.join("ir.dbt")).unwrap()
+            == std::fs::read(dir.join("build/ir.dbt")).unwrap(),
+        "the scene's ir product differs from the same commands by hand"
+    );
+    let again = ok(dbms_in(dir, &["plan", "scene.toml", "--json"]), "plan");
+    let steps: serde_json::Value = serde_json::from_str(&again).unwrap();
+    let pending: Vec<&str> = steps["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|s| s["up_to_date"] == false)
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert!(pending.is_empty(), "{pending:?}");
+}

@@ -206,6 +206,25 @@ fn scene_files_match_their_schema() {
             "points = \"trees.geojson\"\nscale = 1",
         ),
     ];
+    // Sensor products: both accept a radar look; both refuse one outside (0, 90) or on ir.
+    let day = "sensor = \"visual\"\ntiles = \"out/build/day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"";
+    assert!(text.contains(day));
+    let radar = text.replace(
+        day,
+        "sensor = \"radar\"\ntiles = \"out/build/sar.dbt\"\nradar = { azimuth = 220, elevation = 20, band = \"C\" }",
+    );
+    assert_valid(&v, &toml::from_str(&radar).unwrap(), "a radar product");
+    dbms::scene::Scene::parse(&radar).unwrap();
+    for b in [
+        radar.replace("elevation = 20", "elevation = 90"),
+        radar.replace("band = \"C\"", "band = \"Q\""),
+    ] {
+        assert!(
+            !v.is_valid(&toml::from_str(&b).unwrap()),
+            "the schema accepts:\n{b}"
+        );
+        assert!(dbms::scene::Scene::parse(&b).is_err(), "dbms accepts:\n{b}");
+    }
     for b in &bad {
         assert_ne!(b, &text, "each bad document changes the sample");
         let doc: serde_json::Value = toml::from_str(b).unwrap();

@@ -224,6 +224,29 @@ pub struct Product {
     /// What the scene is like when the product is seen.
     #[serde(default)]
     pub conditions: Conditions,
+    /// Night vision only: light points (GeoJSON, `dbms pyramid --lights`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lights: Option<PathBuf>,
+    /// Radar only: where the radar looks from (`dbms radar`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radar: Option<RadarLook>,
+}
+
+/// `[products.NAME.radar]`: a distant radar's direction and band.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RadarLook {
+    /// Grid azimuth from the scene toward the radar, degrees.
+    pub azimuth: f64,
+    /// The radar's elevation above the horizon, degrees, in (0, 90).
+    pub elevation: f64,
+    /// The band, `L` … `W`; default `X`.
+    #[serde(default = "default_band")]
+    pub band: String,
+}
+
+fn default_band() -> String {
+    "X".into()
 }
 
 /// A sun given by its angles.
@@ -245,8 +268,9 @@ pub struct Conditions {
     pub visibility_m: Option<f64>,
 }
 
-/// The sensors a product may name. Only `visual` is built today.
-pub const SENSORS: [&str; 1] = ["visual"];
+/// The sensors a product may name: `visual` (colour shaded for a sun), `ir` (temperature at
+/// `time`), `nvg` (materials and light points) and `radar` (σ⁰ for `radar`) (docs/sensors.md).
+pub const SENSORS: [&str; 4] = ["visual", "ir", "nvg", "radar"];
 
 impl Scene {
     /// Read and check the scene file at `path`; relative paths in it become relative to its
@@ -342,6 +366,9 @@ impl Scene {
         }
         for p in self.products.values_mut() {
             resolve(&mut p.tiles);
+            if let Some(lights) = &mut p.lights {
+                resolve(lights);
+            }
         }
         for p in &mut self.placements {
             if let Some(points) = &mut p.points {
@@ -366,6 +393,14 @@ impl Scene {
             if let Some(points) = &p.points {
                 inputs.push((key, points));
             }
+        }
+        let light_keys: Vec<(String, &PathBuf)> = self
+            .products
+            .iter()
+            .filter_map(|(name, p)| Some((format!("products.{name}.lights"), p.lights.as_ref()?)))
+            .collect();
+        for (key, path) in &light_keys {
+            inputs.push((key, path));
         }
         for (key, path) in &inputs {
             if !path.is_file() {
@@ -436,6 +471,67 @@ impl ObjectSpec {
 }
 
 impl Product {
+    /// What each sensor needs and refuses: `ir` a `time` (its temperatures') and no sun;
+    /// `nvg` and `radar` no time or sun (their tile files do not depend on one); `radar` its
+    /// `radar`; `lights` only for `nvg`, `radar` only for `radar`.
+    fn check_sensor(&self, key: &str) -> Result<()> {
+        let sensor = self.sensor.as_str();
+        let refuse = |field: &str, why: &str| {
+            Err(key_error(
+                &format!("{key}.{field}"),
+                format!("is given, but {why}"),
+                &format!("remove it from a {sensor} product"),
+            ))
+        };
+        if self.sun.is_some() && sensor != "visual" {
+            return refuse("sun", "only a visual product is shaded for a sun");
+        }
+        if self.time.is_some() && matches!(sensor, "nvg" | "radar") {
+            return refuse("time", "this tile file does not depend on one (night vision takes it when rendering: dbms render --time)");
+        }
+        if self.lights.is_some() && sensor != "nvg" {
+            return refuse("lights", "only a night-vision product carries light points");
+        }
+        if self.radar.is_some() && sensor != "radar" {
+            return refuse("radar", "only a radar product has a radar look");
+        }
+        if sensor == "ir" && self.time.is_none() {
+            return Err(key_error(
+                key,
+                "is an ir product without a time: its temperatures are for an instant".into(),
+                "add time = \"2026-09-15T13:00:00Z\" (RFC 3339 UTC)",
+            ));
+        }
+        match (&self.radar, sensor) {
+            (None, "radar") => Err(key_error(
+                key,
+                "is a radar product without a radar look".into(),
+                "add radar = { azimuth = 220, elevation = 20, band = \"X\" }",
+            )),
+            (Some(r), _) => {
+                crate::radar_map::parse_band(&r.band).map_err(|e| {
+                    key_error(
+                        &format!("{key}.radar.band"),
+                        format!("is {:?}, not a radar band ({})", r.band, e.problem),
+                        "give one of L, S, C, X, Ku, Ka, W",
+                    )
+                })?;
+                if !(r.elevation > 0.0 && r.elevation < 90.0 && r.azimuth.is_finite()) {
+                    return Err(key_error(
+                        &format!("{key}.radar"),
+                        format!(
+                            "elevation {} azimuth {}: the radar must be above the horizon, (0, 90) degrees",
+                            r.elevation, r.azimuth
+                        ),
+                        "give degrees above the horizon and clockwise from grid north",
+                    ));
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
     fn check(&self, key: &str) -> Result<()> {
         if !SENSORS.contains(&self.sensor.as_str()) {
             return Err(key_error(
@@ -444,6 +540,7 @@ impl Product {
                 &format!("give one of {}", SENSORS.join(", ")),
             ));
         }
+        self.check_sensor(key)?;
         match (&self.time, &self.sun) {
             (Some(_), Some(_)) => {
                 return Err(key_error(
@@ -615,12 +712,46 @@ conditions = { visibility_m = 2000 }
     fn impossible_products_name_the_key() {
         let e = error_of(&GOOD.replace(
             "sensor = \"visual\"\ntiles = \"day.dbt\"",
-            "sensor = \"radar\"\ntiles = \"day.dbt\"",
+            "sensor = \"sonar\"\ntiles = \"day.dbt\"",
         ));
         assert!(
-            e.contains("products.day.sensor") && e.contains("radar"),
+            e.contains("products.day.sensor") && e.contains("sonar"),
             "{e}"
         );
+        // Each sensor's needs and refusals, each naming its key.
+        let product = |body: &str| {
+            let text = GOOD.replace(
+                "sensor = \"visual\"\ntiles = \"day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"",
+                body,
+            );
+            Scene::parse(&text).map(|_| ()).map_err(|e| e.to_string())
+        };
+        let t = "time = \"2026-09-15T13:00:00Z\"";
+        let look = "radar = { azimuth = 220, elevation = 20 }";
+        assert_eq!(
+            product(&format!("sensor = \"ir\"\ntiles = \"ir.dbt\"\n{t}")),
+            Ok(())
+        );
+        assert_eq!(
+            product(&format!("sensor = \"radar\"\ntiles = \"r.dbt\"\n{look}")),
+            Ok(())
+        );
+        assert_eq!(
+            product("sensor = \"nvg\"\ntiles = \"n.dbt\"\nlights = \"l.geojson\""),
+            Ok(())
+        );
+        for (body, want) in [
+            ("sensor = \"ir\"\ntiles = \"ir.dbt\"".to_string(), "without a time"),
+            ("sensor = \"radar\"\ntiles = \"r.dbt\"".into(), "without a radar look"),
+            (format!("sensor = \"nvg\"\ntiles = \"n.dbt\"\n{t}"), "products.day.time is given"),
+            (format!("sensor = \"visual\"\ntiles = \"v.dbt\"\n{look}"), "products.day.radar"),
+            ("sensor = \"ir\"\ntiles = \"v.dbt\"\nsun = { elevation = 5, azimuth = 1 }".into(), "products.day.sun"),
+            ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 95 }".into(), "products.day.radar"),
+            ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 9, band = \"Q\" }".into(), "products.day.radar.band"),
+        ] {
+            let e = product(&body).unwrap_err();
+            assert!(e.contains(want), "{body}: {e}");
+        }
         let both = GOOD.replace(
             "sun = { elevation = 5, azimuth = 250 }",
             "sun = { elevation = 5, azimuth = 250 }\ntime = \"2026-09-15T18:00:00Z\"",

@@ -8,7 +8,7 @@
 //! step succeeded) holds its current key and every output it writes exists. An input's hash is
 //! taken again only when its size or modification time differ from those its stamp recorded.
 
-use super::file::{ObjectSpec, Scene};
+use super::file::{ObjectSpec, Product, Scene};
 use crate::db::sha256_file;
 use crate::error::{Error, Result};
 use crate::io::atomic::AtomicFile;
@@ -151,9 +151,113 @@ pub fn steps(scene: &Scene) -> Vec<Step> {
         last = place.name.clone();
         out.push(place);
     }
-    if !scene.products.is_empty() {
-        out.push(product_step(scene, &last));
+    let (visual, sensor): (Vec<_>, Vec<_>) = scene
+        .products
+        .iter()
+        .partition(|(_, p)| p.sensor == "visual");
+    if !sensor.is_empty() {
+        // The sensor products read the materials layer; the visual ones' colour fallback does
+        // too, so they wait for it (the same tiles whichever step the scheduler starts first).
+        out.push(materials_step(scene, &last));
+        last = "materials".into();
     }
+    if !visual.is_empty() {
+        out.push(product_step(scene, &visual, &last));
+    }
+    for (name, p) in sensor {
+        out.extend(sensor_steps(scene, name, p, &last));
+    }
+    out
+}
+
+/// `dbms materials` (photo rules and roofs), after the database steps `last`: what every
+/// sensor product reads.
+fn materials_step(scene: &Scene, last: &str) -> Step {
+    Step {
+        name: "materials".into(),
+        does: "what each cell is made of, for the sensor products".into(),
+        commands: vec![vec![
+            s("materials"),
+            s("--db"),
+            s(scene.database.dir.display()),
+        ]],
+        inputs: vec![],
+        outputs: vec![],
+        after: vec![last.to_string()],
+        writes_database: false,
+    }
+}
+
+/// A sensor product's steps after `last` (the materials step): its map (`thermal.NAME` for
+/// `ir`, `radar.NAME` for `radar`; none for `nvg`) and `product.NAME`, one `dbms pyramid`
+/// carrying the materials and the map (and for `nvg` the light points).
+fn sensor_steps(scene: &Scene, name: &str, p: &Product, last: &str) -> Vec<Step> {
+    let db = s(scene.database.dir.display());
+    let map = steps_dir(scene).join(format!("{name}.{}.tif", p.sensor));
+    let map_step = match (p.sensor.as_str(), &p.time, &p.radar) {
+        ("ir", Some(time), _) => Some((
+            "thermal",
+            "surface temperatures at its time",
+            vec![
+                s("thermal"),
+                s("--db"),
+                db.clone(),
+                s("--time"),
+                time.clone(),
+                s("-o"),
+                s(map.display()),
+            ],
+            "--temperature",
+        )),
+        ("radar", _, Some(r)) => Some((
+            "radar",
+            "radar backscatter for its look",
+            vec![
+                s("radar"),
+                s("--db"),
+                db.clone(),
+                s("--azimuth"),
+                s(r.azimuth),
+                s("--elevation"),
+                s(r.elevation),
+                s("--band"),
+                r.band.clone(),
+                s("-o"),
+                s(map.display()),
+            ],
+            "--backscatter",
+        )),
+        _ => None,
+    };
+    let mut out = Vec::new();
+    let mut pyramid = vec![s("pyramid"), s("--db"), db, s("--materials")];
+    let mut after = last.to_string();
+    if let Some((kind, does, command, option)) = map_step {
+        after = format!("{kind}.{name}");
+        out.push(Step {
+            name: after.clone(),
+            does: format!("the {} product {name}'s {does}", p.sensor),
+            commands: vec![command],
+            inputs: vec![],
+            outputs: vec![map.clone()],
+            after: vec![last.to_string()],
+            writes_database: false,
+        });
+        pyramid.extend([s(option), s(map.display())]);
+    }
+    if let Some(lights) = &p.lights {
+        pyramid.extend([s("--lights"), s(lights.display())]);
+    }
+    pyramid.extend([s("-o"), s(p.tiles.display())]);
+    out.push(Step {
+        name: format!("product.{name}"),
+        does: format!("the {} tile file", p.sensor),
+        commands: vec![pyramid],
+        inputs: p.lights.iter().cloned().collect(),
+        outputs: vec![p.tiles.clone()],
+        after: vec![after],
+        writes_database: false,
+    });
     out
 }
 
@@ -259,12 +363,12 @@ fn place_step(scene: &Scene, last: &str) -> Option<Step> {
 /// `dbms pyramid` for all of them (`--product` for each after the first), so they share what
 /// stands on the terrain and every cast or detection more than one needs is made once. Named
 /// `product.NAME`, or `products` for several.
-fn product_step(scene: &Scene, last: &str) -> Step {
+fn product_step(scene: &Scene, visual: &[(&String, &Product)], last: &str) -> Step {
     let mut cmd = vec![s("pyramid"), s("--db"), s(scene.database.dir.display())];
     // After an edit of buildings or placements only the pages it touches are made again.
     cmd.push(s("--incremental"));
-    let mut products = scene.products.iter();
-    let (_, first) = products.next().expect("a scene with products");
+    let mut products = visual.iter().copied();
+    let (_, first) = products.next().expect("a scene with visual products");
     match (&first.time, &first.sun) {
         (Some(t), _) => cmd.extend([s("--time"), t.clone()]),
         (None, Some(sun)) => cmd.extend([
@@ -284,26 +388,22 @@ fn product_step(scene: &Scene, last: &str) -> Step {
         };
         cmd.extend([s("--product"), format!("{}@{sun}", p.tiles.display())]);
     }
-    let names: Vec<&str> = scene.products.keys().map(String::as_str).collect();
-    let sensors: std::collections::BTreeSet<&str> =
-        scene.products.values().map(|p| p.sensor.as_str()).collect();
-    let sensors: Vec<&str> = sensors.into_iter().collect();
+    let names: Vec<&str> = visual.iter().map(|(n, _)| n.as_str()).collect();
     Step {
         name: match names.as_slice() {
             [one] => format!("product.{one}"),
             _ => "products".into(),
         },
         does: match names.len() {
-            1 => format!("the {} tile file", sensors.join(", ")),
+            1 => "the visual tile file".into(),
             n => format!(
-                "the {n} {} tile files {}, sharing what they have in common",
-                sensors.join(", "),
+                "the {n} visual tile files {}, sharing what they have in common",
                 names.join(", ")
             ),
         },
         commands: vec![cmd],
         inputs: vec![],
-        outputs: scene.products.values().map(|p| p.tiles.clone()).collect(),
+        outputs: visual.iter().map(|(_, p)| p.tiles.clone()).collect(),
         after: vec![last.to_string()],
         writes_database: false,
     }
