@@ -151,11 +151,12 @@ impl Column<'_, '_, '_> {
         // Children per axis of a cell of this level (for descents).
         let f = if l > 0 { plan.children(l) } else { 1 };
         let (mut first, end) = (rows.start, rows.end); // rows before `first` are finished
-        for Visit {
+        let mut walk = walk;
+        while let Some(Visit {
             cell: [cc, rr],
             t_in,
             t_out,
-        } in walk
+        }) = walk.next()
         {
             if let Some(([c0, r0], n)) = parent {
                 if !((c0..c0 + n).contains(&cc) && (r0..r0 + n).contains(&rr)) {
@@ -210,9 +211,9 @@ impl Column<'_, '_, '_> {
                 }
             }
             if self.stack.len() > end {
-                let ray = &self.rays[self.stack[end]];
+                // Descend at the same τ, into the child holding the ray then.
                 let corner = [cc * f, rr * f];
-                let child = walk_from(ray, plan, l - 1, t_in, corner);
+                let child = walk.placed(plan.scales[l - 1], t_in, corner);
                 self.walk(l - 1, child, Some((corner, f)), end..self.stack.len())?;
                 self.stack.truncate(end);
             }

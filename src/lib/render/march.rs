@@ -373,7 +373,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     // Descend at the same τ, into the child holding the ray then.
                     let f = plan.children(l);
                     l -= 1;
-                    w = walk_from(ray, plan, l, t, [cc * f, rr * f]);
+                    w = w.placed(plan.scales[l], t, [cc * f, rr * f]);
                     continue;
                 }
                 Coarse::Skip => {}
