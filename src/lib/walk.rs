@@ -472,8 +472,8 @@ impl<const N: usize> ExactWalk<N> {
         w.t_in = t;
         w.stepped = [false; N];
         w.done = false;
-        for a in 0..N {
-            (w.cell[a], w.next_times[a]) = locate(w.start[a], w.dir[a], t, scale, guess[a]);
+        for (a, &g) in guess.iter().enumerate() {
+            (w.cell[a], w.next_times[a]) = locate(w.start[a], w.dir[a], t, scale, g);
         }
         debug_assert!((0..N).all(|a| w.next_times[a].to_bits() == w.crossing(a).to_bits()));
         w
