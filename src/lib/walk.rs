@@ -84,8 +84,15 @@ pub fn cross(o: f64, d: f64, b: i64) -> f64 {
     if d == 0.0 {
         f64::INFINITY
     } else {
-        (b as f64 - o) / d
+        cross_moving(o, d, b)
     }
+}
+
+/// [`cross`] for a ray that moves along the axis (`d != 0`): the same f64, without the test
+/// (a walk's step, the hottest use).
+#[inline]
+fn cross_moving(o: f64, d: f64, b: i64) -> f64 {
+    (b as f64 - o) / d
 }
 
 /// The index of the `scale`-wide cell holding the ray `o + t·d` (cells) at `t` on one axis under
@@ -451,12 +458,23 @@ impl<const N: usize> ExactWalk<N> {
     /// `guess` is any nearby cell), finding the cell and the walk's first crossings with the
     /// same divisions.
     pub fn at(start: [f64; N], dir: [f64; N], scale: i64, t: f64, guess: [i64; N]) -> ExactWalk<N> {
-        let mut w = ExactWalk::unplaced(start, dir, scale);
-        let located: [(i64, f64); N] =
-            std::array::from_fn(|a| locate(w.start[a], w.dir[a], t, scale, guess[a]));
-        w.cell = located.map(|l| l.0);
+        ExactWalk::unplaced(start, dir, scale).placed(scale, t, guess)
+    }
+
+    /// This walk's ray taken up at `t` over cells `scale` wide, in the cell holding it then:
+    /// [`ExactWalk::at`] with this walk's start and direction, without preparing the ray's
+    /// steps again (the renderer does this on every descent).
+    #[inline]
+    pub fn placed(&self, scale: i64, t: f64, guess: [i64; N]) -> ExactWalk<N> {
+        assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        let mut w = *self;
+        w.scale = scale;
         w.t_in = t;
-        w.next_times = located.map(|l| l.1);
+        w.stepped = [false; N];
+        w.done = false;
+        for (a, &g) in guess.iter().enumerate() {
+            (w.cell[a], w.next_times[a]) = locate(w.start[a], w.dir[a], t, scale, g);
+        }
         debug_assert!((0..N).all(|a| w.next_times[a].to_bits() == w.crossing(a).to_bits()));
         w
     }
@@ -518,7 +536,8 @@ impl<const N: usize> Iterator for ExactWalk<N> {
         if self.done {
             return None;
         }
-        let (_, t_out) = nearest(&self.next_times);
+        // the nearest crossing (crossing times are never NaN)
+        let t_out = self.next_times.iter().fold(f64::INFINITY, |m, &t| m.min(t));
         let here = Visit {
             cell: self.cell,
             t_in: self.t_in,
@@ -532,8 +551,10 @@ impl<const N: usize> Iterator for ExactWalk<N> {
             let tied = self.next_times[a] == t_out;
             self.stepped[a] = tied;
             if tied {
+                // a crossing is finite, so the ray moves along this axis
                 self.cell[a] += self.step[a];
-                self.next_times[a] = self.crossing(a);
+                let b = next_boundary(self.cell[a], self.step[a], self.scale);
+                self.next_times[a] = cross_moving(self.start[a], self.dir[a], b);
             }
         }
         self.t_in = t_out;

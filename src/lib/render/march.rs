@@ -224,6 +224,7 @@ fn entry(ray: &Ray, span: Span, c: i64, r: i64, s: i64) -> (f64, Face) {
 /// function of the ray, its span and the cell: `t_in` is the cell's entry crossing or where a
 /// walk started in it, and the ray's own time there is `max(t_in, span.t0)`.
 #[allow(clippy::too_many_arguments)]
+#[inline]
 pub(super) fn coarse_test(
     ray: &Ray,
     span: Span,
@@ -248,6 +249,25 @@ pub(super) fn coarse_test(
     if ray.range(t_out) <= th[l] {
         return Ok(Coarse::Descend);
     }
+    coarse_stop(ray, span, l, [cc, rr], t_far, th[l], cell, sampler, plan)
+}
+
+/// The rest of [`coarse_test`] for a ray that may hit the cell's column past the level's range
+/// threshold `th` (`t_far`: the end of the visit within the span): the cell's hit, or descend
+/// where its blend weight is not 1. Out of line: most coarse tests end before it.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn coarse_stop(
+    ray: &Ray,
+    span: Span,
+    l: usize,
+    [cc, rr]: [i64; 2],
+    t_far: f64,
+    th: f64,
+    cell: &Cell,
+    sampler: &mut Sampler,
+    plan: &Plan,
+) -> Result<Coarse> {
     let s = plan.scales[l];
     let mz = cell.max_z as f64;
     let (te, fe) = entry(ray, span, cc, rr, s);
@@ -258,7 +278,7 @@ pub(super) fn coarse_test(
         (at.max(te).min(t_far), Face::Top)
     };
     let range = ray.range(tc);
-    if blend_weight(range, th[l], plan.blend) != 1.0 {
+    if blend_weight(range, th, plan.blend) != 1.0 {
         return Ok(Coarse::Descend);
     }
     let face = step_or_wall(fc, ray, l, [cc, rr], cell.max_z, sampler, plan)?;
@@ -373,7 +393,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     // Descend at the same τ, into the child holding the ray then.
                     let f = plan.children(l);
                     l -= 1;
-                    w = walk_from(ray, plan, l, t, [cc * f, rr * f]);
+                    w = w.placed(plan.scales[l], t, [cc * f, rr * f]);
                     continue;
                 }
                 Coarse::Skip => {}

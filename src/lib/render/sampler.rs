@@ -69,7 +69,7 @@ impl<'a> Sampler<'a> {
     }
 
     /// Cell `(col, row)` of `level`; `None` outside the level (without wrap).
-    #[inline]
+    #[inline(always)]
     pub fn cell(&mut self, level: usize, col: i64, row: i64) -> Result<Option<Cell>> {
         let (w, h) = self.sizes[level];
         let (col, row) = if self.wrap {
@@ -87,13 +87,18 @@ impl<'a> Sampler<'a> {
         };
         let page = match &self.memo[level] {
             Some((x, y, page)) if *x == tx && *y == ty => page,
-            _ => {
-                let page = self.reader.page(level, tx, ty)?;
-                self.touched.insert((level, tx, ty));
-                &self.memo[level].insert((tx, ty, page)).2
-            }
+            _ => self.load(level, tx, ty)?,
         };
         Ok(Some(page.cell(p, c, r)))
+    }
+
+    /// Page `(tx, ty)` of `level` from the reader, now the level's memo (the lookup's slow
+    /// path, kept out of line so the memo's hit stays small enough to inline).
+    #[inline(never)]
+    fn load(&mut self, level: usize, tx: usize, ty: usize) -> Result<&Arc<Page>> {
+        let page = self.reader.page(level, tx, ty)?;
+        self.touched.insert((level, tx, ty));
+        Ok(&self.memo[level].insert((tx, ty, page)).2)
     }
 
     /// The solid runs of level-0 cell `(col, row)`, which must be a partial cell (`state` 1)
