@@ -26,6 +26,10 @@ pub struct Args {
     /// it is copied into the database for later stages.
     #[arg(long, value_name = "JSON")]
     table: Option<PathBuf>,
+    /// The material of every cell a placed voxel object stands on (e.g. forest for trees),
+    /// above every other source.
+    #[arg(long, value_name = "MATERIAL")]
+    objects: Option<String>,
     /// Also write the layer as a PNG to look at: each cell in its material's colour from the
     /// table (black: unclassified).
     #[arg(long, value_name = "PNG")]
@@ -40,6 +44,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             features: args.features,
             landcover: args.landcover.zip(args.legend),
             table: args.table,
+            objects: args.objects,
             preview: args.preview,
             wait: ctx.wait,
         },

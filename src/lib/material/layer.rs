@@ -42,6 +42,9 @@ pub struct MaterialOptions {
     pub landcover: Option<(PathBuf, String)>,
     /// A material table file instead of the shipped default.
     pub table: Option<PathBuf>,
+    /// The material of every cell a placed voxel object stands on (e.g. `forest` for trees):
+    /// above every other source, since the object is the cell's top surface.
+    pub objects: Option<String>,
     /// A PNG of the layer to look at: each cell in its material's colour (black: unclassified).
     pub preview: Option<PathBuf>,
     /// How long to wait for the database's lock.
@@ -51,6 +54,8 @@ pub struct MaterialOptions {
 /// Cells decided by each source.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct SourceCounts {
+    /// Cells under placed objects (`--objects`).
+    pub objects: u64,
     /// Roofs with a `roof_material`.
     pub roofs: u64,
     /// Vector features.
@@ -86,8 +91,8 @@ impl std::fmt::Display for MaterialSummary {
         let s = &self.sources;
         writeln!(
             f,
-            "materials: {} cells (table {}): roofs {}, features {}, land cover {}, photo roofs {}, photo ground {}, unclassified {}",
-            self.cells, self.table, s.roofs, s.features, s.landcover, s.photo_roofs, s.photo_ground, s.unclassified
+            "materials: {} cells (table {}): objects {}, roofs {}, features {}, land cover {}, photo roofs {}, photo ground {}, unclassified {}",
+            self.cells, self.table, s.objects, s.roofs, s.features, s.landcover, s.photo_roofs, s.photo_ground, s.unclassified
         )?;
         for (name, n) in &self.materials {
             writeln!(
@@ -114,6 +119,8 @@ pub struct Inputs<'a> {
     pub colour: &'a [[u8; 4]],
     /// Cells under a building footprint.
     pub roof: &'a [bool],
+    /// The cells placed objects stand on, and the material they get (`--objects`).
+    pub objects: Option<&'a features::Painted>,
     /// Roofs with a given material, then ground features, as painted.
     pub roofs_given: &'a [features::Painted],
     /// Ground features in paint order.
@@ -144,9 +151,19 @@ pub fn classify(
             ))
         })
     };
-    for p in inputs.roofs_given {
+    if let Some(p) = inputs.objects {
         let id = id_of(p)?;
         for &c in &p.cells {
+            if ids[c].is_none() {
+                sources.objects += 1;
+            }
+            ids[c] = Some(id);
+        }
+    }
+    let object_cells = ids.clone();
+    for p in inputs.roofs_given {
+        let id = id_of(p)?;
+        for &c in p.cells.iter().filter(|&&c| object_cells[c].is_none()) {
             if ids[c].is_none() {
                 sources.roofs += 1;
             }
@@ -155,7 +172,8 @@ pub fn classify(
     }
     for p in inputs.features {
         let id = id_of(p)?;
-        for &c in p.cells.iter().filter(|&&c| !inputs.roof[c]) {
+        let ground = |c: usize| !inputs.roof[c] && object_cells[c].is_none();
+        for &c in p.cells.iter().filter(|&&c| ground(c)) {
             if ids[c].is_none() {
                 sources.features += 1;
             }
@@ -367,6 +385,22 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
     let colour = db.read_colour()?;
     let (roof, roofs_given) = roofs(&db)?;
     let painted = features::read(&opts.features, &grid)?;
+    let objects = match &opts.objects {
+        Some(material) => {
+            let terrain = db.elevation_rows()?;
+            let standing = crate::standing::Standing::read(
+                &db,
+                &terrain,
+                crate::raster::band_rows(grid.width),
+            )?;
+            Some(features::Painted {
+                material: material.clone(),
+                origin: "--objects".into(),
+                cells: standing.objects.cells().iter().map(|c| c.index).collect(),
+            })
+        }
+        None => None,
+    };
     let codes = match &opts.landcover {
         Some((path, _)) => Some(cover::sample_codes(path, &grid)?),
         None => None,
@@ -374,6 +408,7 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
     let inputs = Inputs {
         colour: &colour.data,
         roof: &roof,
+        objects: objects.as_ref(),
         roofs_given: &roofs_given,
         features: &painted,
         landcover: codes
@@ -422,6 +457,7 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
         serde_json::json!({
             "inputs": inputs_record,
             "legend": opts.landcover.as_ref().map(|(_, l)| l),
+            "objects": opts.objects,
             "table": summary.table,
             "sources": summary.sources,
         }),
@@ -484,6 +520,7 @@ mod tests {
         let inputs = Inputs {
             colour: &colour,
             roof: &roof,
+            objects: None,
             roofs_given: &roofs_given,
             features: &features,
             landcover: Some((&codes, "esa_worldcover")),
@@ -519,6 +556,43 @@ mod tests {
         );
         assert_eq!(summary.landcover_unmapped, BTreeMap::from([(7, 1)]));
         assert_eq!(summary.materials["roof_metal"], 3);
+
+        // Placed objects over cells 0 (a roof with a material), 4 (features) and 5 (land
+        // cover) are their material there, above every other source; the rest is as before.
+        let trees = painted("forest", vec![0, 4, 5]);
+        let with_trees = Inputs {
+            objects: Some(&trees),
+            ..inputs
+        };
+        let (ids, summary) = classify(&with_trees, table, "default").unwrap();
+        let got: Vec<&str> = (0..8)
+            .map(|c| table.by_id(ids[c]).unwrap().name.as_str())
+            .collect();
+        assert_eq!(
+            got,
+            [
+                "forest",
+                "roof_metal",
+                "roof_metal",
+                "water",
+                "forest",
+                "forest",
+                "grass",
+                "grass"
+            ]
+        );
+        let s = &summary.sources;
+        assert_eq!(
+            (
+                s.objects,
+                s.roofs,
+                s.features,
+                s.landcover,
+                s.photo_roofs,
+                s.photo_ground
+            ),
+            (3, 0, 1, 0, 2, 2)
+        );
     }
 
     #[test]
@@ -529,6 +603,7 @@ mod tests {
         let inputs = Inputs {
             colour: &colour,
             roof: &[false, false],
+            objects: None,
             roofs_given: &[],
             features: &features,
             landcover: None,
@@ -583,6 +658,7 @@ mod tests {
         let inputs = Inputs {
             colour: &scene.ortho.data,
             roof: &roof,
+            objects: None,
             roofs_given: &[],
             features: &[],
             landcover: None,

@@ -36,8 +36,20 @@ pub struct Scene {
     /// Objects placed on the terrain, in order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub placements: Vec<Placement>,
+    /// How the sensor products' materials step classifies (`dbms materials`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub materials: Option<MaterialsSpec>,
     /// What the build delivers, by name: one tile file each.
     pub products: BTreeMap<String, Product>,
+}
+
+/// `[materials]`: options of the materials step the sensor products read.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialsSpec {
+    /// The material of every cell a placed object stands on (`dbms materials --objects`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub objects: Option<String>,
 }
 
 /// `[database]`: where the database goes and its grid.

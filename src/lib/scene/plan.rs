@@ -173,14 +173,14 @@ pub fn steps(scene: &Scene) -> Vec<Step> {
 /// `dbms materials` (photo rules and roofs), after the database steps `last`: what every
 /// sensor product reads.
 fn materials_step(scene: &Scene, last: &str) -> Step {
+    let mut cmd = vec![s("materials"), s("--db"), s(scene.database.dir.display())];
+    if let Some(m) = scene.materials.as_ref().and_then(|m| m.objects.as_ref()) {
+        cmd.extend([s("--objects"), m.clone()]);
+    }
     Step {
         name: "materials".into(),
         does: "what each cell is made of, for the sensor products".into(),
-        commands: vec![vec![
-            s("materials"),
-            s("--db"),
-            s(scene.database.dir.display()),
-        ]],
+        commands: vec![cmd],
         inputs: vec![],
         outputs: vec![],
         after: vec![last.to_string()],
