@@ -499,6 +499,7 @@ fn sensor_products_get_their_maps_and_layers() {
     std::fs::write(dir.join("lights.geojson"), lights).unwrap();
     let ir_time = "2026-09-15T13:00:00Z";
     let text = scene_toml(30.0)
+        + "[materials]\nobjects = \"forest\"\n"
         + &format!(
             "[products.ir]\nsensor = \"ir\"\ntiles = \"build/ir.dbt\"\ntime = \"{ir_time}\"\n\
              [products.night]\nsensor = \"nvg\"\ntiles = \"build/night.dbt\"\nlights = \"lights.geojson\"\n\
@@ -527,6 +528,16 @@ fn sensor_products_get_their_maps_and_layers() {
     assert_eq!(layers("ir.dbt"), ("material,temperature".into(), 0));
     assert_eq!(layers("night.dbt"), ("material".into(), 1));
     assert_eq!(layers("sar.dbt"), ("material,backscatter".into(), 0));
+    // The trees' cells are forest ([materials] objects); the ground beside them is not.
+    let db = dbms::db::Database::open(&dir.join("build/db")).unwrap();
+    let m = dbms::io::read_raster(&db.layer_path("materials").unwrap()).unwrap();
+    let id_at = |x: f64, y: f64| {
+        let (c, r) = m.grid.cell_at(x, y).unwrap();
+        m.sample(r * m.grid.width + c, 0) as u8
+    };
+    let forest = dbms::material::table::MaterialTable::default_table().id_of("forest");
+    assert_eq!(Some(id_at(500030.1, 5300030.1)), forest);
+    assert_ne!(Some(id_at(500045.1, 5300030.1)), forest);
     // By hand, on the database the build made: the same ir tile file.
     let run = |args: &[&str]| ok(dbms_in(dir, args), &args.join(" "));
     run(&[
