@@ -24,11 +24,10 @@
 
 use crate::db::Database;
 use crate::error::{Error, Result};
-use crate::material::layer::{table_of, MATERIALS};
+use crate::material::surface::TopSurface;
 use crate::material::table::{Band, RadarModel};
-use crate::raster::{band_rows, Raster, RowSource};
+use crate::raster::Raster;
 use crate::shadow::ShadowBits;
-use crate::standing::Standing;
 use crate::sun::Sun;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -138,24 +137,18 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
         ))
         .fix("give the radar's depression angle, e.g. --elevation 30"));
     }
-    if !db.manifest.layers.contains_key(MATERIALS) {
-        return Err(Error::file(&db.dir, "has no materials layer")
-            .fix("run `dbms materials --db DB` first"));
-    }
-    let table = table_of(db)?;
-    let terrain = db.elevation_rows()?;
-    let grid = terrain.grid().clone();
-    let standing = Standing::read(db, &terrain, band_rows(grid.width))?;
-    let raised = &standing.all;
-    let material = db
-        .byte_rows(MATERIALS)?
-        .read_rows(0, grid.height)?
-        .into_owned();
+    let surface = TopSurface::read(db)?;
+    let TopSurface {
+        table,
+        terrain,
+        standing,
+        material,
+        heights,
+        on_top,
+    } = &surface;
+    let grid = surface.grid();
     let radar = Sun::new(el, az)?;
-    let shadow = ShadowBits::cast(&terrain, &radar, |s, row| raised.lay_over(s, row))?;
-    let heights = terrain.read_rows(0, grid.height)?.into_owned();
-    let mut on_top = vec![false; grid.len()];
-    raised.cells().iter().for_each(|c| on_top[c.index] = true);
+    let shadow = ShadowBits::cast(terrain, &radar, |s, row| standing.all.lay_over(s, row))?;
 
     let (e, a) = (el.to_radians(), az.to_radians());
     let toward = [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()];
@@ -184,10 +177,7 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
             if heights[i].is_nan() {
                 return (f32::NAN, Class::Nodata as u8);
             }
-            let n = match on_top[i] {
-                true => [0.0, 0.0, 1.0],
-                false => crate::raster::surface_normal(&heights, &grid, i),
-            };
+            let n = surface.normal(i);
             let cos_inc = n[0] * toward[0] + n[1] * toward[1] + n[2] * toward[2];
             if shadow.get(i) || cos_inc <= 0.0 {
                 return (0.0, Class::Shadow as u8);
@@ -252,7 +242,7 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
     };
     let map = RadarMap {
         sigma0: Raster::new(grid.clone(), sigma0),
-        class: Raster::new(grid, class),
+        class: Raster::new(grid.clone(), class),
     };
     Ok((map, summary))
 }

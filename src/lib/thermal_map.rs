@@ -34,11 +34,11 @@
 use crate::db::Database;
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::material::layer::{table_of, MATERIALS};
+use crate::material::surface::TopSurface;
 use crate::material::table;
-use crate::raster::{band_rows, Raster, RowSource};
+use crate::raster::Raster;
 use crate::shadow::ShadowBits;
-use crate::standing::{Raised, Standing};
+use crate::standing::Raised;
 use crate::sun::{self, Observer, Sun, SunOptions};
 use crate::thermal::{self, planck, Column, Forcing, GridSpec, Surface};
 use chrono::{DateTime, Duration, Utc};
@@ -333,26 +333,24 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
     }
     let c = opts.conditions;
     c.check()?;
-    if !db.manifest.layers.contains_key(MATERIALS) {
-        return Err(Error::file(&db.dir, "has no materials layer")
-            .fix("run `dbms materials --db DB` first"));
-    }
-    let table = table_of(db)?;
-    let terrain = db.elevation_rows()?;
-    let grid: Grid = terrain.grid().clone();
-    let standing = Standing::read(db, &terrain, band_rows(grid.width))?;
+    let surface = TopSurface::read(db)?;
+    let TopSurface {
+        table,
+        terrain,
+        standing,
+        material,
+        heights,
+        ..
+    } = &surface;
+    let grid: Grid = surface.grid().clone();
     let raised: &Raised = &standing.all;
-    let material = db
-        .byte_rows(MATERIALS)?
-        .read_rows(0, grid.height)?
-        .into_owned();
     let days = steps(db, opts, n)?;
 
     // Lit history: one cast per step with the sun up.
     let mut lit = vec![0u128; grid.len()];
     for (k, step) in days.iter().enumerate() {
         let Some(sunlit) = &step.sun else { continue };
-        let bits = ShadowBits::cast(&terrain, &sunlit.sun, |s, row| raised.lay_over(s, row))?;
+        let bits = ShadowBits::cast(terrain, &sunlit.sun, |s, row| raised.lay_over(s, row))?;
         lit.par_iter_mut().enumerate().for_each(|(i, l)| {
             if !bits.get(i) {
                 *l |= 1 << k;
@@ -360,17 +358,10 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
         });
     }
 
-    // Terrain normals (roofs and objects are flat tops), quantised to 0.01.
-    let heights = terrain.read_rows(0, grid.height)?.into_owned();
-    let mut on_top = vec![false; grid.len()];
-    raised.cells().iter().for_each(|c| on_top[c.index] = true);
-    // A valid cell's unit normal's east and north components, quantised to 0.01 (flat on
+    // A valid cell's unit normal's east and north components, quantised to 0.01 (level on
     // roofs and objects' tops).
     let normal = |i: usize| -> [i16; 2] {
-        if on_top[i] {
-            return [0, 0];
-        }
-        let [e, n, _] = crate::raster::surface_normal(&heights, &grid, i);
+        let [e, n, _] = surface.normal(i);
         [e, n].map(|v| (v * 100.0).round() as i16)
     };
 

@@ -8,9 +8,12 @@
 //! * [`features`]: vector features (polygons, lines with a width) naming a material.
 //! * [`layer`]: the material layer of a database (`dbms materials`), sources in precedence.
 //! * [`photo`]: a cell's material from its orthophoto colour, by fixed published rules.
+//! * [`surface`]: a database's top surface cell by cell (material, height, normal), as the
+//!   sensor stages read it.
 
 pub mod cover;
 pub mod features;
 pub mod layer;
 pub mod photo;
+pub mod surface;
 pub mod table;
