@@ -197,7 +197,12 @@ impl Database {
             )
             .fix("make it from this database (dbms thermal, dbms radar), or warp it onto the grid with gdalwarp"));
         }
-        self.rows_of(path.to_path_buf(), SourceRaster::into_elevation_band)
+        // Size and transform are the grid's: the width check of `rows_of` has nothing to add.
+        Ok(LayerRows {
+            path: path.to_path_buf(),
+            grid: grid.clone(),
+            convert: SourceRaster::into_elevation_band,
+        })
     }
 
     fn layer_rows<T>(

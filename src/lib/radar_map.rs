@@ -217,18 +217,20 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
     let (sigma0, class): (Vec<f32>, Vec<u8>) = cells.into_iter().unzip();
     let mut counts = [0u64; 7];
     class.iter().for_each(|&c| counts[c as usize] += 1);
-    let mut no_model: Vec<String> = (0..grid.len())
+    let ids = (0..grid.len())
         .filter(|&i| class[i] == Class::NoModel as u8)
         .map(|i| material[i])
-        .collect::<std::collections::BTreeSet<u8>>()
-        .into_iter()
-        .map(|id| {
-            table
-                .by_id(id)
-                .map_or("unclassified".to_string(), |m| m.name.clone())
-        })
-        .collect();
-    no_model.dedup();
+        .collect::<std::collections::BTreeSet<u8>>();
+    // By id; every id the table lacks is "unclassified", named once.
+    let mut no_model: Vec<String> = Vec::new();
+    for id in ids {
+        let name = table
+            .by_id(id)
+            .map_or("unclassified".to_string(), |m| m.name.clone());
+        if !no_model.contains(&name) {
+            no_model.push(name);
+        }
+    }
     let summary = RadarSummary {
         azimuth_deg: az,
         elevation_deg: el,

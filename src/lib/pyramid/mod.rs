@@ -106,11 +106,12 @@ impl SensorInputs {
                 None => serde_json::Value::Null,
             })
         };
-        let material = match self.material {
-            true => {
-                serde_json::json!({ "layer": crate::material::layer::MATERIALS, "sha256": crate::db::sha256_file(&db.layer_path(crate::material::layer::MATERIALS)?)? })
-            }
-            false => serde_json::Value::Null,
+        // The layer's hash as the manifest records it: a layer file is written once, under a
+        // name of its content, so it is the file's (`dbms info --verify` checks it).
+        let layer = crate::material::layer::MATERIALS;
+        let material = match (self.material, db.manifest.layers.get(layer)) {
+            (true, Some(l)) => serde_json::json!({ "layer": layer, "sha256": l.sha256 }),
+            _ => serde_json::Value::Null,
         };
         Ok(serde_json::json!({
             "material": material,

@@ -178,16 +178,6 @@ impl CoarseRows {
         }
     }
 
-    /// Drop the first `rows` rows.
-    pub fn drain_rows(&mut self, rows: usize) {
-        let n = rows * self.width;
-        self.max_z.drain(..n);
-        self.sum.drain(..n);
-        self.count.drain(..n);
-        self.state.drain(..n);
-        self.sensor.iter_mut().for_each(|s| s.drain(n));
-    }
-
     /// Displayed colour of cell `i`: the rounded average, alpha 255; `[0; 4]` when no valid cell.
     #[inline]
     pub fn colour(&self, i: usize) -> [u8; 4] {

@@ -43,9 +43,10 @@ impl Counted {
     /// Every id `rows` holds, read band by band.
     pub fn scan(rows: &dyn RowSource<u8>) -> Result<Counted> {
         let g = rows.grid();
+        let per_band = crate::raster::band_rows(g.width);
         let mut seen = [false; 256];
-        for row0 in (0..g.height).step_by(256) {
-            let band = rows.read_rows(row0, 256.min(g.height - row0))?;
+        for row0 in (0..g.height).step_by(per_band) {
+            let band = rows.read_rows(row0, per_band.min(g.height - row0))?;
             band.iter().for_each(|&id| seen[id as usize] = true);
         }
         Ok(Counted::new((0..=255u8).filter(|&i| seen[i as usize])))
@@ -146,19 +147,6 @@ impl SensorRows {
             (SensorData::Ids(v, _), SensorData::Ids(o, _)) => v.extend(o),
             (SensorData::Values(v), SensorData::Values(o)) => v.extend(o),
             _ => unreachable!("rows of one layer and level"),
-        }
-    }
-
-    /// Drop the first `n` cells.
-    pub fn drain(&mut self, n: usize) {
-        match &mut self.data {
-            SensorData::Counts(v, c) => drop(v.drain(..n * c.ids.len())),
-            SensorData::Sums(s, c) => {
-                s.drain(..n);
-                c.drain(..n);
-            }
-            SensorData::Ids(v, _) => drop(v.drain(..n)),
-            SensorData::Values(v) => drop(v.drain(..n)),
         }
     }
 
