@@ -71,6 +71,15 @@ fn rectangle_of(dir: &Path, name: &str, material: &str, [c0, r0, c1, r1]: [f64; 
     path
 }
 
+/// `dbms thermal` of the database `d` at `time` with half-hour steps into `out`, and `report`
+/// (`--json` or `-q`).
+fn thermal(d: &str, time: &str, out: &Path, report: &str) -> Output {
+    let out = out.to_str().unwrap();
+    dbms(&[
+        "thermal", "--db", d, "--time", time, "--step", "1800", "-o", out, report,
+    ])
+}
+
 fn layer(dir: &Path) -> Vec<u8> {
     let db = Database::open(dir).unwrap();
     let r = dbms::io::read_raster(&db.layer_path("materials").unwrap()).unwrap();
@@ -226,18 +235,7 @@ fn thermal_map_by_day_and_night() {
     ok(dbms(&["materials", "--db", d, "-q"]));
     let run = |time: &str, name: &str| {
         let out = t.path().join(name);
-        let o = ok(dbms(&[
-            "thermal",
-            "--db",
-            d,
-            "--time",
-            time,
-            "--step",
-            "1800",
-            "-o",
-            out.to_str().unwrap(),
-            "--json",
-        ]));
+        let o = ok(thermal(d, time, &out, "--json"));
         let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         let r = dbms::io::read_raster(&out).unwrap();
         let v: Vec<f64> = (0..r.grid.len()).map(|i| r.sample(i, 0)).collect();
@@ -411,18 +409,7 @@ fn sensor_layers_reduce_exactly_and_draw_the_infrared_view() {
     ok(dbms(&["materials", "--db", d, "-q"]));
     let temp = p("t14.tif");
     let time = "2026-07-01T13:24:00Z";
-    ok(dbms(&[
-        "thermal",
-        "--db",
-        d,
-        "--time",
-        time,
-        "--step",
-        "1800",
-        "-o",
-        &s(&temp),
-        "-q",
-    ]));
+    ok(thermal(d, time, &temp, "-q"));
     let pyramid = |out: &Path, extra: &[&str]| {
         let mut args = vec![
             "pyramid", "--db", d, "--page", "8", "--factor", "2", "-q", "-o",
