@@ -157,18 +157,8 @@ pub fn view(
                 Some(s) => s,
                 None => IrScale::of_tiles(reader)?,
             };
-            let grey = move |t: f32| scale.grey(t);
             Ok(Some(SensorView {
-                filter: Arc::new(move |page: &mut Page| {
-                    let Some(t) = page
-                        .sensor(SensorLayer::Temperature)
-                        .and_then(|c| c.values())
-                    else {
-                        return;
-                    };
-                    let colours: Vec<[u8; 4]> = t.iter().map(|&t| grey(t)).collect();
-                    recolour(page, &colours);
-                }),
+                filter: values_filter(SensorLayer::Temperature, move |t| scale.grey(t)),
                 backdrop: Backdrop::infrared(&scale),
                 night: None,
             }))
@@ -179,24 +169,12 @@ pub fn view(
                 "--backscatter S0.tif (S0.tif from dbms radar)",
             )?;
             Ok(Some(SensorView {
-                filter: Arc::new(|page: &mut Page| {
-                    let Some(s0) = page
-                        .sensor(SensorLayer::Backscatter)
-                        .and_then(|c| c.values())
-                    else {
-                        return;
-                    };
-                    let colours: Vec<[u8; 4]> = s0
-                        .iter()
-                        .map(|&s| match s.is_nan() {
-                            true => NO_ATTRIBUTE,
-                            false => {
-                                let g = crate::radar_map::grey_db(s);
-                                [g, g, g, 255]
-                            }
-                        })
-                        .collect();
-                    recolour(page, &colours);
+                filter: values_filter(SensorLayer::Backscatter, |s| match s.is_nan() {
+                    true => NO_ATTRIBUTE,
+                    false => {
+                        let g = crate::radar_map::grey_db(s);
+                        [g, g, g, 255]
+                    }
                 }),
                 backdrop: Backdrop::Flat {
                     sky: [0, 0, 0],
@@ -233,6 +211,21 @@ pub fn view(
             }))
         }
     }
+}
+
+/// The page filter that draws each cell of value layer `layer` in `colour(value)`; a page
+/// without the layer is left as it is.
+fn values_filter(
+    layer: SensorLayer,
+    colour: impl Fn(f32) -> [u8; 4] + Send + Sync + 'static,
+) -> PageFilter {
+    Arc::new(move |page: &mut Page| {
+        let Some(values) = page.sensor(layer).and_then(|c| c.values()) else {
+            return;
+        };
+        let colours: Vec<[u8; 4]> = values.iter().map(|&v| colour(v)).collect();
+        recolour(page, &colours);
+    })
 }
 
 /// Draw `page`'s cells in `colours` (one per cell) and its voxel runs in their cell's; cells
