@@ -720,6 +720,25 @@ fn radar_backscatter_shadow_dihedral_and_layover() {
     let (_, gentle, _) = run(&ramp, "270", "10");
     assert_eq!(gentle[at(10, 15)], 1, "lit");
 
+    // Hard angles: an ulp either side of the west axis and the diagonals light level grass
+    // alike (γ·sin E does not depend on the azimuth), and a radar a hair north or south of
+    // west still puts the ground east of the building in shadow.
+    let west_ulps = [
+        f64::from_bits(270f64.to_bits() - 1),
+        f64::from_bits(270f64.to_bits() + 1),
+    ];
+    for az in west_ulps.into_iter().chain([225.0, 315.0, 135.0, 45.0]) {
+        let (s0, class, _) = run(&dir, &az.to_string(), "45");
+        assert!(
+            (s0[at(10, 15)] - want).abs() < 1e-9,
+            "azimuth {az}: {}",
+            s0[at(10, 15)]
+        );
+        if (az - 270.0).abs() < 1e-6 {
+            assert!((4..13).all(|c| class[at(c, 3)] == 2), "azimuth {az}");
+        }
+    }
+
     let d = dir.to_str().unwrap();
     for (args, want) in [
         (vec!["--azimuth", "90", "--elevation", "0"], "elevation"),

@@ -258,3 +258,40 @@ fn default_material_table_matches_its_schema() {
     bad["materials"][2]["name"] = serde_json::json!("Gravel");
     assert!(!v.is_valid(&bad));
 }
+
+/// The sample's light points match the lights schema, and the schema refuses what dbms refuses:
+/// no intensity, a negative height, a line.
+#[test]
+fn light_points_match_their_schema() {
+    let v = schema("lights.schema.json");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/lights.geojson");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    assert_valid(&v, &doc, "samples/lights.geojson");
+    let with = |f: &dyn Fn(&mut serde_json::Value)| {
+        let mut d = doc.clone();
+        f(&mut d["features"][0]);
+        d
+    };
+    for bad in [
+        with(&|f| {
+            drop(
+                f["properties"]
+                    .as_object_mut()
+                    .unwrap()
+                    .remove("intensity_cd"),
+            )
+        }),
+        with(&|f| f["properties"]["height_m"] = serde_json::json!(-1)),
+        with(&|f| {
+            f["geometry"] =
+                serde_json::json!({"type": "LineString", "coordinates": [[0, 0], [1, 1]]})
+        }),
+    ] {
+        assert!(
+            !v.is_valid(&bad),
+            "the schema accepts {}",
+            bad["features"][0]
+        );
+    }
+}
