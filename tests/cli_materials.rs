@@ -757,3 +757,105 @@ fn radar_backscatter_shadow_dihedral_and_layover() {
         );
     }
 }
+
+/// `pyramid --normals` on a quadratic terrain, whose centred differences are its exact
+/// derivatives: every level-0 normal is the analytic one (the one-sided difference at the
+/// grid's edge: the derivative half a cell in), straight up on the building, nodata where the
+/// photo is missing; every coarse normal the renormalised sum of its block's analytic normals.
+/// Both to the packing's 0.004°.
+#[test]
+fn normals_are_the_terrain_s_analytic_normals_at_every_level() {
+    use dbms::tiles::{unpack_normal, SensorLayer};
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    let (w, h) = (40usize, 20usize);
+    // z = 100 + a·(c − 13.3)² + b·(r − 7)² + e·c·r over columns c and rows r of 1 m cells.
+    let (a, b, e) = (0.02, -0.015, 0.01);
+    let z = |c: f64, r: f64| 100.0 + a * (c - 13.3).powi(2) + b * (r - 7.0).powi(2) + e * c * r;
+    database_over(&dir, w, h, |c, r| z(c as f64, r as f64) as f32);
+    let tiles = t.path().join("n.dbt");
+    let d = dir.to_str().unwrap();
+    let args = [
+        "pyramid",
+        "--db",
+        d,
+        "--page",
+        "8",
+        "--factor",
+        "2",
+        "--normals",
+        "-q",
+    ];
+    ok(dbms(
+        &[&args[..], &["-o", tiles.to_str().unwrap()]].concat(),
+    ));
+
+    // dz/dc and dz/dr as the grid takes them: centred inside, one-sided at the edges.
+    let d_dc = |c: f64, r: f64| match c {
+        0.0 => z(1.0, r) - z(0.0, r),
+        c if c == (w - 1) as f64 => z(c, r) - z(c - 1.0, r),
+        c => 2.0 * a * (c - 13.3) + e * r,
+    };
+    let d_dr = |c: f64, r: f64| match r {
+        0.0 => z(c, 1.0) - z(c, 0.0),
+        r if r == (h - 1) as f64 => z(c, r) - z(c, r - 1.0),
+        r => 2.0 * b * (r - 7.0) + e * c,
+    };
+    let truth = |c: usize, r: usize| -> Option<[f64; 3]> {
+        if c == w - 1 {
+            return None; // no photo: no surface
+        }
+        if (2..4).contains(&c) && (2..4).contains(&r) {
+            return Some([0.0, 0.0, 1.0]); // the building's level roof
+        }
+        // World y grows northward, against the rows.
+        let (zx, zy) = (d_dc(c as f64, r as f64), -d_dr(c as f64, r as f64));
+        let n = (zx * zx + zy * zy + 1.0).sqrt();
+        Some([-zx / n, -zy / n, 1.0 / n])
+    };
+    let reader = dbms::tiles::TileReader::open(&tiles, 64).unwrap();
+    let info = reader.info().clone();
+    assert_eq!(info.sensor_layers(), [SensorLayer::Normal]);
+    assert_eq!(info.effects["applied"].to_string(), r#"["normal_layer"]"#);
+    let angle = |u: [f64; 3], v: [f64; 3]| {
+        let dot: f64 = (0..3).map(|k| u[k] * v[k]).sum();
+        let len = |x: [f64; 3]| (0..3).map(|k| x[k] * x[k]).sum::<f64>().sqrt();
+        (dot / len(u) / len(v)).clamp(-1.0, 1.0).acos().to_degrees()
+    };
+    let (mut checked, mut tilted) = (0, 0);
+    for (level, l) in info.levels.iter().enumerate() {
+        let s = 1usize << level;
+        for row in 0..l.height {
+            for col in 0..l.width {
+                let mut sum = [0.0f64; 3];
+                let mut any = false;
+                for r0 in row * s..((row + 1) * s).min(h) {
+                    for c0 in col * s..((col + 1) * s).min(w) {
+                        if let Some(n) = truth(c0, r0) {
+                            (0..3).for_each(|k| sum[k] += n[k]);
+                            any = true;
+                        }
+                    }
+                }
+                let p = info.page_size;
+                let page = reader.page(level, col / p, row / p).unwrap();
+                let cells = page.sensor(SensorLayer::Normal).unwrap().normals().unwrap();
+                let got = unpack_normal(cells[(row % p) * p + col % p]);
+                let at = format!("level {level} cell ({col}, {row})");
+                match (got, any) {
+                    (None, false) => {}
+                    (Some(g), true) => {
+                        assert!(angle(g, sum) < 0.004, "{at}: {g:?} against {sum:?}");
+                        tilted += usize::from(angle(sum, [0.0, 0.0, 1.0]) > 1.0);
+                        checked += 1;
+                    }
+                    _ => panic!("{at}: {got:?}, expected data {any}"),
+                }
+            }
+        }
+    }
+    assert!(
+        checked > 1000 && tilted > 500,
+        "{checked} cells, {tilted} tilted"
+    );
+}

@@ -57,6 +57,11 @@ pub struct Args {
     /// coarse cells take the mean power. For `dbms render --sensor radar`.
     #[arg(long, value_name = "TIF")]
     backscatter: Option<PathBuf>,
+    /// Carry each cell's surface normal as the tile layer `normal` (terrain normals, level on
+    /// buildings and objects; coarse cells the renormalised sum), so a radar or shading
+    /// model can take its own incidence at render time.
+    #[arg(long)]
+    normals: bool,
     /// Light points for the night sensors, a GeoJSON of Point features with intensity_cd
     /// (candela) and optional height_m (above the terrain) and colour ([r, g, b]); carried in
     /// the tile header for `dbms render --sensor nvg`.
@@ -145,6 +150,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             temperature: args.temperature,
             radiance: args.radiance,
             backscatter: args.backscatter,
+            normals: args.normals,
             lights: args.lights,
         },
     };

@@ -149,7 +149,7 @@ pub struct LayerEffect {
 
 /// Every sensor layer, in the tile set's order. None is made unless asked for: a visual
 /// product does no sensor work, and its record says so.
-pub const LAYERS: [LayerEffect; 5] = [
+pub const LAYERS: [LayerEffect; 6] = [
     LayerEffect {
         layer: Some(SensorLayer::Material),
         name: "material_layer",
@@ -173,6 +173,12 @@ pub const LAYERS: [LayerEffect; 5] = [
         name: "backscatter_layer",
         sensors: &["radar"],
         unasked: "no backscatter map given (--backscatter)",
+    },
+    LayerEffect {
+        layer: Some(SensorLayer::Normal),
+        name: "normal_layer",
+        sensors: &["radar"],
+        unasked: "not asked for (--normals)",
     },
     LayerEffect {
         layer: None,

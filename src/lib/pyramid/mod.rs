@@ -77,6 +77,9 @@ pub struct SensorInputs {
     pub radiance: Option<PathBuf>,
     /// A radar σ⁰ map on the database grid, linear (`dbms radar -o`), as `backscatter`.
     pub backscatter: Option<PathBuf>,
+    /// Carry each cell's surface normal (from the terrain, level on what stands on it) as
+    /// `normal`: coarse cells take the renormalised sum.
+    pub normals: bool,
     /// Light points (GeoJSON, [`crate::lights`]) for the header's `lights`.
     pub lights: Option<PathBuf>,
 }
@@ -89,6 +92,7 @@ impl SensorInputs {
             SensorLayer::Temperature => self.temperature.is_some(),
             SensorLayer::Radiance => self.radiance.is_some(),
             SensorLayer::Backscatter => self.backscatter.is_some(),
+            SensorLayer::Normal => self.normals,
         };
         SensorLayer::ALL.into_iter().filter(given).collect()
     }
@@ -118,6 +122,7 @@ impl SensorInputs {
             "temperature": file(&self.temperature)?,
             "radiance": file(&self.radiance)?,
             "backscatter": file(&self.backscatter)?,
+            "normals": self.normals,
             "lights": file(&self.lights)?,
         }))
     }
@@ -390,7 +395,7 @@ fn build_product(
     seconds.prepare = lap();
 
     let level0 = base::Level0::new(&terrain, &colour, all, effects.as_ref(), opts.page_size)
-        .with_sensor(sensor.sources());
+        .with_sensor(sensor.sources(opts.sensor.normals, &terrain, all));
     let (writer, exporter) = write_levels(&info, &level0, out, opts, progress)?;
     seconds.levels = lap();
     // Every output is finished under its temporary name, and all are renamed together once the
@@ -477,8 +482,14 @@ impl SensorReaders {
         })
     }
 
-    /// The level-0 sources, in the tile set's order.
-    fn sources(&self) -> Vec<sensor::SensorSource<'_>> {
+    /// The level-0 sources, in the tile set's order; the normals, when asked for, of `terrain`
+    /// with what stands on it (`raised`) level.
+    fn sources<'a>(
+        &'a self,
+        normals: bool,
+        terrain: &'a dyn crate::raster::RowSource<f32>,
+        raised: &'a crate::standing::Raised,
+    ) -> Vec<sensor::SensorSource<'a>> {
         let material = self
             .material
             .iter()
@@ -492,7 +503,8 @@ impl SensorReaders {
             let rows = rows.as_ref()?;
             Some(sensor::SensorSource::Values(l, rows))
         });
-        material.chain(values).collect()
+        let normals = normals.then_some(sensor::SensorSource::Normals(terrain, raised));
+        material.chain(values).chain(normals).collect()
     }
 }
 

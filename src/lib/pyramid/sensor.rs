@@ -4,14 +4,18 @@
 //! Invariant (as for the colour: no average of averages): a coarse cell's material is the id
 //! most valid level-0 cells of its block hold (ties to the lower id), from per-id counts carried
 //! up the cascade; a coarse temperature or radiance is the f64 sum of the f32 values of its
-//! block's valid level-0 cells divided by their count, rounded once to f32. A level-0 cell is
-//! valid in a sensor layer when it is valid in `max_z` and its own value is not nodata; a coarse
-//! cell with no valid level-0 cell is nodata.
+//! block's valid level-0 cells divided by their count, rounded once to f32; a coarse normal is
+//! the f64 sum of its block's valid level-0 unit normals, renormalised once as it is packed. A
+//! level-0 cell is valid in a sensor layer when it is valid in `max_z` and its own value is not
+//! nodata; a coarse cell with no valid level-0 cell is nodata.
 
 use crate::error::Result;
 use crate::material::table::MaterialTable;
 use crate::raster::RowSource;
-use crate::tiles::{MaterialAttributes, SensorCells, SensorLayer, MATERIAL_NODATA};
+use crate::standing::Raised;
+use crate::tiles::{
+    pack_normal, MaterialAttributes, SensorCells, SensorLayer, MATERIAL_NODATA, NORMAL_NODATA,
+};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -107,6 +111,10 @@ pub enum SensorData {
     Values(Vec<f32>),
     /// Coarse sums of the block's valid level-0 values, and their count.
     Sums(Vec<f64>, Vec<u64>),
+    /// Normals: at level 0 each cell's unit normal, at coarse levels the sum of its block's
+    /// valid level-0 normals; `[0; 3]` = nodata (a valid normal points up, so no sum of them
+    /// is 0).
+    Vectors(Vec<[f64; 3]>),
 }
 
 impl SensorRows {
@@ -117,6 +125,7 @@ impl SensorRows {
             SensorData::Counts(v, c) => v.len() / c.ids.len(),
             SensorData::Values(v) => v.len(),
             SensorData::Sums(_, n) => n.len(),
+            SensorData::Vectors(v) => v.len(),
         }
     }
 
@@ -130,6 +139,7 @@ impl SensorRows {
         match &mut self.data {
             SensorData::Ids(v, _) => v[i] = MATERIAL_NODATA,
             SensorData::Values(v) => v[i] = f32::NAN,
+            SensorData::Vectors(v) => v[i] = [0.0; 3],
             SensorData::Counts(..) | SensorData::Sums(..) => {
                 unreachable!("only level-0 cells are cleared")
             }
@@ -146,6 +156,7 @@ impl SensorRows {
             }
             (SensorData::Ids(v, _), SensorData::Ids(o, _)) => v.extend(o),
             (SensorData::Values(v), SensorData::Values(o)) => v.extend(o),
+            (SensorData::Vectors(v), SensorData::Vectors(o)) => v.extend(o),
             _ => unreachable!("rows of one layer and level"),
         }
     }
@@ -168,6 +179,14 @@ impl SensorRows {
             (SensorData::Sums(s, c), SensorCells::Values(out)) => {
                 for (j, cell) in out[o..o + n].iter_mut().enumerate() {
                     *cell = mean(s[i + j], c[i + j]);
+                }
+            }
+            (SensorData::Vectors(v), SensorCells::Normals(out)) => {
+                for (cell, sum) in out[o..o + n].iter_mut().zip(&v[i..i + n]) {
+                    *cell = match *sum == [0.0; 3] {
+                        true => NORMAL_NODATA,
+                        false => pack_normal(*sum),
+                    };
                 }
             }
             _ => unreachable!("a page's cells have the layer's type"),
@@ -217,6 +236,20 @@ impl SensorRows {
                         });
                 }
                 SensorData::Sums(sum, count)
+            }
+            SensorData::Vectors(v) => {
+                let mut sum = vec![[0.0; 3]; cw * ch];
+                if cw > 0 {
+                    sum.par_chunks_mut(cw).enumerate().for_each(|(r, sum)| {
+                        for fr in fine_rows(r) {
+                            for fc in 0..width {
+                                let (s, n) = (&mut sum[fc / factor], v[fr * width + fc]);
+                                (0..3).for_each(|k| s[k] += n[k]);
+                            }
+                        }
+                    });
+                }
+                SensorData::Vectors(sum)
             }
         };
         SensorRows {
@@ -271,6 +304,10 @@ pub enum SensorSource<'a> {
     Material(&'a dyn RowSource<u8>, Arc<Counted>),
     /// A map of values on the database grid (temperature or radiance), NaN = nodata.
     Values(SensorLayer, &'a dyn RowSource<f32>),
+    /// The normals of the terrain's heights (NaN = nodata) by [`crate::raster::surface_normal`],
+    /// straight up on every cell something stands on (its top is level, as `dbms thermal` and
+    /// `dbms radar` take it).
+    Normals(&'a dyn RowSource<f32>, &'a Raised),
 }
 
 impl SensorSource<'_> {
@@ -279,6 +316,7 @@ impl SensorSource<'_> {
         match self {
             SensorSource::Material(..) => SensorLayer::Material,
             SensorSource::Values(l, _) => *l,
+            SensorSource::Normals(..) => SensorLayer::Normal,
         }
     }
 
@@ -291,12 +329,47 @@ impl SensorSource<'_> {
             SensorSource::Values(_, src) => {
                 SensorData::Values(src.read_rows(row0, rows)?.into_owned())
             }
+            SensorSource::Normals(terrain, raised) => {
+                SensorData::Vectors(normals(*terrain, raised, row0, rows)?)
+            }
         };
         Ok(SensorRows {
             layer: self.layer(),
             data,
         })
     }
+}
+
+/// The normals of rows `row0 .. row0 + rows` of `terrain`, read with a row of neighbours above
+/// and below (where the grid has them) so each is the whole grid's
+/// [`crate::raster::surface_normal`]; up where `raised` has a cell; `[0; 3]` where the height
+/// is nodata.
+fn normals(
+    terrain: &dyn RowSource<f32>,
+    raised: &Raised,
+    row0: usize,
+    rows: usize,
+) -> Result<Vec<[f64; 3]>> {
+    let g = terrain.grid();
+    let (top, bottom) = (row0.saturating_sub(1), (row0 + rows + 1).min(g.height));
+    let heights = terrain.read_rows(top, bottom - top)?;
+    let halo = crate::grid::Grid {
+        height: bottom - top,
+        ..g.clone()
+    };
+    let skip = (row0 - top) * g.width;
+    let mut out: Vec<[f64; 3]> = (skip..skip + rows * g.width)
+        .into_par_iter()
+        .map(|i| match heights[i].is_nan() {
+            true => [0.0; 3],
+            false => crate::raster::surface_normal(&heights, &halo, i),
+        })
+        .collect();
+    let start = row0 * g.width;
+    for rc in raised.range(start, start + out.len()) {
+        out[rc.index - start] = [0.0, 0.0, 1.0];
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -345,6 +418,58 @@ mod tests {
         mean(sum, n)
     }
 
+    fn brute_sum(v: &[[f64; 3]], w: usize, f: usize, level: u32, c: usize, r: usize) -> [f64; 3] {
+        let (s, h) = (f.pow(level), v.len() / w);
+        let mut sum = [0.0; 3];
+        for row in r * s..((r + 1) * s).min(h) {
+            for col in c * s..((c + 1) * s).min(w) {
+                (0..3).for_each(|k| sum[k] += v[row * w + col][k]);
+            }
+        }
+        sum
+    }
+
+    /// Bands of any height give the whole grid's normals (the halo rows make them so), with
+    /// raised cells up and nodata cells `[0; 3]`.
+    #[test]
+    fn banded_normals_equal_the_whole_grid_s() {
+        use crate::grid::Grid;
+        use crate::raster::Raster;
+        use crate::standing::RaisedCell;
+        let (w, h) = (7, 11);
+        let grid = Grid::north_up(0.0, 0.0, 0.5, w, h, crate::crs::Crs::unknown());
+        let mut z: Vec<f32> = (0..w * h)
+            .map(|i| ((i % w) as f32 * 0.7).sin() * 3.0 + (i / w) as f32 * 0.4)
+            .collect();
+        z[3 * w + 4] = f32::NAN;
+        let terrain = Raster::new(grid.clone(), z.clone());
+        let raised = Raised::new(
+            vec![RaisedCell {
+                index: 5 * w + 2,
+                top_z: 20.0,
+                colour: None,
+                partial: false,
+            }],
+            &terrain,
+        );
+        let whole = normals(&terrain, &Raised::new(vec![], &terrain), 0, h).unwrap();
+        for rows in 1..=h {
+            let mut banded = Vec::new();
+            for row0 in (0..h).step_by(rows) {
+                banded.extend(normals(&terrain, &raised, row0, rows.min(h - row0)).unwrap());
+            }
+            for i in 0..w * h {
+                let want = match i {
+                    _ if i == 5 * w + 2 => [0.0, 0.0, 1.0],
+                    _ if z[i].is_nan() => [0.0; 3],
+                    _ => crate::raster::surface_normal(&z, &grid, i),
+                };
+                assert_eq!(banded[i], want, "bands of {rows}, cell {i}");
+                assert_eq!(whole[i] == [0.0; 3], z[i].is_nan());
+            }
+        }
+    }
+
     #[test]
     fn majority_ties_go_to_the_lower_id_and_nodata_never_wins() {
         let counted = Arc::new(Counted::new([0, 3, 7]));
@@ -376,8 +501,9 @@ mod tests {
     }
 
     proptest! {
-        /// Every coarse level's majority and mean equal the brute-force ones over the cell's
-        /// whole level-0 block (exact, not a majority of majorities or a mean of means).
+        /// Every coarse level's majority, mean and normal sum equal the brute-force ones over
+        /// the cell's whole level-0 block (exact, not a majority of majorities or a mean of
+        /// means).
         #[test]
         fn cascaded_reductions_equal_the_level0_block_reductions(
             w in 1usize..20, h in 1usize..20, f in 2usize..5,
@@ -393,6 +519,18 @@ mod tests {
                     k => 250.0 + k as f32 * 17.3 + (rng.next_u64() % 1000) as f32 / 7.0,
                 })
                 .collect();
+            let normals: Vec<[f64; 3]> = (0..w * h)
+                .map(|_| match rng.next_u64() % 5 {
+                    0 => [0.0; 3],
+                    _ => {
+                        let mut r = || (rng.next_u64() % 2001) as f64 / 1000.0 - 1.0;
+                        let (x, y) = (r(), r());
+                        let l = (x * x + y * y + 1.0).sqrt();
+                        [x / l, y / l, 1.0 / l]
+                    }
+                })
+                .collect();
+            let mut n = SensorRows { layer: SensorLayer::Normal, data: SensorData::Vectors(normals.clone()) };
             let counted = Arc::new(Counted::new(ids.iter().copied()));
             let mut m = SensorRows { layer: SensorLayer::Material, data: SensorData::Ids(ids.clone(), counted) };
             let mut t = SensorRows { layer: SensorLayer::Temperature, data: SensorData::Values(vals.clone()) };
@@ -400,7 +538,15 @@ mod tests {
             for level in 1..4u32 {
                 m = m.reduce(width, f);
                 t = t.reduce(width, f);
+                n = n.reduce(width, f);
                 width = width.div_ceil(f);
+                let SensorData::Vectors(sums) = &n.data else { unreachable!() };
+                let SensorCells::Normals(packed) = page_cells(&n) else { unreachable!() };
+                for (i, (sum, &p)) in sums.iter().zip(&packed).enumerate() {
+                    let want = brute_sum(&normals, w, f, level, i % width, i / width);
+                    prop_assert!((0..3).all(|k| (sum[k] - want[k]).abs() <= 1e-12 * (1.0 + want[k].abs())));
+                    prop_assert_eq!(p == NORMAL_NODATA, want == [0.0; 3]);
+                }
                 let (SensorCells::Ids(mc), SensorCells::Values(tc)) = (page_cells(&m), page_cells(&t)) else {
                     unreachable!()
                 };

@@ -36,5 +36,8 @@ pub use page::{
     Cell, Page, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE, STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL,
 };
 pub use reader::{PageFilter, ReaderStats, TileReader};
-pub use sensor::{LightPoint, MaterialAttributes, SensorCells, SensorLayer, MATERIAL_NODATA};
+pub use sensor::{
+    pack_normal, unpack_normal, LightPoint, MaterialAttributes, SensorCells, SensorLayer,
+    MATERIAL_NODATA, NORMAL_NODATA,
+};
 pub use writer::{bricks_slot, InPlace, TileWriter};

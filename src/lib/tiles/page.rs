@@ -267,6 +267,10 @@ pub(crate) fn encode(layout: &Layout, page: &Page, compression: Compression) -> 
                 .chunks_exact_mut(4)
                 .zip(v)
                 .for_each(|(b, x)| b.copy_from_slice(&x.to_bits().to_le_bytes())),
+            SensorCells::Normals(v) => raw[*at..][..4 * n]
+                .chunks_exact_mut(4)
+                .zip(v)
+                .for_each(|(b, x)| b.copy_from_slice(&x.to_le_bytes())),
         }
     }
     raw[layout.fixed_len..].copy_from_slice(bricks);
@@ -375,6 +379,9 @@ pub(crate) fn decode(
                             f32::from_bits(u32::from_le_bytes(w))
                         }))
                     }
+                    SensorLayer::Normal => {
+                        SensorCells::Normals(words(&raw[at..], n, planar, u32::from_le_bytes))
+                    }
                 };
                 (l, cells)
             })
@@ -439,7 +446,11 @@ mod tests {
 
     #[test]
     fn sensor_layers_round_trip_bit_exactly_and_padding_must_be_nodata() {
-        let layers = [SensorLayer::Material, SensorLayer::Temperature];
+        let layers = [
+            SensorLayer::Material,
+            SensorLayer::Temperature,
+            SensorLayer::Normal,
+        ];
         let info = info(10, 6, 8).with_sensor_layers(&layers);
         let layout = Layout::of(&info);
         let mut page = Page::nodata_with(8, &layers);
@@ -448,11 +459,14 @@ mod tests {
         let mut t: Vec<f32> = (0..64).map(|i| 273.15 + i as f32 / 3.0).collect();
         t[5] = f32::from_bits(0x7fc0_0042);
         page.sensor[1].1 = SensorCells::Values(t);
+        let normals = (0..64u32).map(|i| i.wrapping_mul(0x9e37_79b9));
+        page.sensor[2].1 = SensorCells::Normals(normals.collect());
         for c in [Compression::None, Compression::Lz4] {
             let e = encode(&layout, &page, c).unwrap();
-            assert_eq!(e.raw_len as usize, 8 * 8 * (9 + 1 + 4));
+            assert_eq!(e.raw_len as usize, 8 * 8 * (9 + 1 + 4 + 4));
             let back = decode(&layout, &e.stored, e.raw_len, e.flags).unwrap();
             assert_eq!(back.sensor[0], page.sensor[0]);
+            assert_eq!(back.sensor[2], page.sensor[2]);
             let bits = |p: &Page| -> Vec<u32> {
                 let v = p
                     .sensor(SensorLayer::Temperature)
