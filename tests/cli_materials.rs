@@ -545,8 +545,8 @@ fn sensor_layers_reduce_exactly_and_draw_the_infrared_view() {
 
 /// Night vision end to end: `dbms pyramid --materials --lights` writes the materials' NIR
 /// reflectances (or their albedo, marked) and the lights, stood on the terrain, into the tile
-/// header; `dbms render --sensor nvg` at full moon draws grass (NIR-bright) brighter than the
-/// road and shows the lamp in view; it needs --time and a material layer, and says so.
+/// header (a directional lamp with its beam, outside the view below); `dbms render --sensor nvg`
+/// at full moon draws grass (NIR-bright) brighter than the road and shows the lamp in view; it needs --time and a material layer, and says so.
 #[test]
 fn night_vision_view_with_lights() {
     let t = tempfile::tempdir().unwrap();
@@ -559,7 +559,10 @@ fn night_vision_view_with_lights() {
     let (x, y) = ORIGIN;
     let doc = serde_json::json!({"type": "FeatureCollection", "features": [
         {"type": "Feature", "properties": {"intensity_cd": 1500, "height_m": 6},
-         "geometry": {"type": "Point", "coordinates": [x + 30.5, y - 10.5]}}]});
+         "geometry": {"type": "Point", "coordinates": [x + 30.5, y - 10.5]}},
+        {"type": "Feature", "properties": {"intensity_cd": 20000, "height_m": 0.3,
+          "beam": {"azimuth_deg": 270, "elevation_deg": 3, "spread_deg": [12, 8]}},
+         "geometry": {"type": "Point", "coordinates": [x + 0.5, y - 0.5]}}]});
     std::fs::write(&lights, doc.to_string()).unwrap();
     let (nvg, visual) = (t.path().join("nvg.dbt"), t.path().join("visual.dbt"));
     let (nvg_s, lights_s) = (s(&nvg), s(&lights));
@@ -579,8 +582,17 @@ fn night_vision_view_with_lights() {
         .unwrap()
         .info()
         .clone();
-    assert_eq!(info.lights.len(), 1);
+    assert_eq!(info.lights.len(), 2);
     assert_eq!(info.lights[0].z, 106.0, "100 m terrain + 6 m");
+    let beam = dbms::tiles::Beam {
+        azimuth_deg: 270.0,
+        elevation_deg: 3.0,
+        spread_deg: [12.0, 8.0],
+    };
+    assert_eq!(
+        (info.lights[0].beam, info.lights[1].beam),
+        (None, Some(beam))
+    );
     let grass = info.materials.iter().find(|m| m.name == "grass").unwrap();
     assert_eq!(
         (grass.nir_from.as_str(), grass.nir_reflectance),

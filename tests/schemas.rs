@@ -260,7 +260,8 @@ fn default_material_table_matches_its_schema() {
 }
 
 /// The sample's light points match the lights schema, and the schema refuses what dbms refuses:
-/// no intensity, a negative height, a line.
+/// no intensity, a negative height, a line, a beam above the zenith, of no spread or with a
+/// misspelt key; a good beam, with one spread or two, passes.
 #[test]
 fn light_points_match_their_schema() {
     let v = schema("lights.schema.json");
@@ -273,6 +274,12 @@ fn light_points_match_their_schema() {
         f(&mut d["features"][0]);
         d
     };
+    let beam = |b: serde_json::Value| with(&|f| f["properties"]["beam"] = b.clone());
+    for spread in [serde_json::json!(10), serde_json::json!([12, 8])] {
+        let good =
+            serde_json::json!({"azimuth_deg": 270, "elevation_deg": 3, "spread_deg": spread});
+        assert_valid(&v, &beam(good), "a beam");
+    }
     for bad in [
         with(&|f| {
             drop(
@@ -287,6 +294,9 @@ fn light_points_match_their_schema() {
             f["geometry"] =
                 serde_json::json!({"type": "LineString", "coordinates": [[0, 0], [1, 1]]})
         }),
+        beam(serde_json::json!({"azimuth_deg": 0, "elevation_deg": 95, "spread_deg": 10})),
+        beam(serde_json::json!({"azimuth_deg": 0, "elevation_deg": 5, "spread_deg": [10, 0]})),
+        beam(serde_json::json!({"azimuth": 0, "elevation_deg": 5, "spread_deg": 10})),
     ] {
         assert!(
             !v.is_valid(&bad),

@@ -7,13 +7,14 @@
 //!
 //! A feature is a `Point` or `MultiPoint` with properties `intensity_cd` (candela, > 0,
 //! required), `height_m` (metres above the terrain, ≥ 0, default 0) and `colour` (`[r, g, b]`,
-//! 0–255, default white). A third coordinate is the lamp's height itself (metres), and then
-//! `height_m` must be absent.
+//! 0–255, default white) and `beam` (a directional lamp: `azimuth_deg`, `elevation_deg`,
+//! `spread_deg` as [`Beam`] defines them; default: the same intensity every way). A third
+//! coordinate is the lamp's height itself (metres), and then `height_m` must be absent.
 
 use crate::error::{Error, Result};
 use crate::raster::{band_rows, RowSource};
 use crate::standing::{TerrainAt, TerrainSample};
-use crate::tiles::LightPoint;
+use crate::tiles::{Beam, LightPoint};
 use serde_json::Value;
 use std::path::Path;
 
@@ -54,6 +55,13 @@ pub fn read(path: &Path, terrain: &dyn RowSource<f32>) -> Result<Vec<LightPoint>
                     .fix("e.g. \"colour\": [255, 200, 120]")
             })?,
         };
+        let beam = match props.get("beam") {
+            None | Some(Value::Null) => None,
+            Some(v) => Some(beam_of(v).ok_or_else(|| {
+                bad(format!("beam {v} is not {{azimuth_deg, elevation_deg (−90 to 90), spread_deg (a number or [horizontal, vertical], each > 0 and ≤ 360)}}"))
+                    .fix("e.g. \"beam\": {\"azimuth_deg\": 270, \"elevation_deg\": 3, \"spread_deg\": [12, 8]}")
+            })?),
+        };
         let points = points(f.get("geometry").unwrap_or(&Value::Null))
             .map_err(|e| bad(e).fix("lights are Point or MultiPoint features"))?;
         crate::geojson::require_grid_crs(path, grid, points.iter().map(|p| (p[0], p[1])))?;
@@ -80,6 +88,7 @@ pub fn read(path: &Path, terrain: &dyn RowSource<f32>) -> Result<Vec<LightPoint>
                 z: f64::NAN,
                 intensity_cd,
                 colour,
+                beam,
             });
         }
     }
@@ -116,6 +125,24 @@ enum Height {
     Absolute(f64),
     /// Metres above the terrain under it.
     AboveTerrain(f64),
+}
+
+/// A beam: `azimuth_deg` (finite), `elevation_deg` (−90 to 90) and `spread_deg`, one number for
+/// both directions or `[horizontal, vertical]`, each in (0, 360].
+fn beam_of(v: &Value) -> Option<Beam> {
+    let num = |k: &str| v.get(k).and_then(Value::as_f64);
+    let spread = match v.get("spread_deg")? {
+        Value::Array(a) if a.len() == 2 => [a[0].as_f64()?, a[1].as_f64()?],
+        s => [s.as_f64()?; 2],
+    };
+    let beam = Beam {
+        azimuth_deg: num("azimuth_deg").filter(|a| a.is_finite())?,
+        elevation_deg: num("elevation_deg").filter(|e| (-90.0..=90.0).contains(e))?,
+        spread_deg: spread,
+    };
+    let known = ["azimuth_deg", "elevation_deg", "spread_deg"];
+    let only_known = v.as_object()?.keys().all(|k| known.contains(&k.as_str()));
+    (only_known && spread.iter().all(|s| *s > 0.0 && *s <= 360.0)).then_some(beam)
 }
 
 /// `[r, g, b]` of integers 0–255.
@@ -175,7 +202,8 @@ mod tests {
             serde_json::json!([
                 {"type": "Feature", "properties": {"intensity_cd": 1500, "height_m": 8},
                  "geometry": {"type": "Point", "coordinates": [1003.5, 2008.5]}},
-                {"type": "Feature", "properties": {"intensity_cd": 40, "colour": [255, 0, 0]},
+                {"type": "Feature", "properties": {"intensity_cd": 40, "colour": [255, 0, 0],
+                 "beam": {"azimuth_deg": 270, "elevation_deg": 3, "spread_deg": [12, 8]}},
                  "geometry": {"type": "MultiPoint", "coordinates": [[1001.2, 2002.2, 99.5], [1009.9, 2000.1]]}}
             ]),
         );
@@ -184,6 +212,12 @@ mod tests {
         // (1003.5, 2008.5): column 3, row 1 → 50 + 13, plus 8 m.
         assert_eq!((lights[0].z, lights[0].colour), (71.0, [255, 255, 255]));
         assert_eq!((lights[1].z, lights[1].colour), (99.5, [255, 0, 0]));
+        let beam = Beam {
+            azimuth_deg: 270.0,
+            elevation_deg: 3.0,
+            spread_deg: [12.0, 8.0],
+        };
+        assert_eq!((lights[0].beam, lights[2].beam), (None, Some(beam)));
         assert_eq!(lights[2].z, 50.0 + 99.0);
     }
 
@@ -240,6 +274,27 @@ mod tests {
                     serde_json::json!([1003.0, 2005.0, 9.0]),
                 ),
                 "both",
+            ),
+            (
+                point(
+                    serde_json::json!({"intensity_cd": 5, "beam": {"azimuth_deg": 0, "elevation_deg": 95, "spread_deg": 10}}),
+                    serde_json::json!([1003.0, 2005.0]),
+                ),
+                "beam",
+            ),
+            (
+                point(
+                    serde_json::json!({"intensity_cd": 5, "beam": {"azimuth_deg": 0, "elevation_deg": 5, "spread_deg": [10, 0]}}),
+                    serde_json::json!([1003.0, 2005.0]),
+                ),
+                "beam",
+            ),
+            (
+                point(
+                    serde_json::json!({"intensity_cd": 5, "beam": {"azimuth": 0, "elevation_deg": 5, "spread_deg": 10}}),
+                    serde_json::json!([1003.0, 2005.0]),
+                ),
+                "beam",
             ),
             (
                 serde_json::json!([{"type": "Feature", "properties": {"intensity_cd": 5},

@@ -382,7 +382,8 @@ impl NightScale {
                 continue; // behind something
             }
             let haze = visibility.map_or(1.0, |v| (-dist / v).exp());
-            let q = l.intensity_cd / (dist * dist) * haze / white;
+            let toward_eye = [-d[0], -d[1], -d[2]];
+            let q = l.intensity_toward(toward_eye) / (dist * dist) * haze / white;
             let radius = ((255.0 * q).sqrt() - 1.0).clamp(0.0, halo_max);
             drawn += 1;
             let (i0, i1) = (
@@ -475,6 +476,7 @@ mod tests {
             z: 0.0,
             intensity_cd: 1500.0,
             colour: [255, 255, 255],
+            beam: None,
         }
     }
 
@@ -500,6 +502,33 @@ mod tests {
         assert!(walled.rgb.iter().all(|p| *p == [0; 3]));
         let (mut ground, _) = frame(99.0);
         assert_eq!(n.draw_lights(&mut ground, &camera, None), 1);
+        // A directional lamp aimed at the eye (south, level) shows as the round one does; aimed
+        // 12° to the side with a 12° spread it sends 2^−4 of its light to the eye, so a dim
+        // one's halo holds less (a bright one's saturates: the bloom's choice); aimed north it
+        // sends nothing.
+        let light = |f: &Frame| f.rgb.iter().map(|p| u64::from(p[1])).sum::<u64>();
+        let aimed = |intensity_cd: f64, azimuth_deg: f64| {
+            let beam = crate::tiles::Beam {
+                azimuth_deg,
+                elevation_deg: 0.0,
+                spread_deg: [12.0, 12.0],
+            };
+            let n = night(vec![LightPoint {
+                intensity_cd,
+                beam: Some(beam),
+                ..lamp(0.0, 100.0)
+            }]);
+            let (mut f, _) = frame(f32::INFINITY);
+            n.draw_lights(&mut f, &camera, None);
+            light(&f)
+        };
+        assert_eq!(aimed(1500.0, 180.0), light(&open));
+        assert_eq!(aimed(1500.0, 0.0), 0);
+        let dim = aimed(0.02, 180.0);
+        assert!(
+            aimed(0.02, 168.0) < dim / 4 && aimed(0.02, 168.0) > 0,
+            "{dim}"
+        );
         // Behind the eye, or outside the field: not drawn.
         let away = night(vec![lamp(0.0, -100.0), lamp(100.0, 10.0)]);
         let (mut f, _) = frame(f32::INFINITY);

@@ -37,7 +37,7 @@ pub use page::{
 };
 pub use reader::{PageFilter, ReaderStats, TileReader};
 pub use sensor::{
-    pack_normal, unpack_normal, LightPoint, MaterialAttributes, SensorCells, SensorLayer,
+    pack_normal, unpack_normal, Beam, LightPoint, MaterialAttributes, SensorCells, SensorLayer,
     MATERIAL_NODATA, NORMAL_NODATA,
 };
 pub use writer::{bricks_slot, InPlace, TileWriter};

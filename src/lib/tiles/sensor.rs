@@ -231,10 +231,67 @@ pub struct LightPoint {
     pub y: f64,
     /// Height of the lamp, metres (the terrain's plus its height above it).
     pub z: f64,
-    /// Luminous intensity, candela, the same in every direction.
+    /// Luminous intensity, candela: on the beam's axis, or in every direction without a beam.
     pub intensity_cd: f64,
     /// Colour, sRGB.
     pub colour: [u8; 3],
+    /// The beam of a directional lamp (approach, runway edge, PAPI); `None`: the same
+    /// intensity in every direction (a street light seen from above the road).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam: Option<Beam>,
+}
+
+/// A directional lamp's beam: an elliptical Gaussian around its axis. Toward a direction `θ`
+/// degrees off the axis, at angle `ψ` around it from the beam's horizontal right (toward the
+/// up at right angles to both), `h = θ·cos ψ` and `v = θ·sin ψ`, and the lamp's intensity is `I₀ · 2^−((2h / spread_h)² + (2v / spread_v)²)`: half of it at half the
+/// spread from the axis, as runway light specifications state beam spreads (ICAO Annex 14,
+/// Vol. I, Appendix 2, takes the beam's ellipse at the minimum average intensity and an outer
+/// one at 50 %; one Gaussian per axis is dbms's simplification of those isocandela diagrams).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Beam {
+    /// Direction of the axis, degrees clockwise from grid north.
+    pub azimuth_deg: f64,
+    /// Elevation of the axis above the horizontal, degrees, −90 to 90.
+    pub elevation_deg: f64,
+    /// Full widths at half intensity, degrees: horizontal, vertical (each > 0, at most 360).
+    pub spread_deg: [f64; 2],
+}
+
+impl Beam {
+    /// The fraction of the axis intensity sent along `to` (any length but 0), 0 to 1.
+    pub fn fraction_toward(&self, to: [f64; 3]) -> f64 {
+        let (az, el) = (
+            self.azimuth_deg.to_radians(),
+            self.elevation_deg.to_radians(),
+        );
+        let axis = [az.sin() * el.cos(), az.cos() * el.cos(), el.sin()];
+        // The horizontal unit vector 90° clockwise of the azimuth: defined for every
+        // elevation, straight up included, and continuous through it.
+        let right = [az.cos(), -az.sin(), 0.0];
+        let up = [
+            right[1] * axis[2] - right[2] * axis[1],
+            right[2] * axis[0] - right[0] * axis[2],
+            right[0] * axis[1] - right[1] * axis[0],
+        ];
+        let dot = |a: [f64; 3]| a[0] * to[0] + a[1] * to[1] + a[2] * to[2];
+        let (x, y) = (dot(right), dot(up));
+        let across = x.hypot(y);
+        // Off the axis by `theta`, split between sideways and up by the direction around it.
+        let theta = across.atan2(dot(axis)).to_degrees();
+        let (h, v) = match across > 0.0 {
+            true => (theta * x / across, theta * y / across),
+            false => (theta, theta),
+        };
+        let e = (2.0 * h / self.spread_deg[0]).powi(2) + (2.0 * v / self.spread_deg[1]).powi(2);
+        (-e).exp2()
+    }
+}
+
+impl LightPoint {
+    /// Luminous intensity toward `to` (from the lamp; any length but 0), candela.
+    pub fn intensity_toward(&self, to: [f64; 3]) -> f64 {
+        self.intensity_cd * self.beam.map_or(1.0, |b| b.fraction_toward(to))
+    }
 }
 
 /// What the sensor views need to know of one material of the `material` layer, in the tile
@@ -266,6 +323,16 @@ pub(crate) fn check_attributes(
             return Err(format!(
                 "light {k} has a position that is not finite or an intensity that is not positive"
             ));
+        }
+        if let Some(b) = l.beam {
+            let spread_ok = b.spread_deg.iter().all(|s| *s > 0.0 && *s <= 360.0);
+            if !(b.azimuth_deg.is_finite() && (-90.0..=90.0).contains(&b.elevation_deg))
+                || !spread_ok
+            {
+                return Err(format!(
+                    "light {k} has a beam with an azimuth that is not finite, an elevation outside −90..90° or a spread outside (0, 360]°"
+                ));
+            }
         }
     }
     for (k, m) in materials.iter().enumerate() {
@@ -366,6 +433,75 @@ mod tests {
         assert_eq!(unpack_normal(NORMAL_NODATA), None);
     }
 
+    /// The beam's half-intensity points sit at half its spread off the axis, sideways and up
+    /// alike, at any azimuth, straight up included; its back gets nothing.
+    #[test]
+    fn beams_fall_to_half_at_half_their_spread() {
+        let dir = |az: f64, el: f64| {
+            let (az, el) = (f64::to_radians(az), f64::to_radians(el));
+            [az.sin() * el.cos(), az.cos() * el.cos(), el.sin()]
+        };
+        for az in [0.0, 45.0, 90.0, 180.0, 270.0, 359.999_999_999_9, -90.0] {
+            let b = Beam {
+                azimuth_deg: az,
+                elevation_deg: 3.0,
+                spread_deg: [20.0, 8.0],
+            };
+            let close = |got: f64, want: f64| (got - want).abs() < 1e-12;
+            assert!(
+                close(b.fraction_toward(dir(az, 3.0)), 1.0),
+                "on the axis at {az}"
+            );
+            // Up by 4°: in the vertical plane of the axis, so off by 4° vertically only.
+            assert!(close(b.fraction_toward(dir(az, 7.0)), 0.5), "4° up at {az}");
+            assert!(
+                close(b.fraction_toward(dir(az, -1.0)), 0.5),
+                "4° down at {az}"
+            );
+            // 10° sideways in the beam's frame: the axis turned about the beam's up.
+            let (a, r) = (
+                dir(az, 3.0),
+                [az.to_radians().cos(), -az.to_radians().sin(), 0.0],
+            );
+            let t = 10f64.to_radians();
+            let side: Vec<f64> = (0..3).map(|k| a[k] * t.cos() + r[k] * t.sin()).collect();
+            assert!(
+                close(b.fraction_toward([side[0], side[1], side[2]]), 0.5),
+                "10° right at {az}"
+            );
+            assert!(
+                b.fraction_toward(dir(az + 180.0, -3.0)) < 1e-90,
+                "behind at {az}"
+            );
+            // Length does not matter.
+            assert!(close(
+                b.fraction_toward(dir(az, 7.0).map(|c| c * 40.0)),
+                0.5
+            ));
+        }
+        // A lamp pointing straight up: 4° off it (at any azimuth) falls by the spreads' rule.
+        let up = Beam {
+            azimuth_deg: 30.0,
+            elevation_deg: 90.0,
+            spread_deg: [8.0, 8.0],
+        };
+        for az in [0.0, 30.0, 77.0, 210.0] {
+            let f = up.fraction_toward(dir(az, 86.0));
+            assert!((f - 0.5).abs() < 1e-9, "{az}: {f}");
+        }
+        let lamp = LightPoint {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            intensity_cd: 200.0,
+            colour: [255; 3],
+            beam: Some(up),
+        };
+        assert!((lamp.intensity_toward(dir(5.0, 86.0)) - 100.0).abs() < 1e-7);
+        let round = LightPoint { beam: None, ..lamp };
+        assert_eq!(round.intensity_toward([0.0, -1.0, 0.0]), 200.0);
+    }
+
     #[test]
     fn header_attributes_are_checked() {
         let lamp = LightPoint {
@@ -374,6 +510,7 @@ mod tests {
             z: 3.0,
             intensity_cd: 10.0,
             colour: [1, 2, 3],
+            beam: None,
         };
         let grass = MaterialAttributes {
             id: 7,
@@ -389,6 +526,22 @@ mod tests {
             },
             LightPoint {
                 intensity_cd: 0.0,
+                ..lamp
+            },
+            LightPoint {
+                beam: Some(Beam {
+                    azimuth_deg: 0.0,
+                    elevation_deg: 91.0,
+                    spread_deg: [10.0, 5.0],
+                }),
+                ..lamp
+            },
+            LightPoint {
+                beam: Some(Beam {
+                    azimuth_deg: 0.0,
+                    elevation_deg: 3.0,
+                    spread_deg: [0.0, 5.0],
+                }),
                 ..lamp
             },
         ];

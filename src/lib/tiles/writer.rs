@@ -683,6 +683,7 @@ mod tests {
             z: 3.123456789,
             intensity_cd: 1500.5,
             colour: [255, 200, 130],
+            beam: None,
         };
         info.lights = vec![lamp; 200_000];
         let path = t.path().join("l.dbt");
