@@ -871,3 +871,63 @@ fn normals_are_the_terrain_s_analytic_normals_at_every_level() {
         "{checked} cells, {tilted} tilted"
     );
 }
+
+/// `materials --objects`: a bare material for every placed object, `NAME=MATERIAL` for the
+/// placements of one object file (winning over the bare one); objects not named keep what the
+/// other sources say; an unknown name or a material given twice is a one-line error.
+#[test]
+fn each_placed_object_gets_its_own_material() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    let (d, p) = (dir.to_str().unwrap(), |n: &str| t.path().join(n));
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    for (name, height) in [("tree", "6"), ("tank", "4")] {
+        let out = s(&p(&format!("{name}.dvox")));
+        let args = ["object", "cone", "--height", height, "--radius", "1.5"];
+        ok(dbms(
+            &[&args[..], &["--voxel", "0.5", "-q", "-o", &out]].concat(),
+        ));
+    }
+    // Trees at columns 10 and 20 of row 10, the tank at column 30 (nowhere near the building).
+    let (x, y) = ORIGIN;
+    for (name, col) in [("tree", 10.5), ("tree", 20.5), ("tank", 30.5)] {
+        let object = s(&p(&format!("{name}.dvox")));
+        let at = format!("{},{}", x + col, y - 10.5);
+        let args = ["place", "--db", d, "--object", &object, "--at", &at, "-q"];
+        ok(dbms(&args));
+    }
+    let table = MaterialTable::default_table();
+    let name_at = |ids: &[u8], col: usize| table.by_id(ids[10 * 40 + col]).unwrap().name.clone();
+    let run = |objects: &[&str]| {
+        let mut args = vec!["materials", "--db", d, "-q"];
+        objects.iter().for_each(|o| args.extend(["--objects", o]));
+        dbms(&args)
+    };
+    ok(run(&["forest", "tank=roof_metal"]));
+    let ids = layer(&dir);
+    let got: Vec<String> = [10, 20, 30].iter().map(|&c| name_at(&ids, c)).collect();
+    assert_eq!(got, ["forest", "forest", "roof_metal"]);
+    // Only the tank named: the trees' cells are what the photo says (grass on the west half,
+    // the road's grey from column 20).
+    ok(run(&["tank=roof_metal"]));
+    let ids = layer(&dir);
+    let got: Vec<String> = [10, 20, 30].iter().map(|&c| name_at(&ids, c)).collect();
+    assert_eq!(got, ["grass", "asphalt", "roof_metal"]);
+    for (objects, want) in [
+        (
+            &["tonk=roof_metal"][..],
+            "no placed object is named \"tonk\"",
+        ),
+        (&["forest", "grass"][..], "given twice"),
+        (&["tank=water", "tank=grass"][..], "given twice"),
+        (&["tank=tin"][..], "\"tin\" is not in the material table"),
+    ] {
+        let o = run(objects);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains(want), "{objects:?}: {e}");
+        assert_eq!(e.trim().lines().count(), 1, "{e}");
+    }
+    let o = run(&["tonk=roof_metal"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("tank, tree"));
+}

@@ -499,7 +499,7 @@ fn sensor_products_get_their_maps_and_layers() {
     std::fs::write(dir.join("lights.geojson"), lights).unwrap();
     let ir_time = "2026-09-15T13:00:00Z";
     let text = scene_toml(30.0)
-        + "[materials]\nobjects = \"forest\"\n"
+        + "[materials]\nobjects = [\"forest\"]\n"
         + &format!(
             "[products.ir]\nsensor = \"ir\"\ntiles = \"build/ir.dbt\"\ntime = \"{ir_time}\"\n\
              [products.night]\nsensor = \"nvg\"\ntiles = \"build/night.dbt\"\nlights = \"lights.geojson\"\n\
@@ -527,8 +527,9 @@ fn sensor_products_get_their_maps_and_layers() {
     assert_eq!(layers("day.dbt"), (String::new(), 0));
     assert_eq!(layers("ir.dbt"), ("material,temperature".into(), 0));
     assert_eq!(layers("night.dbt"), ("material".into(), 1));
-    assert_eq!(layers("sar.dbt"), ("material,backscatter".into(), 0));
-    // The trees' cells are forest ([materials] objects); the ground beside them is not.
+    assert_eq!(layers("sar.dbt"), ("material,backscatter,normal".into(), 0));
+    // The trees' cells are forest ([materials] objects, here a list of --objects values); the
+    // ground beside them is not.
     let db = dbms::db::Database::open(&dir.join("build/db")).unwrap();
     let m = dbms::io::read_raster(&db.layer_path("materials").unwrap()).unwrap();
     let id_at = |x: f64, y: f64| {

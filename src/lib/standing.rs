@@ -299,6 +299,11 @@ impl Raised {
         &self.cells
     }
 
+    /// Whether cell `index` is raised.
+    pub fn contains(&self, index: usize) -> bool {
+        self.cells.binary_search_by_key(&index, |c| c.index).is_ok()
+    }
+
     /// The raised cells with index in `start..end`, sorted.
     pub fn range(&self, start: usize, end: usize) -> &[RaisedCell] {
         let a = self.cells.partition_point(|c| c.index < start);
@@ -522,20 +527,10 @@ impl Standing {
             ),
             false => Vec::new(),
         };
-        type Read = (VoxelObject, Arc<[([f64; 3], [u8; 3])]>, f64);
-        let mut files: BTreeMap<&str, Read> = BTreeMap::new();
-        let mut placed = Vec::new();
-        for p in &db.manifest.objects {
-            if !files.contains_key(p.file.as_str()) {
-                let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
-                let (anchored, reach) = (anchored_voxels(&obj), object_reach(&obj));
-                files.insert(&p.file, (obj, anchored, reach));
-            }
-            let (obj, anchored, reach) = &files[p.file.as_str()];
-            if reaches(grid, [p.x, p.y], reach * p.scale, &rows, &cols) {
-                placed.push(placed_voxels(obj, anchored, p));
-            }
-        }
+        let placed: Vec<PlacedVoxels> = placed_objects(db, grid, &rows, &cols)?
+            .into_iter()
+            .map(|(_, v)| v)
+            .collect();
         let mut under: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
         for obj in &placed {
             under.extend(object_cells(grid, obj));
@@ -550,6 +545,32 @@ impl Standing {
             all,
         })
     }
+}
+
+/// The database's placements, in the manifest's order, whose footprint can reach grid rows
+/// `rows` and columns `cols` ([`reaches`]), each with its voxels placed; each object file is
+/// read once however often it is placed.
+pub fn placed_objects<'a>(
+    db: &'a Database,
+    grid: &Grid,
+    rows: &Range<usize>,
+    cols: &Range<usize>,
+) -> Result<Vec<(&'a PlacedObject, PlacedVoxels)>> {
+    type Read = (VoxelObject, Arc<[([f64; 3], [u8; 3])]>, f64);
+    let mut files: BTreeMap<&str, Read> = BTreeMap::new();
+    let mut placed = Vec::new();
+    for p in &db.manifest.objects {
+        if !files.contains_key(p.file.as_str()) {
+            let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
+            let (anchored, reach) = (anchored_voxels(&obj), object_reach(&obj));
+            files.insert(&p.file, (obj, anchored, reach));
+        }
+        let (obj, anchored, reach) = &files[p.file.as_str()];
+        if reaches(grid, [p.x, p.y], reach * p.scale, rows, cols) {
+            placed.push((p, placed_voxels(obj, anchored, p)));
+        }
+    }
+    Ok(placed)
 }
 
 /// How far (metres) the cells an object marks can lie from its anchor, horizontally: its

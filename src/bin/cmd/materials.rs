@@ -26,10 +26,12 @@ pub struct Args {
     /// it is copied into the database for later stages.
     #[arg(long, value_name = "JSON")]
     table: Option<PathBuf>,
-    /// The material of every cell a placed voxel object stands on (e.g. forest for trees),
-    /// above every other source.
-    #[arg(long, value_name = "MATERIAL")]
-    objects: Option<String>,
+    /// The material of the cells placed voxel objects stand on, above every other source:
+    /// MATERIAL for every placed object (e.g. forest for trees), NAME=MATERIAL for the
+    /// placements of the object file NAME (as placed, without .dvox: tank=roof_metal).
+    /// Repeatable; a name wins over the bare MATERIAL.
+    #[arg(long, value_name = "[NAME=]MATERIAL")]
+    objects: Vec<String>,
     /// Also write the layer as a PNG to look at: each cell in its material's colour from the
     /// table (black: unclassified).
     #[arg(long, value_name = "PNG")]

@@ -42,9 +42,11 @@ pub struct MaterialOptions {
     pub landcover: Option<(PathBuf, String)>,
     /// A material table file instead of the shipped default.
     pub table: Option<PathBuf>,
-    /// The material of every cell a placed voxel object stands on (e.g. `forest` for trees):
-    /// above every other source, since the object is the cell's top surface.
-    pub objects: Option<String>,
+    /// The materials of the cells placed voxel objects stand on, above every other source
+    /// (the object is the cell's top surface): each `MATERIAL` (every placed object not named
+    /// otherwise, at most one) or `NAME=MATERIAL` (the placements of the object file `NAME`,
+    /// its name as placed, without directory or `.dvox`).
+    pub objects: Vec<String>,
     /// A PNG of the layer to look at: each cell in its material's colour (black: unclassified).
     pub preview: Option<PathBuf>,
     /// How long to wait for the database's lock.
@@ -119,8 +121,9 @@ pub struct Inputs<'a> {
     pub colour: &'a [[u8; 4]],
     /// Cells under a building footprint.
     pub roof: &'a [bool],
-    /// The cells placed objects stand on, and the material they get (`--objects`).
-    pub objects: Option<&'a features::Painted>,
+    /// The cells placed objects stand on, and the material they get (`--objects`), in
+    /// placement order: a later placement over an earlier one wins.
+    pub objects: &'a [features::Painted],
     /// Roofs with a given material, then ground features, as painted.
     pub roofs_given: &'a [features::Painted],
     /// Ground features in paint order.
@@ -151,7 +154,7 @@ pub fn classify(
             ))
         })
     };
-    if let Some(p) = inputs.objects {
+    for p in inputs.objects {
         let id = id_of(p)?;
         for &c in &p.cells {
             if ids[c].is_none() {
@@ -336,6 +339,67 @@ fn names<'a>(names: impl Iterator<Item = &'a String>) -> String {
 
 /// The cells under the footprints of the database's buildings layer (if it has one), and
 /// those of footprints with a `roof_material`, as painted features.
+/// The cells each placement of `db` stands on, with its material from `specs` (see
+/// [`MaterialOptions::objects`]), in placement order; placements no spec names are left out.
+/// A name no placement has, two bare materials or a name given twice is an error.
+fn object_materials(db: &Database, specs: &[String]) -> Result<Vec<features::Painted>> {
+    if specs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let (mut every, mut named) = (None, BTreeMap::new());
+    for spec in specs {
+        let twice = |what: String| {
+            Error::msg(format!("--objects {spec}: {what} is given twice"))
+                .fix("give each object name once, and at most one MATERIAL for the rest")
+        };
+        match spec.split_once('=') {
+            Some((name, material)) => {
+                if named.insert(name, material).is_some() {
+                    return Err(twice(format!("object {name:?}")));
+                }
+            }
+            None if every.is_some() => return Err(twice("a material for every object".into())),
+            None => every = Some(spec.as_str()),
+        }
+    }
+    let terrain = db.elevation_rows()?;
+    let grid = crate::raster::RowSource::grid(&terrain).clone();
+    let band = crate::raster::band_rows(grid.width);
+    let raised = crate::standing::Standing::read(db, &terrain, band)?.objects;
+    let placed = crate::standing::placed_objects(db, &grid, &(0..grid.height), &(0..grid.width))?;
+    let name_of = |file: &str| crate::voxel::place::placed_name(file).to_string();
+    if let Some(name) = named
+        .keys()
+        .find(|n| !placed.iter().any(|(p, _)| name_of(&p.file) == **n))
+    {
+        let mut names: Vec<String> = placed.iter().map(|(p, _)| name_of(&p.file)).collect();
+        names.sort();
+        names.dedup();
+        return Err(Error::msg(format!(
+            "--objects {name}=...: no placed object is named {name:?}"
+        ))
+        .fix(format!(
+            "name one of the placed objects: {}",
+            names.join(", ")
+        )));
+    }
+    let mut painted = Vec::new();
+    for (p, voxels) in &placed {
+        let name = name_of(&p.file);
+        let Some(material) = named.get(name.as_str()).copied().or(every) else {
+            continue;
+        };
+        let cells = crate::standing::object_cells(&grid, voxels);
+        let cells = cells.into_iter().filter(|&c| raised.contains(c)).collect();
+        painted.push(features::Painted {
+            material: material.to_string(),
+            origin: format!("--objects (placement {} of {name})", p.id),
+            cells,
+        });
+    }
+    Ok(painted)
+}
+
 fn roofs(db: &Database) -> Result<(Vec<bool>, Vec<features::Painted>)> {
     let grid = db.grid();
     let mut roof = vec![false; grid.len()];
@@ -385,22 +449,7 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
     let colour = db.read_colour()?;
     let (roof, roofs_given) = roofs(&db)?;
     let painted = features::read(&opts.features, &grid)?;
-    let objects = match &opts.objects {
-        Some(material) => {
-            let terrain = db.elevation_rows()?;
-            let standing = crate::standing::Standing::read(
-                &db,
-                &terrain,
-                crate::raster::band_rows(grid.width),
-            )?;
-            Some(features::Painted {
-                material: material.clone(),
-                origin: "--objects".into(),
-                cells: standing.objects.cells().iter().map(|c| c.index).collect(),
-            })
-        }
-        None => None,
-    };
+    let objects = object_materials(&db, &opts.objects)?;
     let codes = match &opts.landcover {
         Some((path, _)) => Some(cover::sample_codes(path, &grid)?),
         None => None,
@@ -408,7 +457,7 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
     let inputs = Inputs {
         colour: &colour.data,
         roof: &roof,
-        objects: objects.as_ref(),
+        objects: &objects,
         roofs_given: &roofs_given,
         features: &painted,
         landcover: codes
@@ -520,7 +569,7 @@ mod tests {
         let inputs = Inputs {
             colour: &colour,
             roof: &roof,
-            objects: None,
+            objects: &[],
             roofs_given: &roofs_given,
             features: &features,
             landcover: Some((&codes, "esa_worldcover")),
@@ -561,7 +610,7 @@ mod tests {
         // cover) are their material there, above every other source; the rest is as before.
         let trees = painted("forest", vec![0, 4, 5]);
         let with_trees = Inputs {
-            objects: Some(&trees),
+            objects: std::slice::from_ref(&trees),
             ..inputs
         };
         let (ids, summary) = classify(&with_trees, table, "default").unwrap();
@@ -603,7 +652,7 @@ mod tests {
         let inputs = Inputs {
             colour: &colour,
             roof: &[false, false],
-            objects: None,
+            objects: &[],
             roofs_given: &[],
             features: &features,
             landcover: None,
@@ -658,7 +707,7 @@ mod tests {
         let inputs = Inputs {
             colour: &scene.ortho.data,
             roof: &roof,
-            objects: None,
+            objects: &[],
             roofs_given: &[],
             features: &[],
             landcover: None,

@@ -47,9 +47,30 @@ pub struct Scene {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialsSpec {
-    /// The material of every cell a placed object stands on (`dbms materials --objects`).
+    /// The material of the cells placed objects stand on, as `dbms materials --objects` takes
+    /// it: `"MATERIAL"` or a list of `"MATERIAL"` and `"NAME=MATERIAL"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub objects: Option<String>,
+    pub objects: Option<ObjectMaterials>,
+}
+
+/// `[materials] objects`: one `--objects` value or several.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ObjectMaterials {
+    /// One material for every placed object.
+    Every(String),
+    /// `--objects` values, each `MATERIAL` or `NAME=MATERIAL`.
+    Each(Vec<String>),
+}
+
+impl ObjectMaterials {
+    /// The `--objects` values.
+    pub fn specs(&self) -> &[String] {
+        match self {
+            ObjectMaterials::Every(m) => std::slice::from_ref(m),
+            ObjectMaterials::Each(v) => v,
+        }
+    }
 }
 
 /// `[database]`: where the database goes and its grid.

@@ -175,7 +175,9 @@ pub fn steps(scene: &Scene) -> Vec<Step> {
 fn materials_step(scene: &Scene, last: &str) -> Step {
     let mut cmd = vec![s("materials"), s("--db"), s(scene.database.dir.display())];
     if let Some(m) = scene.materials.as_ref().and_then(|m| m.objects.as_ref()) {
-        cmd.extend([s("--objects"), m.clone()]);
+        for spec in m.specs() {
+            cmd.extend([s("--objects"), spec.clone()]);
+        }
     }
     Step {
         name: "materials".into(),
@@ -244,6 +246,10 @@ fn sensor_steps(scene: &Scene, name: &str, p: &Product, last: &str) -> Vec<Step>
             writes_database: false,
         });
         pyramid.extend([s(option), s(map.display())]);
+    }
+    if p.sensor == "radar" {
+        // The normals let a radar model take its own incidence from any position later.
+        pyramid.push(s("--normals"));
     }
     if let Some(lights) = &p.lights {
         pyramid.extend([s("--lights"), s(lights.display())]);

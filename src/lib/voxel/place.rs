@@ -272,6 +272,18 @@ fn require_inside(db: &Database, x: f64, y: f64) -> Result<()> {
     Ok(())
 }
 
+/// The name an object was placed under: its stored file's name (`objects/<stem>-<12 hex>.dvox`,
+/// [`store_object`]) without the directory, the hash and the extension. `"tree"` for
+/// `objects/tree-514b4940741c.dvox`; a name not of that form comes back as its file stem.
+pub fn placed_name(file: &str) -> &str {
+    let name = file.rsplit('/').next().unwrap_or(file);
+    let stem = name.strip_suffix(".dvox").unwrap_or(name);
+    match stem.rsplit_once('-') {
+        Some((s, hash)) if hash.len() == 12 && hash.bytes().all(|b| b.is_ascii_hexdigit()) => s,
+        _ => stem,
+    }
+}
+
 /// Store the object at `path` (SHA-256 `sha256`) in the database under its content-addressed
 /// name, once (placing one tree many times stores it once); returns that name.
 fn store_object(change: &mut Change, path: &Path, sha256: &str) -> Result<String> {
@@ -531,6 +543,18 @@ mod tests {
             .iter()
             .enumerate()
             .all(|(i, p)| i == 10 || (p.heading_deg, p.scale) == (0.0, 1.0)));
+    }
+
+    #[test]
+    fn placed_names_drop_the_directory_hash_and_extension() {
+        assert_eq!(placed_name("objects/tree-514b4940741c.dvox"), "tree");
+        assert_eq!(
+            placed_name("objects/oak-tree-2-9e841e821ca5.dvox"),
+            "oak-tree-2"
+        );
+        // Not the stored form: the stem as it is.
+        assert_eq!(placed_name("objects/tank-v2.dvox"), "tank-v2");
+        assert_eq!(placed_name("tank.dvox"), "tank");
     }
 
     #[test]
