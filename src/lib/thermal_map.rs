@@ -67,6 +67,13 @@ pub struct Conditions {
 impl Conditions {
     /// Each value in its range, or a one-line error naming the `dbms thermal` option.
     pub fn check(&self) -> Result<()> {
+        self.check_named(["--air-temp", "--air-range", "--wind", "--humidity"])
+    }
+
+    /// [`check`](Self::check), the error naming the value by `names` (air temperature, air
+    /// range, wind, humidity): how the caller's user gave it.
+    pub fn check_named(&self, names: [&str; 4]) -> Result<()> {
+        let [air_temp, air_range, wind, humidity] = names;
         let bad = |option: &str, v: f64, want: &str| {
             Err(
                 Error::msg(format!("{option} {v}: give it {want}")).fix(format!(
@@ -76,27 +83,23 @@ impl Conditions {
             )
         };
         if !(self.air_mean_c.is_finite() && self.air_mean_c.abs() <= 100.0) {
-            return bad("--air-temp", self.air_mean_c, "in °C, within ±100");
+            return bad(air_temp, self.air_mean_c, "in °C, within ±100");
         }
         if !(0.0..=60.0).contains(&self.air_range_k) {
-            return bad("--air-range", self.air_range_k, "in K, from 0 to 60");
+            return bad(air_range, self.air_range_k, "in K, from 0 to 60");
         }
         if self.air_mean_c - self.air_range_k / 2.0 <= -100.0 {
             return bad(
-                "--air-range",
+                air_range,
                 self.air_range_k,
                 "so the minimum stays above −100 °C",
             );
         }
         if !(0.0..=60.0).contains(&self.wind_m_per_s) {
-            return bad("--wind", self.wind_m_per_s, "in m/s, from 0 to 60");
+            return bad(wind, self.wind_m_per_s, "in m/s, from 0 to 60");
         }
         if !(self.relative_humidity > 0.0 && self.relative_humidity <= 1.0) {
-            return bad(
-                "--humidity",
-                self.relative_humidity,
-                "as a fraction in (0, 1]",
-            );
+            return bad(humidity, self.relative_humidity, "as a fraction in (0, 1]");
         }
         Ok(())
     }

@@ -51,6 +51,32 @@ pub struct MaterialsSpec {
     /// it: `"MATERIAL"` or a list of `"MATERIAL"` and `"NAME=MATERIAL"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub objects: Option<ObjectMaterials>,
+    /// GeoJSON features with a `material` (`--features`, in paint order); inputs of the step.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub features: Vec<PathBuf>,
+    /// A land-cover raster (`--landcover`), with `legend`; an input of the step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub landcover: Option<PathBuf>,
+    /// The legend the land-cover codes follow (`--legend`: `esa_worldcover`, `nlcd`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub legend: Option<String>,
+    /// A material table instead of the shipped one (`--table`); an input of the step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<PathBuf>,
+}
+
+impl MaterialsSpec {
+    /// The files the step reads, with their keys, in option order.
+    pub fn inputs(&self) -> Vec<(String, &PathBuf)> {
+        let features = self.features.iter().enumerate();
+        let features = features.map(|(k, p)| (format!("materials.features[{k}]"), p));
+        let landcover = self
+            .landcover
+            .iter()
+            .map(|p| ("materials.landcover".into(), p));
+        let table = self.table.iter().map(|p| ("materials.table".into(), p));
+        features.chain(landcover).chain(table).collect()
+    }
 }
 
 /// `[materials] objects`: one `--objects` value or several.
@@ -299,6 +325,44 @@ pub struct Conditions {
     /// Meteorological visibility, metres (haze), > 0; none: clear air.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub visibility_m: Option<f64>,
+    /// ir: mean air temperature of the day, °C (`dbms thermal --air-temp`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub air_temp_c: Option<f64>,
+    /// ir: daily air temperature range, K (`--air-range`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub air_range_k: Option<f64>,
+    /// ir: wind speed, m/s (`--wind`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wind_m_s: Option<f64>,
+    /// ir: relative humidity, a fraction in (0, 1] (`--humidity`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub humidity: Option<f64>,
+}
+
+impl Conditions {
+    /// The weather keys given, with their `dbms thermal` options, in the options' order.
+    pub fn weather(&self) -> Vec<(&'static str, &'static str, f64)> {
+        let all = [
+            ("air_temp_c", "--air-temp", self.air_temp_c),
+            ("air_range_k", "--air-range", self.air_range_k),
+            ("wind_m_s", "--wind", self.wind_m_s),
+            ("humidity", "--humidity", self.humidity),
+        ];
+        all.into_iter()
+            .filter_map(|(k, o, v)| Some((k, o, v?)))
+            .collect()
+    }
+
+    /// The thermal conditions: the given weather over `dbms thermal`'s defaults.
+    pub fn thermal(&self) -> crate::thermal_map::Conditions {
+        let d = crate::thermal_map::Conditions::default();
+        crate::thermal_map::Conditions {
+            air_mean_c: self.air_temp_c.unwrap_or(d.air_mean_c),
+            air_range_k: self.air_range_k.unwrap_or(d.air_range_k),
+            wind_m_per_s: self.wind_m_s.unwrap_or(d.wind_m_per_s),
+            relative_humidity: self.humidity.unwrap_or(d.relative_humidity),
+        }
+    }
 }
 
 /// The sensors a product may name: `visual` (colour shaded for a sun), `ir` (temperature at
@@ -348,6 +412,15 @@ impl Scene {
         }
         if let Some(t) = &self.terrain.photo_time {
             check_time("terrain.photo_time", t)?;
+        }
+        if let Some(m) = &self.materials {
+            if m.landcover.is_some() != m.legend.is_some() {
+                return Err(key_error(
+                    "materials",
+                    "gives one of landcover and legend: a land-cover raster's codes need their legend".into(),
+                    "give both, e.g. landcover = \"worldcover.tif\" and legend = \"esa_worldcover\"",
+                ));
+            }
         }
         if self.buildings.is_some() && self.terrain.photo_time.is_none() {
             return Err(key_error(
@@ -408,6 +481,11 @@ impl Scene {
                 resolve(points);
             }
         }
+        if let Some(m) = &mut self.materials {
+            m.features.iter_mut().for_each(resolve);
+            m.landcover.iter_mut().for_each(resolve);
+            m.table.iter_mut().for_each(resolve);
+        }
     }
 
     /// The inputs exist, and no output is an input or another output.
@@ -433,6 +511,10 @@ impl Scene {
             .filter_map(|(name, p)| Some((format!("products.{name}.lights"), p.lights.as_ref()?)))
             .collect();
         for (key, path) in &light_keys {
+            inputs.push((key, path));
+        }
+        let material_keys = self.materials.as_ref().map_or(vec![], |m| m.inputs());
+        for (key, path) in &material_keys {
             inputs.push((key, path));
         }
         for (key, path) in &inputs {
@@ -528,6 +610,12 @@ impl Product {
         if self.radar.is_some() && sensor != "radar" {
             return refuse("radar", "only a radar product has a radar look");
         }
+        if let Some((k, _, _)) = self.conditions.weather().first().filter(|_| sensor != "ir") {
+            return refuse(
+                &format!("conditions.{k}"),
+                "only an infrared product's temperatures depend on the weather",
+            );
+        }
         if sensor == "ir" && self.time.is_none() {
             return Err(key_error(
                 key,
@@ -600,7 +688,10 @@ impl Product {
         if let Some(v) = self.conditions.visibility_m {
             positive(&format!("{key}.conditions.visibility_m"), v)?;
         }
-        Ok(())
+        let name = |k: &str| format!("{key}.conditions.{k}");
+        let names = ["air_temp_c", "air_range_k", "wind_m_s", "humidity"].map(name);
+        let names = [&*names[0], &*names[1], &*names[2], &*names[3]];
+        self.conditions.thermal().check_named(names)
     }
 }
 
@@ -773,6 +864,14 @@ conditions = { visibility_m = 2000 }
             product("sensor = \"nvg\"\ntiles = \"n.dbt\"\nlights = \"l.geojson\""),
             Ok(())
         );
+        let weather =
+            "conditions = { air_temp_c = -5, air_range_k = 12, wind_m_s = 0, humidity = 1 }";
+        assert_eq!(
+            product(&format!(
+                "sensor = \"ir\"\ntiles = \"ir.dbt\"\n{t}\n{weather}"
+            )),
+            Ok(())
+        );
         for (body, want) in [
             ("sensor = \"ir\"\ntiles = \"ir.dbt\"".to_string(), "without a time"),
             ("sensor = \"radar\"\ntiles = \"r.dbt\"".into(), "without a radar look"),
@@ -781,6 +880,9 @@ conditions = { visibility_m = 2000 }
             ("sensor = \"ir\"\ntiles = \"v.dbt\"\nsun = { elevation = 5, azimuth = 1 }".into(), "products.day.sun"),
             ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 95 }".into(), "products.day.radar"),
             ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 9, band = \"Q\" }".into(), "products.day.radar.band"),
+            (format!("sensor = \"visual\"\ntiles = \"v.dbt\"\nconditions = {{ wind_m_s = 3 }}"), "products.day.conditions.wind_m_s is given"),
+            (format!("sensor = \"ir\"\ntiles = \"ir.dbt\"\n{t}\nconditions = {{ humidity = 0 }}"), "products.day.conditions.humidity 0"),
+            (format!("sensor = \"ir\"\ntiles = \"ir.dbt\"\n{t}\nconditions = {{ air_range_k = 61 }}"), "products.day.conditions.air_range_k 61"),
         ] {
             let e = product(&body).unwrap_err();
             assert!(e.contains(want), "{body}: {e}");
@@ -803,6 +905,34 @@ conditions = { visibility_m = 2000 }
         );
         let none = GOOD[..GOOD.find("[products.day]").unwrap()].to_string() + "[products]\n";
         assert!(error_of(&none).contains("products is empty"));
+    }
+
+    #[test]
+    fn materials_sources_are_read_and_a_landcover_needs_its_legend() {
+        let with = |m: &str| GOOD.to_string() + "\n[materials]\n" + m;
+        let s = Scene::parse(&with(
+            "objects = [\"forest\", \"tank=roof_metal\"]\nfeatures = [\"a.geojson\", \"b.geojson\"]\nlandcover = \"wc.tif\"\nlegend = \"esa_worldcover\"\ntable = \"t.json\"",
+        ))
+        .unwrap();
+        let m = s.materials.unwrap();
+        let keys: Vec<String> = m.inputs().into_iter().map(|(k, _)| k).collect();
+        assert_eq!(
+            keys,
+            [
+                "materials.features[0]",
+                "materials.features[1]",
+                "materials.landcover",
+                "materials.table"
+            ]
+        );
+        assert_eq!(m.objects.unwrap().specs(), ["forest", "tank=roof_metal"]);
+        for half in ["landcover = \"wc.tif\"", "legend = \"nlcd\""] {
+            let e = error_of(&with(half));
+            assert!(
+                e.contains("materials gives one of landcover and legend"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

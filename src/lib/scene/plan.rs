@@ -170,20 +170,36 @@ pub fn steps(scene: &Scene) -> Vec<Step> {
     out
 }
 
-/// `dbms materials` (photo rules and roofs), after the database steps `last`: what every
-/// sensor product reads.
+/// `dbms materials` (the `[materials]` sources, roofs and the photo's rules), after the database
+/// steps `last`: what every sensor product reads.
 fn materials_step(scene: &Scene, last: &str) -> Step {
     let mut cmd = vec![s("materials"), s("--db"), s(scene.database.dir.display())];
-    if let Some(m) = scene.materials.as_ref().and_then(|m| m.objects.as_ref()) {
-        for spec in m.specs() {
+    let mut inputs = vec![];
+    if let Some(m) = &scene.materials {
+        for spec in m.objects.iter().flat_map(|o| o.specs()) {
             cmd.extend([s("--objects"), spec.clone()]);
         }
+        for f in &m.features {
+            cmd.extend([s("--features"), s(f.display())]);
+        }
+        if let (Some(cover), Some(legend)) = (&m.landcover, &m.legend) {
+            cmd.extend([
+                s("--landcover"),
+                s(cover.display()),
+                s("--legend"),
+                legend.clone(),
+            ]);
+        }
+        if let Some(table) = &m.table {
+            cmd.extend([s("--table"), s(table.display())]);
+        }
+        inputs = m.inputs().into_iter().map(|(_, p)| p.clone()).collect();
     }
     Step {
         name: "materials".into(),
         does: "what each cell is made of, for the sensor products".into(),
         commands: vec![cmd],
-        inputs: vec![],
+        inputs,
         outputs: vec![],
         after: vec![last.to_string()],
         writes_database: false,
@@ -197,20 +213,25 @@ fn sensor_steps(scene: &Scene, name: &str, p: &Product, last: &str) -> Vec<Step>
     let db = s(scene.database.dir.display());
     let map = steps_dir(scene).join(format!("{name}.{}.tif", p.sensor));
     let map_step = match (p.sensor.as_str(), &p.time, &p.radar) {
-        ("ir", Some(time), _) => Some((
-            "thermal",
-            "surface temperatures at its time",
-            vec![
+        ("ir", Some(time), _) => {
+            let mut command = vec![
                 s("thermal"),
                 s("--db"),
                 db.clone(),
                 s("--time"),
                 time.clone(),
-                s("-o"),
-                s(map.display()),
-            ],
-            "--temperature",
-        )),
+            ];
+            for (_, option, v) in p.conditions.weather() {
+                command.extend([s(option), s(v)]);
+            }
+            command.extend([s("-o"), s(map.display())]);
+            Some((
+                "thermal",
+                "surface temperatures at its time",
+                command,
+                "--temperature",
+            ))
+        }
         ("radar", _, Some(r)) => Some((
             "radar",
             "radar backscatter for its look",
@@ -733,5 +754,42 @@ mod tests {
             .find(|s| s.name == "place")
             .unwrap();
         assert_eq!(place.inputs, [points.clone(), dir.path().join("oak.dvox")]);
+    }
+
+    /// The materials step passes the `[materials]` sources and reads them as inputs; an ir
+    /// product's thermal step passes the weather given, and only that.
+    #[test]
+    fn sensor_steps_carry_the_scene_s_sources_and_weather() {
+        let text = "version = 1\n[database]\ndir = \"db\"\n[terrain]\ndem = \"d.tif\"\northo = \"o.tif\"\n\
+             [materials]\nobjects = \"forest\"\nfeatures = [\"roads.geojson\"]\nlandcover = \"wc.tif\"\nlegend = \"esa_worldcover\"\n\
+             [products.ir]\nsensor = \"ir\"\ntiles = \"ir.dbt\"\ntime = \"2026-09-15T13:00:00Z\"\n\
+             conditions = { wind_m_s = 5, air_temp_c = -3.5 }\n";
+        let scene = Scene::parse(text).unwrap();
+        let all = steps(&scene);
+        let step = |name: &str| all.iter().find(|s| s.name == name).unwrap();
+        let materials = step("materials");
+        assert_eq!(
+            materials.commands[0][3..],
+            [
+                "--objects",
+                "forest",
+                "--features",
+                "roads.geojson",
+                "--landcover",
+                "wc.tif",
+                "--legend",
+                "esa_worldcover"
+            ]
+        );
+        assert_eq!(
+            materials.inputs,
+            [PathBuf::from("roads.geojson"), "wc.tif".into()]
+        );
+        let thermal = &step("thermal.ir").commands[0];
+        let at = thermal.iter().position(|a| a == "--air-temp").unwrap();
+        assert_eq!(thermal[at..at + 4], ["--air-temp", "-3.5", "--wind", "5"]);
+        assert!(!thermal
+            .iter()
+            .any(|a| a == "--humidity" || a == "--air-range"));
     }
 }
