@@ -931,3 +931,133 @@ fn each_placed_object_gets_its_own_material() {
     let o = run(&["tonk=roof_metal"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("tank, tree"));
 }
+
+/// `render --sensor radar --band X` puts the radar at the eye: each pixel is γ·cos θ of the
+/// grass it sees (Nathanson's γ = −20 dB, θ the incidence of the pixel's own ray, worked out
+/// here from the pinhole camera: the ray through pixel `(i, j)` is forward + x′·right + y′·up on
+/// an image plane one unit ahead). Looking straight down on level grass θ is the ray's angle
+/// off the vertical; looking east at a 5 m grass cliff the face is a wall facing west, so θ is
+/// the ray's angle off west, not the slope of the cell's stored normal. The road (asphalt: no
+/// model published) is drawn as unclassified; --band needs the normal layer and --top has no
+/// eye, and both say so.
+#[test]
+fn radar_at_the_eye_lights_each_pixel_at_its_own_incidence() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    // Level at 100 m, a 5 m cliff up at column 10 (grass to column 19, the road beyond).
+    database_over(&dir, 40, 20, |c, _| if c < 10 { 100.0 } else { 105.0 });
+    let (d, s) = (dir.to_str().unwrap(), |p: &Path| {
+        p.to_str().unwrap().to_string()
+    });
+    ok(dbms(&["materials", "--db", d, "-q"]));
+    let (tiles, plain) = (t.path().join("r.dbt"), t.path().join("p.dbt"));
+    let pyramid = ["pyramid", "--db", d, "--page", "8", "--factor", "2", "-q"];
+    let with = ["--materials", "--normals", "-o", &s(&tiles)];
+    ok(dbms(&[&pyramid[..], &with].concat()));
+    ok(dbms(
+        &[&pyramid[..], &["--materials", "-o", &s(&plain)]].concat(),
+    ));
+    let (x, y) = ORIGIN;
+    let (w, h, fov) = (64usize, 48usize, 60.0f64);
+    let render = |tiles: &Path, eye: String, attitude: &str, extra: &[&str]| {
+        let out = s(&t.path().join("radar.png"));
+        let (size, tiles) = (format!("{w}x{h}"), s(tiles));
+        let mut args = vec!["render", "--tiles", &tiles, "--eye", &eye];
+        args.extend(["--attitude", attitude, "--size", &size, "-q", "-o", &out]);
+        args.extend(["--sensor", "radar"]);
+        args.extend(extra);
+        let o = dbms(&args);
+        (o, std::fs::read(&out).unwrap_or_default())
+    };
+    // The unit ray through pixel (i, j) in the camera's own axes: forward, right, up.
+    let ray = |i: usize, j: usize| {
+        let half_w = (fov.to_radians() / 2.0).tan();
+        let half_h = half_w * h as f64 / w as f64;
+        let xp = (2.0 * (i as f64 + 0.5) / w as f64 - 1.0) * half_w;
+        let yp = (1.0 - 2.0 * (j as f64 + 0.5) / h as f64) * half_h;
+        let n = (1.0 + xp * xp + yp * yp).sqrt();
+        (1.0 / n, xp / n, yp / n)
+    };
+    let gamma = 10f64.powf(-20.0 / 10.0);
+    let grey = |cos_inc: f64| dbms::radar_map::grey_db((gamma * cos_inc) as f32);
+    let close = |got: u8, want: u8, at: &str| {
+        assert!(got.abs_diff(want) <= 1, "{at}: {got} against {want}");
+    };
+
+    // Straight down from 50 m over column 5 (pitch −90: forward is down): cos θ = forward.
+    let (o, png) = render(
+        &tiles,
+        format!("{},{},150", x + 5.0, y - 10.0),
+        "0,-90,0",
+        &["--band", "X"],
+    );
+    ok(o);
+    let img = image::load_from_memory(&png).unwrap().to_rgb8();
+    // The ground seen spans ±29 m across and ±21 m along; these pixels see level grass (west of
+    // column 9, whose centred difference takes in the cliff, and inside the grid).
+    for (i, j) in [(32, 24), (31, 23), (28, 20), (34, 30), (29, 33)] {
+        let (f, _, _) = ray(i, j);
+        close(
+            img.get_pixel(i as u32, j as u32)[0],
+            grey(f),
+            &format!("down ({i}, {j})"),
+        );
+    }
+
+    // Looking east from 2 m west of the grid at 102 m: the centre rays meet the cliff face at
+    // x = 10 m (12 m ahead), a wall facing west: cos θ = the ray's eastward part, forward.
+    let (o, png) = render(
+        &tiles,
+        format!("{},{},102", x - 2.0, y - 10.0),
+        "0,0,90",
+        &["--band", "X"],
+    );
+    ok(o);
+    let img = image::load_from_memory(&png).unwrap().to_rgb8();
+    let mut walls = 0;
+    for j in 20..28 {
+        for i in 26..38 {
+            // Below the cliff's top at 12 m ahead (the ray climbs yp·12 / forward metres).
+            let (f, _, up) = ray(i, j);
+            if 102.0 + up / f * 12.0 < 104.8 && 102.0 + up / f * 12.0 > 100.2 {
+                close(
+                    img.get_pixel(i as u32, j as u32)[0],
+                    grey(f),
+                    &format!("wall ({i}, {j})"),
+                );
+                walls += 1;
+            }
+        }
+    }
+    assert!(walls > 40, "{walls} wall pixels checked");
+    // Red where the road (no model at X band) is seen: beyond the grass, far up the frame.
+    let (o, png) = render(
+        &tiles,
+        format!("{},{},130", x + 30.0, y - 10.0),
+        "0,-90,0",
+        &["--band", "X"],
+    );
+    ok(o);
+    let img = image::load_from_memory(&png).unwrap().to_rgb8();
+    assert_eq!(img.get_pixel(32, 24).0, [96, 0, 0], "asphalt: no model");
+
+    let (o, _) = render(
+        &plain,
+        format!("{},{},150", x + 5.0, y - 10.0),
+        "0,-90,0",
+        &["--band", "X"],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("no normal layer") && e.contains("--normals"),
+        "{e}"
+    );
+    let (o, _) = render(
+        &tiles,
+        format!("{},{},150", x + 5.0, y - 10.0),
+        "0,-90,0",
+        &["--band", "X", "--top"],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("--top"), "{e}");
+}

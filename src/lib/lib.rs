@@ -22,6 +22,7 @@
 //!
 //! Shared by the stages: [`walk`], the one grid traversal (cells a ray crosses, explicit corner rule).
 
+pub mod backscatter;
 pub mod choice;
 pub mod crs;
 pub mod db;

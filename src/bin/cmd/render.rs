@@ -3,7 +3,7 @@
 use super::Ctx;
 use dbms::grid::Bounds;
 use dbms::render::flight::FlightStats;
-use dbms::render::sensor::{IrScale, NightScale, Sensor, SensorOptions};
+use dbms::render::sensor::{IrScale, Overlay, Sensor, SensorOptions};
 use dbms::render::sky::Backdrop;
 use dbms::render::{self, Attitude, RenderStats, Traversal, ViewOptions, Viewpoint};
 use dbms::tiles::TileReader;
@@ -122,6 +122,11 @@ pub struct Args {
     /// (default 0.172: a high site; 0.25-0.3 at sea level).
     #[arg(long, value_name = "MAG")]
     extinction: Option<f64>,
+    /// With --sensor radar: put the radar at the eye in this band (L, S, C, X, Ku, Ka, W) and
+    /// draw each pixel's σ⁰ at its own incidence, from the tile set's normal and material
+    /// layers (dbms pyramid --normals --materials); without it, the backscatter layer's look.
+    #[arg(long, value_name = "BAND")]
+    band: Option<String>,
     /// Pages kept in the reader's cache (each 9·P² bytes, 590 kB at P = 256, plus P² or 4·P²
     /// per sensor layer).
     #[arg(long, default_value_t = 512)]
@@ -155,8 +160,14 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         .chain(args.range_out.as_deref())
         .collect();
     dbms::io::atomic::check_outputs(&outputs, &[&args.tiles])?;
-    let (reader, backdrop, night) = open(&args)?;
+    let (reader, backdrop, overlay) = open(&args)?;
     let mut lights_drawn = None;
+    if args.top && matches!(overlay, Overlay::Radar(_)) {
+        return Err(
+            Error::msg("--band puts the radar at the eye, and --top has none")
+                .fix("drop --top for a view from --eye, or --band to draw the backscatter layer"),
+        );
+    }
     let frame = if args.top {
         let g = &reader.info().grid;
         let window = args
@@ -198,9 +209,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             height,
         };
         let mut frame = render::render_view(&reader, &camera, &view_options(&args, backdrop))?;
-        if let Some(night) = &night {
-            lights_drawn = Some(night.draw_lights(&mut frame, &camera, args.haze));
-        }
+        lights_drawn = overlay.draw(&mut frame, &camera, &reader, args.haze)?;
         frame
     };
     frame.write(&args.output, args.range_out.as_deref())?;
@@ -221,9 +230,9 @@ fn attitude(args: &Args) -> dbms::Result<Attitude> {
     Ok(Attitude { roll, pitch, yaw })
 }
 
-/// The tile file, read for `--sensor` (its pages recoloured), the view's backdrop and, for
-/// night vision, its light.
-fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop, Option<NightScale>)> {
+/// The tile file, read for `--sensor` (its pages recoloured), the view's backdrop and what is
+/// drawn over each frame (night vision's lights, the radar at the eye).
+fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop, Overlay)> {
     if args.ir_range.is_some() && args.sensor != Sensor::Ir {
         return Err(Error::msg("--ir-range is for --sensor ir").fix("add --sensor ir"));
     }
@@ -232,6 +241,14 @@ fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop, Option<NightScale>)>
             Error::msg("--time and --extinction are for --sensor nvg").fix("add --sensor nvg")
         );
     }
+    if args.band.is_some() && args.sensor != Sensor::Radar {
+        return Err(Error::msg("--band is for --sensor radar").fix("add --sensor radar"));
+    }
+    let band = args
+        .band
+        .as_deref()
+        .map(dbms::radar_map::parse_band)
+        .transpose()?;
     let reader = TileReader::open(&args.tiles, args.cache_pages)?;
     let ir_range = match &args.ir_range {
         Some(s) => {
@@ -246,10 +263,11 @@ fn open(args: &Args) -> dbms::Result<(TileReader, Backdrop, Option<NightScale>)>
         extinction_mag_per_airmass: args
             .extinction
             .unwrap_or(dbms::moon::DEFAULT_EXTINCTION_MAG_PER_AIRMASS),
+        band,
     };
     Ok(match render::sensor::view(args.sensor, &reader, &opts)? {
-        Some(v) => (reader.with_filter(v.filter), v.backdrop, v.night),
-        None => (reader, Backdrop::Daylight, None),
+        Some(v) => (reader.with_filter(v.filter), v.backdrop, v.overlay),
+        None => (reader, Backdrop::Daylight, Overlay::None),
     })
 }
 
@@ -285,16 +303,14 @@ fn fly(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         fixed_heading: args.fixed_heading,
     };
     let viewpoints = render::path::viewpoints(&waypoints, &flight, args.fov, width, height)?;
-    let (reader, backdrop, night) = open(&args)?;
+    let (reader, backdrop, overlay) = open(&args)?;
     let progress = ctx.progress(viewpoints.len() as u64, "frames");
     let stats = render::flight::fly(
         &reader,
         &viewpoints,
         &view_options(&args, backdrop),
         &|frame: &mut render::Frame, camera: &Viewpoint| {
-            if let Some(night) = &night {
-                night.draw_lights(frame, camera, args.haze);
-            }
+            overlay.draw(frame, camera, &reader, args.haze).map(|_| ())
         },
         &args.output,
         args.animation.as_deref().map(|a| (a, args.fps)),

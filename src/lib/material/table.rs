@@ -12,6 +12,7 @@
 //! naming an existing source, every land-cover class naming a material of the table — so code
 //! that uses one never re-checks.
 
+pub use crate::backscatter::{Band, Polarisation, RadarModel};
 use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashSet};
@@ -139,89 +140,6 @@ impl Radar {
     /// The σ⁰ model for `band`: the table's first for it (any polarisation), if any.
     pub fn model_for(&self, band: Band) -> Option<&RadarModel> {
         self.models.iter().find(|m| m.band() == band)
-    }
-}
-
-/// A radar band, by its IEEE letter designation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
-pub enum Band {
-    L,
-    S,
-    C,
-    X,
-    Ku,
-    Ka,
-    W,
-}
-
-/// Transmit/receive polarisation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Polarisation {
-    Hh,
-    Vv,
-    Hv,
-}
-
-/// A published empirical σ⁰ model for one band (and polarisation).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
-pub enum RadarModel {
-    /// Ulaby & Dobson (1989): σ⁰(θ) dB = P1 + P2·exp(−P3·θ) + P4·cos(P5·θ + P6), θ the
-    /// incidence angle in radians, valid over `incidence_deg`.
-    UlabyDobson {
-        band: Band,
-        polarisation: Polarisation,
-        /// P1..P6 as published.
-        p: [f64; 6],
-        /// The incidence angles the fit covers, degrees, `[min, max]` within 0..=90.
-        incidence_deg: [f64; 2],
-        /// Source id of the coefficients.
-        source: String,
-    },
-    /// Constant γ: σ⁰ = γ·sin(grazing) = γ·cos(incidence).
-    ConstantGamma {
-        band: Band,
-        /// γ in dB.
-        gamma_db: f64,
-        /// Source id of γ.
-        source: String,
-    },
-}
-
-impl RadarModel {
-    /// σ⁰ in dB at incidence angle `incidence_deg` (degrees from the surface normal).
-    pub fn sigma0_db(&self, incidence_deg: f64) -> f64 {
-        match self {
-            RadarModel::UlabyDobson { p, .. } => {
-                let t = incidence_deg.to_radians();
-                p[0] + p[1] * (-p[2] * t).exp() + p[3] * (p[4] * t + p[5]).cos()
-            }
-            RadarModel::ConstantGamma { gamma_db, .. } => {
-                gamma_db + 10.0 * incidence_deg.to_radians().cos().log10()
-            }
-        }
-    }
-
-    fn band(&self) -> Band {
-        match self {
-            RadarModel::UlabyDobson { band, .. } | RadarModel::ConstantGamma { band, .. } => *band,
-        }
-    }
-
-    fn polarisation(&self) -> Option<Polarisation> {
-        match self {
-            RadarModel::UlabyDobson { polarisation, .. } => Some(*polarisation),
-            RadarModel::ConstantGamma { .. } => None,
-        }
-    }
-
-    fn source(&self) -> &str {
-        match self {
-            RadarModel::UlabyDobson { source, .. } | RadarModel::ConstantGamma { source, .. } => {
-                source
-            }
-        }
     }
 }
 

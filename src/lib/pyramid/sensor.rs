@@ -70,7 +70,8 @@ impl Counted {
 }
 
 /// What the sensor views need of each material `counted` holds (0 left out), from `table`:
-/// the NIR reflectance, or the solar albedo where the table has none (and `nir_from` says so).
+/// the NIR reflectance, or the solar albedo where the table has none (and `nir_from` says so),
+/// and the radar's specular flag and σ⁰ models.
 /// An id the table lacks gets neither: it is left out, and the view draws it as unclassified.
 pub fn attributes(table: &MaterialTable, counted: &Counted) -> Vec<MaterialAttributes> {
     let known = counted.ids.iter().filter_map(|&id| table.by_id(id));
@@ -85,6 +86,8 @@ pub fn attributes(table: &MaterialTable, counted: &Counted) -> Vec<MaterialAttri
                 name: m.name.clone(),
                 nir_reflectance,
                 nir_from: nir_from.into(),
+                radar_specular: m.radar.specular,
+                radar: m.radar.models.clone(),
             }
         })
         .collect()

@@ -40,14 +40,14 @@ pub fn frame_file(dir: &Path, k: usize) -> PathBuf {
 }
 
 /// Render `viewpoints` over `reader` with `opts`, each frame finished by `overlay` (e.g. the
-/// night-vision view's light points, [`super::sensor::NightScale::draw_lights`]): frame `k`
+/// night-vision view's light points, [`super::sensor::Overlay::draw`]): frame `k`
 /// into [`frame_file`]`(dir, k)` (the directory is created), and, given `animation`, every
 /// frame into one animated PNG there, shown `1 / fps` seconds each, looping.
 pub fn fly(
     reader: &TileReader,
     viewpoints: &[Viewpoint],
     opts: &ViewOptions,
-    overlay: &dyn Fn(&mut Frame, &Viewpoint),
+    overlay: &dyn Fn(&mut Frame, &Viewpoint) -> Result<()>,
     dir: &Path,
     animation: Option<(&Path, f64)>,
     progress: &Progress,
@@ -71,7 +71,8 @@ pub fn fly(
     for (k, camera) in viewpoints.iter().enumerate() {
         let mut frame = render_view(reader, camera, opts)
             .map_err(|e| Error::msg(format!("frame {k} (eye {:?}): {e}", camera.eye)))?;
-        overlay(&mut frame, camera);
+        overlay(&mut frame, camera)
+            .map_err(|e| Error::msg(format!("frame {k} (eye {:?}): {e}", camera.eye)))?;
         let s = &frame.stats;
         render_seconds += s.seconds;
         pages += s.reader.pages_read;

@@ -8,16 +8,21 @@
 //! linearly, clamped. The night-vision view draws each cell's NIR reflectance under the moon
 //! and the night sky through an image intensifier's automatic brightness control
 //! ([`NightScale`]), then the light points with their halos over the frame
-//! ([`NightScale::draw_lights`]). A cell with a surface but no attribute for the sensor
+//! ([`NightScale::draw_lights`]). The radar view with the radar at the eye ([`EyeRadar`]) is
+//! the one exception to the first rule's letter: it redraws every pixel after the frame, from
+//! the range image and the `normal` and `material` layers, so its rays and ranges are still
+//! the visual view's. A cell with a surface but no attribute for the sensor
 //! (unclassified) is dark red in both, as in `dbms thermal`'s preview; the voxel runs of a
 //! partial cell take its colour.
 
 use super::sky::Backdrop;
 use super::{Frame, Viewpoint};
+use crate::backscatter::{Band, RadarModel};
 use crate::choice::Choice;
 use crate::error::{Error, Result};
-use crate::tiles::{LightPoint, Page, PageFilter, SensorLayer, TileReader};
+use crate::tiles::{unpack_normal, LightPoint, Page, PageFilter, SensorLayer, TileReader};
 use crate::voxel::columns::{PageColumns, Run};
+use rayon::prelude::*;
 use std::sync::Arc;
 
 crate::choice! {
@@ -32,8 +37,9 @@ crate::choice! {
         /// Night vision at --time: the `material` layer's NIR reflectance under the moon and
         /// the night sky, and the header's light points (`dbms pyramid --materials --lights`).
         Nvg = "nvg",
-        /// Radar backscatter: the `backscatter` layer's σ⁰ in dB, −30 dB black to 0 dB white
-        /// (`dbms pyramid --backscatter`, the map from `dbms radar`).
+        /// Radar backscatter, σ⁰ in dB, −30 dB black to 0 dB white: the `backscatter` layer
+        /// (`dbms pyramid --backscatter`, the map from `dbms radar`), or with a band the radar
+        /// at the eye ([`EyeRadar`], `dbms pyramid --normals --materials`).
         Radar = "radar",
     }
 }
@@ -50,6 +56,9 @@ pub struct SensorOptions {
     pub time: Option<String>,
     /// Atmospheric extinction for the moonlight, magnitudes per air mass.
     pub extinction_mag_per_airmass: f64,
+    /// The radar view's band when the radar is at the eye (σ⁰ from the `normal` and
+    /// `material` layers at each pixel's own incidence); `None`: the `backscatter` layer.
+    pub band: Option<Band>,
 }
 
 /// How a sensor view draws a tile set.
@@ -58,8 +67,37 @@ pub struct SensorView {
     pub filter: PageFilter,
     /// The sky and haze.
     pub backdrop: Backdrop,
-    /// The night-vision view's light and display (light points drawn over the frame).
-    pub night: Option<NightScale>,
+    /// What is drawn over each rendered frame.
+    pub overlay: Overlay,
+}
+
+/// What a sensor view draws over a rendered frame.
+#[derive(Debug, Clone)]
+pub enum Overlay {
+    /// Nothing.
+    None,
+    /// The night-vision view's light points ([`NightScale::draw_lights`]).
+    Night(NightScale),
+    /// Every pixel's σ⁰ for a radar at the eye ([`EyeRadar::draw`]).
+    Radar(EyeRadar),
+}
+
+impl Overlay {
+    /// Draw over `frame`, seen from `camera`, of the tile set `reader` reads, in air of
+    /// `visibility` metres (haze, for the lights); the light points drawn for night vision.
+    pub fn draw(
+        &self,
+        frame: &mut Frame,
+        camera: &Viewpoint,
+        reader: &TileReader,
+        visibility: Option<f64>,
+    ) -> Result<Option<usize>> {
+        match self {
+            Overlay::None => Ok(None),
+            Overlay::Night(n) => Ok(Some(n.draw_lights(frame, camera, visibility))),
+            Overlay::Radar(r) => r.draw(frame, camera, reader).map(|_| None),
+        }
+    }
 }
 
 /// How temperatures map to grey in the infrared view.
@@ -160,13 +198,26 @@ pub fn view(
             Ok(Some(SensorView {
                 filter: values_filter(SensorLayer::Temperature, move |t| scale.grey(t)),
                 backdrop: Backdrop::infrared(&scale),
-                night: None,
+                overlay: Overlay::None,
             }))
         }
         Sensor::Radar => {
+            let black = Backdrop::Flat {
+                sky: [0, 0, 0],
+                haze: [0.0; 3],
+            };
+            if let Some(band) = opts.band {
+                needs(SensorLayer::Normal, "--normals --materials")?;
+                needs(SensorLayer::Material, "--materials --normals")?;
+                return Ok(Some(SensorView {
+                    filter: Arc::new(|_: &mut Page| {}),
+                    backdrop: black,
+                    overlay: Overlay::Radar(EyeRadar::new(reader, band)),
+                }));
+            }
             needs(
                 SensorLayer::Backscatter,
-                "--backscatter S0.tif (S0.tif from dbms radar)",
+                "--backscatter S0.tif (S0.tif from dbms radar), or give --band for a radar at the eye (pyramid --normals --materials)",
             )?;
             Ok(Some(SensorView {
                 filter: values_filter(SensorLayer::Backscatter, |s| match s.is_nan() {
@@ -176,11 +227,8 @@ pub fn view(
                         [g, g, g, 255]
                     }
                 }),
-                backdrop: Backdrop::Flat {
-                    sky: [0, 0, 0],
-                    haze: [0.0; 3],
-                },
-                night: None,
+                backdrop: black,
+                overlay: Overlay::None,
             }))
         }
         Sensor::Nvg => {
@@ -207,9 +255,133 @@ pub fn view(
                     recolour(page, &colours);
                 }),
                 backdrop: night.backdrop(),
-                night: Some(night),
+                overlay: Overlay::Night(night),
             }))
         }
+    }
+}
+
+/// The radar view with the radar at the eye (`--sensor radar --band B`): each pixel is drawn in
+/// the σ⁰ of the surface its centre ray hits, from the hit cell's material model for the band
+/// at the incidence between the ray and the surface's normal, on the scale of `dbms radar`'s
+/// preview (`radar_map::grey_db`). What the eye does not see, the radar does not light: its
+/// shadows are the view's occlusion.
+///
+/// The hit is the range image's point on the pixel's centre ray, its cell the level-0 cell just
+/// beyond it along the ray. A point on the cell's top takes the `normal` layer's normal (the
+/// terrain's, level on what stands on it); a point more than 1 % of a cell below the top is on
+/// the cell's side, which faces the ray horizontally (`−sign` of the ray along the axis of the
+/// nearer cell edge) when the cell rises a cell width or more above the neighbour the ray came
+/// from, as the renderer draws walls; a smaller rise is a stair step of sampled terrain and
+/// takes the cell's normal. Partial (voxel) cells take the cell's normal. Specular materials
+/// return nothing; a material without a model for the band, or no material, is drawn
+/// [`NO_ATTRIBUTE`].
+#[derive(Debug, Clone)]
+pub struct EyeRadar {
+    /// For each material id of the header: whether it is specular, and its model for the band.
+    models: Vec<Option<(bool, Option<RadarModel>)>>,
+}
+
+impl EyeRadar {
+    /// The radar at the eye for `band`, with `reader`'s header's material models.
+    pub fn new(reader: &TileReader, band: Band) -> EyeRadar {
+        let mut models = vec![None; 256];
+        for m in &reader.info().materials {
+            let model = m.radar.iter().find(|r| r.band() == band).cloned();
+            models[m.id as usize] = Some((m.radar_specular, model));
+        }
+        EyeRadar { models }
+    }
+
+    /// Draw every pixel of `frame` (rendered from `camera` over `reader`) in its σ⁰.
+    pub fn draw(&self, frame: &mut Frame, camera: &Viewpoint, reader: &TileReader) -> Result<()> {
+        let basis = camera.basis();
+        let w = frame.width;
+        let rows = frame.rgb.par_chunks_mut(w).zip(frame.range.par_chunks(w));
+        rows.enumerate().try_for_each(|(j, (rgb, range))| {
+            for (i, (px, &r)) in rgb.iter_mut().zip(range).enumerate() {
+                if !r.is_finite() {
+                    *px = [0; 3];
+                    continue;
+                }
+                let d = basis.through(i as f64 + 0.5, j as f64 + 0.5);
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let d = d.map(|c| c / len);
+                let hit = [0, 1, 2].map(|k| camera.eye[k] + d[k] * f64::from(r));
+                *px = match self.sigma0(reader, hit, d)? {
+                    Some(s) => [crate::radar_map::grey_db(s); 3],
+                    None => [NO_ATTRIBUTE[0], NO_ATTRIBUTE[1], NO_ATTRIBUTE[2]],
+                };
+            }
+            Ok(())
+        })
+    }
+
+    /// σ⁰ (linear) of the surface a ray along unit `d` meets at `hit`; `None` where there is
+    /// no material, no normal, or no model for the band.
+    pub fn sigma0(&self, reader: &TileReader, hit: [f64; 3], d: [f64; 3]) -> Result<Option<f32>> {
+        let info = reader.info();
+        let (g, p) = (&info.grid, info.page_size);
+        let t = &g.transform;
+        let width = t.cell_x.abs().min(t.cell_y.abs());
+        let ahead = 1e-3 * width;
+        let Some((c, r)) = g.cell_at(hit[0] + d[0] * ahead, hit[1] + d[1] * ahead) else {
+            return Ok(None);
+        };
+        let at = |c: usize, r: usize| -> Result<(Arc<Page>, usize)> {
+            Ok((reader.page(0, c / p, r / p)?, (r % p) * p + c % p))
+        };
+        let (page, i) = at(c, r)?;
+        let (Some(ids), Some(normals)) = (
+            page.sensor(SensorLayer::Material).and_then(|l| l.ids()),
+            page.sensor(SensorLayer::Normal).and_then(|l| l.normals()),
+        ) else {
+            return Ok(None);
+        };
+        let (Some(mut n), top) = (unpack_normal(normals[i]), f64::from(page.max_z[i])) else {
+            return Ok(None);
+        };
+        let below_top = hit[2] < top - 0.01 * width;
+        if below_top && page.state[i] != crate::tiles::STATE_PARTIAL {
+            // Which edge the hit is on: the nearer, in cells.
+            let (px, py) = t.world_to_pixel(hit[0], hit[1]);
+            let (fx, fy) = (px - c as f64, py - r as f64);
+            let along_x = fx.min(1.0 - fx) <= fy.min(1.0 - fy);
+            // The neighbour the ray came from, across that edge.
+            let (dc, dr) = match along_x {
+                true => (if d[0] / t.cell_x > 0.0 { -1 } else { 1 }, 0),
+                false => (0, if d[1] / t.cell_y > 0.0 { -1 } else { 1 }),
+            };
+            let (c2, r2) = (c as i64 + dc, r as i64 + dr);
+            let inside = (0..g.width as i64).contains(&c2) && (0..g.height as i64).contains(&r2);
+            let below = match inside {
+                true => {
+                    let (q, k) = at(c2 as usize, r2 as usize)?;
+                    f64::from(q.max_z[k])
+                }
+                false => f64::NAN,
+            };
+            if !(top - below < width) {
+                n = match along_x {
+                    true => [-d[0].signum(), 0.0, 0.0],
+                    false => [0.0, -d[1].signum(), 0.0],
+                };
+            }
+        }
+        let Some((specular, model)) = &self.models[ids[i] as usize] else {
+            return Ok(None);
+        };
+        let cos_inc = -(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]);
+        if *specular || cos_inc <= 0.0 {
+            return Ok(Some(0.0));
+        }
+        let Some(model) = model else {
+            return Ok(None);
+        };
+        let incidence_deg = cos_inc.min(1.0).acos().to_degrees();
+        Ok(Some(
+            10f64.powf(model.sigma0_db(incidence_deg) / 10.0) as f32
+        ))
     }
 }
 

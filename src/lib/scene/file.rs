@@ -880,7 +880,7 @@ conditions = { visibility_m = 2000 }
             ("sensor = \"ir\"\ntiles = \"v.dbt\"\nsun = { elevation = 5, azimuth = 1 }".into(), "products.day.sun"),
             ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 95 }".into(), "products.day.radar"),
             ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 9, band = \"Q\" }".into(), "products.day.radar.band"),
-            (format!("sensor = \"visual\"\ntiles = \"v.dbt\"\nconditions = {{ wind_m_s = 3 }}"), "products.day.conditions.wind_m_s is given"),
+            ("sensor = \"visual\"\ntiles = \"v.dbt\"\nconditions = { wind_m_s = 3 }".into(), "products.day.conditions.wind_m_s is given"),
             (format!("sensor = \"ir\"\ntiles = \"ir.dbt\"\n{t}\nconditions = {{ humidity = 0 }}"), "products.day.conditions.humidity 0"),
             (format!("sensor = \"ir\"\ntiles = \"ir.dbt\"\n{t}\nconditions = {{ air_range_k = 61 }}"), "products.day.conditions.air_range_k 61"),
         ] {

@@ -307,6 +307,13 @@ pub struct MaterialAttributes {
     /// Where `nir_reflectance` comes from: `"nir_reflectance"` (the table's published value) or
     /// `"solar_albedo"` (the table has none for the material: its broadband albedo stands in).
     pub nir_from: String,
+    /// Mirror-like for radar (calm water, flat roofs): no backscatter away from the normal.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub radar_specular: bool,
+    /// The table's published σ⁰ models, for a radar view that takes its own incidence from the
+    /// `normal` layer (`dbms render --sensor radar --band`); empty where none is published.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub radar: Vec<crate::backscatter::RadarModel>,
 }
 
 /// Check the header's light points and material attributes: finite positions, positive
@@ -326,9 +333,8 @@ pub(crate) fn check_attributes(
         }
         if let Some(b) = l.beam {
             let spread_ok = b.spread_deg.iter().all(|s| *s > 0.0 && *s <= 360.0);
-            if !(b.azimuth_deg.is_finite() && (-90.0..=90.0).contains(&b.elevation_deg))
-                || !spread_ok
-            {
+            let axis_ok = b.azimuth_deg.is_finite() && (-90.0..=90.0).contains(&b.elevation_deg);
+            if !(axis_ok && spread_ok) {
                 return Err(format!(
                     "light {k} has a beam with an azimuth that is not finite, an elevation outside −90..90° or a spread outside (0, 360]°"
                 ));
@@ -517,6 +523,8 @@ mod tests {
             name: "grass".into(),
             nir_reflectance: 0.31,
             nir_from: "nir_reflectance".into(),
+            radar_specular: false,
+            radar: vec![],
         };
         check_attributes(&[lamp], &[grass.clone()]).unwrap();
         let bad_lamps = [

@@ -1,0 +1,94 @@
+//! Published empirical radar backscatter models: σ⁰ of a surface against the incidence angle,
+//! per band (and polarisation), as the material table stores them and the radar stage and the
+//! radar view evaluate them (issue 18).
+//!
+//! Invariant: a model is evaluated exactly as its source publishes it, at the incidence angle
+//! from the surface normal; no model is extrapolated to another band.
+
+use serde::{Deserialize, Serialize};
+
+/// A radar band, by its IEEE letter designation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Band {
+    L,
+    S,
+    C,
+    X,
+    Ku,
+    Ka,
+    W,
+}
+
+/// Transmit/receive polarisation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Polarisation {
+    Hh,
+    Vv,
+    Hv,
+}
+
+/// A published empirical σ⁰ model for one band (and polarisation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
+pub enum RadarModel {
+    /// Ulaby & Dobson (1989): σ⁰(θ) dB = P1 + P2·exp(−P3·θ) + P4·cos(P5·θ + P6), θ the
+    /// incidence angle in radians, valid over `incidence_deg`.
+    UlabyDobson {
+        band: Band,
+        polarisation: Polarisation,
+        /// P1..P6 as published.
+        p: [f64; 6],
+        /// The incidence angles the fit covers, degrees, `[min, max]` within 0..=90.
+        incidence_deg: [f64; 2],
+        /// Source id of the coefficients.
+        source: String,
+    },
+    /// Constant γ: σ⁰ = γ·sin(grazing) = γ·cos(incidence).
+    ConstantGamma {
+        band: Band,
+        /// γ in dB.
+        gamma_db: f64,
+        /// Source id of γ.
+        source: String,
+    },
+}
+
+impl RadarModel {
+    /// σ⁰ in dB at incidence angle `incidence_deg` (degrees from the surface normal).
+    pub fn sigma0_db(&self, incidence_deg: f64) -> f64 {
+        match self {
+            RadarModel::UlabyDobson { p, .. } => {
+                let t = incidence_deg.to_radians();
+                p[0] + p[1] * (-p[2] * t).exp() + p[3] * (p[4] * t + p[5]).cos()
+            }
+            RadarModel::ConstantGamma { gamma_db, .. } => {
+                gamma_db + 10.0 * incidence_deg.to_radians().cos().log10()
+            }
+        }
+    }
+
+    /// The band the model is for.
+    pub fn band(&self) -> Band {
+        match self {
+            RadarModel::UlabyDobson { band, .. } | RadarModel::ConstantGamma { band, .. } => *band,
+        }
+    }
+
+    /// The polarisation the model is for (constant γ: any).
+    pub fn polarisation(&self) -> Option<Polarisation> {
+        match self {
+            RadarModel::UlabyDobson { polarisation, .. } => Some(*polarisation),
+            RadarModel::ConstantGamma { .. } => None,
+        }
+    }
+
+    /// The id of the source the model's numbers come from.
+    pub fn source(&self) -> &str {
+        match self {
+            RadarModel::UlabyDobson { source, .. } | RadarModel::ConstantGamma { source, .. } => {
+                source
+            }
+        }
+    }
+}
