@@ -8,10 +8,13 @@ use std::path::PathBuf;
 /// Register a DEM and an orthophoto onto one database grid and write the database directory.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Elevation raster: GeoTIFF (int16/uint16/int32/float32/float64) or Esri ASCII grid.
+    /// Elevation raster: GeoTIFF (int16/uint16/int32/float32/float64) or Esri ASCII grid; or
+    /// many GeoTIFF tiles on one cell lattice, read band by band as one: a directory of them,
+    /// or a list file (.txt, .list) naming one a line.
     #[arg(long, value_name = "DEM")]
     dem: PathBuf,
-    /// Orthophoto: GeoTIFF (RGB, RGBA or grey, 8/16 bit) or PNG/JPEG with a world file.
+    /// Orthophoto: GeoTIFF (RGB, RGBA or grey, 8/16 bit) or PNG/JPEG with a world file; or
+    /// tiles, as for --dem.
     #[arg(long, value_name = "ORTHO")]
     ortho: PathBuf,
     /// Database cell size in metres [default: the orthophoto's].

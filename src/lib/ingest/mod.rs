@@ -132,10 +132,13 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     dem.grid().crs.require_metric_heights(&opts.dem)?;
     let grid = plan_grid(&dem, &ortho, opts, &target)?;
 
-    let inputs = vec![
-        input_file("dem", &opts.dem)?,
-        input_file("ortho", &opts.ortho)?,
-    ];
+    // Each file read: a mosaic's tiles one by one.
+    let mut inputs = Vec::new();
+    for (role, input) in [("dem", &dem), ("ortho", &ortho)] {
+        for file in input.files() {
+            inputs.push(input_file(role, &file)?);
+        }
+    }
     let created = !out.exists();
     let written = write_database(&dem, &ortho, &grid, opts, out, inputs, progress);
     if written.is_err() && created {

@@ -4,6 +4,7 @@
 //! would hold for those rows — same samples, same metadata, the rows' sub-grid — whether the
 //! file is decoded band by band or was read whole.
 
+use super::mosaic::{is_mosaic, Mosaic};
 use super::{geotiff, kind_of, read_raster, Kind, SourceRaster};
 use crate::error::{Error, Result};
 use crate::grid::{Grid, Window};
@@ -23,12 +24,23 @@ pub struct RasterInput {
     grid: Grid,
     /// Rows are decoded from the file on demand.
     streamed: bool,
+    /// Tiles read as one ([`Mosaic`]); then `head` and `grid` are the mosaic's.
+    mosaic: Option<Box<Mosaic>>,
 }
 
 impl RasterInput {
-    /// Open `path` (any format [`super::read_raster`] reads), checking its header
-    /// and georeference now.
+    /// Open `path` (any format [`super::read_raster`] reads, or a directory or list file of
+    /// tiles: [`super::mosaic`]), checking its header and georeference now.
     pub fn open(path: &Path) -> Result<RasterInput> {
+        if is_mosaic(path) {
+            let mosaic = Mosaic::open(path)?;
+            return Ok(RasterInput {
+                head: mosaic.meta().clone_meta(),
+                grid: mosaic.grid().clone(),
+                streamed: true,
+                mosaic: Some(Box::new(mosaic)),
+            });
+        }
         if kind_of(path)?.0 == Kind::Tiff {
             if let Some(height) = chunked_height(path) {
                 let head = geotiff::read_rows(path, 0..1)?;
@@ -40,6 +52,7 @@ impl RasterInput {
                     head,
                     grid,
                     streamed: true,
+                    mosaic: None,
                 });
             }
         }
@@ -48,6 +61,7 @@ impl RasterInput {
             grid: head.grid.clone(),
             head,
             streamed: false,
+            mosaic: None,
         })
     }
 
@@ -63,6 +77,14 @@ impl RasterInput {
         &self.head
     }
 
+    /// The files read: the file itself, or a mosaic's tiles.
+    pub fn files(&self) -> Vec<std::path::PathBuf> {
+        match &self.mosaic {
+            Some(m) => m.files(),
+            None => vec![self.head.path.clone()],
+        }
+    }
+
     /// Rows `rows` (all columns), on their sub-grid. Rows beyond the raster are an error.
     pub fn rows(&self, rows: Range<usize>) -> Result<Cow<'_, SourceRaster>> {
         let (w, h) = (self.grid.width, self.grid.height);
@@ -74,6 +96,9 @@ impl RasterInput {
                     rows.start, rows.end
                 ),
             ));
+        }
+        if let Some(m) = &self.mosaic {
+            return Ok(Cow::Owned(m.rows(rows)?));
         }
         if self.streamed && !rows.is_empty() {
             return Ok(Cow::Owned(geotiff::read_rows(&self.head.path, rows)?));

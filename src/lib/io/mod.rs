@@ -17,6 +17,7 @@ pub mod gdal;
 pub mod geotiff;
 pub mod image_world;
 pub mod input;
+pub mod mosaic;
 pub mod png;
 
 use crate::crs::Crs;
@@ -98,6 +99,19 @@ impl Samples {
         }
     }
 
+    /// `n` samples of this buffer's type, each `v` (converted as `as` converts: saturating).
+    pub fn filled(&self, n: usize, v: f64) -> Samples {
+        match self {
+            Samples::U8(_) => Samples::U8(vec![v as u8; n]),
+            Samples::U16(_) => Samples::U16(vec![v as u16; n]),
+            Samples::I16(_) => Samples::I16(vec![v as i16; n]),
+            Samples::U32(_) => Samples::U32(vec![v as u32; n]),
+            Samples::I32(_) => Samples::I32(vec![v as i32; n]),
+            Samples::F32(_) => Samples::F32(vec![v as f32; n]),
+            Samples::F64(_) => Samples::F64(vec![v; n]),
+        }
+    }
+
     /// Sample `i` as f64 (exact for every type but nothing is rounded: f32 widens exactly).
     #[inline]
     #[allow(clippy::useless_conversion)] // the Float64 arm converts f64 to itself
@@ -128,6 +142,22 @@ pub struct SourceRaster {
     pub pixel_is_point: bool,
     /// The format read: `GTiff`, `AAIGrid`, `PNG`, `JPEG` or `GDAL:<driver>`.
     pub format: &'static str,
+}
+
+impl SourceRaster {
+    /// Its metadata (path, grid, bands, nodata, alpha band, format) with no samples.
+    pub fn clone_meta(&self) -> SourceRaster {
+        SourceRaster {
+            path: self.path.clone(),
+            grid: self.grid.clone(),
+            bands: self.bands,
+            samples: self.samples.slice(0..0),
+            nodata: self.nodata,
+            alpha_band: self.alpha_band,
+            pixel_is_point: self.pixel_is_point,
+            format: self.format,
+        }
+    }
 }
 
 /// A sample type's notion of "equals the declared nodata value": compared in the sample's own
