@@ -313,8 +313,8 @@ fn internal_masks_read_as_gdal_reads_them() {
 }
 
 /// `dbms ingest` from tiles GDAL cut (`gdal_translate -srcwin`, uneven sizes, tiled Deflate and
-/// striped LZW) gives the same layers, byte for byte, as from the whole files: from a directory
-/// and from a list file (issue 19, inputs larger than memory).
+/// striped LZW) gives the same layers, byte for byte, as from the whole files: from a directory,
+/// a list file and `gdalbuildvrt`'s mosaic (issue 19, inputs larger than memory).
 #[test]
 fn ingest_from_gdal_cut_tiles_equals_the_whole() {
     if !gdal_tools() {
@@ -369,10 +369,24 @@ fn ingest_from_gdal_cut_tiles_equals_the_whole() {
             .arg("--ortho")
             .arg(ortho));
     };
+    // gdalbuildvrt's mosaics of the same tiles.
+    for (vrt, tiles) in [("dem.vrt", "dem"), ("ortho.vrt", "ortho")] {
+        let mut tifs: Vec<_> = std::fs::read_dir(dir.join(tiles))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "tif"))
+            .collect();
+        tifs.sort();
+        run(Command::new("gdalbuildvrt")
+            .arg("-q")
+            .arg(dir.join(vrt))
+            .args(&tifs));
+    }
     ingest("whole", &dem, &ortho);
     ingest("dir", &dir.join("dem"), &dir.join("ortho"));
     ingest("list", &dir.join("dem/tiles.txt"), &dir.join("ortho"));
-    for db in ["dir", "list"] {
+    ingest("vrt", &dir.join("dem.vrt"), &dir.join("ortho.vrt"));
+    for db in ["dir", "list", "vrt"] {
         for name in ["elevation", "colour"] {
             let (a, b) = (layer(&dir.join("whole"), name), layer(&dir.join(db), name));
             assert_eq!(

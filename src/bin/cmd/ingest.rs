@@ -10,7 +10,7 @@ use std::path::PathBuf;
 pub struct Args {
     /// Elevation raster: GeoTIFF (int16/uint16/int32/float32/float64) or Esri ASCII grid; or
     /// many GeoTIFF tiles on one cell lattice, read band by band as one: a directory of them,
-    /// or a list file (.txt, .list) naming one a line.
+    /// a list file (.txt, .list) naming one a line, or a gdalbuildvrt mosaic (.vrt).
     #[arg(long, value_name = "DEM")]
     dem: PathBuf,
     /// Orthophoto: GeoTIFF (RGB, RGBA or grey, 8/16 bit) or PNG/JPEG with a world file; or

@@ -1,9 +1,10 @@
 //! Many rasters on one cell lattice read as one (issue 19: inputs larger than memory): a
-//! directory of GeoTIFF tiles, or a list file naming them, as `dbms ingest --dem` and `--ortho`
-//! take them.
+//! directory of GeoTIFF tiles, a list file naming them, or a GDAL VRT mosaic of them
+//! (`gdalbuildvrt`'s), as `dbms ingest --dem` and `--ortho` take them.
 //!
 //! Invariant: the mosaic's grid is the union of its tiles' extents on their common lattice
-//! (same CRS, same cell size, corners a whole number of cells apart); a cell takes the sample of
+//! (same CRS, same cell size, corners a whole number of cells apart), or a VRT's own grid, on
+//! which each tile lies where the VRT places it; a cell takes the sample of
 //! the last tile in the list that has data there (nodata or alpha 0 never covers data), and a
 //! cell no tile covers holds nodata (all bands the declared nodata, or alpha 0). Rows are read
 //! band by band from the tiles under them ([`RasterInput::rows`]), so the mosaic is never whole
@@ -37,17 +38,163 @@ pub struct Mosaic {
 /// Extensions of a list file of tiles.
 const LIST_EXTENSIONS: [&str; 2] = ["txt", "list"];
 
-/// Whether `path` names a mosaic: a directory, or a list file (`.txt`, `.list`).
+/// Whether `path` names a mosaic: a directory, a list file (`.txt`, `.list`) or a VRT.
 pub fn is_mosaic(path: &Path) -> bool {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    path.is_dir() || LIST_EXTENSIONS.contains(&ext.to_ascii_lowercase().as_str())
+    path.is_dir() || LIST_EXTENSIONS.contains(&extension(path).as_str()) || is_vrt(path)
 }
 
-/// The tile files `path` names: a directory's `.tif` / `.tiff` files by name, or a list
-/// file's lines (paths relative to the list's directory; blank lines and `#` comments skipped).
+/// `path`'s extension, lower case ("" without one).
+fn extension(path: &Path) -> String {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    ext.to_ascii_lowercase()
+}
+
+fn is_vrt(path: &Path) -> bool {
+    extension(path) == "vrt"
+}
+
+/// The first child element of `node` named `name`.
+fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    node.children().find(|c| c.tag_name().name() == name)
+}
+
+/// What a VRT mosaic says: its grid's size and corner transform, and each source of its first
+/// band with the window (column, row, width, height) it fills, in paint order.
+struct Vrt {
+    width: usize,
+    height: usize,
+    transform: GeoTransform,
+    sources: Vec<(PathBuf, [usize; 4])>,
+}
+
+/// Read the VRT at `path`: a plain mosaic (`gdalbuildvrt`'s) whose first band's sources are
+/// `SimpleSource`s or `ComplexSource`s, each a whole file copied unscaled into its window.
+/// Anything else (a warped VRT, resampled or cropped sources, scaling, lookup tables, kernel
+/// filters, pixel functions) is a one-line error naming the fix.
+fn read_vrt(path: &Path) -> Result<Vrt> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let fix = "make a plain mosaic of tiles on one lattice (gdalbuildvrt over gdalwarp -tap -tr tiles), or give the tiles as a directory";
+    let bad = |what: String| Error::file(path, what).fix(fix);
+    let doc =
+        roxmltree::Document::parse(&text).map_err(|e| bad(format!("is not readable XML ({e})")))?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "VRTDataset" || root.attribute("subClass").is_some() {
+        return Err(bad(
+            "is not a plain VRTDataset (a warped or derived VRT)".into()
+        ));
+    }
+    let size = |node: roxmltree::Node, k: &str| -> Result<usize> {
+        let v = node
+            .attribute(k)
+            .and_then(|v| v.trim().parse::<usize>().ok());
+        v.ok_or_else(|| {
+            bad(format!(
+                "has no whole {k} on its {}",
+                node.tag_name().name()
+            ))
+        })
+    };
+    let numbers: Vec<f64> = child(root, "GeoTransform")
+        .and_then(|g| g.text())
+        .map(|t| t.split(',').filter_map(|v| v.trim().parse().ok()).collect())
+        .unwrap_or_default();
+    let [ox, dx, rx, oy, ry, dy] = numbers[..] else {
+        return Err(bad("has no GeoTransform of six numbers".into()));
+    };
+    if rx != 0.0 || ry != 0.0 {
+        return Err(bad(
+            "is rotated (its GeoTransform has rotation terms)".into()
+        ));
+    }
+    let band = root
+        .children()
+        .find(|c| c.tag_name().name() == "VRTRasterBand" && c.attribute("band") == Some("1"))
+        .ok_or_else(|| bad("has no band 1".into()))?;
+    if band.attribute("subClass").is_some() {
+        return Err(bad("computes band 1 (a derived band, not a mosaic)".into()));
+    }
+    let base = path.parent().unwrap_or(Path::new(""));
+    let mut sources = Vec::new();
+    for source in band.children().filter(|c| c.is_element()) {
+        let kind = source.tag_name().name();
+        match kind {
+            "SimpleSource" | "ComplexSource" => {}
+            "NoDataValue" | "ColorInterp" | "Description" | "Metadata" | "Offset" | "Scale"
+            | "UnitType" | "ColorTable" | "CategoryNames" | "Histograms" => continue,
+            other => return Err(bad(format!("has a {other} in band 1: not a plain mosaic"))),
+        }
+        let allowed = [
+            "SourceFilename",
+            "SourceBand",
+            "SourceProperties",
+            "SrcRect",
+            "DstRect",
+            "NODATA",
+            "UseMaskBand",
+        ];
+        if let Some(e) = source
+            .children()
+            .filter(|c| c.is_element())
+            .find(|c| !allowed.contains(&c.tag_name().name()))
+        {
+            let what = e.tag_name().name();
+            return Err(bad(format!(
+                "has a {kind} with {what}: a source changed on its way in"
+            )));
+        }
+        let name = child(source, "SourceFilename").and_then(|n| Some((n, n.text()?)));
+        let (name, file) =
+            name.ok_or_else(|| bad(format!("has a {kind} without SourceFilename")))?;
+        let file = match name.attribute("relativeToVRT") == Some("1") {
+            true => base.join(file.trim()),
+            false => PathBuf::from(file.trim()),
+        };
+        let rect = |tag: &str| -> Result<[usize; 4]> {
+            let r = child(source, tag).ok_or_else(|| bad(format!("has a source without {tag}")))?;
+            Ok([
+                size(r, "xOff")?,
+                size(r, "yOff")?,
+                size(r, "xSize")?,
+                size(r, "ySize")?,
+            ])
+        };
+        let (src, dst) = (rect("SrcRect")?, rect("DstRect")?);
+        if src[..2] != [0, 0] || src[2..] != dst[2..] {
+            return Err(bad(format!(
+                "takes {} cropped or resampled (SrcRect {src:?}, DstRect {dst:?})",
+                file.display()
+            )));
+        }
+        sources.push((file, dst));
+    }
+    if sources.is_empty() {
+        return Err(bad("has no sources in band 1".into()));
+    }
+    Ok(Vrt {
+        width: size(root, "rasterXSize")?,
+        height: size(root, "rasterYSize")?,
+        transform: GeoTransform {
+            origin_x: ox,
+            cell_x: dx,
+            origin_y: oy,
+            cell_y: dy,
+        },
+        sources,
+    })
+}
+
+/// The tile files `path` names: a directory's `.tif` / `.tiff` files by name, a list file's
+/// lines (paths relative to the list's directory; blank lines and `#` comments skipped), or a
+/// VRT's sources in paint order.
 pub fn tile_paths(path: &Path) -> Result<Vec<PathBuf>> {
-    let fix = "give a directory of GeoTIFF tiles, or a list file (.txt) naming one tile a line";
-    let paths: Vec<PathBuf> = if path.is_dir() {
+    let fix = "give a directory of GeoTIFF tiles, a list file (.txt) naming one tile a line, or a gdalbuildvrt mosaic";
+    let paths: Vec<PathBuf> = if is_vrt(path) {
+        read_vrt(path)?
+            .sources
+            .into_iter()
+            .map(|(p, _)| p)
+            .collect()
+    } else if path.is_dir() {
         let entries = std::fs::read_dir(path).map_err(|e| Error::io(path, e))?;
         let mut tifs = Vec::new();
         for entry in entries {
@@ -129,17 +276,42 @@ impl Mosaic {
                 (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
             }
         }
-        // The mosaic's corner: the west-most, north-most tile corner (south-most when rows run
-        // north); every tile corner must then be a whole number of cells from it.
-        let origin_y = if lattice.cell_y < 0.0 { y1 } else { y0 };
-        let transform = GeoTransform {
-            origin_x: x0,
-            origin_y,
-            ..lattice.clone()
+        // The mosaic's corner: a VRT's own, or the west-most, north-most tile corner (south-most
+        // when rows run north); every tile corner must then be a whole number of cells from it.
+        let vrt = is_vrt(path).then(|| read_vrt(path)).transpose()?;
+        let transform = match &vrt {
+            Some(v)
+                if (v.transform.cell_x, v.transform.cell_y) != (lattice.cell_x, lattice.cell_y) =>
+            {
+                return Err(Error::file(
+                    path,
+                    format!(
+                        "has cells {} × {}, its tiles {} × {}: it resamples them",
+                        v.transform.cell_x, v.transform.cell_y, lattice.cell_x, lattice.cell_y
+                    ),
+                )
+                .fix("build the VRT at the tiles' resolution (gdalbuildvrt without -tr), or give the tiles as a directory"));
+            }
+            Some(v) => v.transform.clone(),
+            None => GeoTransform {
+                origin_x: x0,
+                origin_y: if lattice.cell_y < 0.0 { y1 } else { y0 },
+                ..lattice.clone()
+            },
         };
         let cells = |v: f64, step: f64, p: &Path, axis: &str| -> Result<usize> {
             let k = v / step;
             let whole = k.round();
+            if whole < 0.0 {
+                return Err(Error::file(
+                    p,
+                    format!(
+                        "lies {} cells outside the mosaic's grid along {axis}",
+                        -whole
+                    ),
+                )
+                .fix("rebuild the VRT from the tiles as they are (gdalbuildvrt)"));
+            }
             if (k - whole).abs() > 1e-6 {
                 return Err(Error::file(
                     p,
@@ -156,8 +328,26 @@ impl Mosaic {
             let row = cells(t.origin_y - transform.origin_y, lattice.cell_y, p, "y")?;
             tiles.push(Placed { input, col, row });
         }
-        let width = cells(x1 - x0, lattice.cell_x.abs(), path, "x")?;
-        let height = cells(y1 - y0, lattice.cell_y.abs(), path, "y")?;
+        let (width, height) = match &vrt {
+            Some(v) => (v.width, v.height),
+            None => (
+                cells(x1 - x0, lattice.cell_x.abs(), path, "x")?,
+                cells(y1 - y0, lattice.cell_y.abs(), path, "y")?,
+            ),
+        };
+        // A VRT places each tile itself: its window must be where the tile's georeference is.
+        for (k, t) in tiles.iter().enumerate() {
+            let g = t.input.grid();
+            let at = [t.col, t.row, g.width, g.height];
+            let placed = vrt.as_ref().map_or(at, |v| v.sources[k].1);
+            if placed != at || t.col + g.width > width || t.row + g.height > height {
+                return Err(Error::file(
+                    &paths[k],
+                    format!("lies at cells {at:?} of the mosaic's grid, but {} places it at {placed:?} of a {width} × {height} grid", path.display()),
+                )
+                .fix("rebuild the VRT from the tiles as they are (gdalbuildvrt)"));
+            }
+        }
         let grid = Grid {
             width,
             height,
@@ -357,6 +547,97 @@ mod tests {
             .map(|f| f.file_name().unwrap().to_owned())
             .collect();
         assert_eq!(names, ["a.tif", "b.tif", "c.tif"]);
+    }
+
+    /// A VRT places its tiles itself; one that changes them on the way in (resampling,
+    /// scaling, filtering, warping) or misplaces them is refused in one line.
+    #[test]
+    fn a_plain_vrt_mosaic_reads_and_others_are_refused() {
+        let t = tempfile::tempdir().unwrap();
+        let d = t.path();
+        tile(d, "a.tif", [0, 0, 4, 3], |c, r| (10 * r + c) as f32);
+        tile(d, "b.tif", [4, 0, 2, 3], |c, r| (100 + 10 * r + c) as f32);
+        let vrt = |band: &str, transform: &str| {
+            format!(
+                r#"<VRTDataset rasterXSize="7" rasterYSize="3"><GeoTransform>{transform}</GeoTransform>
+                <VRTRasterBand dataType="Float32" band="1"><NoDataValue>-9999</NoDataValue>{band}</VRTRasterBand></VRTDataset>"#
+            )
+        };
+        let source = |kind: &str, file: &str, src: [usize; 4], dst: [usize; 4], extra: &str| {
+            format!(
+                r#"<{kind}><SourceFilename relativeToVRT="1">{file}</SourceFilename><SourceBand>1</SourceBand>
+                <SrcRect xOff="{}" yOff="{}" xSize="{}" ySize="{}"/><DstRect xOff="{}" yOff="{}" xSize="{}" ySize="{}"/>{extra}</{kind}>"#,
+                src[0], src[1], src[2], src[3], dst[0], dst[1], dst[2], dst[3]
+            )
+        };
+        // One column wider than the tiles: the VRT's grid, the extra column nodata.
+        let corner = "999, 1, 0, 2000, 0, -1";
+        let good = source(
+            "ComplexSource",
+            "a.tif",
+            [0, 0, 4, 3],
+            [1, 0, 4, 3],
+            "<NODATA>-9999</NODATA>",
+        ) + &source("SimpleSource", "b.tif", [0, 0, 2, 3], [5, 0, 2, 3], "");
+        std::fs::write(d.join("m.vrt"), vrt(&good, corner)).unwrap();
+        let m = Mosaic::open(&d.join("m.vrt")).unwrap();
+        assert_eq!(
+            (m.grid().width, m.grid().height, m.grid().transform.origin_x),
+            (7, 3, 999.0)
+        );
+        assert_eq!(
+            cells(&m, 1..2),
+            [-9999.0, 10.0, 11.0, 12.0, 13.0, 114.0, 115.0]
+        );
+        for (band, transform, want) in [
+            (
+                source("SimpleSource", "a.tif", [0, 0, 4, 3], [1, 0, 2, 3], ""),
+                corner,
+                "cropped or resampled",
+            ),
+            (
+                source("SimpleSource", "a.tif", [1, 0, 3, 3], [1, 0, 3, 3], ""),
+                corner,
+                "cropped or resampled",
+            ),
+            (
+                source(
+                    "ComplexSource",
+                    "a.tif",
+                    [0, 0, 4, 3],
+                    [1, 0, 4, 3],
+                    "<ScaleRatio>2</ScaleRatio>",
+                ),
+                corner,
+                "ScaleRatio",
+            ),
+            (
+                source(
+                    "KernelFilteredSource",
+                    "a.tif",
+                    [0, 0, 4, 3],
+                    [1, 0, 4, 3],
+                    "",
+                ),
+                corner,
+                "KernelFilteredSource",
+            ),
+            (
+                source("SimpleSource", "a.tif", [0, 0, 4, 3], [2, 0, 4, 3], ""),
+                corner,
+                "places it at [2, 0, 4, 3]",
+            ),
+            (good.clone(), "999, 0.5, 0, 2000, 0, -0.5", "resamples them"),
+            (good.clone(), "999, 1, 0.1, 2000, 0, -1", "rotated"),
+        ] {
+            std::fs::write(d.join("m.vrt"), vrt(&band, transform)).unwrap();
+            let e = Mosaic::open(&d.join("m.vrt")).err().unwrap().to_string();
+            assert!(e.contains(want) && !e.contains('\n'), "{want}: {e}");
+        }
+        let warped = r#"<VRTDataset subClass="VRTWarpedDataset" rasterXSize="1" rasterYSize="1"/>"#;
+        std::fs::write(d.join("m.vrt"), warped).unwrap();
+        let e = Mosaic::open(&d.join("m.vrt")).err().unwrap().to_string();
+        assert!(e.contains("not a plain VRTDataset"), "{e}");
     }
 
     /// Tiles that do not fit together, and lists that name nothing usable, are one-line errors
