@@ -152,17 +152,23 @@ impl Column<'_, '_, '_> {
         let f = if l > 0 { plan.children(l) } else { 1 };
         let (mut first, end) = (rows.start, rows.end); // rows before `first` are finished
         let mut walk = walk;
-        while let Some(Visit {
-            cell: [cc, rr],
-            t_in,
-            t_out,
-        }) = walk.next()
-        {
+        loop {
+            // The cell the walk visits next is where it stands: a child walk leaving its parent
+            // stops before stepping out of it (where `march` climbs out).
             if let Some(([c0, r0], n)) = parent {
-                if !((c0..c0 + n).contains(&cc) && (r0..r0 + n).contains(&rr)) {
-                    return Ok(()); // where `march` climbs out
+                let [c, r] = walk.position().0;
+                if !((c0..c0 + n).contains(&c) && (r0..r0 + n).contains(&r)) {
+                    return Ok(());
                 }
             }
+            let Some(Visit {
+                cell: [cc, rr],
+                t_in,
+                t_out,
+            }) = walk.next()
+            else {
+                return Ok(());
+            };
             while first < end && self.lanes[self.stack[first]].t1 <= t_in {
                 first += 1;
             }
@@ -218,6 +224,5 @@ impl Column<'_, '_, '_> {
                 self.stack.truncate(end);
             }
         }
-        Ok(())
     }
 }
