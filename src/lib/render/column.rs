@@ -143,7 +143,7 @@ impl Column<'_, '_, '_> {
     fn walk(
         &mut self,
         l: usize,
-        walk: ExactWalk<2>,
+        mut walk: ExactWalk<2>,
         parent: Option<([i64; 2], i64)>,
         rows: Range<usize>,
     ) -> Result<()> {
@@ -151,7 +151,6 @@ impl Column<'_, '_, '_> {
         // Children per axis of a cell of this level (for descents).
         let f = if l > 0 { plan.children(l) } else { 1 };
         let (mut first, end) = (rows.start, rows.end); // rows before `first` are finished
-        let mut walk = walk;
         loop {
             // The cell the walk visits next is where it stands: a child walk leaving its parent
             // stops before stepping out of it (where `march` climbs out).
@@ -161,6 +160,7 @@ impl Column<'_, '_, '_> {
                     return Ok(());
                 }
             }
+            let entered = walk.stepped(); // the axes crossed into the cell visited next
             let Some(Visit {
                 cell: [cc, rr],
                 t_in,
@@ -219,7 +219,7 @@ impl Column<'_, '_, '_> {
             if self.stack.len() > end {
                 // Descend at the same τ, into the child holding the ray then.
                 let corner = [cc * f, rr * f];
-                let child = walk.placed(plan.scales[l - 1], t_in, corner);
+                let child = walk.descended(plan.scales[l - 1], t_in, corner, entered);
                 self.walk(l - 1, child, Some((corner, f)), end..self.stack.len())?;
                 self.stack.truncate(end);
             }

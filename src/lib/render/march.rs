@@ -374,6 +374,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
     let mut steps = 0u64;
     loop {
         steps += 1;
+        let entered = w.stepped(); // the axes crossed into the cell visited next
         let Visit {
             cell: [cc, rr],
             t_in: t,
@@ -393,7 +394,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     // Descend at the same τ, into the child holding the ray then.
                     let f = plan.children(l);
                     l -= 1;
-                    w = w.placed(plan.scales[l], t, [cc * f, rr * f]);
+                    w = w.descended(plan.scales[l], t, [cc * f, rr * f], entered);
                     continue;
                 }
                 Coarse::Skip => {}
