@@ -242,7 +242,7 @@ impl<const N: usize> Walk<N> {
     pub fn stepped(&self) -> [bool; N] {
         match &self.rule {
             Rule::Tolerant(w) => w.stepped,
-            Rule::Exact(w) => w.stepped,
+            Rule::Exact(w) => w.stepped(),
         }
     }
 }
@@ -463,20 +463,59 @@ impl<const N: usize> ExactWalk<N> {
 
     /// This walk's ray taken up at `t` over cells `scale` wide, in the cell holding it then:
     /// [`ExactWalk::at`] with this walk's start and direction, without preparing the ray's
-    /// steps again (the renderer does this on every descent).
+    /// steps again.
     #[inline]
     pub fn placed(&self, scale: i64, t: f64, guess: [i64; N]) -> ExactWalk<N> {
+        self.descended(scale, t, guess, [false; N])
+    }
+
+    /// [`ExactWalk::placed`] for a descent (the renderer's, hundreds of thousands a frame): this
+    /// walk's ray taken up at `t` over cells `scale` wide (a divisor of this walk's), in the
+    /// block of this walk's cell whose first fine cell is `corner`, which the ray entered at
+    /// exactly `t` across the axes `entered` ([`ExactWalk::stepped`] before the step that
+    /// left it; none for a walk's first cell). On an entered axis the fine cell is the block's
+    /// first along the ray's motion: its entry boundary is the coarse cell's, crossed at `t`
+    /// (the same f64, [`cross`] of the same boundary), so only its exit crossing is computed,
+    /// and checked to lie after `t` (else the cell is located as `placed` does). The same
+    /// walk as `placed`.
+    #[inline]
+    pub fn descended(
+        &self,
+        scale: i64,
+        t: f64,
+        corner: [i64; N],
+        entered: [bool; N],
+    ) -> ExactWalk<N> {
         assert!(scale >= 1, "a walk's cells are at least one cell wide");
+        let f = self.scale / scale;
         let mut w = *self;
         w.scale = scale;
         w.t_in = t;
         w.stepped = [false; N];
         w.done = false;
-        for (a, &g) in guess.iter().enumerate() {
-            (w.cell[a], w.next_times[a]) = locate(w.start[a], w.dir[a], t, scale, g);
+        for a in 0..N {
+            let (o, d) = (w.start[a], w.dir[a]);
+            let first = match w.step[a] > 0 {
+                true => corner[a],
+                false => corner[a] + f - 1,
+            };
+            let exit =
+                entered[a].then(|| cross_moving(o, d, next_boundary(first, w.step[a], scale)));
+            (w.cell[a], w.next_times[a]) = match exit {
+                Some(exit) if exit > t => (first, exit),
+                _ => locate(o, d, t, scale, corner[a]),
+            };
         }
         debug_assert!((0..N).all(|a| w.next_times[a].to_bits() == w.crossing(a).to_bits()));
+        debug_assert!((0..N).all(|a| w.cell[a] == cell_at(w.start[a], w.dir[a], t, scale, 0)));
         w
+    }
+
+    /// The axes the last step crossed (all `false` before the first step and after a walk is
+    /// placed or restarted).
+    #[inline]
+    pub fn stepped(&self) -> [bool; N] {
+        self.stepped
     }
 
     fn unplaced(start: [f64; N], dir: [f64; N], scale: i64) -> ExactWalk<N> {

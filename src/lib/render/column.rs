@@ -143,7 +143,7 @@ impl Column<'_, '_, '_> {
     fn walk(
         &mut self,
         l: usize,
-        walk: ExactWalk<2>,
+        mut walk: ExactWalk<2>,
         parent: Option<([i64; 2], i64)>,
         rows: Range<usize>,
     ) -> Result<()> {
@@ -151,18 +151,24 @@ impl Column<'_, '_, '_> {
         // Children per axis of a cell of this level (for descents).
         let f = if l > 0 { plan.children(l) } else { 1 };
         let (mut first, end) = (rows.start, rows.end); // rows before `first` are finished
-        let mut walk = walk;
-        while let Some(Visit {
-            cell: [cc, rr],
-            t_in,
-            t_out,
-        }) = walk.next()
-        {
+        loop {
+            // The cell the walk visits next is where it stands: a child walk leaving its parent
+            // stops before stepping out of it (where `march` climbs out).
             if let Some(([c0, r0], n)) = parent {
-                if !((c0..c0 + n).contains(&cc) && (r0..r0 + n).contains(&rr)) {
-                    return Ok(()); // where `march` climbs out
+                let [c, r] = walk.position().0;
+                if !((c0..c0 + n).contains(&c) && (r0..r0 + n).contains(&r)) {
+                    return Ok(());
                 }
             }
+            let entered = walk.stepped(); // the axes crossed into the cell visited next
+            let Some(Visit {
+                cell: [cc, rr],
+                t_in,
+                t_out,
+            }) = walk.next()
+            else {
+                return Ok(());
+            };
             while first < end && self.lanes[self.stack[first]].t1 <= t_in {
                 first += 1;
             }
@@ -213,11 +219,10 @@ impl Column<'_, '_, '_> {
             if self.stack.len() > end {
                 // Descend at the same τ, into the child holding the ray then.
                 let corner = [cc * f, rr * f];
-                let child = walk.placed(plan.scales[l - 1], t_in, corner);
+                let child = walk.descended(plan.scales[l - 1], t_in, corner, entered);
                 self.walk(l - 1, child, Some((corner, f)), end..self.stack.len())?;
                 self.stack.truncate(end);
             }
         }
-        Ok(())
     }
 }

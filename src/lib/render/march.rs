@@ -374,6 +374,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
     let mut steps = 0u64;
     loop {
         steps += 1;
+        let entered = w.stepped(); // the axes crossed into the cell visited next
         let Visit {
             cell: [cc, rr],
             t_in: t,
@@ -393,7 +394,7 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
                     // Descend at the same τ, into the child holding the ray then.
                     let f = plan.children(l);
                     l -= 1;
-                    w = w.placed(plan.scales[l], t, [cc * f, rr * f]);
+                    w = w.descended(plan.scales[l], t, [cc * f, rr * f], entered);
                     continue;
                 }
                 Coarse::Skip => {}
@@ -463,6 +464,7 @@ pub fn blend_weight(t: f64, th: f64, blend: bool) -> f64 {
 /// With blending, mix a hit's colour with its cell's parent's (level `hit.level + 1`) by
 /// [`blend_weight`] of the parent's threshold; `(c, r)` is a level-0 cell under the hit's cell.
 /// The face and range stay the hit's.
+#[inline]
 fn blend_parent(hit: Hit, c: i64, r: i64, sampler: &mut Sampler, plan: &Plan) -> Result<Hit> {
     let (true, Some(th)) = (plan.blend, &plan.thresholds) else {
         return Ok(hit);
@@ -491,6 +493,7 @@ fn blend_parent(hit: Hit, c: i64, r: i64, sampler: &mut Sampler, plan: &Plan) ->
 /// Under level-0 traversal with range thresholds, recolour a level-0 hit with the coarsest
 /// level whose colour it takes whole ([`blend_weight`] 1; the hierarchical traversal stops at
 /// that level).
+#[inline]
 fn coarse_colour(hit: Hit, c: i64, r: i64, sampler: &mut Sampler, plan: &Plan) -> Result<Hit> {
     let (Traversal::Level0, Some(th)) = (plan.traversal, &plan.thresholds) else {
         return Ok(hit);

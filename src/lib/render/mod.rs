@@ -288,17 +288,24 @@ pub fn render_view(reader: &TileReader, camera: &Viewpoint, opts: &ViewOptions) 
     let before = reader.stats();
     let view = View::new(reader, camera, opts, n)?;
     let (w, h) = (camera.width, camera.height);
+    // One sampler for each run of lines a worker takes: its page memo stays warm from line to
+    // line (a sampler is a cache of pure lookups, so which lines share one changes no pixel).
+    let sampler = || Sampler::new(reader, opts.repeat, &view.column_cache);
     let (lines, order) = if view.coherent {
         // Each column bottom-up (the order of the patent's vertical scan lines).
         let columns = (0..w)
             .into_par_iter()
-            .map(|i| view.trace(&(0..h).rev().map(|j| (i, j)).collect::<Vec<_>>()))
+            .map_init(sampler, |s, i| {
+                view.trace(&(0..h).rev().map(|j| (i, j)).collect::<Vec<_>>(), s)
+            })
             .collect::<Result<_>>()?;
         (columns, Order::ColumnsUp)
     } else {
         let rows = (0..h)
             .into_par_iter()
-            .map(|j| view.trace(&(0..w).map(|i| (i, j)).collect::<Vec<_>>()))
+            .map_init(sampler, |s, j| {
+                view.trace(&(0..w).map(|i| (i, j)).collect::<Vec<_>>(), s)
+            })
             .collect::<Result<_>>()?;
         (rows, Order::Rows)
     };
@@ -307,7 +314,6 @@ pub fn render_view(reader: &TileReader, camera: &Viewpoint, opts: &ViewOptions) 
 
 /// What every ray of one perspective frame shares, fixed before the first is cast.
 struct View<'a> {
-    reader: &'a TileReader,
     camera: &'a Viewpoint,
     opts: &'a ViewOptions,
     scene: Scene,
@@ -378,7 +384,6 @@ impl<'a> View<'a> {
         let coherent =
             opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
         Ok(View {
-            reader,
             camera,
             opts,
             scene,
@@ -394,10 +399,10 @@ impl<'a> View<'a> {
         })
     }
 
-    /// Trace one line of `pixels` (`(column, row)`, an image row or an image column bottom-up).
-    fn trace(&self, pixels: &[(usize, usize)]) -> Result<Line> {
+    /// Trace one line of `pixels` (`(column, row)`, an image row or an image column bottom-up)
+    /// with `sampler` (its pages newly asked for become the line's `touched`).
+    fn trace(&self, pixels: &[(usize, usize)], sampler: &mut Sampler) -> Result<Line> {
         let (scene, opts) = (&self.scene, self.opts);
-        let mut sampler = Sampler::new(self.reader, opts.repeat, &self.column_cache);
         let mut line = Line::new(pixels.len());
         // The centre rays: the range is always theirs, so the range image does not depend on
         // the sampling; they are the rays that share a column's path. Rays sharing a
@@ -416,13 +421,13 @@ impl<'a> View<'a> {
             })
             .unzip();
         let hits = if self.coherent && column::shares_path(&rays) {
-            let (hits, steps) = column::march_column(&rays, &spans, &mut sampler, &self.plan)?;
+            let (hits, steps) = column::march_column(&rays, &spans, sampler, &self.plan)?;
             line.steps += steps;
             hits
         } else {
             let mut hits = Vec::with_capacity(rays.len());
             for (ray, span) in rays.iter().zip(&spans) {
-                hits.push(line.march(ray, *span, &mut sampler, &self.plan)?);
+                hits.push(line.march(ray, *span, sampler, &self.plan)?);
             }
             hits
         };
@@ -431,12 +436,12 @@ impl<'a> View<'a> {
             line.hits += u64::from(hit.is_some());
             let rgb = match self.n {
                 1 => colour(hit, ray, opts),
-                _ => self.supersample(i, j, &mut line, &mut sampler)?,
+                _ => self.supersample(i, j, &mut line, sampler)?,
             };
             line.rgb.push(rgb);
             line.range.push(hit.map_or(f32::INFINITY, |h| h.t as f32));
         }
-        line.touched = sampler.touched;
+        line.touched = std::mem::take(&mut sampler.touched);
         Ok(line)
     }
 
@@ -574,6 +579,9 @@ fn colour(hit: Option<Hit>, ray: &Ray, opts: &ViewOptions) -> [u8; 3] {
     }
 }
 
+/// The frame of `lines` (traced in `order`) with the frame's counts; the pixels are placed by
+/// image row in parallel (each row takes its pixel from every line), so no core waits while one
+/// copies the whole frame.
 fn assemble(
     width: usize,
     height: usize,
@@ -585,19 +593,28 @@ fn assemble(
 ) -> Frame {
     let mut frame_rgb = vec![[0u8; 3]; width * height];
     let mut frame_range = vec![0f32; width * height];
+    frame_rgb
+        .par_chunks_mut(width)
+        .zip(frame_range.par_chunks_mut(width))
+        .enumerate()
+        .for_each(|(j, (rgb, range))| match order {
+            Order::Rows => {
+                rgb.copy_from_slice(&lines[j].rgb);
+                range.copy_from_slice(&lines[j].range);
+            }
+            Order::ColumnsUp => {
+                let m = height - 1 - j;
+                for ((pixel, r), line) in rgb.iter_mut().zip(range.iter_mut()).zip(&lines) {
+                    (*pixel, *r) = (line.rgb[m], line.range[m]);
+                }
+            }
+        });
     let (mut rays, mut steps, mut hits, mut touched) = (0, 0, 0, BTreeSet::new());
-    for (k, row) in lines.into_iter().enumerate() {
-        for (m, (rgb, range)) in row.rgb.into_iter().zip(row.range).enumerate() {
-            let at = match order {
-                Order::Rows => k * width + m,
-                Order::ColumnsUp => (height - 1 - m) * width + k,
-            };
-            (frame_rgb[at], frame_range[at]) = (rgb, range);
-        }
-        rays += row.rays;
-        steps += row.steps;
-        hits += row.hits;
-        touched.extend(row.touched);
+    for line in lines {
+        rays += line.rays;
+        steps += line.steps;
+        hits += line.hits;
+        touched.extend(line.touched);
     }
     let after = reader.stats();
     let seconds = start.elapsed().as_secs_f64();

@@ -1,7 +1,10 @@
-//! Cell lookups for one worker thread: the tile reader behind a memo of the current page per level.
+//! Cell lookups for one worker thread: the tile reader behind a memo of the current page per
+//! level and the few pages used before it.
 //!
 //! Invariant: every value comes from [`TileReader::page`] (checked, LRU-cached, counted); the
-//! memo only avoids asking the shared cache again while a ray stays inside one page. Outside a
+//! memo only avoids asking the shared cache again for a page this sampler already holds (while
+//! a ray stays inside one page, and when the next image column's walk crosses the pages this
+//! one crossed: the shared cache is behind a lock both workers would wait on). Outside a
 //! level's `width × height` a lookup is `None`, unless the database repeats (`wrap`), in which
 //! case indices wrap modulo the level's size (only used for levels that tile the plane exactly).
 //! The voxel columns of a level-0 page are decoded from its `bricks` blob the first time any ray
@@ -13,6 +16,10 @@ use crate::tiles::{Cell, Page, TileReader, BRICKS_FORMAT};
 use crate::voxel::columns::{PageColumns, Run};
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
+
+/// Pages per level a [`Sampler`] keeps besides its current one: enough for the pages an image
+/// column's walk crosses at each level, which the next column's crosses again.
+pub const RECENT_PAGES: usize = 16;
 
 /// Level-0 pages whose decoded columns a [`ColumnCache`] keeps; when full it is emptied and
 /// refills (decoded columns are about as large as their blob, tens of kB a page).
@@ -35,7 +42,10 @@ pub struct Sampler<'a> {
     page_shift: Option<u32>,
     sizes: Vec<(i64, i64)>,
     wrap: bool,
+    /// Per level, the page the last lookup used, and up to [`RECENT_PAGES`] used before it,
+    /// oldest first (the next image column's walk crosses the pages this one did).
     memo: Vec<Option<(usize, usize, Arc<Page>)>>,
+    recent: Vec<Vec<(usize, usize, Arc<Page>)>>,
     /// The frame's decoded columns, and the level-0 page `(tx, ty)` this sampler last used.
     column_cache: &'a ColumnCache,
     columns: Option<(usize, usize, Arc<PageColumns>)>,
@@ -62,6 +72,7 @@ impl<'a> Sampler<'a> {
                 .collect(),
             wrap,
             memo: vec![None; info.levels.len()],
+            recent: vec![Vec::new(); info.levels.len()],
             column_cache,
             columns: None,
             touched: BTreeSet::new(),
@@ -92,12 +103,27 @@ impl<'a> Sampler<'a> {
         Ok(Some(page.cell(p, c, r)))
     }
 
-    /// Page `(tx, ty)` of `level` from the reader, now the level's memo (the lookup's slow
+    /// Page `(tx, ty)` of `level`, now the level's memo (the memo before it joins the recent
+    /// pages): from the recent pages if it is one, else from the reader (the lookup's slow
     /// path, kept out of line so the memo's hit stays small enough to inline).
     #[inline(never)]
     fn load(&mut self, level: usize, tx: usize, ty: usize) -> Result<&Arc<Page>> {
-        let page = self.reader.page(level, tx, ty)?;
-        self.touched.insert((level, tx, ty));
+        let recent = &mut self.recent[level];
+        let page = match recent.iter().position(|(x, y, _)| (*x, *y) == (tx, ty)) {
+            Some(k) => recent.remove(k).2,
+            None => {
+                let page = self.reader.page(level, tx, ty)?;
+                self.touched.insert((level, tx, ty));
+                page
+            }
+        };
+        if let Some(old) = self.memo[level].take() {
+            let recent = &mut self.recent[level];
+            if recent.len() == RECENT_PAGES {
+                recent.remove(0);
+            }
+            recent.push(old);
+        }
         Ok(&self.memo[level].insert((tx, ty, page)).2)
     }
 

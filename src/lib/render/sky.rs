@@ -160,6 +160,10 @@ impl Backdrop {
 
     /// The colour of a hit seen at `range` metres: the face-shaded cell colour, blended toward
     /// the haze colour by `1 − exp(−range / visibility)` when a visibility (metres) is given.
+    ///
+    /// Without haze the blend's weight is 0 and the haze colour finite, so `c + (haze − c)·0`
+    /// is `c` and an undarkened face keeps the cell's own bytes: those return at once.
+    #[inline]
     pub fn shade(
         &self,
         colour: [u8; 4],
@@ -167,12 +171,18 @@ impl Backdrop {
         range: f64,
         visibility: Option<f64>,
     ) -> [u8; 3] {
+        let f = face_factor(face);
+        let Some(v) = visibility else {
+            return match f == 1.0 {
+                true => [colour[0], colour[1], colour[2]],
+                false => std::array::from_fn(|k| channel(colour[k] as f64 * f)),
+            };
+        };
         let haze = match self {
             Backdrop::Daylight => HORIZON,
             Backdrop::Flat { haze, .. } => *haze,
         };
-        let f = face_factor(face);
-        let a = visibility.map_or(0.0, |v| 1.0 - (-range / v).exp());
+        let a = 1.0 - (-range / v).exp();
         std::array::from_fn(|k| {
             let c = colour[k] as f64 * f;
             channel(c + (haze[k] - c) * a)
