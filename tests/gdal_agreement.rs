@@ -144,13 +144,20 @@ fn gdal_sees_the_database_grid(db: &Path, g: &Grid) {
     }
 }
 
-fn agreement(dir: &Path, cell: f64) -> (f64, f64) {
+/// A 0.5 m DEM and a 0.25 m photo of the same 48 × 32 m (`terrain`, `photo`) written into
+/// `dir` as dem.tif and ortho.tif.
+fn inputs(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
     let crs = Crs::epsg(32632);
     let dem_grid = Grid::north_up(500_000.0, 5_300_000.0, 0.5, 96, 64, crs.clone());
     let photo_grid = Grid::north_up(500_000.0, 5_300_000.0, 0.25, 192, 128, crs);
     let (dem, ortho) = (dir.join("dem.tif"), dir.join("ortho.tif"));
     geotiff::write_f32(&dem, &terrain(&dem_grid)).unwrap();
     geotiff::write_rgba8(&ortho, &photo(&photo_grid)).unwrap();
+    (dem, ortho)
+}
+
+fn agreement(dir: &Path, cell: f64) -> (f64, f64) {
+    let (dem, ortho) = inputs(dir);
     let db = dir.join(format!("db{cell}"));
     run(Command::new(env!("CARGO_BIN_EXE_dbms"))
         .args(["ingest", "-q", "--cell", &cell.to_string(), "-o"])
@@ -322,12 +329,7 @@ fn ingest_from_gdal_cut_tiles_equals_the_whole() {
     }
     let t = tempfile::tempdir().unwrap();
     let dir = t.path();
-    let crs = Crs::epsg(32632);
-    let dem_grid = Grid::north_up(500_000.0, 5_300_000.0, 0.5, 96, 64, crs.clone());
-    let photo_grid = Grid::north_up(500_000.0, 5_300_000.0, 0.25, 192, 128, crs);
-    let (dem, ortho) = (dir.join("dem.tif"), dir.join("ortho.tif"));
-    geotiff::write_f32(&dem, &terrain(&dem_grid)).unwrap();
-    geotiff::write_rgba8(&ortho, &photo(&photo_grid)).unwrap();
+    let (dem, ortho) = inputs(dir);
     let cut = |src: &Path, to: &str, windows: &[[usize; 4]], opts: &[&str]| {
         std::fs::create_dir_all(dir.join(to)).unwrap();
         for [c, r, w, h] in windows {
