@@ -18,6 +18,8 @@
 //! docs/big-database.md. `DBMS_BIG_SKIP` (comma-separated: `dbms`, `gdal`) leaves a side out;
 //! `DBMS_BIG_KEEP=0` deletes each side's outputs once measured (for disk space).
 
+#[path = "support/blocks.rs"]
+mod blocks;
 use dbms::crs::Crs;
 use dbms::grid::Grid;
 use dbms::io::geotiff::GeoTiffWriter;
@@ -386,19 +388,8 @@ fn terrain(c: usize, r: usize) -> (f32, [u8; 4]) {
         + 12.0 * (x * 0.011 + y * 0.007).sin()
         + 3.0 * (x * 0.05).sin() * (y * 0.043).sin()
         + 25.0 * (-((x - y * 0.6).rem_euclid(5000.0) - 2500.0).abs() / 400.0).exp();
-    let (bx, by) = (c % 200, r % 200);
-    let h = ((c / 200) * 7919 + (r / 200) * 104_729) % 97;
-    let building = bx > 60
-        && bx < 140
-        && by > 60
-        && by < 140
-        && (bx / 20 + by / 20) % 2 == 0
-        && h.is_multiple_of(3);
-    let z = if building {
-        ground + 8.0 + (h % 33) as f32
-    } else {
-        ground
-    };
+    let roof = blocks::roof(c, r, ground);
+    let (building, z) = (roof.is_some(), roof.unwrap_or(ground));
     let shade = (ground - 60.0).clamp(0.0, 255.0) as u8;
     let stripe = if ((c / 37 + r / 53) % 5) == 0 { 30 } else { 0 };
     let noise = ((c.wrapping_mul(31) ^ r.wrapping_mul(17)).wrapping_mul(2654435761) >> 7) % 24;

@@ -20,6 +20,8 @@
 //! same path flown level (zero pitch, where it applies), with and without it: frames per second
 //! and cells stepped per ray; the bench fails if a pixel differs.
 
+#[path = "support/blocks.rs"]
+mod blocks;
 use dbms::crs::Crs;
 use dbms::grid::Grid;
 use dbms::render::{render_view, Attitude, Frame, Traversal, ViewOptions, Viewpoint};
@@ -227,19 +229,8 @@ fn terrain(c: usize, r: usize) -> (f32, [u8; 4]) {
     let ground = 40.0 * (x * 0.0021).sin() * (y * 0.0017).cos()
         + 12.0 * (x * 0.011 + y * 0.007).sin()
         + 3.0 * (x * 0.05).sin() * (y * 0.043).sin();
-    let (bx, by) = (c % 200, r % 200);
-    let h = ((c / 200) * 7919 + (r / 200) * 104_729) % 97;
-    let building = bx > 60
-        && bx < 140
-        && by > 60
-        && by < 140
-        && (bx / 20 + by / 20) % 2 == 0
-        && h.is_multiple_of(3);
-    let z = if building {
-        ground + 8.0 + (h % 33) as f32
-    } else {
-        ground
-    };
+    let roof = blocks::roof(c, r, ground);
+    let (building, z) = (roof.is_some(), roof.unwrap_or(ground));
     let shade = (128.0 + ground * 2.0) as u8;
     let colour = if building {
         [170, 160, 150, 255]
