@@ -127,8 +127,8 @@ enum Height {
     AboveTerrain(f64),
 }
 
-/// A beam: `azimuth_deg` (finite), `elevation_deg` (−90 to 90) and `spread_deg`, one number for
-/// both directions or `[horizontal, vertical]`, each in (0, 360].
+/// A beam: `azimuth_deg`, `elevation_deg` and `spread_deg` (one number for both directions or
+/// `[horizontal, vertical]`), within [`Beam::is_valid`]'s ranges.
 fn beam_of(v: &Value) -> Option<Beam> {
     let num = |k: &str| v.get(k).and_then(Value::as_f64);
     let spread = match v.get("spread_deg")? {
@@ -136,13 +136,13 @@ fn beam_of(v: &Value) -> Option<Beam> {
         s => [s.as_f64()?; 2],
     };
     let beam = Beam {
-        azimuth_deg: num("azimuth_deg").filter(|a| a.is_finite())?,
-        elevation_deg: num("elevation_deg").filter(|e| (-90.0..=90.0).contains(e))?,
+        azimuth_deg: num("azimuth_deg")?,
+        elevation_deg: num("elevation_deg")?,
         spread_deg: spread,
     };
     let known = ["azimuth_deg", "elevation_deg", "spread_deg"];
     let only_known = v.as_object()?.keys().all(|k| known.contains(&k.as_str()));
-    (only_known && spread.iter().all(|s| *s > 0.0 && *s <= 360.0)).then_some(beam)
+    (only_known && beam.is_valid()).then_some(beam)
 }
 
 /// `[r, g, b]` of integers 0–255.

@@ -258,6 +258,14 @@ pub struct Beam {
 }
 
 impl Beam {
+    /// Whether the beam is one [`Beam`] describes: a finite azimuth, an elevation in −90..=90°
+    /// and each spread in (0, 360]°.
+    pub fn is_valid(&self) -> bool {
+        let spread_ok = self.spread_deg.iter().all(|s| *s > 0.0 && *s <= 360.0);
+        let axis_ok = self.azimuth_deg.is_finite() && (-90.0..=90.0).contains(&self.elevation_deg);
+        axis_ok && spread_ok
+    }
+
     /// The fraction of the axis intensity sent along `to` (any length but 0), 0 to 1.
     pub fn fraction_toward(&self, to: [f64; 3]) -> f64 {
         let (az, el) = (
@@ -332,9 +340,7 @@ pub(crate) fn check_attributes(
             ));
         }
         if let Some(b) = l.beam {
-            let spread_ok = b.spread_deg.iter().all(|s| *s > 0.0 && *s <= 360.0);
-            let axis_ok = b.azimuth_deg.is_finite() && (-90.0..=90.0).contains(&b.elevation_deg);
-            if !(axis_ok && spread_ok) {
+            if !b.is_valid() {
                 return Err(format!(
                     "light {k} has a beam with an azimuth that is not finite, an elevation outside −90..90° or a spread outside (0, 360]°"
                 ));
