@@ -54,7 +54,20 @@ pub enum RadarModel {
     },
 }
 
+/// The σ⁰ model for `band` among `models`: the first for it (any polarisation), if any.
+pub fn model_for(models: &[RadarModel], band: Band) -> Option<&RadarModel> {
+    models.iter().find(|m| m.band() == band)
+}
+
 impl RadarModel {
+    /// σ⁰, linear (m²/m², rounded to f32), on a surface whose normal is at `cos_incidence`
+    /// (0..=1, clamped above) to the direction toward the radar: [`sigma0_db`](Self::sigma0_db)
+    /// at that incidence, out of decibels.
+    pub fn sigma0(&self, cos_incidence: f64) -> f32 {
+        let incidence_deg = cos_incidence.min(1.0).acos().to_degrees();
+        10f64.powf(self.sigma0_db(incidence_deg) / 10.0) as f32
+    }
+
     /// σ⁰ in dB at incidence angle `incidence_deg` (degrees from the surface normal).
     pub fn sigma0_db(&self, incidence_deg: f64) -> f64 {
         match self {

@@ -182,7 +182,6 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
             if shadow.get(i) || cos_inc <= 0.0 {
                 return (0.0, Class::Shadow as u8);
             }
-            let incidence_deg = cos_inc.min(1.0).acos().to_degrees();
             let (specular, model) = match models[material[i] as usize] {
                 Some(m) => m,
                 None => return (f32::NAN, Class::NoModel as u8),
@@ -193,7 +192,7 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
             let Some(model) = model else {
                 return (f32::NAN, Class::NoModel as u8);
             };
-            let sigma0 = 10f64.powf(model.sigma0_db(incidence_deg) / 10.0) as f32;
+            let sigma0 = model.sigma0(cos_inc);
             let (col, row) = ((i % grid.width) as i64, (i / grid.width) as i64);
             let wall = !on_top[i]
                 && facing.iter().any(|&(dc, dr)| {

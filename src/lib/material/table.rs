@@ -139,7 +139,7 @@ pub struct Radar {
 impl Radar {
     /// The σ⁰ model for `band`: the table's first for it (any polarisation), if any.
     pub fn model_for(&self, band: Band) -> Option<&RadarModel> {
-        self.models.iter().find(|m| m.band() == band)
+        crate::backscatter::model_for(&self.models, band)
     }
 }
 

@@ -287,7 +287,7 @@ impl EyeRadar {
     pub fn new(reader: &TileReader, band: Band) -> EyeRadar {
         let mut models = vec![None; 256];
         for m in &reader.info().materials {
-            let model = m.radar.iter().find(|r| r.band() == band).cloned();
+            let model = crate::backscatter::model_for(&m.radar, band).cloned();
             models[m.id as usize] = Some((m.radar_specular, model));
         }
         EyeRadar { models }
@@ -378,10 +378,7 @@ impl EyeRadar {
         let Some(model) = model else {
             return Ok(None);
         };
-        let incidence_deg = cos_inc.min(1.0).acos().to_degrees();
-        Ok(Some(
-            10f64.powf(model.sigma0_db(incidence_deg) / 10.0) as f32
-        ))
+        Ok(Some(model.sigma0(cos_inc)))
     }
 }
 
