@@ -486,6 +486,9 @@ pub fn placed_voxels(
     }
 }
 
+/// Placements with the cells each marks, in manifest order ([`Standing::read_placed`]).
+pub type Marked<'a> = Vec<(&'a PlacedObject, Vec<usize>)>;
+
 /// What stands on a database's terrain: the buildings of its `buildings` layer (when it has
 /// one) and its placed voxel objects, each merged, and both together. The surface shadows are
 /// cast over is the terrain with `all` laid over it.
@@ -519,6 +522,19 @@ impl Standing {
         rows: Range<usize>,
         cols: Range<usize>,
     ) -> Result<Standing> {
+        Ok(Standing::read_placed(db, terrain, band_rows, rows, cols)?.0)
+    }
+
+    /// [`read_window`](Self::read_window), and each placement it rasterised (manifest order)
+    /// with the cells it marks ([`object_cells`]; its own, before the merge drops cells over
+    /// nodata terrain): for a caller that needs to tell the objects apart.
+    pub fn read_placed<'a>(
+        db: &'a Database,
+        terrain: &dyn RowSource<f32>,
+        band_rows: usize,
+        rows: Range<usize>,
+        cols: Range<usize>,
+    ) -> Result<(Standing, Marked<'a>)> {
         let grid = terrain.grid();
         let prism_cells = match db.manifest.layers.contains_key(crate::db::BUILDINGS) {
             true => rasterise_prisms(
@@ -527,30 +543,28 @@ impl Standing {
             ),
             false => Vec::new(),
         };
-        let placed: Vec<PlacedVoxels> = placed_objects(db, grid, &rows, &cols)?
-            .into_iter()
-            .map(|(_, v)| v)
-            .collect();
+        let (placements, placed): (Vec<&PlacedObject>, Vec<PlacedVoxels>) =
+            placed_objects(db, grid, &rows, &cols)?.into_iter().unzip();
+        let marked: Vec<Vec<usize>> = placed.iter().map(|o| object_cells(grid, o)).collect();
         let mut under: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();
-        for obj in &placed {
-            under.extend(object_cells(grid, obj));
-        }
+        marked.iter().for_each(|cells| under.extend(cells));
         let ground = TerrainSample::read(terrain, under, band_rows)?;
         let buildings = Raised::new(prism_cells, &ground);
         let objects = Raised::objects(grid, &placed, &ground);
         let all = buildings.union(&objects, &ground);
-        Ok(Standing {
+        let standing = Standing {
             buildings,
             objects,
             all,
-        })
+        };
+        Ok((standing, placements.into_iter().zip(marked).collect()))
     }
 }
 
 /// The database's placements, in the manifest's order, whose footprint can reach grid rows
 /// `rows` and columns `cols` ([`reaches`]), each with its voxels placed; each object file is
 /// read once however often it is placed.
-pub fn placed_objects<'a>(
+fn placed_objects<'a>(
     db: &'a Database,
     grid: &Grid,
     rows: &Range<usize>,

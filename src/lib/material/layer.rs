@@ -365,8 +365,9 @@ fn object_materials(db: &Database, specs: &[String]) -> Result<Vec<features::Pai
     let terrain = db.elevation_rows()?;
     let grid = crate::raster::RowSource::grid(&terrain).clone();
     let band = crate::raster::band_rows(grid.width);
-    let raised = crate::standing::Standing::read(db, &terrain, band)?.objects;
-    let placed = crate::standing::placed_objects(db, &grid, &(0..grid.height), &(0..grid.width))?;
+    let (standing, placed) =
+        crate::standing::Standing::read_placed(db, &terrain, band, 0..grid.height, 0..grid.width)?;
+    let raised = standing.objects;
     let name_of = |file: &str| crate::voxel::place::placed_name(file).to_string();
     if let Some(name) = named
         .keys()
@@ -384,13 +385,12 @@ fn object_materials(db: &Database, specs: &[String]) -> Result<Vec<features::Pai
         )));
     }
     let mut painted = Vec::new();
-    for (p, voxels) in &placed {
+    for (p, marked) in placed {
         let name = name_of(&p.file);
         let Some(material) = named.get(name.as_str()).copied().or(every) else {
             continue;
         };
-        let cells = crate::standing::object_cells(&grid, voxels);
-        let cells = cells.into_iter().filter(|&c| raised.contains(c)).collect();
+        let cells = marked.into_iter().filter(|&c| raised.contains(c)).collect();
         painted.push(features::Painted {
             material: material.to_string(),
             origin: format!("--objects (placement {} of {name})", p.id),
