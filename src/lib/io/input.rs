@@ -121,16 +121,10 @@ impl RasterInput {
             width: w,
             height: rows.len(),
         };
-        let m = &self.head;
         Ok(Cow::Owned(SourceRaster {
-            path: m.path.clone(),
             grid: self.grid.window_grid(&window),
-            bands: m.bands,
             samples,
-            nodata: m.nodata,
-            alpha_band: m.alpha_band,
-            pixel_is_point: m.pixel_is_point,
-            format: m.format,
+            ..self.head.clone_meta()
         }))
     }
 }
