@@ -384,9 +384,8 @@ fn shade_reach(g: &Grid, top: f64, terrain_min: f64, suns: &[Sun]) -> usize {
     (d.min(1e9).ceil() as usize).saturating_add(MARGIN as usize)
 }
 
-/// The level-0 pages of `touched`, made again: each page and its counts. `all_suns`: the
-/// suns the effects cast (for how far a shadow reaches); `raised_anywhere`: whether buildings
-/// and objects stand anywhere on the grid; `top`: no surface is higher.
+/// The level-0 pages of `touched`, made again: each page and its counts (see
+/// [`make_level0`]).
 #[allow(clippy::too_many_arguments)]
 pub fn rebuild_level0(
     db: &Database,
@@ -399,6 +398,55 @@ pub fn rebuild_level0(
     top: f64,
     raised_anywhere: [bool; 2],
 ) -> Result<HashMap<(usize, usize), (Page, PageStats)>> {
+    let out = Mutex::new(HashMap::new());
+    let keep = |at: (usize, usize), page: &Page, stats: PageStats| {
+        let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
+        out.insert(at, (page.clone(), stats));
+        Ok(())
+    };
+    let facts = WholeGrid {
+        suns,
+        terrain_range,
+        top,
+        raised_anywhere,
+    };
+    make_level0(db, info, opts, photo_sun, touched, &facts, &keep)?;
+    Ok(out.into_inner().unwrap_or_else(|e| e.into_inner()))
+}
+
+/// What making pages of a window needs to know about the whole grid: the suns the effects
+/// cast (for how far a shadow reaches), the lowest and highest valid terrain height and the
+/// highest surface (metres), and whether buildings and objects stand anywhere on it.
+#[derive(Debug, Clone, Copy)]
+pub struct WholeGrid<'s> {
+    /// The suns the effects cast: the requested one and, when it is cast, the photo's.
+    pub suns: &'s [Sun],
+    /// Lowest and highest valid terrain height, metres.
+    pub terrain_range: [f64; 2],
+    /// No surface (terrain, building or object) is higher, metres.
+    pub top: f64,
+    /// Whether buildings and placed objects raise any cell of the grid, `[buildings, objects]`.
+    pub raised_anywhere: [bool; 2],
+}
+
+/// Make the level-0 pages `touched` of `info` as a full build makes them, bit for bit, and hand
+/// each with its counts to `emit((tx, ty), page, stats)` (from many threads, each page once,
+/// page row by page row top to bottom): only what stands or shades near them is read.
+pub fn make_level0(
+    db: &Database,
+    info: &TileSetInfo,
+    opts: &PyramidOptions,
+    photo_sun: Option<Sun>,
+    touched: &BTreeSet<(usize, usize)>,
+    whole: &WholeGrid,
+    emit: &(dyn Fn((usize, usize), &Page, PageStats) -> Result<()> + Sync),
+) -> Result<()> {
+    let WholeGrid {
+        suns,
+        terrain_range,
+        top,
+        raised_anywhere,
+    } = *whole;
     let (terrain, colour) = (
         db.elevation_rows()?,
         crate::material::layer::colour_rows(db)?,
@@ -421,7 +469,6 @@ pub fn rebuild_level0(
     }
     // The photo's detected shadows (when they run) are the same for every run of rows.
     let shared = shade::Shared::default();
-    let mut out = HashMap::new();
     for run in runs {
         let rows = run[0].0 * p..((run[run.len() - 1].0 + 1) * p).min(g.height);
         let txs = run.iter().flat_map(|(_, txs)| txs.iter().copied());
@@ -466,21 +513,23 @@ pub fn rebuild_level0(
                 rows: base,
                 columns,
             } = level0.band(band_rows.start, band_rows.len())?;
-            let pages = Mutex::new(Vec::new());
-            emit_page_row(info, 0, ty, &base, Some(&columns), &|_, tx, _, page| {
-                if keep.contains(&tx) {
-                    let stats = page_stats(info, (tx, ty), &standing, &level0, fx.as_ref());
-                    let mut pages = pages.lock().unwrap_or_else(|e| e.into_inner());
-                    pages.push((tx, page.clone(), stats));
-                }
-                Ok(())
-            })?;
-            for (tx, page, stats) in pages.into_inner().unwrap_or_else(|e| e.into_inner()) {
-                out.insert((tx, ty), (page, stats));
-            }
+            emit_page_row(
+                info,
+                0,
+                ty,
+                &base,
+                Some(&columns),
+                &|_, tx, _, page| match keep.contains(&tx) {
+                    true => {
+                        let stats = page_stats(info, (tx, ty), &standing, &level0, fx.as_ref());
+                        emit((tx, ty), page, stats)
+                    }
+                    false => Ok(()),
+                },
+            )?;
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 /// The pages of every level, new where a level-0 page in `level0` was made again (coarse
