@@ -1057,3 +1057,206 @@ fn a_building_removed_under_another_sun_rebuilds_the_detectors_reach() {
         "incremental and full tile files differ"
     );
 }
+
+/// `dbms survey --db DB -o OUT`, its JSON checked against its schema.
+fn survey(db: &Path, out: &Path) {
+    let o = dbms(&[
+        "-q",
+        "survey",
+        "--db",
+        db.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    check_schema(
+        "pyramid-survey",
+        &serde_json::from_slice(&std::fs::read(out).unwrap()).unwrap(),
+    );
+}
+
+/// The parts of shards 1..=n of `extra`'s tile file, each with its record checked.
+fn shards(db: &Path, dir: &Path, n: usize, extra: &[&str]) -> Vec<PathBuf> {
+    let s = dir.join("survey.json");
+    survey(db, &s);
+    (1..=n)
+        .map(|i| {
+            let part = dir.join(format!("part-{i}.dbt"));
+            let shard = format!("{i}/{n}");
+            let mut args = vec!["--shard", shard.as_str(), "--survey", s.to_str().unwrap()];
+            args.extend_from_slice(extra);
+            pyramid_sharded(db, &part, &args);
+            let record = dir.join(format!("part-{i}.dbt.shard.json"));
+            check_schema(
+                "pyramid-shard",
+                &serde_json::from_slice(&std::fs::read(record).unwrap()).unwrap(),
+            );
+            part
+        })
+        .collect()
+}
+
+/// `dbms pyramid` with `args` (a shard or a merge: no effects record to check).
+fn pyramid_sharded(db: &Path, out: &Path, args: &[&str]) -> Value {
+    let mut all = vec![
+        "--json",
+        "pyramid",
+        "--db",
+        db.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--page",
+        "32",
+    ];
+    all.extend_from_slice(args);
+    let o = dbms(&all);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig { cases: 16, ..Default::default() })]
+
+    /// A tile file merged from shards (any count the 5 × 4 level-0 pages can be cut into, parts
+    /// given in any order) is byte for byte the single build's, with the same summary counts
+    /// and effects: under no sun, the photo's own sun and another (photo shadows detected,
+    /// casts reaching across windows), with overhanging objects, for factors 2 and 4, with lz4.
+    #[test]
+    fn sharded_builds_are_byte_identical_to_one_build(
+        trees in proptest::collection::vec((0..W, 0..H, 0.0..360.0f64, 0.5..2.0f64), 0..5),
+        buildings in proptest::collection::vec((0..W - 8, 0..H - 8, 3.0..30.0f64), 0..3),
+        n in proptest::sample::select(vec![1usize, 2, 3, 4, 5, 6, 8, 10, 20]),
+        sun in 0..3usize,
+        factor in proptest::sample::select(vec!["2", "4"]),
+        lz4 in proptest::bool::ANY,
+        reverse in proptest::bool::ANY,
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let t = "2026-06-21T10:00:00Z";
+        let mut db = make_db(dir.path(), Some(t));
+        let object = mushroom(&db.dir);
+        for &(c, r, heading, scale) in &trees {
+            apply(&mut db, &Edit::Add(c, r, heading, scale), &object);
+        }
+        apply(&mut db, &Edit::Buildings(buildings.clone()), &object);
+        let mut extra = vec!["--factor", factor];
+        let sun_args: &[&str] = match sun {
+            0 => &[],
+            1 => &["--time", t],
+            _ => &["--sun-elevation", "12", "--sun-azimuth", "300"],
+        };
+        extra.extend_from_slice(sun_args);
+        if lz4 {
+            extra.extend_from_slice(&["--compression", "lz4"]);
+        }
+        let (one, merged) = (dir.path().join("one.dbt"), dir.path().join("merged.dbt"));
+        let single = pyramid(&db.dir, &one, &extra);
+        let mut parts = shards(&db.dir, dir.path(), n, &extra);
+        if reverse {
+            parts.reverse();
+        }
+        let mut args = extra.clone();
+        args.push("--merge");
+        args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+        let m = pyramid_sharded(&db.dir, &merged, &args);
+        check_effects_schema(&m["effects"]);
+        proptest::prop_assert!(
+            std::fs::read(&one).unwrap() == std::fs::read(&merged).unwrap(),
+            "{} shards: merged and single tile files differ", n
+        );
+        for key in ["building_cells", "object_cells", "partial_cells", "half_valid_cells", "effects", "levels", "pages"] {
+            proptest::prop_assert_eq!(&m[key], &single[key]);
+        }
+        let v = dbms(&["-q", "tiles", merged.to_str().unwrap(), "--verify"]);
+        proptest::prop_assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+    }
+}
+
+/// A merge refuses, in one line, parts that are missing, doubled, of other options or of a
+/// database changed since; a shard refuses a stale survey and sensor layers.
+#[test]
+fn bad_shards_and_merges_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = make_db(dir.path(), None);
+    add_building(&mut db);
+    let dir_db = db.dir.clone();
+    let d = dir_db.to_str().unwrap();
+    let parts = shards(&db.dir, dir.path(), 4, &[]);
+    let p: Vec<&str> = parts.iter().map(|p| p.to_str().unwrap()).collect();
+    let out = dir.path().join("m.dbt");
+    let o = out.to_str().unwrap();
+    let fails = |args: &[&str], want: &str| {
+        let r = dbms(args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success(), "{args:?} succeeded");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!out.exists());
+    };
+    let merge = |extra: &[&str], given: &[&str]| {
+        let mut a = vec!["pyramid", "--db", d, "-o", o, "--page", "32"];
+        a.extend_from_slice(extra);
+        a.push("--merge");
+        a.extend_from_slice(given);
+        a.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run =
+        |a: Vec<String>, want: &str| fails(&a.iter().map(String::as_str).collect::<Vec<_>>(), want);
+    run(
+        merge(&[], &[p[0], p[1], p[2]]),
+        "shard 1 of 4, but 3 parts are merged",
+    );
+    run(
+        merge(&[], &[p[0], p[1], p[2], p[2]]),
+        "shard 3 of 4 is given twice",
+    );
+    run(merge(&["--factor", "2"], &p), "other options");
+    run(
+        merge(&["--materials"], &p),
+        "sharded builds make the visual layers only",
+    );
+    let shard = |i: &str| {
+        let part = dir.path().join("x.dbt");
+        let s = dir.path().join("survey.json");
+        let args: Vec<String> = [
+            "pyramid",
+            "--db",
+            d,
+            "-o",
+            part.to_str().unwrap(),
+            "--page",
+            "32",
+            "--shard",
+            i,
+            "--survey",
+            s.to_str().unwrap(),
+        ]
+        .map(String::from)
+        .to_vec();
+        args
+    };
+    run(shard("5/4"), "I/N");
+    apply(
+        &mut db,
+        &Edit::Buildings(vec![(60, 60, 9.0)]),
+        &mushroom(&dir_db),
+    );
+    run(shard("1/4"), "surveys another state of the database");
+    let s = dir.path().join("s2.json");
+    survey(&db.dir, &s);
+    run(merge(&[], &p), "another state of the database");
+    let many = [
+        "pyramid",
+        "--db",
+        d,
+        "-o",
+        o,
+        "--page",
+        "32",
+        "--shard",
+        "21/21",
+        "--survey",
+        s.to_str().unwrap(),
+    ];
+    fails(&many, "cannot be cut into 21 windows");
+}

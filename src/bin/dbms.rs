@@ -54,6 +54,8 @@ enum Command {
     ShadowHeight(cmd::shadow_height::Args),
     /// Write the cast-shadow mask of a database for a sun (time or angles).
     Shadows(cmd::shadows::Args),
+    /// What every shard of a sharded pyramid must know about the whole database (--shard, --merge).
+    Survey(cmd::survey::Args),
     /// Sun elevation, azimuth and zenith for a place (or a database's centre) and time (NREL SPA).
     Sun(cmd::sun::Args),
     /// Surface temperature and 8–12 µm radiance of every cell at a time (thermal infrared).
@@ -101,6 +103,7 @@ fn main() -> ExitCode {
         Command::ShadowHeight(a) => cmd::shadow_height::run(a, &ctx),
         Command::Shadows(a) => cmd::shadows::run(a, &ctx),
         Command::Sun(a) => cmd::sun::run(a, &ctx),
+        Command::Survey(a) => cmd::survey::run(a, &ctx),
         Command::Thermal(a) => cmd::thermal::run(a, &ctx),
         Command::Radar(a) => cmd::radar::run(a, &ctx),
         Command::Tiles(a) => cmd::tiles::run(a, &ctx),

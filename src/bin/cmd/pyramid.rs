@@ -2,7 +2,7 @@
 
 use super::Ctx;
 use dbms::db::Database;
-use dbms::pyramid::{build_pyramids, Product, PyramidOptions, PyramidSummary};
+use dbms::pyramid::{build_pyramids, shard, Product, PyramidOptions, PyramidSummary};
 use dbms::pyramid::{DEFAULT_FACTOR, DEFAULT_PAGE};
 use dbms::sun::Sun;
 use dbms::tiles::Compression;
@@ -76,6 +76,28 @@ pub struct Args {
     /// serves the others that need the same; each summary's `reused` says what it took.
     #[arg(long, value_name = "TILES@SUN")]
     product: Vec<String>,
+    /// Build only shard I of N of the tile file: the level-0 pages of one of N windows of whole
+    /// pages, written to -o as a one-level tile file of the window (its part) with a record
+    /// beside it (PART.shard.json). Needs --survey; --merge assembles the parts.
+    #[arg(long, value_name = "I/N", requires = "survey", conflicts_with_all = ["merge", "product"], value_parser = parse_shard)]
+    shard: Option<[usize; 2]>,
+    /// The survey of the database every shard reads (dbms survey).
+    #[arg(long, value_name = "JSON", requires = "shard")]
+    survey: Option<PathBuf>,
+    /// Assemble the tile file -o from the parts of shards 1..N built with the same options
+    /// (byte for byte the file one dbms pyramid makes) and record the stage.
+    #[arg(long, value_name = "PART", num_args = 1.., conflicts_with = "product")]
+    merge: Vec<PathBuf>,
+}
+
+fn parse_shard(s: &str) -> Result<[usize; 2], String> {
+    let bad = || format!("{s}: give I/N, shard I of N counted from 1 (e.g. 3/8)");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n) = (i.parse().map_err(|_| bad())?, n.parse().map_err(|_| bad())?);
+    match 1 <= i && i <= n {
+        true => Ok([i, n]),
+        false => Err(bad()),
+    }
 }
 
 /// The product `TILES@SUN` of `--product` over `db`.
@@ -154,6 +176,18 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             lights: args.lights,
         },
     };
+    let progress = ctx.progress(0, "pyramid");
+    if let (Some(shard), Some(survey)) = (args.shard, &args.survey) {
+        let survey = dbms::pyramid::shard::read_survey(survey, &db)?;
+        let made = shard::build_shard(&db, &opts, &survey, shard, &args.output, &progress)?;
+        ctx.report(&made);
+        return Ok(());
+    }
+    if !args.merge.is_empty() {
+        let merged = shard::merge(&db, ctx.wait, &opts, &args.merge, &args.output, &progress)?;
+        ctx.report(&merged);
+        return Ok(());
+    }
     let mut products = vec![Product {
         tiles: args.output.clone(),
         sun,
@@ -161,7 +195,6 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     for text in &args.product {
         products.push(product(text, &db)?);
     }
-    let progress = ctx.progress(0, "pyramid");
     let built = build_pyramids(&db, ctx.wait, &products, &opts, &progress)?;
     ctx.report(&Built(built));
     Ok(())

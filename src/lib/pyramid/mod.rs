@@ -14,7 +14,8 @@
 //!   tile writer ([`crate::tiles::TileWriter`]);
 //! * [`export`]: every level as GeoTIFF (`--export-levels`);
 //! * [`incremental`]: only the pages an edit touches made again (`--incremental`), the rest
-//!   copied from the earlier tile file its ledger describes.
+//!   copied from the earlier tile file its ledger describes;
+//! * [`shard`]: one tile file built as independent jobs over windows of pages, then merged.
 
 pub mod base;
 pub mod cascade;
@@ -24,6 +25,7 @@ pub mod incremental;
 pub mod reduce;
 pub mod sensor;
 pub mod shade;
+pub mod shard;
 
 use crate::db::{Database, Stage};
 use crate::error::{Error, Result};
