@@ -571,3 +571,70 @@ fn sensor_products_get_their_maps_and_layers() {
         .collect();
     assert!(pending.is_empty(), "{pending:?}");
 }
+
+/// Whether Snakemake is on PATH (under CI it must be: `.ci/run` installs it).
+fn have_snakemake() -> bool {
+    let ok = Command::new("snakemake").arg("--version").output().is_ok();
+    if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "snakemake is not on PATH under CI: .ci/run must install it"
+        );
+        eprintln!("skipped: snakemake not on PATH (apt-get install snakemake)");
+    }
+    ok
+}
+
+/// The scene cut into 4 shards (2 × 2 windows of the 320² grid's pages) from the command line,
+/// handed to Snakemake as a Snakefile and run here with two jobs: the tile file is byte for byte
+/// the stage-by-stage build's, and the stamps the rules leave are the plan's (nothing to do).
+/// `dbms build --shards 4` runs the same shards itself and gives the same bytes.
+#[test]
+fn a_sharded_scene_through_snakemake_gives_the_same_bytes() {
+    if !have_snakemake() {
+        return;
+    }
+    let t = sample_with_scene();
+    let dir = t.path();
+    let want = stage_by_stage(dir, 30.0);
+    let plan = ok(
+        dbms_in(dir, &["plan", "scene.toml", "--shards", "4"]),
+        "plan",
+    );
+    for step in ["survey", "shard.day.1", "shard.day.4", "product.day"] {
+        assert!(plan.contains(&format!("\n  {step} ")), "{step}: {plan}");
+    }
+    let snakefile = ok(
+        dbms_in(dir, &["plan", "scene.toml", "--shards", "4", "--snakefile"]),
+        "plan --snakefile",
+    );
+    assert_eq!(
+        snakefile.matches("\nrule shard_day_").count(),
+        4,
+        "{snakefile}"
+    );
+    std::fs::write(dir.join("Snakefile"), snakefile).unwrap();
+    let out = Command::new("snakemake")
+        .args(["-s", "Snakefile", "-j", "2", "--quiet", "--config"])
+        .arg(format!("dbms={}", env!("CARGO_BIN_EXE_dbms")))
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    ok(out, "snakemake");
+    assert!(
+        std::fs::read(dir.join("build/day.dbt")).unwrap() == want,
+        "the tile file merged from 4 shards by Snakemake is not the single build's"
+    );
+    let plan = ok(
+        dbms_in(dir, &["plan", "scene.toml", "--shards", "4"]),
+        "plan",
+    );
+    assert!(plan.contains("all up to date"), "{plan}");
+
+    std::fs::remove_dir_all(dir.join("build")).unwrap();
+    ok(
+        dbms_in(dir, &["-q", "build", "scene.toml", "--shards", "4"]),
+        "build --shards 4",
+    );
+    assert!(std::fs::read(dir.join("build/day.dbt")).unwrap() == want);
+}

@@ -1,7 +1,7 @@
 //! `dbms build`: run what a scene's plan says is out of date.
 
 use super::Ctx;
-use dbms::scene::{build, Scene};
+use dbms::scene::build;
 use std::path::PathBuf;
 
 /// Build a scene file's products: run the steps `dbms plan` lists as out of date, independent
@@ -13,10 +13,14 @@ pub struct Args {
     /// Steps run at once, at most (independent steps only; each step uses every core itself).
     #[arg(long, short, default_value_t = 2)]
     jobs: usize,
+    /// Build each visual product as N shards merged at the end, instead of the scene's
+    /// `[build] shards` (1: one dbms pyramid).
+    #[arg(long, value_name = "N")]
+    shards: Option<usize>,
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
-    let scene = Scene::read(&args.scene)?;
+    let scene = super::scene(&args.scene, args.shards)?;
     let exe = std::env::current_exe()
         .map_err(|e| dbms::Error::msg(format!("cannot find the dbms binary to run steps: {e}")))?;
     let progress = ctx.progress(0, "steps");

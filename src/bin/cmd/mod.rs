@@ -16,6 +16,7 @@ pub mod sculpt;
 pub mod shadow_height;
 pub mod shadows;
 pub mod sun;
+pub mod survey;
 pub mod thermal;
 pub mod tiles;
 
@@ -188,4 +189,13 @@ pub fn choice<T: Choice>() -> impl clap::builder::TypedValueParser<Value = T> {
             .map(|v| PossibleValue::new(v.name()).help(v.help().trim_end_matches('.'))),
     )
     .map(|name| T::named(&name).expect("clap accepts only the names listed"))
+}
+
+/// The scene file at `path`, with `--shards` over its `[build] shards` when given.
+pub fn scene(path: &std::path::Path, shards: Option<usize>) -> dbms::Result<dbms::scene::Scene> {
+    let scene = dbms::scene::Scene::read(path)?;
+    match shards {
+        Some(n) => scene.with_shards(n).map_err(|e| e.in_file(path)),
+        None => Ok(scene),
+    }
 }

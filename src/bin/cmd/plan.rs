@@ -2,7 +2,7 @@
 
 use super::Ctx;
 use dbms::scene::plan::{self, PlannedStep};
-use dbms::scene::{makefile, Scene};
+use dbms::scene::{makefile, snakefile};
 use std::path::PathBuf;
 
 /// List the steps that build a scene file's products, each with its inputs and whether it is
@@ -12,17 +12,29 @@ pub struct Args {
     /// The scene file (TOML, schemas/scene.schema.json).
     scene: PathBuf,
     /// Print the steps as a Makefile instead (make runs the same commands).
-    #[arg(long, conflicts_with = "stamp")]
+    #[arg(long, conflicts_with_all = ["stamp", "snakefile"])]
     makefile: bool,
+    /// Print the steps as a Snakefile instead (Snakemake runs the same commands, here with -j or
+    /// on a cluster with an executor).
+    #[arg(long, conflicts_with = "stamp")]
+    snakefile: bool,
     /// Record that step STEP has just run (what the Makefile's rules call after a step).
     #[arg(long, value_name = "STEP")]
     stamp: Option<String>,
+    /// Build each visual product as N shards merged at the end, instead of the scene's
+    /// `[build] shards` (1: one dbms pyramid).
+    #[arg(long, value_name = "N")]
+    shards: Option<usize>,
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
-    let scene = Scene::read(&args.scene)?;
+    let scene = super::scene(&args.scene, args.shards)?;
     if let Some(step) = &args.stamp {
         return plan::stamp(&scene, step);
+    }
+    if args.snakefile {
+        super::stdout(snakefile::snakefile(&scene, &args.scene).trim_end());
+        return Ok(());
     }
     if args.makefile {
         super::stdout(makefile::makefile(&scene, &args.scene).trim_end());

@@ -16,6 +16,8 @@ use std::path::{Path, PathBuf};
 
 /// The format version this dbms reads.
 pub const VERSION: u32 = 1;
+/// Most shards a product may be cut into (`[build] shards`).
+pub const MAX_SHARDS: usize = 4096;
 
 /// A scene, as written in its file (paths as given).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -41,6 +43,33 @@ pub struct Scene {
     pub materials: Option<MaterialsSpec>,
     /// What the build delivers, by name: one tile file each.
     pub products: BTreeMap<String, Product>,
+    /// How the build is cut into jobs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub build: Option<BuildSpec>,
+}
+
+/// `[build]`: how the build is cut into jobs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BuildSpec {
+    /// Build each visual product as this many shards over windows of level-0 pages, merged at
+    /// the end (`dbms pyramid --shard I/N`, `--merge`); 1: one `dbms pyramid`.
+    pub shards: usize,
+}
+
+impl Scene {
+    /// How many shards each visual product is built as (1: unsharded).
+    pub fn shards(&self) -> usize {
+        self.build.map_or(1, |b| b.shards)
+    }
+
+    /// This scene with each visual product cut into `n` shards (`--shards N`: the scene's
+    /// `[build] shards` overridden), checked as the key is.
+    pub fn with_shards(mut self, n: usize) -> Result<Scene> {
+        self.build = Some(BuildSpec { shards: n });
+        self.check()?;
+        Ok(self)
+    }
 }
 
 /// `[materials]`: options of the materials step the sensor products read.
@@ -453,6 +482,15 @@ impl Scene {
         }
         for (name, product) in &self.products {
             product.check(&format!("products.{name}"))?;
+        }
+        if let Some(BuildSpec { shards }) = self.build {
+            if !(1..=MAX_SHARDS).contains(&shards) {
+                return Err(key_error(
+                    "build.shards",
+                    format!("is {shards}, not from 1 to {MAX_SHARDS}"),
+                    "give the number of jobs each visual product is cut into (1: one job)",
+                ));
+            }
         }
         Ok(())
     }

@@ -5,5 +5,6 @@ pub mod build;
 pub mod file;
 pub mod makefile;
 pub mod plan;
+pub mod snakefile;
 
 pub use file::Scene;

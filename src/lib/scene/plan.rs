@@ -161,8 +161,10 @@ pub fn steps(scene: &Scene) -> Vec<Step> {
         out.push(materials_step(scene, &last));
         last = "materials".into();
     }
-    if !visual.is_empty() {
-        out.push(product_step(scene, &visual, &last));
+    match (visual.is_empty(), scene.shards()) {
+        (true, _) => {}
+        (false, 1) => out.push(product_step(scene, &visual, &last)),
+        (false, n) => out.extend(sharded_steps(scene, &visual, &last, n)),
     }
     for (name, p) in sensor {
         out.extend(sensor_steps(scene, name, p, &last));
@@ -386,6 +388,88 @@ fn place_step(scene: &Scene, last: &str) -> Option<Step> {
     })
 }
 
+/// The sun options of `dbms pyramid` for product `p`: `--time T`, the angles, or none.
+fn sun_options(p: &Product) -> Vec<String> {
+    match (&p.time, &p.sun) {
+        (Some(t), _) => vec![s("--time"), t.clone()],
+        (None, Some(sun)) => vec![
+            s("--sun-elevation"),
+            s(sun.elevation),
+            s("--sun-azimuth"),
+            s(sun.azimuth),
+        ],
+        (None, None) => vec![],
+    }
+}
+
+/// The visual products built as `n` shards each, after the last database step `last`:
+/// `survey` (`dbms survey`, what every shard needs of the whole database), for each product
+/// `shard.NAME.I` (`dbms pyramid --shard I/N`, its part and record in the steps directory)
+/// and `product.NAME` (`dbms pyramid --merge` of its parts). Shards of every product are
+/// independent of each other: a scheduler runs them side by side, on one machine or many.
+fn sharded_steps(scene: &Scene, visual: &[(&String, &Product)], last: &str, n: usize) -> Vec<Step> {
+    let db = s(scene.database.dir.display());
+    let survey = steps_dir(scene).join("survey.json");
+    let mut out = vec![Step {
+        name: "survey".into(),
+        does: "what every shard must know of the whole database".into(),
+        commands: vec![vec![
+            s("survey"),
+            s("--db"),
+            db.clone(),
+            s("-o"),
+            s(survey.display()),
+        ]],
+        inputs: vec![],
+        outputs: vec![survey.clone()],
+        after: vec![last.to_string()],
+        writes_database: false,
+    }];
+    for (name, p) in visual {
+        let pyramid = || {
+            let mut c = vec![s("pyramid"), s("--db"), db.clone()];
+            c.extend(sun_options(p));
+            c
+        };
+        let parts: Vec<PathBuf> = (1..=n)
+            .map(|i| steps_dir(scene).join(format!("{name}.part-{i}-of-{n}.dbt")))
+            .collect();
+        for (i, part) in (1..=n).zip(&parts) {
+            let mut c = pyramid();
+            c.extend([
+                s("--shard"),
+                format!("{i}/{n}"),
+                s("--survey"),
+                s(survey.display()),
+            ]);
+            c.extend([s("-o"), s(part.display())]);
+            out.push(Step {
+                name: format!("shard.{name}.{i}"),
+                does: format!("shard {i} of {n} of the visual tile file {name}"),
+                commands: vec![c],
+                inputs: vec![],
+                outputs: vec![part.clone(), crate::pyramid::shard::record_path(part)],
+                after: vec!["survey".into()],
+                writes_database: false,
+            });
+        }
+        let mut c = pyramid();
+        c.push(s("--merge"));
+        c.extend(parts.iter().map(|p| s(p.display())));
+        c.extend([s("-o"), s(p.tiles.display())]);
+        out.push(Step {
+            name: format!("product.{name}"),
+            does: format!("the visual tile file, merged from its {n} shards"),
+            commands: vec![c],
+            inputs: vec![],
+            outputs: vec![p.tiles.clone()],
+            after: (1..=n).map(|i| format!("shard.{name}.{i}")).collect(),
+            writes_database: false,
+        });
+    }
+    out
+}
+
 /// The pyramids of the scene's products, after the last database step `last`: one
 /// `dbms pyramid` for all of them (`--product` for each after the first), so they share what
 /// stands on the terrain and every cast or detection more than one needs is made once. Named
@@ -396,16 +480,7 @@ fn product_step(scene: &Scene, visual: &[(&String, &Product)], last: &str) -> St
     cmd.push(s("--incremental"));
     let mut products = visual.iter().copied();
     let (_, first) = products.next().expect("a scene with visual products");
-    match (&first.time, &first.sun) {
-        (Some(t), _) => cmd.extend([s("--time"), t.clone()]),
-        (None, Some(sun)) => cmd.extend([
-            s("--sun-elevation"),
-            s(sun.elevation),
-            s("--sun-azimuth"),
-            s(sun.azimuth),
-        ]),
-        (None, None) => {}
-    }
+    cmd.extend(sun_options(first));
     cmd.extend([s("-o"), s(first.tiles.display())]);
     for (_, p) in products {
         let sun = match (&p.time, &p.sun) {
