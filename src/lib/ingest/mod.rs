@@ -176,20 +176,22 @@ fn write_database(
 ) -> Result<(LayerSummary, u64)> {
     let (mut change, old) = Database::begin_create(out, grid.clone(), inputs, opts.wait)?;
     if let Some(old) = old {
-        let added = old.layers.len().saturating_sub(2) + old.objects.len();
+        let added = old.layers.len().saturating_sub(2) + old.objects.len() + old.insets.len();
         if old.grid == *grid && !opts.overwrite {
             let m = &mut change.db.manifest;
             m.layers = old.layers;
             m.objects = old.objects;
             m.last_placement_id = old.last_placement_id;
+            m.insets = old.insets;
             m.stages = old.stages;
         } else if !opts.overwrite && added > 0 {
             return Err(Error::file(
                 out,
                 format!(
-                    "holds a database on another grid with {} more layer(s) and {} placed object(s), which re-ingest would drop",
+                    "holds a database on another grid with {} more layer(s), {} placed object(s) and {} inset(s), which re-ingest would drop",
                     old.layers.len().saturating_sub(2),
-                    old.objects.len()
+                    old.objects.len(),
+                    old.insets.len()
                 ),
             )
             .fix("give --overwrite to start it over, or ingest into a new directory"));
