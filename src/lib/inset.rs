@@ -180,7 +180,8 @@ impl InsetSpec {
         if !off.is_empty() {
             let parent_name = parent.unwrap_or("the base grid");
             return Err(Error::msg(format!(
-                "inset {name}: bounds {shown} are not on the cell edges of its parent ({parent_name}, {cx} x {cy} cells): {} off",
+                "inset {name}: bounds {shown} are not on the cell edges of its parent ({parent_name}, {cx} x {cy} {} cells): {} off",
+                parent_grid.crs.unit(),
                 off.join(", ")
             ))
             .fix(format!(

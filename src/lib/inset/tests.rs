@@ -126,7 +126,7 @@ fn misaligned_bounds_say_by_how_much_and_give_the_snapped_bounds() {
         &bounds(500_103.2, 4_999_000.0, 500_300.0, 4_999_251.5),
         &base(),
     ));
-    assert!(e.contains("inset town: bounds 500103.2,4999000,500300,4999251.5 are not on the cell edges of its parent (the base grid, 10 x 10 cells)"), "{e}");
+    assert!(e.contains("inset town: bounds 500103.2,4999000,500300,4999251.5 are not on the cell edges of its parent (the base grid, 10 x 10 metre cells)"), "{e}");
     assert!(e.contains("MINX by 3.2 m, MAXY by 1.5 m off"), "{e}");
     assert!(
         e.ends_with("give the bounds snapped outward to them: 500100,4999000,500300,4999260"),
