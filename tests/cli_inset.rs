@@ -298,3 +298,74 @@ fn insets_are_added_atomically_and_dropped_with_overwrite() {
     assert!(info_json(&db).get("insets").is_none());
     assert!(!db.join("insets/town").exists());
 }
+
+/// The parent's bilinear surface at world point `(x, y)`, from its cell-centre samples
+/// (clamped at its edges): computed here through world coordinates, independently of the
+/// library's integer path.
+fn bilinear(z: &Raster<f32>, x: f64, y: f64) -> f64 {
+    let (u, v) = z.grid.world_to_centre_space(x, y);
+    let (w, h) = (z.grid.width as f64 - 1.0, z.grid.height as f64 - 1.0);
+    let (u, v) = (u.clamp(0.0, w), v.clamp(0.0, h));
+    let (c, r) = (u.floor().min(w - 1.0), v.floor().min(h - 1.0));
+    let (tu, tv) = (u - c, v - r);
+    let at = |dc: f64, dr: f64| *z.get((c + dc) as usize, (r + dr) as usize) as f64;
+    (1.0 - tv) * ((1.0 - tu) * at(0.0, 0.0) + tu * at(1.0, 0.0))
+        + tv * ((1.0 - tu) * at(0.0, 1.0) + tu * at(1.0, 1.0))
+}
+
+/// The seam through the CLI: the outermost cells of an inset (and of an inset nested in it)
+/// lie on the parent's bilinear surface to 1 mm, cells a ring (= factor cells) in keep the
+/// DEM's own heights, and the border did need blending (the 1 m inset keeps the DEM's ±1 m
+/// ripple, which the 2 m base smooths away).
+#[test]
+fn the_inset_border_lies_on_the_parent_surface() {
+    use dbms::db::Database;
+    let dir = tempfile::tempdir().unwrap();
+    let (d, o, db) = base(dir.path());
+    for extra in [
+        &["--inset", "town:2:500010,5299970,500050,5299990"][..],
+        &[
+            "--inset",
+            "yard:4:500020,5299976,500030,5299984",
+            "--inset-parent",
+            "town",
+        ],
+    ] {
+        let out = add(&d, &o, &db, extra);
+        assert!(out.status.success(), "{extra:?}: {}", stderr(&out));
+    }
+    let base_db = Database::open(&db).unwrap();
+    let town = base_db.open_inset("town").unwrap();
+    let yard = base_db.open_inset("yard").unwrap();
+    assert_eq!(town.stages_run(), vec!["ingest", "seam"]);
+    let dem = |x: f64, y: f64| {
+        let (c, r) = ((x - X0).floor(), (Y0 - y).floor());
+        let ripple = if (c + r) as i64 % 2 == 0 { 1.0 } else { -1.0 };
+        300.0 + c * 0.5 - r * 0.25 + ripple
+    };
+    for (parent, child, factor) in [(&base_db, &town, 2usize), (&town, &yard, 4)] {
+        let (pz, z) = (
+            parent.read_elevation().unwrap(),
+            child.read_elevation().unwrap(),
+        );
+        let g = &z.grid;
+        let mut needed_blending = false;
+        for r in 0..g.height {
+            for c in 0..g.width {
+                let depth = c.min(r).min(g.width - 1 - c).min(g.height - 1 - r);
+                let (x, y) = g.cell_centre(c, r);
+                let v = *z.get(c, r) as f64;
+                if depth == 0 {
+                    let p = bilinear(&pz, x, y);
+                    assert!((v - p).abs() < 1e-3, "({c},{r}): {v} vs parent {p}");
+                    if factor == 2 {
+                        needed_blending |= (dem(x, y) - p).abs() > 0.5;
+                    }
+                } else if depth >= factor && factor == 2 {
+                    assert!((v - dem(x, y)).abs() < 1e-4, "({c},{r}): {v} vs DEM");
+                }
+            }
+        }
+        assert!(factor != 2 || needed_blending);
+    }
+}

@@ -10,7 +10,10 @@
 //! and cell are the parent's `origin + col0 · cell` and `cell / factor`, computed once, so inset
 //! cell edges on a parent edge agree with it to f64 rounding (below 1e-9 m at UTM magnitudes).
 //! Inset names are plain directory names; siblings (insets of one parent) never overlap.
-//! [`check_new`] is the one check every new inset passes.
+//! [`check_new`] is the one check every new inset passes. [`seam`] blends an inset's border
+//! into its parent's surface.
+
+pub mod seam;
 
 use crate::error::{Error, Result};
 use crate::grid::{Bounds, GeoTransform, Grid};

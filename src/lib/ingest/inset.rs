@@ -2,8 +2,9 @@
 //! existing database.
 //!
 //! The inset's grid is derived from its parent's ([`crate::inset`]); [`super::ingest`] writes
-//! the inset database `DB/insets/NAME/` on that grid, exactly as it writes a base; then the
-//! database records the inset. All of it is one change of the database: it holds the
+//! the inset database `DB/insets/NAME/` on that grid, exactly as it writes a base; its border
+//! is blended into the parent's surface ([`crate::inset::seam`]: the elevation layer rewritten
+//! band by band, recorded as the inset's stage `seam`); then the database records the inset. All of it is one change of the database: it holds the
 //! database's lock throughout, and its manifest's rename is the commit point — before it the
 //! database has no such inset (a killed run leaves a directory the next change removes), after
 //! it the inset is there, whole.
@@ -12,8 +13,10 @@ use super::{ingest, IngestOptions, IngestSummary};
 use crate::db::{self, Database, InsetRecord, Stage, MANIFEST_FILE};
 use crate::error::{Error, Result};
 use crate::grid::{Bounds, Grid};
+use crate::inset::seam::{self, ParentSurface};
 use crate::inset::{self, InsetSpec};
 use crate::progress::Progress;
+use crate::raster::RowSource;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -126,6 +129,7 @@ pub fn add_inset(
         &dir,
         progress,
     )?;
+    blend_seam(&change.db, &spec, &dir, opts.wait)?;
     let manifest_sha256 = db::sha256_file(&dir.join(MANIFEST_FILE))?;
     change.db.manifest.insets.push(InsetRecord {
         spec: spec.clone(),
@@ -150,6 +154,48 @@ pub fn add_inset(
         inset: spec,
         ingest: summary,
     })
+}
+
+/// Blend the border of inset `spec`, just ingested into `dir`, into its parent's surface (the
+/// parent read from `db`, the database it joins): the inset's elevation layer is rewritten band
+/// by band through a change of the inset database, which records the stage `seam`.
+fn blend_seam(
+    db: &Database,
+    spec: &InsetSpec,
+    dir: &Path,
+    wait: std::time::Duration,
+) -> Result<()> {
+    let parent_db = match &spec.parent {
+        None => db.clone(),
+        Some(p) => db.open_inset(p)?,
+    };
+    let parent = parent_db.grid();
+    let (_, rows) = ParentSurface::needs(spec, parent);
+    let parent_rows = parent_db.elevation_rows()?;
+    let parent_z = parent_rows.read_rows(rows.start, rows.len())?;
+    let surface = ParentSurface::new(spec, parent, &parent_z);
+    let mut change = Database::begin(dir, wait)?;
+    let source = change.db.elevation_rows()?;
+    let grid = change.db.grid().clone();
+    let nodata = change.db.manifest.layers[db::ELEVATION].nodata_cells;
+    change.write_layer(db::ELEVATION, "elevation", "tif", |path| {
+        let mut out = crate::io::geotiff::GeoTiffWriter::create_f32(path, &grid)?;
+        for rows in super::bands(&grid) {
+            let mut z = source.read_rows(rows.start, rows.len())?.into_owned();
+            surface.blend_rows(rows, &mut z);
+            out.push_rows(&z)?;
+        }
+        out.finish()?;
+        Ok(nodata)
+    })?;
+    change.db.record_stage(Stage::now(
+        "seam",
+        serde_json::json!({
+            "parent": spec.parent, "ring_cells": seam::ring_cells(spec.factor),
+            "blend": "linear from the parent's bilinear surface at the outer edge to the inset's own",
+        }),
+    ));
+    change.commit()
 }
 
 /// The lines of the route file `path` (GeoJSON LineString or MultiLineString features, CRS
