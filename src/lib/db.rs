@@ -17,12 +17,13 @@
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
+use crate::inset::InsetSpec;
 use crate::io::atomic::write_database_file;
 use crate::io::SourceRaster;
 use crate::manifest::hex;
 pub use crate::manifest::{
-    InputFile, LatLon, Layer, Manifest, PlacedObject, Provenance, Stage, Units, FORMAT_NAME,
-    FORMAT_VERSION, LOCK_FILE, MANIFEST_FILE,
+    InputFile, InsetRecord, LatLon, Layer, Manifest, PlacedObject, Provenance, Stage, Units,
+    FORMAT_NAME, FORMAT_VERSION, INSETS_DIR, LOCK_FILE, MANIFEST_FILE,
 };
 use crate::raster::{Colour, Elevation, Raster, RowSource};
 use sha2::{Digest, Sha256};
@@ -74,6 +75,7 @@ impl Database {
             layers: BTreeMap::new(),
             objects: Vec::new(),
             last_placement_id: 0,
+            insets: Vec::new(),
             provenance: Provenance {
                 inputs,
                 dbms_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -114,6 +116,48 @@ impl Database {
         let (lat, lon) = self.centre_lat_lon()?;
         let (cx, cy) = self.grid().centre();
         Some((lat, lon, self.grid().crs.grid_convergence_deg(cx, cy)?))
+    }
+
+    /// The insets' specifications, parents before their children (empty: no insets).
+    pub fn insets(&self) -> Vec<InsetSpec> {
+        self.manifest.inset_specs()
+    }
+
+    /// The directory of inset `name`: `DB/insets/NAME/`, a database of its own.
+    pub fn inset_dir(&self, name: &str) -> PathBuf {
+        self.dir.join(INSETS_DIR).join(name)
+    }
+
+    /// The grid of inset `name`, derived from the base grid through its parents
+    /// ([`crate::inset::grid_of`]).
+    pub fn inset_grid(&self, name: &str) -> Result<Grid> {
+        crate::inset::grid_of(name, &self.insets(), self.grid()).map_err(|e| e.in_file(&self.dir))
+    }
+
+    /// Open inset `name` as a database, checked against this one: its manifest is the one
+    /// recorded (SHA-256) and its grid the derived one.
+    pub fn open_inset(&self, name: &str) -> Result<Database> {
+        let grid = self.inset_grid(name)?;
+        let dir = self.inset_dir(name);
+        let record = self.manifest.insets.iter().find(|r| r.spec.name == name);
+        let want = &record.expect("inset_grid found it").manifest_sha256;
+        let file = dir.join(MANIFEST_FILE);
+        if !file.exists() || sha256_file(&file)? != *want {
+            return Err(Error::file(
+                &file,
+                format!("is not the manifest of inset {name} that the database recorded (missing, changed or corrupt)"),
+            )
+            .fix("re-create the database and its insets with `dbms ingest`"));
+        }
+        let inset = Database::open(&dir)?;
+        if *inset.grid() != grid {
+            return Err(Error::file(
+                &file,
+                format!("its grid is not inset {name}'s grid in its parent"),
+            )
+            .fix("re-create the database and its insets with `dbms ingest`"));
+        }
+        Ok(inset)
     }
 
     /// Path of a layer's file, or an error naming the stage that makes it.
@@ -291,9 +335,14 @@ impl Database {
         self.manifest.owns(name)
     }
 
-    /// Check every layer and object file against its recorded SHA-256; the first mismatch is an
-    /// error. (The manifest's own checksum and file names were checked by [`Database::open`].)
+    /// Check every layer and object file against its recorded SHA-256, and every inset as a
+    /// database of its own ([`open_inset`](Self::open_inset), then its files); the first
+    /// mismatch is an error. (The manifest's own checksum and file names were checked by
+    /// [`Database::open`].)
     pub fn verify(&self) -> Result<()> {
+        for spec in self.insets() {
+            self.open_inset(&spec.name)?.verify()?;
+        }
         for (file, sha) in self.manifest.files() {
             let path = self.dir.join(file);
             if &sha256_file(&path)? != sha {
@@ -323,8 +372,12 @@ pub struct Change {
     pub db: Database,
     /// The files the manifest named when the change began.
     before: Vec<String>,
+    /// The insets the manifest named when the change began.
+    before_insets: Vec<String>,
     /// Files this change created (removed if it is dropped uncommitted).
     written: Vec<PathBuf>,
+    /// Inset directories this change created (removed if it is dropped uncommitted).
+    written_dirs: Vec<PathBuf>,
     committed: bool,
     _lock: std::fs::File,
 }
@@ -402,11 +455,15 @@ fn lock(dir: &Path, wait: std::time::Duration) -> Result<std::fs::File> {
 impl Change {
     fn new(db: Database, lock: std::fs::File) -> Result<Change> {
         let before: Vec<String> = db.manifest.files().map(|(f, _)| f.clone()).collect();
+        let before_insets: Vec<String> = db.insets().into_iter().map(|s| s.name).collect();
         clear_leftovers(&db.dir, &before)?;
+        clear_inset_leftovers(&db.dir, &before_insets)?;
         Ok(Change {
             db,
             before,
+            before_insets,
             written: Vec::new(),
+            written_dirs: Vec::new(),
             committed: false,
             _lock: lock,
         })
@@ -459,6 +516,20 @@ impl Change {
         }
     }
 
+    /// Note that this change is creating inset `name`'s directory ([`Database::inset_dir`]),
+    /// so that an uncommitted change removes it; an error when it is an inset the database
+    /// already has.
+    pub fn wrote_inset(&mut self, name: &str) -> Result<()> {
+        if self.before_insets.iter().any(|n| n == name) {
+            return Err(
+                Error::file(&self.db.dir, format!("already has an inset {name}"))
+                    .fix("give the new inset another name"),
+            );
+        }
+        self.written_dirs.push(self.db.inset_dir(name));
+        Ok(())
+    }
+
     /// Commit: save the manifest (the rename that switches the database to the new state),
     /// then remove the files the old state named and the new one does not.
     pub fn commit(mut self) -> Result<()> {
@@ -470,6 +541,12 @@ impl Change {
         for f in self.before.iter().filter(|f| !now.contains(f)) {
             let _ = std::fs::remove_file(self.db.dir.join(f));
         }
+        let insets = self.db.insets();
+        for name in &self.before_insets {
+            if !insets.iter().any(|s| s.name == *name) {
+                let _ = std::fs::remove_dir_all(self.db.inset_dir(name));
+            }
+        }
         Ok(())
     }
 }
@@ -479,6 +556,9 @@ impl Drop for Change {
         if !self.committed {
             for f in &self.written {
                 let _ = std::fs::remove_file(f);
+            }
+            for d in &self.written_dirs {
+                let _ = std::fs::remove_dir_all(d);
             }
         }
     }
@@ -495,6 +575,27 @@ fn clear_leftovers(dir: &Path, named: &[String]) -> Result<()> {
             || (content_named(&name) && !named.iter().any(|f| *f == name))
         {
             let _ = std::fs::remove_file(e.path());
+        }
+    }
+    Ok(())
+}
+
+/// Remove the inset directories of `dir` (under its lock) that its committed manifest does
+/// not name (`named`): made by a change killed before its commit, or left by one that dropped
+/// them.
+fn clear_inset_leftovers(dir: &Path, named: &[String]) -> Result<()> {
+    let insets = dir.join(INSETS_DIR);
+    let Ok(entries) = std::fs::read_dir(&insets) else {
+        return Ok(()); // no insets directory: nothing to clear
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !named.contains(&name) {
+            let path = e.path();
+            let _ = match path.is_dir() {
+                true => std::fs::remove_dir_all(&path),
+                false => std::fs::remove_file(&path),
+            };
         }
     }
     Ok(())
@@ -676,6 +777,113 @@ mod tests {
             e.contains("299 cells wide") && e.contains("dbms ingest"),
             "{e}"
         );
+    }
+
+    /// A database with inset `a` over base cells 1..3 x 1..3 at factor 2, both with one layer
+    /// file: the inset's directory and record written as a change does.
+    fn with_inset(dir: &Path) -> Database {
+        let grid = Grid::north_up(500_000.0, 5_000_000.0, 10.0, 4, 4, Crs::epsg(32632));
+        let mut db = Database::create(dir, grid.clone(), vec![]).unwrap();
+        let spec = InsetSpec {
+            name: "a".into(),
+            parent: None,
+            factor: 2,
+            window: crate::inset::CellWindow {
+                col0: 1,
+                row0: 1,
+                col1: 3,
+                row1: 3,
+            },
+        };
+        let mut inset = Database::create(&db.inset_dir("a"), spec.grid(&grid), vec![]).unwrap();
+        std::fs::write(inset.dir.join("x.bin"), b"abc").unwrap();
+        inset.set_layer("x", "test", "x.bin", None).unwrap();
+        inset.save().unwrap();
+        let manifest_sha256 = sha256_file(&inset.dir.join(MANIFEST_FILE)).unwrap();
+        db.manifest.insets.push(InsetRecord {
+            spec,
+            manifest_sha256,
+        });
+        db.save().unwrap();
+        db
+    }
+
+    /// Insets are databases in `insets/NAME/`, opened and verified through the base, which
+    /// refuses one whose manifest is not the recorded one; a manifest without insets writes
+    /// no `insets` member.
+    #[test]
+    fn insets_open_and_verify_through_the_base() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = Database::open(with_inset(dir.path()).dir.as_path()).unwrap();
+        assert_eq!(db.insets().len(), 1);
+        let a = db.open_inset("a").unwrap();
+        assert_eq!(a.grid(), &db.inset_grid("a").unwrap());
+        assert_eq!((a.grid().width, a.grid().transform.cell_x), (4, 5.0));
+        assert!(db.owns(INSETS_DIR));
+        db.verify().unwrap();
+        std::fs::write(a.dir.join("x.bin"), b"abd").unwrap();
+        assert!(db
+            .verify()
+            .unwrap_err()
+            .to_string()
+            .contains("x.bin: checksum"));
+        let mut a = a;
+        a.save().unwrap(); // same content: same manifest
+        let mut changed = Database::open(&a.dir).unwrap();
+        changed.set_layer("x", "test", "x.bin", None).unwrap();
+        changed.save().unwrap();
+        let e = db.open_inset("a").unwrap_err().to_string();
+        assert!(
+            e.contains("is not the manifest of inset a that the database recorded"),
+            "{e}"
+        );
+        assert!(db.open_inset("b").is_err());
+        let plain = Database::create(dir.path(), db.grid().clone(), vec![]).unwrap();
+        assert!(!plain.manifest.text().contains("insets"));
+        assert!(!plain.owns(INSETS_DIR));
+    }
+
+    /// A manifest naming an inset outside `insets/` (or on no grid) is refused when opened.
+    #[test]
+    fn a_manifest_with_a_bad_inset_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut db = with_inset(dir.path());
+        db.manifest.insets[0].spec.name = "../a".into();
+        db.save().unwrap();
+        let e = Database::open(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("names a bad inset: inset name \"../a\" is not a plain name"),
+            "{e}"
+        );
+        db.manifest.insets[0].spec.name = "a".into();
+        db.manifest.insets[0].spec.window.col1 = 9;
+        db.save().unwrap();
+        let e = Database::open(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("names a bad inset: inset a: its window"), "{e}");
+    }
+
+    /// A change that drops an inset removes its directory when it commits; one that made an
+    /// inset directory and did not commit removes it; the next change removes inset
+    /// directories the manifest does not name (a killed change's).
+    #[test]
+    fn changes_keep_inset_directories_in_step_with_the_manifest() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = with_inset(dir.path());
+        let wait = std::time::Duration::from_secs(1);
+        {
+            let mut change = Database::begin(dir.path(), wait).unwrap();
+            assert!(change.wrote_inset("a").is_err());
+            change.wrote_inset("b").unwrap();
+            std::fs::create_dir_all(db.inset_dir("b")).unwrap();
+        }
+        assert!(!db.inset_dir("b").exists() && db.inset_dir("a").exists());
+        std::fs::create_dir_all(db.inset_dir("killed")).unwrap();
+        let mut change = Database::begin(dir.path(), wait).unwrap();
+        assert!(!db.inset_dir("killed").exists());
+        change.db.manifest.insets.clear();
+        change.commit().unwrap();
+        assert!(!db.inset_dir("a").exists());
+        assert!(Database::open(dir.path()).unwrap().insets().is_empty());
     }
 
     #[test]

@@ -30,6 +30,7 @@ pub mod error;
 pub mod geojson;
 pub mod grid;
 pub mod ingest;
+pub mod inset;
 pub mod io;
 pub mod lights;
 pub mod manifest;

@@ -9,6 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
+use crate::inset::InsetSpec;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
@@ -45,6 +46,12 @@ pub struct Manifest {
     /// reused; 0 before the first.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub last_placement_id: u64,
+    /// Every inset of the database, nested ones too, parents before their children; each is a
+    /// database of its own in `insets/NAME/` ([`crate::db::Database::open_inset`]). Absent
+    /// (and not written) when there are none, so manifests without insets read and write as
+    /// before.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub insets: Vec<InsetRecord>,
     /// Where the database came from.
     pub provenance: Provenance,
     /// Stages that have run, in order (ingest first).
@@ -81,6 +88,17 @@ impl Manifest {
         let layers = self.layers.values().map(|l| (&l.file, &l.sha256));
         layers.chain(self.objects.iter().map(|o| (&o.file, &o.sha256)))
     }
+}
+
+/// An inset as the database's manifest records it: where it lies and which inset manifest
+/// it is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InsetRecord {
+    /// Name, parent, factor and window of parent cells.
+    #[serde(flatten)]
+    pub spec: InsetSpec,
+    /// Lower-case hex SHA-256 of the inset's `manifest.json` file as committed with this one.
+    pub manifest_sha256: String,
 }
 
 /// Units of a database.
@@ -204,6 +222,9 @@ impl Stage {
     }
 }
 
+/// The directory of a database's insets: inset `NAME` is the database `insets/NAME/`.
+pub const INSETS_DIR: &str = "insets";
+
 /// The lock file in a database directory. A [`crate::db::Change`] holds an exclusive advisory
 /// lock (`flock`) on it; it is never removed (removing it would let two writers lock two files).
 pub const LOCK_FILE: &str = ".dbms.lock";
@@ -258,6 +279,10 @@ impl Manifest {
             }
         }
         manifest.number_placements();
+        manifest.check_insets().map_err(|e| {
+            Error::file(&path, format!("names a bad inset: {}", e.problem))
+                .fix("re-create the database with `dbms ingest`")
+        })?;
         if let Some((file, _)) = manifest.files().find(|(f, _)| !inside(f)) {
             return Err(Error::file(
                 &path,
@@ -266,6 +291,22 @@ impl Manifest {
             .fix("re-create the database with `dbms ingest`"));
         }
         Ok(manifest)
+    }
+
+    /// The insets' specifications, in the manifest's order (parents first).
+    pub fn inset_specs(&self) -> Vec<InsetSpec> {
+        self.insets.iter().map(|r| r.spec.clone()).collect()
+    }
+
+    /// An error unless every inset has a plain name, its own, and a grid: its parents are
+    /// earlier insets, its window inside its parent ([`crate::inset::check_new`] against the
+    /// insets before it).
+    fn check_insets(&self) -> Result<()> {
+        let specs = self.inset_specs();
+        for (k, spec) in specs.iter().enumerate() {
+            crate::inset::check_new(spec, &specs[..k], &self.grid)?;
+        }
+        Ok(())
     }
 
     /// Give every placement without an id (from a dbms before ids) a new one, in placement
@@ -289,7 +330,10 @@ impl Manifest {
     /// Whether the database owns file `name` of its directory: the manifest, the lock, or a
     /// file the manifest names.
     pub fn owns(&self, name: &str) -> bool {
-        name == MANIFEST_FILE || name == LOCK_FILE || self.files().any(|(f, _)| f == name)
+        name == MANIFEST_FILE
+            || name == LOCK_FILE
+            || (name == INSETS_DIR && !self.insets.is_empty())
+            || self.files().any(|(f, _)| f == name)
     }
 }
 

@@ -5,7 +5,7 @@ use dbms::db::Database;
 use dbms::manifest::Manifest;
 use std::path::{Path, PathBuf};
 
-/// Print what a database holds: grid, CRS, layers with checksums, objects, stages run.
+/// Print what a database holds: grid, CRS, layers with checksums, objects, insets, stages run.
 #[derive(clap::Args)]
 pub struct Args {
     /// The database directory.
@@ -105,6 +105,21 @@ impl std::fmt::Display for DatabaseInfo<'_> {
                     o.z,
                     o.heading_deg,
                     o.scale_note()
+                )?;
+            }
+        }
+        if !m.insets.is_empty() {
+            writeln!(f, "insets:")?;
+            for i in &m.insets {
+                let s = &i.spec;
+                writeln!(
+                    f,
+                    "  {}: factor {} of {}, parent {} (insets/{}/)",
+                    s.name,
+                    s.factor,
+                    s.parent.as_deref().unwrap_or("the base grid"),
+                    s.window,
+                    s.name
                 )?;
             }
         }

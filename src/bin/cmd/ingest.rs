@@ -2,6 +2,7 @@
 
 use super::Ctx;
 use dbms::grid::Bounds;
+use dbms::ingest::inset::{add_inset, InsetArea, InsetRequest};
 use dbms::ingest::{self, resample::Resampling, IngestOptions};
 use std::path::PathBuf;
 
@@ -40,13 +41,31 @@ pub struct Args {
     #[arg(long, value_name = "SRS")]
     t_srs: Option<String>,
     /// Output database directory. A database there on the same grid keeps what later stages
-    /// added (buildings, placed objects), unless --overwrite; on another grid see --overwrite.
+    /// added (buildings, placed objects, insets), unless --overwrite; on another grid see
+    /// --overwrite. With --inset or --corridor: the existing database the inset joins.
     #[arg(short, long, value_name = "DB")]
     output: PathBuf,
     /// Start over the database in the output directory (on any grid), dropping its buildings
     /// layer, placed objects and stage records.
     #[arg(long)]
     overwrite: bool,
+    /// Add an inset to the existing database DB instead of making one: the DEM and photo are
+    /// registered onto the parent's cells inside the bounds (on the parent's cell edges, CRS
+    /// units), each split into FACTOR x FACTOR cells (FACTOR 2 to 10), in DB/insets/NAME/.
+    #[arg(long, value_name = "NAME:FACTOR:MINX,MINY,MAXX,MAXY", allow_hyphen_values = true,
+          conflicts_with_all = ["cell", "bounds", "t_srs", "overwrite", "corridor"])]
+    inset: Option<String>,
+    /// Add a corridor inset along --route: its bounding rectangle buffered by BUFFER_M metres,
+    /// snapped outward to the parent's cells and clipped to the parent.
+    #[arg(long, value_name = "NAME:FACTOR:BUFFER_M", requires = "route",
+          conflicts_with_all = ["cell", "bounds", "t_srs", "overwrite"])]
+    corridor: Option<String>,
+    /// The corridor's route: GeoJSON LineString features in the database's CRS.
+    #[arg(long, value_name = "GEOJSON", requires = "corridor")]
+    route: Option<PathBuf>,
+    /// The inset that --inset or --corridor refines [default: the base grid].
+    #[arg(long, value_name = "NAME")]
+    inset_parent: Option<String>,
 }
 
 fn parse_bounds(s: &str) -> Result<Bounds, String> {
@@ -66,8 +85,36 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         t_srs: args.t_srs,
         wait: ctx.wait,
         overwrite: args.overwrite,
+        grid: None,
     };
     let progress = ctx.progress(6, "ingest");
-    ctx.report(&ingest::ingest(&opts, &args.output, &progress)?);
+    let request = match (&args.inset, &args.corridor, args.route) {
+        (Some(arg), _, _) => {
+            let (name, factor, bounds) = dbms::inset::parse_inset_arg(arg)?;
+            Some((name, factor, InsetArea::Bounds(bounds)))
+        }
+        (None, Some(arg), Some(route)) => {
+            let (name, factor, buffer_m) = dbms::inset::parse_corridor_arg(arg)?;
+            Some((name, factor, InsetArea::Corridor { route, buffer_m }))
+        }
+        _ => None,
+    };
+    let Some((name, factor, area)) = request else {
+        if let Some(p) = args.inset_parent {
+            return Err(
+                dbms::Error::msg(format!("--inset-parent {p} without an inset to add"))
+                    .fix("give --inset or --corridor with it, or leave it out"),
+            );
+        }
+        ctx.report(&ingest::ingest(&opts, &args.output, &progress)?);
+        return Ok(());
+    };
+    let request = InsetRequest {
+        name,
+        parent: args.inset_parent,
+        factor,
+        area,
+    };
+    ctx.report(&add_inset(&opts, &args.output, &request, &progress)?);
     Ok(())
 }

@@ -8,6 +8,7 @@
 //! Delaunay interpolation ([`fill`]).
 
 pub mod fill;
+pub mod inset;
 #[cfg(feature = "gdal")]
 pub mod reproject;
 pub mod resample;
@@ -54,6 +55,10 @@ pub struct IngestOptions {
     /// Replace a database on another grid in `out`, dropping what later stages added to it;
     /// without it that is an error. (On the same grid they are kept.)
     pub overwrite: bool,
+    /// The database grid, when it is given rather than planned from the inputs (an inset's,
+    /// [`inset::add_inset`]): `cell`, `bounds` and `t_srs` are then unused, and the inputs
+    /// must be in its CRS (or, with feature `gdal`, are warped onto it).
+    pub grid: Option<Grid>,
 }
 
 /// What ingest produced, for the summary and `--json`.
@@ -122,7 +127,10 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     progress.inc(1);
     let ortho = RasterInput::open(&opts.ortho)?;
     progress.inc(1);
-    let target = target_crs(opts, dem.grid(), ortho.grid())?;
+    let target = match &opts.grid {
+        Some(g) => g.crs.clone(),
+        None => target_crs(opts, dem.grid(), ortho.grid())?,
+    };
     // dbms works in metres: a State Plane grid in feet, or heights in feet, would be read wrong.
     let target_from = match &opts.t_srs {
         Some(_) => Path::new("--t-srs"),
@@ -130,7 +138,10 @@ pub fn ingest(opts: &IngestOptions, out: &Path, progress: &Progress) -> Result<I
     };
     target.require_metric_coordinates(target_from)?;
     dem.grid().crs.require_metric_heights(&opts.dem)?;
-    let grid = plan_grid(&dem, &ortho, opts, &target)?;
+    let grid = match &opts.grid {
+        Some(g) => given_grid(g, &dem, &ortho, opts)?,
+        None => plan_grid(&dem, &ortho, opts, &target)?,
+    };
 
     // Each file read: a mosaic's tiles one by one.
     let mut inputs = Vec::new();
@@ -176,20 +187,22 @@ fn write_database(
 ) -> Result<(LayerSummary, u64)> {
     let (mut change, old) = Database::begin_create(out, grid.clone(), inputs, opts.wait)?;
     if let Some(old) = old {
-        let added = old.layers.len().saturating_sub(2) + old.objects.len();
+        let added = old.layers.len().saturating_sub(2) + old.objects.len() + old.insets.len();
         if old.grid == *grid && !opts.overwrite {
             let m = &mut change.db.manifest;
             m.layers = old.layers;
             m.objects = old.objects;
             m.last_placement_id = old.last_placement_id;
+            m.insets = old.insets;
             m.stages = old.stages;
         } else if !opts.overwrite && added > 0 {
             return Err(Error::file(
                 out,
                 format!(
-                    "holds a database on another grid with {} more layer(s) and {} placed object(s), which re-ingest would drop",
+                    "holds a database on another grid with {} more layer(s), {} placed object(s) and {} inset(s), which re-ingest would drop",
                     old.layers.len().saturating_sub(2),
-                    old.objects.len()
+                    old.objects.len(),
+                    old.insets.len()
                 ),
             )
             .fix("give --overwrite to start it over, or ingest into a new directory"));
@@ -496,15 +509,73 @@ pub fn plan_grid(
             with_cells(&b, ot.cell_x.abs(), ot.cell_y.abs(), crs)?
         }
     };
-    let cells = grid.width as u64 * grid.height as u64;
-    if cells > opts.max_cells {
-        return Err(Error::msg(format!(
-            "the database grid would be {} x {} = {cells} cells, more than --max-cells {}",
-            grid.width, grid.height, opts.max_cells
-        ))
-        .fix("check --cell and --bounds, or raise --max-cells if this is really wanted"));
-    }
+    check_size(&grid, opts.max_cells)?;
     Ok(grid)
+}
+
+/// An error when `grid` has more than `max_cells` cells (`--max-cells`).
+fn check_size(grid: &Grid, max_cells: u64) -> Result<()> {
+    let cells = grid.width as u64 * grid.height as u64;
+    if cells > max_cells {
+        return Err(Error::msg(format!(
+            "the database grid would be {} x {} = {cells} cells, more than --max-cells {max_cells}",
+            grid.width, grid.height
+        ))
+        .fix("check --cell, --bounds or the inset's size and factor, or raise --max-cells if this is really wanted"));
+    }
+    Ok(())
+}
+
+/// The given database grid `grid` (an inset's), checked against the inputs: each has a CRS
+/// when the grid does and is in it (other CRSs need feature `gdal`), each reaches into the grid,
+/// and the grid fits `--max-cells`.
+fn given_grid(
+    grid: &Grid,
+    dem: &RasterInput,
+    ortho: &RasterInput,
+    opts: &IngestOptions,
+) -> Result<Grid> {
+    let db = grid.bounds();
+    for (input, what) in [(dem, "DEM"), (ortho, "orthophoto")] {
+        let (crs, path) = (&input.grid().crs, &input.meta().path);
+        if crs.is_unknown() != grid.crs.is_unknown()
+            || (!cfg!(feature = "gdal") && !crs.same_as(&grid.crs))
+        {
+            return Err(Error::file(
+                path,
+                format!(
+                    "the {what} is in {}, but the database is in {}",
+                    crs.name(),
+                    grid.crs.name()
+                ),
+            )
+            .fix(format!(
+                "reproject it onto the database's CRS (gdalwarp -t_srs {} ...){}",
+                grid.crs
+                    .epsg
+                    .map_or("<the database's CRS>".to_string(), |c| format!("EPSG:{c}")),
+                if cfg!(feature = "gdal") {
+                    ""
+                } else {
+                    ", or build dbms with --features gdal"
+                }
+            )));
+        }
+        let extent = extent_in(input, &grid.crs, &dem.grid().crs)?;
+        if extent.intersection(&db).is_none() {
+            return Err(Error::file(
+                path,
+                format!(
+                    "the {what}'s extent {} does not reach the database grid's {}",
+                    show(&extent),
+                    show(&db)
+                ),
+            )
+            .fix(format!("give a {what} that covers it")));
+        }
+    }
+    check_size(grid, opts.max_cells)?;
+    Ok(grid.clone())
 }
 
 /// An error unless `--cell`, if given, is a positive size in the metres of a projected `crs`.
