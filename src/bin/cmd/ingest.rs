@@ -46,7 +46,7 @@ pub struct Args {
     #[arg(short, long, value_name = "DB")]
     output: PathBuf,
     /// Start over the database in the output directory (on any grid), dropping its buildings
-    /// layer, placed objects and stage records.
+    /// layer, placed objects, insets and stage records.
     #[arg(long)]
     overwrite: bool,
     /// Add an inset to the existing database DB instead of making one: the DEM and photo are
