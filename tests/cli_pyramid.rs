@@ -1260,3 +1260,199 @@ fn bad_shards_and_merges_are_one_line_errors() {
     ];
     fails(&many, "cannot be cut into 21 windows");
 }
+
+/// A sample database (`dbms sample --size 160`: a 320² grid of 0.25 m, buildings raised from
+/// its truth's heights are not needed here) with its trees' twin: one tree placed.
+fn sample_db(dir: &Path) -> PathBuf {
+    let scene = dir.join("scene");
+    let run = |args: &[&str]| {
+        let o = dbms(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    run(&[
+        "-q",
+        "sample",
+        "--size",
+        "160",
+        "-o",
+        scene.to_str().unwrap(),
+    ]);
+    let db = dir.join("db");
+    let (dem, ortho) = (scene.join("dem.tif"), scene.join("ortho.tif"));
+    let ingest = |extra: &[&str]| {
+        let mut a = vec![
+            "-q",
+            "ingest",
+            "--dem",
+            dem.to_str().unwrap(),
+            "--ortho",
+            ortho.to_str().unwrap(),
+        ];
+        a.extend_from_slice(&[
+            "--photo-time",
+            "2026-09-15T08:30:00Z",
+            "-o",
+            db.to_str().unwrap(),
+        ]);
+        a.extend_from_slice(extra);
+        run(&a);
+    };
+    ingest(&[]);
+    let tree = dir.join("tree.dvox");
+    run(&[
+        "-q",
+        "object",
+        "cone",
+        "--height",
+        "6",
+        "--radius",
+        "2",
+        "--voxel",
+        "0.5",
+        "-o",
+        tree.to_str().unwrap(),
+    ]);
+    run(&[
+        "-q",
+        "place",
+        "--db",
+        db.to_str().unwrap(),
+        "--object",
+        tree.to_str().unwrap(),
+        "--at",
+        "500030,5300030",
+    ]);
+    db
+}
+
+/// With insets the pyramid writes a tile file per inset beside the base's, listed in the base
+/// header; every parent cell over an inset holds its cover (max Z bounding every inset cell
+/// under it), pages away from the insets are those of a build without them, and `dbms tiles
+/// --verify` checks all of it, refusing a region file built apart.
+#[test]
+fn insets_get_their_own_tile_files_and_their_parents_cover_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = sample_db(dir.path());
+    let d = db.to_str().unwrap();
+    let scene = dir.path().join("scene");
+    let sun = ["--sun-elevation", "30", "--sun-azimuth", "135"];
+    let before = dir.path().join("before.dbt");
+    pyramid(&db, &before, &sun);
+    let inset = |spec: &str, parent: Option<&str>| {
+        let mut a = vec![
+            "-q", "ingest", "--dem", "", "--ortho", "", "-o", d, "--inset", spec,
+        ];
+        let (dem, ortho) = (scene.join("dem.tif"), scene.join("ortho.tif"));
+        a[3] = dem.to_str().unwrap();
+        a[5] = ortho.to_str().unwrap();
+        a.extend_from_slice(&["--photo-time", "2026-09-15T08:30:00Z"]);
+        if let Some(p) = parent {
+            a.extend_from_slice(&["--inset-parent", p]);
+        }
+        let o = dbms(&a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    // A 4× inset around the tree, and a 2× one nested in it.
+    inset("town:4:500020,5300020,500040,5300040", None);
+    inset("yard:2:500028,5300028,500032,5300032", Some("town"));
+    let out = dir.path().join("t.dbt");
+    let s = pyramid(&db, &out, &sun);
+    let names: Vec<&str> = s["regions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["town", "yard"]);
+    let base = TileReader::open(&out, 64).unwrap();
+    check_schema("tiles-header", &serde_json::to_value(base.info()).unwrap());
+    let regions = &base.info().regions;
+    assert_eq!(regions[1].parent.as_deref(), Some("town"));
+    let town = TileReader::open(&dir.path().join("t.town.dbt"), 64).unwrap();
+    let yard = TileReader::open(&dir.path().join("t.yard.dbt"), 64).unwrap();
+    assert_eq!(town.info().grid.width, 80 * 4);
+    assert_eq!(yard.info().grid.width, 16 * 4 * 2);
+    // The max Z of every parent cell bounds each region cell under it, nested too.
+    for (parent, child, r) in [(&base, &town, &regions[0]), (&town, &yard, &regions[1])] {
+        let g = &child.info().grid;
+        let mut highest_seen = false;
+        for row in 0..g.height {
+            for col in 0..g.width {
+                let (pc, pr) = r.spec().parent_cell(col, row);
+                let p = parent.cell(0, pc, pr).unwrap().unwrap();
+                let c = child.cell(0, col, row).unwrap().unwrap();
+                if !c.max_z.is_nan() {
+                    assert!(
+                        p.max_z >= c.max_z,
+                        "{}: ({col}, {row}) {} over {}",
+                        r.name,
+                        p.max_z,
+                        c.max_z
+                    );
+                    highest_seen |= p.max_z == c.max_z;
+                }
+            }
+        }
+        assert!(
+            highest_seen,
+            "{}: the parent holds the region's maxima, not some higher bound",
+            r.name
+        );
+    }
+    // The tree (6 m) stands in every region, at each one's resolution.
+    let top = |t: &TileReader| {
+        let levels = &t.info().levels;
+        let (k, l) = (levels.len() - 1, &levels[levels.len() - 1]);
+        let cells = (0..l.height).flat_map(|r| (0..l.width).map(move |c| (c, r)));
+        cells.fold(f32::MIN, |m, (c, r)| {
+            m.max(t.cell(k, c, r).unwrap().unwrap().max_z)
+        })
+    };
+    assert!(
+        top(&yard) > 380.0 && top(&yard) == top(&town),
+        "{} {}",
+        top(&yard),
+        top(&town)
+    );
+    // Away from the insets the base's level-0 pages are those of the build without them: the
+    // 320² grid has 10 × 10 pages of 32 and the town covers its columns 80..160 and rows
+    // 160..240: pages 2..5 × 5..8, no other.
+    let old = TileReader::open(&before, 4).unwrap();
+    let same = |tx, ty| old.stored(0, tx, ty).unwrap().1 == base.stored(0, tx, ty).unwrap().1;
+    let differ: Vec<(usize, usize)> = (0..10)
+        .flat_map(|y| (0..10).map(move |x| (x, y)))
+        .filter(|&(x, y)| !same(x, y))
+        .collect();
+    let under: Vec<(usize, usize)> = (5..8).flat_map(|y| (2..5).map(move |x| (x, y))).collect();
+    assert_eq!(differ, under);
+
+    let v = dbms(&["--json", "tiles", out.to_str().unwrap(), "--verify"]);
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+    let v: Value = serde_json::from_slice(&v.stdout).unwrap();
+    assert_eq!(v["verified_regions"]["regions"], 2);
+    assert_eq!(
+        v["verified_regions"]["covered_cells"],
+        80 * 80 + 16 * 4 * 16 * 4
+    );
+    // A region file built apart (here: the town alone, without the yard's cover) is refused.
+    let o = dbms(&[
+        "-q",
+        "pyramid",
+        "--db",
+        db.join("insets/town").to_str().unwrap(),
+        "-o",
+        dir.path().join("t.town.dbt").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = dbms(&["tiles", out.to_str().unwrap(), "--verify"]);
+    let err = String::from_utf8_lossy(&v.stderr);
+    assert!(
+        !v.status.success() && err.trim().lines().count() == 1,
+        "{err}"
+    );
+    assert!(err.contains("is not the region town"), "{err}");
+}

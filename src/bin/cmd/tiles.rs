@@ -66,8 +66,9 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let verified = if args.verify {
         let progress = ctx.progress(reader.entries().len() as u64, "verifying");
         let n = reader.verify(&progress)?;
+        let regions = dbms::tiles::region::verify(&args.tiles, &reader, &progress)?;
         progress.finish();
-        Some(n)
+        Some((n, regions))
     } else {
         None
     };
@@ -91,7 +92,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         pages_with_bricks: with_bricks,
         stored_bytes: stored,
         raw_bytes: raw,
-        verified_pages: verified,
+        verified_pages: verified.map(|(n, _)| n),
+        verified_regions: verified.map(|(_, r)| r).filter(|r| r.regions > 0),
         // With --index: each entry beside the page its index position stands for.
         index: args.index.then(|| {
             (entries.iter().enumerate())
@@ -118,6 +120,9 @@ struct TileFileInfo<'a> {
     raw_bytes: u64,
     /// Pages whose checksum `--verify` checked.
     verified_pages: Option<usize>,
+    /// With regions: what `--verify` checked of them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    verified_regions: Option<dbms::tiles::region::Verified>,
     index: Option<Vec<Listed>>,
 }
 
@@ -180,6 +185,24 @@ impl std::fmt::Display for TileFileInfo<'_> {
         write!(f, "effects: {}", info.effects)?;
         if let Some(n) = self.verified_pages {
             write!(f, "\nverified: all {n} pages match their checksums")?;
+        }
+        if let Some(r) = &self.verified_regions {
+            write!(
+                f,
+                "\nverified: {} regions, all {} of their pages; their parents' {} cells over them hold their covers",
+                r.regions, r.pages, r.covered_cells
+            )?;
+        }
+        for r in &info.regions {
+            write!(
+                f,
+                "\nregion {}: {}× finer than {} over its cells {}, in {}",
+                r.name,
+                r.factor,
+                r.parent.as_deref().unwrap_or("the base"),
+                r.window,
+                r.file
+            )?;
         }
         if let Some(index) = &self.index {
             write!(

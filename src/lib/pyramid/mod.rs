@@ -15,6 +15,7 @@
 //! * [`export`]: every level as GeoTIFF (`--export-levels`);
 //! * [`incremental`]: only the pages an edit touches made again (`--incremental`), the rest
 //!   copied from the earlier tile file its ledger describes;
+//! * [`regions`]: a database's insets, each its own tile file, the parent's cells covering them;
 //! * [`shard`]: one tile file built as independent jobs over windows of pages, then merged.
 
 pub mod base;
@@ -23,6 +24,7 @@ pub mod effects;
 pub mod export;
 pub mod incremental;
 pub mod reduce;
+pub mod regions;
 pub mod sensor;
 pub mod shade;
 pub mod shard;
@@ -181,6 +183,9 @@ pub struct PyramidSummary {
     pub effects: shade::EffectsRecord,
     /// GeoTIFFs written by `--export-levels`.
     pub exported: Vec<PathBuf>,
+    /// The tile files of the database's insets, written with this one ([`regions`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub regions: Vec<regions::RegionBuilt>,
     /// Where the time went (not recorded in the manifest: it would break reproducibility).
     pub seconds: Timings,
 }
@@ -234,6 +239,9 @@ impl std::fmt::Display for PyramidSummary {
         }
         if !self.exported.is_empty() {
             write!(f, "\nexported {} GeoTIFFs", self.exported.len())?;
+        }
+        for r in &self.regions {
+            write!(f, "\nregion {r}")?;
         }
         Ok(())
     }
@@ -332,9 +340,61 @@ fn build_product(
     progress: &Progress,
 ) -> Result<PyramidSummary> {
     check_request(out, opts)?;
+    let has_insets = !db.insets().is_empty();
+    let mut full_build = None;
+    if opts.incremental {
+        let attempt = match &opts.export_levels {
+            _ if has_insets => Err("the database has insets, not in the ledger yet".to_string()),
+            Some(_) => Err("--export-levels writes every level".to_string()),
+            None if opts.sensor.any() => Err(
+                "sensor layers and light points are not in the incremental ledger yet".to_string(),
+            ),
+            None => incremental_build(db, wait, out, opts, &tile_info(db, opts)?, progress)?,
+        };
+        match attempt {
+            Ok(summary) => return Ok(summary),
+            Err(why) => full_build = Some(why),
+        }
+    }
+    // The insets first, finest first: each parent's cells over them are their reductions.
+    let made = match has_insets {
+        true => regions::make_regions(db, out, opts, progress)?,
+        false => regions::Made::default(),
+    };
+    let (staged, params, mut summary) = make_product(db, db, out, opts, shared, progress, made)?;
+    summary.full_build = full_build;
+    commit(db, wait, || Ok((staged, params)))?;
+    Ok(summary)
+}
+
+/// The tile set `opts` describe over `db`'s grid (no effects, no regions yet).
+fn tile_info(db: &Database, opts: &PyramidOptions) -> Result<TileSetInfo> {
     let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?
         .with_sensor_layers(&opts.sensor.layers());
     info.compression = opts.compression;
+    Ok(info)
+}
+
+/// Every page of the tile file `out` of `db` with the buildings and placements of `stands` on
+/// it (`db` itself, or for an inset its base: they stand in world coordinates and are
+/// rasterised on `db`'s grid), and `made`'s regions (their files, header entries and covers),
+/// written and staged with what `opts` add (levels, ledger): the staged outputs, the tile file
+/// last, the stage's params and the summary. Nothing is renamed and no database is changed.
+fn make_product(
+    db: &Database,
+    stands: &Database,
+    out: &Path,
+    opts: &PyramidOptions,
+    shared: &Shared,
+    progress: &Progress,
+    made: regions::Made,
+) -> Result<(
+    Vec<crate::io::atomic::Staged>,
+    serde_json::Value,
+    PyramidSummary,
+)> {
+    let mut info = tile_info(db, opts)?;
+    info.regions = made.list;
     if let Some(dir) = &opts.export_levels {
         // The levels' files are outputs too: none may be the tile file, or a special file.
         let levels = export::LevelExporter::paths(&info, dir);
@@ -343,20 +403,7 @@ fn build_product(
             .collect();
         crate::io::atomic::check_outputs(&outputs, &[])?;
     }
-    let mut full_build = None;
-    if opts.incremental {
-        let attempt = match &opts.export_levels {
-            Some(_) => Err("--export-levels writes every level".to_string()),
-            None if opts.sensor.any() => Err(
-                "sensor layers and light points are not in the incremental ledger yet".to_string(),
-            ),
-            None => incremental_build(db, wait, out, opts, &info, progress)?,
-        };
-        match attempt {
-            Ok(summary) => return Ok(summary),
-            Err(why) => full_build = Some(why),
-        }
-    }
+    let (mut staged_regions, built_regions, covers) = (made.staged, made.built, made.covers);
     let mut lap = stopwatch();
     let mut seconds = Timings::default();
     // The layers are read band by band (each band's tiles decoded in parallel), never whole.
@@ -381,7 +428,7 @@ fn build_product(
             s
         }
         None => {
-            let read = crate::standing::Standing::read(db, &terrain, opts.page_size)?;
+            let read = crate::standing::Standing::read(stands, &terrain, opts.page_size)?;
             shared.standing.get_or_init(|| read)
         }
     };
@@ -398,7 +445,7 @@ fn build_product(
 
     let level0 = base::Level0::new(&terrain, &colour, all, effects.as_ref(), opts.page_size)
         .with_sensor(sensor.sources(opts.sensor.normals, &terrain, all));
-    let (writer, exporter) = write_levels(&info, &level0, out, opts, progress)?;
+    let (writer, exporter) = write_levels(&info, &level0, &covers, out, opts, progress)?;
     seconds.levels = lap();
     // Every output is finished under its temporary name, and all are renamed together once the
     // database has recorded the stage: a run that fails at any point leaves no tile file (the
@@ -427,6 +474,8 @@ fn build_product(
         };
         staged.push(incremental::stage_ledger(out, &ledger)?);
     }
+    // The base's tile file last: renamed after its regions' (`commit_all` keeps the order).
+    staged.append(&mut staged_regions);
     staged.push(tiles);
     progress.finish();
     seconds.finish = lap();
@@ -437,7 +486,7 @@ fn build_product(
         pages: info.page_count(),
         pages_rebuilt: info.page_count(),
         in_place: false,
-        full_build,
+        full_build: None,
         reused,
         building_cells: buildings.len(),
         object_cells: objects.len(),
@@ -445,14 +494,14 @@ fn build_product(
         half_valid_cells: level0.half_valid_cells(),
         effects: effects_record,
         exported,
+        regions: built_regions,
         seconds,
     };
     let mut params = stage_params(out, opts, &info, &summary);
     if opts.sensor.any() {
         params["sensor"] = opts.sensor.record(db)?;
     }
-    commit(db, wait, || Ok((staged, params)))?;
-    Ok(summary)
+    Ok((staged, params, summary))
 }
 
 /// The opened sources of the sensor layers a build carries.
@@ -663,6 +712,7 @@ fn incremental_build(
         half_valid_cells: total.half_valid_cells,
         effects: effects_record,
         exported: Vec::new(),
+        regions: Vec::new(),
         seconds,
     };
     // In place when every other page keeps its offset, else a new file with them copied.
@@ -737,14 +787,18 @@ fn stage_params(
     info: &TileSetInfo,
     summary: &PyramidSummary,
 ) -> serde_json::Value {
-    serde_json::json!({
+    let mut params = serde_json::json!({
         "tiles": out, "factor": opts.factor, "page_size": opts.page_size, "levels": summary.levels,
         "compression": opts.compression.name(), "export_levels": opts.export_levels,
         "effects": info.effects,
         "building_cells": summary.building_cells, "object_cells": summary.object_cells,
         "reused": summary.reused,
         "partial_cells": summary.partial_cells, "half_valid_cells": summary.half_valid_cells,
-    })
+    });
+    if !info.regions.is_empty() {
+        params["regions"] = serde_json::to_value(&info.regions).expect("regions serialise");
+    }
+    params
 }
 
 /// Every page of every level of the tile file `out` (and with `--export-levels` each level's
@@ -753,6 +807,7 @@ fn stage_params(
 fn write_levels(
     info: &TileSetInfo,
     level0: &base::Level0,
+    covers: &[crate::tiles::region::Cover],
     out: &Path,
     opts: &PyramidOptions,
     progress: &Progress,
@@ -765,7 +820,11 @@ fn write_levels(
     progress.phase(info.page_count() as u64, "pyramid");
     cascade::build_levels_by_page_row(
         info,
-        |row0, rows| level0.band(row0, rows),
+        |row0, rows| {
+            let mut band = level0.band(row0, rows)?;
+            regions::cover_band(covers, row0, &mut band);
+            Ok::<_, Error>(band)
+        },
         &|level, tx, ty, page| {
             if let Some(x) = &exporter {
                 x.put(level, tx, ty, page);

@@ -220,15 +220,8 @@ impl LevelRows for CoarseRows {
     }
 }
 
-/// The rounded average colour `sum / count` (halves round up), alpha 255; nodata when `count == 0`.
-#[inline]
-pub fn average(sum: [u64; 3], count: u64) -> [u8; 4] {
-    if count == 0 {
-        return [0; 4];
-    }
-    let ch = |s: u64| ((2 * s + count) / (2 * count)) as u8;
-    [ch(sum[0]), ch(sum[1]), ch(sum[2]), 255]
-}
+/// The rounded average colour of a coarse cell (the tile format's rule, [`average_colour`]).
+pub use crate::tiles::average_colour as average;
 
 /// Reduce the rows `fine` by `factor` in both directions: coarse row `r` is made of fine rows
 /// `r·f .. r·f + f` (fewer at the bottom), coarse column `c` of fine columns `c·f .. c·f + f`

@@ -214,6 +214,12 @@ fn tile_set(db: &Database, opts: &PyramidOptions, what: &str) -> Result<TileSetI
     if opts.sensor.any() {
         return refuse("sensor layers or light points");
     }
+    if !db.insets().is_empty() {
+        return Err(Error::msg(format!(
+            "{what}: the database has insets, whose tile files a sharded build does not make yet"
+        ))
+        .fix("build it with one dbms pyramid"));
+    }
     if opts.export_levels.is_some() {
         return refuse("--export-levels");
     }
@@ -526,6 +532,7 @@ pub fn merge(
         half_valid_cells: total.half_valid_cells,
         effects: record,
         exported: Vec::new(),
+        regions: Vec::new(),
         seconds,
     };
     let params = super::stage_params(out, opts, &info, &summary);

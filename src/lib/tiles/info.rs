@@ -176,6 +176,10 @@ pub struct TileSetInfo {
     /// without that layer.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub materials: Vec<MaterialAttributes>,
+    /// The tile set's finer regions (the database's insets), parents first, each its own tile
+    /// file beside this one ([`super::region`]); absent (empty) without insets.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub regions: Vec<super::region::Region>,
 }
 
 impl TileSetInfo {
@@ -221,6 +225,7 @@ impl TileSetInfo {
             effects: serde_json::json!({}),
             lights: Vec::new(),
             materials: Vec::new(),
+            regions: Vec::new(),
         })
     }
 
@@ -249,6 +254,7 @@ impl TileSetInfo {
             )));
         }
         check_page_count(&self.levels)?;
+        super::region::check(&self.regions, &self.grid)?;
         for (i, l) in self.layers.iter().enumerate() {
             if self.layers[..i].iter().any(|other| other.name == l.name) {
                 return Err(Error::msg(format!(

@@ -24,6 +24,7 @@ mod info;
 mod layout;
 mod page;
 mod reader;
+pub mod region;
 mod sensor;
 mod writer;
 
@@ -33,7 +34,8 @@ pub use info::{
 };
 pub use layout::{morton, IndexEntry, ENTRY_LEN, MAGIC, PREAMBLE_LEN, VERSION};
 pub use page::{
-    Cell, Page, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE, STATE_EMPTY, STATE_OPAQUE, STATE_PARTIAL,
+    average_colour, Cell, Page, FLAG_BRICKS, FLAG_LZ4, FLAG_SHUFFLE, STATE_EMPTY, STATE_OPAQUE,
+    STATE_PARTIAL,
 };
 pub use reader::{PageFilter, ReaderStats, TileReader};
 pub use sensor::{

@@ -48,6 +48,18 @@ pub struct Cell {
     pub state: u8,
 }
 
+/// The rounded average colour `sum / count` of `count` valid colours whose channels sum to
+/// `sum` (halves round up), alpha 255; nodata when `count == 0`: a coarse cell's colour, and a
+/// parent cell's over a region.
+#[inline]
+pub fn average_colour(sum: [u64; 3], count: u64) -> [u8; 4] {
+    if count == 0 {
+        return [0; 4];
+    }
+    let ch = |s: u64| ((2 * s + count) / (2 * count)) as u8;
+    [ch(sum[0]), ch(sum[1]), ch(sum[2]), 255]
+}
+
 impl Page {
     /// A page of `page_size²` nodata cells and no bricks: the starting point for filling one.
     pub fn nodata(page_size: usize) -> Page {
