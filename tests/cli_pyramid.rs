@@ -1430,6 +1430,8 @@ fn insets_get_their_own_tile_files_and_their_parents_cover_them() {
     let under: Vec<(usize, usize)> = (5..8).flat_map(|y| (2..5).map(move |x| (x, y))).collect();
     assert_eq!(differ, under);
 
+    render_descends_into_regions(&out, &[&base, &town, &yard], regions);
+
     let v = dbms(&["--json", "tiles", out.to_str().unwrap(), "--verify"]);
     assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
     let v: Value = serde_json::from_slice(&v.stdout).unwrap();
@@ -1455,4 +1457,139 @@ fn insets_get_their_own_tile_files_and_their_parents_cover_them() {
         "{err}"
     );
     assert!(err.contains("is not the region town"), "{err}");
+}
+
+/// Level-0 `max_z` and `state` of a whole tile file, row-major.
+fn level0(t: &TileReader) -> (usize, Vec<f32>, Vec<u8>) {
+    let g = &t.info().grid;
+    let (mut z, mut st) = (Vec::new(), Vec::new());
+    for r in 0..g.height {
+        for c in 0..g.width {
+            let cell = t.cell(0, c, r).unwrap().unwrap();
+            z.push(cell.max_z);
+            st.push(cell.state);
+        }
+    }
+    (g.width, z, st)
+}
+
+/// Views of the tile set `out` (base, then its regions in header order, `tiles`) descend into
+/// the regions: hierarchical and level-0 traversals give the same frame bit for bit, with and
+/// without range thresholds; and every pixel's range is what a brute-force march of the finest
+/// surface gives (each point resolved at the finest region holding it, stepping 5 mm), so a ray
+/// crossing a region's border meets no gap and no step. Pixels whose hit is on an object's
+/// voxel column (partial cells, whose runs the brute force does not model) are left out.
+fn render_descends_into_regions(
+    out: &Path,
+    tiles: &[&TileReader],
+    regions: &[dbms::tiles::region::Region],
+) {
+    use dbms::render::{render_view, Attitude, Traversal, ViewOptions, Viewpoint};
+    let reader = TileReader::open(out, 256).unwrap();
+    // From east of the town, low, looking west across its border at the tree.
+    let camera = Viewpoint {
+        eye: [500_046.0, 5_300_031.0, 376.5],
+        attitude: Attitude {
+            roll: 0.0,
+            pitch: -8.0,
+            yaw: 270.0,
+        },
+        hfov: 60.0,
+        width: 120,
+        height: 75,
+    };
+    let view = |traversal, lod| {
+        let opts = ViewOptions {
+            traversal,
+            lod,
+            ..ViewOptions::default()
+        };
+        render_view(&reader, &camera, &opts).unwrap()
+    };
+    for lod in [false, true] {
+        let (a, b) = (
+            view(Traversal::Hierarchical, lod),
+            view(Traversal::Level0, lod),
+        );
+        assert!(
+            a.rgb == b.rgb,
+            "lod {lod}: hierarchical and level-0 colours differ"
+        );
+        let bits =
+            |f: &dbms::render::Frame| f.range.iter().map(|r| r.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&a) == bits(&b), "lod {lod}: ranges differ");
+    }
+    // The finest surface: each tile set's level 0, the deepest region holding a point wins.
+    let grids: Vec<_> = tiles
+        .iter()
+        .map(|t| (t.info().grid.clone(), level0(t)))
+        .collect();
+    let finest = |x: f64, y: f64| -> Option<(usize, f32, u8)> {
+        let mut found = None;
+        for (k, (g, (w, z, st))) in grids.iter().enumerate() {
+            if let Some((c, r)) = g.cell_at(x, y) {
+                found = Some((k, z[r * w + c], st[r * w + c]));
+            }
+        }
+        found
+    };
+    let frame = view(Traversal::Hierarchical, false);
+    let basis = camera.basis();
+    let [ex, ey, ez] = camera.eye;
+    let (mut checked, mut in_region) = (0, [0usize; 3]);
+    for j in 0..camera.height {
+        for i in 0..camera.width {
+            let d = basis.through(i as f64 + 0.5, j as f64 + 0.5);
+            let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let d = d.map(|c| c / n);
+            let got = frame.range[j * camera.width + i] as f64;
+            let (mut s, mut brute) = (0.0, None);
+            while s < 120.0 {
+                let (x, y, z) = (ex + d[0] * s, ey + d[1] * s, ez + d[2] * s);
+                match finest(x, y) {
+                    Some((k, h, st)) if z <= h as f64 => {
+                        brute = Some((s, k, st));
+                        break;
+                    }
+                    _ => s += 0.005,
+                }
+            }
+            let Some((want, k, state)) = brute else {
+                assert!(
+                    got.is_infinite(),
+                    "pixel ({i}, {j}): sky by brute force, {got} m rendered"
+                );
+                continue;
+            };
+            let hit = (ex + d[0] * got, ey + d[1] * got);
+            let partial = state == dbms::tiles::STATE_PARTIAL
+                || finest(hit.0, hit.1).is_some_and(|(_, _, st)| st == dbms::tiles::STATE_PARTIAL);
+            if partial {
+                continue;
+            }
+            // No gap: the ray meets nothing the brute force meets first; and what it meets is
+            // the finest surface: just before the hit it is in the open, just after inside.
+            // (A ray that touches a top at its edge leaves the cell at once: on it is enough.)
+            let inside = |s: f64, tol: f64| {
+                let (x, y, z) = (ex + d[0] * s, ey + d[1] * s, ez + d[2] * s);
+                finest(x, y).is_some_and(|(_, h, _)| z <= h as f64 + tol)
+            };
+            let met = inside(got + 1e-4, 0.0) || inside(got, 1e-4);
+            assert!(
+                got <= want + 1e-6 && !inside(got - 1e-4, 0.0) && met,
+                "pixel ({i}, {j}): rendered {got} m, brute force {want} m (tile set {k}); hit at {hit:?}: {:?}; before {:?} z {}, after {:?} z {}",
+                finest(hit.0, hit.1),
+                finest(ex + d[0] * (got - 1e-4), ey + d[1] * (got - 1e-4)), ez + d[2] * (got - 1e-4),
+                finest(ex + d[0] * (got + 1e-4), ey + d[1] * (got + 1e-4)), ez + d[2] * (got + 1e-4),
+            );
+            checked += 1;
+            in_region[k] += 1;
+        }
+    }
+    assert!(checked > 5000, "{checked} pixels checked, per tile set {in_region:?}");
+    assert!(
+        in_region[1] > 500 && in_region[2] > 20,
+        "hits per tile set {in_region:?}"
+    );
+    let _ = regions;
 }

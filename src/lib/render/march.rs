@@ -39,6 +39,7 @@
 //! once.
 
 use super::ray::Ray;
+use super::regions::{self, Entered};
 use super::sampler::Sampler;
 use crate::error::Result;
 use crate::tiles::{Cell, STATE_PARTIAL};
@@ -384,8 +385,35 @@ pub fn march(ray: &Ray, span: Span, sampler: &mut Sampler, plan: &Plan) -> Resul
             return Ok((None, steps));
         };
         if l == 0 {
-            if let Some(hit) = level0_test(ray, span, [cc, rr], &cell, sampler, plan)? {
-                return Ok((Some(hit), steps));
+            // A cell over a region: the region's cells decide, unless only its cover is wanted.
+            let region = match sampler.children.is_empty() {
+                true => None,
+                false => sampler.child_at(cc, rr),
+            };
+            let entered = match region {
+                Some(k) => {
+                    let child = &mut sampler.children[k];
+                    regions::enter(ray, span, t, child, plan, &mut steps)?
+                }
+                None => Entered::Coarse,
+            };
+            match entered {
+                Entered::Hit(hit) => return Ok((Some(hit), steps)),
+                Entered::Passed(t_out) => {
+                    if t_out >= span.t1 {
+                        return Ok((None, steps));
+                    }
+                    // On in this tile set from where the ray left the region, at level 0.
+                    w = walk_from(ray, plan, 0, t_out, [cc, rr]);
+                    l = 0;
+                    continue;
+                }
+                Entered::Left => {}
+                Entered::Coarse => {
+                    if let Some(hit) = level0_test(ray, span, [cc, rr], &cell, sampler, plan)? {
+                        return Ok((Some(hit), steps));
+                    }
+                }
             }
         } else {
             match coarse_test(ray, span, l, [cc, rr], [t, t_exit], &cell, sampler, plan)? {
@@ -442,6 +470,8 @@ fn step_or_wall(
     let width = width * plan.scales[level] as f64;
     Ok(match sampler.cell(level, from[0], from[1])? {
         Some(n) if (top as f64 - n.max_z as f64) < width => Face::Step,
+        // A region's edge lies on its parent's surface (the seam): no cut edge there.
+        None if sampler.seam_edges => Face::Step,
         _ => face,
     })
 }

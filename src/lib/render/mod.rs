@@ -24,6 +24,7 @@ pub mod flight;
 pub mod march;
 pub mod path;
 pub mod ray;
+pub mod regions;
 pub mod sampler;
 pub mod sensor;
 pub mod sky;
@@ -290,7 +291,10 @@ pub fn render_view(reader: &TileReader, camera: &Viewpoint, opts: &ViewOptions) 
     let (w, h) = (camera.width, camera.height);
     // One sampler for each run of lines a worker takes: its page memo stays warm from line to
     // line (a sampler is a cache of pure lookups, so which lines share one changes no pixel).
-    let sampler = || Sampler::new(reader, opts.repeat, &view.column_cache);
+    let sampler = || {
+        let base = Sampler::new(reader, opts.repeat, &view.column_cache);
+        view.regions.attach(base)
+    };
     let (lines, order) = if view.coherent {
         // Each column bottom-up (the order of the patent's vertical scan lines).
         let columns = (0..w)
@@ -331,6 +335,8 @@ struct View<'a> {
     /// Image columns are marched as one ([`column`](mod@column)).
     coherent: bool,
     column_cache: ColumnCache,
+    /// The tile set's regions, which rays descend into ([`regions`]).
+    regions: regions::RegionFrames,
 }
 
 impl<'a> View<'a> {
@@ -380,9 +386,13 @@ impl<'a> View<'a> {
         let y_terms = (0..camera.height)
             .map(|j| basis.y_term(j as f64 + 0.5))
             .collect();
-        // Image columns are vertical half-planes through the eye only without roll and pitch.
-        let coherent =
-            opts.coherence && camera.attitude.roll == 0.0 && camera.attitude.pitch == 0.0;
+        let regions = regions::RegionFrames::open(reader, &plan, per_pixel, opts.repeat)?;
+        // Image columns are vertical half-planes through the eye only without roll and pitch;
+        // regions are marched ray by ray.
+        let coherent = opts.coherence
+            && camera.attitude.roll == 0.0
+            && camera.attitude.pitch == 0.0
+            && regions.is_empty();
         Ok(View {
             camera,
             opts,
@@ -396,6 +406,7 @@ impl<'a> View<'a> {
             n,
             coherent,
             column_cache: ColumnCache::default(),
+            regions,
         })
     }
 

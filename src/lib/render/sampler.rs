@@ -51,6 +51,11 @@ pub struct Sampler<'a> {
     columns: Option<(usize, usize, Arc<PageColumns>)>,
     /// Pages this sampler asked the reader for, `(level, tx, ty)`.
     pub touched: BTreeSet<(usize, usize, usize)>,
+    /// The tile set's regions, each with its own sampler ([`super::regions`]).
+    pub children: Vec<super::regions::Child<'a>>,
+    /// This is a region's sampler: its edge meets its parent's surface (the seam), so a column
+    /// side there with no neighbour is a step, not the database's cut edge.
+    pub seam_edges: bool,
 }
 
 impl<'a> Sampler<'a> {
@@ -76,7 +81,26 @@ impl<'a> Sampler<'a> {
             column_cache,
             columns: None,
             touched: BTreeSet::new(),
+            children: Vec::new(),
+            seam_edges: false,
         }
+    }
+
+    /// This sampler as a region's ([`Sampler::seam_edges`]).
+    pub fn region_edges(mut self) -> Sampler<'a> {
+        self.seam_edges = true;
+        self
+    }
+
+    /// `(width, height)` of `level`, cells.
+    pub fn size(&self, level: usize) -> (i64, i64) {
+        self.sizes[level]
+    }
+
+    /// The region holding level-0 cell `(c, r)`, if one does.
+    #[inline]
+    pub fn child_at(&self, c: i64, r: i64) -> Option<usize> {
+        self.children.iter().position(|k| k.holds(c, r))
     }
 
     /// Cell `(col, row)` of `level`; `None` outside the level (without wrap).
