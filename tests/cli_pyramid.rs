@@ -1432,6 +1432,23 @@ fn insets_get_their_own_tile_files_and_their_parents_cover_them() {
 
     render_descends_into_regions(&out, &[&base, &town, &yard], regions);
 
+    // Built in 4 shards and merged, the tile set is the same, region files too.
+    let sharded = dir.path().join("sharded");
+    std::fs::create_dir(&sharded).unwrap();
+    let parts = shards(&db, &sharded, 4, &sun);
+    let merged = sharded.join("t.dbt");
+    let mut args = sun.to_vec();
+    args.push("--merge");
+    args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+    pyramid_sharded(&db, &merged, &args);
+    for name in ["t.dbt", "t.town.dbt", "t.yard.dbt"] {
+        let bytes = |d: &Path| std::fs::read(d.join(name)).unwrap();
+        assert!(
+            bytes(dir.path()) == bytes(&sharded),
+            "{name}: sharded and single builds differ"
+        );
+    }
+
     let v = dbms(&["--json", "tiles", out.to_str().unwrap(), "--verify"]);
     assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
     let v: Value = serde_json::from_slice(&v.stdout).unwrap();
@@ -1586,7 +1603,10 @@ fn render_descends_into_regions(
             in_region[k] += 1;
         }
     }
-    assert!(checked > 5000, "{checked} pixels checked, per tile set {in_region:?}");
+    assert!(
+        checked > 5000,
+        "{checked} pixels checked, per tile set {in_region:?}"
+    );
     assert!(
         in_region[1] > 500 && in_region[2] > 20,
         "hits per tile set {in_region:?}"

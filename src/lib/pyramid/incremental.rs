@@ -404,11 +404,13 @@ pub fn rebuild_level0(
         out.insert(at, (page.clone(), stats));
         Ok(())
     };
+    // An incremental build never runs on a database with insets (it builds in full): no covers.
     let facts = WholeGrid {
         suns,
         terrain_range,
         top,
         raised_anywhere,
+        covers: &[],
     };
     make_level0(db, info, opts, photo_sun, touched, &facts, &keep)?;
     Ok(out.into_inner().unwrap_or_else(|e| e.into_inner()))
@@ -427,6 +429,8 @@ pub struct WholeGrid<'s> {
     pub top: f64,
     /// Whether buildings and placed objects raise any cell of the grid, `[buildings, objects]`.
     pub raised_anywhere: [bool; 2],
+    /// The covers of the database's insets on its level 0 ([`super::regions`]).
+    pub covers: &'s [crate::tiles::region::Cover],
 }
 
 /// Make the level-0 pages `touched` of `info` as a full build makes them, bit for bit, and hand
@@ -446,6 +450,7 @@ pub fn make_level0(
         terrain_range,
         top,
         raised_anywhere,
+        covers,
     } = *whole;
     let (terrain, colour) = (
         db.elevation_rows()?,
@@ -509,10 +514,12 @@ pub fn make_level0(
             Level0::new(terrain, &colour, &standing.all, fx.as_ref(), p).only_columns(cols.clone());
         for (ty, keep) in run {
             let band_rows = ty * p..((ty + 1) * p).min(g.height);
+            let mut band = level0.band(band_rows.start, band_rows.len())?;
+            super::regions::cover_band(covers, band_rows.start, &mut band);
             let Band {
                 rows: base,
                 columns,
-            } = level0.band(band_rows.start, band_rows.len())?;
+            } = band;
             emit_page_row(
                 info,
                 0,

@@ -17,8 +17,10 @@
 //! cells are exact maxima and integer colour sums of level 0, so they need nothing else).
 //!
 //! Each shard reads the database; none writes it. The merge records the `pyramid` stage.
+//! With insets, every shard makes the insets again for their covers on its level 0, and the
+//! merge makes them once more for their tile files ([`super::regions`]).
 //! Not yet: sensor layers and light points (their level-0 sums are not all in the pages), an
-//! incremental ledger for the merged file.
+//! incremental ledger for the merged file, insets made once for all shards.
 
 use super::cascade::{self, Band};
 use super::incremental::{self, PageStats, WholeGrid};
@@ -214,12 +216,6 @@ fn tile_set(db: &Database, opts: &PyramidOptions, what: &str) -> Result<TileSetI
     if opts.sensor.any() {
         return refuse("sensor layers or light points");
     }
-    if !db.insets().is_empty() {
-        return Err(Error::msg(format!(
-            "{what}: the database has insets, whose tile files a sharded build does not make yet"
-        ))
-        .fix("build it with one dbms pyramid"));
-    }
     if opts.export_levels.is_some() {
         return refuse("--export-levels");
     }
@@ -313,11 +309,18 @@ pub fn build_shard(
     let writer = TileWriter::create(out, part_info)?;
     let stats = std::sync::Mutex::new(PageStats::default());
     progress.phase(touched.len() as u64, "shard");
+    // The insets' covers of the base: every shard makes the insets again for them (their files
+    // are the merge's to write).
+    let covers = match db.insets().is_empty() {
+        true => Vec::new(),
+        false => super::regions::make_regions(db, out, opts, progress)?.covers,
+    };
     let whole = WholeGrid {
         suns: &suns,
         terrain_range: survey.terrain,
         top: survey.top,
         raised_anywhere: survey.raised,
+        covers: &covers,
     };
     incremental::make_level0(
         db,
@@ -464,6 +467,12 @@ pub fn merge(
     let record = EffectsRecord::decided(opts.sun, photo_sun, opts.shadow_factor, &seen, counts)
         .with_layers(&[], false);
     info.effects = serde_json::to_value(&record).expect("the effects record serialises");
+    // The insets' tile files, made here once; the shards applied their covers.
+    let made = match db.insets().is_empty() {
+        true => super::regions::Made::default(),
+        false => super::regions::make_regions(db, out, opts, progress)?,
+    };
+    info.regions = made.list;
     seconds.prepare = lap();
 
     // Which part holds level-0 page (tx, ty), and where in it.
@@ -515,7 +524,8 @@ pub fn merge(
         },
     )?;
     seconds.levels = lap();
-    let tiles = writer.stage()?;
+    let mut staged = made.staged;
+    staged.push(writer.stage()?);
     progress.finish();
     seconds.finish = lap();
     let summary = PyramidSummary {
@@ -532,11 +542,11 @@ pub fn merge(
         half_valid_cells: total.half_valid_cells,
         effects: record,
         exported: Vec::new(),
-        regions: Vec::new(),
+        regions: made.built,
         seconds,
     };
     let params = super::stage_params(out, opts, &info, &summary);
-    super::commit(db, wait, || Ok((vec![tiles], params)))?;
+    super::commit(db, wait, || Ok((staged, params)))?;
     Ok(summary)
 }
 
