@@ -76,20 +76,7 @@ fn add_building(db: &mut Database) {
 }
 
 fn pyramid(db: &Path, out: &Path, extra: &[&str]) -> Value {
-    let mut args = vec![
-        "--json",
-        "pyramid",
-        "--db",
-        db.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--page",
-        "32",
-    ];
-    args.extend_from_slice(extra);
-    let o = dbms(&args);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let summary: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let summary = pyramid_json(db, out, extra);
     check_effects_schema(&summary["effects"]);
     summary
 }
@@ -1085,7 +1072,7 @@ fn shards(db: &Path, dir: &Path, n: usize, extra: &[&str]) -> Vec<PathBuf> {
             let shard = format!("{i}/{n}");
             let mut args = vec!["--shard", shard.as_str(), "--survey", s.to_str().unwrap()];
             args.extend_from_slice(extra);
-            pyramid_sharded(db, &part, &args);
+            pyramid_json(db, &part, &args);
             let record = dir.join(format!("part-{i}.dbt.shard.json"));
             check_schema(
                 "pyramid-shard",
@@ -1096,8 +1083,9 @@ fn shards(db: &Path, dir: &Path, n: usize, extra: &[&str]) -> Vec<PathBuf> {
         .collect()
 }
 
-/// `dbms pyramid` with `args` (a shard or a merge: no effects record to check).
-fn pyramid_sharded(db: &Path, out: &Path, args: &[&str]) -> Value {
+/// `dbms pyramid` with `args`, pages of 32, its `--json` summary (a shard's has no effects
+/// record to check).
+fn pyramid_json(db: &Path, out: &Path, args: &[&str]) -> Value {
     let mut all = vec![
         "--json",
         "pyramid",
@@ -1158,7 +1146,7 @@ proptest::proptest! {
         let mut args = extra.clone();
         args.push("--merge");
         args.extend(parts.iter().map(|p| p.to_str().unwrap()));
-        let m = pyramid_sharded(&db.dir, &merged, &args);
+        let m = pyramid_json(&db.dir, &merged, &args);
         check_effects_schema(&m["effects"]);
         proptest::prop_assert!(
             std::fs::read(&one).unwrap() == std::fs::read(&merged).unwrap(),
@@ -1440,7 +1428,7 @@ fn insets_get_their_own_tile_files_and_their_parents_cover_them() {
     let mut args = sun.to_vec();
     args.push("--merge");
     args.extend(parts.iter().map(|p| p.to_str().unwrap()));
-    pyramid_sharded(&db, &merged, &args);
+    pyramid_json(&db, &merged, &args);
     for name in ["t.dbt", "t.town.dbt", "t.yard.dbt"] {
         let bytes = |d: &Path| std::fs::read(d.join(name)).unwrap();
         assert!(
