@@ -19,6 +19,9 @@
 //! Then column coherence (`cargo bench --bench render -- coherence` alone): 24 frames of the
 //! same path flown level (zero pitch, where it applies), with and without it: frames per second
 //! and cells stepped per ray; the bench fails if a pixel differs.
+//!
+//! `cargo bench --bench render -- insets` alone: the sample with and without a 4× inset under
+//! the flight, frames per second ([`insets`]).
 
 #[path = "support/blocks.rs"]
 mod blocks;
@@ -70,6 +73,10 @@ fn main() {
     }
     if std::env::args().any(|a| a == "coherence") {
         coherence(&sets);
+        return;
+    }
+    if std::env::args().any(|a| a == "insets") {
+        insets(&work);
         return;
     }
 
@@ -175,6 +182,89 @@ fn coherence(sets: &[(&str, &PathBuf)]) {
                 1.0 / secs,
                 steps as f64 / rays as f64,
                 off.0 / secs
+            );
+        }
+    }
+}
+
+/// The insets table (`cargo bench --bench render -- insets`): the sample's database built
+/// without and with a 4× finer inset over the middle of the flight (180 m square), the same
+/// 24 level frames rendered on both (each frame's rays descend into the inset where a parent
+/// cell is wider than a pixel), range thresholds on and off: frames per second, cells stepped
+/// per ray. Without the inset the frames march with column coherence (the default), with it ray
+/// by ray; a row without coherence shows which part of the cost is which.
+fn insets(work: &Path) {
+    let plain = sample_tiles(work);
+    let bin = env!("CARGO_BIN_EXE_dbms");
+    let db = work.join("db");
+    let with = work.join("sample-inset.dbt");
+    if !with.exists() {
+        let scene = work.join("scene");
+        let t = Instant::now();
+        for args in [
+            vec![
+                "-q".to_string(),
+                "ingest".into(),
+                "--dem".into(),
+                scene.join("dem.tif").display().to_string(),
+                "--ortho".into(),
+                scene.join("ortho.tif").display().to_string(),
+                "-o".into(),
+                db.display().to_string(),
+                "--inset".into(),
+                "middle:4:500150,5300150,500330,5300330".into(),
+            ],
+            vec![
+                "-q".into(),
+                "pyramid".into(),
+                "--db".into(),
+                db.display().to_string(),
+                "-o".into(),
+                with.display().to_string(),
+            ],
+        ] {
+            let o = Command::new(bin).args(&args).output().expect("run dbms");
+            assert!(
+                o.status.success(),
+                "dbms {args:?}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+        println!(
+            "inset added and tile set built in {:.1} s",
+            t.elapsed().as_secs_f64()
+        );
+    }
+    println!("\n| tile set | range thresholds | column coherence | frames | frames per second | time per frame (s) | cells stepped per ray |");
+    println!("|---|---|---|---|---|---|---|");
+    for (label, path) in [("sample", &plain), ("sample + 4× inset", &with)] {
+        let reader = TileReader::open(path, 1024).expect("open tiles");
+        let cams = flight(&reader, 24, 0.0);
+        for (lod, coherence) in [(true, true), (true, false), (false, false)] {
+            let opts = ViewOptions {
+                lod,
+                coherence,
+                ..ViewOptions::default()
+            };
+            let run = || {
+                let t = Instant::now();
+                let frames: Vec<Frame> = cams
+                    .iter()
+                    .map(|cam| render_view(&reader, cam, &opts).expect("render"))
+                    .collect();
+                (t.elapsed().as_secs_f64() / frames.len() as f64, frames)
+            };
+            run(); // warm the page cache
+            let (secs, frames) = run();
+            let rays: u64 = frames.iter().map(|f| f.stats.rays).sum();
+            let steps: u64 = frames.iter().map(|f| f.stats.cells_stepped).sum();
+            println!(
+                "| {label} | {} | {} | {} | {:.1} | {secs:.4} | {:.1} |",
+                if lod { "on" } else { "off" },
+                if coherence { "on" } else { "off" },
+                frames.len(),
+                1.0 / secs,
+                steps as f64 / rays as f64
             );
         }
     }
