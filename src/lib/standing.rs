@@ -513,8 +513,9 @@ impl Standing {
     /// [`read`](Self::read) for the cells of grid rows `rows` and columns `cols`: there, cell
     /// for cell what the whole read gives (placed objects outside may be missing). Only the
     /// placements whose footprint can reach the window ([`reaches`]) are rasterised, each
-    /// object file read once however often it is placed; every building is kept (prisms are
-    /// cheap, and the photo's shadow detection judges the whole grid by where roofs are).
+    /// object file read once however often it is placed, and only the buildings whose box meets
+    /// it (a caller whose results depend on roofs farther away, as the photo's shadow detector's
+    /// do within [`crate::pyramid::shade::DETECTION_REACH`], widens the window).
     pub fn read_window(
         db: &Database,
         terrain: &dyn RowSource<f32>,
@@ -537,10 +538,11 @@ impl Standing {
     ) -> Result<(Standing, Marked<'a>)> {
         let grid = terrain.grid();
         let prism_cells = match db.manifest.layers.contains_key(crate::db::BUILDINGS) {
-            true => rasterise_prisms(
-                grid,
-                &read_buildings(&db.layer_path(crate::db::BUILDINGS)?)?,
-            ),
+            true => {
+                let mut prisms = read_buildings(&db.layer_path(crate::db::BUILDINGS)?)?;
+                prisms.retain(|p| reaches_window(grid, p, &rows, &cols));
+                rasterise_prisms(grid, &prisms)
+            }
             false => Vec::new(),
         };
         let (placements, placed): (Vec<&PlacedObject>, Vec<PlacedVoxels>) =
@@ -609,6 +611,17 @@ pub fn reaches(
 ) -> bool {
     let [c0, r0, c1, r1] = box_cells(grid, [x - reach, y - reach, x + reach, y + reach]);
     r0 < rows.end && rows.start < r1 && c0 < cols.end && cols.start < c1
+}
+
+/// Whether building `prism` can mark a cell of grid rows `rows` and columns `cols`: its
+/// bounding box's cells ([`box_cells`], a cell of margin each side) meet them.
+fn reaches_window(grid: &Grid, prism: &Prism, rows: &Range<usize>, cols: &Range<usize>) -> bool {
+    let pts = prism.rings.iter().flatten();
+    let b = pts.fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, &(x, y)| {
+        [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]
+    });
+    let [c0, r0, c1, r1] = box_cells(grid, b);
+    c0 < cols.end && cols.start < c1 && r0 < rows.end && rows.start < r1
 }
 
 /// The cells something inside the world box `[min_x, min_y, max_x, max_y]` can mark, with a

@@ -493,7 +493,14 @@ pub fn make_level0(
             Some(k) => k,
             None => &terrain,
         };
-        let standing = Standing::read_window(db, terrain, p, around, near(&cols, g.width))?;
+        // What stands within a shadow's reach, and the roofs the photo's shadow detector skips
+        // around the window (its thresholds there depend on them).
+        let wide = |r: &Range<usize>, n: usize| {
+            let m = reach.max(shade::DETECTION_REACH);
+            r.start.saturating_sub(m)..r.end.saturating_add(m).min(n)
+        };
+        let standing =
+            Standing::read_window(db, terrain, p, wide(&rows, g.height), wide(&cols, g.width))?;
         let window = shade::Window {
             rows: rows.clone(),
             top,
