@@ -3,7 +3,7 @@
 //!
 //! `cargo bench --bench sharded` (side `DBMS_SHARD_SIZE`, default 8192; shard counts
 //! `DBMS_SHARDS`, comma-separated, default 4; cases `DBMS_SHARD_CASES`, comma-separated, default
-//! `photo,sun,none`, also `lz4`; work directory `DBMS_BENCH_DIR`, default a temporary one).
+//! `photo,sun,none`, also `bare` and `lz4`; work directory `DBMS_BENCH_DIR`, default a temporary one).
 //! Steps:
 //! 1. an N × N database of 1 m cells (`support/rolling_db.rs`, as `benches/pyramid.rs`:
 //!    rolling terrain with a nodata hole, a textured colour layer), reused when
@@ -15,8 +15,9 @@
 //! 3. for each case — `photo`: a sun (`--sun-elevation 30 --sun-azimuth 135`) and the photo's
 //!    time recorded (`PHOTO_TIME`, a low morning sun from the east: the photo's shadows are
 //!    detected and removed, the new ones cast); `sun`: the same sun, no photo time (one cast);
-//!    `none`: no sun; `lz4`: `photo` with `--compression lz4` — the release binary, each
-//!    process timed with `/usr/bin/time -f "%e %M"` (wall, peak RSS):
+//!    `none`: no sun; `bare`: no sun and no buildings layer (terrain only); `lz4`: `photo`
+//!    with `--compression lz4` — the release binary, each process timed with
+//!    `/usr/bin/time -f "%e %M"` (wall, peak RSS):
 //!    * `dbms pyramid` (one build), `dbms survey`,
 //!    * for each shard count K: the K shards one after another (`--shard I/K`), then the merge
 //!      (`--merge`), and the merged file compared with the single one byte for byte (`cmp`; a
@@ -99,14 +100,15 @@ fn main() {
                 opts.extend(SUN);
                 false
             }
-            "none" => false,
+            "none" | "bare" => false,
             "lz4" => {
                 opts.extend(SUN);
                 opts.extend(["--compression", "lz4"]);
                 true
             }
-            other => panic!("DBMS_SHARD_CASES: no case {other:?} (photo, sun, none, lz4)"),
+            other => panic!("DBMS_SHARD_CASES: no case {other:?} (photo, sun, none, bare, lz4)"),
         };
+        set_buildings(&db_dir, case != "bare");
         set_photo_time(&db_dir, photo.then_some(PHOTO_TIME));
         let load = loadavg();
         let single = work.join("single.dbt");
@@ -294,6 +296,21 @@ fn set_photo_time(db_dir: &Path, time: Option<&str>) {
         "ingest",
         serde_json::json!({ "photo_time": time }),
     ));
+    db.save().expect("save database");
+}
+
+/// Record the `buildings` layer (`buildings.geojson`, written by [`add_buildings`]) or drop it
+/// from the manifest (the `bare` case: terrain only).
+fn set_buildings(db_dir: &Path, on: bool) {
+    let mut db = Database::open(db_dir).expect("open database");
+    match on {
+        true => db
+            .set_layer("buildings", "buildings", "buildings.geojson", None)
+            .expect("buildings layer"),
+        false => {
+            db.manifest.layers.remove("buildings");
+        }
+    }
     db.save().expect("save database");
 }
 
