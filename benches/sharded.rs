@@ -25,7 +25,8 @@
 //!
 //! Prints a Markdown table per case and the derived figures: level-0 cells per second per
 //! shard, merge MB/s (tile file written), survey cells/s, the shards' sum against the single
-//! build, and the load average before and after.
+//! build, and the load average before and after. Results and the 200 km plan made from them:
+//! docs/big-database.md, "Sharded builds: measured, and a 200 km area planned".
 
 #[path = "support/rolling_db.rs"]
 mod rolling_db;
