@@ -101,21 +101,37 @@ pub fn database_digest(db: &Database) -> Result<String> {
     Ok(crate::manifest::hex(&h.finalize()))
 }
 
-/// Survey `db` (see [`Survey`]): the terrain read band by band once, what stands on it
-/// rasterised once.
+/// Survey `db` (see [`Survey`]): the terrain read band by band once; whether buildings and
+/// objects raise a cell, from what stands in each one's own box, stopping at the first that
+/// does (a whole-grid read of what stands would hold every building cell at once).
 pub fn survey(db: &Database) -> Result<Survey> {
     let terrain = db.elevation_rows()?;
     let range = incremental::terrain_range(&terrain)?;
     let things = incremental::things(db)?;
     let top = things.iter().map(|t| t.top).fold(range[1], f64::max);
-    let standing = crate::standing::Standing::read(db, &terrain, super::DEFAULT_PAGE)?;
+    let raises = |building: bool| -> Result<bool> {
+        let kind = if building { "building" } else { "placement" };
+        for t in things.iter().filter(|t| t.what.starts_with(kind)) {
+            let [c0, r0, c1, r1] = t.cells;
+            if c0 >= c1 || r0 >= r1 {
+                continue;
+            }
+            let p = super::DEFAULT_PAGE;
+            let s = crate::standing::Standing::read_window(db, &terrain, p, r0..r1, c0..c1)?;
+            let raised = if building { &s.buildings } else { &s.objects };
+            if !raised.is_empty() {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    };
     Ok(Survey {
         format: SURVEY_FORMAT.into(),
         version: 1,
         database: database_digest(db)?,
         terrain: range,
         top,
-        raised: [!standing.buildings.is_empty(), !standing.objects.is_empty()],
+        raised: [raises(true)?, raises(false)?],
     })
 }
 
