@@ -145,7 +145,8 @@ pub fn prepare<'a>(
 #[derive(Default)]
 pub struct Shared {
     casts: Mutex<HashMap<CastKey, Arc<ShadowBits>>>,
-    detected: Mutex<Option<Arc<ShadowBits>>>,
+    /// The rows the detection was made for, and the detection.
+    detected: Mutex<Option<(std::ops::Range<usize>, Arc<ShadowBits>)>>,
     reused: Mutex<Vec<String>>,
 }
 
@@ -187,14 +188,22 @@ impl Shared {
         Ok(bits)
     }
 
-    /// The photo's detected shadows, made by `make` the first time.
-    fn detected(&self, make: impl FnOnce() -> Result<ShadowBits>) -> Result<Arc<ShadowBits>> {
-        if let Some(bits) = lock(&self.detected).as_ref() {
-            lock(&self.reused).push("the photo's detected shadows".into());
-            return Ok(bits.clone());
+    /// The photo's detected shadows on `rows`, made by `make` the first time these rows are
+    /// asked for (a detection is only good on the rows it was made for, and with what stands
+    /// near them).
+    fn detected(
+        &self,
+        rows: &std::ops::Range<usize>,
+        make: impl FnOnce() -> Result<ShadowBits>,
+    ) -> Result<Arc<ShadowBits>> {
+        if let Some((made, bits)) = lock(&self.detected).as_ref() {
+            if made == rows {
+                lock(&self.reused).push("the photo's detected shadows".into());
+                return Ok(bits.clone());
+            }
         }
         let bits = Arc::new(make()?);
-        *lock(&self.detected) = Some(bits.clone());
+        *lock(&self.detected) = Some((rows.clone(), bits.clone()));
         Ok(bits)
     }
 
@@ -313,10 +322,10 @@ fn prepare_rows<'a>(
     );
     let (new_shadow, photo_shadow) = (Some(new_shadow?), photo_shadow?);
     // A different sun: the photo's shadows on the ground are found in the photo itself.
-    let detect = || detected::detect(colour, buildings);
+    let detect = || detected::detect(colour, buildings, window.rows.clone());
     let detected = match (casts.detect, shared) {
         (false, _) => None,
-        (true, Some(s)) => Some(s.detected(detect)?),
+        (true, Some(s)) => Some(s.detected(&window.rows, detect)?),
         (true, None) => Some(Arc::new(detect()?)),
     };
     let (applied, skipped) = effects::decide(&seen);

@@ -43,16 +43,23 @@ pub const MAX_DARK_FRACTION: f64 = 0.5;
 /// Index histogram of one block (bins of [`index_bin`]).
 type Hist = [u32; 256];
 
-/// The cells of `colour` the detector finds in shadow (see the module doc). `skip` are raised
-/// cells never judged (and left out of the thresholds).
-pub fn detect(colour: &dyn RowSource<[u8; 4]>, skip: &Raised) -> Result<ShadowBits> {
-    let thresholds = Thresholds::compute(colour, skip)?;
+/// The cells of grid rows `rows` of `colour` the detector finds in shadow (see the module
+/// doc); cells of other rows are left unset. `skip` are raised cells never judged (and left out
+/// of the thresholds): it must hold those within [`super::DETECTION_REACH`] of the rows. Only
+/// the colour rows the rows' thresholds need are read.
+pub fn detect(
+    colour: &dyn RowSource<[u8; 4]>,
+    skip: &Raised,
+    rows: std::ops::Range<usize>,
+) -> Result<ShadowBits> {
     let g = colour.grid();
     let (w, h) = (g.width, g.height);
+    let rows = rows.start.min(h)..rows.end.min(h);
+    let thresholds = Thresholds::compute(colour, skip, &rows)?;
     let mut bits = vec![0u64; (w * h).div_ceil(64)];
     let per_band = band_rows(w);
-    for row0 in (0..h).step_by(per_band) {
-        let rows = per_band.min(h - row0);
+    for row0 in (rows.start..rows.end).step_by(per_band) {
+        let rows = per_band.min(rows.end - row0);
         let data = colour.read_rows(row0, rows)?;
         let start = row0 * w;
         let mut dark = vec![false; data.len()];
@@ -90,17 +97,32 @@ struct Thresholds {
 
 impl Thresholds {
     /// First pass: block histograms band by band, each block row's thresholds as soon as the
-    /// rows of blocks within [`REACH`] of it are counted.
-    fn compute(colour: &dyn RowSource<[u8; 4]>, skip: &Raised) -> Result<Thresholds> {
+    /// rows of blocks within [`REACH`] of it are counted; only the block rows whose centres
+    /// grid rows `want` blend ([`Thresholds::at`]) get thresholds (the others none), from the
+    /// block rows within [`REACH`] of them.
+    fn compute(
+        colour: &dyn RowSource<[u8; 4]>,
+        skip: &Raised,
+        want: &std::ops::Range<usize>,
+    ) -> Result<Thresholds> {
         let g = colour.grid();
         let (w, h) = (g.width, g.height);
         let (across, down) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
         let per_band = (band_rows(w) / BLOCK).max(1) * BLOCK;
-        let mut t = Vec::with_capacity(across * down);
+        // Block rows with thresholds: those around the wanted rows' blends, a block each side.
+        let first = (want.start / BLOCK).saturating_sub(1);
+        let last = match want.is_empty() {
+            true => first,
+            false => ((want.end - 1) / BLOCK + 2).min(down),
+        };
+        let mut t = vec![None; first * across];
+        t.reserve(across * down);
         // Histograms of block rows `kept.0 ..`, dropped once no threshold needs them.
-        let mut kept: (usize, Vec<Vec<Hist>>) = (0, Vec::new());
-        for row0 in (0..h).step_by(per_band) {
-            let rows = per_band.min(h - row0);
+        let from = first.saturating_sub(REACH);
+        let to = (last + REACH).min(down);
+        let mut kept: (usize, Vec<Vec<Hist>>) = (from, Vec::new());
+        for row0 in (from * BLOCK..(to * BLOCK).min(h)).step_by(per_band) {
+            let rows = per_band.min((to * BLOCK).min(h) - row0);
             let data = colour.read_rows(row0, rows)?;
             let start = row0 * w;
             let mut skipped = vec![false; data.len()];
@@ -123,10 +145,10 @@ impl Thresholds {
             kept.1.extend(band);
             let counted = kept.0 + kept.1.len();
             // Block rows whose neighbourhood is complete (all of them after the last band).
-            let ready = if row0 + rows == h {
-                down
+            let ready = if row0 + rows >= (to * BLOCK).min(h) {
+                last
             } else {
-                counted.saturating_sub(REACH)
+                counted.saturating_sub(REACH).min(last)
             };
             let next = t.len() / across.max(1);
             let more: Vec<Option<f64>> = (next..ready)
@@ -155,6 +177,7 @@ impl Thresholds {
             kept.1.drain(..keep_from - kept.0);
             kept.0 = keep_from;
         }
+        t.resize(across * down, None);
         Ok(Thresholds { across, down, t })
     }
 
@@ -230,13 +253,45 @@ mod tests {
                 .collect(),
             &Elevation::filled(g.clone(), 0.0),
         );
-        let found = detect(&colour, &roof).unwrap();
+        let found = detect(&colour, &roof, 0..usize::MAX).unwrap();
         for i in 0..g.len() {
             assert_eq!(found.get(i), shadow(i % 200, i / 200), "cell {i}");
         }
         // Nothing dark: nothing found.
         let lit = Colour::new(g.clone(), (0..g.len()).map(|i| grey(85 + i % 11)).collect());
-        assert_eq!(detect(&lit, &Raised::default()).unwrap().count(), 0);
+        assert_eq!(
+            detect(&lit, &Raised::default(), 0..usize::MAX)
+                .unwrap()
+                .count(),
+            0
+        );
+    }
+
+    /// Detected on some rows only (what a window of pages needs), the cells of those rows are
+    /// the whole grid's detection, bit for bit, and no other cell is set: windows at the top,
+    /// across block edges, one row, at the bottom.
+    #[test]
+    fn detection_on_rows_is_the_whole_detection_there() {
+        let scene = generate(SampleOptions { seed: 2, size: 256 }).unwrap();
+        let grid = scene.ortho.grid.clone();
+        let t = resample_elevation(&scene.dem, &grid, Resampling::Bilinear);
+        let prisms: Vec<Prism> = (scene.buildings.iter())
+            .map(|b| Prism {
+                rings: vec![b.footprint.iter().map(|p| (p[0], p[1])).collect()],
+                roof_z: b.roof_z,
+            })
+            .collect();
+        let raised = Raised::new(rasterise_prisms(&grid, &prisms), &t);
+        let whole = detect(&scene.ortho, &raised, 0..usize::MAX).unwrap();
+        assert!(whole.count() > 1000, "the sample's photo has shadows");
+        let w = grid.width;
+        for rows in [0..64, 100..300, 200..201, 63..65, 450..grid.height] {
+            let part = detect(&scene.ortho, &raised, rows.clone()).unwrap();
+            for i in 0..grid.len() {
+                let want = rows.contains(&(i / w)) && whole.get(i);
+                assert_eq!(part.get(i), want, "rows {rows:?}, cell {i}");
+            }
+        }
     }
 
     /// On `dbms sample` scenes (seeds 1–3, 2048² cells of 0.25 m, the photo's shadows known
@@ -271,8 +326,8 @@ mod tests {
                 let raised = Raised::new(rasterise_prisms(&grid, &db), &t);
                 let cast =
                     ShadowBits::cast(&t, &scene.sun, |s, row| raised.lay_over(s, row)).unwrap();
-                let found = detect(&scene.ortho, &raised).unwrap();
-                let th = Thresholds::compute(&scene.ortho, &raised).unwrap();
+                let found = detect(&scene.ortho, &raised, 0..usize::MAX).unwrap();
+                let th = Thresholds::compute(&scene.ortho, &raised, &(0..grid.height)).unwrap();
                 let darkish = |i: usize| {
                     th.at(i % grid.width, i / grid.width)
                         .is_some_and(|t| shadow_index(scene.ortho.data[i]) < 1.5 * t)
