@@ -219,7 +219,7 @@ fn bad_inset_definitions_are_one_line_errors_that_change_nothing() {
         (vec!["--inset", "bad:2"], "expected NAME:FACTOR:MINX,MINY,MAXX,MAXY"),
         (vec!["--inset-parent", "town"], "--inset-parent town without an inset to add"),
         (vec!["--corridor", "road:2:3", "--route", s(&lonlat)], "coordinates look like longitude/latitude degrees"),
-        (vec!["--corridor", "road:2:-3", "--route", s(&lonlat)], "buffer -3 is not a distance ≥ 0"),
+        (vec!["--corridor", "road:2:-3", "--route", s(&lonlat)], "buffer -3 is not a distance above 0"),
     ];
     for (extra, needle) in &cases {
         assert_clean_failure(&add(&d, &o, &db, extra), needle);
