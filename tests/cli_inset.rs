@@ -132,12 +132,14 @@ fn nested_insets_and_a_corridor_join_the_database() {
         vec![
             ("town".to_string(), serde_json::Value::Null, 2),
             ("yard".to_string(), serde_json::json!("town"), 4),
-            ("road".to_string(), serde_json::Value::Null, 2),
+            ("road-1".to_string(), serde_json::Value::Null, 2),
         ]
     );
+    // The route leaves the base's south edge eastward: the blocks within 3 m of it are the
+    // first two of the last block row (clipped to 6 rows).
     assert_eq!(
         insets[2]["window"],
-        serde_json::json!({"col0": 0, "row0": 28, "col1": 22, "row1": 30})
+        serde_json::json!({"col0": 0, "row0": 24, "col1": 16, "row1": 30})
     );
     // Each inset is an ordinary database on its derived grid.
     let yard = info_json(&db.join("insets/yard"));
@@ -180,6 +182,122 @@ fn nested_insets_and_a_corridor_join_the_database() {
     );
 }
 
+/// A diagonal corridor across the base (2 m cells, 2 m either side, blocks of 8 cells): a chain
+/// of insets diag-1 … diag-4, one per block row, added in one change, listed by `dbms info`,
+/// verified through the base, each registered and seam-blended like any inset; the chain covers
+/// well under its bounding rectangle (the whole base). A second corridor over it is refused
+/// whole, naming both insets, and leaves the database as it was.
+#[test]
+fn a_diagonal_corridor_is_a_chain_of_insets() {
+    let dir = tempfile::tempdir().unwrap();
+    let (d, o, db) = base(dir.path());
+    let route = dir.path().join("diag.geojson");
+    std::fs::write(
+        &route,
+        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {},
+            "geometry": {"type": "LineString", "coordinates": [[500001, 5299999], [500059, 5299941]]}}]}"#,
+    )
+    .unwrap();
+    // Killed after the first member's own commit: the base has none of the chain; the next
+    // run clears what it left and adds them all.
+    let corridor = ["--corridor", "diag:2:2", "--route", s(&route)];
+    let mut args = vec!["ingest", "--dem", s(&d), "--ortho", s(&o), "-o", s(&db)];
+    args.extend_from_slice(&corridor);
+    let killed = command()
+        .args(&args)
+        .env("DBMS_FAULT", "after-commit")
+        .output()
+        .unwrap();
+    assert!(!killed.status.success());
+    assert!(db.join("insets/diag-1/manifest.json").exists());
+    assert!(!db.join("insets/diag-2").exists());
+    assert!(info_json(&db).get("insets").is_none());
+    let out = add(&d, &o, &db, &[&corridor[..], &["--json"]].concat());
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["corridor"], "diag");
+    assert_eq!(summary["block_cells"], 8);
+    assert_eq!(summary["bounding_cells"], 900);
+    let windows: Vec<serde_json::Value> = summary["insets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["inset"]["window"].clone())
+        .collect();
+    let w = |c0, r0, c1, r1| serde_json::json!({"col0": c0, "row0": r0, "col1": c1, "row1": r1});
+    assert_eq!(
+        windows,
+        vec![
+            w(0, 0, 16, 8),
+            w(0, 8, 24, 16),
+            w(8, 16, 30, 24),
+            w(16, 24, 30, 30)
+        ]
+    );
+    let cells = 16 * 8 + 24 * 8 + 22 * 8 + 14 * 6;
+    assert_eq!(summary["parent_cells"], cells);
+    assert_eq!(summary["inset_cells"], cells * 4);
+    let ratio = summary["area_ratio"].as_f64().unwrap();
+    assert!(
+        (ratio - cells as f64 / 900.0).abs() < 1e-12 && ratio < 0.7,
+        "{ratio}"
+    );
+    // dbms info lists the chain, --verify passes (info_json runs it), each member is on its grid.
+    let m = info_json(&db);
+    let listed: Vec<(&str, &serde_json::Value)> = m["insets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| (i["name"].as_str().unwrap(), &i["window"]))
+        .collect();
+    let names = ["diag-1", "diag-2", "diag-3", "diag-4"];
+    assert_eq!(
+        listed,
+        names.iter().copied().zip(&windows).collect::<Vec<_>>()
+    );
+    let text = dbms(&["info", s(&db), "--verify"]);
+    assert!(text.status.success(), "{}", stderr(&text));
+    let text = String::from_utf8_lossy(&text.stdout);
+    for name in names {
+        assert!(
+            text.contains(&format!("  {name}: factor 2 of the base grid")),
+            "{text}"
+        );
+        let one = dbms::db::Database::open(&db)
+            .unwrap()
+            .open_inset(name)
+            .unwrap();
+        assert_eq!(one.stages_run(), vec!["ingest", "seam"]);
+    }
+    let g = info_json(&db.join("insets/diag-2"))["grid"].clone();
+    assert_eq!(
+        (g["width"].as_u64(), g["height"].as_u64()),
+        (Some(48), Some(16))
+    );
+    // A second corridor crossing the first: refused whole, the database unchanged.
+    let before = std::fs::read(db.join("manifest.json")).unwrap();
+    let cross = dir.path().join("cross.geojson");
+    std::fs::write(
+        &cross,
+        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {},
+            "geometry": {"type": "LineString", "coordinates": [[500059, 5299999], [500001, 5299941]]}}]}"#,
+    )
+    .unwrap();
+    let out = add(&d, &o, &db, &["--corridor", "x:2:2", "--route", s(&cross)]);
+    // (x-1, columns 16..30 of block row 0, is beside diag-1; x-2 is the first that overlaps.)
+    assert_clean_failure(
+        &out,
+        "inset x-2 overlaps inset diag-2 (both refine the base grid)",
+    );
+    assert_eq!(std::fs::read(db.join("manifest.json")).unwrap(), before);
+    let mut left: Vec<String> = std::fs::read_dir(db.join("insets"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, names);
+}
+
 /// Every bad inset definition is one line naming the problem and the fix, exit 1, and leaves
 /// the database byte for byte as it was, with no inset directory behind.
 #[test]
@@ -219,7 +337,7 @@ fn bad_inset_definitions_are_one_line_errors_that_change_nothing() {
         (vec!["--inset", "bad:2"], "expected NAME:FACTOR:MINX,MINY,MAXX,MAXY"),
         (vec!["--inset-parent", "town"], "--inset-parent town without an inset to add"),
         (vec!["--corridor", "road:2:3", "--route", s(&lonlat)], "coordinates look like longitude/latitude degrees"),
-        (vec!["--corridor", "road:2:-3", "--route", s(&lonlat)], "buffer -3 is not a distance ≥ 0"),
+        (vec!["--corridor", "road:2:-3", "--route", s(&lonlat)], "buffer -3 is not a distance above 0"),
     ];
     for (extra, needle) in &cases {
         assert_clean_failure(&add(&d, &o, &db, extra), needle);

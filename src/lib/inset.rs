@@ -11,8 +11,10 @@
 //! cell edges on a parent edge agree with it to f64 rounding (below 1e-9 m at UTM magnitudes).
 //! Inset names are plain directory names; siblings (insets of one parent) never overlap.
 //! [`check_new`] is the one check every new inset passes. [`seam`] blends an inset's border
-//! into its parent's surface.
+//! into its parent's surface. [`corridor`] covers a buffered route with a chain of sibling
+//! insets.
 
+pub mod corridor;
 pub mod seam;
 
 use crate::error::{Error, Result};
@@ -313,7 +315,7 @@ pub fn parse_inset_arg(arg: &str) -> Result<(String, usize, Bounds)> {
 }
 
 /// `NAME:FACTOR:BUFFER_M` (the `--corridor` option): the name, factor and buffer (metres, CRS
-/// units, ≥ 0) of a corridor inset; checked.
+/// units, > 0) of a corridor; checked.
 pub fn parse_corridor_arg(arg: &str) -> Result<(String, usize, f64)> {
     let malformed = || {
         Error::msg(format!("--corridor {arg}: expected NAME:FACTOR:BUFFER_M"))
@@ -329,10 +331,10 @@ pub fn parse_corridor_arg(arg: &str) -> Result<(String, usize, f64)> {
         .trim()
         .parse::<f64>()
         .ok()
-        .filter(|b| b.is_finite() && *b >= 0.0)
+        .filter(|b| b.is_finite() && *b > 0.0)
         .ok_or_else(|| {
             Error::msg(format!(
-                "--corridor {arg}: buffer {buffer} is not a distance ≥ 0 in metres"
+                "--corridor {arg}: buffer {buffer} is not a distance above 0 in metres"
             ))
             .fix("e.g. --corridor road:10:30 for 30 m either side of the route")
         })?;
@@ -342,7 +344,8 @@ pub fn parse_corridor_arg(arg: &str) -> Result<(String, usize, f64)> {
 /// The window of `parent_grid` cells (the grid of inset `parent`, or the base) that covers the
 /// route `lines` (vertices in CRS units) buffered by `buffer` CRS units on every side: the
 /// buffered lines' bounding rectangle snapped outward to the parent's cells and clipped to the
-/// parent. A rectangle, so a diagonal route's corridor covers its whole bounding box. An error
+/// parent. A diagonal route's bounding rectangle is mostly far from the route: corridors are
+/// covered by [`corridor::corridor_cover`], which keeps this rectangle for comparison. An error
 /// when the buffered route misses the parent.
 pub fn corridor_window(
     name: &str,

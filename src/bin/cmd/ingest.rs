@@ -55,8 +55,9 @@ pub struct Args {
     #[arg(long, value_name = "NAME:FACTOR:MINX,MINY,MAXX,MAXY", allow_hyphen_values = true,
           conflicts_with_all = ["cell", "bounds", "t_srs", "overwrite", "corridor"])]
     inset: Option<String>,
-    /// Add a corridor inset along --route: its bounding rectangle buffered by BUFFER_M metres,
-    /// snapped outward to the parent's cells and clipped to the parent.
+    /// Add a corridor along --route: a chain of insets NAME-1, NAME-2, … (FACTOR 2 to 10) over
+    /// the parent's cells within BUFFER_M metres (> 0) of the route, made of square blocks of
+    /// parent cells, all added or none.
     #[arg(long, value_name = "NAME:FACTOR:BUFFER_M", requires = "route",
           conflicts_with_all = ["cell", "bounds", "t_srs", "overwrite"])]
     corridor: Option<String>,

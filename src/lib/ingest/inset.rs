@@ -1,20 +1,22 @@
 //! `dbms ingest --inset` and `--corridor`: a DEM and a photo registered onto a new inset of an
-//! existing database.
+//! existing database, or onto each inset of a corridor's chain ([`crate::inset::corridor`]).
 //!
-//! The inset's grid is derived from its parent's ([`crate::inset`]); [`super::ingest`] writes
+//! An inset's grid is derived from its parent's ([`crate::inset`]); [`super::ingest`] writes
 //! the inset database `DB/insets/NAME/` on that grid, exactly as it writes a base; its border
 //! is blended into the parent's surface ([`crate::inset::seam`]: the elevation layer rewritten
-//! band by band, recorded as the inset's stage `seam`); then the database records the inset. All of it is one change of the database: it holds the
-//! database's lock throughout, and its manifest's rename is the commit point — before it the
-//! database has no such inset (a killed run leaves a directory the next change removes), after
-//! it the inset is there, whole.
+//! band by band, recorded as the inset's stage `seam`); then the database records the inset.
+//! A corridor's insets go through that same path one after another. All of it is one change of
+//! the database: it holds the database's lock throughout, and its manifest's rename is the
+//! commit point — before it the database has none of the new insets (a killed run leaves
+//! directories the next change removes), after it they are all there, whole.
 
 use super::{ingest, IngestOptions, IngestSummary};
-use crate::db::{self, Database, InsetRecord, Stage, MANIFEST_FILE};
+use crate::db::{self, Change, Database, InsetRecord, Stage, MANIFEST_FILE};
 use crate::error::{Error, Result};
 use crate::grid::{Bounds, Grid};
+use crate::inset::corridor::corridor_cover;
 use crate::inset::seam::{self, ParentSurface};
-use crate::inset::{self, InsetSpec};
+use crate::inset::{self, CellWindow, InsetSpec};
 use crate::progress::Progress;
 use crate::raster::RowSource;
 use serde::Serialize;
@@ -25,12 +27,12 @@ use std::path::{Path, PathBuf};
 pub enum InsetArea {
     /// A world rectangle (CRS units) on the parent's cell edges (`--inset`).
     Bounds(Bounds),
-    /// The cell-aligned bounding rectangle of a route's lines buffered by `buffer_m` metres
-    /// (CRS units) on every side, clipped to the parent (`--corridor`, `--route`).
+    /// A route's lines buffered by `buffer_m` metres (CRS units) on every side, covered by a
+    /// chain of insets ([`inset::corridor`]; `--corridor`, `--route`).
     Corridor {
         /// GeoJSON file of LineString or MultiLineString features, in the database's CRS.
         route: PathBuf,
-        /// Buffer either side of the route, CRS units (metres), ≥ 0.
+        /// Buffer either side of the route, CRS units (metres), > 0.
         buffer_m: f64,
     },
 }
@@ -72,16 +74,116 @@ impl std::fmt::Display for InsetSummary {
     }
 }
 
-/// Add inset `req` to the database in `db_dir`: register `opts.dem` and `opts.ortho` onto its
-/// grid in `DB/insets/NAME/` and record it in the database, as one change (module docs).
-/// `opts.cell`, `bounds`, `t_srs`, `grid` and `overwrite` must be unset: the inset's grid is
-/// its parent's refined.
+/// What adding insets produced: one inset (`--inset`), or a corridor's chain.
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum AddedInsets {
+    /// One inset.
+    Inset(InsetSummary),
+    /// A corridor's chain of insets.
+    Corridor(CorridorSummary),
+}
+
+impl std::fmt::Display for AddedInsets {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AddedInsets::Inset(s) => s.fmt(f),
+            AddedInsets::Corridor(s) => s.fmt(f),
+        }
+    }
+}
+
+/// What adding a corridor produced.
+#[derive(Debug, Clone, Serialize)]
+pub struct CorridorSummary {
+    /// The corridor's name; its insets are `NAME-1`, `NAME-2`, ….
+    pub corridor: String,
+    /// The inset its insets refine, `None` for the base grid.
+    pub parent: Option<String>,
+    /// Parent cells per inset cell along each axis.
+    pub factor: usize,
+    /// Buffer either side of the route, metres.
+    pub buffer_m: f64,
+    /// Side of the blocks the cover is made of, parent cells.
+    pub block_cells: usize,
+    /// Parent cells the insets cover.
+    pub parent_cells: u64,
+    /// Cells of the insets (`parent_cells · factor²`).
+    pub inset_cells: u64,
+    /// The buffered route's bounding rectangle of parent cells (clipped to the parent).
+    pub bounding: CellWindow,
+    /// Parent cells of that rectangle.
+    pub bounding_cells: u64,
+    /// `parent_cells / bounding_cells`.
+    pub area_ratio: f64,
+    /// Each inset, north to south then west to east.
+    pub insets: Vec<InsetSummary>,
+}
+
+impl std::fmt::Display for CorridorSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let n = self.insets.len();
+        let last = self
+            .insets
+            .last()
+            .map(|s| s.inset.name.as_str())
+            .unwrap_or("");
+        let nodata = |z: bool| -> u64 {
+            self.insets
+                .iter()
+                .map(|s| match z {
+                    true => s.ingest.elevation.nodata_cells,
+                    false => s.ingest.colour.nodata_cells,
+                })
+                .sum()
+        };
+        writeln!(
+            f,
+            "corridor {} of {}: {n} insets {}-1 to {last}, factor {}, {} m either side of the route in blocks of {} parent cells",
+            self.corridor,
+            self.parent.as_deref().unwrap_or("the base grid"),
+            self.corridor,
+            self.factor,
+            self.buffer_m,
+            self.block_cells
+        )?;
+        writeln!(
+            f,
+            "  {} parent cells ({} inset cells), {:.1}% of the buffered route's bounding rectangle ({}, {} cells)",
+            self.parent_cells,
+            self.inset_cells,
+            100.0 * self.area_ratio,
+            self.bounding,
+            self.bounding_cells
+        )?;
+        for s in &self.insets {
+            let g = &s.ingest.grid;
+            writeln!(
+                f,
+                "  {}: parent {}, {} x {} cells",
+                s.inset.name, s.inset.window, g.width, g.height
+            )?;
+        }
+        write!(
+            f,
+            "  elevation: {} nodata cells, colour: {} nodata cells",
+            nodata(true),
+            nodata(false)
+        )
+    }
+}
+
+/// Add inset `req` to the database in `db_dir` — for a corridor, its chain of insets
+/// `NAME-1`, `NAME-2`, … ([`inset::corridor`]) — registering `opts.dem` and `opts.ortho` onto
+/// each one's grid in `DB/insets/NAME/` and recording them in the database, as one change
+/// (module docs): all of them or none. `opts.cell`, `bounds`, `t_srs`, `grid` and `overwrite`
+/// must be unset: an inset's grid is its parent's refined.
 pub fn add_inset(
     opts: &IngestOptions,
     db_dir: &Path,
     req: &InsetRequest,
     progress: &Progress,
-) -> Result<InsetSummary> {
+) -> Result<AddedInsets> {
     let unused = [
         (opts.cell.is_some(), "--cell"),
         (opts.bounds.is_some(), "--bounds"),
@@ -98,27 +200,67 @@ pub fn add_inset(
     }
     let mut change = Database::begin(db_dir, opts.wait)?;
     let base = change.db.grid().clone();
-    let specs = change.db.insets();
+    let mut specs = change.db.insets();
     inset::check_name(&req.name)?;
     let parent = inset::parent_grid(req.parent.as_deref(), &specs, &base)?;
     inset::check_factor(&req.name, req.factor)?;
-    let spec = match &req.area {
+    let (new, cover, area) = match &req.area {
         InsetArea::Bounds(b) => {
-            InsetSpec::from_bounds(&req.name, req.parent.as_deref(), req.factor, b, &parent)?
+            let spec =
+                InsetSpec::from_bounds(&req.name, req.parent.as_deref(), req.factor, b, &parent)?;
+            (vec![spec], None, serde_json::json!({"bounds": b}))
         }
-        InsetArea::Corridor { route, buffer_m } => InsetSpec {
-            name: req.name.clone(),
-            parent: req.parent.clone(),
-            factor: req.factor,
-            window: inset::corridor_window(
-                &req.name,
-                &read_route(route, &parent)?,
-                *buffer_m,
-                &parent,
-            )?,
-        },
+        InsetArea::Corridor { route, buffer_m } => {
+            let lines = read_route(route, &parent)?;
+            let cover = corridor_cover(&req.name, &lines, *buffer_m, &parent)?;
+            let new = cover.specs(&req.name, req.parent.as_deref(), req.factor)?;
+            let area = serde_json::json!({
+                "route": route, "buffer_m": buffer_m, "corridor": req.name,
+                "block_cells": cover.block_cells,
+            });
+            (new, Some(cover), area)
+        }
     };
-    let grid = inset::check_new(&spec, &specs, &base)?;
+    // Every member is checked before any is written: a bad one refuses the chain at once.
+    let mut grids = Vec::with_capacity(new.len());
+    for spec in &new {
+        grids.push(inset::check_new(spec, &specs, &base)?);
+        specs.push(spec.clone());
+    }
+    let mut added = Vec::with_capacity(new.len());
+    for (spec, grid) in new.into_iter().zip(grids) {
+        added.push(add_one(&mut change, spec, grid, &area, opts, progress)?);
+    }
+    change.commit()?;
+    let (Some(cover), InsetArea::Corridor { buffer_m, .. }) = (cover, &req.area) else {
+        return Ok(AddedInsets::Inset(added.pop().expect("one inset")));
+    };
+    Ok(AddedInsets::Corridor(CorridorSummary {
+        corridor: req.name.clone(),
+        parent: req.parent.clone(),
+        factor: req.factor,
+        buffer_m: *buffer_m,
+        block_cells: cover.block_cells,
+        parent_cells: cover.cells(),
+        inset_cells: cover.cells() * (req.factor * req.factor) as u64,
+        bounding: cover.bounding,
+        bounding_cells: cover.bounding_cells(),
+        area_ratio: cover.area_ratio(),
+        insets: added,
+    }))
+}
+
+/// Write inset `spec` (checked, on `grid`) into the database `change` makes: its directory,
+/// registered and seam-blended, its record and its stage `inset` (with `area`, where it came
+/// from). The one path every inset, corridor members too, is added by.
+fn add_one(
+    change: &mut Change,
+    spec: InsetSpec,
+    grid: Grid,
+    area: &serde_json::Value,
+    opts: &IngestOptions,
+    progress: &Progress,
+) -> Result<InsetSummary> {
     change.wrote_inset(&spec.name)?;
     let dir = change.db.inset_dir(&spec.name);
     let summary = ingest(
@@ -135,21 +277,14 @@ pub fn add_inset(
         spec: spec.clone(),
         manifest_sha256,
     });
-    let route = match &req.area {
-        InsetArea::Corridor { route, buffer_m } => {
-            serde_json::json!({"route": route, "buffer_m": buffer_m})
-        }
-        InsetArea::Bounds(b) => serde_json::json!({"bounds": b}),
-    };
     change.db.record_stage(Stage::now(
         "inset",
         serde_json::json!({
-            "inset": spec, "area": route, "dem": opts.dem, "ortho": opts.ortho,
+            "inset": spec, "area": area, "dem": opts.dem, "ortho": opts.ortho,
             "dem_resampling": opts.dem_resampling, "fill_voids": opts.fill_voids,
             "photo_time": opts.photo_time,
         }),
     ));
-    change.commit()?;
     Ok(InsetSummary {
         inset: spec,
         ingest: summary,

@@ -203,7 +203,8 @@ fn option_arguments_parse_and_check() {
     let (n, f, buf) = parse_corridor_arg("road:10:30").unwrap();
     assert_eq!((n.as_str(), f, buf), ("road", 10, 30.0));
     assert!(err(parse_corridor_arg("road:10")).contains("expected NAME:FACTOR:BUFFER_M"));
-    assert!(err(parse_corridor_arg("road:10:-1")).contains("not a distance ≥ 0"));
+    assert!(err(parse_corridor_arg("road:10:-1")).contains("not a distance above 0"));
+    assert!(err(parse_corridor_arg("road:10:0")).contains("not a distance above 0"));
     assert!(err(parse_corridor_arg("road:1:5")).contains("factor 1"));
 }
 
@@ -260,4 +261,179 @@ fn corridor_is_the_buffered_routes_cell_window_clipped_to_the_parent() {
             && e.contains("misses its parent's extent 500000,4998500,502000,5000000"),
         "{e}"
     );
+}
+
+/// Parent cells of `g` within `buffer` of the route `lines`, found independently of the cover:
+/// points every 0.25 m along the route, each marking the cells whose area it comes within
+/// `buffer` of (a sampled distance is never below the true one, so every cell marked is truly
+/// within the buffer).
+fn cells_near(lines: &[Vec<(f64, f64)>], buffer: f64, g: &Grid) -> Vec<bool> {
+    let mut near = vec![false; g.width * g.height];
+    let (cx, cy) = g.cell_size();
+    let reach = (buffer / cx.min(cy)).ceil() as i64 + 1;
+    for line in lines {
+        for p in line.windows(2) {
+            let ((xa, ya), (xb, yb)) = (p[0], p[1]);
+            let n = (((xb - xa).hypot(yb - ya)) / 0.25).ceil().max(1.0) as usize;
+            for k in 0..=n {
+                let t = k as f64 / n as f64;
+                let (x, y) = (xa + t * (xb - xa), ya + t * (yb - ya));
+                let (u, v) = (
+                    ((x - g.transform.origin_x) / g.transform.cell_x).floor() as i64,
+                    ((y - g.transform.origin_y) / g.transform.cell_y).floor() as i64,
+                );
+                for r in (v - reach).max(0)..(v + reach + 1).min(g.height as i64) {
+                    for c in (u - reach).max(0)..(u + reach + 1).min(g.width as i64) {
+                        let (x0, y1) = g.transform.pixel_to_world(c as f64, r as f64);
+                        let (x1, y0) = g.transform.pixel_to_world(c as f64 + 1.0, r as f64 + 1.0);
+                        let dx = (x0 - x).max(x - x1).max(0.0);
+                        let dy = (y0 - y).max(y - y1).max(0.0);
+                        if dx.hypot(dy) <= buffer {
+                            near[r as usize * g.width + c as usize] = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    near
+}
+
+/// The cover's windows lie in the parent, never overlap, come north to south then west to east,
+/// and hold every cell within the buffer of the route. Returns how many cells that is.
+fn check_cover(cover: &corridor::CorridorCover, lines: &[Vec<(f64, f64)>], buffer: f64) -> usize {
+    let g = base();
+    let mut owner = vec![usize::MAX; g.width * g.height];
+    for (k, w) in cover.windows.iter().enumerate() {
+        assert!(
+            !w.is_empty() && w.col1 <= g.width && w.row1 <= g.height,
+            "{w}"
+        );
+        for r in w.row0..w.row1 {
+            for c in w.col0..w.col1 {
+                let o = &mut owner[r * g.width + c];
+                assert_eq!(
+                    *o,
+                    usize::MAX,
+                    "windows {} and {k} overlap at ({c},{r})",
+                    *o
+                );
+                *o = k;
+            }
+        }
+    }
+    let order: Vec<(usize, usize)> = cover.windows.iter().map(|w| (w.row0, w.col0)).collect();
+    let mut sorted = order.clone();
+    sorted.sort();
+    assert_eq!(order, sorted, "north to south, west to east");
+    let near = cells_near(lines, buffer, &g);
+    for (i, _) in near.iter().enumerate().filter(|(_, n)| **n) {
+        assert_ne!(
+            owner[i],
+            usize::MAX,
+            "cell ({},{}) within the buffer is not covered",
+            i % g.width,
+            i / g.width
+        );
+    }
+    near.iter().filter(|n| **n).count()
+}
+
+#[test]
+fn corridor_blocks_are_powers_of_two_about_the_buffer() {
+    use corridor::block_cells;
+    assert_eq!(block_cells(20.0, 10.0), 8);
+    assert_eq!(block_cells(100.0, 1.0), 128);
+    assert_eq!(block_cells(128.0, 1.0), 128);
+    assert_eq!(block_cells(0.5, 1.0), 8);
+    assert_eq!(block_cells(1000.0, 1.0), 1024);
+}
+
+/// An L-shaped route (east 1.4 km, then south 1.3 km, 25 m buffer, blocks of 8 cells = 80 m):
+/// two arms, each a few rectangles, covering every cell within the buffer.
+#[test]
+fn an_l_shaped_corridor_is_a_few_windows_along_its_arms() {
+    let b = base();
+    let route = vec![vec![
+        (500_105.0, 4_999_905.0),
+        (501_505.0, 4_999_905.0),
+        (501_505.0, 4_998_605.0),
+    ]];
+    let cover = corridor::corridor_cover("road", &route, 25.0, &b).unwrap();
+    assert_eq!(cover.block_cells, 8);
+    let near = check_cover(&cover, &route, 25.0);
+    assert!(near > 0);
+    // The east arm's buffer spans rows 7..12 (block rows 0 and 1), the south arm's columns
+    // 148..153 (block columns 18 and 19): two rows of blocks, then two columns.
+    assert_eq!(
+        cover.windows,
+        [[8, 0, 160, 8], [0, 8, 160, 16], [144, 16, 160, 144]]
+            .map(|w| spec("w", None, 2, w).window)
+    );
+    assert!(cover.area_ratio() < 0.3, "{}", cover.area_ratio());
+    let specs = cover.specs("road", None, 4).unwrap();
+    let names: Vec<&str> = specs.iter().map(|s| s.name.as_str()).collect();
+    let want: Vec<String> = (1..=specs.len()).map(|k| format!("road-{k}")).collect();
+    assert_eq!(names, want);
+    // Each joins the database beside the ones before it.
+    let mut have: Vec<InsetSpec> = Vec::new();
+    for s in specs {
+        check_new(&s, &have, &b).unwrap();
+        have.push(s);
+    }
+}
+
+/// A diagonal across the whole parent (2 km x 1.5 km, 20 m buffer): its bounding rectangle is
+/// the whole parent, its cover a staircase of one window per block row or so, far smaller.
+#[test]
+fn a_diagonal_corridor_covers_far_less_than_its_bounding_rectangle() {
+    let b = base();
+    let route = vec![vec![(500_000.0, 5_000_000.0), (502_000.0, 4_998_500.0)]];
+    let cover = corridor::corridor_cover("diag", &route, 20.0, &b).unwrap();
+    assert_eq!(cover.bounding, spec("d", None, 2, [0, 0, 200, 150]).window);
+    let near = check_cover(&cover, &route, 20.0);
+    assert!(cover.windows.len() >= 10, "{:?}", cover.windows);
+    assert!(cover.area_ratio() < 0.25, "{}", cover.area_ratio());
+    // Within a few blocks of what the buffer itself needs.
+    assert!(
+        cover.cells() < 3 * near as u64,
+        "{} vs {near}",
+        cover.cells()
+    );
+    // A MultiLineString's parts are covered alike, the windows still disjoint.
+    let two = vec![
+        route[0].clone(),
+        vec![(500_000.0, 4_998_500.0), (502_000.0, 5_000_000.0)],
+    ];
+    let cover = corridor::corridor_cover("x", &two, 20.0, &b).unwrap();
+    check_cover(&cover, &two, 20.0);
+}
+
+#[test]
+fn a_corridor_outside_its_parent_or_without_a_buffer_is_a_one_line_error() {
+    let b = base();
+    let far = vec![vec![(9.0, 47.0), (9.1, 47.1)]];
+    let e = err(corridor::corridor_cover("road", &far, 5.0, &b));
+    assert!(
+        e.contains("corridor road: the route buffered by 5 m")
+            && e.contains("misses its parent's extent 500000,4998500,502000,5000000"),
+        "{e}"
+    );
+    let route = vec![vec![(500_105.0, 4_999_505.0), (500_255.0, 4_999_405.0)]];
+    for bad in [0.0, -3.0, f64::NAN] {
+        let e = err(corridor::corridor_cover("road", &route, bad, &b));
+        assert!(
+            e.contains("corridor road: buffer") && e.contains("is not a distance above 0"),
+            "{e}"
+        );
+    }
+    // Past the parent's corner diagonally: the bounding rectangle reaches in, no block does.
+    // (28 m from the corner at 500000,4998500, its buffered bounding box 60 m into the parent).
+    let corner = vec![vec![(499_920.0, 4_998_540.0), (500_040.0, 4_998_420.0)]];
+    assert!(corridor_window("road", &corner, 20.0, &b).is_ok());
+    let e = err(corridor::corridor_cover("road", &corner, 20.0, &b));
+    assert!(e.contains("misses its parent's extent"), "{e}");
+    // A name too long for its members' names.
+    let cover = corridor::corridor_cover("road", &route, 20.0, &b).unwrap();
+    assert!(err(cover.specs(&"r".repeat(63), None, 2)).contains("is not a plain name"));
 }
