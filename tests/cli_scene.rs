@@ -59,19 +59,26 @@ fn ok(out: std::process::Output, what: &str) -> String {
 
 /// The same pipeline, command by command, into `dir/manual`; returns the tile file's bytes.
 fn stage_by_stage(dir: &Path, heading: f64) -> Vec<u8> {
+    stage_by_stage_with(dir, heading, None)
+}
+
+/// [`stage_by_stage`], adding the inset `--inset` value `inset` right after ingest.
+fn stage_by_stage_with(dir: &Path, heading: f64, inset: Option<&str>) -> Vec<u8> {
     let run = |args: &[&str]| ok(dbms_in(dir, args), &args.join(" "));
-    run(&[
+    let inputs = [
         "-q",
         "ingest",
         "--dem",
         "scene/dem.tif",
         "--ortho",
         "scene/ortho.tif",
-    ]
-    .iter()
-    .chain(&["--photo-time", SUN, "--overwrite", "-o", "manual/db"])
-    .copied()
-    .collect::<Vec<_>>());
+        "--photo-time",
+        SUN,
+    ];
+    run(&[&inputs[..], &["--overwrite", "-o", "manual/db"]].concat());
+    if let Some(inset) = inset {
+        run(&[&inputs[..], &["--inset", inset, "-o", "manual/db"]].concat());
+    }
     run(&[
         "-q",
         "shadow-height",
@@ -570,6 +577,106 @@ fn sensor_products_get_their_maps_and_layers() {
         .map(|s| s["name"].as_str().unwrap())
         .collect();
     assert!(pending.is_empty(), "{pending:?}");
+}
+
+/// The inset of [`an_inset_is_added_after_ingest_and_built_as_the_stages_build_it`]: the small
+/// sample's middle (with the first tree) at 4× (0.0625 m cells), as the scene declares it and
+/// as `--inset` takes it.
+const TOWN: (&str, &str) = (
+    "[insets.town]\nfactor = 4\nbounds = [500020, 5300020, 500040, 5300044]\n",
+    "town:4:500020,5300020,500040,5300044",
+);
+
+/// A scene with an inset: the ingest step adds it after its `--overwrite`, the Makefile and the
+/// Snakefile both build the tile set the stages build by hand (the base file and the town's
+/// region file, byte for byte; verified whole), and moving a tree starts the database over
+/// from ingest with the inset added again. A sharded build of it is refused in one line.
+#[test]
+fn an_inset_is_added_after_ingest_and_built_as_the_stages_build_it() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let scene = |heading: f64| scene_toml(heading) + TOWN.0;
+    std::fs::write(dir.join("scene.toml"), scene(30.0)).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&ok(
+        dbms_in(dir, &["--json", "plan", "scene.toml"]),
+        "plan --json",
+    ))
+    .unwrap();
+    let ingest = &json["steps"][0];
+    assert_eq!(ingest["name"], "ingest");
+    let lines = ingest["commands"].as_array().unwrap();
+    assert_eq!(lines.len(), 2, "{ingest}");
+    assert!(lines[0].to_string().contains("--overwrite"), "{ingest}");
+    assert!(lines[1].to_string().contains(TOWN.1), "{ingest}");
+
+    let region = |d: &str| {
+        let base = std::fs::read(dir.join(format!("{d}/day.dbt"))).unwrap();
+        (
+            base,
+            std::fs::read(dir.join(format!("{d}/day.town.dbt"))).unwrap(),
+        )
+    };
+    let by_hand = |heading: f64| {
+        stage_by_stage_with(dir, heading, Some(TOWN.1));
+        region("manual")
+    };
+    make(dir);
+    let want = by_hand(30.0);
+    assert!(
+        region("build") == want,
+        "the Makefile's tile set differs from the stages'"
+    );
+    let verify = ok(
+        dbms_in(dir, &["tiles", "build/day.dbt", "--verify"]),
+        "tiles --verify",
+    );
+    assert!(verify.contains("town"), "{verify}");
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
+
+    // Moving a tree: ingest runs again, so the inset is added again.
+    std::fs::write(dir.join("scene.toml"), scene(75.0)).unwrap();
+    make(dir);
+    let info: serde_json::Value =
+        serde_json::from_str(&ok(dbms_in(dir, &["--json", "info", "build/db"]), "info")).unwrap();
+    assert!(info.to_string().contains("\"town\""), "{info}");
+    let want = by_hand(75.0);
+    assert!(
+        region("build") == want,
+        "an edit rebuilds the whole tile set"
+    );
+
+    let out = dbms_in(dir, &["plan", "scene.toml", "--shards", "4"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("build.shards is 4, but the scene has insets"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+
+    // The same steps as a Snakefile, from nothing: the same bytes.
+    if !have_snakemake() {
+        return;
+    }
+    std::fs::remove_dir_all(dir.join("build")).unwrap();
+    let snakefile = ok(
+        dbms_in(dir, &["plan", "scene.toml", "--snakefile"]),
+        "plan --snakefile",
+    );
+    std::fs::write(dir.join("Snakefile"), snakefile).unwrap();
+    let out = Command::new("snakemake")
+        .args(["-s", "Snakefile", "-j", "2", "--quiet", "--config"])
+        .arg(format!("dbms={}", env!("CARGO_BIN_EXE_dbms")))
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    ok(out, "snakemake");
+    assert!(
+        region("build") == want,
+        "the Snakefile's tile set differs from the stages'"
+    );
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
 }
 
 /// Whether Snakemake is on PATH (under CI it must be: `.ci/run` installs it).

@@ -183,8 +183,8 @@ fn scene_files_match_their_schema() {
         text.replace("sensor = \"visual\"", "sensor = \"sonar\""),
         text.replace("voxel = 0.25\nseed = 1", "voxel = 0\nseed = 1"),
         text.replace(
-            "day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"\n",
-            "day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"\nsun = { elevation = 30, azimuth = 100 }\n",
+            "tiles.dbt\"\ntime = \"2026-09-15T08:30:00Z\"\n",
+            "tiles.dbt\"\ntime = \"2026-09-15T08:30:00Z\"\nsun = { elevation = 30, azimuth = 100 }\n",
         ),
         text.replace("version = 1", "version = 2"),
         text.replace("heading = 50", "heading = 50\nscale = 0"),
@@ -205,15 +205,36 @@ fn scene_files_match_their_schema() {
             "at = [500066, 5300130]\nheading = 50",
             "points = \"trees.geojson\"\nscale = 1",
         ),
+        // Insets: a factor that is not a whole number from 2 to 10, an unknown key, both or
+        // neither of bounds and corridor, a name that is not a directory name.
+        text.replace("factor = 4", "factor = 2.5"),
+        text.replace("factor = 4", "factor = 11"),
+        text.replace("factor = 4", "factor = 4\nfactr = 3"),
+        text.replace(
+            "factor = 4",
+            "factor = 4\ncorridor = { route = \"road.geojson\", buffer = 30 }",
+        ),
+        text.replace("bounds = [500360, 5300264, 500432, 5300400]\n", ""),
+        text.replace("[insets.town]", "[insets.\"-town\"]"),
+        text.replace(
+            "bounds = [500360, 5300264, 500432, 5300400]",
+            "corridor = { route = \"road.geojson\", buffer = -1 }",
+        ),
     ];
     // Sensor products: both accept a radar look; both refuse one outside (0, 90) or on ir.
-    let day = "sensor = \"visual\"\ntiles = \"out/build/day.dbt\"\ntime = \"2026-09-15T08:30:00Z\"";
+    let day =
+        "sensor = \"visual\"\ntiles = \"out/build/tiles.dbt\"\ntime = \"2026-09-15T08:30:00Z\"";
     assert!(text.contains(day));
     let radar = text.replace(
         day,
         "sensor = \"radar\"\ntiles = \"out/build/sar.dbt\"\nradar = { azimuth = 220, elevation = 20, band = \"C\" }",
     );
     assert_valid(&v, &toml::from_str(&radar).unwrap(), "a radar product");
+    // An inset along a route, nested in the town, with its own photo: both accept it.
+    let corridor = text.clone()
+        + "\n[insets.road]\nfactor = 2\nparent = \"town\"\ncorridor = { route = \"road.geojson\", buffer = 30 }\northo = \"fine.tif\"\nphoto_time = \"2026-09-15T09:00:00Z\"\n";
+    assert_valid(&v, &toml::from_str(&corridor).unwrap(), "a corridor inset");
+    dbms::scene::Scene::parse(&corridor).unwrap();
     dbms::scene::Scene::parse(&radar).unwrap();
     for b in [
         radar.replace("elevation = 20", "elevation = 90"),

@@ -3,9 +3,9 @@
 //!
 //! Invariant: a [`Scene`] that [`Scene::read`] returns is complete and consistent before any
 //! step runs: every key is known, every value is in its range, every placement names a declared
-//! object, every product names a sensor this dbms builds and at most one sun, no output is also
-//! an input or another step's output, and relative paths are resolved against the scene file's
-//! directory. A problem is one line naming the file, the key (`products.dusk.time`) and, where
+//! object, every inset's parent is a declared inset and no inset nests in itself, every product
+//! names a sensor this dbms builds and at most one sun, no output is also an input or another
+//! step's output, and relative paths are resolved against the scene file's directory. A problem is one line naming the file, the key (`products.dusk.time`) and, where
 //! TOML gives one, the line.
 
 use crate::error::{Error, Result};
@@ -29,6 +29,9 @@ pub struct Scene {
     pub database: DatabaseSpec,
     /// The terrain: elevation and orthophoto.
     pub terrain: Terrain,
+    /// Finer grids nested in the base grid or in each other, by name (`dbms ingest --inset`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub insets: BTreeMap<String, Inset>,
     /// Buildings whose heights are measured from the orthophoto's shadows.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub buildings: Option<Buildings>,
@@ -154,6 +157,120 @@ pub struct Terrain {
     /// When the orthophoto was taken (RFC 3339 UTC): its sun, whose shadows are in the photo.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub photo_time: Option<String>,
+}
+
+/// `[insets.NAME]`: a finer grid over a window of its parent's cells, each split into `factor ×
+/// factor` cells (`dbms ingest --inset NAME:FACTOR:BOUNDS` or `--corridor NAME:FACTOR:BUFFER
+/// --route ROUTE`; docs/database.md, "Insets").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Inset {
+    /// Parent cells per inset cell along each axis: a whole number in
+    /// [`crate::inset::FACTORS`] (read as a number so that `2.5` is this key's error).
+    pub factor: f64,
+    /// The window `[min_x, min_y, max_x, max_y]` (CRS units), on the parent's cell edges;
+    /// exactly one of `bounds` and `corridor`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounds: Option<[f64; 4]>,
+    /// The window around a route instead: its bounding rectangle buffered, snapped outward to
+    /// the parent's cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub corridor: Option<Corridor>,
+    /// The inset it refines (a name in `[insets]`); none: the base grid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parent: Option<String>,
+    /// Its elevation raster; default the terrain's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dem: Option<PathBuf>,
+    /// Its orthophoto; default the terrain's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ortho: Option<PathBuf>,
+    /// When its orthophoto was taken (RFC 3339); default the terrain's `photo_time`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photo_time: Option<String>,
+}
+
+/// `[insets.NAME] corridor`: an inset's window along a route.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Corridor {
+    /// GeoJSON LineString features in the database's CRS (`--route`).
+    pub route: PathBuf,
+    /// Metres on every side of the route, ≥ 0.
+    pub buffer: f64,
+}
+
+impl Inset {
+    /// The factor as a whole number (after [`Scene::check`]).
+    pub fn factor(&self) -> usize {
+        self.factor as usize
+    }
+
+    /// Its DEM, orthophoto and photo time, each the terrain's when not its own.
+    pub fn inputs<'a>(&'a self, terrain: &'a Terrain) -> (&'a Path, &'a Path, Option<&'a str>) {
+        (
+            self.dem.as_deref().unwrap_or(&terrain.dem),
+            self.ortho.as_deref().unwrap_or(&terrain.ortho),
+            self.photo_time.as_deref().or(terrain.photo_time.as_deref()),
+        )
+    }
+
+    /// Name, factor, exactly one of bounds and corridor, each in range, and its photo time.
+    fn check(&self, name: &str) -> Result<()> {
+        let key = format!("insets.{name}");
+        crate::inset::check_name(name).map_err(|_| {
+            key_error(
+                &key,
+                "is not a plain inset name: it names the directory DB/insets/NAME".into(),
+                "name it with 1 to 64 letters, digits, - or _ (not starting with -), e.g. town",
+            )
+        })?;
+        let f = self.factor;
+        if !(f.fract() == 0.0 && f >= 0.0 && crate::inset::FACTORS.contains(&(f as usize))) {
+            let (lo, hi) = (crate::inset::FACTORS.start(), crate::inset::FACTORS.end());
+            return Err(key_error(
+                &format!("{key}.factor"),
+                format!("is {f}, not a whole number from {lo} to {hi}"),
+                "give the parent cells per inset cell, e.g. 4 (0.25 m cells become 0.0625 m); nest insets for more than 10",
+            ));
+        }
+        match (&self.bounds, &self.corridor) {
+            (Some([x0, y0, x1, y1]), None) => {
+                if !(x0 < x1 && y0 < y1) || [x0, y0, x1, y1].iter().any(|v| !v.is_finite()) {
+                    return Err(key_error(
+                        &format!("{key}.bounds"),
+                        "is not [min_x, min_y, max_x, max_y] with min < max".into(),
+                        "give the window's corners, west-south first, on the parent's cell edges",
+                    ));
+                }
+            }
+            (None, Some(c)) => {
+                if !(c.buffer.is_finite() && c.buffer >= 0.0) {
+                    return Err(key_error(
+                        &format!("{key}.corridor.buffer"),
+                        format!("is {}, not a distance ≥ 0 in metres", c.buffer),
+                        "e.g. corridor = { route = \"road.geojson\", buffer = 30 }",
+                    ));
+                }
+            }
+            _ => {
+                return Err(key_error(
+                    &key,
+                    "needs exactly one of bounds and corridor".into(),
+                    "bounds = [min_x, min_y, max_x, max_y] refines a rectangle; corridor = { route = \"FILE.geojson\", buffer = METRES } the cells along a route",
+                ))
+            }
+        }
+        if let Some(t) = &self.photo_time {
+            check_time(&format!("{key}.photo_time"), t)?;
+        }
+        Ok(())
+    }
+}
+
+/// Whether two `[min_x, min_y, max_x, max_y]` rectangles share an area.
+fn rects_overlap(a: &[f64; 4], b: &[f64; 4]) -> bool {
+    a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3]
 }
 
 /// `[buildings]`: footprints whose heights shadow-height measures in the orthophoto.
@@ -459,6 +576,7 @@ impl Scene {
                 "give terrain.photo_time, the UTC time the orthophoto was taken",
             ));
         }
+        self.check_insets()?;
         for (name, object) in &self.objects {
             object.check(&format!("objects.{name}"))?;
         }
@@ -491,8 +609,95 @@ impl Scene {
                     "give the number of jobs each visual product is cut into (1: one job)",
                 ));
             }
+            if shards > 1 && !self.insets.is_empty() {
+                return Err(key_error(
+                    "build.shards",
+                    format!("is {shards}, but the scene has insets, whose tile files a sharded build does not make yet"),
+                    "build it as one job (shards = 1, no --shards), or leave the insets out",
+                ));
+            }
         }
         Ok(())
+    }
+
+    /// Each inset's own keys; parents declared, no inset nested in itself; siblings given by
+    /// bounds apart, and a child given by bounds inside its parent's bounds (the rest, which
+    /// needs the grid, `dbms ingest --inset` checks).
+    fn check_insets(&self) -> Result<()> {
+        for (name, inset) in &self.insets {
+            inset.check(name)?;
+            if let Some(p) = inset
+                .parent
+                .as_ref()
+                .filter(|p| !self.insets.contains_key(*p))
+            {
+                return Err(key_error(
+                    &format!("insets.{name}.parent"),
+                    format!("names {p:?}, which [insets] does not declare"),
+                    "declare it as [insets.NAME], or leave parent out to refine the base grid",
+                ));
+            }
+        }
+        self.inset_order()?;
+        let with_bounds: Vec<(&String, &Inset, &[f64; 4])> = self
+            .insets
+            .iter()
+            .filter_map(|(n, i)| Some((n, i, i.bounds.as_ref()?)))
+            .collect();
+        for (k, (name, inset, b)) in with_bounds.iter().enumerate() {
+            let parent = inset.parent.as_ref();
+            if let Some((other, _, _)) = with_bounds[..k]
+                .iter()
+                .find(|(_, i, o)| i.parent.as_ref() == parent && rects_overlap(b, o))
+            {
+                let refined = parent.map_or("the base grid".into(), |p| format!("inset {p}"));
+                return Err(key_error(
+                    &format!("insets.{name}.bounds"),
+                    format!("overlap insets.{other}.bounds (both refine {refined})"),
+                    &format!(
+                        "move or shrink one off the other, or nest it with parent = \"{other}\""
+                    ),
+                ));
+            }
+            let outer = parent.and_then(|p| Some((p, self.insets[p].bounds.as_ref()?)));
+            if let Some((p, o)) = outer {
+                if !(b[0] >= o[0] && b[1] >= o[1] && b[2] <= o[2] && b[3] <= o[3]) {
+                    return Err(key_error(
+                        &format!("insets.{name}.bounds"),
+                        format!("reach outside insets.{p}.bounds, the inset it refines"),
+                        "give bounds inside its parent's",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The insets' names in the order they are added: in name order, each after its parent
+    /// (a parent declared later comes first, with its own parents). An error when insets nest
+    /// in each other in a cycle. Parents are declared ([`Scene::check`]).
+    pub fn inset_order(&self) -> Result<Vec<&String>> {
+        let mut done: Vec<&String> = Vec::new();
+        for name in self.insets.keys() {
+            // The chain of parents not added yet, from `name` up.
+            let mut chain: Vec<&String> = Vec::new();
+            let mut at = Some(name);
+            while let Some(n) = at.filter(|n| !done.contains(n)) {
+                if chain.contains(&n) {
+                    chain.push(n);
+                    let names: Vec<&str> = chain.iter().map(|n| n.as_str()).collect();
+                    return Err(key_error(
+                        &format!("insets.{name}.parent"),
+                        format!("nests insets in themselves: {}", names.join(" in ")),
+                        "give each inset a parent that is coarser than it, or none (the base grid)",
+                    ));
+                }
+                chain.push(n);
+                at = self.insets.get(n).and_then(|i| i.parent.as_ref());
+            }
+            done.extend(chain.into_iter().rev());
+        }
+        Ok(done)
     }
 
     /// Make every relative path relative to `base` (the scene file's directory).
@@ -505,6 +710,13 @@ impl Scene {
         resolve(&mut self.database.dir);
         resolve(&mut self.terrain.dem);
         resolve(&mut self.terrain.ortho);
+        for inset in self.insets.values_mut() {
+            inset.dem.iter_mut().for_each(resolve);
+            inset.ortho.iter_mut().for_each(resolve);
+            if let Some(c) = &mut inset.corridor {
+                resolve(&mut c.route);
+            }
+        }
         if let Some(b) = &mut self.buildings {
             resolve(&mut b.footprints);
         }
@@ -532,6 +744,22 @@ impl Scene {
             ("terrain.dem", &self.terrain.dem),
             ("terrain.ortho", &self.terrain.ortho),
         ];
+        let inset_keys: Vec<(String, &PathBuf)> = self
+            .insets
+            .iter()
+            .flat_map(|(name, i)| {
+                let key = |k: &str| format!("insets.{name}.{k}");
+                let files = [
+                    (key("dem"), i.dem.as_ref()),
+                    (key("ortho"), i.ortho.as_ref()),
+                    (key("corridor.route"), i.corridor.as_ref().map(|c| &c.route)),
+                ];
+                files.into_iter().filter_map(|(k, p)| Some((k, p?)))
+            })
+            .collect();
+        for (key, path) in &inset_keys {
+            inputs.push((key, path));
+        }
         if let Some(b) = &self.buildings {
             inputs.push(("buildings.footprints", &b.footprints));
         }
@@ -973,6 +1201,134 @@ conditions = { visibility_m = 2000 }
         }
     }
 
+    const INSETS: &str = r#"
+[insets.town]
+factor = 4
+bounds = [500360, 5300264, 500432, 5300400]
+
+[insets.yard]
+factor = 2
+bounds = [500380, 5300300, 500390, 5300310]
+parent = "town"
+photo_time = "2026-09-15T09:00:00Z"
+
+[insets.road]
+factor = 10
+corridor = { route = "road.geojson", buffer = 30 }
+dem = "lidar.tif"
+"#;
+
+    #[test]
+    fn insets_read_with_their_parents_first() {
+        let s = Scene::parse(&(GOOD.to_string() + INSETS)).unwrap();
+        assert_eq!(s.inset_order().unwrap(), ["road", "town", "yard"]);
+        let text = (GOOD.to_string() + INSETS)
+            .replace("[insets.town]", "[insets.zone]")
+            .replace("parent = \"town\"", "parent = \"zone\"");
+        let s = Scene::parse(&text).unwrap();
+        // A parent whose name sorts after its child's comes first.
+        assert_eq!(s.inset_order().unwrap(), ["road", "zone", "yard"]);
+        assert_eq!(s.insets["yard"].factor(), 2);
+        let (dem, ortho, time) = s.insets["road"].inputs(&s.terrain);
+        assert_eq!(
+            (dem, ortho, time),
+            (
+                Path::new("lidar.tif"),
+                Path::new("ortho.tif"),
+                Some("2026-09-15T08:30:00Z")
+            )
+        );
+        assert_eq!(
+            s.insets["yard"].inputs(&s.terrain).2,
+            Some("2026-09-15T09:00:00Z")
+        );
+    }
+
+    #[test]
+    fn bad_insets_are_one_line_errors_naming_the_key() {
+        let with = |from: &str, to: &str| {
+            let text = GOOD.to_string() + INSETS;
+            assert!(text.contains(from), "{from}");
+            error_of(&text.replacen(from, to, 1))
+        };
+        for (from, to, want) in [
+            (
+                "factor = 4",
+                "factor = 2.5",
+                "insets.town.factor is 2.5, not a whole number from 2 to 10",
+            ),
+            ("factor = 4", "factor = 11", "insets.town.factor is 11"),
+            (
+                "factor = 4",
+                "factor = 4\nfactr = 3",
+                "unknown field `factr`",
+            ),
+            (
+                "parent = \"town\"",
+                "parent = \"city\"",
+                "insets.yard.parent names \"city\", which [insets] does not declare",
+            ),
+            (
+                "factor = 4\n",
+                "factor = 4\nparent = \"yard\"\n",
+                "insets.town.parent nests insets in themselves: town in yard in town",
+            ),
+            (
+                "bounds = [500360,",
+                "corridor = { route = \"r.geojson\", buffer = 5 }\nbounds = [500360,",
+                "insets.town needs exactly one of bounds and corridor",
+            ),
+            (
+                "bounds = [500360, 5300264, 500432, 5300400]\n",
+                "",
+                "insets.town needs exactly one of bounds and corridor",
+            ),
+            (
+                "500432, 5300400",
+                "500300, 5300400",
+                "insets.town.bounds is not [min_x",
+            ),
+            (
+                "buffer = 30",
+                "buffer = -1",
+                "insets.road.corridor.buffer is -1",
+            ),
+            (
+                "500390, 5300310]",
+                "500390, 5300410]",
+                "insets.yard.bounds reach outside insets.town.bounds",
+            ),
+            (
+                "[insets.yard]",
+                "[insets.\"../yard\"]",
+                "insets.../yard is not a plain inset name",
+            ),
+            ("2026-09-15T09:00:00Z", "nine", "insets.yard.photo_time"),
+        ] {
+            let e = with(from, to);
+            assert!(e.contains(want), "{to}: {e}");
+            assert!(!e.contains('\n'), "one line: {e}");
+        }
+        // Siblings apart: a second inset of the base over the town.
+        let e = error_of(
+            &(GOOD.to_string()
+                + INSETS
+                + "[insets.mill]\nfactor = 2\nbounds = [500420, 5300200, 500440, 5300270]\n"),
+        );
+        assert!(
+            e.contains("insets.town.bounds overlap insets.mill.bounds (both refine the base grid)"),
+            "{e}"
+        );
+        // A sharded build does not make the insets' tile files yet.
+        let e = error_of(&(GOOD.to_string() + INSETS + "[build]\nshards = 2\n"));
+        assert!(
+            e.contains("build.shards is 2, but the scene has insets"),
+            "{e}"
+        );
+        let s = Scene::parse(&(GOOD.to_string() + INSETS)).unwrap();
+        assert!(s.with_shards(4).is_err());
+    }
+
     #[test]
     fn buildings_need_the_photo_time() {
         let e = error_of(&GOOD.replace("photo_time = \"2026-09-15T08:30:00Z\"\n", ""));
@@ -1019,6 +1375,23 @@ conditions = { visibility_m = 2000 }
         .unwrap();
         let e = Scene::read(&path).unwrap_err().to_string();
         assert!(e.contains("terrain.dem"), "a cycle: {e}");
+
+        // An inset's own inputs resolve and must exist too.
+        std::fs::write(&path, GOOD.to_string() + INSETS).unwrap();
+        let e = Scene::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("insets.road.dem") && e.contains("lidar.tif does not exist"),
+            "{e}"
+        );
+        std::fs::write(dir.path().join("lidar.tif"), b"x").unwrap();
+        let e = Scene::read(&path).unwrap_err().to_string();
+        assert!(e.contains("insets.road.corridor.route"), "{e}");
+        std::fs::write(dir.path().join("road.geojson"), b"x").unwrap();
+        let s = Scene::read(&path).unwrap();
+        assert_eq!(
+            s.insets["road"].corridor.as_ref().unwrap().route,
+            dir.path().join("road.geojson")
+        );
 
         std::fs::remove_file(dir.path().join("ortho.tif")).unwrap();
         std::fs::write(&path, GOOD).unwrap();

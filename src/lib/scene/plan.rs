@@ -22,7 +22,8 @@ use std::path::{Path, PathBuf};
 /// One step: the `dbms` command lines it runs, in order, and what it reads and writes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Step {
-    /// `ingest`, `heights`, `object.NAME`, `place`, `product.NAME` (`products` for several).
+    /// `ingest` (with its insets), `heights`, `object.NAME`, `place`, `product.NAME` (`products`
+    /// for several).
     pub name: String,
     /// What the step is for, in a few words.
     pub does: String,
@@ -538,15 +539,74 @@ fn ingest_step(scene: &Scene) -> Step {
     }
     // The database is built over from its inputs: later steps add to it (placements append).
     cmd.extend([s("--overwrite"), s("-o"), s(scene.database.dir.display())]);
+    let mut commands = vec![cmd];
+    let mut inputs = vec![t.dem.clone(), t.ortho.clone()];
+    // --overwrite drops the insets, so they are added again after it, in the same step: when
+    // any database step runs, the database starts over from ingest and gets them back.
+    let order = scene.inset_order().expect("Scene::check orders the insets");
+    for name in &order {
+        let (c, files) = inset_command(scene, name);
+        commands.push(c);
+        for f in files {
+            if !inputs.contains(&f) {
+                inputs.push(f);
+            }
+        }
+    }
     Step {
         name: "ingest".into(),
-        does: "DEM and orthophoto onto the database grid".into(),
-        commands: vec![cmd],
-        inputs: vec![t.dem.clone(), t.ortho.clone()],
+        does: match order.len() {
+            0 => "DEM and orthophoto onto the database grid".into(),
+            n => format!(
+                "DEM and orthophoto onto the database grid, then its {n} inset{} (parents first)",
+                if n == 1 { "" } else { "s" }
+            ),
+        },
+        commands,
+        inputs,
         outputs: vec![scene.database.dir.clone()],
         after: vec![],
         writes_database: true,
     }
+}
+
+/// The `dbms ingest --inset` (or `--corridor`) command line that adds inset `name` to the
+/// scene's database, and the files it reads.
+fn inset_command(scene: &Scene, name: &str) -> (Vec<String>, Vec<PathBuf>) {
+    let inset = &scene.insets[name];
+    let (dem, ortho, time) = inset.inputs(&scene.terrain);
+    let mut cmd = vec![
+        s("ingest"),
+        s("--dem"),
+        s(dem.display()),
+        s("--ortho"),
+        s(ortho.display()),
+    ];
+    if let Some(time) = time {
+        cmd.extend([s("--photo-time"), s(time)]);
+    }
+    let mut files = vec![dem.to_path_buf(), ortho.to_path_buf()];
+    let f = inset.factor();
+    match (&inset.bounds, &inset.corridor) {
+        (Some([a, b, c, d]), _) => {
+            cmd.extend([s("--inset"), format!("{name}:{f}:{a},{b},{c},{d}")]);
+        }
+        (None, Some(corridor)) => {
+            cmd.extend([
+                s("--corridor"),
+                format!("{name}:{f}:{}", corridor.buffer),
+                s("--route"),
+                s(corridor.route.display()),
+            ]);
+            files.push(corridor.route.clone());
+        }
+        (None, None) => unreachable!("Scene::check requires bounds or corridor"),
+    }
+    if let Some(parent) = &inset.parent {
+        cmd.extend([s("--inset-parent"), parent.clone()]);
+    }
+    cmd.extend([s("-o"), s(scene.database.dir.display())]);
+    (cmd, files)
 }
 
 fn object_step(name: &str, spec: &ObjectSpec, file: &Path) -> Step {
@@ -829,6 +889,43 @@ mod tests {
             .find(|s| s.name == "place")
             .unwrap();
         assert_eq!(place.inputs, [points.clone(), dir.path().join("oak.dvox")]);
+    }
+
+    /// Insets are command lines of the ingest step after its `--overwrite` (which drops them),
+    /// parents first, with the terrain's inputs and photo time unless their own; their files
+    /// are the step's inputs.
+    #[test]
+    fn insets_are_added_in_the_ingest_step_parents_first() {
+        let text = "version = 1\n[database]\ndir = \"db\"\n[terrain]\ndem = \"d.tif\"\northo = \"o.tif\"\n\
+             photo_time = \"2026-09-15T08:30:00Z\"\n\
+             [insets.b-town]\nfactor = 4\nbounds = [0, 0, 40, 40]\n\
+             [insets.a-yard]\nfactor = 2\nbounds = [10, 10, 20, 20]\nparent = \"b-town\"\northo = \"fine.tif\"\n\
+             [insets.road]\nfactor = 10\ncorridor = { route = \"r.geojson\", buffer = 12.5 }\nphoto_time = \"2026-09-16T10:00:00Z\"\n\
+             [products.day]\nsensor = \"visual\"\ntiles = \"day.dbt\"\n";
+        let scene = Scene::parse(text).unwrap();
+        let all = steps(&scene);
+        let ingest = &all[0];
+        assert!(ingest.writes_database && ingest.does.ends_with("its 3 insets (parents first)"));
+        let lines: Vec<String> = ingest.commands.iter().map(|c| c.join(" ")).collect();
+        let t = "--photo-time 2026-09-15T08:30:00Z";
+        assert_eq!(
+            lines,
+            [
+                format!("ingest --dem d.tif --ortho o.tif {t} --overwrite -o db"),
+                format!("ingest --dem d.tif --ortho o.tif {t} --inset b-town:4:0,0,40,40 -o db"),
+                format!("ingest --dem d.tif --ortho fine.tif {t} --inset a-yard:2:10,10,20,20 --inset-parent b-town -o db"),
+                "ingest --dem d.tif --ortho o.tif --photo-time 2026-09-16T10:00:00Z --corridor road:10:12.5 --route r.geojson -o db".into(),
+            ]
+        );
+        assert_eq!(
+            ingest.inputs,
+            [
+                PathBuf::from("d.tif"),
+                "o.tif".into(),
+                "fine.tif".into(),
+                "r.geojson".into()
+            ]
+        );
     }
 
     /// The materials step passes the `[materials]` sources and reads them as inputs; an ir
