@@ -609,13 +609,6 @@ impl Scene {
                     "give the number of jobs each visual product is cut into (1: one job)",
                 ));
             }
-            if shards > 1 && !self.insets.is_empty() {
-                return Err(key_error(
-                    "build.shards",
-                    format!("is {shards}, but the scene has insets, whose tile files a sharded build does not make yet"),
-                    "build it as one job (shards = 1, no --shards), or leave the insets out",
-                ));
-            }
         }
         Ok(())
     }
@@ -1319,14 +1312,9 @@ dem = "lidar.tif"
             e.contains("insets.town.bounds overlap insets.mill.bounds (both refine the base grid)"),
             "{e}"
         );
-        // A sharded build does not make the insets' tile files yet.
-        let e = error_of(&(GOOD.to_string() + INSETS + "[build]\nshards = 2\n"));
-        assert!(
-            e.contains("build.shards is 2, but the scene has insets"),
-            "{e}"
-        );
-        let s = Scene::parse(&(GOOD.to_string() + INSETS)).unwrap();
-        assert!(s.with_shards(4).is_err());
+        // Sharded builds make the insets too.
+        let s = Scene::parse(&(GOOD.to_string() + INSETS + "[build]\nshards = 2\n")).unwrap();
+        assert_eq!(s.shards(), 2);
     }
 
     #[test]
