@@ -3,10 +3,10 @@
 //!
 //! Invariant: a tile set's regions are its database's insets, parents first in the base
 //! header's `regions`; each region's file is the tile file a `dbms pyramid` of the inset's
-//! database with the same options writes, except that its cells over its own insets are their
-//! covers; and every parent cell under a region's window holds the region's
-//! [`Cover`] (exact max Z, rounded average colour, opaque), so the parent's max-Z hierarchy
-//! bounds the region. Regions are built finest first, before their parents.
+//! database with the same options writes, except for its cells over its own insets; and every
+//! parent cell under a region's window is covered ([`cover_band`]): its `max_z` is at least the
+//! highest region cell under it, so the parent's max-Z hierarchy bounds the region. Regions are
+//! built finest first, before their parents.
 //!
 //! What a region does not get yet: the parent's terrain outside its window does not shade it
 //! (each region casts its own shadows), sensor layers, and the base's `--export-levels`.
@@ -18,7 +18,7 @@ use crate::error::Result;
 use crate::io::atomic::Staged;
 use crate::progress::Progress;
 use crate::tiles::region::{Cover, Region};
-use crate::tiles::{TileReader, STATE_EMPTY, STATE_PARTIAL};
+use crate::tiles::{TileReader, STATE_OPAQUE, STATE_PARTIAL};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -140,9 +140,10 @@ pub fn make_regions(
     Ok(made)
 }
 
-/// Put `covers` into the level-0 band at grid row `row0`: every cell under a region takes its
-/// cover (max Z, colour, opaque or empty), loses any voxel column, and keeps its sensor values
-/// only where it stays valid.
+/// Put `covers` into the level-0 band at grid row `row0` ([`crate::tiles::region`]): a cell
+/// under a region whose own column is lower than the region's highest cell there (or has no
+/// data) is raised to it, opaque, without a voxel column; it keeps its own colour, or takes
+/// the region's average where it had none. Every other cell stays as it is.
 pub fn cover_band(covers: &[Cover], row0: usize, band: &mut Band) {
     let rows = &mut band.rows;
     let w = rows.width;
@@ -152,15 +153,21 @@ pub fn cover_band(covers: &[Cover], row0: usize, band: &mut Band) {
         let win = &c.window;
         for row in win.row0.max(row0)..win.row1.min(row0 + n) {
             for col in win.col0..win.col1 {
-                let (z, colour, state) = c.at(col, row).expect("a cell of the window");
+                let Some((top, colour)) = c.at(col, row) else {
+                    continue; // no data of the region here: the cell's own column stands
+                };
                 let i = (row - row0) * w + col;
+                let own = rows.max_z[i];
+                if own >= top {
+                    continue; // its own column already bounds the region
+                }
                 if rows.state[i] == STATE_PARTIAL {
                     dropped.push(i);
                 }
-                (rows.max_z[i], rows.colour[i], rows.state[i]) = (z, colour, state);
-                if state == STATE_EMPTY {
-                    rows.sensor.iter_mut().for_each(|s| s.clear(i));
+                if own.is_nan() {
+                    rows.colour[i] = colour;
                 }
+                (rows.max_z[i], rows.state[i]) = (top, STATE_OPAQUE);
             }
         }
     }
