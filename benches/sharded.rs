@@ -31,7 +31,10 @@
 #[path = "support/rolling_db.rs"]
 mod rolling_db;
 
+#[path = "support/files.rs"]
+mod files;
 use dbms::db::{Database, Stage};
+use files::{loadavg, remove, same_bytes};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -394,38 +397,6 @@ fn add_buildings(db_dir: &Path, n: usize) -> (usize, usize) {
         .expect("buildings layer");
     db.save().expect("save database");
     (count, cells)
-}
-
-fn remove(path: &Path) {
-    match std::fs::remove_file(path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-            panic!("remove {}: {e}", path.display())
-        }
-        _ => {}
-    }
-}
-
-/// `cmp` of the two files: identical byte for byte (the first difference printed when not).
-fn same_bytes(a: &Path, b: &Path) -> bool {
-    let o = Command::new("cmp").arg(a).arg(b).output().expect("run cmp");
-    if !o.status.success() {
-        eprintln!(
-            "cmp {} {}: {}{}",
-            a.display(),
-            b.display(),
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        );
-    }
-    o.status.success()
-}
-
-/// The 1-minute load average.
-fn loadavg() -> f64 {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()
-        .and_then(|s| s.split_whitespace().next().and_then(|v| v.parse().ok()))
-        .unwrap_or(f64::NAN)
 }
 
 fn mb(kb: u64) -> f64 {
