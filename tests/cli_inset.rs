@@ -82,6 +82,15 @@ fn info_json(db: &Path) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// A GeoJSON route at `path`: one LineString through `coordinates` (a JSON array of `[x, y]`).
+fn write_route(path: &Path, coordinates: &str) {
+    let doc = format!(
+        r#"{{"type": "FeatureCollection", "features": [{{"type": "Feature", "properties": {{}},
+            "geometry": {{"type": "LineString", "coordinates": {coordinates}}}}}]}}"#
+    );
+    std::fs::write(path, doc).unwrap();
+}
+
 /// The command failed cleanly: exit status 1, one line on stderr containing `needle`, no panic.
 fn assert_clean_failure(o: &Output, needle: &str) {
     let err = stderr(o);
@@ -99,12 +108,7 @@ fn nested_insets_and_a_corridor_join_the_database() {
     let dir = tempfile::tempdir().unwrap();
     let (d, o, db) = base(dir.path());
     let route = dir.path().join("route.geojson");
-    std::fs::write(
-        &route,
-        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {},
-            "geometry": {"type": "LineString", "coordinates": [[500004, 5299940], [500040, 5299935]]}}]}"#,
-    )
-    .unwrap();
+    write_route(&route, "[[500004, 5299940], [500040, 5299935]]");
     for extra in [
         &["--inset", "town:2:500010,5299970,500050,5299990"][..],
         &[
@@ -192,12 +196,7 @@ fn a_diagonal_corridor_is_a_chain_of_insets() {
     let dir = tempfile::tempdir().unwrap();
     let (d, o, db) = base(dir.path());
     let route = dir.path().join("diag.geojson");
-    std::fs::write(
-        &route,
-        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {},
-            "geometry": {"type": "LineString", "coordinates": [[500001, 5299999], [500059, 5299941]]}}]}"#,
-    )
-    .unwrap();
+    write_route(&route, "[[500001, 5299999], [500059, 5299941]]");
     // Killed after the first member's own commit: the base has none of the chain; the next
     // run clears what it left and adds them all.
     let corridor = ["--corridor", "diag:2:2", "--route", s(&route)];
@@ -277,12 +276,7 @@ fn a_diagonal_corridor_is_a_chain_of_insets() {
     // A second corridor crossing the first: refused whole, the database unchanged.
     let before = std::fs::read(db.join("manifest.json")).unwrap();
     let cross = dir.path().join("cross.geojson");
-    std::fs::write(
-        &cross,
-        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {},
-            "geometry": {"type": "LineString", "coordinates": [[500059, 5299999], [500001, 5299941]]}}]}"#,
-    )
-    .unwrap();
+    write_route(&cross, "[[500059, 5299999], [500001, 5299941]]");
     let out = add(&d, &o, &db, &["--corridor", "x:2:2", "--route", s(&cross)]);
     // (x-1, columns 16..30 of block row 0, is beside diag-1; x-2 is the first that overlaps.)
     assert_clean_failure(
@@ -313,12 +307,7 @@ fn bad_inset_definitions_are_one_line_errors_that_change_nothing() {
     .status
     .success());
     let lonlat = dir.path().join("lonlat.geojson");
-    std::fs::write(
-        &lonlat,
-        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {},
-            "geometry": {"type": "LineString", "coordinates": [[9.0, 47.8], [9.01, 47.81]]}}]}"#,
-    )
-    .unwrap();
+    write_route(&lonlat, "[[9.0, 47.8], [9.01, 47.81]]");
     let far = dir.path().join("far");
     std::fs::create_dir(&far).unwrap();
     let g = Grid::north_up(X0 + 5000.0, Y0, 1.0, 10, 10, Crs::epsg(32632));
