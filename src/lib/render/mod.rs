@@ -336,7 +336,7 @@ struct View<'a> {
     coherent: bool,
     column_cache: ColumnCache,
     /// The tile set's regions, which rays descend into ([`regions`]).
-    regions: regions::RegionFrames,
+    regions: regions::RegionFrames<'a>,
 }
 
 impl<'a> View<'a> {

@@ -23,15 +23,15 @@ use super::ray::{Axis, Ray};
 use super::sampler::{ColumnCache, Sampler};
 use crate::error::Result;
 use crate::inset::CellWindow;
-use crate::tiles::region::{self, Region};
+use crate::tiles::region::Region;
 use crate::tiles::TileReader;
 
 /// One region as a frame reads it: its tile file, its plan, its decoded voxel columns.
-pub struct RegionFrame {
+pub struct RegionFrame<'a> {
     /// The region.
     pub region: Region,
-    /// Its tile file.
-    pub reader: TileReader,
+    /// Its tile file (the base reader's, kept across frames: [`TileReader::regions`]).
+    pub reader: &'a TileReader,
     /// How rays step its levels (the frame's traversal, blend and pixel size; its own cells).
     pub plan: Plan,
     /// Its decoded voxel columns, shared by the frame's samplers.
@@ -40,30 +40,31 @@ pub struct RegionFrame {
     pub parent: Option<usize>,
 }
 
-/// Every region of a tile set, opened for one frame.
+/// Every region of a tile set, set up for one frame.
 #[derive(Default)]
-pub struct RegionFrames {
-    frames: Vec<RegionFrame>,
+pub struct RegionFrames<'a> {
+    frames: Vec<RegionFrame<'a>>,
 }
 
-impl RegionFrames {
-    /// The regions of the tile file behind `base` (checked: each file the one its header
-    /// records, over its derived grid), each with a plan like the base's `plan` for its own
-    /// cells; `per_pixel`: radians a pixel spans (for the range thresholds). None with
-    /// `repeat` (regions do not repeat with the database).
+impl<'a> RegionFrames<'a> {
+    /// The regions of the tile file behind `base` (its [`TileReader::regions`]: checked, opened
+    /// once and kept), each with a plan like the base's `plan` for its own cells; `per_pixel`:
+    /// radians a pixel spans (for the range thresholds). None with `repeat` (regions do not
+    /// repeat with the database), and none for a reader whose pages a filter recolours (a
+    /// sensor view: regions carry no sensor layers, so the base stands for them).
     pub fn open(
-        base: &TileReader,
+        base: &'a TileReader,
         plan: &Plan,
         per_pixel: f64,
         repeat: bool,
-    ) -> Result<RegionFrames> {
+    ) -> Result<RegionFrames<'a>> {
         let info = base.info();
-        if repeat || info.regions.is_empty() {
+        if repeat || info.regions.is_empty() || base.is_filtered() {
             return Ok(RegionFrames::default());
         }
+        let readers = base.regions()?;
         let mut frames = Vec::with_capacity(info.regions.len());
-        for r in &info.regions {
-            let reader = region::open(base.path(), r, &info.regions, &info.grid)?;
+        for (r, reader) in info.regions.iter().zip(readers) {
             let ri = reader.info();
             let t = &ri.grid.transform;
             let cell_m = [t.cell_x.abs(), t.cell_y.abs()];
@@ -108,16 +109,16 @@ impl RegionFrames {
 
     /// `base` (a sampler of the base tile file) with a sampler of each of its regions, each
     /// with its own regions in turn.
-    pub fn attach<'a>(&'a self, base: Sampler<'a>) -> Sampler<'a> {
+    pub fn attach<'s>(&'s self, base: Sampler<'s>) -> Sampler<'s> {
         self.attach_below(base, None)
     }
 
-    fn attach_below<'a>(&'a self, mut sampler: Sampler<'a>, parent: Option<usize>) -> Sampler<'a> {
+    fn attach_below<'s>(&'s self, mut sampler: Sampler<'s>, parent: Option<usize>) -> Sampler<'s> {
         for (k, f) in self.frames.iter().enumerate() {
             if f.parent != parent {
                 continue;
             }
-            let own = Sampler::new(&f.reader, false, &f.columns).region_edges();
+            let own = Sampler::new(f.reader, false, &f.columns).region_edges();
             sampler.children.push(Child {
                 window: f.region.window,
                 factor: f.region.factor,

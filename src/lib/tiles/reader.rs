@@ -35,6 +35,9 @@ pub struct TileReader {
     pages_read: AtomicU64,
     bytes_read: AtomicU64,
     cache_hits: AtomicU64,
+    /// The tile set's region files ([`super::region`]), opened the first time they are asked for
+    /// and kept, with their caches, for as long as this reader.
+    regions: std::sync::OnceLock<Vec<TileReader>>,
 }
 
 /// A change made to every page a reader hands out, e.g. a sensor view's colours
@@ -74,7 +77,30 @@ impl TileReader {
             pages_read: AtomicU64::new(0),
             bytes_read: AtomicU64::new(0),
             cache_hits: AtomicU64::new(0),
+            regions: std::sync::OnceLock::new(),
         })
+    }
+
+    /// The tile set's region files, in the header's order, each checked to be the file the
+    /// header records over the grid it derives ([`super::region::open`]) and caching as many
+    /// pages as this reader: opened once, then the same readers (so a flight's frames keep
+    /// their pages).
+    pub fn regions(&self) -> Result<&[TileReader]> {
+        if let Some(r) = self.regions.get() {
+            return Ok(r);
+        }
+        let all = &self.info.regions;
+        let opened = (all.iter())
+            .map(|r| {
+                super::region::open(&self.path, r, all, &self.info.grid, self.cache.capacity())
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(self.regions.get_or_init(|| opened))
+    }
+
+    /// Whether a page filter recolours this reader's pages ([`TileReader::with_filter`]).
+    pub fn is_filtered(&self) -> bool {
+        self.filter.is_some()
     }
 
     /// This reader with `filter` applied to every page [`page`](Self::page) and

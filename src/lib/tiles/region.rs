@@ -78,12 +78,19 @@ pub fn check(regions: &[Region], base: &Grid) -> Result<()> {
     Ok(())
 }
 
-/// Open region `r` of the tile file `base` (whose regions are `all`, level-0 grid `base_grid`):
-/// its tile file, checked to be the one the base header records, over the grid it derives.
-pub fn open(base: &Path, r: &Region, all: &[Region], base_grid: &Grid) -> Result<TileReader> {
+/// Open region `r` of the tile file `base` (whose regions are `all`, level-0 grid `base_grid`)
+/// with a cache of `cache_pages`: its tile file, checked to be the one the base header records,
+/// over the grid it derives.
+pub fn open(
+    base: &Path,
+    r: &Region,
+    all: &[Region],
+    base_grid: &Grid,
+    cache_pages: usize,
+) -> Result<TileReader> {
     let path = r.path(base);
     let fix = "rebuild the tile set with dbms pyramid (its files are written together)";
-    let reader = TileReader::open(&path, 64).map_err(|e| e.fix(fix))?;
+    let reader = TileReader::open(&path, cache_pages).map_err(|e| e.fix(fix))?;
     let (h, i) = reader.checksums();
     if [reader.file_len(), h as u64, i as u64] != r.tiles {
         return Err(Error::file(
@@ -207,7 +214,7 @@ pub fn verify(
     let mut opened: Vec<TileReader> = Vec::new();
     let mut done = Verified::default();
     for r in regions {
-        let tiles = open(base, r, regions, grid)?;
+        let tiles = open(base, r, regions, grid, 64)?;
         done.pages += tiles.verify(progress)?;
         let parent = match &r.parent {
             None => reader,
