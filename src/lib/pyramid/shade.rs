@@ -265,7 +265,27 @@ pub struct Casts {
     pub detect: bool,
 }
 
+/// What the effects of a build for `sun` (and the photo's, `photo_sun`) do over a grid where
+/// buildings and objects raise cells as `raised` says, `[buildings, objects]`: the situation the
+/// registry decides on, and the casts made (`None` without a sun, or when nothing runs). For
+/// builds that make pages apart from the whole grid (incremental, sharded), which know `raised`
+/// without reading what stands.
+pub fn casts_for(
+    sun: Option<Sun>,
+    photo_sun: Option<Sun>,
+    raised: [bool; 2],
+) -> (Situation, Option<Casts>) {
+    let seen = situation_of(sun, photo_sun, raised);
+    let casts = sun.and_then(|_| Casts::of(&seen, photo_sun));
+    (seen, casts)
+}
+
 impl Casts {
+    /// The suns these casts cast for the requested `sun`: it, and the photo's when cast too.
+    pub fn suns(&self, sun: Sun) -> Vec<Sun> {
+        std::iter::once(sun).chain(self.photo).collect()
+    }
+
     /// The casts for `seen` (a sun requested) and the photo's own sun when known; `None` when
     /// nothing runs: the photo's own sun with nothing raised (the photo holds it all).
     pub fn of(seen: &Situation, photo_sun: Option<Sun>) -> Option<Casts> {

@@ -25,7 +25,7 @@
 use super::cascade::{self, Band};
 use super::incremental::{self, PageStats, WholeGrid};
 use super::reduce::BaseRows;
-use super::shade::{self, Casts, EffectsRecord};
+use super::shade::{self, EffectsRecord};
 use super::{PyramidOptions, PyramidSummary, Timings};
 use crate::db::Database;
 use crate::error::{Error, Result};
@@ -238,18 +238,16 @@ fn tile_set(db: &Database, opts: &PyramidOptions, what: &str) -> Result<TileSetI
     if opts.incremental {
         return refuse("--incremental");
     }
-    let mut info = TileSetInfo::new(db.grid().clone(), opts.page_size, opts.factor, opts.levels)?;
-    info.compression = opts.compression;
-    Ok(info)
+    // No sensor layers (refused above): the tile set of every build of these options.
+    super::tile_info(db, opts)
 }
 
-/// The suns the effects cast for `seen` (none without a sun or effects): the requested one and
-/// the photo's when it is cast too.
+/// The suns the effects cast (none without a sun or effects): the requested one and the
+/// photo's when it is cast too.
 fn cast_suns(opts: &PyramidOptions, photo_sun: Option<Sun>, raised: [bool; 2]) -> Vec<Sun> {
-    let seen = shade::situation_of(opts.sun, photo_sun, raised);
-    match opts.sun.and_then(|_| Casts::of(&seen, photo_sun)) {
-        Some(c) => opts.sun.into_iter().chain(c.photo).collect(),
-        None => Vec::new(),
+    match (shade::casts_for(opts.sun, photo_sun, raised), opts.sun) {
+        ((_, Some(c)), Some(sun)) => c.suns(sun),
+        _ => Vec::new(),
     }
 }
 
@@ -477,9 +475,8 @@ pub fn merge(
         .fold(PageStats::default(), |a, part| a + part.record.stats);
     seconds.read = lap();
 
-    let seen = shade::situation_of(opts.sun, photo_sun, raised);
-    let effects_run = opts.sun.and_then(|_| Casts::of(&seen, photo_sun)).is_some();
-    let counts = effects_run.then(|| total.effects.unwrap_or_default());
+    let (seen, casts) = shade::casts_for(opts.sun, photo_sun, raised);
+    let counts = casts.map(|_| total.effects.unwrap_or_default());
     let record = EffectsRecord::decided(opts.sun, photo_sun, opts.shadow_factor, &seen, counts)
         .with_layers(&[], false);
     info.effects = serde_json::to_value(&record).expect("the effects record serialises");
@@ -545,21 +542,8 @@ pub fn merge(
     progress.finish();
     seconds.finish = lap();
     let summary = PyramidSummary {
-        tiles: out.to_path_buf(),
-        levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
-        pages: info.page_count(),
-        pages_rebuilt: info.page_count(),
-        in_place: false,
-        full_build: None,
-        reused: Vec::new(),
-        building_cells: total.building_cells,
-        object_cells: total.object_cells,
-        partial_cells: total.partial_cells,
-        half_valid_cells: total.half_valid_cells,
-        effects: record,
-        exported: Vec::new(),
         regions: made.built,
-        seconds,
+        ..PyramidSummary::of_pages(out, &info, total, record, seconds)
     };
     let params = super::stage_params(out, opts, &info, &summary);
     super::commit(db, wait, || Ok((staged, params)))?;
