@@ -247,6 +247,37 @@ impl std::fmt::Display for PyramidSummary {
     }
 }
 
+impl PyramidSummary {
+    /// The summary of the tile file `out` described by `info`, every page made, whose counts
+    /// are the sums of its level-0 pages' (`total`) and whose effects record is `effects`: a
+    /// build that makes pages apart from the whole grid (incremental, merged from shards).
+    fn of_pages(
+        out: &Path,
+        info: &TileSetInfo,
+        total: incremental::PageStats,
+        effects: shade::EffectsRecord,
+        seconds: Timings,
+    ) -> PyramidSummary {
+        PyramidSummary {
+            tiles: out.to_path_buf(),
+            levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
+            pages: info.page_count(),
+            pages_rebuilt: info.page_count(),
+            in_place: false,
+            full_build: None,
+            reused: Vec::new(),
+            building_cells: total.building_cells,
+            object_cells: total.object_cells,
+            partial_cells: total.partial_cells,
+            half_valid_cells: total.half_valid_cells,
+            effects,
+            exported: Vec::new(),
+            regions: Vec::new(),
+            seconds,
+        }
+    }
+}
+
 /// Wall-clock seconds of each step of [`build_pyramid`].
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct Timings {
@@ -308,10 +339,7 @@ pub fn build_pyramids(
     }
     let tiles: Vec<&Path> = products.iter().map(|p| p.tiles.as_path()).collect();
     crate::io::atomic::check_outputs(&tiles, &[])?;
-    let shared = Shared {
-        effects: shade::Shared::default(),
-        standing: std::sync::OnceLock::new(),
-    };
+    let shared = Shared::default();
     products
         .iter()
         .map(|p| {
@@ -325,6 +353,7 @@ pub fn build_pyramids(
 }
 
 /// What the products of one run share: the sun effects' work and what stands on the terrain.
+#[derive(Default)]
 struct Shared {
     effects: shade::Shared,
     standing: std::sync::OnceLock<crate::standing::Standing>,
@@ -637,12 +666,11 @@ fn incremental_build(
     let things = incremental::things(db)?;
     seconds.read = lap();
 
-    let seen = shade::situation_of(opts.sun, photo_sun, before.raised);
-    let casts = opts.sun.and_then(|_| shade::Casts::of(&seen, photo_sun));
+    let (seen, casts) = shade::casts_for(opts.sun, photo_sun, before.raised);
     let effects_run = casts.is_some();
-    let suns: Vec<Sun> = match casts {
-        Some(c) => opts.sun.into_iter().chain(c.photo).collect(),
-        None => Vec::new(),
+    let suns: Vec<Sun> = match (casts, opts.sun) {
+        (Some(c), Some(sun)) => c.suns(sun),
+        _ => Vec::new(),
     };
     let detect = casts.is_some_and(|c| c.detect);
     let [low, high] = before.terrain;
@@ -699,21 +727,8 @@ fn incremental_build(
         pages,
     };
     let mut summary = PyramidSummary {
-        tiles: out.to_path_buf(),
-        levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
-        pages: info.page_count(),
         pages_rebuilt: new.len(),
-        in_place: false,
-        full_build: None,
-        reused: Vec::new(),
-        building_cells: total.building_cells,
-        object_cells: total.object_cells,
-        partial_cells: total.partial_cells,
-        half_valid_cells: total.half_valid_cells,
-        effects: effects_record,
-        exported: Vec::new(),
-        regions: Vec::new(),
-        seconds,
+        ..PyramidSummary::of_pages(out, &info, total, effects_record, seconds)
     };
     // In place when every other page keeps its offset, else a new file with them copied.
     let replaced: Vec<_> = new.iter().collect();

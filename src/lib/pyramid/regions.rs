@@ -102,12 +102,15 @@ pub fn make_regions(
             covers: covers.remove(&Some(spec.name.clone())).unwrap_or_default(),
             ..Made::default()
         };
-        let shared = Shared {
-            effects: super::shade::Shared::default(),
-            standing: std::sync::OnceLock::new(),
-        };
-        let (mut staged, _, summary) =
-            make_product(&inset, db, &path, &inset_opts, &shared, progress, below)?;
+        let (mut staged, _, summary) = make_product(
+            &inset,
+            db,
+            &path,
+            &inset_opts,
+            &Shared::default(),
+            progress,
+            below,
+        )?;
         let tiles = staged.pop().expect("the tile file is staged last");
         let reader = TileReader::open(tiles.written(), 16)?;
         covers
