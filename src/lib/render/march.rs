@@ -112,7 +112,43 @@ pub struct Plan {
     pub cell_m: [f64; 2],
 }
 
+/// Width of each level's cells in level-0 cells, finest first: `factor^k`.
+pub fn level_scales(info: &crate::tiles::TileSetInfo) -> Vec<i64> {
+    (0..info.levels.len())
+        .map(|k| (info.factor as i64).pow(k as u32))
+        .collect()
+}
+
 impl Plan {
+    /// The plan for stepping the levels `0 ..= top` of the tile set `info` with `traversal`,
+    /// blending or not, and with range thresholds (`lod`) for pixels `per_pixel` radians wide:
+    /// `TH_k` = level `k`'s widest cell side, metres, over the pixel's angle.
+    pub fn of_levels(
+        info: &crate::tiles::TileSetInfo,
+        top: usize,
+        traversal: Traversal,
+        lod: bool,
+        blend: bool,
+        per_pixel: f64,
+    ) -> Plan {
+        let t = &info.grid.transform;
+        let cell_m = [t.cell_x.abs(), t.cell_y.abs()];
+        let widest = cell_m[0].max(cell_m[1]);
+        let scales = level_scales(info);
+        Plan {
+            traversal,
+            top,
+            thresholds: lod.then(|| {
+                (scales.iter())
+                    .map(|&s| s as f64 * widest / per_pixel)
+                    .collect()
+            }),
+            scales,
+            blend,
+            cell_m,
+        }
+    }
+
     /// Level-`l − 1` cells along each axis of a level-`l` cell (`l ≥ 1`): the pyramid's factor.
     #[inline]
     pub(super) fn children(&self, l: usize) -> i64 {

@@ -202,9 +202,7 @@ impl Scene {
             origin: [t.origin_x, t.origin_y],
             cell: [t.cell_x, t.cell_y],
             z_max: z_max as f64,
-            scales: (0..info.levels.len())
-                .map(|k| (info.factor as i64).pow(k as u32))
-                .collect(),
+            scales: march::level_scales(info),
         })
     }
 
@@ -358,22 +356,15 @@ impl<'a> View<'a> {
             .fix("give X,Y in the tile set's CRS (see `dbms tiles`)"));
         }
         check_eye_above_terrain(reader, opts.repeat, u0, v0, camera)?;
-        let cell_m = scene.cell[0].abs().max(scene.cell[1].abs());
         let per_pixel = camera.hfov.to_radians() / camera.width as f64;
-        let plan = Plan {
-            traversal: opts.traversal,
-            top: scene.top(opts.repeat),
-            scales: scene.scales.clone(),
-            thresholds: opts.lod.then(|| {
-                scene
-                    .scales
-                    .iter()
-                    .map(|&s| s as f64 * cell_m / per_pixel)
-                    .collect()
-            }),
-            blend: opts.blend,
-            cell_m: scene.cell.map(f64::abs),
-        };
+        let plan = Plan::of_levels(
+            reader.info(),
+            scene.top(opts.repeat),
+            opts.traversal,
+            opts.lod,
+            opts.blend,
+            per_pixel,
+        );
         let max_range = opts.max_range.unwrap_or(if opts.repeat {
             REPEAT_RANGE_DIAGONALS * scene.diagonal_m()
         } else {

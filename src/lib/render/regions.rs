@@ -66,25 +66,8 @@ impl<'a> RegionFrames<'a> {
         let mut frames = Vec::with_capacity(info.regions.len());
         for (r, reader) in info.regions.iter().zip(readers) {
             let ri = reader.info();
-            let t = &ri.grid.transform;
-            let cell_m = [t.cell_x.abs(), t.cell_y.abs()];
-            let scales: Vec<i64> = (0..ri.levels.len())
-                .map(|k| (ri.factor as i64).pow(k as u32))
-                .collect();
-            let widest = cell_m[0].max(cell_m[1]);
-            let region_plan = Plan {
-                traversal: plan.traversal,
-                top: scales.len() - 1,
-                thresholds: plan.thresholds.as_ref().map(|_| {
-                    scales
-                        .iter()
-                        .map(|&s| s as f64 * widest / per_pixel)
-                        .collect()
-                }),
-                scales,
-                blend: plan.blend,
-                cell_m,
-            };
+            let (lod, top) = (plan.thresholds.is_some(), ri.levels.len() - 1);
+            let region_plan = Plan::of_levels(ri, top, plan.traversal, lod, plan.blend, per_pixel);
             let parent = r.parent.as_ref().map(|p| {
                 info.regions
                     .iter()
