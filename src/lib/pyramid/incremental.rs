@@ -479,12 +479,13 @@ pub fn make_level0(
         let txs = run.iter().flat_map(|(_, txs)| txs.iter().copied());
         let (lo, hi) = txs.fold((usize::MAX, 0), |(lo, hi), tx| (lo.min(tx), hi.max(tx)));
         let cols = lo * p..((hi + 1) * p).min(g.width);
-        let near = |r: &Range<usize>, n: usize| {
-            r.start.saturating_sub(reach)..r.end.saturating_add(reach).min(n)
+        // `r` grown by `m` each side, within `0..n`.
+        let grow = |r: &Range<usize>, n: usize, m: usize| {
+            r.start.saturating_sub(m)..r.end.saturating_add(m).min(n)
         };
         // Every step below reads the terrain of these rows (the casts as far up-sun as a
         // shadow reaches): decoded once, when that is not more than a few bands.
-        let around = near(&rows, g.height);
+        let around = grow(&rows, g.height, reach);
         let kept = match around.len() * g.width <= KEPT_TERRAIN_CELLS {
             true => Some(CachedRows::new(&terrain, around.clone())?),
             false => None,
@@ -495,12 +496,9 @@ pub fn make_level0(
         };
         // What stands within a shadow's reach, and the roofs the photo's shadow detector skips
         // around the window (its thresholds there depend on them).
-        let wide = |r: &Range<usize>, n: usize| {
-            let m = reach.max(shade::DETECTION_REACH);
-            r.start.saturating_sub(m)..r.end.saturating_add(m).min(n)
-        };
-        let standing =
-            Standing::read_window(db, terrain, p, wide(&rows, g.height), wide(&cols, g.width))?;
+        let m = reach.max(shade::DETECTION_REACH);
+        let (stand_rows, stand_cols) = (grow(&rows, g.height, m), grow(&cols, g.width, m));
+        let standing = Standing::read_window(db, terrain, p, stand_rows, stand_cols)?;
         let window = shade::Window {
             rows: rows.clone(),
             top,
