@@ -667,6 +667,17 @@ fn an_inset_is_added_after_ingest_and_built_as_the_stages_build_it() {
         dbms_in(dir, &["plan", "scene.toml", "--snakefile"]),
         "plan --snakefile",
     );
+    snakemake(dir, &snakefile);
+    assert!(
+        region("build") == want,
+        "the Snakefile's tile set differs from the stages'"
+    );
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
+}
+
+/// Run the Snakefile `snakefile` in `dir` with Snakemake, two jobs at a time, this test's dbms.
+fn snakemake(dir: &Path, snakefile: &str) {
     std::fs::write(dir.join("Snakefile"), snakefile).unwrap();
     let out = Command::new("snakemake")
         .args(["-s", "Snakefile", "-j", "2", "--quiet", "--config"])
@@ -675,12 +686,6 @@ fn an_inset_is_added_after_ingest_and_built_as_the_stages_build_it() {
         .output()
         .unwrap();
     ok(out, "snakemake");
-    assert!(
-        region("build") == want,
-        "the Snakefile's tile set differs from the stages'"
-    );
-    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
-    assert!(plan.contains("all up to date"), "{plan}");
 }
 
 /// Whether Snakemake is on PATH (under CI it must be: `.ci/run` installs it).
@@ -724,14 +729,7 @@ fn a_sharded_scene_through_snakemake_gives_the_same_bytes() {
         4,
         "{snakefile}"
     );
-    std::fs::write(dir.join("Snakefile"), snakefile).unwrap();
-    let out = Command::new("snakemake")
-        .args(["-s", "Snakefile", "-j", "2", "--quiet", "--config"])
-        .arg(format!("dbms={}", env!("CARGO_BIN_EXE_dbms")))
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    ok(out, "snakemake");
+    snakemake(dir, &snakefile);
     assert!(
         std::fs::read(dir.join("build/day.dbt")).unwrap() == want,
         "the tile file merged from 4 shards by Snakemake is not the single build's"
