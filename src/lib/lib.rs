@@ -35,6 +35,7 @@ pub mod io;
 pub mod lights;
 pub mod manifest;
 pub mod material;
+pub mod mesh;
 pub mod moon;
 pub mod num;
 pub mod progress;

@@ -1,0 +1,72 @@
+//! Polygon export: the database as triangle meshes, for polygon image generators and 3-D
+//! viewers (`dbms export mesh`).
+//!
+//! The same database that the ray caster reads as max-Z tiles is written as triangles:
+//! terrain as a triangulated irregular network simplified to a stated vertical error
+//! ([`tin`]), buildings as prisms, placed voxel objects as merged faces, in glTF 2.0 binary
+//! files ([`gltf`]) under a 3D Tiles 1.1 tileset.
+//!
+//! Invariant of every [`Mesh`]: one colour per position, every index below the number of
+//! positions, triangles counter-clockwise seen from their outer side (from above for terrain
+//! and roofs, from outside for walls and objects).
+
+pub mod gltf;
+pub mod tin;
+
+/// A triangle mesh in world coordinates with one colour per vertex.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions: world x (east), y (north), z (up), metres in the database's CRS.
+    pub positions: Vec<[f64; 3]>,
+    /// Vertex colours, sRGB.
+    pub colours: Vec<[u8; 3]>,
+    /// Triangles as indices into `positions`, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Whether the mesh has no triangle.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Append `other`'s vertices and triangles (its indices shifted past ours).
+    pub fn append(&mut self, other: &Mesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.colours.extend_from_slice(&other.colours);
+        self.triangles
+            .extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+
+    /// The smallest box holding every position (world metres): `(min, max)`, or `None` for a
+    /// mesh without positions.
+    pub fn bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+        let first = *self.positions.first()?;
+        Some(self.positions.iter().fold((first, first), |(lo, hi), p| {
+            (
+                [lo[0].min(p[0]), lo[1].min(p[1]), lo[2].min(p[2])],
+                [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
+            )
+        }))
+    }
+}
+
+/// How a viewer lights a part's colours.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lighting {
+    /// The colours already hold the light (the orthophoto saw the sun): shown as they are
+    /// (glTF `KHR_materials_unlit`).
+    Unlit,
+    /// The colours are albedo: the viewer shades the faces (walls, roofs, objects).
+    Lit,
+}
+
+/// A piece of a tile's content: a mesh and how it is lit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Part {
+    /// The triangles.
+    pub mesh: Mesh,
+    /// How a viewer lights them.
+    pub lighting: Lighting,
+}

@@ -1,0 +1,1 @@
+//! Terrain as a triangulated irregular network (placeholder: the TIN helper fills this in).
