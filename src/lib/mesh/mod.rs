@@ -11,7 +11,9 @@
 //! and roofs, from outside for walls and objects).
 
 pub mod gltf;
+pub mod prisms;
 pub mod tin;
+pub mod voxels;
 
 /// A triangle mesh in world coordinates with one colour per vertex.
 #[derive(Debug, Clone, Default, PartialEq)]
