@@ -209,7 +209,7 @@ mod tests {
         });
         let m = object_mesh(&hollow, &placed(47.0, 1.0));
         assert!(
-            (volume(&m) - (64.0 - 8.0) * 0.125).abs() < 1e-9,
+            (volume(&m) - (64.0 - 8.0) * 0.125).abs() < 1e-6,
             "{}",
             volume(&m)
         );
