@@ -12,6 +12,7 @@
 
 pub mod gltf;
 pub mod prisms;
+pub mod tileset;
 pub mod tin;
 pub mod voxels;
 
