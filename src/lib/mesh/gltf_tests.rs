@@ -1,4 +1,5 @@
 use super::*;
+use std::path::Path;
 
 /// A tile origin far from zero, as a projected CRS gives.
 const ORIGIN: [f64; 3] = [512_000.0, 4_180_000.0, 250.0];
@@ -451,4 +452,75 @@ fn read_refuses_a_non_glb_and_features_it_does_not_read() {
         "byteLength",
     );
     refused(|r| r["asset"]["version"] = json!("1.0"), "asset version");
+}
+
+/// Writes sample files and runs `samples/web/validate-gltf.mjs` on them: the Khronos validator
+/// must find no error and no warning, and must fail a broken file. Needs Node and
+/// `npm ci` in samples/web: `cargo test --lib mesh::gltf -- --ignored`.
+#[test]
+#[ignore = "needs node and `npm ci` in samples/web"]
+fn the_khronos_validator_passes_every_encoding() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, parts: &[Part]| {
+        std::fs::write(dir.path().join(name), write_glb(parts, ORIGIN).unwrap()).unwrap();
+    };
+    let terrain = |size: f64, lighting| grid(60, 50, (size, size * 0.8), [0.0; 3], hill, lighting);
+    let roof = grid(
+        4,
+        4,
+        (6.0, 6.0),
+        [10.0, 10.0, 15.0],
+        |_, _| 0.0,
+        Lighting::Lit,
+    );
+    write("quantised-unlit.glb", &[terrain(60.0, Lighting::Unlit)]);
+    write(
+        "quantised-both.glb",
+        &[terrain(60.0, Lighting::Unlit), roof.clone()],
+    );
+    write("float-lit.glb", &[terrain(200.0, Lighting::Lit)]);
+    write("float-both.glb", &[roof, terrain(200.0, Lighting::Unlit)]);
+    write(
+        "flat.glb",
+        &[grid(
+            9,
+            9,
+            (50.0, 50.0),
+            [0.0; 3],
+            |_, _| 0.0,
+            Lighting::Unlit,
+        )],
+    );
+    std::fs::create_dir(dir.path().join("big")).unwrap();
+    let big = grid(300, 300, (100.0, 100.0), [0.0; 3], hill, Lighting::Unlit);
+    write("big/u32-indices.glb", &[big, strip(65_535)]);
+
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/web/validate-gltf.mjs");
+    let run = |dir: &Path| {
+        let out = std::process::Command::new("node")
+            .arg(&script)
+            .arg(dir)
+            .output()
+            .expect("node runs");
+        let text = String::from_utf8_lossy(&out.stdout).into_owned()
+            + &String::from_utf8_lossy(&out.stderr);
+        eprintln!("{text}");
+        (out.status.code(), text)
+    };
+    let (code, text) = run(dir.path());
+    assert_eq!(code, Some(0), "{text}");
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.contains("0 errors, 0 warnings"))
+            .count(),
+        6
+    );
+
+    let broken = tempfile::tempdir().unwrap();
+    let glb = write_glb(&[strip(10)], ORIGIN).unwrap();
+    let bad = edited(&glb, |r| r["accessors"][0]["max"][0] = json!(1.0));
+    std::fs::write(broken.path().join("wrong-max.glb"), bad).unwrap();
+    assert_eq!(run(broken.path()).0, Some(1));
+    let empty = tempfile::tempdir().unwrap();
+    assert_eq!(run(empty.path()).0, Some(1));
 }
