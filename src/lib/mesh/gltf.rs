@@ -440,6 +440,7 @@ pub fn read_glb(bytes: &[u8], origin: [f64; 3]) -> Result<Vec<Part>> {
 /// What went wrong reading, in words.
 type Problem = String;
 
+/// [`read_glb`] with the problem in words, before the common prefix and fix.
 fn read(bytes: &[u8], origin: [f64; 3]) -> std::result::Result<Vec<Part>, Problem> {
     let (json, bin) = chunks(bytes)?;
     let root: Value = serde_json::from_slice(json).map_err(|e| format!("JSON chunk: {e}"))?;
@@ -525,8 +526,10 @@ fn chunks(bytes: &[u8]) -> std::result::Result<(&[u8], &[u8]), Problem> {
     if word(0) != Some(GLB_MAGIC) {
         return Err("not a glTF binary (no \"glTF\" magic bytes)".into());
     }
-    if word(4) != Some(GLB_VERSION) {
-        return Err(format!("container version {:?}, expected 2", word(4)));
+    match word(4) {
+        Some(GLB_VERSION) => {}
+        Some(v) => return Err(format!("container version {v}, expected 2")),
+        None => return Err("header ends early".into()),
     }
     let length = word(8).ok_or("header ends early")? as usize;
     if length != bytes.len() {
