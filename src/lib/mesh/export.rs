@@ -9,8 +9,8 @@
 //! orthophoto's at level 0 and its average over the `s × s` cells around each point above.
 //!
 //! **What stands.** Every level holds every building (a [`super::prisms`] prism with its
-//! roof's average photo colour, walls from below the lowest terrain under it minus the level's
-//! bound) and every placed voxel object ([`super::voxels`]), in the tile holding the centre of
+//! roof's average photo colour, walls from the level's bound below the lowest terrain under
+//! it) and every placed voxel object ([`super::voxels`]), in the tile holding the centre of
 //! the building's box or the object's anchor.
 //!
 //! **Errors.** Each tile's terrain is measured against every level-0 point it owns (a tile owns
@@ -185,7 +185,7 @@ pub fn export_mesh(
     let colour = colour.as_ref();
     let levels = Levels::new(&grid, opts);
     let frame = Frame::new(&grid.crs, origin(&grid, &elevation)?, corners(&grid));
-    let standing = standing_meshes(db, &elevation, colour, opts.max_error_m)?;
+    let standing = standing_meshes(db, &elevation, colour)?;
 
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let total: usize = (0..levels.count).map(|l| levels.tiles(l).len()).sum();
@@ -400,20 +400,21 @@ fn corners(grid: &Grid) -> [f64; 4] {
 
 /// Buildings and objects as meshes, each with the level-0 cell it belongs to.
 struct Things {
-    /// `(cell column, cell row, mesh)`: the cell each belongs to.
-    meshes: Vec<(usize, usize, Mesh)>,
+    /// `(cell column, cell row, mesh, wall base)`: the cell each belongs to, and for a building
+    /// the height (metres) its walls start from, the lowest terrain under it, which each level
+    /// lowers by its own bound.
+    meshes: Vec<(usize, usize, Mesh, Option<f64>)>,
     buildings: usize,
     over_nodata: usize,
     objects: usize,
 }
 
-/// Read and mesh what stands on the terrain: buildings (walls down to `margin` metres below
-/// the lowest valid terrain under the footprint), placed objects.
+/// Read and mesh what stands on the terrain: buildings (walls from the lowest valid terrain
+/// under the footprint), placed objects.
 fn standing_meshes(
     db: &Database,
     elevation: &dyn RowSource<f32>,
     photo: &dyn RowSource<[u8; 4]>,
-    margin: f64,
 ) -> Result<Things> {
     let grid = db.grid();
     let mut out = Things {
@@ -453,13 +454,13 @@ fn standing_meshes(
                 continue;
             }
             let rgb = colour.mean(under);
-            let mesh = prism_mesh(prism, lowest as f64 - margin, rgb).map_err(|e| {
+            let mesh = prism_mesh(prism, lowest as f64, rgb).map_err(|e| {
                 Error::file(&path, format!("building {i}: {e}"))
                     .fix("correct the outline (a simple polygon, holes inside it) and export again")
             })?;
             let (lo, hi) = mesh.bounds().expect("a prism has vertices");
             let (col, row) = clamp_cell(grid, (lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0);
-            out.meshes.push((col, row, mesh));
+            out.meshes.push((col, row, mesh, Some(lowest as f64)));
             out.buildings += 1;
         }
     }
@@ -474,7 +475,7 @@ fn standing_meshes(
             continue;
         }
         let (col, row) = clamp_cell(grid, p.x, p.y);
-        out.meshes.push((col, row, mesh));
+        out.meshes.push((col, row, mesh, None));
         out.objects += 1;
     }
     Ok(out)
@@ -575,9 +576,18 @@ fn build_tile(
     let error = measure(elevation, &cell_tris, own_cols.clone(), own_rows.clone())?;
 
     let mut things = Mesh::default();
-    for (col, row, m) in &standing.meshes {
+    for (col, row, m, base) in &standing.meshes {
         if own_cols.contains(col) && own_rows.contains(row) {
+            let first = things.positions.len();
             things.append(m);
+            // Walls reach the level's bound below the lowest terrain: no gap under them.
+            if let Some(base) = base {
+                for p in &mut things.positions[first..] {
+                    if p[2] == *base {
+                        p[2] = base - levels.bound(level);
+                    }
+                }
+            }
         }
     }
     let parts: Vec<Part> = [(terrain, Lighting::Unlit), (things, Lighting::Lit)]
