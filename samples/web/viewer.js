@@ -13,7 +13,9 @@
 //   sun=AZ,EL       the directional light's azimuth (clockwise from grid north) and elevation,
 //                   degrees (default 127.3,32.3: the sample orthophoto's sun, so lit walls are
 //                   shaded as the photo's shadows fall)
-//   error=PX        3d-tiles-renderer's errorTarget, screen-space error in pixels (default 8)
+//   error=PX        3d-tiles-renderer's errorTarget: a tile is replaced by its children while
+//                   its geometric error would show as more than PX pixels (default 8; 0: the
+//                   finest level everywhere in view)
 //
 // The tileset's root `transform` (local frame -> ECEF) is inverted, so the tiles come back to
 // the local frame, which is then turned z-up -> y-up for three.js: (E, N, U) -> (E, U, -N).
