@@ -6,7 +6,8 @@
 // over HTTP on 127.0.0.1 at a free port, opens viewer.html?tileset=/out/tileset.json (plus
 // QUERY, e.g. "camera=-300,-300,250&fov=30": viewer.js lists the parameters) at WIDTH×HEIGHT
 // (default 1280×800) in the system Chromium (/usr/bin/chromium, or $CHROMIUM) driven by
-// playwright-core, which never downloads a browser. Without a GPU, WebGL runs on SwiftShader.
+// playwright-core, which never downloads a browser and gives every run a fresh profile (a
+// temporary user-data-dir, removed on close). Without a GPU, WebGL runs on SwiftShader.
 //
 // Waits (up to 120 s) for the page to say every tile it wants has loaded, then writes OUT.png
 // and prints the tiles and triangles drawn. Exits 1, writing nothing, on a page error, a

@@ -22,7 +22,7 @@
 //
 // For a screenshot script: once the root tileset is in, every tile the view wants has loaded
 // and nothing has changed for SETTLE_FRAMES frames, `window.__dbmsReady` is set to
-// {tiles, triangles, meshes} (tiles and triangles drawn); any failure sets
+// {tiles, triangles} (drawn); any failure sets
 // `window.__dbmsError` to its message instead.
 
 import * as THREE from "three";
@@ -197,14 +197,10 @@ function main() {
     settled = busy ? 0 : settled + 1;
     if (settled < SETTLE_FRAMES) return;
     let triangles = 0;
-    let meshes = 0;
     tiles.group.traverseVisible((o) => {
-      if (!o.isMesh) return;
-      const g = o.geometry;
-      triangles += (g.index ? g.index.count : g.attributes.position.count) / 3;
-      meshes += 1;
+      if (o.isMesh) triangles += (o.geometry.index ?? o.geometry.attributes.position).count / 3;
     });
-    window.__dbmsReady = { tiles: tiles.visibleTiles.size, triangles, meshes };
+    window.__dbmsReady = { tiles: tiles.visibleTiles.size, triangles };
   });
 }
 
