@@ -5,8 +5,9 @@
 //! single tile covers the grid (the tileset's root). Each tile of level `L` triangulates the
 //! terrain's points (cell centres) taken every `s = factor^L` cells, with the last point of the
 //! grid always kept, simplified ([`super::tin`]) to `max_error_m · s` vertically. Neighbouring
-//! tiles of a level share their edge points, so a level has no cracks. Colours are the
-//! orthophoto's at level 0 and its average over the `s × s` cells around each point above.
+//! tiles of a level share their edge points, so a level has no cracks. The orthophoto is draped
+//! over each tile as an image with a texel per point: the photo's cell at level 0, its average
+//! over the `s × s` cells around each point above (the pyramid's average colour).
 //!
 //! **What stands.** Every level holds every building (a [`super::prisms`] prism with its
 //! roof's average photo colour, walls from the level's bound below the lowest terrain under
@@ -29,7 +30,7 @@ use super::prisms::prism_mesh;
 use super::tileset::{tileset_json, Frame, Tile};
 use super::tin::{simplify, Heights, Tin};
 use super::voxels::object_mesh;
-use super::{Lighting, Mesh, Part};
+use super::{Drape, Lighting, Mesh, Part};
 use crate::db::{Database, COLOUR};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
@@ -568,7 +569,7 @@ fn build_tile(
         z: &z,
     };
     let tin = simplify(&heights, levels.bound(level));
-    let (terrain, cell_tris) =
+    let (terrain, drape, cell_tris) =
         terrain_mesh(grid, &tin, &rows, &cols, &z, colour, levels.stride(level))?;
     let (nx, ny) = levels.across(level);
     let own_cols = levels.owned(level, tx, grid.width, nx);
@@ -590,11 +591,18 @@ fn build_tile(
             }
         }
     }
-    let parts: Vec<Part> = [(terrain, Lighting::Unlit), (things, Lighting::Lit)]
-        .into_iter()
-        .filter(|(m, _)| !m.is_empty())
-        .map(|(mesh, lighting)| Part { mesh, lighting })
-        .collect();
+    let parts: Vec<Part> = [
+        (terrain, Lighting::Unlit, Some(drape)),
+        (things, Lighting::Lit, None),
+    ]
+    .into_iter()
+    .filter(|(m, _, _)| !m.is_empty())
+    .map(|(mesh, lighting, drape)| Part {
+        mesh,
+        lighting,
+        drape,
+    })
+    .collect();
     let triangles = parts.iter().map(|p| p.mesh.triangles.len() as u64).sum();
     let terrain_triangles = parts
         .iter()
@@ -672,10 +680,11 @@ fn read_points(src: &dyn RowSource<f32>, rows: &[usize], cols: &[usize]) -> Resu
 /// orientation and inside tests are exact) with its vertices' heights.
 type CellTriangle = [[f64; 3]; 3];
 
-/// The TIN as a coloured mesh in world coordinates, and its triangles in cell coordinates for
-/// measuring. Colours: the photo at the point (stride 1) or its mean over the `stride × stride`
-/// cells around it. A triangle that the grid's uneven last step would turn over is dropped
-/// (its points then count as uncovered).
+/// The TIN as a mesh in world coordinates with the photo draped over it, and its triangles in
+/// cell coordinates for measuring. The image has a texel per point of the window: the photo at
+/// the point (stride 1) or its mean over the `stride × stride` cells around it; each vertex
+/// samples its own point's texel, and its colour is that texel. A triangle that the grid's
+/// uneven last step would turn over is dropped (its points then count as uncovered).
 fn terrain_mesh(
     grid: &Grid,
     tin: &Tin,
@@ -684,17 +693,25 @@ fn terrain_mesh(
     z: &[f32],
     photo: &dyn RowSource<[u8; 4]>,
     stride: usize,
-) -> Result<(Mesh, Vec<CellTriangle>)> {
+) -> Result<(Mesh, Drape, Vec<CellTriangle>)> {
+    let (w, h) = (cols.len(), rows.len());
+    let texels = window_image(photo, rows, cols, stride)?;
     let mut mesh = Mesh::default();
+    let mut uv = Vec::with_capacity(tin.vertices.len());
     let mut cell = Vec::with_capacity(tin.vertices.len());
     for &[i, j] in &tin.vertices {
         let (c, r) = (cols[i as usize], rows[j as usize]);
-        let h = z[j as usize * cols.len() + i as usize] as f64;
+        let height = z[j as usize * w + i as usize] as f64;
         let (x, y) = grid.cell_centre(c, r);
-        mesh.positions.push([x, y, h]);
-        cell.push([c as f64, r as f64, h]);
+        mesh.positions.push([x, y, height]);
+        mesh.colours.push(texels[j as usize * w + i as usize]);
+        // The texel's centre.
+        uv.push([
+            ((i as f64 + 0.5) / w as f64) as f32,
+            ((j as f64 + 0.5) / h as f64) as f32,
+        ]);
+        cell.push([c as f64, r as f64, height]);
     }
-    mesh.colours = point_colours(photo, tin, rows, cols, stride)?;
     let mut cell_tris = Vec::with_capacity(tin.triangles.len());
     for &t in &tin.triangles {
         let p = t.map(|i| cell[i as usize]);
@@ -705,7 +722,13 @@ fn terrain_mesh(
         mesh.triangles.push(t);
         cell_tris.push(p);
     }
-    Ok((mesh, cell_tris))
+    let drape = Drape {
+        width: w as u32,
+        height: h as u32,
+        texels,
+        uv,
+    };
+    Ok((mesh, drape, cell_tris))
 }
 
 /// Twice the signed area of a triangle in (column, row): negative when clockwise there.
@@ -713,29 +736,21 @@ fn orient([a, b, c]: CellTriangle) -> f64 {
     (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
 }
 
-/// The photo's colour at each TIN vertex: the cell's at stride 1, the mean of the opaque cells
-/// within half a stride around it above (grey where none is opaque).
-fn point_colours(
+/// The photo at every point `rows × cols` of a window, row-major: the cell's at stride 1, the
+/// mean of the opaque cells within half a stride around it above (grey where none is opaque).
+fn window_image(
     photo: &dyn RowSource<[u8; 4]>,
-    tin: &Tin,
     rows: &[usize],
     cols: &[usize],
     stride: usize,
 ) -> Result<Vec<[u8; 3]>> {
     let (w, h) = (photo.grid().width, photo.grid().height);
     let half = stride / 2;
-    // The vertices of each point row, so each block of photo rows is read once.
-    let mut by_row: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
-    for (k, v) in tin.vertices.iter().enumerate() {
-        by_row.entry(v[1]).or_default().push(k);
-    }
-    let mut out = vec![[0u8; 3]; tin.vertices.len()];
-    for (j, ks) in by_row {
-        let r = rows[j as usize];
+    let mut out = Vec::with_capacity(rows.len() * cols.len());
+    for &r in rows {
         let (r0, r1) = (r.saturating_sub(half), (r + half + 1).min(h));
         let block = photo.read_rows(r0, r1 - r0)?;
-        for k in ks {
-            let c = cols[tin.vertices[k][0] as usize];
+        for &c in cols {
             let (c0, c1) = (c.saturating_sub(half), (c + half + 1).min(w));
             let (mut sum, mut n) = ([0u64; 3], 0u64);
             for rr in 0..r1 - r0 {
@@ -746,10 +761,10 @@ fn point_colours(
                     }
                 }
             }
-            out[k] = match n {
+            out.push(match n {
                 0 => [128; 3],
                 _ => sum.map(|s| ((s + n / 2) / n) as u8),
-            };
+            });
         }
     }
     Ok(out)

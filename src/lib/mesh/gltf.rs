@@ -23,13 +23,21 @@
 //! bits keep every one of the 256 sRGB values apart, so [`read_glb`] gets the exact bytes back.
 //! Vertex colours multiply the material's base colour, which is white.
 //!
+//! **Drapes.** A part with a [`Drape`] has no `COLOR_0`: its image is stored in the buffer as
+//! an 8-bit RGB PNG (an `image` with its own buffer view), its texture coordinates as
+//! `TEXCOORD_0` floats, and a material of its own (after the undraped parts' two) takes its
+//! base colour from that texture (sampler: linear, mipmapped, clamped at the edges so
+//! neighbouring tiles' images do not bleed in). [`read_glb`] decodes the image and gives each
+//! vertex the texel at its coordinates as its colour. Images need not be powers of two (the
+//! validator notes that as information: WebGL 2 and glTF viewers take them).
+//!
 //! **Indices.** Unsigned 16-bit when every index of the part is below 65535 (65535 is the
 //! primitive-restart value, which glTF forbids), else unsigned 32-bit.
 //!
 //! **No normals.** `NORMAL` is left out: the glTF spec has clients compute flat normals when it
 //! is absent (three.js and CesiumJS do), which is what prisms, objects and a TIN want.
 //!
-//! **Materials.** Only those used: [`Lighting::Unlit`] parts get one named `unlit` with
+//! **Materials.** Only those used: undraped [`Lighting::Unlit`] parts get one named `unlit` with
 //! `KHR_materials_unlit` (used, not required: a viewer without it lights the colours, which is
 //! still a picture), [`Lighting::Lit`] parts a plain one named `lit`; both white, metallic 0,
 //! roughness 1.
@@ -38,7 +46,7 @@
 //! give the same bytes. Every file passes the Khronos glTF validator with no error and no
 //! warning (`samples/web/validate-gltf.mjs`).
 
-use super::{Lighting, Mesh, Part};
+use super::{Drape, Lighting, Mesh, Part};
 use crate::error::{Error, Result};
 use serde_json::{json, Map, Value};
 
@@ -57,6 +65,9 @@ const FLOAT: u64 = 5126;
 const ARRAY_BUFFER: u64 = 34962;
 const ELEMENT_ARRAY_BUFFER: u64 = 34963;
 const TRIANGLES: u64 = 4;
+const LINEAR: u64 = 9729;
+const LINEAR_MIPMAP_LINEAR: u64 = 9987;
+const CLAMP_TO_EDGE: u64 = 33071;
 /// The largest index stored as an unsigned short (65535 is the primitive-restart value).
 const MAX_SHORT_INDEX: u32 = 65534;
 
@@ -128,7 +139,13 @@ pub fn write_glb(parts: &[Part], origin: [f64; 3]) -> Result<Vec<u8>> {
         ));
     }
     for (i, part) in parts.iter().enumerate() {
-        check_mesh(&part.mesh).map_err(|e| Error::msg(format!("glTF part {i}: {e}")))?;
+        check_mesh(&part.mesh)
+            .and_then(|()| {
+                part.drape
+                    .as_ref()
+                    .map_or(Ok(()), |d| check_drape(d, &part.mesh))
+            })
+            .map_err(|e| Error::msg(format!("glTF part {i}: {e}")))?;
     }
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -146,21 +163,43 @@ pub fn write_glb(parts: &[Part], origin: [f64; 3]) -> Result<Vec<u8>> {
     }
     let frame = Frame::new(lo, hi);
 
-    let materials: Vec<Lighting> = [Lighting::Unlit, Lighting::Lit]
+    // A material per lighting for the parts without a drape, unlit before lit; one per drape
+    // after them, each with its own image.
+    let mut materials: Vec<(Lighting, Option<usize>)> = [Lighting::Unlit, Lighting::Lit]
         .into_iter()
-        .filter(|l| parts.iter().any(|p| p.lighting == *l))
+        .filter(|l| parts.iter().any(|p| p.lighting == *l && p.drape.is_none()))
+        .map(|l| (l, None))
         .collect();
     let mut out = Binary::default();
+    let mut images = Vec::new();
     let primitives: Vec<Value> = parts
         .iter()
         .map(|part| {
-            let material = materials.iter().position(|l| *l == part.lighting);
-            let material = material.expect("every part's lighting has a material");
+            let position = out.positions(&part.mesh.positions, origin, &frame);
+            let (attributes, material) = match &part.drape {
+                None => {
+                    let material = materials.iter().position(|m| *m == (part.lighting, None));
+                    let colours = out.colours(&part.mesh.colours);
+                    (
+                        json!({ "POSITION": position, "COLOR_0": colours }),
+                        material.expect("every undraped part's lighting has a material"),
+                    )
+                }
+                Some(drape) => {
+                    images.push(json!({
+                        "bufferView": out.view(&png(drape), None, None),
+                        "mimeType": "image/png",
+                    }));
+                    materials.push((part.lighting, Some(images.len() - 1)));
+                    let uv = out.texcoords(&drape.uv);
+                    (
+                        json!({ "POSITION": position, "TEXCOORD_0": uv }),
+                        materials.len() - 1,
+                    )
+                }
+            };
             json!({
-                "attributes": {
-                    "POSITION": out.positions(&part.mesh.positions, origin, &frame),
-                    "COLOR_0": out.colours(&part.mesh.colours),
-                },
+                "attributes": attributes,
                 "indices": out.indices(&part.mesh.triangles),
                 "material": material,
                 "mode": TRIANGLES,
@@ -178,7 +217,7 @@ pub fn write_glb(parts: &[Part], origin: [f64; 3]) -> Result<Vec<u8>> {
     if frame.steps.is_some() {
         used.push(QUANTIZATION);
     }
-    if materials.contains(&Lighting::Unlit) {
+    if materials.iter().any(|m| m.0 == Lighting::Unlit) {
         used.push(UNLIT);
     }
     let mut root = json!({
@@ -190,11 +229,26 @@ pub fn write_glb(parts: &[Part], origin: [f64; 3]) -> Result<Vec<u8>> {
         "scenes": [{ "nodes": [0] }],
         "nodes": [node],
         "meshes": [{ "primitives": primitives }],
-        "materials": materials.iter().map(|l| material(*l)).collect::<Vec<_>>(),
+        "materials": materials.iter().map(|&(l, t)| material(l, t)).collect::<Vec<_>>(),
         "accessors": out.accessors,
         "bufferViews": out.views,
         "buffers": [{ "byteLength": out.bin.len() }],
     });
+    if !images.is_empty() {
+        let textures: Vec<Value> = (0..images.len())
+            .map(|i| json!({ "sampler": 0, "source": i }))
+            .collect();
+        root["images"] = json!(images);
+        root["textures"] = json!(textures);
+        // Linear between texels and mipmaps, clamped at the edges (neighbouring tiles'
+        // images must not bleed into each other).
+        root["samplers"] = json!([{
+            "magFilter": LINEAR,
+            "minFilter": LINEAR_MIPMAP_LINEAR,
+            "wrapS": CLAMP_TO_EDGE,
+            "wrapT": CLAMP_TO_EDGE,
+        }]);
+    }
     if !used.is_empty() {
         root["extensionsUsed"] = json!(used);
     }
@@ -234,9 +288,48 @@ fn check_mesh(m: &Mesh) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// The material of `lighting`: white, not metallic, fully rough; unlit ones with
-/// `KHR_materials_unlit`.
-fn material(lighting: Lighting) -> Value {
+/// The problem with a drape that breaks [`Drape`]'s invariant for `mesh`.
+fn check_drape(d: &Drape, mesh: &Mesh) -> std::result::Result<(), String> {
+    if d.width == 0 || d.height == 0 || d.texels.len() != d.width as usize * d.height as usize {
+        return Err(format!(
+            "a {} × {} image with {} texels",
+            d.width,
+            d.height,
+            d.texels.len()
+        ));
+    }
+    if d.uv.len() != mesh.positions.len() {
+        return Err(format!(
+            "{} texture coordinates for {} positions",
+            d.uv.len(),
+            mesh.positions.len()
+        ));
+    }
+    if d.uv.iter().flatten().any(|t| !t.is_finite()) {
+        return Err("a texture coordinate is not finite".into());
+    }
+    Ok(())
+}
+
+/// A drape's image as PNG (RGB, 8 bits; the same texels give the same bytes).
+fn png(d: &Drape) -> Vec<u8> {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    PngEncoder::new_with_quality(&mut out, CompressionType::Default, FilterType::Adaptive)
+        .write_image(
+            d.texels.as_flattened(),
+            d.width,
+            d.height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .expect("encoding RGB texels of a checked size into memory cannot fail");
+    out
+}
+
+/// The material of `lighting` (white, not metallic, fully rough; unlit ones with
+/// `KHR_materials_unlit`), coloured by texture `texture` when given.
+fn material(lighting: Lighting, texture: Option<usize>) -> Value {
     let mut m = json!({
         "name": match lighting {
             Lighting::Unlit => "unlit",
@@ -251,6 +344,9 @@ fn material(lighting: Lighting) -> Value {
     if lighting == Lighting::Unlit {
         m["extensions"] = json!({ UNLIT: {} });
     }
+    if let Some(t) = texture {
+        m["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": t });
+    }
     m
 }
 
@@ -263,15 +359,18 @@ struct Binary {
 }
 
 impl Binary {
-    /// Append `data` as a buffer view starting on a 4-byte boundary; its index.
-    fn view(&mut self, data: &[u8], stride: Option<usize>, target: u64) -> usize {
+    /// Append `data` as a buffer view starting on a 4-byte boundary; its index. Images'
+    /// views have no target.
+    fn view(&mut self, data: &[u8], stride: Option<usize>, target: Option<u64>) -> usize {
         self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         let mut v = json!({
             "buffer": 0,
             "byteOffset": self.bin.len(),
             "byteLength": data.len(),
-            "target": target,
         });
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
         if let Some(s) = stride {
             v["byteStride"] = json!(s);
         }
@@ -313,7 +412,7 @@ impl Binary {
                     data.extend_from_slice(&[0, 0]);
                 }
                 let (min, max) = min_max(&q, |c| f64::from(*c));
-                let view = self.view(&data, Some(8), ARRAY_BUFFER);
+                let view = self.view(&data, Some(8), Some(ARRAY_BUFFER));
                 self.accessor(
                     view,
                     n,
@@ -333,7 +432,7 @@ impl Binary {
                 let data: Vec<u8> = f.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
                 // The f32 widened to f64 prints exactly, so min and max match the data.
                 let (min, max) = min_max(&f, |c| f64::from(*c));
-                let view = self.view(&data, None, ARRAY_BUFFER);
+                let view = self.view(&data, None, Some(ARRAY_BUFFER));
                 self.accessor(
                     view,
                     n,
@@ -359,11 +458,22 @@ impl Binary {
             })
             .flat_map(u16::to_le_bytes)
             .collect();
-        let view = self.view(&data, None, ARRAY_BUFFER);
+        let view = self.view(&data, None, Some(ARRAY_BUFFER));
         self.accessor(
             view,
             colours.len(),
             json!({ "componentType": UNSIGNED_SHORT, "type": "VEC4", "normalized": true }),
+        )
+    }
+
+    /// The TEXCOORD_0 accessor: floats.
+    fn texcoords(&mut self, uv: &[[f32; 2]]) -> usize {
+        let data: Vec<u8> = uv.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+        let view = self.view(&data, None, Some(ARRAY_BUFFER));
+        self.accessor(
+            view,
+            uv.len(),
+            json!({ "componentType": FLOAT, "type": "VEC2" }),
         )
     }
 
@@ -378,7 +488,7 @@ impl Binary {
         } else {
             (flat.flat_map(|i| i.to_le_bytes()).collect(), UNSIGNED_INT)
         };
-        let view = self.view(&data, None, ELEMENT_ARRAY_BUFFER);
+        let view = self.view(&data, None, Some(ELEMENT_ARRAY_BUFFER));
         self.accessor(
             view,
             3 * triangles.len(),
@@ -456,6 +566,9 @@ fn read(bytes: &[u8], origin: [f64; 3]) -> std::result::Result<Vec<Part>, Proble
         "accessors",
         "bufferViews",
         "buffers",
+        "images",
+        "textures",
+        "samplers",
     ];
     only_keys(&root, "the JSON", &keys)?;
     let version = root.pointer("/asset/version").and_then(Value::as_str);
@@ -656,7 +769,11 @@ impl File<'_> {
             return Err("mode is not 4 (triangles)".into());
         }
         let attributes = p.get("attributes").ok_or("no attributes")?;
-        only_keys(attributes, "attributes", &["POSITION", "COLOR_0"])?;
+        only_keys(
+            attributes,
+            "attributes",
+            &["POSITION", "COLOR_0", "TEXCOORD_0"],
+        )?;
         let index = |key: &str| -> std::result::Result<usize, Problem> {
             p.pointer(key)
                 .and_then(Value::as_u64)
@@ -693,22 +810,51 @@ impl File<'_> {
             }
         };
 
-        let col = self.accessor(index("/attributes/COLOR_0")?)?;
-        let col = self.elements(col, UNSIGNED_SHORT, "VEC4", true)?;
-        if col.count != positions.len() {
-            return Err(format!(
-                "{} colours for {} positions",
-                col.count,
-                positions.len()
-            ));
-        }
-        let colours = col
-            .iter()
-            .map(|b| {
-                let mut v = u16s(b).map(|c| linear_to_srgb(f64::from(c) / 65535.0));
-                [0; 3].map(|_| v.next().unwrap_or(0))
-            })
-            .collect();
+        let material = materials
+            .get(index("/material")?)
+            .ok_or("its material does not exist")?;
+        only_keys(
+            material,
+            "its material",
+            &["name", "pbrMetallicRoughness", "extensions"],
+        )?;
+        let lighting = match material.get("extensions") {
+            None => Lighting::Lit,
+            Some(e) if *e == json!({ UNLIT: {} }) => Lighting::Unlit,
+            Some(_) => return Err("its material has extensions dbms does not read".into()),
+        };
+        let texture = material.pointer("/pbrMetallicRoughness/baseColorTexture/index");
+        let (colours, drape) = match (texture, attributes.get("TEXCOORD_0")) {
+            (None, None) => (
+                self.colours(index("/attributes/COLOR_0")?, positions.len())?,
+                None,
+            ),
+            (Some(t), Some(_)) => {
+                let uv = self.accessor(index("/attributes/TEXCOORD_0")?)?;
+                let uv = self.elements(uv, FLOAT, "VEC2", false)?;
+                let uv: Vec<[f32; 2]> = uv
+                    .iter()
+                    .map(|b| {
+                        [0, 4].map(|k| f32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]))
+                    })
+                    .collect();
+                if uv.len() != positions.len() {
+                    return Err(format!(
+                        "{} texture coordinates for {} positions",
+                        uv.len(),
+                        positions.len()
+                    ));
+                }
+                let drape = self.image(t, uv)?;
+                (
+                    drape.uv.iter().map(|&c| drape.colour_at(c)).collect(),
+                    Some(drape),
+                )
+            }
+            _ => {
+                return Err("a texture without texture coordinates, or the other way round".into())
+            }
+        };
 
         let ind = self.accessor(index("/indices")?)?;
         let indices: Vec<u32> = match ind.get("componentType").and_then(Value::as_u64) {
@@ -734,19 +880,6 @@ impl File<'_> {
             .map(|t| [t[0], t[1], t[2]])
             .collect();
 
-        let material = materials
-            .get(index("/material")?)
-            .ok_or("its material does not exist")?;
-        only_keys(
-            material,
-            "its material",
-            &["name", "pbrMetallicRoughness", "extensions"],
-        )?;
-        let lighting = match material.get("extensions") {
-            None => Lighting::Lit,
-            Some(e) if *e == json!({ UNLIT: {} }) => Lighting::Unlit,
-            Some(_) => return Err("its material has extensions dbms does not read".into()),
-        };
         Ok(Part {
             mesh: Mesh {
                 positions,
@@ -754,6 +887,73 @@ impl File<'_> {
                 triangles,
             },
             lighting,
+            drape,
+        })
+    }
+
+    /// The sRGB colours of COLOR_0 accessor `i`, which must have `n` of them.
+    fn colours(&self, i: usize, n: usize) -> std::result::Result<Vec<[u8; 3]>, Problem> {
+        let col = self.elements(self.accessor(i)?, UNSIGNED_SHORT, "VEC4", true)?;
+        if col.count != n {
+            return Err(format!("{} colours for {n} positions", col.count));
+        }
+        Ok(col
+            .iter()
+            .map(|b| {
+                let mut v = u16s(b).map(|c| linear_to_srgb(f64::from(c) / 65535.0));
+                [0; 3].map(|_| v.next().unwrap_or(0))
+            })
+            .collect())
+    }
+
+    /// Texture `t`'s PNG image (in the buffer) as a drape sampled at `uv`.
+    fn image(&self, t: &Value, uv: Vec<[f32; 2]>) -> std::result::Result<Drape, Problem> {
+        let t = t
+            .as_u64()
+            .and_then(|t| usize::try_from(t).ok())
+            .ok_or("a texture index is not a number")?;
+        let texture = array(self.root, "textures")?
+            .get(t)
+            .ok_or(format!("texture {t} does not exist"))?;
+        let source = texture
+            .get("source")
+            .and_then(Value::as_u64)
+            .ok_or(format!("texture {t} has no source"))?;
+        let image = array(self.root, "images")?
+            .get(usize::try_from(source).unwrap_or(usize::MAX))
+            .ok_or(format!("image {source} does not exist"))?;
+        only_keys(image, "an image", &["bufferView", "mimeType"])?;
+        if image.get("mimeType").and_then(Value::as_str) != Some("image/png") {
+            return Err(format!("image {source} is not a PNG"));
+        }
+        let v = image
+            .get("bufferView")
+            .and_then(Value::as_u64)
+            .ok_or("an image has no bufferView")?;
+        let view = array(self.root, "bufferViews")?
+            .get(usize::try_from(v).unwrap_or(usize::MAX))
+            .ok_or(format!("buffer view {v} does not exist"))?;
+        let field = |key: &str| {
+            view.get(key)
+                .and_then(Value::as_u64)
+                .and_then(|n| usize::try_from(n).ok())
+        };
+        let bytes = field("byteLength")
+            .and_then(|len| {
+                let start = field("byteOffset").unwrap_or(0);
+                self.bin.get(start..start.checked_add(len)?)
+            })
+            .ok_or(format!("image {source}'s data is not within the buffer"))?;
+        let rgb = image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
+            .map_err(|e| format!("image {source}: {e}"))?
+            .to_rgb8();
+        let (width, height) = rgb.dimensions();
+        let texels = rgb.pixels().map(|p| p.0).collect();
+        Ok(Drape {
+            width,
+            height,
+            texels,
+            uv,
         })
     }
 
@@ -816,6 +1016,7 @@ impl File<'_> {
             UNSIGNED_SHORT => 2,
             _ => 4,
         } * match kind {
+            "VEC2" => 2,
             "VEC3" => 3,
             "VEC4" => 4,
             _ => 1,

@@ -38,7 +38,37 @@ fn grid(
             mesh.triangles.push([v, v + nx + 1, v + nx]);
         }
     }
-    Part { mesh, lighting }
+    Part {
+        mesh,
+        lighting,
+        drape: None,
+    }
+}
+
+/// `part` with a `w` × `h` image draped over it: each vertex samples the texel its own colour
+/// came from (vertex k's colour is texel k mod w·h), as the exporter drapes the photo.
+fn draped(mut part: Part, w: u32, h: u32) -> Part {
+    let texels: Vec<[u8; 3]> = (0..w * h)
+        .map(|t| [(t * 37 % 256) as u8, (t * 11 % 256) as u8, (t % 256) as u8])
+        .collect();
+    let uv: Vec<[f32; 2]> = (0..part.mesh.positions.len() as u32)
+        .map(|k| {
+            let t = k % (w * h);
+            [
+                ((t % w) as f32 + 0.5) / w as f32,
+                ((t / w) as f32 + 0.5) / h as f32,
+            ]
+        })
+        .collect();
+    let drape = Drape {
+        width: w,
+        height: h,
+        texels,
+        uv,
+    };
+    part.mesh.colours = drape.uv.iter().map(|&c| drape.colour_at(c)).collect();
+    part.drape = Some(drape);
+    part
 }
 
 fn hill(x: f64, y: f64) -> f64 {
@@ -153,6 +183,7 @@ fn the_encoding_switches_where_half_a_step_passes_1_mm() {
                     triangles: vec![[0, 1, 2]],
                 },
                 lighting: Lighting::Lit,
+                drape: None,
             };
             let root = json_of(&write_glb(&[part], ORIGIN).unwrap());
             let c = &position_accessor(&root, 0)["componentType"];
@@ -174,6 +205,7 @@ fn axes_turn_to_y_up_and_a_flat_axis_is_exact() {
             triangles: vec![[0, 1, 2]],
         },
         lighting: Lighting::Unlit,
+        drape: None,
     };
     let glb = write_glb(std::slice::from_ref(&part), o).unwrap();
     let root = json_of(&glb);
@@ -210,6 +242,7 @@ fn every_srgb_value_round_trips_exactly() {
             triangles: (0..n - 2).map(|i| [i, i + 1, i + 2]).collect(),
         },
         lighting: Lighting::Unlit,
+        drape: None,
     };
     let back = read_glb(
         &write_glb(std::slice::from_ref(&part), ORIGIN).unwrap(),
@@ -243,6 +276,7 @@ fn strip(n: u32) -> Part {
                 .collect(),
         },
         lighting: Lighting::Lit,
+        drape: None,
     }
 }
 
@@ -279,6 +313,7 @@ fn no_triangle_is_an_error_and_empty_parts_are_left_out() {
             triangles: vec![],
         },
         lighting: Lighting::Unlit,
+        drape: None,
     };
     for parts in [vec![], vec![empty.clone()]] {
         let e = write_glb(&parts, ORIGIN).unwrap_err().to_string();
@@ -454,6 +489,63 @@ fn read_refuses_a_non_glb_and_features_it_does_not_read() {
     refused(|r| r["asset"]["version"] = json!("1.0"), "asset version");
 }
 
+/// A draped part comes back with its image, texture coordinates and colours as written, its
+/// positions within half a step; beside an undraped part, each keeps its own material.
+#[test]
+fn a_draped_part_reads_back_with_its_image() {
+    let terrain = draped(
+        grid(30, 20, (60.0, 40.0), [0.0; 3], hill, Lighting::Unlit),
+        7,
+        5,
+    );
+    let roof = grid(
+        3,
+        3,
+        (6.0, 6.0),
+        [10.0, 10.0, 15.0],
+        |_, _| 0.0,
+        Lighting::Lit,
+    );
+    let parts = vec![terrain, roof];
+    let glb = write_glb(&parts, ORIGIN).unwrap();
+    let root = json_of(&glb);
+    assert_eq!(root["images"][0]["mimeType"], json!("image/png"));
+    assert_eq!(root["materials"].as_array().unwrap().len(), 2);
+    assert!(root["meshes"][0]["primitives"][0]["attributes"]
+        .get("COLOR_0")
+        .is_none());
+    let back = read_glb(&glb, ORIGIN).unwrap();
+    assert_close(&parts, &back, half_steps([60.0, 40.0 + 15.0 - 0.0, 50.0]));
+    assert_eq!(back[0].drape, parts[0].drape);
+    assert_eq!(back[0].mesh.colours, parts[0].mesh.colours);
+    assert_eq!(back[1].drape, None);
+    assert_eq!(back[1].lighting, Lighting::Lit);
+}
+
+/// A drape that breaks its invariant is an error naming the problem, never a panic.
+#[test]
+fn a_drape_breaking_its_invariant_is_an_error() {
+    let good = draped(
+        grid(3, 3, (6.0, 6.0), [0.0; 3], hill, Lighting::Unlit),
+        2,
+        2,
+    );
+    let mut short = good.clone();
+    short.drape.as_mut().unwrap().uv.pop();
+    let mut texels = good.clone();
+    texels.drape.as_mut().unwrap().texels.pop();
+    let mut nan = good.clone();
+    nan.drape.as_mut().unwrap().uv[0][1] = f32::NAN;
+    for (part, says) in [
+        (short, "texture coordinates"),
+        (texels, "texels"),
+        (nan, "not finite"),
+    ] {
+        let e = write_glb(&[part], ORIGIN).unwrap_err().to_string();
+        assert!(e.contains(says), "{e}");
+    }
+}
+
 /// Writes sample files and runs `samples/web/validate-gltf.mjs` on them: the Khronos validator
 /// must find no error and no warning, and must fail a broken file. Needs Node and
 /// `npm ci` in samples/web: `cargo test --lib mesh::gltf -- --ignored`.
@@ -479,7 +571,14 @@ fn the_khronos_validator_passes_every_encoding() {
         &[terrain(60.0, Lighting::Unlit), roof.clone()],
     );
     write("float-lit.glb", &[terrain(200.0, Lighting::Lit)]);
-    write("float-both.glb", &[roof, terrain(200.0, Lighting::Unlit)]);
+    write(
+        "float-both.glb",
+        &[roof.clone(), terrain(200.0, Lighting::Unlit)],
+    );
+    write(
+        "draped.glb",
+        &[draped(terrain(60.0, Lighting::Unlit), 17, 13), roof],
+    );
     write(
         "flat.glb",
         &[grid(
@@ -513,7 +612,7 @@ fn the_khronos_validator_passes_every_encoding() {
         text.lines()
             .filter(|l| l.contains("0 errors, 0 warnings"))
             .count(),
-        6
+        7
     );
 
     let broken = tempfile::tempdir().unwrap();

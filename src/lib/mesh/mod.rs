@@ -66,11 +66,41 @@ pub enum Lighting {
     Lit,
 }
 
-/// A piece of a tile's content: a mesh and how it is lit.
+/// A piece of a tile's content: a mesh, how it is lit, and the image draped over it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Part {
     /// The triangles.
     pub mesh: Mesh,
     /// How a viewer lights them.
     pub lighting: Lighting,
+    /// An image whose colours a viewer shows instead of the vertex colours.
+    pub drape: Option<Drape>,
+}
+
+/// An image draped over a part's triangles (the orthophoto over a terrain tile): a viewer
+/// interpolates each triangle's texture coordinates and samples the image between them, so the
+/// picture keeps its detail whatever the number of triangles.
+///
+/// Invariant: `texels.len() == width × height` and `uv` has one entry per vertex of the part's
+/// mesh; each vertex's colour in [`Mesh::colours`] is [`Drape::colour_at`] its `uv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Drape {
+    /// Texels across.
+    pub width: u32,
+    /// Texels down.
+    pub height: u32,
+    /// sRGB texels, row-major, row 0 at the image's top (north).
+    pub texels: Vec<[u8; 3]>,
+    /// Per vertex: where it samples the image, in image widths and heights from the image's
+    /// top-left corner (glTF's texture coordinates).
+    pub uv: Vec<[f32; 2]>,
+}
+
+impl Drape {
+    /// The texel holding texture coordinate `uv` (clamped to the image).
+    pub fn colour_at(&self, [u, v]: [f32; 2]) -> [u8; 3] {
+        let at = |t: f32, n: u32| ((t * n as f32).floor().max(0.0) as u32).min(n - 1);
+        let (x, y) = (at(u, self.width), at(v, self.height));
+        self.texels[(y * self.width + x) as usize]
+    }
 }
