@@ -25,6 +25,8 @@ use serde_json::{json, Value};
 pub struct Frame {
     /// World position (CRS units, z metres) of the local frame's origin.
     pub origin: [f64; 3],
+    /// The CRS the origin is in, by name (e.g. `EPSG:32632`).
+    pub crs: String,
     /// Local frame → ECEF (metres), column-major as 3D Tiles stores `transform`; `None` when
     /// the CRS cannot be converted to latitude and longitude.
     pub to_ecef: Option<[f64; 16]>,
@@ -64,6 +66,7 @@ impl Frame {
         let Some(t) = to_ecef(x0, y0, z0) else {
             return Frame {
                 origin,
+                crs: crs.name(),
                 to_ecef: None,
                 corner_error_m: None,
             };
@@ -106,6 +109,7 @@ impl Frame {
             .fold(0.0f64, f64::max);
         Frame {
             origin,
+            crs: crs.name(),
             to_ecef: Some(m),
             corner_error_m: Some(corner_error_m),
         }
@@ -145,8 +149,9 @@ impl Tile {
     }
 }
 
-/// The tileset document: version 1.1, the root replaced by its children as a viewer refines,
-/// placed on the globe by `frame`. `generator` names the program and version.
+/// The tileset document: version 1.1, its `extras` giving the local frame's origin and CRS, the root replaced by its children as a viewer refines,
+/// placed on the globe by `frame`. `generator` names the program and version (the asset's
+/// `extras`: 3D Tiles has no property of its own for it).
 pub fn tileset_json(frame: &Frame, root: &Tile, generator: &str) -> Value {
     let mut r = root.to_json();
     r["refine"] = json!("REPLACE");
@@ -156,10 +161,12 @@ pub fn tileset_json(frame: &Frame, root: &Tile, generator: &str) -> Value {
     let (lo, hi) = root.bounds;
     let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
     json!({
-        "asset": {"version": "1.1", "generator": generator},
+        "asset": {"version": "1.1", "extras": {"generator": generator}},
         // Showing nothing at all: off by the whole scene.
         "geometricError": diagonal.max(root.geometric_error),
         "root": r,
+        // How to go back to the database's coordinates: world = local + origin.
+        "extras": {"local_origin": frame.origin, "crs": frame.crs},
     })
 }
 
