@@ -219,11 +219,11 @@ impl LocalRay {
         if det == 0.0 {
             return None; // the ray is in the triangle's plane, or the triangle has no area
         }
-        let t = u * a[2] + v * b[2] + w * c[2];
-        if !(t / det > 0.0) {
+        let t = (u * a[2] + v * b[2] + w * c[2]) / det;
+        if t.is_nan() || t <= 0.0 {
             return None;
         }
-        Some((t / det, [u / det, v / det, w / det]))
+        Some((t, [u / det, v / det, w / det]))
     }
 }
 
