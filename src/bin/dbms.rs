@@ -32,6 +32,8 @@ enum Command {
     Build(cmd::build::Args),
     /// Register a DEM and an orthophoto onto one database grid (creates the database).
     Ingest(cmd::ingest::Args),
+    /// Export a database for other tools: `mesh`, a 3D Tiles tileset of glTF binaries.
+    Export(cmd::export::Args),
     /// Show what a database holds: grid, layers, checksums, stages run.
     Info(cmd::info::Args),
     /// The per-cell material layer: from roofs, vector features, land cover, then the photo.
@@ -91,6 +93,7 @@ fn main() -> ExitCode {
     let result: dbms::Result<()> = match cli.command {
         Command::Build(a) => cmd::build::run(a, &ctx),
         Command::Ingest(a) => cmd::ingest::run(a, &ctx),
+        Command::Export(a) => cmd::export::run(a, &ctx),
         Command::Info(a) => cmd::info::run(a, &ctx),
         Command::Materials(a) => cmd::materials::run(a, &ctx),
         Command::Object(a) => cmd::object::run(a, &ctx),

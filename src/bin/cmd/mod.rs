@@ -2,6 +2,7 @@
 //! library, report. Shared output rules live in [`Ctx`].
 
 pub mod build;
+pub mod export;
 pub mod info;
 pub mod ingest;
 pub mod materials;

@@ -32,7 +32,7 @@ pub fn prism_mesh(prism: &Prism, base_z: f64, colour: [u8; 3]) -> Result<Mesh, S
         let depth = rings
             .iter()
             .enumerate()
-            .filter(|&(j, other)| j != k && inside(&[other.clone()], ring[0]))
+            .filter(|&(j, other)| j != k && inside(std::slice::from_ref(other), ring[0]))
             .count();
         let solid_on_left = (signed_area(ring) > 0.0) == (depth % 2 == 0);
         walls(ring, solid_on_left, base_z, prism.roof_z, colour, &mut mesh);
@@ -233,7 +233,10 @@ mod tests {
             );
             let len = n[0].hypot(n[1]);
             let out = (mid.0 + n[0] / len * 0.01, mid.1 + n[1] / len * 0.01);
-            assert!(!inside(&[ring.clone()], out), "a wall faces in at {mid:?}");
+            assert!(
+                !inside(std::slice::from_ref(&ring), out),
+                "a wall faces in at {mid:?}"
+            );
         }
         assert_eq!(m.triangles.len(), 4 + 2 * 6);
     }

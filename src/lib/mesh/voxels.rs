@@ -161,7 +161,7 @@ mod tests {
         solid: impl Fn(u32, u32, u32) -> Option<[u8; 3]> + Sync,
     ) -> VoxelObject {
         let grid = VoxelGrid::new([0.0, 0.0, 0.0], 0.5, dims).unwrap();
-        let g = grid.clone();
+        let g = grid;
         VoxelObject::from_fn(grid, move |_, i| {
             let [x, y, z] = g.coords(i);
             solid(x, y, z)

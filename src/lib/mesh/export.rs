@@ -1,0 +1,890 @@
+//! `dbms export mesh`: a database as a 3D Tiles 1.1 tileset of glTF 2.0 binaries.
+//!
+//! **Levels.** Level 0 cuts the grid into tiles of `tile_cells` × `tile_cells` cells; level `L`
+//! has tiles `factor^L` times as wide, like the pyramid's levels, up to the one level whose
+//! single tile covers the grid (the tileset's root). Each tile of level `L` triangulates the
+//! terrain's points (cell centres) taken every `s = factor^L` cells, with the last point of the
+//! grid always kept, simplified ([`super::tin`]) to `max_error_m · s` vertically. Neighbouring
+//! tiles of a level share their edge points, so a level has no cracks. Colours are the
+//! orthophoto's at level 0 and its average over the `s × s` cells around each point above.
+//!
+//! **What stands.** Every level holds every building (a [`super::prisms`] prism with its
+//! roof's average photo colour, walls from below the lowest terrain under it minus the level's
+//! bound) and every placed voxel object ([`super::voxels`]), in the tile holding the centre of
+//! the building's box or the object's anchor.
+//!
+//! **Errors.** Each tile's terrain is measured against every level-0 point it owns (a tile owns
+//! the points of its cells; the grid's last row and column belong to the last tiles), streamed
+//! in bands of rows: largest and root-mean-square vertical difference, and the valid points no
+//! triangle covers (next to nodata, and so none elsewhere). A tile's geometric error is the
+//! largest of its own measured error and its children's geometric errors; leaves have 0.
+//!
+//! **Files.** `DIR/tileset.json` and `DIR/tiles/L/X_Y.glb` (X east, Y south from the grid's
+//! north-west tile), written beside each other as one commit: the glTF files first, the tileset
+//! last; `.glb` files an earlier export left under `DIR/tiles` that this one did not write are
+//! removed after. Same database and options, same bytes.
+
+use super::gltf::write_glb;
+use super::prisms::prism_mesh;
+use super::tileset::{tileset_json, Frame, Tile};
+use super::tin::{simplify, Heights, Tin};
+use super::voxels::object_mesh;
+use super::{Lighting, Mesh, Part};
+use crate::db::{Database, COLOUR};
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::io::atomic::{commit_all, AtomicFile, Staged};
+use crate::progress::Progress;
+use crate::raster::RowSource;
+use crate::standing::{polygon_cells, read_buildings, TerrainSample};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// What `dbms export mesh` is asked for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshOptions {
+    /// Vertical error bound of level 0's terrain, metres (level `L`'s is this times
+    /// `factor^L`).
+    pub max_error_m: f64,
+    /// Cells along a level-0 tile's side.
+    pub tile_cells: usize,
+    /// How many times wider each level's tiles are than the level below's (2–8).
+    pub factor: usize,
+}
+
+impl Default for MeshOptions {
+    fn default() -> MeshOptions {
+        MeshOptions {
+            max_error_m: 0.1,
+            tile_cells: 256,
+            factor: 4,
+        }
+    }
+}
+
+/// One level of an export: its tiles, triangles, bytes and how far its terrain is from level 0.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LevelStats {
+    /// 0 = finest.
+    pub level: u32,
+    /// Spacing of the terrain's points, metres.
+    pub point_spacing_m: f64,
+    /// The vertical error bound the terrain was simplified to, metres (against its own points).
+    pub bound_m: f64,
+    /// Tiles with content.
+    pub tiles: usize,
+    /// Triangles of terrain.
+    pub terrain_triangles: u64,
+    /// Triangles in all (terrain, buildings, objects).
+    pub triangles: u64,
+    /// Bytes of the level's glTF files.
+    pub bytes: u64,
+    /// Largest vertical difference from the level-0 grid, metres.
+    pub max_error_m: f64,
+    /// Root-mean-square vertical difference from the level-0 grid, metres.
+    pub rms_error_m: f64,
+    /// Valid level-0 points that no terrain triangle covers (next to nodata).
+    pub uncovered_points: u64,
+}
+
+/// What an export wrote.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeshSummary {
+    /// The tileset written.
+    pub tileset: PathBuf,
+    /// Per level, finest first.
+    pub levels: Vec<LevelStats>,
+    /// Buildings meshed (each level holds all of them).
+    pub buildings: usize,
+    /// Buildings left out because no valid terrain lies under them.
+    pub buildings_over_nodata: usize,
+    /// Placed voxel objects meshed.
+    pub objects: usize,
+    /// glTF files written.
+    pub files: usize,
+    /// Bytes written, the tileset included.
+    pub bytes: u64,
+    /// Whether the tileset is placed on the WGS 84 globe (the CRS converts).
+    pub on_globe: bool,
+    /// Largest departure (metres) of the flat local frame from the exact projection at the
+    /// grid's corners, when placed on the globe.
+    pub corner_error_m: Option<f64>,
+}
+
+impl std::fmt::Display for MeshSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "{}: {} glTF files, {} bytes; {} buildings, {} objects{}",
+            self.tileset.display(),
+            self.files,
+            self.bytes,
+            self.buildings,
+            self.objects,
+            match self.corner_error_m {
+                Some(e) => format!("; on the WGS 84 globe, corners within {:.3} m", e),
+                None =>
+                    "; local frame only (the CRS does not convert to latitude/longitude)".into(),
+            }
+        )?;
+        writeln!(
+            f,
+            "level  spacing_m  bound_m  tiles  terrain_tris  all_tris      bytes  max_err_m  rms_err_m  uncovered"
+        )?;
+        for l in &self.levels {
+            writeln!(
+                f,
+                "{:>5}  {:>9.3}  {:>7.3}  {:>5}  {:>12}  {:>8}  {:>9}  {:>9.3}  {:>9.4}  {:>9}",
+                l.level,
+                l.point_spacing_m,
+                l.bound_m,
+                l.tiles,
+                l.terrain_triangles,
+                l.triangles,
+                l.bytes,
+                l.max_error_m,
+                l.rms_error_m,
+                l.uncovered_points
+            )?;
+        }
+        if self.buildings_over_nodata > 0 {
+            writeln!(
+                f,
+                "{} buildings over nodata terrain left out",
+                self.buildings_over_nodata
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Rows of level-0 points measured at a time.
+const BAND_ROWS: usize = 256;
+
+/// Export `db` as a tileset in `dir` (created if missing).
+pub fn export_mesh(
+    db: &Database,
+    dir: &Path,
+    opts: &MeshOptions,
+    progress: &Progress,
+) -> Result<MeshSummary> {
+    check_options(opts)?;
+    let grid = db.grid().clone();
+    let elevation = db.elevation_rows()?;
+    // Without an orthophoto the terrain is grey.
+    let colour: Box<dyn RowSource<[u8; 4]>> = match db.manifest.layers.contains_key(COLOUR) {
+        true => Box::new(db.colour_rows()?),
+        false => Box::new(Uniform {
+            grid: grid.clone(),
+            value: [128, 128, 128, 255],
+        }),
+    };
+    let colour = colour.as_ref();
+    let levels = Levels::new(&grid, opts);
+    let frame = Frame::new(&grid.crs, origin(&grid, &elevation)?, corners(&grid));
+    let standing = standing_meshes(db, &elevation, colour, opts.max_error_m)?;
+
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let total: usize = (0..levels.count).map(|l| levels.tiles(l).len()).sum();
+    progress.phase(total as u64, "mesh tiles");
+    let mut staged: Vec<Staged> = Vec::new();
+    let mut stats = Vec::new();
+    let mut built: Vec<BTreeMap<(usize, usize), Built>> = Vec::new();
+    for level in 0..levels.count {
+        let tiles = levels.tiles(level);
+        let level_dir = dir.join("tiles").join(level.to_string());
+        std::fs::create_dir_all(&level_dir).map_err(|e| Error::io(&level_dir, e))?;
+        let done: Vec<Result<(Built, Option<Staged>)>> = tiles
+            .par_iter()
+            .map(|&(tx, ty)| {
+                let r = build_tile(
+                    &levels, level, tx, ty, &elevation, colour, &standing, &frame, &level_dir,
+                );
+                progress.inc(1);
+                r
+            })
+            .collect();
+        let mut level_built = BTreeMap::new();
+        let mut s = LevelStats {
+            level: level as u32,
+            point_spacing_m: grid.transform.cell_x.abs() * levels.stride(level) as f64,
+            bound_m: levels.bound(level),
+            tiles: 0,
+            terrain_triangles: 0,
+            triangles: 0,
+            bytes: 0,
+            max_error_m: 0.0,
+            rms_error_m: 0.0,
+            uncovered_points: 0,
+        };
+        let mut sum_sq = 0.0;
+        let mut points = 0u64;
+        for ((tx, ty), r) in tiles.iter().zip(done) {
+            let (b, file) = r?;
+            if let Some(f) = file {
+                staged.push(f);
+                s.tiles += 1;
+            }
+            s.terrain_triangles += b.terrain_triangles;
+            s.triangles += b.triangles;
+            s.bytes += b.bytes;
+            s.max_error_m = s.max_error_m.max(b.error.max);
+            sum_sq += b.error.sum_sq;
+            points += b.error.points;
+            s.uncovered_points += b.error.uncovered;
+            level_built.insert((*tx, *ty), b);
+        }
+        s.rms_error_m = if points > 0 {
+            (sum_sq / points as f64).sqrt()
+        } else {
+            0.0
+        };
+        stats.push(s);
+        built.push(level_built);
+    }
+
+    let root = tree(&levels, &built, levels.count - 1, 0, 0);
+    let generator = format!("dbms {}", env!("CARGO_PKG_VERSION"));
+    let json = tileset_json(&frame, &root, &generator);
+    let text = serde_json::to_string_pretty(&json).expect("JSON values serialise") + "\n";
+    let tileset = dir.join("tileset.json");
+    let mut f = AtomicFile::create(&tileset)?;
+    f.writer()
+        .write_all(text.as_bytes())
+        .map_err(|e| Error::io(&tileset, e))?;
+    let files = staged.len();
+    let written: Vec<PathBuf> = staged.iter().map(|s| s.path().to_path_buf()).collect();
+    staged.push(f.stage()?);
+    commit_all(staged)?;
+    remove_stale(&dir.join("tiles"), &written)?;
+    let bytes = stats.iter().map(|s| s.bytes).sum::<u64>() + text.len() as u64;
+    Ok(MeshSummary {
+        tileset,
+        levels: stats,
+        buildings: standing.buildings,
+        buildings_over_nodata: standing.over_nodata,
+        objects: standing.objects,
+        files,
+        bytes,
+        on_globe: frame.to_ecef.is_some(),
+        corner_error_m: frame.corner_error_m,
+    })
+}
+
+/// Refuse options that cannot make a tileset, in words.
+fn check_options(opts: &MeshOptions) -> Result<()> {
+    if !(opts.max_error_m.is_finite() && opts.max_error_m >= 0.0) {
+        return Err(Error::msg(format!(
+            "--max-error {} is not a height difference",
+            opts.max_error_m
+        ))
+        .fix("give a vertical error bound in metres, 0 or more (e.g. --max-error 0.1)"));
+    }
+    if !(2..=4096).contains(&opts.tile_cells) {
+        return Err(
+            Error::msg(format!("--tile-cells {} is out of range", opts.tile_cells))
+                .fix("give 2 to 4096 cells along a level-0 tile's side (e.g. 256)"),
+        );
+    }
+    if !(2..=8).contains(&opts.factor) {
+        return Err(
+            Error::msg(format!("--factor {} is out of range", opts.factor))
+                .fix("give 2 to 8 (each level's tiles that many times wider)"),
+        );
+    }
+    Ok(())
+}
+
+/// The tile layout of every level.
+struct Levels {
+    width: usize,
+    height: usize,
+    tile: usize,
+    factor: usize,
+    max_error_m: f64,
+    /// Levels, the last one a single tile.
+    count: usize,
+}
+
+impl Levels {
+    fn new(grid: &Grid, opts: &MeshOptions) -> Levels {
+        let mut l = Levels {
+            width: grid.width,
+            height: grid.height,
+            tile: opts.tile_cells,
+            factor: opts.factor,
+            max_error_m: opts.max_error_m,
+            count: 1,
+        };
+        while l.across(l.count - 1) != (1, 1) {
+            l.count += 1;
+        }
+        l
+    }
+
+    /// Cells between a level's points.
+    fn stride(&self, level: usize) -> usize {
+        self.factor.pow(level as u32)
+    }
+
+    /// Cells along a level's tile side.
+    fn span(&self, level: usize) -> usize {
+        self.tile * self.stride(level)
+    }
+
+    /// The level's vertical bound, metres.
+    fn bound(&self, level: usize) -> f64 {
+        self.max_error_m * self.stride(level) as f64
+    }
+
+    /// Tiles across and down: enough to cover the points' intervals (at least one).
+    fn across(&self, level: usize) -> (usize, usize) {
+        let n = |points: usize| (points.saturating_sub(1)).div_ceil(self.span(level)).max(1);
+        (n(self.width), n(self.height))
+    }
+
+    /// The level's tiles, row by row.
+    fn tiles(&self, level: usize) -> Vec<(usize, usize)> {
+        let (nx, ny) = self.across(level);
+        (0..ny).flat_map(|y| (0..nx).map(move |x| (x, y))).collect()
+    }
+
+    /// The grid indices of a tile's points along one axis of `n` points: every stride from the
+    /// tile's start to the next tile's, the axis's last point always kept.
+    fn points(&self, level: usize, t: usize, n: usize) -> Vec<usize> {
+        let (s, start) = (self.stride(level), t * self.span(level));
+        let end = (start + self.span(level)).min(n - 1);
+        let mut v: Vec<usize> = (start..end).step_by(s).collect();
+        v.push(end);
+        v
+    }
+
+    /// The grid indices of the level-0 points a tile owns along an axis of `n` points.
+    fn owned(&self, level: usize, t: usize, n: usize, tiles: usize) -> std::ops::Range<usize> {
+        let start = t * self.span(level);
+        let end = if t + 1 == tiles {
+            n
+        } else {
+            start + self.span(level)
+        };
+        start..end
+    }
+}
+
+/// The local frame's origin: the grid's centre, at the mean valid height of the grid's middle
+/// row (0 when it has none).
+fn origin(grid: &Grid, elevation: &dyn RowSource<f32>) -> Result<[f64; 3]> {
+    let (cx, cy) = grid.centre();
+    let row = elevation.read_rows(grid.height / 2, 1)?;
+    let valid: Vec<f64> = row
+        .iter()
+        .filter(|z| z.is_finite())
+        .map(|&z| z as f64)
+        .collect();
+    let z = match valid.len() {
+        0 => 0.0,
+        n => valid.iter().sum::<f64>() / n as f64,
+    };
+    // Whole centimetres: a round origin, the same on every machine.
+    Ok([cx, cy, (z * 100.0).round() / 100.0])
+}
+
+/// The grid's bounds as `[min_x, min_y, max_x, max_y]`.
+fn corners(grid: &Grid) -> [f64; 4] {
+    let b = grid.bounds();
+    [b.min_x, b.min_y, b.max_x, b.max_y]
+}
+
+/// Buildings and objects as meshes, each with the level-0 cell it belongs to.
+struct Things {
+    /// `(cell column, cell row, mesh)`: the cell each belongs to.
+    meshes: Vec<(usize, usize, Mesh)>,
+    buildings: usize,
+    over_nodata: usize,
+    objects: usize,
+}
+
+/// Read and mesh what stands on the terrain: buildings (walls down to `margin` metres below
+/// the lowest valid terrain under the footprint), placed objects.
+fn standing_meshes(
+    db: &Database,
+    elevation: &dyn RowSource<f32>,
+    photo: &dyn RowSource<[u8; 4]>,
+    margin: f64,
+) -> Result<Things> {
+    let grid = db.grid();
+    let mut out = Things {
+        meshes: Vec::new(),
+        buildings: 0,
+        over_nodata: 0,
+        objects: 0,
+    };
+    if db.manifest.layers.contains_key(crate::db::BUILDINGS) {
+        let path = db.layer_path(crate::db::BUILDINGS)?;
+        let prisms = read_buildings(&path)?;
+        let cells: Vec<Vec<usize>> = prisms
+            .iter()
+            .map(|p| {
+                let mut c = polygon_cells(grid, &p.rings);
+                // Small outlines may hold no cell centre: their corners' cells stand in.
+                c.extend(
+                    p.rings
+                        .iter()
+                        .flatten()
+                        .filter_map(|&(x, y)| grid.cell_at(x, y))
+                        .map(|(col, row)| grid.index(col, row)),
+                );
+                c
+            })
+            .collect();
+        let terrain = TerrainSample::read(elevation, cells.concat(), BAND_ROWS)?;
+        let colour = TerrainSampleRgb::read(photo, cells.concat())?;
+        for (i, (prism, under)) in prisms.iter().zip(&cells).enumerate() {
+            let lowest = under
+                .iter()
+                .map(|&c| crate::standing::TerrainAt::at(&terrain, c))
+                .filter(|z| z.is_finite())
+                .fold(f32::INFINITY, f32::min);
+            if !lowest.is_finite() {
+                out.over_nodata += 1;
+                continue;
+            }
+            let rgb = colour.mean(under);
+            let mesh = prism_mesh(prism, lowest as f64 - margin, rgb).map_err(|e| {
+                Error::file(&path, format!("building {i}: {e}"))
+                    .fix("correct the outline (a simple polygon, holes inside it) and export again")
+            })?;
+            let (lo, hi) = mesh.bounds().expect("a prism has vertices");
+            let (col, row) = clamp_cell(grid, (lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0);
+            out.meshes.push((col, row, mesh));
+            out.buildings += 1;
+        }
+    }
+    let mut objects: BTreeMap<&str, crate::voxel::object::VoxelObject> = BTreeMap::new();
+    for p in &db.manifest.objects {
+        if !objects.contains_key(p.file.as_str()) {
+            let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
+            objects.insert(&p.file, obj);
+        }
+        let mesh = object_mesh(&objects[p.file.as_str()], p);
+        if mesh.is_empty() {
+            continue;
+        }
+        let (col, row) = clamp_cell(grid, p.x, p.y);
+        out.meshes.push((col, row, mesh));
+        out.objects += 1;
+    }
+    Ok(out)
+}
+
+/// The grid cell nearest world `(x, y)` (the cell holding it, or the edge cell beside it).
+fn clamp_cell(grid: &Grid, x: f64, y: f64) -> (usize, usize) {
+    let (px, py) = grid.transform.world_to_pixel(x, y);
+    let clamp = |p: f64, n: usize| (p.floor().max(0.0) as usize).min(n - 1);
+    (clamp(px, grid.width), clamp(py, grid.height))
+}
+
+/// The photo's colours at selected cells (read band by band).
+struct TerrainSampleRgb {
+    cells: BTreeMap<usize, [u8; 4]>,
+}
+
+impl TerrainSampleRgb {
+    fn read(photo: &dyn RowSource<[u8; 4]>, mut indices: Vec<usize>) -> Result<TerrainSampleRgb> {
+        indices.sort_unstable();
+        indices.dedup();
+        let w = photo.grid().width;
+        let h = photo.grid().height;
+        let mut cells = BTreeMap::new();
+        for chunk in indices.chunk_by(|a, b| a / w / BAND_ROWS == b / w / BAND_ROWS) {
+            let row0 = chunk[0] / w / BAND_ROWS * BAND_ROWS;
+            let rows = photo.read_rows(row0, BAND_ROWS.min(h - row0))?;
+            cells.extend(chunk.iter().map(|&i| (i, rows[i - row0 * w])));
+        }
+        Ok(TerrainSampleRgb { cells })
+    }
+
+    /// Mean colour of the opaque ones among `cells` (grey when none is).
+    fn mean(&self, cells: &[usize]) -> [u8; 3] {
+        let mut sum = [0u64; 3];
+        let mut n = 0u64;
+        for c in cells {
+            let p = self.cells[c];
+            if p[3] > 0 {
+                (0..3).for_each(|k| sum[k] += p[k] as u64);
+                n += 1;
+            }
+        }
+        match n {
+            0 => [128; 3],
+            _ => sum.map(|s| ((s + n / 2) / n) as u8),
+        }
+    }
+}
+
+/// What one tile became.
+struct Built {
+    /// Its box in the local frame, when it has content.
+    bounds: Option<([f64; 3], [f64; 3])>,
+    uri: Option<String>,
+    terrain_triangles: u64,
+    triangles: u64,
+    bytes: u64,
+    error: Measured,
+}
+
+/// A tile's terrain against level 0.
+#[derive(Default)]
+struct Measured {
+    max: f64,
+    sum_sq: f64,
+    points: u64,
+    uncovered: u64,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn build_tile(
+    levels: &Levels,
+    level: usize,
+    tx: usize,
+    ty: usize,
+    elevation: &dyn RowSource<f32>,
+    colour: &dyn RowSource<[u8; 4]>,
+    standing: &Things,
+    frame: &Frame,
+    dir: &Path,
+) -> Result<(Built, Option<Staged>)> {
+    let grid = elevation.grid();
+    let cols = levels.points(level, tx, grid.width);
+    let rows = levels.points(level, ty, grid.height);
+    let z = read_points(elevation, &rows, &cols)?;
+    let heights = Heights {
+        width: cols.len(),
+        height: rows.len(),
+        z: &z,
+    };
+    let tin = simplify(&heights, levels.bound(level));
+    let (terrain, cell_tris) =
+        terrain_mesh(grid, &tin, &rows, &cols, &z, colour, levels.stride(level))?;
+    let (nx, ny) = levels.across(level);
+    let own_cols = levels.owned(level, tx, grid.width, nx);
+    let own_rows = levels.owned(level, ty, grid.height, ny);
+    let error = measure(elevation, &cell_tris, own_cols.clone(), own_rows.clone())?;
+
+    let mut things = Mesh::default();
+    for (col, row, m) in &standing.meshes {
+        if own_cols.contains(col) && own_rows.contains(row) {
+            things.append(m);
+        }
+    }
+    let parts: Vec<Part> = [(terrain, Lighting::Unlit), (things, Lighting::Lit)]
+        .into_iter()
+        .filter(|(m, _)| !m.is_empty())
+        .map(|(mesh, lighting)| Part { mesh, lighting })
+        .collect();
+    let triangles = parts.iter().map(|p| p.mesh.triangles.len() as u64).sum();
+    let terrain_triangles = parts
+        .iter()
+        .filter(|p| p.lighting == Lighting::Unlit)
+        .map(|p| p.mesh.triangles.len() as u64)
+        .sum();
+    if parts.is_empty() {
+        let built = Built {
+            bounds: None,
+            uri: None,
+            terrain_triangles,
+            triangles,
+            bytes: 0,
+            error,
+        };
+        return Ok((built, None));
+    }
+    let bytes = write_glb(&parts, frame.origin)?;
+    let name = format!("{tx}_{ty}.glb");
+    let path = dir.join(&name);
+    let mut f = AtomicFile::create(&path)?;
+    f.writer()
+        .write_all(&bytes)
+        .map_err(|e| Error::io(&path, e))?;
+    let bounds = parts
+        .iter()
+        .filter_map(|p| p.mesh.bounds())
+        .reduce(|a, b| (min3(a.0, b.0), max3(a.1, b.1)))
+        .map(|(lo, hi)| {
+            let o = frame.origin;
+            (
+                [0, 1, 2].map(|k| lo[k] - o[k]),
+                [0, 1, 2].map(|k| hi[k] - o[k]),
+            )
+        });
+    let built = Built {
+        bounds,
+        uri: Some(format!("tiles/{level}/{name}")),
+        terrain_triangles,
+        triangles,
+        bytes: bytes.len() as u64,
+        error,
+    };
+    Ok((built, Some(f.stage()?)))
+}
+
+fn min3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|k| a[k].min(b[k]))
+}
+
+fn max3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|k| a[k].max(b[k]))
+}
+
+/// Heights at the points `rows × cols` (grid indices), row-major.
+fn read_points(src: &dyn RowSource<f32>, rows: &[usize], cols: &[usize]) -> Result<Vec<f32>> {
+    let w = src.grid().width;
+    let mut out = Vec::with_capacity(rows.len() * cols.len());
+    let contiguous = rows.windows(2).all(|p| p[1] == p[0] + 1);
+    if contiguous {
+        let band = src.read_rows(rows[0], rows.len())?;
+        for r in 0..rows.len() {
+            out.extend(cols.iter().map(|&c| band[r * w + c]));
+        }
+    } else {
+        for &r in rows {
+            let row = src.read_rows(r, 1)?;
+            out.extend(cols.iter().map(|&c| row[c]));
+        }
+    }
+    Ok(out)
+}
+
+/// A triangle in level-0 cell coordinates (column, row as numbers; whole numbers, so the
+/// orientation and inside tests are exact) with its vertices' heights.
+type CellTriangle = [[f64; 3]; 3];
+
+/// The TIN as a coloured mesh in world coordinates, and its triangles in cell coordinates for
+/// measuring. Colours: the photo at the point (stride 1) or its mean over the `stride × stride`
+/// cells around it. A triangle that the grid's uneven last step would turn over is dropped
+/// (its points then count as uncovered).
+fn terrain_mesh(
+    grid: &Grid,
+    tin: &Tin,
+    rows: &[usize],
+    cols: &[usize],
+    z: &[f32],
+    photo: &dyn RowSource<[u8; 4]>,
+    stride: usize,
+) -> Result<(Mesh, Vec<CellTriangle>)> {
+    let mut mesh = Mesh::default();
+    let mut cell = Vec::with_capacity(tin.vertices.len());
+    for &[i, j] in &tin.vertices {
+        let (c, r) = (cols[i as usize], rows[j as usize]);
+        let h = z[j as usize * cols.len() + i as usize] as f64;
+        let (x, y) = grid.cell_centre(c, r);
+        mesh.positions.push([x, y, h]);
+        cell.push([c as f64, r as f64, h]);
+    }
+    mesh.colours = point_colours(photo, tin, rows, cols, stride)?;
+    let mut cell_tris = Vec::with_capacity(tin.triangles.len());
+    for &t in &tin.triangles {
+        let p = t.map(|i| cell[i as usize]);
+        // Counter-clockwise from above in world terms is clockwise in (column, row).
+        if orient(p) >= 0.0 {
+            continue;
+        }
+        mesh.triangles.push(t);
+        cell_tris.push(p);
+    }
+    Ok((mesh, cell_tris))
+}
+
+/// Twice the signed area of a triangle in (column, row): negative when clockwise there.
+fn orient([a, b, c]: CellTriangle) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+}
+
+/// The photo's colour at each TIN vertex: the cell's at stride 1, the mean of the opaque cells
+/// within half a stride around it above (grey where none is opaque).
+fn point_colours(
+    photo: &dyn RowSource<[u8; 4]>,
+    tin: &Tin,
+    rows: &[usize],
+    cols: &[usize],
+    stride: usize,
+) -> Result<Vec<[u8; 3]>> {
+    let (w, h) = (photo.grid().width, photo.grid().height);
+    let half = stride / 2;
+    // The vertices of each point row, so each block of photo rows is read once.
+    let mut by_row: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+    for (k, v) in tin.vertices.iter().enumerate() {
+        by_row.entry(v[1]).or_default().push(k);
+    }
+    let mut out = vec![[0u8; 3]; tin.vertices.len()];
+    for (j, ks) in by_row {
+        let r = rows[j as usize];
+        let (r0, r1) = (r.saturating_sub(half), (r + half + 1).min(h));
+        let block = photo.read_rows(r0, r1 - r0)?;
+        for k in ks {
+            let c = cols[tin.vertices[k][0] as usize];
+            let (c0, c1) = (c.saturating_sub(half), (c + half + 1).min(w));
+            let (mut sum, mut n) = ([0u64; 3], 0u64);
+            for rr in 0..r1 - r0 {
+                for p in &block[rr * w + c0..rr * w + c1] {
+                    if p[3] > 0 {
+                        (0..3).for_each(|q| sum[q] += p[q] as u64);
+                        n += 1;
+                    }
+                }
+            }
+            out[k] = match n {
+                0 => [128; 3],
+                _ => sum.map(|s| ((s + n / 2) / n) as u8),
+            };
+        }
+    }
+    Ok(out)
+}
+
+/// The vertical difference between `tris` and the level-0 heights at the valid points in
+/// `cols × rows`, streamed in bands of [`BAND_ROWS`]. A point on an edge shared by two
+/// triangles counts once.
+fn measure(
+    elevation: &dyn RowSource<f32>,
+    tris: &[CellTriangle],
+    cols: std::ops::Range<usize>,
+    rows: std::ops::Range<usize>,
+) -> Result<Measured> {
+    let w = elevation.grid().width;
+    let mut m = Measured::default();
+    let mut band0 = rows.start;
+    while band0 < rows.end {
+        let band1 = (band0 + BAND_ROWS).min(rows.end);
+        let z = elevation.read_rows(band0, band1 - band0)?;
+        let bw = cols.len();
+        let mut seen = vec![false; bw * (band1 - band0)];
+        for t in tris {
+            let lo = |k: usize| t.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
+            let hi = |k: usize| t.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
+            let (r0, r1) = ((lo(1) as usize).max(band0), (hi(1) as usize + 1).min(band1));
+            let (c0, c1) = (
+                (lo(0) as usize).max(cols.start),
+                (hi(0) as usize + 1).min(cols.end),
+            );
+            let area = orient(*t);
+            for r in r0..r1 {
+                for c in c0..c1 {
+                    let k = (r - band0) * bw + (c - cols.start);
+                    if seen[k] {
+                        continue;
+                    }
+                    let p = [c as f64, r as f64, 0.0];
+                    let [a, b, d] = *t;
+                    let wa = orient([p, b, d]) / area;
+                    let wb = orient([a, p, d]) / area;
+                    let wd = orient([a, b, p]) / area;
+                    if wa < 0.0 || wb < 0.0 || wd < 0.0 {
+                        continue;
+                    }
+                    seen[k] = true;
+                    let h = z[(r - band0) * w + c];
+                    if !h.is_finite() {
+                        continue;
+                    }
+                    let e = (wa * a[2] + wb * b[2] + wd * d[2] - h as f64).abs();
+                    m.max = m.max.max(e);
+                    m.sum_sq += e * e;
+                    m.points += 1;
+                }
+            }
+        }
+        for r in band0..band1 {
+            for c in cols.clone() {
+                if !seen[(r - band0) * bw + (c - cols.start)] && z[(r - band0) * w + c].is_finite()
+                {
+                    m.uncovered += 1;
+                }
+            }
+        }
+        band0 = band1;
+    }
+    Ok(m)
+}
+
+/// The tile `(level, tx, ty)` and the tiles under it, with boxes grown to hold their children
+/// and errors no smaller than their children's.
+fn tree(
+    levels: &Levels,
+    built: &[BTreeMap<(usize, usize), Built>],
+    level: usize,
+    tx: usize,
+    ty: usize,
+) -> Tile {
+    let b = &built[level][&(tx, ty)];
+    let mut children = Vec::new();
+    if level > 0 {
+        let f = levels.factor;
+        let (nx, ny) = levels.across(level - 1);
+        for cy in ty * f..((ty + 1) * f).min(ny) {
+            for cx in tx * f..((tx + 1) * f).min(nx) {
+                let child = tree(levels, built, level - 1, cx, cy);
+                if child.uri.is_some() || !child.children.is_empty() {
+                    children.push(child);
+                }
+            }
+        }
+    }
+    let bounds = children
+        .iter()
+        .map(|c| c.bounds)
+        .chain(b.bounds)
+        .reduce(|a, c| (min3(a.0, c.0), max3(a.1, c.1)))
+        .unwrap_or(([0.0; 3], [0.0; 3]));
+    let geometric_error = match level {
+        0 => 0.0,
+        _ => children
+            .iter()
+            .map(|c| c.geometric_error)
+            .fold(b.error.max, f64::max),
+    };
+    Tile {
+        uri: b.uri.clone(),
+        bounds,
+        geometric_error,
+        children,
+    }
+}
+
+/// Remove `.glb` files under `tiles` (in its level directories) that are not in `written`.
+fn remove_stale(tiles: &Path, written: &[PathBuf]) -> Result<()> {
+    let Ok(levels) = std::fs::read_dir(tiles) else {
+        return Ok(());
+    };
+    for level in levels.flatten() {
+        let Ok(files) = std::fs::read_dir(level.path()) else {
+            continue;
+        };
+        for f in files.flatten() {
+            let p = f.path();
+            if p.extension().is_some_and(|e| e == "glb") && !written.contains(&p) {
+                std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One value everywhere: the photo of a database without one.
+struct Uniform {
+    grid: Grid,
+    value: [u8; 4],
+}
+
+impl RowSource<[u8; 4]> for Uniform {
+    fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    fn read_rows(&self, _row0: usize, rows: usize) -> Result<std::borrow::Cow<'_, [[u8; 4]]>> {
+        Ok(vec![self.value; rows * self.grid.width].into())
+    }
+}
