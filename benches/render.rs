@@ -25,6 +25,8 @@
 
 #[path = "support/blocks.rs"]
 mod blocks;
+#[path = "support/sample.rs"]
+mod sample;
 use dbms::crs::Crs;
 use dbms::grid::Grid;
 use dbms::render::{render_view, Attitude, Frame, Traversal, ViewOptions, Viewpoint};
@@ -46,7 +48,7 @@ fn main() {
     std::fs::create_dir_all(&work).expect("work dir");
     println!("threads: {}", rayon::current_num_threads());
 
-    let sample = sample_tiles(&work);
+    let sample = sample::sample_tiles(&work);
     let generated = work.join(format!("generated-{size}.dbt"));
     if !generated.exists() {
         let t = Instant::now();
@@ -194,7 +196,7 @@ fn coherence(sets: &[(&str, &PathBuf)]) {
 /// per ray. Without the inset the frames march with column coherence (the default), with it ray
 /// by ray; a row without coherence shows which part of the cost is which.
 fn insets(work: &Path) {
-    let plain = sample_tiles(work);
+    let plain = sample::sample_tiles(work);
     let bin = env!("CARGO_BIN_EXE_dbms");
     let db = work.join("db");
     let with = work.join("sample-inset.dbt");
@@ -339,46 +341,6 @@ fn terrain(c: usize, r: usize) -> (f32, [u8; 4]) {
 }
 
 /// The sample scene's tile set, made with the dbms binary if not already in `work`.
-fn sample_tiles(work: &Path) -> PathBuf {
-    let out = work.join("sample.dbt");
-    if out.exists() {
-        return out;
-    }
-    let bin = env!("CARGO_BIN_EXE_dbms");
-    let (scene, db) = (work.join("scene"), work.join("db"));
-    let dem = scene.join("dem.tif");
-    let ortho = scene.join("ortho.tif");
-    for args in [
-        vec!["-q", "sample", "-o", scene.to_str().unwrap()],
-        vec![
-            "-q",
-            "ingest",
-            "--dem",
-            dem.to_str().unwrap(),
-            "--ortho",
-            ortho.to_str().unwrap(),
-            "-o",
-            db.to_str().unwrap(),
-        ],
-        vec![
-            "-q",
-            "pyramid",
-            "--db",
-            db.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ],
-    ] {
-        let o = Command::new(bin).args(&args).output().expect("run dbms");
-        assert!(
-            o.status.success(),
-            "dbms {args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-    }
-    out
-}
-
 /// `n` cameras along the database's diagonal band, 25 m over the ground, pitched `pitch`
 /// degrees (up positive), heading along the path.
 fn flight(reader: &TileReader, n: usize, pitch: f64) -> Vec<Viewpoint> {
