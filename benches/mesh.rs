@@ -26,7 +26,7 @@ mod sample;
 use dbms::db::Database;
 use dbms::mesh::export::{export_mesh, MeshOptions};
 use dbms::mesh::gltf::read_glb;
-use dbms::mesh::Mesh;
+use dbms::mesh::Part;
 use dbms::progress::Progress;
 use dbms::render::mesh::{render_mesh, MeshFrame, MeshScene};
 use dbms::render::{render_view, Attitude, Frame, ViewOptions, Viewpoint};
@@ -84,7 +84,7 @@ fn main() {
         let level0 = &summary.levels[0];
         let all: u64 = summary.levels.iter().map(|l| l.triangles).sum();
 
-        let finest = MeshScene::new(&finest_level(&out));
+        let finest = MeshScene::of_parts(&finest_level(&out));
         let mut diff = Difference::default();
         for (k, (view, tiles)) in views.iter().zip(&voxel).enumerate() {
             let mesh = render_mesh(&finest, view).expect("render the mesh");
@@ -146,9 +146,9 @@ fn views(reader: &TileReader) -> Vec<Viewpoint> {
     ]
 }
 
-/// Every level-0 tile of the export in `dir`, read back and joined into one mesh (world
+/// Every level-0 tile of the export in `dir`, read back: the parts of all of them (world
 /// coordinates: the tileset's `local_origin` added back).
-fn finest_level(dir: &Path) -> Mesh {
+fn finest_level(dir: &Path) -> Vec<Part> {
     let tileset: serde_json::Value = serde_json::from_slice(
         &std::fs::read(dir.join("tileset.json")).expect("read tileset.json"),
     )
@@ -161,14 +161,12 @@ fn finest_level(dir: &Path) -> Mesh {
         .filter(|p| p.extension().is_some_and(|e| e == "glb"))
         .collect();
     files.sort();
-    let mut mesh = Mesh::default();
+    let mut parts = Vec::new();
     for f in files {
         let bytes = std::fs::read(&f).expect("read a tile");
-        for part in read_glb(&bytes, origin).expect("a glTF binary") {
-            mesh.append(&part.mesh);
-        }
+        parts.extend(read_glb(&bytes, origin).expect("a glTF binary"));
     }
-    mesh
+    parts
 }
 
 /// Pixel differences between tile and mesh renders, summed over views.

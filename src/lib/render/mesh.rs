@@ -6,7 +6,9 @@
 //! ([`Basis::through_terms`]), not normalised. Its range is the ray parameter times the
 //! direction's length (metres, as [`super::ray::Ray::range`]), stored as `f32` with `+inf` for
 //! rays that hit nothing (the tile renderer's range image). A hit's colour is the triangle's
-//! vertex colours interpolated barycentrically (sRGB bytes, no shading or haze); a miss takes the
+//! vertex colours interpolated barycentrically, or, on a part with a [`Drape`], its image sampled
+//! as a viewer samples it: texture coordinates interpolated, then the four nearest texels
+//! blended (bilinear, clamped at the edges; in sRGB bytes, no shading or haze). A miss takes the
 //! daylight sky of the tile renderer.
 //!
 //! Geometry is held in f64 relative to a local origin (the centre of the mesh's box), so UTM-sized
@@ -28,7 +30,7 @@
 use super::camera::{Basis, Viewpoint};
 use super::sky::Backdrop;
 use crate::error::Result;
-use crate::mesh::Mesh;
+use crate::mesh::{Drape, Mesh, Part};
 use rayon::prelude::*;
 
 /// Most triangles a leaf of the hierarchy holds.
@@ -46,6 +48,12 @@ pub struct MeshScene {
     /// Vertex positions relative to `origin`, metres.
     positions: Vec<[f64; 3]>,
     colours: Vec<[u8; 3]>,
+    /// Texture coordinates of each vertex of a draped part (unused for the others).
+    uv: Vec<[f32; 2]>,
+    /// The drapes' images.
+    drapes: Vec<Drape>,
+    /// Per stored triangle: the index of its drape in `drapes`, or `NO_DRAPE`.
+    drape_of: Vec<u32>,
     /// The triangles in the order the leaves hold them.
     triangles: Vec<[u32; 3]>,
     /// Index into the mesh's triangles of each of `triangles`.
@@ -71,9 +79,10 @@ struct Node {
 pub struct MeshHit {
     /// Distance from the eye along the ray, metres.
     pub range: f64,
-    /// Index of the triangle hit in the mesh given to [`MeshScene::new`].
+    /// Index of the triangle hit in the mesh given to [`MeshScene::new`] (the parts' triangles
+    /// one after the other for [`MeshScene::of_parts`]).
     pub triangle: u32,
-    /// The triangle's vertex colours interpolated at the hit, sRGB.
+    /// The triangle's vertex colours interpolated at the hit, or its drape sampled there, sRGB.
     pub colour: [u8; 3],
 }
 
@@ -243,9 +252,50 @@ fn edge(q: [f64; 3], p: [f64; 3]) -> f64 {
     q[0].mul_add(p[1], -m) - q[1].mul_add(p[0], -n)
 }
 
+/// A triangle without a drape.
+const NO_DRAPE: u32 = u32::MAX;
+
 impl MeshScene {
-    /// Prepare `mesh` (world coordinates) for ray casting.
+    /// Prepare `mesh` (world coordinates) for ray casting, coloured by its vertex colours.
     pub fn new(mesh: &Mesh) -> MeshScene {
+        let none = vec![NO_DRAPE; mesh.triangles.len()];
+        MeshScene::build(
+            mesh,
+            vec![[0.0; 2]; mesh.positions.len()],
+            Vec::new(),
+            &none,
+        )
+    }
+
+    /// Prepare `parts` (world coordinates; a tile's, or several tiles') for ray casting, each
+    /// coloured by its drape where it has one.
+    pub fn of_parts(parts: &[Part]) -> MeshScene {
+        let (mut mesh, mut uv, mut drapes, mut drape_of) =
+            (Mesh::default(), vec![], vec![], vec![]);
+        for p in parts {
+            mesh.append(&p.mesh);
+            let tag = match &p.drape {
+                Some(d) => {
+                    uv.extend_from_slice(&d.uv);
+                    drapes.push(Drape {
+                        uv: Vec::new(),
+                        ..d.clone()
+                    });
+                    drapes.len() as u32 - 1
+                }
+                None => {
+                    uv.resize(mesh.positions.len(), [0.0; 2]);
+                    NO_DRAPE
+                }
+            };
+            drape_of.resize(mesh.triangles.len(), tag);
+        }
+        MeshScene::build(&mesh, uv, drapes, &drape_of)
+    }
+
+    /// The scene of `mesh` with texture coordinates `uv`, images `drapes` and each triangle's
+    /// drape `drape_of` (mesh order).
+    fn build(mesh: &Mesh, uv: Vec<[f32; 2]>, drapes: Vec<Drape>, drape_of: &[u32]) -> MeshScene {
         let origin = match mesh.bounds() {
             Some((lo, hi)) => std::array::from_fn(|k| (lo[k] + hi[k]) / 2.0),
             None => [0.0; 3],
@@ -284,7 +334,10 @@ impl MeshScene {
         MeshScene {
             origin,
             triangles: ids.iter().map(|&i| mesh.triangles[i as usize]).collect(),
+            drape_of: ids.iter().map(|&i| drape_of[i as usize]).collect(),
             colours: mesh.colours.clone(),
+            uv,
+            drapes,
             positions,
             ids,
             nodes,
@@ -385,16 +438,53 @@ impl MeshScene {
     fn hit_of(&self, ray: &LocalRay, t: f64, s: usize, w: [f64; 3]) -> MeshHit {
         let d = ray.dir;
         let norm = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let c = self.triangles[s].map(|i| self.colours[i as usize]);
+        let tri = self.triangles[s];
+        let colour = match self.drape_of[s] {
+            NO_DRAPE => {
+                let c = tri.map(|i| self.colours[i as usize]);
+                std::array::from_fn(|k| {
+                    let v = w[0] * c[0][k] as f64 + w[1] * c[1][k] as f64 + w[2] * c[2][k] as f64;
+                    v.round().clamp(0.0, 255.0) as u8
+                })
+            }
+            d => {
+                let t = tri.map(|i| self.uv[i as usize]);
+                let uv = [0, 1]
+                    .map(|k| w[0] * t[0][k] as f64 + w[1] * t[1][k] as f64 + w[2] * t[2][k] as f64);
+                bilinear(&self.drapes[d as usize], uv)
+            }
+        };
         MeshHit {
             range: t * norm,
             triangle: self.ids[s],
-            colour: std::array::from_fn(|k| {
-                let v = w[0] * c[0][k] as f64 + w[1] * c[1][k] as f64 + w[2] * c[2][k] as f64;
-                v.round().clamp(0.0, 255.0) as u8
-            }),
+            colour,
         }
     }
+}
+
+/// `drape`'s image at texture coordinates `uv` as a viewer's linear, edge-clamped sampler gives
+/// it: the four texels around, blended by distance to their centres.
+fn bilinear(drape: &Drape, [u, v]: [f64; 2]) -> [u8; 3] {
+    let (w, h) = (drape.width as usize, drape.height as usize);
+    let (x, y) = (u * w as f64 - 0.5, v * h as f64 - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let at = |xi: f64, yi: f64| {
+        let c = (xi.max(0.0) as usize).min(w - 1);
+        let r = (yi.max(0.0) as usize).min(h - 1);
+        drape.texels[r * w + c].map(f64::from)
+    };
+    let (a, b, c, d) = (
+        at(x0, y0),
+        at(x0 + 1.0, y0),
+        at(x0, y0 + 1.0),
+        at(x0 + 1.0, y0 + 1.0),
+    );
+    std::array::from_fn(|k| {
+        let top = a[k] + (b[k] - a[k]) * fx;
+        let bottom = c[k] + (d[k] - c[k]) * fx;
+        (top + (bottom - top) * fy).round().clamp(0.0, 255.0) as u8
+    })
 }
 
 /// Fill node `n` with the triangles `ids` (the slice of the order starting at `offset`): its box,
@@ -785,6 +875,59 @@ mod tests {
             }
         }
         assert_eq!(mesh.rgb, tiles.rgb, "the same grey and the same sky");
+    }
+
+    /// A draped square seen from straight above: a ray at a texel's centre gets that texel, one
+    /// half-way between two texels their mean, one past the last texel's centre the edge texel
+    /// (clamped); an undraped part beside it keeps its vertex colours.
+    #[test]
+    fn a_drape_is_sampled_as_a_viewers_linear_sampler_does() {
+        use crate::mesh::Lighting;
+        // 2 × 1 texels over a 2 m × 1 m square at UTM coordinates; uv (0,0) at the north-west.
+        let (x0, y0, z) = (500_000.0, 5_300_000.0, 300.0);
+        let square = Mesh {
+            positions: vec![
+                [x0, y0, z],
+                [x0 + 2.0, y0, z],
+                [x0 + 2.0, y0 + 1.0, z],
+                [x0, y0 + 1.0, z],
+            ],
+            colours: vec![[0; 3]; 4],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        };
+        let drape = Drape {
+            width: 2,
+            height: 1,
+            texels: vec![[0, 100, 200], [200, 50, 0]],
+            uv: vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+        };
+        let mut beside = square.clone();
+        beside.positions.iter_mut().for_each(|p| p[0] += 10.0);
+        beside.colours = vec![[7, 8, 9]; 4];
+        let scene = MeshScene::of_parts(&[
+            Part {
+                mesh: square,
+                lighting: Lighting::Unlit,
+                drape: Some(drape),
+            },
+            Part {
+                mesh: beside,
+                lighting: Lighting::Lit,
+                drape: None,
+            },
+        ]);
+        let down = [0.0, 0.0, -1.0];
+        let at = |x: f64| {
+            scene
+                .intersect([x0 + x, y0 + 0.5, z + 10.0], down)
+                .unwrap()
+                .colour
+        };
+        assert_eq!(at(0.5), [0, 100, 200]);
+        assert_eq!(at(1.5), [200, 50, 0]);
+        assert_eq!(at(1.0), [100, 75, 100]);
+        assert_eq!(at(0.1), [0, 100, 200], "clamped at the edge");
+        assert_eq!(at(10.5), [7, 8, 9]);
     }
 
     #[test]
