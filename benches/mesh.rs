@@ -26,6 +26,7 @@ mod sample;
 use dbms::db::Database;
 use dbms::mesh::export::{export_mesh, MeshOptions};
 use dbms::mesh::gltf::read_glb;
+use dbms::mesh::tileset::content_origins;
 use dbms::mesh::Part;
 use dbms::progress::Progress;
 use dbms::render::mesh::{render_mesh, MeshFrame, MeshScene};
@@ -147,24 +148,18 @@ fn views(reader: &TileReader) -> Vec<Viewpoint> {
 }
 
 /// Every level-0 tile of the export in `dir`, read back: the parts of all of them (world
-/// coordinates: the tileset's `local_origin` added back).
+/// coordinates: each tile's origin added back).
 fn finest_level(dir: &Path) -> Vec<Part> {
     let tileset: serde_json::Value = serde_json::from_slice(
         &std::fs::read(dir.join("tileset.json")).expect("read tileset.json"),
     )
     .expect("tileset.json is JSON");
-    let o = &tileset["extras"]["local_origin"];
-    let origin = [0, 1, 2].map(|k| o[k].as_f64().expect("local_origin"));
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir.join("tiles").join("0"))
-        .expect("level 0")
-        .map(|e| e.expect("entry").path())
-        .filter(|p| p.extension().is_some_and(|e| e == "glb"))
-        .collect();
-    files.sort();
     let mut parts = Vec::new();
-    for f in files {
-        let bytes = std::fs::read(&f).expect("read a tile");
-        parts.extend(read_glb(&bytes, origin).expect("a glTF binary"));
+    for (uri, origin) in content_origins(&tileset) {
+        if uri.starts_with("tiles/0/") {
+            let bytes = std::fs::read(dir.join(&uri)).expect("read a tile");
+            parts.extend(read_glb(&bytes, origin).expect("a glTF binary"));
+        }
     }
     parts
 }

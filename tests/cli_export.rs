@@ -5,6 +5,7 @@ use dbms::crs::Crs;
 use dbms::db::{Database, COLOUR, ELEVATION};
 use dbms::grid::Grid;
 use dbms::mesh::gltf::read_glb;
+use dbms::mesh::tileset::content_origins;
 use dbms::mesh::{Lighting, Part};
 use dbms::raster::{Colour, Elevation};
 use serde_json::{json, Value};
@@ -175,17 +176,34 @@ fn boxes(t: &Value) -> ([f64; 3], [f64; 3]) {
     )
 }
 
-/// The decoded parts of every content, by its uri.
-fn contents(out: &Path, tiles: &Tiles, origin: [f64; 3]) -> BTreeMap<String, Vec<Part>> {
-    tiles
-        .tiles
-        .iter()
-        .filter_map(|(t, _)| t["content"]["uri"].as_str())
-        .map(|uri| {
-            let bytes = std::fs::read(out.join(uri)).unwrap();
-            (uri.to_string(), read_glb(&bytes, origin).unwrap())
+/// The decoded parts of every content (world coordinates: its tile's origin added back), by
+/// its uri.
+fn contents(out: &Path, tileset: &Value) -> BTreeMap<String, Vec<Part>> {
+    content_origins(tileset)
+        .into_iter()
+        .map(|(uri, origin)| {
+            let bytes = std::fs::read(out.join(&uri)).unwrap();
+            let parts = read_glb(&bytes, origin).unwrap();
+            (uri, parts)
         })
         .collect()
+}
+
+/// A tile's origin (world) from its extras.
+fn origin_of(t: &Value) -> [f64; 3] {
+    let o = t["extras"]["origin"].as_array().unwrap();
+    [0, 1, 2].map(|k| o[k].as_f64().unwrap())
+}
+
+/// The transform of a tile (column-major 4 × 4) applied to `p`.
+fn carry(t: &Value, p: [f64; 3]) -> [f64; 3] {
+    let m: Vec<f64> = t["transform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    std::array::from_fn(|r| m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r])
 }
 
 /// The sample-sized scene exported: the tileset matches the 3D Tiles schema; boxes hold their
@@ -227,28 +245,33 @@ fn export_matches_grid_buildings_and_3d_tiles() {
         .collect();
     assert!(errors.is_empty(), "{}", errors.join("\n"));
 
-    let origin: Vec<f64> = tileset["extras"]["local_origin"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let origin = [origin[0], origin[1], origin[2]];
     let tiles = Tiles::of(&tileset);
-    let decoded = contents(&out, &tiles, origin);
+    let decoded = contents(&out, &tileset);
     for (t, parent) in &tiles.tiles {
         let (lo, hi) = boxes(t);
         let ge = t["geometricError"].as_f64().unwrap();
         if let Some(p) = parent {
+            // The child's box, carried into the parent's frame by the child's transform.
             let (plo, phi) = boxes(&tiles.tiles[*p].0);
-            for k in 0..3 {
-                assert!(
-                    plo[k] <= lo[k] + 1e-9 && hi[k] <= phi[k] + 1e-9,
-                    "a child's box leaves its parent's"
-                );
+            for c in 0..8 {
+                let corner = std::array::from_fn(|k| if c >> k & 1 == 0 { lo[k] } else { hi[k] });
+                let q = carry(t, corner);
+                for k in 0..3 {
+                    assert!(
+                        plo[k] - 1e-6 <= q[k] && q[k] <= phi[k] + 1e-6,
+                        "a child's box leaves its parent's"
+                    );
+                }
             }
             assert!(tiles.tiles[*p].0["geometricError"].as_f64().unwrap() >= ge);
+        } else {
+            assert_eq!(
+                t["transform"].as_array().unwrap().len(),
+                16,
+                "the root is on the globe"
+            );
         }
+        let origin = origin_of(t);
         if t.get("children").is_none() {
             assert_eq!(ge, 0.0, "leaves are exact");
         }
@@ -370,16 +393,16 @@ fn finest_terrain_has_no_cracks_between_tiles() {
     export(&db, &out, &["--max-error", "0.2", "--tile-cells", "32"]);
     let tileset: Value =
         serde_json::from_slice(&std::fs::read(out.join("tileset.json")).unwrap()).unwrap();
-    let origin = [0.0; 3];
-    let tiles = Tiles::of(&tileset);
-    let decoded = contents(&out, &tiles, origin);
+    let decoded = contents(&out, &tileset);
+    // A vertex's grid point (column, row): the same point in two tiles is one key, whatever
+    // the two files' rounding.
     let key = |p: [f64; 3]| {
         (
-            (p[0] * 1000.0).round() as i64,
-            (p[1] * 1000.0).round() as i64,
+            ((p[0] - X0) / CELL - 0.5).round() as i64,
+            ((Y0 + H as f64 * CELL - p[1]) / CELL - 0.5).round() as i64,
         )
     };
-    // Edge (lower point, higher point) in whole millimetres → +1 per use one way, −1 the other.
+    // Edge (lower point, higher point) → +1 per use one way, −1 the other.
     type Edge = ((i64, i64), (i64, i64));
     let mut edges: BTreeMap<Edge, i32> = BTreeMap::new();
     for (uri, parts) in &decoded {
@@ -409,18 +432,7 @@ fn finest_terrain_has_no_cracks_between_tiles() {
         .map(|(e, _)| *e)
         .collect();
     assert!(!open.is_empty(), "the border is open");
-    for (a, b) in open {
-        // Positions decoded with origin 0 are local metres; back to grid points.
-        let o = tileset["extras"]["local_origin"].as_array().unwrap();
-        let point = |v: (i64, i64)| {
-            let x = v.0 as f64 / 1000.0 + o[0].as_f64().unwrap();
-            let y = v.1 as f64 / 1000.0 + o[1].as_f64().unwrap();
-            (
-                ((x - X0) / CELL - 0.5).round() as i64,
-                ((Y0 + H as f64 * CELL - y) / CELL - 0.5).round() as i64,
-            )
-        };
-        let (pa, pb) = (point(a), point(b));
+    for (pa, pb) in open {
         let on_border =
             |p: (i64, i64)| p.0 == 0 || p.1 == 0 || p.0 == W as i64 - 1 || p.1 == H as i64 - 1;
         let by_hole = |p: (i64, i64)| (99..107).contains(&p.0) && (19..25).contains(&p.1);
@@ -489,4 +501,87 @@ fn a_new_export_removes_the_old_tiles() {
             assert!(tileset.contains(&rel), "{rel} is not in the tileset");
         }
     }
+}
+
+/// On the globe, checked against GDAL: each content's vertices, carried down the tree's
+/// transforms from the root to their tile (3D Tiles composes them so), land in Earth-centred
+/// coordinates where `gdaltransform` (EPSG:32632 → EPSG:4978, heights ellipsoidal) puts the
+/// same world points, to a millimetre. Runs where gdaltransform is on PATH (always under CI).
+#[test]
+fn tiles_sit_on_the_globe_where_gdal_puts_them() {
+    let found = std::process::Command::new("gdaltransform")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !found {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "gdaltransform not found under CI: .ci/run installs gdal-bin"
+        );
+        println!("skipped: gdaltransform not found (install gdal-bin to run this comparison)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let db = make_db(dir.path());
+    let out = dir.path().join("mesh");
+    export(&db, &out, &["--tile-cells", "32", "--factor", "2"]);
+    let tileset: Value =
+        serde_json::from_slice(&std::fs::read(out.join("tileset.json")).unwrap()).unwrap();
+    // (world point, our ECEF) for every 50th vertex of every content.
+    let mut ours: Vec<([f64; 3], [f64; 3])> = Vec::new();
+    fn walk(t: &Value, chain: &[&Value], out: &Path, ours: &mut Vec<([f64; 3], [f64; 3])>) {
+        let mut chain = chain.to_vec();
+        chain.push(t);
+        if let Some(uri) = t["content"]["uri"].as_str() {
+            let origin = origin_of(t);
+            let parts = read_glb(&std::fs::read(out.join(uri)).unwrap(), origin).unwrap();
+            for p in parts
+                .iter()
+                .flat_map(|p| p.mesh.positions.iter())
+                .step_by(50)
+            {
+                let mut q = [0, 1, 2].map(|k| p[k] - origin[k]);
+                for tile in chain.iter().rev() {
+                    q = carry(tile, q);
+                }
+                ours.push((*p, q));
+            }
+        }
+        for c in t["children"].as_array().into_iter().flatten() {
+            walk(c, &chain, out, ours);
+        }
+    }
+    walk(&tileset["root"], &[], &out, &mut ours);
+    assert!(ours.len() > 100, "{} points", ours.len());
+    let input: String = ours
+        .iter()
+        .map(|(p, _)| format!("{:.4} {:.4} {:.4}\n", p[0], p[1], p[2]))
+        .collect();
+    let mut child = std::process::Command::new("gdaltransform")
+        .args(["-s_srs", "EPSG:32632", "-t_srs", "EPSG:4978"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    let text = String::from_utf8(o.stdout).unwrap();
+    let mut worst = 0.0f64;
+    for ((p, q), line) in ours.iter().zip(text.lines()) {
+        let g: Vec<f64> = line
+            .split_whitespace()
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let d = (0..3).map(|k| (q[k] - g[k]).powi(2)).sum::<f64>().sqrt();
+        assert!(d < 0.001, "{p:?}: {d} m from GDAL's");
+        worst = worst.max(d);
+    }
+    assert_eq!(text.lines().count(), ours.len());
+    println!("{} points, worst {worst:.6} m from GDAL", ours.len());
 }

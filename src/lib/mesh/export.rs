@@ -27,7 +27,7 @@
 
 use super::gltf::write_glb;
 use super::prisms::prism_mesh;
-use super::tileset::{tileset_json, Frame, Tile};
+use super::tileset::{apply, relative, tileset_json, translation, Frame, Matrix, Tile};
 use super::tin::{simplify, Heights, Tin};
 use super::voxels::object_mesh;
 use super::{Drape, Lighting, Mesh, Part};
@@ -89,6 +89,9 @@ pub struct LevelStats {
     pub rms_error_m: f64,
     /// Valid level-0 points that no terrain triangle covers (next to nodata).
     pub uncovered_points: u64,
+    /// Largest distance (metres) between where a tile's frame puts a corner of the tile's cells
+    /// on the globe and where the CRS's exact projection puts it (`None`: not on the globe).
+    pub placement_error_m: Option<f64>,
 }
 
 /// What an export wrote.
@@ -110,9 +113,6 @@ pub struct MeshSummary {
     pub bytes: u64,
     /// Whether the tileset is placed on the WGS 84 globe (the CRS converts).
     pub on_globe: bool,
-    /// Largest departure (metres) of the flat local frame from the exact projection at the
-    /// grid's corners, when placed on the globe.
-    pub corner_error_m: Option<f64>,
 }
 
 impl std::fmt::Display for MeshSummary {
@@ -125,20 +125,20 @@ impl std::fmt::Display for MeshSummary {
             self.bytes,
             self.buildings,
             self.objects,
-            match self.corner_error_m {
-                Some(e) => format!("; on the WGS 84 globe, corners within {:.3} m", e),
-                None =>
-                    "; local frame only (the CRS does not convert to latitude/longitude)".into(),
+            match self.on_globe {
+                true => "; on the WGS 84 globe, a frame per tile",
+                false =>
+                    "; in the root tile's frame (the CRS does not convert to latitude/longitude)",
             }
         )?;
         writeln!(
             f,
-            "level  spacing_m  bound_m  tiles  terrain_tris  all_tris      bytes  max_err_m  rms_err_m  uncovered"
+            "level  spacing_m  bound_m  tiles  terrain_tris  all_tris      bytes  max_err_m  rms_err_m  uncovered  placed_m"
         )?;
         for l in &self.levels {
             writeln!(
                 f,
-                "{:>5}  {:>9.3}  {:>7.3}  {:>5}  {:>12}  {:>8}  {:>9}  {:>9.3}  {:>9.4}  {:>9}",
+                "{:>5}  {:>9.3}  {:>7.3}  {:>5}  {:>12}  {:>8}  {:>9}  {:>9.3}  {:>9.4}  {:>9}  {:>8}",
                 l.level,
                 l.point_spacing_m,
                 l.bound_m,
@@ -148,7 +148,9 @@ impl std::fmt::Display for MeshSummary {
                 l.bytes,
                 l.max_error_m,
                 l.rms_error_m,
-                l.uncovered_points
+                l.uncovered_points,
+                l.placement_error_m
+                    .map_or("-".to_string(), |e| format!("{e:.4}"))
             )?;
         }
         if self.buildings_over_nodata > 0 {
@@ -185,7 +187,10 @@ pub fn export_mesh(
     };
     let colour = colour.as_ref();
     let levels = Levels::new(&grid, opts);
-    let frame = Frame::new(&grid.crs, origin(&grid, &elevation)?, corners(&grid));
+    let base = origin(&grid, &elevation)?;
+    let on_globe = Frame::new(&grid.crs, base, corners(&grid))
+        .to_ecef
+        .is_some();
     let standing = standing_meshes(db, &elevation, colour)?;
 
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -201,8 +206,9 @@ pub fn export_mesh(
         let done: Vec<Result<(Built, Option<Staged>)>> = tiles
             .par_iter()
             .map(|&(tx, ty)| {
+                let frame = levels.frame(&grid, level, tx, ty, base);
                 let r = build_tile(
-                    &levels, level, tx, ty, &elevation, colour, &standing, &frame, &level_dir,
+                    &levels, level, tx, ty, &elevation, colour, &standing, frame, &level_dir,
                 );
                 progress.inc(1);
                 r
@@ -220,6 +226,7 @@ pub fn export_mesh(
             max_error_m: 0.0,
             rms_error_m: 0.0,
             uncovered_points: 0,
+            placement_error_m: None,
         };
         let mut sum_sq = 0.0;
         let mut points = 0u64;
@@ -236,6 +243,9 @@ pub fn export_mesh(
             sum_sq += b.error.sum_sq;
             points += b.error.points;
             s.uncovered_points += b.error.uncovered;
+            if let Some(e) = b.frame.corner_error_m {
+                s.placement_error_m = Some(s.placement_error_m.unwrap_or(0.0).max(e));
+            }
             level_built.insert((*tx, *ty), b);
         }
         s.rms_error_m = if points > 0 {
@@ -247,9 +257,9 @@ pub fn export_mesh(
         built.push(level_built);
     }
 
-    let root = tree(&levels, &built, levels.count - 1, 0, 0);
+    let root = tree(&levels, &built, levels.count - 1, 0, 0, None, base);
     let generator = format!("dbms {}", env!("CARGO_PKG_VERSION"));
-    let json = tileset_json(&frame, &root, &generator);
+    let json = tileset_json(&root, &grid.crs.name(), &generator);
     let text = serde_json::to_string_pretty(&json).expect("JSON values serialise") + "\n";
     let tileset = dir.join("tileset.json");
     let mut f = AtomicFile::create(&tileset)?;
@@ -270,8 +280,7 @@ pub fn export_mesh(
         objects: standing.objects,
         files,
         bytes,
-        on_globe: frame.to_ecef.is_some(),
-        corner_error_m: frame.corner_error_m,
+        on_globe,
     })
 }
 
@@ -361,6 +370,21 @@ impl Levels {
         let mut v: Vec<usize> = (start..end).step_by(s).collect();
         v.push(end);
         v
+    }
+
+    /// Tile `(tx, ty)`'s frame: its origin at the centre of its cells (at `base`'s height),
+    /// placed on the globe through the grid's CRS; its departure measured at its cells'
+    /// corners.
+    fn frame(&self, grid: &Grid, level: usize, tx: usize, ty: usize, base: [f64; 3]) -> Frame {
+        let (nx, ny) = self.across(level);
+        let cols = self.owned(level, tx, grid.width, nx);
+        let rows = self.owned(level, ty, grid.height, ny);
+        let t = &grid.transform;
+        let (x0, y0) = t.pixel_to_world(cols.start as f64, rows.start as f64);
+        let (x1, y1) = t.pixel_to_world(cols.end as f64, rows.end as f64);
+        let origin = [(x0 + x1) / 2.0, (y0 + y1) / 2.0, base[2]];
+        let area = [x0.min(x1), y0.min(y1), x0.max(x1), y0.max(y1)];
+        Frame::new(&grid.crs, origin, area)
     }
 
     /// The grid indices of the level-0 points a tile owns along an axis of `n` points.
@@ -529,7 +553,9 @@ impl TerrainSampleRgb {
 
 /// What one tile became.
 struct Built {
-    /// Its box in the local frame, when it has content.
+    /// Its frame: origin (world), to ECEF, departure at its corners.
+    frame: Frame,
+    /// Its box in its local frame, when it has content.
     bounds: Option<([f64; 3], [f64; 3])>,
     uri: Option<String>,
     terrain_triangles: u64,
@@ -556,7 +582,7 @@ fn build_tile(
     elevation: &dyn RowSource<f32>,
     colour: &dyn RowSource<[u8; 4]>,
     standing: &Things,
-    frame: &Frame,
+    frame: Frame,
     dir: &Path,
 ) -> Result<(Built, Option<Staged>)> {
     let grid = elevation.grid();
@@ -611,6 +637,7 @@ fn build_tile(
         .sum();
     if parts.is_empty() {
         let built = Built {
+            frame,
             bounds: None,
             uri: None,
             terrain_triangles,
@@ -639,6 +666,7 @@ fn build_tile(
             )
         });
     let built = Built {
+        frame,
         bounds,
         uri: Some(format!("tiles/{level}/{name}")),
         terrain_triangles,
@@ -836,22 +864,30 @@ fn measure(
 }
 
 /// The tile `(level, tx, ty)` and the tiles under it, with boxes grown to hold their children
-/// and errors no smaller than their children's.
+/// (carried into the tile's frame) and errors no smaller than their children's. `parent` is the
+/// parent's frame as a matrix (`None` at the root); `base` the root frame's origin, which the
+/// frames of a tileset off the globe are translations from.
 fn tree(
     levels: &Levels,
     built: &[BTreeMap<(usize, usize), Built>],
     level: usize,
     tx: usize,
     ty: usize,
+    parent: Option<&Matrix>,
+    base: [f64; 3],
 ) -> Tile {
     let b = &built[level][&(tx, ty)];
+    let own = b
+        .frame
+        .to_ecef
+        .unwrap_or_else(|| translation(std::array::from_fn(|k| b.frame.origin[k] - base[k])));
     let mut children = Vec::new();
     if level > 0 {
         let f = levels.factor;
         let (nx, ny) = levels.across(level - 1);
         for cy in ty * f..((ty + 1) * f).min(ny) {
             for cx in tx * f..((tx + 1) * f).min(nx) {
-                let child = tree(levels, built, level - 1, cx, cy);
+                let child = tree(levels, built, level - 1, cx, cy, Some(&own), base);
                 if child.uri.is_some() || !child.children.is_empty() {
                     children.push(child);
                 }
@@ -860,7 +896,12 @@ fn tree(
     }
     let bounds = children
         .iter()
-        .map(|c| c.bounds)
+        .map(|c| {
+            carried(
+                &c.bounds,
+                c.transform.as_ref().expect("a child has a transform"),
+            )
+        })
         .chain(b.bounds)
         .reduce(|a, c| (min3(a.0, c.0), max3(a.1, c.1)))
         .unwrap_or(([0.0; 3], [0.0; 3]));
@@ -871,12 +912,30 @@ fn tree(
             .map(|c| c.geometric_error)
             .fold(b.error.max, f64::max),
     };
+    let transform = match parent {
+        Some(p) => Some(relative(p, &own)),
+        None => b.frame.to_ecef,
+    };
     Tile {
         uri: b.uri.clone(),
+        origin: b.frame.origin,
+        transform,
         bounds,
         geometric_error,
         children,
     }
+}
+
+/// The axis-aligned box holding box `(lo, hi)`'s corners carried by `m`.
+fn carried((lo, hi): &([f64; 3], [f64; 3]), m: &Matrix) -> ([f64; 3], [f64; 3]) {
+    (0..8)
+        .map(|c| {
+            let corner = std::array::from_fn(|k| if c >> k & 1 == 0 { lo[k] } else { hi[k] });
+            apply(m, corner)
+        })
+        .fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(a, b), p| {
+            (min3(a, p), max3(b, p))
+        })
 }
 
 /// Remove `.glb` files under `tiles` (in its level directories) that are not in `written`.

@@ -1,26 +1,33 @@
 //! The 3D Tiles 1.1 tileset that lists an export's glTF tiles: a tree of tiles from the
 //! coarsest level to the finest, each with a bounding box a viewer culls against its view
-//! frustum and the geometric error it would make if shown instead of its children, and the
-//! matrix that puts the database's frame on the WGS 84 globe.
+//! frustum, the geometric error it would make if shown instead of its children, and the matrix
+//! that puts its content on the WGS 84 globe.
 //!
-//! Frames: tile contents are in the **local frame**, metres from the export's origin (a world
-//! point near the database's centre) with x east, y north, z up along the grid's axes (glTF
-//! turns them y-up; 3D Tiles turns them back). The root's `transform` maps the local frame to
-//! Earth-centred, Earth-fixed WGS 84 (EPSG:4978): the affine map that agrees with the CRS's
+//! **A frame per tile.** A tile's content is in its own **local frame**: metres from the tile's
+//! origin (a world point at the centre of its cells) with x east, y north, z up along the
+//! grid's axes (glTF turns them y-up; 3D Tiles turns them back). [`Frame`] maps a local frame
+//! to Earth-centred, Earth-fixed WGS 84 (EPSG:4978) by the affine map that agrees with the CRS's
 //! exact projection at the origin (its columns are the derivatives of ECEF along grid east,
 //! grid north and the ellipsoid's normal), so the grid's convergence and scale factor are in
-//! it. Away from the origin the flat frame departs from the curved Earth; [`Frame`] carries the
-//! largest departure at the database's corners. Heights are taken as ellipsoidal (no geoid is
-//! applied). A CRS the default build cannot convert gets no transform: the tileset is then in
-//! the local frame alone, which a viewer without a globe shows as it is.
+//! it. A flat frame departs from the curved Earth by about d²/2R at a distance d from its origin,
+//! so each tile gets its own: a finest tile of 64 m is placed within a millimetre wherever it
+//! lies in a gaming area of tens of kilometres, where one frame for the whole area would put
+//! the terrain 10 km out 7.8 m off. 3D Tiles composes transforms down the tree, so a tile's
+//! `transform` is its parent's frame inverted times its own ([`relative`]); the root's is its
+//! own. Heights are taken as ellipsoidal (no geoid is applied). A CRS the default build cannot
+//! convert gets translations between the tiles' origins instead, and no transform at the root:
+//! the tileset is then in the root's local frame, which a viewer without a globe shows as it is.
 //!
-//! Invariants: a tile's box holds its content and its children's boxes; a tile's geometric
-//! error is at least each child's; leaves have geometric error 0.
+//! Each tile's `extras.origin` gives its origin in the database's CRS (the tileset's
+//! `extras.crs`): world = origin + local, for a tool that reads the content back.
+//!
+//! Invariants: a tile's box holds its content and its children's boxes (carried into its
+//! frame); a tile's geometric error is at least each child's; leaves have geometric error 0.
 
 use crate::crs::Crs;
 use serde_json::{json, Value};
 
-/// The local frame of an export and its place on the globe.
+/// A local frame and its place on the globe.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
     /// World position (CRS units, z metres) of the local frame's origin.
@@ -116,12 +123,74 @@ impl Frame {
     }
 }
 
-/// A tile of the tree: where its content is, its box, its error, its children.
+/// A 4 × 4 affine matrix, column-major, as 3D Tiles stores `transform`.
+pub type Matrix = [f64; 16];
+
+/// The matrix that moves by `t`.
+pub fn translation(t: [f64; 3]) -> Matrix {
+    let mut m = [0.0; 16];
+    (0..4).for_each(|k| m[5 * k] = 1.0);
+    m[12..15].copy_from_slice(&t);
+    m
+}
+
+/// `m` applied to point `p`.
+pub fn apply(m: &Matrix, p: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|r| m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r])
+}
+
+/// `a · b` (first `b`, then `a`) of affine matrices.
+fn multiply(a: &Matrix, b: &Matrix) -> Matrix {
+    let mut m = [0.0; 16];
+    for c in 0..4 {
+        for r in 0..4 {
+            m[4 * c + r] = (0..4).map(|k| a[4 * k + r] * b[4 * c + k]).sum();
+        }
+    }
+    m
+}
+
+/// The inverse of affine `m` (its 3 × 3 part by cofactors; `m` must be invertible, as a frame's
+/// is).
+fn inverse(m: &Matrix) -> Matrix {
+    let a = |r: usize, c: usize| m[4 * c + r];
+    let cof = |r: usize, c: usize| {
+        let (r0, r1) = ((r + 1) % 3, (r + 2) % 3);
+        let (c0, c1) = ((c + 1) % 3, (c + 2) % 3);
+        a(r0, c0) * a(r1, c1) - a(r0, c1) * a(r1, c0)
+    };
+    let det = (0..3).map(|c| a(0, c) * cof(0, c)).sum::<f64>();
+    let mut inv = [0.0; 16];
+    for r in 0..3 {
+        for c in 0..3 {
+            // (A⁻¹)[r][c] = cofactor(c, r) / det.
+            inv[4 * c + r] = cof(c, r) / det;
+        }
+    }
+    for r in 0..3 {
+        inv[12 + r] = -(0..3).map(|k| inv[4 * k + r] * m[12 + k]).sum::<f64>();
+    }
+    inv[15] = 1.0;
+    inv
+}
+
+/// The transform of a tile whose frame is `child` under a tile whose frame is `parent` (both
+/// local → the same outer frame): `parent⁻¹ · child`, what 3D Tiles composes back to `child`.
+pub fn relative(parent: &Matrix, child: &Matrix) -> Matrix {
+    multiply(&inverse(parent), child)
+}
+
+/// A tile of the tree: where its content is, its frame, its box, its error, its children.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tile {
     /// Content file relative to the tileset (`None`: a tile with nothing to show).
     pub uri: Option<String>,
-    /// Box in the local frame (metres): `(min, max)`; holds the content and the children's.
+    /// World position (CRS units, z metres) of the tile's local frame's origin.
+    pub origin: [f64; 3],
+    /// The tile's frame → its parent's (the root's: → ECEF), when it has one.
+    pub transform: Option<Matrix>,
+    /// Box in the tile's local frame (metres): `(min, max)`; holds the content and the
+    /// children's boxes.
     pub bounds: ([f64; 3], [f64; 3]),
     /// Metres of error a viewer makes showing this tile instead of its children.
     pub geometric_error: f64,
@@ -138,7 +207,11 @@ impl Tile {
         let mut tile = json!({
             "boundingVolume": {"box": [c[0], c[1], c[2], h[0], 0.0, 0.0, 0.0, h[1], 0.0, 0.0, 0.0, h[2]]},
             "geometricError": self.geometric_error,
+            "extras": {"origin": self.origin},
         });
+        if let Some(m) = self.transform {
+            tile["transform"] = json!(m);
+        }
         if let Some(uri) = &self.uri {
             tile["content"] = json!({ "uri": uri });
         }
@@ -149,15 +222,12 @@ impl Tile {
     }
 }
 
-/// The tileset document: version 1.1, its `extras` giving the local frame's origin and CRS, the root replaced by its children as a viewer refines,
-/// placed on the globe by `frame`. `generator` names the program and version (the asset's
-/// `extras`: 3D Tiles has no property of its own for it).
-pub fn tileset_json(frame: &Frame, root: &Tile, generator: &str) -> Value {
+/// The tileset document: version 1.1, the root replaced by its children as a viewer refines,
+/// `crs` (the tiles' origins' CRS, by name) in its `extras`. `generator` names the program and
+/// version (the asset's `extras`: 3D Tiles has no property of its own for it).
+pub fn tileset_json(root: &Tile, crs: &str, generator: &str) -> Value {
     let mut r = root.to_json();
     r["refine"] = json!("REPLACE");
-    if let Some(m) = frame.to_ecef {
-        r["transform"] = json!(m);
-    }
     let (lo, hi) = root.bounds;
     let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
     json!({
@@ -165,9 +235,30 @@ pub fn tileset_json(frame: &Frame, root: &Tile, generator: &str) -> Value {
         // Showing nothing at all: off by the whole scene.
         "geometricError": diagonal.max(root.geometric_error),
         "root": r,
-        // How to go back to the database's coordinates: world = local + origin.
-        "extras": {"local_origin": frame.origin, "crs": frame.crs},
+        "extras": {"crs": crs},
     })
+}
+
+/// Every content of a tileset document with its tile's origin (world, CRS units): what
+/// [`super::gltf::read_glb`] needs to give a content's positions back in world coordinates.
+pub fn content_origins(tileset: &Value) -> Vec<(String, [f64; 3])> {
+    fn walk(t: &Value, out: &mut Vec<(String, [f64; 3])>) {
+        if let (Some(uri), Some(o)) = (
+            t.pointer("/content/uri").and_then(Value::as_str),
+            t.pointer("/extras/origin").and_then(Value::as_array),
+        ) {
+            let o: Vec<f64> = o.iter().filter_map(Value::as_f64).collect();
+            if let [x, y, z] = o[..] {
+                out.push((uri.to_string(), [x, y, z]));
+            }
+        }
+        for c in t["children"].as_array().into_iter().flatten() {
+            walk(c, out);
+        }
+    }
+    let mut out = Vec::new();
+    walk(&tileset["root"], &mut out);
+    out
 }
 
 #[cfg(test)]
@@ -219,12 +310,47 @@ mod tests {
         assert_eq!(f.to_ecef, None);
         let root = Tile {
             uri: Some("a.glb".into()),
+            origin: [0.0; 3],
+            transform: None,
             bounds: ([0.0; 3], [1.0; 3]),
             geometric_error: 0.0,
             children: vec![],
         };
-        let j = tileset_json(&f, &root, "dbms test");
+        let j = tileset_json(&root, "unknown CRS", "dbms test");
         assert!(j["root"].get("transform").is_none());
         assert_eq!(j["asset"]["version"], "1.1");
+        assert_eq!(content_origins(&j), vec![("a.glb".to_string(), [0.0; 3])]);
+    }
+
+    /// Two tiles' frames 20 km apart on UTM 32N: the child's transform composed with the
+    /// parent's places the child's points where its own frame does (to a micrometre), and
+    /// inverting a frame undoes it.
+    #[test]
+    fn relative_transforms_compose_back_to_the_childs_frame() {
+        let crs = Crs::epsg(32632);
+        let parent = Frame::new(&crs, [500_000.0, 5_300_000.0, 400.0], [0.0; 4]);
+        let child = Frame::new(&crs, [520_000.0, 5_290_000.0, 400.0], [0.0; 4]);
+        let (p, c) = (parent.to_ecef.unwrap(), child.to_ecef.unwrap());
+        let rel = relative(&p, &c);
+        for q in [[0.0, 0.0, 0.0], [32.0, -32.0, 15.0], [-100.0, 250.0, -3.0]] {
+            let direct = apply(&c, q);
+            let composed = apply(&p, apply(&rel, q));
+            let d = (0..3)
+                .map(|k| (direct[k] - composed[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(d < 1e-6, "{d} m at {q:?}");
+            let back = apply(&inverse(&c), direct);
+            assert!((0..3).all(|k| (back[k] - q[k]).abs() < 1e-6), "{back:?}");
+        }
+        // The same point 20 km away in the parent's one flat frame is metres off.
+        let far = [20_000.0, -10_000.0, 0.0];
+        let exact = apply(&c, [0.0; 3]);
+        let flat = apply(&p, far);
+        let off = (0..3)
+            .map(|k| (exact[k] - flat[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(off > 10.0, "one frame would be {off} m off at 22 km");
     }
 }
