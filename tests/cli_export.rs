@@ -125,10 +125,9 @@ fn make_db(dir: &Path) -> std::path::PathBuf {
     db_dir
 }
 
-/// `dbms --json export mesh --db DB -o OUT ARGS`, which must succeed: its summary.
-fn export(db: &Path, out: &Path, args: &[&str]) -> Value {
+/// The command line `export mesh --db DB -o OUT ARGS`.
+fn export_args<'a>(db: &'a Path, out: &'a Path, args: &[&'a str]) -> Vec<&'a str> {
     let mut all = vec![
-        "--json",
         "export",
         "mesh",
         "--db",
@@ -137,6 +136,12 @@ fn export(db: &Path, out: &Path, args: &[&str]) -> Value {
         out.to_str().unwrap(),
     ];
     all.extend_from_slice(args);
+    all
+}
+
+/// `dbms --json export mesh --db DB -o OUT ARGS`, which must succeed: its summary.
+fn export(db: &Path, out: &Path, args: &[&str]) -> Value {
+    let all = [vec!["--json"], export_args(db, out, args)].concat();
     let o = dbms(&all);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     serde_json::from_slice(&o.stdout).unwrap()
@@ -455,16 +460,7 @@ fn bad_input_is_a_one_line_error() {
         (vec!["--factor", "1"], "--factor 1"),
         (vec!["--tile-cells", "1"], "--tile-cells 1"),
     ] {
-        let mut all = vec![
-            "export",
-            "mesh",
-            "--db",
-            db.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ];
-        all.extend(args);
-        let o = dbms(&all);
+        let o = dbms(&export_args(&db, &out, &args));
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success());
         assert_eq!(err.trim().lines().count(), 1, "{err}");

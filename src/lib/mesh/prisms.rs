@@ -177,6 +177,15 @@ mod tests {
         ]
     }
 
+    /// The point 1 cm in front of wall triangle `t`'s centre, on the side its normal faces.
+    fn in_front(m: &Mesh, t: [u32; 3]) -> (f64, f64) {
+        let n = normal(m, t);
+        let c = t.map(|i| m.positions[i as usize]);
+        let mid = [0, 1].map(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0);
+        let len = n[0].hypot(n[1]);
+        (mid[0] + n[0] / len * 0.01, mid[1] + n[1] / len * 0.01)
+    }
+
     fn area_up(m: &Mesh) -> f64 {
         m.triangles
             .iter()
@@ -226,16 +235,10 @@ mod tests {
                 assert!(n[2] > 0.0, "a roof triangle faces down");
                 continue;
             }
-            let c = t.map(|i| m.positions[i as usize]);
-            let mid = (
-                (c[0][0] + c[1][0] + c[2][0]) / 3.0,
-                (c[0][1] + c[1][1] + c[2][1]) / 3.0,
-            );
-            let len = n[0].hypot(n[1]);
-            let out = (mid.0 + n[0] / len * 0.01, mid.1 + n[1] / len * 0.01);
+            let out = in_front(&m, t);
             assert!(
                 !inside(std::slice::from_ref(&ring), out),
-                "a wall faces in at {mid:?}"
+                "a wall faces in at {out:?}"
             );
         }
         assert_eq!(m.triangles.len(), 4 + 2 * 6);
@@ -270,13 +273,7 @@ mod tests {
                 if n[2] != 0.0 {
                     continue;
                 }
-                let c = t.map(|i| m.positions[i as usize]);
-                let mid = (
-                    (c[0][0] + c[1][0] + c[2][0]) / 3.0,
-                    (c[0][1] + c[1][1] + c[2][1]) / 3.0,
-                );
-                let len = n[0].hypot(n[1]);
-                let out = (mid.0 + n[0] / len * 0.01, mid.1 + n[1] / len * 0.01);
+                let out = in_front(&m, t);
                 assert!(
                     !inside(&p.rings, out),
                     "{o} {h}: a wall faces into the solid"
