@@ -2,7 +2,7 @@
 //! CesiumJS) loads as it is, and read back for tests and checks.
 //!
 //! **Axes.** Our world is x east, y north, z up, in metres; glTF is y up. A world position is
-//! first taken relative to the tile's `origin` (the tileset's local frame origin, world
+//! first taken relative to the tile's `origin` (the origin of the tile's local frame, world
 //! metres), then turned: glTF (x, y, z) = (east, up, −north). The turn is a proper rotation, so
 //! counter-clockwise triangles stay counter-clockwise.
 //!
@@ -125,7 +125,7 @@ impl Frame {
 }
 
 /// Encode `parts` as one glTF 2.0 binary. World positions (x east, y north, z up, metres)
-/// are taken relative to `origin` (world metres: the tileset's local frame origin) and turned
+/// are taken relative to `origin` (world metres: the origin of the tile's frame) and turned
 /// to glTF's y-up axes: glTF (x, y, z) = (east, up, -north).
 ///
 /// Parts without triangles are left out; if no part has one, the result is an error, as is a
