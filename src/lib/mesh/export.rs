@@ -18,7 +18,8 @@
 //! the points of its cells; the grid's last row and column belong to the last tiles), streamed
 //! in bands of rows: largest and root-mean-square vertical difference, and the valid points no
 //! triangle covers (next to nodata, and so none elsewhere). A tile's geometric error is the
-//! largest of its own measured error and its children's geometric errors; leaves have 0.
+//! largest of its own measured error, its points' spacing (the detail across the ground its
+//! terrain and drape cannot show) and its children's geometric errors; leaves have 0.
 //!
 //! **Files.** `DIR/tileset.json` and `DIR/tiles/L/X_Y.glb` (X east, Y south from the grid's
 //! north-west tile), written beside each other as one commit: the glTF files first, the tileset
@@ -217,7 +218,7 @@ pub fn export_mesh(
         let mut level_built = BTreeMap::new();
         let mut s = LevelStats {
             level: level as u32,
-            point_spacing_m: grid.transform.cell_x.abs() * levels.stride(level) as f64,
+            point_spacing_m: levels.spacing(level),
             bound_m: levels.bound(level),
             tiles: 0,
             terrain_triangles: 0,
@@ -315,6 +316,8 @@ struct Levels {
     tile: usize,
     factor: usize,
     max_error_m: f64,
+    /// Cell size, metres.
+    cell: f64,
     /// Levels, the last one a single tile.
     count: usize,
 }
@@ -327,6 +330,7 @@ impl Levels {
             tile: opts.tile_cells,
             factor: opts.factor,
             max_error_m: opts.max_error_m,
+            cell: grid.transform.cell_x.abs(),
             count: 1,
         };
         while l.across(l.count - 1) != (1, 1) {
@@ -338,6 +342,11 @@ impl Levels {
     /// Cells between a level's points.
     fn stride(&self, level: usize) -> usize {
         self.factor.pow(level as u32)
+    }
+
+    /// Metres between a level's points: the detail across the ground that it cannot show.
+    fn spacing(&self, level: usize) -> f64 {
+        self.cell * self.stride(level) as f64
     }
 
     /// Cells along a level's tile side.
@@ -905,12 +914,14 @@ fn tree(
         .chain(b.bounds)
         .reduce(|a, c| (min3(a.0, c.0), max3(a.1, c.1)))
         .unwrap_or(([0.0; 3], [0.0; 3]));
+    // Shown instead of its children, a coarse tile is off by its terrain's height error and,
+    // across the ground, by its points' spacing (its drape's texels): the larger counts.
     let geometric_error = match level {
         0 => 0.0,
         _ => children
             .iter()
             .map(|c| c.geometric_error)
-            .fold(b.error.max, f64::max),
+            .fold(b.error.max.max(levels.spacing(level)), f64::max),
     };
     let transform = match parent {
         Some(p) => Some(relative(p, &own)),
