@@ -581,3 +581,56 @@ fn tiles_sit_on_the_globe_where_gdal_puts_them() {
     assert_eq!(text.lines().count(), ours.len());
     println!("{} points, worst {worst:.6} m from GDAL", ours.len());
 }
+
+/// Databases at the edges: no photo (grey terrain), no buildings, and grids of 2 × 2, 1 × 5
+/// and 1 × 1 cells, and one all nodata: each exports a tileset the schema accepts, its glTF
+/// files readable, its terrain where there is terrain to triangulate.
+#[test]
+fn tiny_and_bare_databases_export() {
+    let schema_text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/3dtiles-tileset.schema.json"),
+    )
+    .unwrap();
+    let schema = jsonschema::validator_for(&serde_json::from_str(&schema_text).unwrap()).unwrap();
+    for (w, h, nodata, triangles) in [
+        (2, 2, false, 2),
+        (5, 1, false, 0),
+        (1, 1, false, 0),
+        (4, 3, true, 0),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = Grid::north_up(X0, Y0, CELL, w, h, Crs::epsg(32632));
+        let z: Vec<f32> = (0..w * h)
+            .map(|i| {
+                if nodata {
+                    f32::NAN
+                } else {
+                    100.0 + i as f32 * 0.3
+                }
+            })
+            .collect();
+        let db_dir = dir.path().join("db");
+        let mut db = Database::create(&db_dir, grid.clone(), vec![]).unwrap();
+        dbms::io::geotiff::write_f32(&db_dir.join("e.tif"), &Elevation::new(grid, z)).unwrap();
+        db.set_layer(ELEVATION, "elevation", "e.tif", None).unwrap();
+        db.save().unwrap();
+        let out = dir.path().join("mesh");
+        let summary = export(&db_dir, &out, &[]);
+        let what = format!("{w} × {h}{}", if nodata { ", all nodata" } else { "" });
+        assert_eq!(
+            summary["levels"][0]["terrain_triangles"], triangles,
+            "{what}: {summary}"
+        );
+        let tileset: Value =
+            serde_json::from_slice(&std::fs::read(out.join("tileset.json")).unwrap()).unwrap();
+        assert!(schema.is_valid(&tileset), "{what}: {tileset}");
+        for (_, parts) in contents(&out, &tileset) {
+            assert!(parts.iter().all(|p| !p.mesh.triangles.is_empty()), "{what}");
+            // Grey where there is no photo.
+            assert!(
+                parts[0].mesh.colours.iter().all(|c| *c == [128; 3]),
+                "{what}"
+            );
+        }
+    }
+}

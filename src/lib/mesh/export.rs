@@ -983,3 +983,64 @@ impl RowSource<[u8; 4]> for Uniform {
         Ok(vec![self.value; rows * self.grid.width].into())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+    use proptest::prelude::*;
+
+    fn levels(width: usize, height: usize, tile: usize, factor: usize) -> Levels {
+        let grid = Grid::north_up(500_000.0, 5_300_000.0, 0.5, width, height, Crs::epsg(32632));
+        let opts = MeshOptions {
+            max_error_m: 0.1,
+            tile_cells: tile,
+            factor,
+        };
+        Levels::new(&grid, &opts)
+    }
+
+    proptest! {
+        /// At every level: the tiles' owned points cover the axis once, in order; each tile's
+        /// points start at its first owned point, rise, stay on the grid, reach the next
+        /// tile's first point (or the axis's last), so neighbours share their border; the
+        /// last level is one tile.
+        #[test]
+        fn tiles_cover_every_point_once_and_share_borders(
+            n in 1usize..700, tile in 2usize..40, factor in 2usize..6,
+        ) {
+            let l = levels(n, 3, tile, factor);
+            prop_assert_eq!(l.across(l.count - 1), (1, 1));
+            for level in 0..l.count {
+                let (nx, _) = l.across(level);
+                let mut next = 0;
+                for t in 0..nx {
+                    let own = l.owned(level, t, n, nx);
+                    prop_assert_eq!(own.start, next);
+                    next = own.end;
+                    let pts = l.points(level, t, n);
+                    prop_assert_eq!(pts[0], own.start.min(n - 1));
+                    prop_assert!(pts.windows(2).all(|p| p[0] < p[1]));
+                    prop_assert!(*pts.last().unwrap() <= n - 1);
+                    let want_end = if t + 1 == nx { n - 1 } else { own.end };
+                    prop_assert_eq!(*pts.last().unwrap(), want_end);
+                }
+                prop_assert_eq!(next, n);
+            }
+        }
+    }
+
+    /// The hard sizes: a grid whose last point falls exactly on a tile border (257 = 256 + 1)
+    /// has no one-point tile; a one-point grid is one tile of one point.
+    #[test]
+    fn border_sizes_make_no_empty_tile() {
+        let l = levels(257, 257, 256, 4);
+        assert_eq!(l.across(0), (1, 1));
+        assert_eq!(l.points(0, 0, 257).len(), 257);
+        let l = levels(258, 1, 256, 4);
+        assert_eq!(l.across(0), (2, 1));
+        assert_eq!(l.points(0, 1, 258), vec![256, 257]);
+        let l = levels(1, 1, 256, 4);
+        assert_eq!((l.count, l.points(0, 0, 1)), (1, vec![0]));
+    }
+}
