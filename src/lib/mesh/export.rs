@@ -1021,7 +1021,7 @@ mod tests {
                     let pts = l.points(level, t, n);
                     prop_assert_eq!(pts[0], own.start.min(n - 1));
                     prop_assert!(pts.windows(2).all(|p| p[0] < p[1]));
-                    prop_assert!(*pts.last().unwrap() <= n - 1);
+                    prop_assert!(*pts.last().unwrap() < n);
                     let want_end = if t + 1 == nx { n - 1 } else { own.end };
                     prop_assert_eq!(*pts.last().unwrap(), want_end);
                 }
