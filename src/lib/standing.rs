@@ -49,41 +49,50 @@ impl TerrainAt for Elevation {
     }
 }
 
-/// The terrain heights of selected cells, read band by band from a [`RowSource`]: what raising
-/// needs of a layer too large to hold. Sorted by index, one entry per cell.
-pub struct TerrainSample {
-    cells: Vec<(usize, f32)>,
+/// A layer's values at selected cells, read band by band from a [`RowSource`]: what raising
+/// needs of the terrain, and the mesh export of the photo under each roof, when the layer is
+/// too large to hold. Sorted by index, one entry per cell.
+pub struct CellSample<T> {
+    cells: Vec<(usize, T)>,
 }
 
-impl TerrainSample {
-    /// Sample `terrain` at `indices` (any order, repeats allowed), reading only the bands of
+/// The terrain heights of selected cells (metres, NaN = nodata).
+pub type TerrainSample = CellSample<f32>;
+
+impl<T: Clone> CellSample<T> {
+    /// Sample `layer` at `indices` (any order, repeats allowed), reading only the bands of
     /// `band_rows` rows that hold one of them.
     pub fn read(
-        terrain: &dyn RowSource<f32>,
+        layer: &dyn RowSource<T>,
         mut indices: Vec<usize>,
         band_rows: usize,
-    ) -> Result<TerrainSample> {
+    ) -> Result<CellSample<T>> {
         indices.par_sort_unstable();
         indices.dedup();
-        let (w, h) = (terrain.grid().width, terrain.grid().height);
+        let (w, h) = (layer.grid().width, layer.grid().height);
         let band_rows = band_rows.max(1);
         let mut cells = Vec::with_capacity(indices.len());
         for chunk in indices.chunk_by(|a, b| a / w / band_rows == b / w / band_rows) {
             let row0 = chunk[0] / w / band_rows * band_rows;
-            let rows = terrain.read_rows(row0, band_rows.min(h - row0))?;
-            cells.extend(chunk.iter().map(|&i| (i, rows[i - row0 * w])));
+            let rows = layer.read_rows(row0, band_rows.min(h - row0))?;
+            cells.extend(chunk.iter().map(|&i| (i, rows[i - row0 * w].clone())));
         }
-        Ok(TerrainSample { cells })
+        Ok(CellSample { cells })
+    }
+
+    /// The value of cell `index`. Panics for a cell not sampled (a programming error).
+    pub fn get(&self, index: usize) -> &T {
+        let k = self
+            .cells
+            .binary_search_by_key(&index, |c| c.0)
+            .expect("the cell was sampled");
+        &self.cells[k].1
     }
 }
 
 impl TerrainAt for TerrainSample {
     fn at(&self, index: usize) -> f32 {
-        let k = self
-            .cells
-            .binary_search_by_key(&index, |c| c.0)
-            .expect("the cell was sampled");
-        self.cells[k].1
+        *self.get(index)
     }
 }
 

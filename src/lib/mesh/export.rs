@@ -38,7 +38,7 @@ use crate::grid::Grid;
 use crate::io::atomic::{commit_all, AtomicFile, Staged};
 use crate::progress::Progress;
 use crate::raster::RowSource;
-use crate::standing::{polygon_cells, read_buildings, TerrainSample};
+use crate::standing::{polygon_cells, read_buildings, CellSample, TerrainSample};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -476,7 +476,7 @@ fn standing_meshes(
             })
             .collect();
         let terrain = TerrainSample::read(elevation, cells.concat(), BAND_ROWS)?;
-        let colour = TerrainSampleRgb::read(photo, cells.concat())?;
+        let colour = CellSample::read(photo, cells.concat(), BAND_ROWS)?;
         for (i, (prism, under)) in prisms.iter().zip(&cells).enumerate() {
             let lowest = under
                 .iter()
@@ -487,7 +487,7 @@ fn standing_meshes(
                 out.over_nodata += 1;
                 continue;
             }
-            let rgb = colour.mean(under);
+            let rgb = mean_opaque(under.iter().map(|&c| colour.get(c)));
             let mesh = prism_mesh(prism, lowest as f64, rgb).map_err(|e| {
                 Error::file(&path, format!("building {i}: {e}"))
                     .fix("correct the outline (a simple polygon, holes inside it) and export again")
@@ -522,41 +522,16 @@ fn clamp_cell(grid: &Grid, x: f64, y: f64) -> (usize, usize) {
     (clamp(px, grid.width), clamp(py, grid.height))
 }
 
-/// The photo's colours at selected cells (read band by band).
-struct TerrainSampleRgb {
-    cells: BTreeMap<usize, [u8; 4]>,
-}
-
-impl TerrainSampleRgb {
-    fn read(photo: &dyn RowSource<[u8; 4]>, mut indices: Vec<usize>) -> Result<TerrainSampleRgb> {
-        indices.sort_unstable();
-        indices.dedup();
-        let w = photo.grid().width;
-        let h = photo.grid().height;
-        let mut cells = BTreeMap::new();
-        for chunk in indices.chunk_by(|a, b| a / w / BAND_ROWS == b / w / BAND_ROWS) {
-            let row0 = chunk[0] / w / BAND_ROWS * BAND_ROWS;
-            let rows = photo.read_rows(row0, BAND_ROWS.min(h - row0))?;
-            cells.extend(chunk.iter().map(|&i| (i, rows[i - row0 * w])));
-        }
-        Ok(TerrainSampleRgb { cells })
+/// The mean of the opaque ones among `pixels` (sRGB, rounded half up), grey when none is.
+fn mean_opaque<'a>(pixels: impl IntoIterator<Item = &'a [u8; 4]>) -> [u8; 3] {
+    let (mut sum, mut n) = ([0u64; 3], 0u64);
+    for p in pixels.into_iter().filter(|p| p[3] > 0) {
+        (0..3).for_each(|k| sum[k] += p[k] as u64);
+        n += 1;
     }
-
-    /// Mean colour of the opaque ones among `cells` (grey when none is).
-    fn mean(&self, cells: &[usize]) -> [u8; 3] {
-        let mut sum = [0u64; 3];
-        let mut n = 0u64;
-        for c in cells {
-            let p = self.cells[c];
-            if p[3] > 0 {
-                (0..3).for_each(|k| sum[k] += p[k] as u64);
-                n += 1;
-            }
-        }
-        match n {
-            0 => [128; 3],
-            _ => sum.map(|s| ((s + n / 2) / n) as u8),
-        }
+    match n {
+        0 => [128; 3],
+        _ => sum.map(|s| ((s + n / 2) / n) as u8),
     }
 }
 
@@ -789,19 +764,9 @@ fn window_image(
         let block = photo.read_rows(r0, r1 - r0)?;
         for &c in cols {
             let (c0, c1) = (c.saturating_sub(half), (c + half + 1).min(w));
-            let (mut sum, mut n) = ([0u64; 3], 0u64);
-            for rr in 0..r1 - r0 {
-                for p in &block[rr * w + c0..rr * w + c1] {
-                    if p[3] > 0 {
-                        (0..3).for_each(|q| sum[q] += p[q] as u64);
-                        n += 1;
-                    }
-                }
-            }
-            out.push(match n {
-                0 => [128; 3],
-                _ => sum.map(|s| ((s + n / 2) / n) as u8),
-            });
+            out.push(mean_opaque(
+                (0..r1 - r0).flat_map(|rr| &block[rr * w + c0..rr * w + c1]),
+            ));
         }
     }
     Ok(out)
