@@ -189,9 +189,6 @@ pub fn export_mesh(
     let colour = colour.as_ref();
     let levels = Levels::new(&grid, opts);
     let base = origin(&grid, &elevation)?;
-    let on_globe = Frame::new(&grid.crs, base, corners(&grid))
-        .to_ecef
-        .is_some();
     let standing = standing_meshes(db, &elevation, colour)?;
 
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -281,7 +278,8 @@ pub fn export_mesh(
         objects: standing.objects,
         files,
         bytes,
-        on_globe,
+        // The root is on the globe exactly when its frame converts, like every tile's.
+        on_globe: root.transform.is_some(),
     })
 }
 
@@ -424,12 +422,6 @@ fn origin(grid: &Grid, elevation: &dyn RowSource<f32>) -> Result<[f64; 3]> {
     };
     // Whole centimetres: a round origin, the same on every machine.
     Ok([cx, cy, (z * 100.0).round() / 100.0])
-}
-
-/// The grid's bounds as `[min_x, min_y, max_x, max_y]`.
-fn corners(grid: &Grid) -> [f64; 4] {
-    let b = grid.bounds();
-    [b.min_x, b.min_y, b.max_x, b.max_y]
 }
 
 /// Buildings and objects as meshes, each with the level-0 cell it belongs to.

@@ -277,9 +277,12 @@ impl MeshScene {
             let tag = match &p.drape {
                 Some(d) => {
                     uv.extend_from_slice(&d.uv);
+                    // The image only: the coordinates are in `uv` now.
                     drapes.push(Drape {
+                        width: d.width,
+                        height: d.height,
+                        texels: d.texels.clone(),
                         uv: Vec::new(),
-                        ..d.clone()
                     });
                     drapes.len() as u32 - 1
                 }
