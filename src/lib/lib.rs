@@ -43,6 +43,7 @@ pub mod pyramid;
 pub mod radar_map;
 pub mod raster;
 pub mod render;
+pub mod roof;
 pub mod sample_scene;
 pub mod scene;
 pub mod shadow;
