@@ -362,6 +362,11 @@ struct Stats {
     flagged_right: usize,
     /// Flagged (or null) and measured more than 2 cells off: wrong heights the flag caught.
     flagged_wrong: usize,
+    /// Measured buildings with a reported 95 % interval, and those whose truth lies outside
+    /// the 68 % and the 95 % interval.
+    with_interval: usize,
+    outside_68: usize,
+    outside_95: usize,
     /// Scenes whose render or dbms run failed (their buildings count as null).
     failed_scenes: usize,
     /// `dbms shadow-height` wall clock, seconds.
@@ -388,6 +393,9 @@ impl Stats {
         self.flagged_or_null += o.flagged_or_null;
         self.flagged_right += o.flagged_right;
         self.flagged_wrong += o.flagged_wrong;
+        self.with_interval += o.with_interval;
+        self.outside_68 += o.outside_68;
+        self.outside_95 += o.outside_95;
         self.failed_scenes += o.failed_scenes;
         self.secs += o.secs;
         self.scenes += o.scenes;
@@ -402,6 +410,20 @@ impl Stats {
     fn rmse_cells(&self) -> String {
         rms(self.sq_cells, self.unflagged)
     }
+    /// Truth outside the 68 % and the 95 % intervals, % of the measured buildings with one.
+    fn outside(&self) -> (String, String) {
+        let pc = |k: usize| match self.with_interval {
+            0 => "–".to_string(),
+            n => format!("{:.1}", 100.0 * k as f64 / n as f64),
+        };
+        (pc(self.outside_68), pc(self.outside_95))
+    }
+}
+
+/// A `[low, high]` property of an outcome (a roof interval), if present.
+fn interval(o: &Outcome, key: &str) -> Option<(f64, f64)> {
+    let v = o.properties.get(key)?.as_array()?;
+    Some((v.first()?.as_f64()?, v.get(1)?.as_f64()?))
 }
 
 fn rms(sq: f64, n: usize) -> String {
@@ -560,6 +582,7 @@ fn main() {
     // Buildings carrying each flag, per sun elevation (the flags that matter depend on it).
     let mut flag_counts: Vec<((u32, String), usize)> = Vec::new();
     let mut render_secs = 0.0;
+    let mut tsv: Vec<String> = Vec::new();
     for r in &results {
         let st = &mut rows[r.setting];
         let set = &settings[r.setting];
@@ -599,6 +622,32 @@ fn main() {
                     st.flagged_or_null += flagged as usize;
                     let Some(e) = o.error_m() else { continue };
                     st.measured += 1;
+                    let (i68, i95) = (
+                        interval(o, "roof_z_interval_68"),
+                        interval(o, "roof_z_interval_95"),
+                    );
+                    if let (Some(a), Some(b)) = (i68, i95) {
+                        let out = |(lo, hi): (f64, f64)| o.truth_z < lo || o.truth_z > hi;
+                        st.with_interval += 1;
+                        st.outside_68 += out(a) as usize;
+                        st.outside_95 += out(b) as usize;
+                        // One line a building for calibrating the intervals (docs/shadow-height.md,
+                        // "Heights with their uncertainty").
+                        tsv.push(format!(
+                            "{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.4}\t{:.4}\t{:.4}\t{}",
+                            set.label(),
+                            set.cell,
+                            set.elev,
+                            j,
+                            o.truth_z,
+                            o.roof_z.unwrap(),
+                            a.0,
+                            a.1,
+                            b.0,
+                            b.1,
+                            o.flags.join(",")
+                        ));
+                    }
                     let ec = e.abs() / set.cell;
                     if flagged {
                         st.flagged_right += (ec <= 1.0) as usize;
@@ -705,8 +754,8 @@ fn main() {
         ));
     }
     println!("\nSummary by group (errors in cells of each row; RMSE over unflagged roofs):\n");
-    println!("| group | rows | buildings | silent gross | unflagged RMSE cells | worst row RMSE cells | worst unflagged cells | flagged or null | flagged or null % | flagged, within 1 cell | flagged, > 2 cells off | scenes shifted > 1 cell | ms / building | POV-Ray s / scene |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| group | rows | buildings | silent gross | unflagged RMSE cells | worst row RMSE cells | worst unflagged cells | flagged or null | flagged or null % | flagged, within 1 cell | flagged, > 2 cells off | truth outside 68 % / 95 % interval, % | scenes shifted > 1 cell | ms / building | POV-Ray s / scene |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, pick) in &groups {
         let mut t = Stats::default();
         let (mut n, mut worst_row) = (0, 0.0f64);
@@ -722,8 +771,9 @@ fn main() {
         if n == 0 {
             continue;
         }
+        let (o68, o95) = t.outside();
         println!(
-            "| {name} | {n} | {} | {} | {} | {worst_row:.2} | {:.2} | {} | {:.1} | {} | {} | {} | {:.0} | {:.1} |",
+            "| {name} | {n} | {} | {} | {} | {worst_row:.2} | {:.2} | {} | {:.1} | {} | {} | {o68} / {o95} | {} | {:.0} | {:.1} |",
             t.buildings,
             t.gross,
             t.rmse_cells(),
@@ -807,6 +857,18 @@ fn main() {
         for f in &failures {
             println!("* {f}");
         }
+    }
+    let tsv_path = root.with_extension("tsv");
+    tsv.insert(
+        0,
+        "setting\tcell\televation\tbuilding\ttruth\troof_z\tlo68\thi68\tlo95\thi95\tflags".into(),
+    );
+    match std::fs::write(&tsv_path, tsv.join("\n") + "\n") {
+        Ok(()) => println!(
+            "\nEvery measured building's interval: {}",
+            tsv_path.display()
+        ),
+        Err(e) => eprintln!("{}: {e}", tsv_path.display()),
     }
     let measure_secs: f64 = rows.iter().map(|r| r.secs).sum();
     println!(

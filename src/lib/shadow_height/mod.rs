@@ -42,6 +42,7 @@ pub mod refine;
 pub mod register;
 pub mod roof;
 pub mod scan;
+pub mod uncertainty;
 
 pub use footprint::{read_footprints, Footprint, InputFeature};
 
@@ -220,6 +221,12 @@ pub struct Measurement {
     pub lines_used: usize,
     /// The detection threshold on the shadow index (`None` with a given mask or no contrast).
     pub threshold: Option<f64>,
+    /// The roof's plausible range at 68 % and 95 % (absolute metres, low and high), with
+    /// `roof_z`: see [`uncertainty`].
+    pub roof_z_intervals: Option<[(f64, f64); 2]>,
+    /// Without a height: the lowest roof the shadow is seen to imply where it runs into
+    /// something that hides its end (absolute metres; [`uncertainty::at_least`]).
+    pub roof_z_at_least: Option<f64>,
     /// Hard cases met.
     pub flags: Flags,
 }
@@ -1313,6 +1320,8 @@ impl PassInputs<'_> {
             lines_total: 0,
             lines_used: 0,
             threshold,
+            roof_z_intervals: None,
+            roof_z_at_least: None,
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
@@ -1327,6 +1336,7 @@ impl PassInputs<'_> {
         m.flags.shadow_on_other_building = s.on_other > 0;
         m.flags.no_shadow = s.with_shadow == 0 && !s.lengths.is_empty();
         let Some(len) = shadow_length(&s, sought.cell) else {
+            m.roof_z_at_least = uncertainty::at_least(&s, ground_z);
             return Ok(m);
         };
         let z0 = len * sought.tan_e;
@@ -1406,6 +1416,7 @@ impl PassInputs<'_> {
             self.opts.sub_points,
         ) else {
             m.flags.no_shadow = true;
+            m.roof_z_at_least = uncertainty::at_least(s, ground_z);
             return Ok(m);
         };
         m.height_m = Some(r.height_m);
@@ -1433,6 +1444,7 @@ impl PassInputs<'_> {
             None => m.flags.estimates_disagree = true,
         }
         m.flags.poor_shadow_match = r.overlap < MIN_OVERLAP;
+        m.roof_z_intervals = Some(uncertainty::intervals(&m, &r, &line_roofs));
         Ok(m)
     }
 

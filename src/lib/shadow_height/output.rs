@@ -50,6 +50,10 @@ pub fn heights_geojson(
                     );
                     p.insert("height_m".into(), json!(m.height_m));
                     p.insert("roof_z".into(), json!(m.roof_z));
+                    let [i68, i95] = m.roof_z_intervals.map_or([None; 2], |iv| iv.map(Some));
+                    p.insert("roof_z_interval_68".into(), json!(i68.map(|(a, b)| [a, b])));
+                    p.insert("roof_z_interval_95".into(), json!(i95.map(|(a, b)| [a, b])));
+                    p.insert("roof_z_at_least".into(), json!(m.roof_z_at_least));
                     p.insert("initial_height_m".into(), json!(m.initial_height_m));
                     p.insert("overlap".into(), json!(m.overlap));
                     p.insert("uncertainty_m".into(), json!(m.uncertainty_m));

@@ -25,13 +25,40 @@
 use super::footprint::Footprint;
 use super::local::{Class, Local};
 
-/// The refined height above `ground_z` (metres) and its IoU with the observed shadow.
+/// The refined height above `ground_z` (metres), its IoU with the observed shadow, and the
+/// heights the photo cannot tell from it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Refined {
     /// Height above `ground_z`, metres.
     pub height_m: f64,
     /// IoU of synthetic and observed shadow at that height, in [0, 1].
     pub overlap: f64,
+    /// The plausible heights at 68 % and 95 % (metres above `ground_z`, low and high): the
+    /// hull of the heights whose fit is within the noise of the best ([`plausible_level`]).
+    pub plausible: [(f64, f64); 2],
+}
+
+/// How many standard errors each of [`Refined::plausible`]'s intervals spans: the two-sided
+/// 68 % and 95 % points of a normal distribution (χ² with one degree of freedom: 1 and 3.84).
+pub const PLAUSIBLE_SIGMAS: [f64; 2] = [1.0, 1.96];
+
+/// How much more the photo's brightness varies, as evidence, than its per-cell scatter about
+/// the fitted line says: neighbouring cells are not independent (texture, blur and JPEG blocks
+/// span several cells), so a likelihood that counted every cell as a separate measurement
+/// would be too sure. Calibrated on the POV-Ray harnesses (docs/shadow-height.md, "Heights
+/// with their uncertainty").
+pub const NOISE_INFLATION: f64 = 4.0;
+
+/// The score a height's fit must reach to be plausible at `sigmas` standard errors, given the
+/// best score `best` (R², 0–1) over `n` cells: the profile likelihood of a least-squares fit
+/// with two fitted levels, `ΔRSS ≤ sigmas² · σ̂²` with the noise variance `σ̂² = RSS_best / (n
+/// − 2)` inflated by [`NOISE_INFLATION`]; as scores, `best − sigmas² · κ · (1 − best) / (n −
+/// 2)`. Every height is plausible (the level is at most 0) with three cells or fewer.
+pub fn plausible_level(best: f64, n: f64, sigmas: f64) -> f64 {
+    if n <= 3.0 {
+        return f64::NEG_INFINITY;
+    }
+    best - sigmas * sigmas * NOISE_INFLATION * (1.0 - best) / (n - 2.0)
 }
 
 /// Search heights in `(0, z_hi]` metres above `ground_z` (absolute metres) for footprint `fp`,
@@ -245,12 +272,45 @@ fn best_fit(
     }
     let fit = LineFit::new(brightness, step)?;
     let (at_start, floor) = fit.bucket_starts(buckets);
-    let (score, next) = fit.best_end(buckets, &at_start, floor)?;
+    // Every height plausible for the best is plausible for the best end score at least as
+    // widely (the level only rises with the best), so the buckets that can reach that level
+    // hold all of them.
+    let widest = plausible_level(floor, fit.n, PLAUSIBLE_SIGMAS[1]).min(floor);
+    let swept = fit.best_end(buckets, &at_start, widest - SCORE_SKIP)?;
+    let (score, next) = swept.best;
     if score <= 0.0 {
         return None;
     }
     let (lo, hi) = answer_interval(buckets, next, z_hi);
-    Some(refined(lo, hi, &buckets.events[..next], observed, step))
+    let mut answer = refined(lo, hi, &buckets.events[..next], observed, step);
+    answer.plausible = PLAUSIBLE_SIGMAS
+        .map(|sigmas| swept.reaching(plausible_level(score, fit.n, sigmas), buckets, z_hi));
+    Some(answer)
+}
+
+/// What [`LineFit::best_end`] swept: the best score and the number of events up to the
+/// answer's end, and every swept score with the number of events it counts (ascending).
+struct Swept {
+    best: (f64, usize),
+    scores: Vec<(f64, usize)>,
+}
+
+impl Swept {
+    /// The hull of the heights (metres) whose score is at least `level`: from the threshold at
+    /// which the first such score begins to where the last one ends ([`answer_interval`]);
+    /// `(0, z_hi)` when every height reaches it. Only the swept scores are looked at: the
+    /// caller swept every bucket that can reach `level`.
+    fn reaching(&self, level: f64, buckets: &Buckets, z_hi: f64) -> (f64, f64) {
+        if level <= 0.0 {
+            return (0.0, z_hi);
+        }
+        let mut above = self.scores.iter().filter(|&&(s, _)| s >= level);
+        let first = above.next().map_or(self.best.1, |&(_, k)| k);
+        let last = above.last().map_or(first, |&(_, k)| k).max(first);
+        let lo = answer_interval(buckets, first, z_hi).0;
+        let hi = answer_interval(buckets, last, z_hi).1;
+        (lo.min(hi), hi)
+    }
 }
 
 /// The sums over the covered sub-points: of fractions, squared fractions (per cell), and
@@ -357,21 +417,19 @@ impl<'a> LineFit<'a> {
         (at_start, floor)
     }
 
-    /// The second sweep: the buckets that may hold the answer (their [`Self::bound`] not below
-    /// `floor`, the best end score, by more than [`SCORE_SKIP`]) sorted and scored event by
-    /// event from their sums `at_start`. Returns the best score and the number of events up to
-    /// the answer's end, in the buckets' new order; `None` when no event is swept.
-    fn best_end(
-        &self,
-        buckets: &mut Buckets,
-        at_start: &[Sums],
-        floor: f64,
-    ) -> Option<(f64, usize)> {
+    /// The second sweep: the buckets that may hold a score of `sweep` or more (their
+    /// [`Self::bound`] not below it; the caller passes at most the best end score less
+    /// [`SCORE_SKIP`], so the answer is among them) sorted and scored event by event from
+    /// their sums `at_start`. Returns the best score and the number of events up to the
+    /// answer's end, in the buckets' new order, and every score swept; `None` when no event is
+    /// swept.
+    fn best_end(&self, buckets: &mut Buckets, at_start: &[Sums], sweep: f64) -> Option<Swept> {
         let mut covered = vec![0u32; self.brightness.len()];
         let mut best: Option<(f64, usize)> = None;
+        let mut scores = Vec::new();
         for b in 0..buckets.start.len() - 1 {
             let range = buckets.of(b);
-            if self.bound(&at_start[b], &at_start[b + 1]) < floor - SCORE_SKIP {
+            if self.bound(&at_start[b], &at_start[b + 1]) < sweep {
                 for k in range {
                     covered[buckets.events[k].cell()] += 1;
                 }
@@ -386,12 +444,16 @@ impl<'a> LineFit<'a> {
                     continue;
                 }
                 let s = self.score(&sums);
+                scores.push((s, k + 1));
                 if best.is_none_or(|b| s > b.0 + SCORE_TIE) {
                     best = Some((s, k + 1));
                 }
             }
         }
-        best
+        Some(Swept {
+            best: best?,
+            scores,
+        })
     }
 }
 
@@ -427,6 +489,7 @@ fn refined(lo: f64, hi: f64, covered: &[Event], observed: &[f64], step: f64) -> 
     Refined {
         height_m: (lo + hi) / 2.0,
         overlap: (num / den).clamp(0.0, 1.0),
+        plausible: [(lo, hi); 2],
     }
 }
 
@@ -922,6 +985,7 @@ mod tests {
         let (mut s, mut ss, mut sxb) = (0.0, 0.0, 0.0);
         let mut covered = vec![0u32; brightness.len()];
         let mut best: Option<(f64, usize)> = None;
+        let mut scores = Vec::new();
         for (k, e) in events.iter().enumerate() {
             let i = e.cell();
             let before = covered[i] as f64 * step;
@@ -938,6 +1002,7 @@ mod tests {
             } else {
                 0.0
             };
+            scores.push((score, k + 1));
             if best.is_none_or(|b| score > b.0 + SCORE_TIE) {
                 best = Some((score, k + 1));
             }
@@ -946,9 +1011,24 @@ mod tests {
         if score <= 0.0 {
             return None;
         }
+        let end = |k: usize| events.get(k).map_or(z_hi, |e| e.threshold());
         let lo = events[next - 1].threshold();
-        let hi = events.get(next).map_or(z_hi, |e| e.threshold()).max(lo);
-        Some(refined(lo, hi, &events[..next], observed, step))
+        let hi = end(next).max(lo);
+        let mut r = refined(lo, hi, &events[..next], observed, step);
+        r.plausible = PLAUSIBLE_SIGMAS.map(|sigmas| {
+            let level = plausible_level(score, n, sigmas);
+            if level <= 0.0 {
+                return (0.0, z_hi);
+            }
+            let above: Vec<usize> = scores
+                .iter()
+                .filter(|&&(s, _)| s >= level)
+                .map(|&(_, k)| k)
+                .collect();
+            let (first, last) = (above[0], *above.last().unwrap());
+            (events[first - 1].threshold(), end(last))
+        });
+        Some(r)
     }
 
     #[test]
@@ -1003,6 +1083,20 @@ mod tests {
                         "{case}: {g:?} {w:?}"
                     );
                     assert!((g.overlap - w.overlap).abs() < 1e-9, "{case}: {g:?} {w:?}");
+                    for (a, b) in g.plausible.iter().zip(&w.plausible) {
+                        assert!(
+                            (a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9,
+                            "{case}: {g:?} {w:?}"
+                        );
+                    }
+                    let [p68, p95] = g.plausible;
+                    assert!(
+                        p95.0 <= p68.0
+                            && p68.0 <= g.height_m
+                            && g.height_m <= p68.1
+                            && p68.1 <= p95.1,
+                        "{case}: {g:?}"
+                    );
                 }
                 (g, w) => assert_eq!(g, w, "{case}"),
             }

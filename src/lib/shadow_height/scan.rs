@@ -39,6 +39,11 @@ pub struct Scan {
     pub cut: usize,
     /// Lines dropped: shadow reached another footprint or ended on a lit cell against one.
     pub on_other: usize,
+    /// Per dropped line that crossed this footprint's shadow before it was dropped (before any
+    /// unusable cell), the lowest roof that shadow implies over the real terrain: terrain at
+    /// the last shadow cell it crossed + the distance to where it entered that cell · tan(e),
+    /// metres. The shadow reached at least that far, so the roof is at least that high.
+    pub reached_roofs: Vec<f64>,
     /// Whether a line read a cell on the window's border or went past it: in a larger window
     /// the lines could read differently (the caller classified a part of the window it may need).
     pub at_window_edge: bool,
@@ -77,8 +82,14 @@ pub fn scan(
             continue;
         }
         match lines.follow(frame.point(exit, t), &mut out.at_window_edge) {
-            LineEnd::Cut => out.cut += 1,
-            LineEnd::OnOther => out.on_other += 1,
+            LineEnd::Cut { reached } => {
+                out.cut += 1;
+                out.reached_roofs.extend(reached);
+            }
+            LineEnd::OnOther { reached } => {
+                out.on_other += 1;
+                out.reached_roofs.extend(reached);
+            }
             LineEnd::Valid {
                 length,
                 tip_roof,
@@ -160,13 +171,14 @@ impl Frame {
     }
 }
 
-/// How one scan line ended (the module's invariant).
+/// How one scan line ended (the module's invariant). A dropped line carries the lowest roof
+/// the shadow it crossed implies ([`Scan::reached_roofs`]), if it crossed any.
 enum LineEnd {
     /// Dropped: the shadow left the window or the longest shadow sought, or ended in or within
     /// a cell of unusable cells.
-    Cut,
+    Cut { reached: Option<f64> },
     /// Dropped: the shadow reached another footprint or ended on a lit cell against one.
-    OnOther,
+    OnOther { reached: Option<f64> },
     /// Valid: the shadow's length and the roof it implies over the real terrain (terrain at
     /// the tip + length · tan e; NaN where the tip has no terrain height), metres, and whether
     /// the line crossed a shadow cell.
@@ -200,13 +212,15 @@ impl ShadowWalk<'_> {
         let mut unusable_until = f64::NEG_INFINITY;
         // Where the line last left its own footprint's cells or edge cells, metres.
         let mut roof_until = 0.0f64;
+        // The lowest roof the shadow crossed so far implies (before any unusable cell).
+        let mut reached: Option<f64> = None;
         let mut walk = cells_along(local, start, self.u);
         loop {
             let (x, x_out, cell_at) = walk.next().expect("a walk along a unit vector never ends");
             // Past the longest shadow sought beyond the footprint and its edge cells (a line
             // grazing an oblique edge may cross several).
             if x > roof_until + self.max_len + cell {
-                return LineEnd::Cut;
+                return LineEnd::Cut { reached };
             }
             *at_window_edge |= on_border(local, cell_at);
             let class = cell_at.map(|(c, r)| {
@@ -214,15 +228,21 @@ impl ShadowWalk<'_> {
                 (i, local.class[i])
             });
             match class {
-                None => return LineEnd::Cut,
+                None => return LineEnd::Cut { reached },
                 Some((_, Class::Unusable)) => unusable_until = x_out,
-                Some((_, Class::Other)) => return LineEnd::OnOther,
+                Some((_, Class::Other)) => return LineEnd::OnOther { reached },
                 // The own roof, or a cell it covers in part: not yet the shadow's end.
                 Some((_, Class::Own | Class::Edge)) => roof_until = x_out,
-                Some((_, Class::Shadow)) => seen_shadow = true,
+                Some((i, Class::Shadow)) => {
+                    seen_shadow = true;
+                    if unusable_until == f64::NEG_INFINITY {
+                        reached = Some(local.heights[i] as f64 + x * self.tan_e)
+                            .filter(|z| z.is_finite());
+                    }
+                }
                 Some((i, Class::Lit)) => {
                     return if x - unusable_until < cell {
-                        LineEnd::Cut
+                        LineEnd::Cut { reached }
                     } else if meets_other(
                         local,
                         cell_at.unwrap(),
@@ -230,7 +250,7 @@ impl ShadowWalk<'_> {
                         x + cell,
                         at_window_edge,
                     ) {
-                        LineEnd::OnOther
+                        LineEnd::OnOther { reached }
                     } else {
                         LineEnd::Valid {
                             length: x,
