@@ -1,0 +1,205 @@
+//! `dbms shadow-height` on a real town's layout photographed by POV-Ray (issue 39, item 4): the
+//! CI slice of `cargo bench --bench shadow_height_town` (tests/support/town.rs: Boulder's real
+//! footprints with drawn heights, flat, gable and hip roofs, towers, trees and vehicles). Two
+//! 100 m windows at 0.5 m cells under a soft sun (the 0.53° disc as an area light), sRGB, one of
+//! them JPEG-compressed.
+//!
+//! The thresholds guard what today's dbms achieves (each is commented with the value measured
+//! on 2026-11-28), not the issue's goals: they fail when dbms gets worse here, or when the
+//! harness stops making what it should.
+//!
+//! Needs `povray` on PATH (`apt-get install povray`); without it the test says so and passes,
+//! except under CI (`CI` set), where it fails: `.ci/run` installs it.
+
+#[path = "support/povray.rs"]
+mod povray;
+#[path = "support/shadow_truth.rs"]
+mod shadow_truth;
+#[path = "support/town.rs"]
+mod town;
+
+use povray::{Camera, Clutter, Photo, Roof, UTM13N_WKT};
+use shadow_truth::{measure_prepared, prepare_scene_photo};
+use std::path::Path;
+use town::{window_scene, Shot, Town, TOWN_SIDE, TOWN_SW};
+
+fn have_povray() -> bool {
+    let ok = std::process::Command::new("povray")
+        .arg("--version")
+        .output()
+        .is_ok();
+    if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "povray is not on PATH under CI: .ci/run must install it"
+        );
+        eprintln!("skipped: povray not on PATH (apt-get install povray)");
+    }
+    ok
+}
+
+/// Window side, metres.
+const SIDE: f64 = 100.0;
+
+/// The slice's two windows, from the `SIDE` lattice over the town (from its south-west
+/// corner), densest first: the densest whose core holds a tower, a gable and a hip roof, and the
+/// densest other one holding a gable and a hip.
+fn windows(town: &Town) -> Vec<(f64, f64)> {
+    let n = (TOWN_SIDE / SIDE) as usize;
+    let count = |sw: (f64, f64), want: &dyn Fn(&town::TownBuilding) -> bool| {
+        town.buildings
+            .iter()
+            .filter(|b| {
+                let c = town::centroid(&b.ring);
+                c.0 >= sw.0 && c.0 < sw.0 + SIDE && c.1 >= sw.1 && c.1 < sw.1 + SIDE && want(b)
+            })
+            .count()
+    };
+    let mut lattice: Vec<(f64, f64)> = (0..n * n)
+        .map(|k| {
+            (
+                TOWN_SW.0 + SIDE * (k % n) as f64,
+                TOWN_SW.1 + SIDE * (k / n) as f64,
+            )
+        })
+        .collect();
+    lattice.sort_by_key(|&sw| std::cmp::Reverse(count(sw, &|_| true)));
+    let mut out = Vec::new();
+    for sw in lattice {
+        let pitched = count(sw, &|b| b.form == "gable") > 0 && count(sw, &|b| b.form == "hip") > 0;
+        if pitched && (!out.is_empty() || count(sw, &|b| b.tower) > 0) {
+            out.push(sw);
+            if out.len() == 2 {
+                break;
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
+    if !have_povray() {
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let town = Town::load(root, 39).unwrap();
+    let sws = windows(&town);
+    assert_eq!(sws.len(), 2, "two windows with every roof form");
+    let mut totals = (0usize, 0usize, 0usize, 0usize, 0usize); // scored, measured, within 1 m, flagged or null, silent gross
+    let mut forms = [0usize; 3];
+    let (mut trees, mut vehicles, mut towers) = (0, 0, 0);
+    for (k, (sw, az, el, jpeg)) in [
+        (sws[0], 150.0, 35.0, None),
+        (sws[1], 210.0, 45.0, Some(80u8)),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let shot = Shot {
+            sw,
+            side: SIDE,
+            margin: 20.0,
+            cell: 0.5,
+            sun_azimuth_deg: az,
+            sun_elevation_deg: el,
+            gradient: (0.0, 0.0),
+            camera: Camera::Ortho,
+            footprint_shift: (0.0, 0.0),
+            unlisted: 0.0,
+            antialias: povray::antialias_for(el),
+            seed: k as u64,
+        };
+        let ws = window_scene(&town, &shot);
+        let photo = Photo {
+            sun_disc_deg: Some(0.53),
+            area_samples: 9,
+            srgb: true,
+            jpeg_quality: jpeg,
+            crs_wkt: UTM13N_WKT,
+        };
+        let (w, _, e, n) = ws.scene.extent();
+        let s = n - (e - w);
+        for c in &ws.scene.clutter {
+            match *c {
+                Clutter::Tree { at, .. } if at.0 > w && at.0 < e && at.1 > s && at.1 < n => {
+                    trees += 1
+                }
+                Clutter::Vehicle { at, .. } if at.0 > w && at.0 < e && at.1 > s && at.1 < n => {
+                    vehicles += 1
+                }
+                _ => {}
+            }
+        }
+        for &b in &ws.core {
+            forms[match ws.scene.buildings[b].roof {
+                Roof::Flat { .. } => 0,
+                Roof::Gable { .. } => 1,
+                Roof::Hip { .. } => 2,
+            }] += 1;
+            towers += town.buildings[b].tower as usize;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
+        let pov = std::fs::read_to_string(dir.path().join("scene.pov")).unwrap();
+        assert!(pov.contains("area_light"), "a soft sun");
+        if jpeg.is_some() {
+            assert_eq!(p.written.ortho.extension().unwrap(), "jpg");
+            assert!(dir.path().join("ortho.jgw").exists());
+        }
+        let (out, secs) = measure_prepared(&ws.scene, &p).unwrap();
+        let scored: Vec<_> = out
+            .iter()
+            .filter(|o| ws.core.contains(&o.building))
+            .collect();
+        let measured = scored.iter().filter(|o| o.roof_z.is_some()).count();
+        let within = scored
+            .iter()
+            .filter(|o| o.error_m().is_some_and(|e| e.abs() <= 1.0))
+            .count();
+        let flagged = scored
+            .iter()
+            .filter(|o| o.flagged() || o.roof_z.is_none())
+            .count();
+        let silent = scored
+            .iter()
+            .filter(|o| !o.flagged() && o.error_m().is_some_and(|e| e.abs() > 1.0))
+            .count();
+        eprintln!(
+            "window {k} at {sw:?}, sun {az}° / {el}°{}: {} footprints in the file, {} scored, {measured} measured, {within} within 1 m, {flagged} flagged or null, {silent} unflagged > 2 cells off; dbms {secs:.1} s",
+            if jpeg.is_some() { ", JPEG q80" } else { "" },
+            out.len(),
+            scored.len()
+        );
+        totals.0 += scored.len();
+        totals.1 += measured;
+        totals.2 += within;
+        totals.3 += flagged;
+        totals.4 += silent;
+    }
+    eprintln!(
+        "scored {} (flat {}, gable {}, hip {}, towers {}), trees {trees}, vehicles {vehicles}; measured {}, within 1 m {}, flagged or null {}, silent gross {}",
+        totals.0, forms[0], forms[1], forms[2], towers, totals.1, totals.2, totals.3, totals.4
+    );
+    // Every feature is there.
+    assert!(
+        forms.iter().all(|&f| f > 0) && towers > 0,
+        "{forms:?} {towers}"
+    );
+    assert!(
+        trees >= 10 && vehicles >= 5,
+        "{trees} trees, {vehicles} vehicles"
+    );
+    // What today's dbms achieves (commit a885019, 2026-11-28; the town and windows are fixed,
+    // so these move only with dbms or the harness).
+    let (n, measured, within) = (totals.0 as f64, totals.1 as f64, totals.2 as f64);
+    // 40 buildings scored (20 + 20).
+    assert!(n >= 36.0, "{n} buildings scored");
+    // 36 of 40 measured (0.90).
+    assert!(measured / n >= 0.80, "measured {measured} of {n}");
+    // 23 of 40 within 1 m of the truth (0.575; the rest are mostly the pitched roofs, whose
+    // ridge dbms does not measure yet, and shadows ending on neighbours).
+    assert!(within / n >= 0.45, "within 1 m: {within} of {n}");
+    // No unflagged height more than 2 cells off (0).
+    assert!(totals.4 <= 1, "{} silent gross errors", totals.4);
+}
