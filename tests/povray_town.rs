@@ -203,3 +203,125 @@ fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
     // No unflagged height more than 2 cells off (0).
     assert!(totals.4 <= 1, "{} silent gross errors", totals.4);
 }
+
+/// The roof planes written for POV-Ray, as (a, b, c, d) of `a x + b y + c z = d` (local x east,
+/// y up, z north; the solid is below every plane).
+fn planes(pov: &str) -> Vec<[f64; 4]> {
+    pov.lines()
+        .filter_map(|l| {
+            let l = l.trim().strip_prefix("plane { <")?.strip_suffix(" }")?;
+            let v: Vec<f64> = l
+                .replace(['<', '>'], "")
+                .split(',')
+                .map(|x| x.trim().parse().unwrap())
+                .collect();
+            Some([v[0], v[1], v[2], v[3]])
+        })
+        .collect()
+}
+
+/// Height of the roof written for POV-Ray at local point (x, z): the lowest plane there.
+fn pov_roof(planes: &[[f64; 4]], x: f64, z: f64, top: f64) -> f64 {
+    planes
+        .iter()
+        .map(|p| (p[3] - p[0] * x - p[2] * z) / p[1])
+        .fold(top, f64::min)
+}
+
+#[test]
+fn pitched_roofs_follow_the_stated_convention() {
+    use povray::{Building, PolygonBuilding, Rng, Scene, Structure};
+    // The roof POV-Ray renders (its half-spaces) is the convention's formula
+    // (PolygonBuilding::roof_z_at) at every point of the footprint, for the town's pitched
+    // roofs; and a rectangle's Gable/Hip (rotation_deg from east) is the same roof as the
+    // polygon one with the ridge azimuth 90° − rotation_deg.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let town = Town::load(root, 39).unwrap();
+    let origin = (TOWN_SW.0, TOWN_SW.1 + TOWN_SIDE);
+    let scene = |buildings: Vec<PolygonBuilding>| Scene {
+        origin,
+        cell: 1.0,
+        size: (600, 600),
+        ground: (1630.0, 0.0, 0.0),
+        sun_azimuth_deg: 135.0,
+        sun_elevation_deg: 40.0,
+        buildings,
+        clutter: vec![],
+        footprint_shift: (0.0, 0.0),
+        camera: Camera::Ortho,
+        antialias: 1,
+    };
+    let mut rng = Rng(5);
+    let mut checked = 0;
+    for k in 0..town.buildings.len() {
+        if town.buildings[k].form == "flat" {
+            continue;
+        }
+        let b = town.building(k, &|_| 1630.0);
+        let s = scene(vec![b.clone()]);
+        let pl = planes(&b.pov(&s));
+        let (lo, hi) = town::bbox(&b.outline);
+        let mut n = 0;
+        while n < 50 {
+            let p = (rng.range(lo.0, hi.0), rng.range(lo.1, hi.1));
+            if !town::inside(&b.outline, p) {
+                continue;
+            }
+            n += 1;
+            let want = b.roof_z_at(p);
+            let got = pov_roof(&pl, p.0 - origin.0, p.1 - origin.1, b.roof.top_z());
+            assert!(
+                (want - got).abs() < 1e-4, // 9 decimals in the POV file
+                "building {k} at {p:?}: {want} vs {got}"
+            );
+            assert!(want <= b.roof.top_z() + 1e-9 && want >= b.roof.eave_z() - 1e-9);
+        }
+        checked += 1;
+    }
+    assert!(checked > 100, "{checked} pitched roofs");
+    for (rot, roof) in [
+        (
+            30.0,
+            Roof::Gable {
+                eave_z: 10.0,
+                ridge_z: 13.0,
+            },
+        ),
+        (
+            -70.0,
+            Roof::Hip {
+                eave_z: 10.0,
+                ridge_z: 12.0,
+            },
+        ),
+    ] {
+        let r = Building {
+            centre: (origin.0 + 50.0, origin.1 - 50.0),
+            size: (18.0, 9.0),
+            rotation_deg: rot,
+            roof,
+            colour: [0.5; 3],
+        };
+        let p = PolygonBuilding {
+            outline: r.corners().to_vec(),
+            roof,
+            ridge_azimuth_deg: (90.0 - rot as f64).rem_euclid(180.0),
+            colour: [0.5; 3],
+            listed: true,
+        };
+        let s = scene(vec![p.clone()]);
+        let (pr, pp) = (planes(&r.pov(&s)), planes(&p.pov(&s)));
+        for _ in 0..200 {
+            let q = (
+                origin.0 + 50.0 + rng.range(-9.0, 9.0),
+                origin.1 - 50.0 + rng.range(-9.0, 9.0),
+            );
+            let (x, z) = (q.0 - origin.0, q.1 - origin.1);
+            let (a, b) = (pov_roof(&pr, x, z, 13.0), pov_roof(&pp, x, z, 13.0));
+            assert!(
+                (a - b).abs() < 1e-4,
+                "{roof:?} at {q:?}: rectangle {a}, polygon {b}"
+            );
+        }
+    }
+}
