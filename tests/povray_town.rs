@@ -2,7 +2,8 @@
 //! CI slice of `cargo bench --bench shadow_height_town` (tests/support/town.rs: Boulder's real
 //! footprints with drawn heights, flat, gable and hip roofs, towers, trees and vehicles). Two
 //! 100 m windows at 0.5 m cells under a soft sun (the 0.53° disc as an area light), sRGB, one of
-//! them JPEG-compressed.
+//! them JPEG-compressed; and checks of the harness itself: the soft sun has penumbrae as wide as
+//! the solar disc predicts, and the pitched roofs POV-Ray renders follow the stated convention.
 //!
 //! The thresholds guard what today's dbms achieves (each is commented with the value measured
 //! on 2026-11-28), not the goals: they fail when dbms gets worse here, or when the
@@ -324,4 +325,72 @@ fn pitched_roofs_follow_the_stated_convention() {
             );
         }
     }
+}
+
+#[test]
+fn the_soft_sun_casts_penumbrae_as_wide_as_the_solar_disc_predicts() {
+    if !have_povray() {
+        return;
+    }
+    use povray::{Building, Scene};
+    // A 40 m tower under a 30° sun from the south, 0.2 m cells: the shadow's tip is 80 m of ray
+    // from the roof edge, so the 0.53° disc blurs it over 80 · 0.00925 / sin 30° = 1.48 m of
+    // ground, 7.4 cells. The same scene under the hard sun and the soft one differ only there
+    // (the ground texture is the same): count the cells along the shadow's axis where they
+    // differ by more than a tenth of the lit-to-shadow contrast.
+    let scene = Scene {
+        origin: (500_000.0, 5_300_100.0),
+        cell: 0.2,
+        size: (500, 500),
+        ground: (250.0, 0.0, 0.0),
+        sun_azimuth_deg: 180.0,
+        sun_elevation_deg: 30.0,
+        buildings: vec![Building {
+            centre: (500_050.0, 5_300_015.0),
+            size: (6.0, 6.0),
+            rotation_deg: 0.0,
+            roof: Roof::Flat { z: 290.0 },
+            colour: [0.5, 0.5, 0.5],
+        }],
+        clutter: vec![],
+        footprint_shift: (0.0, 0.0),
+        camera: Camera::Ortho,
+        antialias: 1,
+    };
+    let column = |soft: bool| -> Vec<f64> {
+        let dir = tempfile::tempdir().unwrap();
+        let photo = Photo {
+            sun_disc_deg: soft.then_some(0.53),
+            ..Photo::default()
+        };
+        let w = scene.write_photo(dir.path(), &photo).unwrap();
+        let img = image::open(&w.ortho).unwrap().to_luma8();
+        // Column x = 500 050 (col 250), rows y = 5 300 099 … 5 300 030 (north to south).
+        (5..355)
+            .map(|r| img.get_pixel(250, r).0[0] as f64)
+            .collect()
+    };
+    let (hard, soft) = (column(false), column(true));
+    // Contrast: lit (the first rows, north of the tip at 5 300 087.3) over shadow (the last).
+    let lit = hard[..40].iter().sum::<f64>() / 40.0;
+    let dark = hard[hard.len() - 40..].iter().sum::<f64>() / 40.0;
+    assert!(lit > 1.5 * dark, "lit {lit}, shadow {dark}");
+    let differ: Vec<usize> = (0..hard.len())
+        .filter(|&i| (soft[i] - hard[i]).abs() > 0.1 * (lit - dark))
+        .collect();
+    eprintln!(
+        "lit {lit:.0}, shadow {dark:.0}; soft differs from hard at {} cells: {differ:?}",
+        differ.len()
+    );
+    // Measured 2026-11-28: 5 cells, contiguous at the tip. The disc predicts 7.4 cells of
+    // blur, of which the outer parts differ by less than a tenth.
+    assert!(
+        (3..=12).contains(&differ.len()),
+        "penumbra {} cells",
+        differ.len()
+    );
+    assert!(
+        differ.last().unwrap() - differ[0] < 15,
+        "the differences are one penumbra: {differ:?}"
+    );
 }
