@@ -369,8 +369,7 @@ fn share(n: usize, of: usize) -> String {
 
 fn table_header() {
     println!(
-        "| {} | buildings | height | lower bound only | neither | within 1 m % | truth outside 95 % | outside 68 % | silent gross | flagged or null % | pitched: ridge ±2 cells | eaves ±2 cells | form right | ms / footprint |",
-        "setting"
+        "| setting | buildings | height | lower bound only | neither | within 1 m % | truth outside 95 % | outside 68 % | silent gross | flagged or null % | pitched: ridge ±2 cells | eaves ±2 cells | form right | ms / footprint |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
 }

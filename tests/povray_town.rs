@@ -306,7 +306,7 @@ fn pitched_roofs_follow_the_stated_convention() {
         let p = PolygonBuilding {
             outline: r.corners().to_vec(),
             roof,
-            ridge_azimuth_deg: (90.0 - rot as f64).rem_euclid(180.0),
+            ridge_azimuth_deg: (90.0 - rot).rem_euclid(180.0),
             colour: [0.5; 3],
             listed: true,
         };

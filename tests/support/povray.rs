@@ -126,14 +126,15 @@ pub struct PolygonBuilding {
     pub listed: bool,
 }
 
+/// `along`, `across` (unit vectors, east and north), (a0, a1), (c0, c1) (metres): see
+/// [`PolygonBuilding::ridge_frame`].
+pub type RidgeFrame = ((f64, f64), (f64, f64), (f64, f64), (f64, f64));
+
 impl PolygonBuilding {
     /// The ridge frame of [`Roof`]'s convention: unit vectors `along` and `across` (east,
     /// north), and the footprint's extent along them, ((a0, a1), (c0, c1)), metres, in world
     /// coordinates relative to `origin`.
-    pub fn ridge_frame(
-        &self,
-        origin: (f64, f64),
-    ) -> ((f64, f64), (f64, f64), (f64, f64), (f64, f64)) {
+    pub fn ridge_frame(&self, origin: (f64, f64)) -> RidgeFrame {
         let (s, c) = self.ridge_azimuth_deg.to_radians().sin_cos();
         let along = (s, c);
         let across = (c, -s);

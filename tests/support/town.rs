@@ -159,9 +159,12 @@ pub fn min_area_rect(pts: &[(f64, f64)]) -> (f64, f64, f64) {
     (best.1, best.2, best.3)
 }
 
+/// A ring of points, world metres (east, north), not closed.
+pub type Ring = Vec<(f64, f64)>;
+
 /// Read the footprint file: one ring (outer ring, holes filled, not closed, counter-clockwise)
 /// per building, and the index of the feature it came from.
-pub fn read_footprints(path: &Path) -> Result<Vec<(Vec<(f64, f64)>, usize)>, String> {
+pub fn read_footprints(path: &Path) -> Result<Vec<(Ring, usize)>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -263,9 +266,7 @@ impl Town {
             let parapet = rng.range(0.3, 1.2);
             let tower_h = rng.range(20.0, 45.0);
             let colour_draw = rng.next();
-            let form = if tower || rectangularity < 0.9 {
-                "flat"
-            } else if form_draw < 0.35 {
+            let form = if tower || rectangularity < 0.9 || form_draw < 0.35 {
                 "flat"
             } else if form_draw < 0.70 {
                 "gable"
