@@ -3,9 +3,11 @@
 //! window of Boulder, Colorado (tests/data/boulder/), with heights, roofs, trees and vehicles
 //! drawn by tests/support/town.rs and written into the scene as truth (issue 39, item 4).
 //!
-//! `cargo bench --bench shadow_height_town` (every setting, ~20 min on 2 cores) or `-- quick`
-//! (four settings, ~3 min); `-- keep` keeps every scene's directory (otherwise only failed
-//! ones, under the temporary directory printed at the start); any other word runs only the
+//! `cargo bench --bench shadow_height_town` (every setting, ~13 min on 2 busy cores) or
+//! `-- quick` (four settings, under a minute); `-- keep` keeps every scene's directory
+//! (`scene.pov`, the photo, the database, `footprints.geojson`, `heights.geojson` and
+//! `truth.geojson`, every building's truth; otherwise only failed ones are kept, under the
+//! temporary directory printed at the start); any other word runs only the
 //! settings whose label contains it (`-- keep "JPEG"`); options starting with `--` go to
 //! `dbms shadow-height`. Needs `povray` on PATH (`apt-get install povray`).
 //!
@@ -507,6 +509,11 @@ fn main() {
                     let ws = window_scene(&town, &shot(s, *i, *w));
                     let dir = root.join(format!("{i:02}-{w}"));
                     let p = prepare_scene_photo(&ws.scene, &dir, &s.photo());
+                    // The truth beside the scene, for whoever keeps it (`keep`).
+                    let _ = std::fs::write(
+                        dir.join("truth.geojson"),
+                        town::truth_geojson(&town, &ws.scene),
+                    );
                     prepared.lock().unwrap().push((j, ws, dir, p));
                 });
             }

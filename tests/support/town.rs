@@ -29,8 +29,9 @@ use std::path::Path;
 
 /// The footprint file, relative to the crate root.
 pub const FOOTPRINTS: &str = "tests/data/boulder/boulder_footprints_600m_utm13.geojson";
-/// The town's south-west corner (EPSG:32613 metres) and side, metres.
+/// The town's south-west corner, EPSG:32613 metres (east, north).
 pub const TOWN_SW: (f64, f64) = (475_669.0, 4_427_987.0);
+/// The town's side, metres (a square from [`TOWN_SW`]).
 pub const TOWN_SIDE: f64 = 600.0;
 /// Ground height at [`TOWN_SW`], metres (Boulder is at about 1630 m).
 pub const TOWN_Z0: f64 = 1630.0;
@@ -232,6 +233,7 @@ pub struct TownBuilding {
 /// The town: buildings, trees and vehicles, drawn once from a seed.
 #[derive(Debug, Clone)]
 pub struct Town {
+    /// Buildings, in the footprint file's order (a two-part feature gives two).
     pub buildings: Vec<TownBuilding>,
     /// Trees and vehicles (ground-relative, as [`Clutter`] always is).
     pub clutter: Vec<Clutter>,
@@ -486,9 +488,10 @@ pub fn bbox(r: &[(f64, f64)]) -> ((f64, f64), (f64, f64)) {
 /// A square window of the town and how it is photographed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Shot {
-    /// The window's south-west corner, metres, and side, metres. The buildings scored are
-    /// those whose footprint's centroid falls inside ([`WindowScene::core`]).
+    /// The window's south-west corner, EPSG:32613 metres. The buildings scored are those whose
+    /// footprint's centroid falls inside ([`WindowScene::core`]).
     pub sw: (f64, f64),
+    /// The window's side, metres.
     pub side: f64,
     /// Lit margin rendered around the window, metres (so the core's shadows and those cast
     /// into it from nearby are in the photo). Every building of the town is in the POV-Ray
@@ -496,19 +499,23 @@ pub struct Shot {
     pub margin: f64,
     /// Cell, metres.
     pub cell: f64,
-    /// Sun azimuth (degrees clockwise from grid north) and elevation (degrees).
+    /// Sun azimuth, degrees clockwise from grid north.
     pub sun_azimuth_deg: f64,
+    /// Sun elevation, degrees.
     pub sun_elevation_deg: f64,
     /// Ground gradient: rise per metre east and north (the plane through [`TOWN_Z0`] at
     /// [`TOWN_SW`]).
     pub gradient: (f64, f64),
+    /// The camera (a frame photo only on flat ground).
     pub camera: Camera,
     /// Footprints written moved by this, metres (east, north).
     pub footprint_shift: (f64, f64),
     /// Share of the photo's buildings left out of the footprint file (drawn from `seed`).
     pub unlisted: f64,
-    /// Anti-aliasing (`povray::antialias_for` of the sun, normally).
+    /// Anti-aliasing, POV-Ray's n × n samples a pixel (`povray::antialias_for` of the sun,
+    /// normally).
     pub antialias: u32,
+    /// Seed of the draw of unlisted buildings.
     pub seed: u64,
 }
 
@@ -584,4 +591,41 @@ pub fn window_scene(town: &Town, shot: &Shot) -> WindowScene {
 /// The scene's building `k` is listed (convenience for callers holding only the scene).
 pub fn listed(scene: &Scene<PolygonBuilding>, k: usize) -> bool {
     scene.buildings[k].listed()
+}
+
+/// Every building's truth in `scene` as GeoJSON (EPSG:32613): properties `id` (index in the
+/// town and the scene), `feature` (index in the footprint file), `form` (`flat`, `gable`,
+/// `hip`), `tower`, `eave_z` and `ridge_z` (absolute metres; both the roof for a flat one),
+/// `ridge_azimuth_deg` (degrees clockwise from grid north, [0, 180); null when flat), `listed`;
+/// the true (unshifted) footprint.
+pub fn truth_geojson(town: &Town, scene: &Scene<PolygonBuilding>) -> String {
+    let features: Vec<String> = scene
+        .buildings
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            let mut ring: Vec<[f64; 2]> = b.outline.iter().map(|p| [p.0, p.1]).collect();
+            ring.push(ring[0]);
+            let flat = matches!(b.roof, Roof::Flat { .. });
+            serde_json::json!({
+                "type": "Feature",
+                "properties": {
+                    "id": k,
+                    "feature": town.buildings[k].feature,
+                    "form": b.roof.form(),
+                    "tower": town.buildings[k].tower,
+                    "eave_z": b.roof.eave_z(),
+                    "ridge_z": b.roof.top_z(),
+                    "ridge_azimuth_deg": if flat { None } else { Some(b.ridge_azimuth_deg) },
+                    "listed": b.listed,
+                },
+                "geometry": { "type": "Polygon", "coordinates": [ring] },
+            })
+            .to_string()
+        })
+        .collect();
+    format!(
+        "{{\"type\":\"FeatureCollection\",\"crs\":{{\"type\":\"name\",\"properties\":{{\"name\":\"urn:ogc:def:crs:EPSG::32613\"}}}},\"features\":[\n{}\n]}}\n",
+        features.join(",\n")
+    )
 }
