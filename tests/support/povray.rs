@@ -13,8 +13,16 @@
 //! coordinates are kept local (relative to `origin`) so POV-Ray never sees UTM-sized numbers;
 //! the world file and DEM carry the offset.
 //!
+//! Buildings are [`Structure`]s: rectangles ([`Building`], isolated boxes) or arbitrary simple
+//! polygons ([`PolygonBuilding`], a real town's footprints: tests/support/town.rs), each with a
+//! flat, gable or hip [`Roof`]. How the photo is made beyond the geometry — a soft sun (the
+//! solar disc as an area light), sRGB encoding, JPEG compression, the CRS label — is a
+//! [`Photo`]; [`Scene::write`] is [`Scene::write_photo`] with the default (hard parallel sun,
+//! linear PNG), as it always was.
+//!
 //! Used by `tests/povray_shadow_height.rs` (a small slice, in CI) and
-//! `benches/shadow_height_povray.rs` (the table in docs/shadow-height.md).
+//! `benches/shadow_height_povray.rs` (the table in docs/shadow-height.md), and for the real
+//! town by `tests/povray_town.rs` and `benches/shadow_height_town.rs`.
 
 #![allow(dead_code)]
 
@@ -22,18 +30,28 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// WKT of the harness's CRS (WGS 84 / UTM zone 32N); numbers are only labels to dbms here.
-const UTM32N_WKT: &str = r#"PROJCS["WGS 84 / UTM zone 32N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4326"]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",9],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AXIS["Northing",NORTH],AUTHORITY["EPSG","32632"]]"#;
+/// WKT of the harness's default CRS label (WGS 84 / UTM zone 32N, [`Photo::default`]); numbers
+/// are only labels to dbms here.
+pub const UTM32N_WKT: &str = r#"PROJCS["WGS 84 / UTM zone 32N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4326"]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",9],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AXIS["Northing",NORTH],AUTHORITY["EPSG","32632"]]"#;
 
 /// A roof shape over a footprint.
+///
+/// Pitched roofs follow one convention (dbms states roofs the same way). Take the ridge
+/// direction — a [`Building`]'s first side (`rotation_deg`), a [`PolygonBuilding`]'s
+/// `ridge_azimuth_deg` — and project the footprint's vertices onto it (`along`, a) and across
+/// it (`across`, c): the extent is [a0, a1] × [c0, c1]; half-width w = (c1 − c0)/2, centre-line
+/// c_m = (c0 + c1)/2, half-length l = (a1 − a0)/2, a_m = (a0 + a1)/2.
+/// Gable: z(p) = eave_z + (ridge_z − eave_z)·(1 − |c(p) − c_m|/w).
+/// Hip: z(p) = min(gable z(p), eave_z + (ridge_z − eave_z)·(l − |a(p) − a_m|)/w), equal pitch
+/// on all four faces. The roof is clipped to the footprint's prism.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Roof {
     /// Flat at absolute height `z`, metres.
     Flat { z: f64 },
-    /// Two planes meeting at a ridge along the rectangle's long axis (`axis_deg` from east,
-    /// counter-clockwise): eaves at `eave_z`, ridge at `ridge_z`, absolute metres.
+    /// Two planes meeting at a ridge along the ridge direction: eaves at `eave_z`, ridge at
+    /// `ridge_z`, absolute metres.
     Gable { eave_z: f64, ridge_z: f64 },
-    /// Four planes of equal pitch: the gable's two plus two hips at the short ends.
+    /// Four planes of equal pitch: the gable's two plus two hips at the ends.
     Hip { eave_z: f64, ridge_z: f64 },
 }
 
@@ -44,6 +62,131 @@ impl Roof {
             Roof::Flat { z } => z,
             Roof::Gable { ridge_z, .. } | Roof::Hip { ridge_z, .. } => ridge_z,
         }
+    }
+
+    /// The eaves (the flat roof's height for a flat roof), absolute metres.
+    pub fn eave_z(&self) -> f64 {
+        match *self {
+            Roof::Flat { z } => z,
+            Roof::Gable { eave_z, .. } | Roof::Hip { eave_z, .. } => eave_z,
+        }
+    }
+
+    /// `"flat"`, `"gable"` or `"hip"`.
+    pub fn form(&self) -> &'static str {
+        match self {
+            Roof::Flat { .. } => "flat",
+            Roof::Gable { .. } => "gable",
+            Roof::Hip { .. } => "hip",
+        }
+    }
+}
+
+/// What a scene's buildings are: a footprint dbms is given and a solid POV-Ray renders.
+pub trait Structure: Clone {
+    /// The footprint's outer ring, world metres (east, north), not closed.
+    fn outline(&self) -> Vec<(f64, f64)>;
+    /// The roof.
+    fn roof(&self) -> Roof;
+    /// Whether the footprint is written to the footprint file (`false`: rendered but unlisted,
+    /// as buildings missing from a real footprint layer).
+    fn listed(&self) -> bool {
+        true
+    }
+    /// The POV-Ray solid (CSG) of the building in `scene`'s local frame.
+    fn pov<B: Structure>(&self, scene: &Scene<B>) -> String;
+}
+
+impl Structure for Building {
+    fn outline(&self) -> Vec<(f64, f64)> {
+        self.corners().to_vec()
+    }
+    fn roof(&self) -> Roof {
+        self.roof
+    }
+    fn pov<B: Structure>(&self, scene: &Scene<B>) -> String {
+        scene.building_pov(self)
+    }
+}
+
+/// A building on an arbitrary simple polygon (no holes: a real footprint's holes are filled
+/// before it gets here), with a roof whose ridge runs along `ridge_azimuth_deg` ([`Roof`]'s
+/// convention).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolygonBuilding {
+    /// Outer ring, world metres (east, north), not closed, either orientation.
+    pub outline: Vec<(f64, f64)>,
+    /// Roof (absolute metres).
+    pub roof: Roof,
+    /// Ridge direction of a gable or hip roof, degrees clockwise from grid north, in [0, 180)
+    /// (ignored for a flat roof).
+    pub ridge_azimuth_deg: f64,
+    /// Roof colour, linear RGB in [0, 1].
+    pub colour: [f64; 3],
+    /// Whether its footprint is written to the footprint file ([`Structure::listed`]).
+    pub listed: bool,
+}
+
+/// `along`, `across` (unit vectors, east and north), (a0, a1), (c0, c1) (metres): see
+/// [`PolygonBuilding::ridge_frame`].
+pub type RidgeFrame = ((f64, f64), (f64, f64), (f64, f64), (f64, f64));
+
+impl PolygonBuilding {
+    /// The ridge frame of [`Roof`]'s convention: unit vectors `along` and `across` (east,
+    /// north), and the footprint's extent along them, ((a0, a1), (c0, c1)), metres, in world
+    /// coordinates relative to `origin`.
+    pub fn ridge_frame(&self, origin: (f64, f64)) -> RidgeFrame {
+        let (s, c) = self.ridge_azimuth_deg.to_radians().sin_cos();
+        let along = (s, c);
+        let across = (c, -s);
+        let (mut a, mut cc) = (
+            (f64::INFINITY, f64::NEG_INFINITY),
+            (f64::INFINITY, f64::NEG_INFINITY),
+        );
+        for &(x, y) in &self.outline {
+            let (x, y) = (x - origin.0, y - origin.1);
+            let pa = x * along.0 + y * along.1;
+            let pc = x * across.0 + y * across.1;
+            a = (a.0.min(pa), a.1.max(pa));
+            cc = (cc.0.min(pc), cc.1.max(pc));
+        }
+        (along, across, a, cc)
+    }
+
+    /// The roof's height at world point `p` by [`Roof`]'s formulas (not clipped to the
+    /// footprint), absolute metres.
+    pub fn roof_z_at(&self, p: (f64, f64)) -> f64 {
+        let (eave_z, ridge_z, hip) = match self.roof {
+            Roof::Flat { z } => return z,
+            Roof::Gable { eave_z, ridge_z } => (eave_z, ridge_z, false),
+            Roof::Hip { eave_z, ridge_z } => (eave_z, ridge_z, true),
+        };
+        let (along, across, a, c) = self.ridge_frame((0.0, 0.0));
+        let (w, cm) = ((c.1 - c.0) / 2.0, (c.0 + c.1) / 2.0);
+        let (l, am) = ((a.1 - a.0) / 2.0, (a.0 + a.1) / 2.0);
+        let pc = p.0 * across.0 + p.1 * across.1;
+        let pa = p.0 * along.0 + p.1 * along.1;
+        let gable = eave_z + (ridge_z - eave_z) * (1.0 - (pc - cm).abs() / w);
+        if hip {
+            gable.min(eave_z + (ridge_z - eave_z) * (l - (pa - am).abs()) / w)
+        } else {
+            gable
+        }
+    }
+}
+
+impl Structure for PolygonBuilding {
+    fn outline(&self) -> Vec<(f64, f64)> {
+        self.outline.clone()
+    }
+    fn roof(&self) -> Roof {
+        self.roof
+    }
+    fn listed(&self) -> bool {
+        self.listed
+    }
+    fn pov<B: Structure>(&self, scene: &Scene<B>) -> String {
+        scene.polygon_pov(self)
     }
 }
 
@@ -102,9 +245,10 @@ pub enum Camera {
     Perspective { nadir: (f64, f64), height_m: f64 },
 }
 
-/// One scene.
+/// One scene; its buildings are rectangles ([`Building`], the default) or any other
+/// [`Structure`] ([`PolygonBuilding`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Scene {
+pub struct Scene<B = Building> {
     /// World coordinates of the image's north-west corner, metres.
     pub origin: (f64, f64),
     /// Cell (pixel) size, metres.
@@ -118,7 +262,7 @@ pub struct Scene {
     /// Sun elevation above the horizon, degrees.
     pub sun_elevation_deg: f64,
     /// Buildings.
-    pub buildings: Vec<Building>,
+    pub buildings: Vec<B>,
     /// Non-building objects.
     pub clutter: Vec<Clutter>,
     /// Misregistration: the footprints written are the true ones moved by this, metres (east,
@@ -158,7 +302,43 @@ pub struct Written {
     pub footprints: PathBuf,
 }
 
-impl Scene {
+/// How the photo is made, beyond the scene's geometry. [`Photo::default`] is the harness's
+/// original photo: a hard parallel sun, a linear PNG, CRS labelled UTM 32N.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Photo {
+    /// The sun as a disc of this angular diameter, degrees (the real sun: 0.53), rendered as
+    /// POV-Ray's area light (a circular grid of `area_samples` × `area_samples` lights, adaptive,
+    /// deterministic: no jitter), so shadows have penumbrae. `None`: a point-like parallel sun
+    /// (hard shadows).
+    pub sun_disc_deg: Option<f64>,
+    /// Area-light grid size (lights across the disc) for a soft sun.
+    pub area_samples: u32,
+    /// Encode the PNG in sRGB (POV-Ray `File_Gamma=sRGB`) instead of linear values.
+    pub srgb: bool,
+    /// Re-encode the photo as JPEG at this quality (1–100; the `image` crate's encoder):
+    /// `ortho.jpg` with `ortho.jgw` is what dbms reads. `None`: the PNG.
+    pub jpeg_quality: Option<u8>,
+    /// WKT written as the photo's and DEM's `.prj` (a label only: dbms takes the sun's azimuth
+    /// from grid north).
+    pub crs_wkt: &'static str,
+}
+
+impl Default for Photo {
+    fn default() -> Self {
+        Photo {
+            sun_disc_deg: None,
+            area_samples: 9,
+            srgb: false,
+            jpeg_quality: None,
+            crs_wkt: UTM32N_WKT,
+        }
+    }
+}
+
+/// WKT of WGS 84 / UTM zone 13N (EPSG:32613), the real town's CRS (tests/data/boulder/).
+pub const UTM13N_WKT: &str = r#"PROJCS["WGS 84 / UTM zone 13N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4326"]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",-105],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AXIS["Northing",NORTH],AUTHORITY["EPSG","32613"]]"#;
+
+impl<B: Structure> Scene<B> {
     /// World extent: (west, south, east, north), metres.
     pub fn extent(&self) -> (f64, f64, f64, f64) {
         let (w, n) = self.origin;
@@ -187,8 +367,13 @@ impl Scene {
         (a.sin() * e.cos(), a.cos() * e.cos(), e.sin())
     }
 
-    /// The POV-Ray scene description.
+    /// The POV-Ray scene description (the default [`Photo`]'s hard sun).
     pub fn pov(&self) -> String {
+        self.pov_photo(&Photo::default())
+    }
+
+    /// The POV-Ray scene description, with `photo`'s sun.
+    pub fn pov_photo(&self, photo: &Photo) -> String {
         let mut s = String::new();
         let (width, height) = (
             self.size.0 as f64 * self.cell,
@@ -200,7 +385,7 @@ impl Scene {
         let zmax = self
             .buildings
             .iter()
-            .map(|b| b.roof.top_z())
+            .map(|b| b.roof().top_z())
             .fold(z0.abs() + 1000.0, f64::max);
         writeln!(s, "#version 3.7;").unwrap();
         writeln!(
@@ -238,14 +423,49 @@ impl Scene {
             }
         }
         let (e, n, u) = self.toward_sun();
-        writeln!(
-            s,
-            "light_source {{ <{:.9}, {:.9}, {:.9}> color rgb <1.0, 0.97, 0.92> parallel point_at <0, 0, 0> }}",
-            e * 1e6,
-            u * 1e6,
-            n * 1e6
-        )
-        .unwrap();
+        match photo.sun_disc_deg {
+            None => writeln!(
+                s,
+                "light_source {{ <{:.9}, {:.9}, {:.9}> color rgb <1.0, 0.97, 0.92> parallel point_at <0, 0, 0> }}",
+                e * 1e6,
+                u * 1e6,
+                n * 1e6
+            )
+            .unwrap(),
+            Some(disc) => {
+                // The solar disc: a circular area light of the disc's diameter at the parallel
+                // light's distance, its grid turned to face the scene (`orient`), every light's
+                // rays parallel (`parallel`: each grid point shines along its own direction).
+                // Two axes across the sun direction (POV-Ray: x east, y up, z north).
+                let d = 1e6;
+                let diameter = 2.0 * d * (disc.to_radians() / 2.0).tan();
+                let h = e.hypot(n);
+                let (p1, p2) = if h > 1e-12 {
+                    // Horizontal, across the azimuth; and up the sky, across both.
+                    let p1 = (-n / h, 0.0, e / h);
+                    let p2 = (-u * e / h, h, -u * n / h);
+                    (p1, p2)
+                } else {
+                    ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+                };
+                let k = photo.area_samples.max(2);
+                writeln!(
+                    s,
+                    "light_source {{ <{:.9}, {:.9}, {:.9}> color rgb <1.0, 0.97, 0.92> parallel point_at <0, 0, 0>\n  \
+                     area_light <{:.9}, {:.9}, {:.9}>, <{:.9}, {:.9}, {:.9}>, {k}, {k} adaptive 1 circular orient }}",
+                    e * d,
+                    u * d,
+                    n * d,
+                    p1.0 * diameter,
+                    p1.1 * diameter,
+                    p1.2 * diameter,
+                    p2.0 * diameter,
+                    p2.1 * diameter,
+                    p2.2 * diameter,
+                )
+                .unwrap()
+            }
+        }
         // Ground: a sloped plane through (0, z0, 0), textured like mixed grass and soil.
         writeln!(
             s,
@@ -258,7 +478,7 @@ impl Scene {
         )
         .unwrap();
         for b in &self.buildings {
-            s.push_str(&self.building_pov(b));
+            s.push_str(&b.pov(self));
         }
         for c in &self.clutter {
             s.push_str(&self.clutter_pov(c));
@@ -334,6 +554,81 @@ impl Scene {
         s
     }
 
+    /// A polygon building: its footprint's prism from below the ground to the ridge,
+    /// intersected with the roof's half-spaces ([`Roof`]'s convention: each face is a plane, the
+    /// roof is their minimum).
+    fn polygon_pov(&self, b: &PolygonBuilding) -> String {
+        let pts: Vec<(f64, f64)> = b.outline.iter().map(|&p| self.local(p)).collect();
+        let base = b
+            .outline
+            .iter()
+            .map(|&p| self.ground_z(p))
+            .fold(f64::INFINITY, f64::min)
+            - 2.0;
+        let top = b.roof.top_z();
+        let mut s = String::new();
+        let ring: Vec<String> = pts
+            .iter()
+            .chain(std::iter::once(&pts[0]))
+            .map(|(x, z)| format!("<{x:.6}, {z:.6}>"))
+            .collect();
+        writeln!(s, "intersection {{").unwrap();
+        writeln!(
+            s,
+            "  prism {{ linear_sweep linear_spline {base:.6}, {top:.6}, {}, {} }}",
+            ring.len(),
+            ring.join(", ")
+        )
+        .unwrap();
+        let (along, across, a, c) = b.ridge_frame(self.origin);
+        let (w, cm) = ((c.1 - c.0) / 2.0, (c.0 + c.1) / 2.0);
+        let (l, am) = ((a.1 - a.0) / 2.0, (a.0 + a.1) / 2.0);
+        // z = base_z + k·(m − d) with d = p·dir (local): k·(p·dir) + z = base_z + k·m.
+        let mut plane = |dir: (f64, f64), base_z: f64, m: f64, k: f64| {
+            let d0 = base_z + k * m;
+            let norm = (k * k + 1.0).sqrt();
+            writeln!(
+                s,
+                "  plane {{ <{:.9}, {:.9}, {:.9}>, {:.9} }}",
+                k * dir.0 / norm,
+                1.0 / norm,
+                k * dir.1 / norm,
+                d0 / norm
+            )
+            .unwrap();
+        };
+        let faces = |eave: f64, ridge: f64| (ridge - eave) / w;
+        match b.roof {
+            Roof::Flat { .. } => {}
+            Roof::Gable { eave_z, ridge_z } | Roof::Hip { eave_z, ridge_z } => {
+                let k = faces(eave_z, ridge_z);
+                // Gable faces: z = ridge − k·|c − c_m|, one plane per sign.
+                for sign in [1.0, -1.0] {
+                    plane((across.0 * sign, across.1 * sign), ridge_z, cm * sign, k);
+                }
+                if let Roof::Hip { .. } = b.roof {
+                    // Hips: z = eave + k·(l − |a − a_m|) = (eave + k·l) − k·|a − a_m|.
+                    for sign in [1.0, -1.0] {
+                        plane(
+                            (along.0 * sign, along.1 * sign),
+                            eave_z + k * l,
+                            am * sign,
+                            k,
+                        );
+                    }
+                }
+            }
+        }
+        let [r, g, bl] = b.colour;
+        writeln!(
+            s,
+            "  texture {{ pigment {{ color rgb <{r:.4}, {g:.4}, {bl:.4}> }} \
+             finish {{ ambient rgb <0.30, 0.33, 0.42> diffuse 0.75 }} }}\n}}"
+        )
+        .unwrap();
+        s
+    }
+
     fn clutter_pov(&self, c: &Clutter) -> String {
         let finish = "finish { ambient rgb <0.30, 0.33, 0.42> diffuse 0.75 }";
         match *c {
@@ -375,15 +670,23 @@ impl Scene {
 
     /// Write the scene into `dir` (created): `scene.pov`, `ortho.png` (rendered) with its world
     /// file and `.prj`, `dem.asc` (the ground at every cell centre) with its `.prj`, and
-    /// `footprints.geojson` (moved by `footprint_shift`). Errors name what failed.
+    /// `footprints.geojson` (moved by `footprint_shift`). Errors name what failed. The default
+    /// [`Photo`]: [`Scene::write_photo`].
     pub fn write(&self, dir: &Path) -> Result<Written, String> {
+        self.write_photo(dir, &Photo::default())
+    }
+
+    /// [`Scene::write`] with `photo`'s sun and encoding: with `jpeg_quality`, also `ortho.jpg`
+    /// and `ortho.jgw` (then [`Written::ortho`]). The footprint file holds the
+    /// [`Structure::listed`] buildings, each with property `id`, its index in `buildings`.
+    pub fn write_photo(&self, dir: &Path, photo: &Photo) -> Result<Written, String> {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         let put = |name: &str, text: &str| -> Result<PathBuf, String> {
             let p = dir.join(name);
             std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))?;
             Ok(p)
         };
-        let pov = put("scene.pov", &self.pov())?;
+        let pov = put("scene.pov", &self.pov_photo(photo))?;
         let ortho = dir.join("ortho.png");
         let aa = if self.antialias > 1 {
             vec![
@@ -400,14 +703,12 @@ impl Scene {
             .arg(format!("+O{}", ortho.display()))
             .arg(format!("+W{}", self.size.0))
             .arg(format!("+H{}", self.size.1))
-            .args([
-                "+FN8",
-                "-D",
-                "-V",
-                "+WT1",
-                "Display_Gamma=1.0",
-                "File_Gamma=1.0",
-            ])
+            .args(["+FN8", "-D", "-V", "+WT1", "Display_Gamma=1.0"])
+            .arg(if photo.srgb {
+                "File_Gamma=sRGB"
+            } else {
+                "File_Gamma=1.0"
+            })
             .args(&aa)
             .output()
             .map_err(|e| format!("povray: {e} (apt-get install povray)"))?;
@@ -418,17 +719,34 @@ impl Scene {
             ));
         }
         let (w, _, _, n) = self.extent();
-        put(
-            "ortho.pgw",
-            &format!(
-                "{c}\n0\n0\n{m}\n{x}\n{y}\n",
-                c = self.cell,
-                m = -self.cell,
-                x = w + self.cell / 2.0,
-                y = n - self.cell / 2.0
-            ),
-        )?;
-        put("ortho.prj", UTM32N_WKT)?;
+        let world = format!(
+            "{c}\n0\n0\n{m}\n{x}\n{y}\n",
+            c = self.cell,
+            m = -self.cell,
+            x = w + self.cell / 2.0,
+            y = n - self.cell / 2.0
+        );
+        put("ortho.pgw", &world)?;
+        put("ortho.prj", photo.crs_wkt)?;
+        let ortho = match photo.jpeg_quality {
+            None => ortho,
+            Some(q) => {
+                let jpg = dir.join("ortho.jpg");
+                let img = image::open(&ortho)
+                    .map_err(|e| format!("{}: {e}", ortho.display()))?
+                    .to_rgb8();
+                let file =
+                    std::fs::File::create(&jpg).map_err(|e| format!("{}: {e}", jpg.display()))?;
+                image::codecs::jpeg::JpegEncoder::new_with_quality(
+                    std::io::BufWriter::new(file),
+                    q,
+                )
+                .encode_image(&img)
+                .map_err(|e| format!("{}: {e}", jpg.display()))?;
+                put("ortho.jgw", &world)?;
+                jpg
+            }
+        };
         let mut dem = format!(
             "ncols {}\nnrows {}\nxllcorner {:.6}\nyllcorner {:.6}\ncellsize {}\n",
             self.size.0,
@@ -449,15 +767,16 @@ impl Scene {
             dem.push('\n');
         }
         let dem_path = put("dem.asc", &dem)?;
-        put("dem.prj", UTM32N_WKT)?;
+        put("dem.prj", photo.crs_wkt)?;
         let (sx, sy) = self.footprint_shift;
         let features: Vec<String> = self
             .buildings
             .iter()
             .enumerate()
+            .filter(|(_, b)| b.listed())
             .map(|(k, b)| {
                 let mut ring: Vec<String> = b
-                    .corners()
+                    .outline()
                     .iter()
                     .map(|(x, y)| format!("[{:.4}, {:.4}]", x + sx, y + sy))
                     .collect();

@@ -5,7 +5,7 @@
 
 #![allow(dead_code)]
 
-use super::povray::{Scene, Written};
+use super::povray::{Photo, Scene, Structure, Written};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -13,6 +13,8 @@ use std::time::Instant;
 /// One building's result beside its truth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Outcome {
+    /// The building's index in the scene's `buildings` (its footprint's `id`).
+    pub building: usize,
     /// True roof top (flat roof, or ridge), absolute metres.
     pub truth_z: f64,
     /// Measured absolute roof, metres (`None`: no height).
@@ -35,6 +37,26 @@ impl Outcome {
     /// Measured minus true, metres.
     pub fn error_m(&self) -> Option<f64> {
         self.roof_z.map(|z| z - self.truth_z)
+    }
+
+    /// A number property, if present and a number.
+    pub fn number(&self, key: &str) -> Option<f64> {
+        self.properties.get(key)?.as_f64()
+    }
+
+    /// A two-number property (`[lo, hi]`), if present and well formed.
+    pub fn pair(&self, key: &str) -> Option<(f64, f64)> {
+        let a = self.properties.get(key)?.as_array()?;
+        Some((a.first()?.as_f64()?, a.get(1)?.as_f64()?))
+    }
+
+    /// The lower bound dbms gave instead of a height (`roof_z_at_least`, absolute metres),
+    /// when there is no `roof_z`.
+    pub fn at_least(&self) -> Option<f64> {
+        if self.roof_z.is_some() {
+            return None;
+        }
+        self.number("roof_z_at_least")
     }
 }
 
@@ -66,9 +88,18 @@ pub struct Prepared {
 }
 
 /// Render `scene` into `dir` and ingest it (`dir/db`).
-pub fn prepare_scene(scene: &Scene, dir: &Path) -> Result<Prepared, String> {
+pub fn prepare_scene<B: Structure>(scene: &Scene<B>, dir: &Path) -> Result<Prepared, String> {
+    prepare_scene_photo(scene, dir, &Photo::default())
+}
+
+/// [`prepare_scene`] with `photo`'s sun and encoding ([`Scene::write_photo`]).
+pub fn prepare_scene_photo<B: Structure>(
+    scene: &Scene<B>,
+    dir: &Path,
+    photo: &Photo,
+) -> Result<Prepared, String> {
     let t = Instant::now();
-    let w = scene.write(dir)?;
+    let w = scene.write_photo(dir, photo)?;
     let render_secs = t.elapsed().as_secs_f64();
     let db = dir.join("db");
     let mut ingest = dbms();
@@ -91,16 +122,19 @@ pub fn prepare_scene(scene: &Scene, dir: &Path) -> Result<Prepared, String> {
 
 /// Run `dbms shadow-height` on a prepared scene (the scene's sun, its camera for a perspective
 /// photo, default options otherwise; output
-/// `heights.geojson` beside the photo): one outcome per building in scene order, and the
+/// `heights.geojson` beside the photo): one outcome per listed building in scene order, and the
 /// command's wall clock in seconds (process start, reading the database and footprints,
 /// measuring, writing).
-pub fn measure_prepared(scene: &Scene, p: &Prepared) -> Result<(Vec<Outcome>, f64), String> {
+pub fn measure_prepared<B: Structure>(
+    scene: &Scene<B>,
+    p: &Prepared,
+) -> Result<(Vec<Outcome>, f64), String> {
     measure_prepared_with(scene, p, &[])
 }
 
 /// [`measure_prepared`] with `extra` options for `dbms shadow-height` (e.g. `--sub-points=8`).
-pub fn measure_prepared_with(
-    scene: &Scene,
+pub fn measure_prepared_with<B: Structure>(
+    scene: &Scene<B>,
     p: &Prepared,
     extra: &[String],
 ) -> Result<(Vec<Outcome>, f64), String> {
@@ -130,21 +164,25 @@ pub fn measure_prepared_with(
     let text = std::fs::read_to_string(&heights).map_err(|e| e.to_string())?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
     let features = v["features"].as_array().ok_or("no features")?;
-    if features.len() != scene.buildings.len() {
+    let listed: Vec<usize> = (0..scene.buildings.len())
+        .filter(|&k| scene.buildings[k].listed())
+        .collect();
+    if features.len() != listed.len() {
         return Err(format!(
-            "{}: {} features for {} buildings",
+            "{}: {} features for {} listed buildings",
             heights.display(),
             features.len(),
-            scene.buildings.len()
+            listed.len()
         ));
     }
     let outcomes = features
         .iter()
-        .zip(&scene.buildings)
-        .map(|(f, b)| {
+        .zip(&listed)
+        .map(|(f, &k)| {
             let p = &f["properties"];
             Outcome {
-                truth_z: b.roof.top_z(),
+                building: k,
+                truth_z: scene.buildings[k].roof().top_z(),
                 roof_z: p["roof_z"].as_f64(),
                 flags: p["flags"]
                     .as_array()
@@ -164,7 +202,7 @@ pub fn measure_prepared_with(
 
 /// Render `scene` into `dir`, ingest it, measure every building; one outcome per building in
 /// scene order.
-pub fn measure_scene(scene: &Scene, dir: &Path) -> Result<Vec<Outcome>, String> {
+pub fn measure_scene<B: Structure>(scene: &Scene<B>, dir: &Path) -> Result<Vec<Outcome>, String> {
     let p = prepare_scene(scene, dir)?;
     Ok(measure_prepared(scene, &p)?.0)
 }

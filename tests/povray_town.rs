@@ -1,0 +1,396 @@
+//! `dbms shadow-height` on a real town's layout photographed by POV-Ray (issue 39, item 4): the
+//! CI slice of `cargo bench --bench shadow_height_town` (tests/support/town.rs: Boulder's real
+//! footprints with drawn heights, flat, gable and hip roofs, towers, trees and vehicles). Two
+//! 100 m windows at 0.5 m cells under a soft sun (the 0.53° disc as an area light), sRGB, one of
+//! them JPEG-compressed; and checks of the harness itself: the soft sun has penumbrae as wide as
+//! the solar disc predicts, and the pitched roofs POV-Ray renders follow the stated convention.
+//!
+//! The thresholds guard what today's dbms achieves (each is commented with the value measured
+//! on 2026-11-28), not the issue's goals: they fail when dbms gets worse here, or when the
+//! harness stops making what it should.
+//!
+//! Needs `povray` on PATH (`apt-get install povray`); without it the test says so and passes,
+//! except under CI (`CI` set), where it fails: `.ci/run` installs it.
+
+#[path = "support/povray.rs"]
+mod povray;
+#[path = "support/shadow_truth.rs"]
+mod shadow_truth;
+#[path = "support/town.rs"]
+mod town;
+
+use povray::{Camera, Clutter, Photo, Roof, UTM13N_WKT};
+use shadow_truth::{measure_prepared, prepare_scene_photo};
+use std::path::Path;
+use town::{window_scene, Shot, Town, TOWN_SIDE, TOWN_SW};
+
+fn have_povray() -> bool {
+    let ok = std::process::Command::new("povray")
+        .arg("--version")
+        .output()
+        .is_ok();
+    if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "povray is not on PATH under CI: .ci/run must install it"
+        );
+        eprintln!("skipped: povray not on PATH (apt-get install povray)");
+    }
+    ok
+}
+
+/// Window side, metres.
+const SIDE: f64 = 100.0;
+
+/// The slice's two windows, from the `SIDE` lattice over the town (from its south-west
+/// corner), densest first: the densest whose core holds a tower, a gable and a hip roof, and the
+/// densest other one holding a gable and a hip.
+fn windows(town: &Town) -> Vec<(f64, f64)> {
+    let n = (TOWN_SIDE / SIDE) as usize;
+    let count = |sw: (f64, f64), want: &dyn Fn(&town::TownBuilding) -> bool| {
+        town.buildings
+            .iter()
+            .filter(|b| {
+                let c = town::centroid(&b.ring);
+                c.0 >= sw.0 && c.0 < sw.0 + SIDE && c.1 >= sw.1 && c.1 < sw.1 + SIDE && want(b)
+            })
+            .count()
+    };
+    let mut lattice: Vec<(f64, f64)> = (0..n * n)
+        .map(|k| {
+            (
+                TOWN_SW.0 + SIDE * (k % n) as f64,
+                TOWN_SW.1 + SIDE * (k / n) as f64,
+            )
+        })
+        .collect();
+    lattice.sort_by_key(|&sw| std::cmp::Reverse(count(sw, &|_| true)));
+    let mut out = Vec::new();
+    for sw in lattice {
+        let pitched = count(sw, &|b| b.form == "gable") > 0 && count(sw, &|b| b.form == "hip") > 0;
+        if pitched && (!out.is_empty() || count(sw, &|b| b.tower) > 0) {
+            out.push(sw);
+            if out.len() == 2 {
+                break;
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
+    if !have_povray() {
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let town = Town::load(root, 39).unwrap();
+    let sws = windows(&town);
+    assert_eq!(sws.len(), 2, "two windows with every roof form");
+    let mut totals = (0usize, 0usize, 0usize, 0usize, 0usize); // scored, measured, within 1 m, flagged or null, silent gross
+    let mut forms = [0usize; 3];
+    let (mut trees, mut vehicles, mut towers) = (0, 0, 0);
+    for (k, (sw, az, el, jpeg)) in [
+        (sws[0], 150.0, 35.0, None),
+        (sws[1], 210.0, 45.0, Some(80u8)),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let shot = Shot {
+            sw,
+            side: SIDE,
+            margin: 20.0,
+            cell: 0.5,
+            sun_azimuth_deg: az,
+            sun_elevation_deg: el,
+            gradient: (0.0, 0.0),
+            camera: Camera::Ortho,
+            footprint_shift: (0.0, 0.0),
+            unlisted: 0.0,
+            antialias: povray::antialias_for(el),
+            seed: k as u64,
+        };
+        let ws = window_scene(&town, &shot);
+        let photo = Photo {
+            sun_disc_deg: Some(0.53),
+            area_samples: 9,
+            srgb: true,
+            jpeg_quality: jpeg,
+            crs_wkt: UTM13N_WKT,
+        };
+        let (w, _, e, n) = ws.scene.extent();
+        let s = n - (e - w);
+        for c in &ws.scene.clutter {
+            match *c {
+                Clutter::Tree { at, .. } if at.0 > w && at.0 < e && at.1 > s && at.1 < n => {
+                    trees += 1
+                }
+                Clutter::Vehicle { at, .. } if at.0 > w && at.0 < e && at.1 > s && at.1 < n => {
+                    vehicles += 1
+                }
+                _ => {}
+            }
+        }
+        for &b in &ws.core {
+            forms[match ws.scene.buildings[b].roof {
+                Roof::Flat { .. } => 0,
+                Roof::Gable { .. } => 1,
+                Roof::Hip { .. } => 2,
+            }] += 1;
+            towers += town.buildings[b].tower as usize;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
+        let pov = std::fs::read_to_string(dir.path().join("scene.pov")).unwrap();
+        assert!(pov.contains("area_light"), "a soft sun");
+        if jpeg.is_some() {
+            assert_eq!(p.written.ortho.extension().unwrap(), "jpg");
+            assert!(dir.path().join("ortho.jgw").exists());
+        }
+        let (out, secs) = measure_prepared(&ws.scene, &p).unwrap();
+        let scored: Vec<_> = out
+            .iter()
+            .filter(|o| ws.core.contains(&o.building))
+            .collect();
+        let measured = scored.iter().filter(|o| o.roof_z.is_some()).count();
+        let within = scored
+            .iter()
+            .filter(|o| o.error_m().is_some_and(|e| e.abs() <= 1.0))
+            .count();
+        let flagged = scored
+            .iter()
+            .filter(|o| o.flagged() || o.roof_z.is_none())
+            .count();
+        let silent = scored
+            .iter()
+            .filter(|o| !o.flagged() && o.error_m().is_some_and(|e| e.abs() > 1.0))
+            .count();
+        eprintln!(
+            "window {k} at {sw:?}, sun {az}° / {el}°{}: {} footprints in the file, {} scored, {measured} measured, {within} within 1 m, {flagged} flagged or null, {silent} unflagged > 2 cells off; dbms {secs:.1} s",
+            if jpeg.is_some() { ", JPEG q80" } else { "" },
+            out.len(),
+            scored.len()
+        );
+        totals.0 += scored.len();
+        totals.1 += measured;
+        totals.2 += within;
+        totals.3 += flagged;
+        totals.4 += silent;
+    }
+    eprintln!(
+        "scored {} (flat {}, gable {}, hip {}, towers {}), trees {trees}, vehicles {vehicles}; measured {}, within 1 m {}, flagged or null {}, silent gross {}",
+        totals.0, forms[0], forms[1], forms[2], towers, totals.1, totals.2, totals.3, totals.4
+    );
+    // Every feature is there.
+    assert!(
+        forms.iter().all(|&f| f > 0) && towers > 0,
+        "{forms:?} {towers}"
+    );
+    assert!(
+        trees >= 10 && vehicles >= 5,
+        "{trees} trees, {vehicles} vehicles"
+    );
+    // What today's dbms achieves (commit a885019, 2026-11-28; the town and windows are fixed,
+    // so these move only with dbms or the harness).
+    let (n, measured, within) = (totals.0 as f64, totals.1 as f64, totals.2 as f64);
+    // 40 buildings scored (20 + 20).
+    assert!(n >= 36.0, "{n} buildings scored");
+    // 36 of 40 measured (0.90).
+    assert!(measured / n >= 0.80, "measured {measured} of {n}");
+    // 23 of 40 within 1 m of the truth (0.575; the rest are mostly the pitched roofs, whose
+    // ridge dbms does not measure yet, and shadows ending on neighbours).
+    assert!(within / n >= 0.45, "within 1 m: {within} of {n}");
+    // No unflagged height more than 2 cells off (0).
+    assert!(totals.4 <= 1, "{} silent gross errors", totals.4);
+}
+
+/// The roof planes written for POV-Ray, as (a, b, c, d) of `a x + b y + c z = d` (local x east,
+/// y up, z north; the solid is below every plane).
+fn planes(pov: &str) -> Vec<[f64; 4]> {
+    pov.lines()
+        .filter_map(|l| {
+            let l = l.trim().strip_prefix("plane { <")?.strip_suffix(" }")?;
+            let v: Vec<f64> = l
+                .replace(['<', '>'], "")
+                .split(',')
+                .map(|x| x.trim().parse().unwrap())
+                .collect();
+            Some([v[0], v[1], v[2], v[3]])
+        })
+        .collect()
+}
+
+/// Height of the roof written for POV-Ray at local point (x, z): the lowest plane there.
+fn pov_roof(planes: &[[f64; 4]], x: f64, z: f64, top: f64) -> f64 {
+    planes
+        .iter()
+        .map(|p| (p[3] - p[0] * x - p[2] * z) / p[1])
+        .fold(top, f64::min)
+}
+
+#[test]
+fn pitched_roofs_follow_the_stated_convention() {
+    use povray::{Building, PolygonBuilding, Rng, Scene, Structure};
+    // The roof POV-Ray renders (its half-spaces) is the convention's formula
+    // (PolygonBuilding::roof_z_at) at every point of the footprint, for the town's pitched
+    // roofs; and a rectangle's Gable/Hip (rotation_deg from east) is the same roof as the
+    // polygon one with the ridge azimuth 90° − rotation_deg.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let town = Town::load(root, 39).unwrap();
+    let origin = (TOWN_SW.0, TOWN_SW.1 + TOWN_SIDE);
+    let scene = |buildings: Vec<PolygonBuilding>| Scene {
+        origin,
+        cell: 1.0,
+        size: (600, 600),
+        ground: (1630.0, 0.0, 0.0),
+        sun_azimuth_deg: 135.0,
+        sun_elevation_deg: 40.0,
+        buildings,
+        clutter: vec![],
+        footprint_shift: (0.0, 0.0),
+        camera: Camera::Ortho,
+        antialias: 1,
+    };
+    let mut rng = Rng(5);
+    let mut checked = 0;
+    for k in 0..town.buildings.len() {
+        if town.buildings[k].form == "flat" {
+            continue;
+        }
+        let b = town.building(k, &|_| 1630.0);
+        let s = scene(vec![b.clone()]);
+        let pl = planes(&b.pov(&s));
+        let (lo, hi) = town::bbox(&b.outline);
+        let mut n = 0;
+        while n < 50 {
+            let p = (rng.range(lo.0, hi.0), rng.range(lo.1, hi.1));
+            if !town::inside(&b.outline, p) {
+                continue;
+            }
+            n += 1;
+            let want = b.roof_z_at(p);
+            let got = pov_roof(&pl, p.0 - origin.0, p.1 - origin.1, b.roof.top_z());
+            assert!(
+                (want - got).abs() < 1e-4, // 9 decimals in the POV file
+                "building {k} at {p:?}: {want} vs {got}"
+            );
+            assert!(want <= b.roof.top_z() + 1e-9 && want >= b.roof.eave_z() - 1e-9);
+        }
+        checked += 1;
+    }
+    assert!(checked > 100, "{checked} pitched roofs");
+    for (rot, roof) in [
+        (
+            30.0,
+            Roof::Gable {
+                eave_z: 10.0,
+                ridge_z: 13.0,
+            },
+        ),
+        (
+            -70.0,
+            Roof::Hip {
+                eave_z: 10.0,
+                ridge_z: 12.0,
+            },
+        ),
+    ] {
+        let r = Building {
+            centre: (origin.0 + 50.0, origin.1 - 50.0),
+            size: (18.0, 9.0),
+            rotation_deg: rot,
+            roof,
+            colour: [0.5; 3],
+        };
+        let p = PolygonBuilding {
+            outline: r.corners().to_vec(),
+            roof,
+            ridge_azimuth_deg: (90.0 - rot).rem_euclid(180.0),
+            colour: [0.5; 3],
+            listed: true,
+        };
+        let s = scene(vec![p.clone()]);
+        let (pr, pp) = (planes(&r.pov(&s)), planes(&p.pov(&s)));
+        for _ in 0..200 {
+            let q = (
+                origin.0 + 50.0 + rng.range(-9.0, 9.0),
+                origin.1 - 50.0 + rng.range(-9.0, 9.0),
+            );
+            let (x, z) = (q.0 - origin.0, q.1 - origin.1);
+            let (a, b) = (pov_roof(&pr, x, z, 13.0), pov_roof(&pp, x, z, 13.0));
+            assert!(
+                (a - b).abs() < 1e-4,
+                "{roof:?} at {q:?}: rectangle {a}, polygon {b}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_soft_sun_casts_penumbrae_as_wide_as_the_solar_disc_predicts() {
+    if !have_povray() {
+        return;
+    }
+    use povray::{Building, Scene};
+    // A 40 m tower under a 30° sun from the south, 0.2 m cells: the shadow's tip is 80 m of ray
+    // from the roof edge, so the 0.53° disc blurs it over 80 · 0.00925 / sin 30° = 1.48 m of
+    // ground, 7.4 cells. The same scene under the hard sun and the soft one differ only there
+    // (the ground texture is the same): count the cells along the shadow's axis where they
+    // differ by more than a tenth of the lit-to-shadow contrast.
+    let scene = Scene {
+        origin: (500_000.0, 5_300_100.0),
+        cell: 0.2,
+        size: (500, 500),
+        ground: (250.0, 0.0, 0.0),
+        sun_azimuth_deg: 180.0,
+        sun_elevation_deg: 30.0,
+        buildings: vec![Building {
+            centre: (500_050.0, 5_300_015.0),
+            size: (6.0, 6.0),
+            rotation_deg: 0.0,
+            roof: Roof::Flat { z: 290.0 },
+            colour: [0.5, 0.5, 0.5],
+        }],
+        clutter: vec![],
+        footprint_shift: (0.0, 0.0),
+        camera: Camera::Ortho,
+        antialias: 1,
+    };
+    let column = |soft: bool| -> Vec<f64> {
+        let dir = tempfile::tempdir().unwrap();
+        let photo = Photo {
+            sun_disc_deg: soft.then_some(0.53),
+            ..Photo::default()
+        };
+        let w = scene.write_photo(dir.path(), &photo).unwrap();
+        let img = image::open(&w.ortho).unwrap().to_luma8();
+        // Column x = 500 050 (col 250), rows y = 5 300 099 … 5 300 030 (north to south).
+        (5..355)
+            .map(|r| img.get_pixel(250, r).0[0] as f64)
+            .collect()
+    };
+    let (hard, soft) = (column(false), column(true));
+    // Contrast: lit (the first rows, north of the tip at 5 300 087.3) over shadow (the last).
+    let lit = hard[..40].iter().sum::<f64>() / 40.0;
+    let dark = hard[hard.len() - 40..].iter().sum::<f64>() / 40.0;
+    assert!(lit > 1.5 * dark, "lit {lit}, shadow {dark}");
+    let differ: Vec<usize> = (0..hard.len())
+        .filter(|&i| (soft[i] - hard[i]).abs() > 0.1 * (lit - dark))
+        .collect();
+    eprintln!(
+        "lit {lit:.0}, shadow {dark:.0}; soft differs from hard at {} cells: {differ:?}",
+        differ.len()
+    );
+    // Measured 2026-11-28: 5 cells, contiguous at the tip. The disc predicts 7.4 cells of
+    // blur, of which the outer parts differ by less than a tenth.
+    assert!(
+        (3..=12).contains(&differ.len()),
+        "penumbra {} cells",
+        differ.len()
+    );
+    assert!(
+        differ.last().unwrap() - differ[0] < 15,
+        "the differences are one penumbra: {differ:?}"
+    );
+}
