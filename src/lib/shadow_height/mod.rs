@@ -219,6 +219,10 @@ pub struct Measurement {
     pub lines_total: usize,
     /// See `lines_total`.
     pub lines_used: usize,
+    /// The roofs the valid lines imply over the real terrain (terrain at the shadow's tip +
+    /// its length · tan e): their lower quartile, median and upper quartile, absolute metres;
+    /// `None` without a valid line. How much the lines agree.
+    pub line_roofs: Option<[f64; 3]>,
     /// The detection threshold on the shadow index (`None` with a given mask or no contrast).
     pub threshold: Option<f64>,
     /// The roof's plausible range at 68 % and 95 % (absolute metres, low and high), with
@@ -1319,6 +1323,7 @@ impl PassInputs<'_> {
             shadow_length_m: None,
             lines_total: 0,
             lines_used: 0,
+            line_roofs: None,
             threshold,
             roof_z_intervals: None,
             roof_z_at_least: None,
@@ -1332,6 +1337,11 @@ impl PassInputs<'_> {
         let s = sought.scan_growing(&mut local);
         m.lines_total = s.lines;
         m.lines_used = s.lengths.len();
+        let q = |at| scan::quantile(&s.tip_roofs, at);
+        m.line_roofs = q(0.25)
+            .zip(q(0.5))
+            .zip(q(0.75))
+            .map(|((a, b), c)| [a, b, c]);
         m.flags.shadow_cut_by_edge_or_nodata = s.cut > 0;
         m.flags.shadow_on_other_building = s.on_other > 0;
         m.flags.no_shadow = s.with_shadow == 0 && !s.lengths.is_empty();
@@ -1444,7 +1454,7 @@ impl PassInputs<'_> {
             None => m.flags.estimates_disagree = true,
         }
         m.flags.poor_shadow_match = r.overlap < MIN_OVERLAP;
-        m.roof_z_intervals = Some(uncertainty::intervals(&m, &r, &line_roofs));
+        m.roof_z_intervals = Some(uncertainty::intervals(&m, &r, self.opts.max_height_m));
         Ok(m)
     }
 

@@ -61,7 +61,7 @@ pub fn heights_geojson(
                     p.insert("shadow_length_m".into(), json!(m.shadow_length_m));
                     p.insert(
                         "scan_lines".into(),
-                        json!({ "total": m.lines_total, "used": m.lines_used }),
+                        json!({ "total": m.lines_total, "used": m.lines_used, "roof_z_quartiles": m.line_roofs }),
                     );
                     p.insert("shadow_threshold".into(), json!(m.threshold));
                     p.insert("flags".into(), json!(m.flags.names()));

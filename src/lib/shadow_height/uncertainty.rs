@@ -11,32 +11,35 @@
 //!   edge's cover is read from mixed cells, so the wall the shadow starts from is known to
 //!   about [`EDGE_CELLS`] of a cell — `EDGE_CELLS · cell · tan(e)` of height, one standard
 //!   error, added in quadrature on each side;
-//! * **the checks** that flag a height: a refinement away from the scan lines' roof
-//!   (`estimates_disagree`) takes that roof into both intervals; lines that disagree with each
-//!   other (`lines_disagree`) put their middle half into the 95 % one; a poor match of the
-//!   shadows (`poor_shadow_match`) widens the 95 % one by [`AGREE_CELLS`] cells of shadow each
-//!   way. So a flag is a reason attached to a wide interval.
+//! * **the scan lines**: each valid line implies a roof over the real terrain; their middle
+//!   half is in the 68 % interval and [`LINE_FENCE`] interquartile ranges beyond it in the
+//!   95 % one (lines that agree add nothing; lines split by a neighbour, a tree or a car
+//!   widen it), and a refinement away from their median (`estimates_disagree`) takes the
+//!   median into the 68 % one;
+//! * **a poor match** of the synthetic and the observed shadow (`poor_shadow_match`): the fit
+//!   explains little of the photo, so the 95 % interval is every height sought, from the
+//!   ground to `--max-height`. So a flag is a reason attached to a wide interval.
 //!
 //! A lower bound ([`at_least`]) comes from the scan lines whose shadow ran into something that
 //! hides its end — another building, the grid's edge, nodata: the shadow reached at least
 //! there.
 //!
-//! The constants ([`EDGE_CELLS`], [`refine::NOISE_INFLATION`]) are calibrated on the POV-Ray
+//! The constants ([`EDGE_CELLS`], [`LINE_FENCE`], [`refine::NOISE_INFLATION`]) are calibrated on the POV-Ray
 //! harnesses so that truth falls outside the 95 % interval for at most 5 % of the buildings
 //! (docs/shadow-height.md, "Heights with their uncertainty").
 
 use super::refine::{self, PLAUSIBLE_SIGMAS};
 use super::scan::{self, Scan};
-use super::{Measurement, AGREE_CELLS, MIN_VALID_LINES};
+use super::{Measurement, MIN_VALID_LINES};
 
 /// How well the walls a shadow starts from are placed, in cells, one standard error: the
 /// registration's eighth of a cell and the cover read from the edge's mixed cells.
 pub const EDGE_CELLS: f64 = 0.15;
 
 /// The 68 % and 95 % intervals of the roof of `m` (absolute metres), measured with `m.flags`
-/// set, from the refinement `r` and the roofs its valid scan lines imply (`line_roofs`,
-/// absolute metres, finite).
-pub fn intervals(m: &Measurement, r: &refine::Refined, line_roofs: &[f64]) -> [(f64, f64); 2] {
+/// and `m.line_roofs` set, from the refinement `r`; `max_height_m` is the tallest building
+/// sought (metres above the ground).
+pub fn intervals(m: &Measurement, r: &refine::Refined, max_height_m: f64) -> [(f64, f64); 2] {
     let roof = m.ground_z + r.height_m;
     let edge = EDGE_CELLS * m.uncertainty_m;
     let mut out: [(f64, f64); 2] = std::array::from_fn(|k| {
@@ -48,21 +51,19 @@ pub fn intervals(m: &Measurement, r: &refine::Refined, line_roofs: &[f64]) -> [(
         )
     });
     let take = |iv: &mut (f64, f64), z: f64| *iv = (iv.0.min(z), iv.1.max(z));
-    if m.flags.estimates_disagree {
-        if let Some(ray_roof) = scan::median(line_roofs) {
-            out.iter_mut().for_each(|iv| take(iv, ray_roof));
-        }
-    }
-    if m.flags.lines_disagree {
-        for q in [0.25, 0.75] {
-            if let Some(z) = scan::quantile(line_roofs, q) {
-                take(&mut out[1], z);
-            }
+    if let Some([q1, median, q3]) = m.line_roofs {
+        take(&mut out[0], q1);
+        take(&mut out[0], q3);
+        let fence = LINE_FENCE * (q3 - q1);
+        take(&mut out[1], q1 - fence);
+        take(&mut out[1], q3 + fence);
+        if m.flags.estimates_disagree {
+            take(&mut out[0], median);
         }
     }
     if m.flags.poor_shadow_match {
-        let tol = AGREE_CELLS * m.uncertainty_m;
-        out[1] = (out[1].0 - tol, out[1].1 + tol);
+        take(&mut out[1], m.ground_z);
+        take(&mut out[1], m.ground_z + max_height_m);
     }
     // Nested: the 95 % interval holds the 68 % one.
     let inner = out[0];
@@ -70,6 +71,11 @@ pub fn intervals(m: &Measurement, r: &refine::Refined, line_roofs: &[f64]) -> [(
     take(&mut out[1], inner.1);
     out
 }
+
+/// How far beyond the scan lines' middle half the 95 % interval reaches, in interquartile
+/// ranges (Tukey's fences): lines that disagree are evidence the refinement may have followed
+/// the wrong ones.
+pub const LINE_FENCE: f64 = 1.5;
 
 /// The lowest roof (absolute metres) the dropped scan lines of `s` show, for a footprint on
 /// ground `ground_z` (metres) whose shadow could not be measured to its end: the median of
@@ -103,6 +109,7 @@ mod tests {
             shadow_length_m: Some(10.0),
             lines_total: 10,
             lines_used: 10,
+            line_roofs: None,
             threshold: None,
             roof_z_intervals: None,
             roof_z_at_least: None,
@@ -121,14 +128,13 @@ mod tests {
     #[test]
     fn a_sharp_fit_is_as_sure_as_its_edges_and_a_loose_one_as_its_fit() {
         let m = measured(Flags::default());
-        let lines = [110.0; 8];
         // The fit pins the height to a point: the edges' place is all that is left.
-        let [a, b] = intervals(&m, &refined([(10.0, 10.0); 2]), &lines);
+        let [a, b] = intervals(&m, &refined([(10.0, 10.0); 2]), 150.0);
         let edge = EDGE_CELLS * 0.5;
         assert!((a.0 - (110.0 - edge)).abs() < 1e-12 && (a.1 - (110.0 + edge)).abs() < 1e-12);
         assert!((b.1 - (110.0 + 1.96 * edge)).abs() < 1e-12);
         // A lopsided fit stays lopsided, widened a little by the edges.
-        let [a, b] = intervals(&m, &refined([(9.0, 13.0), (7.0, 16.0)]), &lines);
+        let [a, b] = intervals(&m, &refined([(9.0, 13.0), (7.0, 16.0)]), 150.0);
         assert!(
             a.0 < 109.0 && a.0 > 108.99 && a.1 > 113.0 && a.1 < 113.01,
             "{a:?}"
@@ -137,29 +143,30 @@ mod tests {
     }
 
     #[test]
-    fn a_flag_widens_the_interval_to_hold_the_evidence_it_names() {
-        let lines = [104.0, 104.5, 105.0, 110.0, 111.0, 118.0];
+    fn the_lines_and_the_flags_widen_the_interval_to_hold_their_evidence() {
         let tight = refined([(10.0, 10.0); 2]);
-        let disagree = Flags {
-            estimates_disagree: true,
-            ..Flags::default()
-        };
-        let [a, b] = intervals(&measured(disagree), &tight, &lines);
-        let ray_roof = scan::median(&lines).unwrap();
-        assert!(a.0 <= ray_roof && b.0 <= ray_roof, "{a:?} {b:?}");
-        let scattered = Flags {
-            lines_disagree: true,
-            ..Flags::default()
-        };
-        let [a, b] = intervals(&measured(scattered), &tight, &lines);
-        assert!(a.0 > 109.0, "{a:?}");
-        assert!(b.0 <= 104.5 && b.1 >= 111.0, "{b:?}");
+        let mut m = measured(Flags::default());
+        m.line_roofs = Some([108.0, 111.0, 112.0]);
+        let [a, b] = intervals(&m, &tight, 150.0);
+        assert_eq!((a.0, a.1), (108.0, 112.0));
+        assert_eq!((b.0, b.1), (108.0 - 6.0, 112.0 + 6.0));
+        // Lines that agree add nothing.
+        m.line_roofs = Some([110.0; 3]);
+        let [a, _] = intervals(&m, &tight, 150.0);
+        assert!(a.1 - a.0 < 0.2, "{a:?}");
+        // A refinement away from the lines takes their median into the 68 % interval.
+        m.line_roofs = Some([104.0, 104.5, 105.0]);
+        m.flags.estimates_disagree = true;
+        let [a, b] = intervals(&m, &tight, 150.0);
+        assert!(a.0 <= 104.0 && b.0 <= 102.5, "{a:?} {b:?}");
+        // A poor match of the shadows: anything from the ground to the tallest sought.
         let poor = Flags {
             poor_shadow_match: true,
             ..Flags::default()
         };
-        let [_, b] = intervals(&measured(poor), &tight, &lines);
-        assert!(b.0 <= 110.0 - AGREE_CELLS * 0.5 && b.1 >= 110.0 + AGREE_CELLS * 0.5);
+        let [a, b] = intervals(&measured(poor), &tight, 150.0);
+        assert!(a.1 - a.0 < 0.2, "{a:?}");
+        assert_eq!((b.0, b.1), (100.0, 250.0));
     }
 
     #[test]
