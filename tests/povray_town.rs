@@ -234,7 +234,8 @@ fn pitched_roofs_follow_the_stated_convention() {
     use povray::{Building, PolygonBuilding, Rng, Scene, Structure};
     // The roof POV-Ray renders (its half-spaces) is the convention's formula
     // (PolygonBuilding::roof_z_at) at every point of the footprint, for the town's pitched
-    // roofs; and a rectangle's Gable/Hip (rotation_deg from east) is the same roof as the
+    // roofs, and so is dbms's own (dbms::roof::RoofShape, from the truth file's properties);
+    // and a rectangle's Gable/Hip (rotation_deg from east) is the same roof as the
     // polygon one with the ridge azimuth 90° − rotation_deg.
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let town = Town::load(root, 39).unwrap();
@@ -280,6 +281,55 @@ fn pitched_roofs_follow_the_stated_convention() {
         checked += 1;
     }
     assert!(checked > 100, "{checked} pitched roofs");
+    // dbms's own statement of the same roofs (dbms::roof, read from the truth file's
+    // properties as the buildings layer would be) gives the same heights.
+    let ws = window_scene(
+        &town,
+        &Shot {
+            sw: TOWN_SW,
+            side: TOWN_SIDE,
+            margin: 0.0,
+            cell: 1.0,
+            sun_azimuth_deg: 135.0,
+            sun_elevation_deg: 40.0,
+            gradient: (0.02, -0.01),
+            camera: Camera::Ortho,
+            footprint_shift: (0.0, 0.0),
+            unlisted: 0.0,
+            antialias: 1,
+            seed: 0,
+        },
+    );
+    let truth: serde_json::Value =
+        serde_json::from_str(&town::truth_geojson(&town, &ws.scene)).unwrap();
+    let mut pitched = 0;
+    for (f, b) in truth["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(&ws.scene.buildings)
+    {
+        let p = &f["properties"];
+        let top = p["roof_z"].as_f64().unwrap();
+        let pitch = dbms::roof::Pitch::from_properties(p, top).unwrap();
+        pitched += pitch.is_some() as usize;
+        let shape = dbms::roof::RoofShape::new(std::slice::from_ref(&b.outline), top, pitch);
+        let (lo, hi) = town::bbox(&b.outline);
+        let mut n = 0;
+        while n < 20 {
+            let q = (rng.range(lo.0, hi.0), rng.range(lo.1, hi.1));
+            if !town::inside(&b.outline, q) {
+                continue;
+            }
+            n += 1;
+            let (ours, theirs) = (b.roof_z_at(q), shape.z_at(q));
+            assert!(
+                (ours - theirs).abs() < 1e-6,
+                "{p}: at {q:?} the harness says {ours}, dbms::roof {theirs}"
+            );
+        }
+    }
+    assert_eq!(pitched, checked, "every pitched roof stated to dbms");
     for (rot, roof) in [
         (
             30.0,

@@ -593,11 +593,12 @@ pub fn listed(scene: &Scene<PolygonBuilding>, k: usize) -> bool {
     scene.buildings[k].listed()
 }
 
-/// Every building's truth in `scene` as GeoJSON (EPSG:32613): properties `id` (index in the
-/// town and the scene), `feature` (index in the footprint file), `form` (`flat`, `gable`,
-/// `hip`), `tower`, `eave_z` and `ridge_z` (absolute metres; both the roof for a flat one),
-/// `ridge_azimuth_deg` (degrees clockwise from grid north, [0, 180); null when flat), `listed`;
-/// the true (unshifted) footprint.
+/// Every building's truth in `scene` as GeoJSON (EPSG:32613), its roof in dbms's own
+/// property names (`dbms::roof::property`): `roof_z` (the top: the flat roof or the ridge,
+/// absolute metres), `roof_form` (`flat`, `gable`, `hip`), and for a pitched roof `eave_z`
+/// (absolute metres) and `roof_azimuth_deg` (the ridge, degrees clockwise from grid north, in
+/// [0, 180)); also `id` (index in the town and the scene), `feature` (index in the footprint
+/// file), `tower`, `listed`; the true (unshifted) footprint.
 pub fn truth_geojson(town: &Town, scene: &Scene<PolygonBuilding>) -> String {
     let features: Vec<String> = scene
         .buildings
@@ -606,19 +607,21 @@ pub fn truth_geojson(town: &Town, scene: &Scene<PolygonBuilding>) -> String {
         .map(|(k, b)| {
             let mut ring: Vec<[f64; 2]> = b.outline.iter().map(|p| [p.0, p.1]).collect();
             ring.push(ring[0]);
-            let flat = matches!(b.roof, Roof::Flat { .. });
+            let mut p = serde_json::json!({
+                "id": k,
+                "feature": town.buildings[k].feature,
+                "roof_z": b.roof.top_z(),
+                "roof_form": b.roof.form(),
+                "tower": town.buildings[k].tower,
+                "listed": b.listed,
+            });
+            if !matches!(b.roof, Roof::Flat { .. }) {
+                p["eave_z"] = b.roof.eave_z().into();
+                p["roof_azimuth_deg"] = b.ridge_azimuth_deg.into();
+            }
             serde_json::json!({
                 "type": "Feature",
-                "properties": {
-                    "id": k,
-                    "feature": town.buildings[k].feature,
-                    "form": b.roof.form(),
-                    "tower": town.buildings[k].tower,
-                    "eave_z": b.roof.eave_z(),
-                    "ridge_z": b.roof.top_z(),
-                    "ridge_azimuth_deg": if flat { None } else { Some(b.ridge_azimuth_deg) },
-                    "listed": b.listed,
-                },
+                "properties": p,
                 "geometry": { "type": "Polygon", "coordinates": [ring] },
             })
             .to_string()
