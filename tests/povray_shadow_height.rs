@@ -15,21 +15,6 @@ mod shadow_truth;
 use povray::{isolated_layout, Building, Camera, Rng, Roof, Scene};
 use shadow_truth::{measure_prepared, measure_scene, prepare_scene, Outcome};
 
-fn have_povray() -> bool {
-    let ok = std::process::Command::new("povray")
-        .arg("--version")
-        .output()
-        .is_ok();
-    if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "povray is not on PATH under CI: .ci/run must install it"
-        );
-        eprintln!("skipped: povray not on PATH (apt-get install povray)");
-    }
-    ok
-}
-
 fn flat(z: f64) -> Roof {
     Roof::Flat { z }
 }
@@ -52,7 +37,7 @@ fn scene(cell: f64, az: f64, el: f64, buildings: Vec<Building>) -> Scene {
 
 #[test]
 fn the_issue_13_diagonal_case_is_measured_within_a_cell() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     // 9.7 m east–west × 18.7 m north–south on flat ground at 250 m, 0.5 m cells, sun 135° /
@@ -143,7 +128,7 @@ fn slice_scene(
 
 #[test]
 fn hard_case_exact_diagonals_axes_and_a_few_ulps_off_them() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     let ulps = |v: f64, k: i64| f64::from_bits((v.to_bits() as i64 + k) as u64);
@@ -176,7 +161,7 @@ fn hard_case_exact_diagonals_axes_and_a_few_ulps_off_them() {
 
 #[test]
 fn hard_case_slopes_and_cell_sizes() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     for (name, cell, az, el, ground, rotated) in [
@@ -211,7 +196,7 @@ fn hard_case_slopes_and_cell_sizes() {
 
 #[test]
 fn misregistered_footprints_are_moved_onto_their_roofs() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     // Footprints from another source sit off the photo (0.5 m cells): the scene's shift is
@@ -255,7 +240,7 @@ fn tally(name: &str, s: &Scene) -> (usize, usize, usize) {
 
 #[test]
 fn a_perspective_photo_without_its_camera_is_measured_or_flagged() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     // Frame photos rectified on the ground, and dbms not told where they were taken: from
@@ -302,7 +287,7 @@ fn a_perspective_photo_without_its_camera_is_measured_or_flagged() {
 
 #[test]
 fn real_photo_effects_are_handled_or_flagged() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     use povray::Clutter;

@@ -24,21 +24,6 @@ use shadow_truth::{measure_prepared, prepare_scene_photo};
 use std::path::Path;
 use town::{window_scene, Shot, Town, TOWN_SIDE, TOWN_SW};
 
-fn have_povray() -> bool {
-    let ok = std::process::Command::new("povray")
-        .arg("--version")
-        .output()
-        .is_ok();
-    if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "povray is not on PATH under CI: .ci/run must install it"
-        );
-        eprintln!("skipped: povray not on PATH (apt-get install povray)");
-    }
-    ok
-}
-
 /// Window side, metres.
 const SIDE: f64 = 100.0;
 
@@ -80,7 +65,7 @@ fn windows(town: &Town) -> Vec<(f64, f64)> {
 
 #[test]
 fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -379,7 +364,7 @@ fn pitched_roofs_follow_the_stated_convention() {
 
 #[test]
 fn the_soft_sun_casts_penumbrae_as_wide_as_the_solar_disc_predicts() {
-    if !have_povray() {
+    if !povray::available() {
         return;
     }
     use povray::{Building, Scene};

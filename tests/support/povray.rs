@@ -803,6 +803,20 @@ impl<B: Structure> Scene<B> {
     }
 }
 
+/// Whether POV-Ray is on PATH, for a test that needs it: without it the test says so and
+/// should pass, except under CI (`CI` set), where this fails the test: `.ci/run` installs it.
+pub fn available() -> bool {
+    let ok = Command::new("povray").arg("--version").output().is_ok();
+    if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "povray is not on PATH under CI: .ci/run must install it"
+        );
+        eprintln!("skipped: povray not on PATH (apt-get install povray)");
+    }
+    ok
+}
+
 /// A deterministic stream of numbers in [0, 1) (a 64-bit LCG): the harness's scenes are the same
 /// on every run.
 pub struct Rng(pub u64);
