@@ -172,6 +172,11 @@ pub struct Flags {
     /// The synthetic shadow at the refined height overlaps the observed one by less than
     /// [`MIN_OVERLAP`] (IoU).
     pub poor_shadow_match: bool,
+    /// Scan lines dropped where the shadow ran into something that hides its end saw it reach
+    /// a roof more than [`AGREE_CELLS`] cells of shadow above the measured one
+    /// ([`uncertainty::at_least`]): the valid lines ended early (a car's or a tree's lit top in
+    /// the shadow, a misread cell), and the roof is probably higher.
+    pub shadow_reaches_further: bool,
 }
 
 impl Flags {
@@ -191,6 +196,7 @@ impl Flags {
             (self.lines_disagree, "lines_disagree"),
             (self.estimates_disagree, "estimates_disagree"),
             (self.poor_shadow_match, "poor_shadow_match"),
+            (self.shadow_reaches_further, "shadow_reaches_further"),
         ]
         .into_iter()
         .filter_map(|(on, name)| on.then_some(name))
@@ -438,7 +444,11 @@ fn camera_from_heights(
     let as_given = measure(inputs, given, sun, opts)?;
     let trusted = |m: &Measurement| {
         let f = &m.flags;
-        !(f.no_shadow || f.lines_disagree || f.estimates_disagree || f.poor_shadow_match)
+        !(f.no_shadow
+            || f.lines_disagree
+            || f.estimates_disagree
+            || f.poor_shadow_match
+            || f.shadow_reaches_further)
     };
     let heights: Vec<Option<f64>> = as_given
         .iter()
@@ -1454,7 +1464,14 @@ impl PassInputs<'_> {
             None => m.flags.estimates_disagree = true,
         }
         m.flags.poor_shadow_match = r.overlap < MIN_OVERLAP;
-        m.roof_z_intervals = Some(uncertainty::intervals(&m, &r, self.opts.max_height_m));
+        let least = uncertainty::at_least(s, ground_z);
+        m.flags.shadow_reaches_further = least.is_some_and(|z| z > ground_z + r.height_m + tol);
+        m.roof_z_intervals = Some(uncertainty::intervals(
+            &m,
+            &r,
+            least,
+            self.opts.max_height_m,
+        ));
         Ok(m)
     }
 
