@@ -23,7 +23,7 @@ pub fn prism_mesh(prism: &Prism, base_z: f64, colour: [u8; 3]) -> Result<Mesh, S
         return Err("its outline has fewer than three corners".into());
     }
     let mut mesh = Mesh::default();
-    roof(&rings, prism.roof_z, colour, &mut mesh)?;
+    roof(&rings, prism.roof.top_z, colour, &mut mesh)?;
     if mesh.is_empty() {
         return Err("its outline encloses no area".into());
     }
@@ -35,7 +35,14 @@ pub fn prism_mesh(prism: &Prism, base_z: f64, colour: [u8; 3]) -> Result<Mesh, S
             .filter(|&(j, other)| j != k && inside(std::slice::from_ref(other), ring[0]))
             .count();
         let solid_on_left = (signed_area(ring) > 0.0) == (depth % 2 == 0);
-        walls(ring, solid_on_left, base_z, prism.roof_z, colour, &mut mesh);
+        walls(
+            ring,
+            solid_on_left,
+            base_z,
+            prism.roof.top_z,
+            colour,
+            &mut mesh,
+        );
     }
     Ok(mesh)
 }
@@ -215,7 +222,7 @@ mod tests {
         let m = prism_mesh(
             &Prism {
                 rings: vec![l_shape()],
-                roof_z,
+                roof: crate::roof::RoofShape::flat(roof_z),
             },
             370.0,
             [200, 100, 50],
@@ -260,7 +267,7 @@ mod tests {
             };
             let p = Prism {
                 rings: vec![rev(&outer, o), rev(&hole, h)],
-                roof_z: 12.0,
+                roof: crate::roof::RoofShape::flat(12.0),
             };
             let m = prism_mesh(&p, 0.0, [1, 2, 3]).unwrap();
             assert!(
@@ -287,7 +294,7 @@ mod tests {
     fn crossing_and_empty_outlines_are_errors() {
         let bow = Prism {
             rings: vec![vec![(0.0, 0.0), (4.0, 4.0), (4.0, 0.0), (0.0, 4.0)]],
-            roof_z: 5.0,
+            roof: crate::roof::RoofShape::flat(5.0),
         };
         assert_eq!(
             prism_mesh(&bow, 0.0, [0; 3]).unwrap_err(),
@@ -295,12 +302,12 @@ mod tests {
         );
         let flat = Prism {
             rings: vec![vec![(0.0, 0.0), (4.0, 0.0), (8.0, 0.0)]],
-            roof_z: 5.0,
+            roof: crate::roof::RoofShape::flat(5.0),
         };
         assert!(prism_mesh(&flat, 0.0, [0; 3]).is_err());
         let two = Prism {
             rings: vec![vec![(0.0, 0.0), (4.0, 0.0)]],
-            roof_z: 5.0,
+            roof: crate::roof::RoofShape::flat(5.0),
         };
         assert!(prism_mesh(&two, 0.0, [0; 3]).is_err());
     }

@@ -218,7 +218,13 @@ pub fn things(db: &Database) -> Result<Vec<Thing>> {
 
 fn building(grid: &Grid, prism: &Prism) -> Thing {
     use sha2::{Digest, Sha256};
-    let text = format!("{:?} {:?}", prism.rings, prism.roof_z);
+    // A flat roof's text is what it was before roofs could be pitched (ledgers stay valid); a
+    // pitched one adds its pitch and extent, so a change of form, eaves or direction, or of
+    // another part of the same feature (the extent), touches the building's pages.
+    let text = match prism.roof.pitch {
+        None => format!("{:?} {:?}", prism.rings, prism.roof.top_z),
+        Some(pitch) => format!("{:?} {:?} {:?}", prism.rings, prism.roof.top_z, pitch),
+    };
     let pts = prism.rings.iter().flatten();
     let b = pts.fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, &(x, y)| {
         [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]
@@ -229,7 +235,7 @@ fn building(grid: &Grid, prism: &Prism) -> Thing {
             crate::manifest::hex(&Sha256::digest(text.as_bytes()))
         ),
         cells: box_cells(grid, b),
-        top: prism.roof_z,
+        top: prism.roof.top_z,
     }
 }
 
