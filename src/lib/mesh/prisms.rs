@@ -11,10 +11,10 @@
 //! constrained edges, so no triangle crosses a crease and each lies in one roof plane; its
 //! triangles inside the polygon by the even-odd rule (an odd number of outline edges from
 //! outside, so holes stay open, as [`crate::standing::polygon_cells`] rasterises them) are
-//! kept. Walls face out of the solid
-//! (an outer ring's walls away from its inside, a hole's walls into the hole) and reach the
-//! roof along each edge of the split outline, at the same points the roof has there: a gable
-//! wall is two quads meeting under the ridge, and walls and roof close without a gap.
+//! kept. Walls face out of the solid (an outer ring's walls away from its inside, a hole's walls
+//! into the hole) and reach the roof along each edge of the split outline, at the same points
+//! the roof has there: a gable wall is two quads meeting under the ridge, and walls and roof
+//! close without a gap.
 
 use super::creases::{cut, Cut};
 use super::Mesh;
