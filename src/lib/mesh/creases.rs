@@ -36,8 +36,8 @@ pub fn cut(rings: &[Vec<(f64, f64)>], roof: &RoofShape) -> Cut {
         };
     }
     let mut points = Points(rings.iter().flatten().copied().collect());
-    // Along each crease: (parameter from its start, point, on the outline).
-    let mut along: Vec<Vec<(f64, (f64, f64), bool)>> = creases.iter().map(|_| Vec::new()).collect();
+    // Along each crease: (parameter from its start, point) where it meets the outline.
+    let mut along: Vec<Vec<(f64, (f64, f64))>> = vec![Vec::new(); creases.len()];
     let mut split = Vec::with_capacity(rings.len());
     for ring in rings {
         let mut out = Vec::with_capacity(ring.len());
@@ -48,7 +48,7 @@ pub fn cut(rings: &[Vec<(f64, f64)>], roof: &RoofShape) -> Cut {
             for (crease, list) in creases.iter().zip(&mut along) {
                 for (s, t) in meet(a, b, crease[0], crease[1]) {
                     let p = points.snap(lerp(a, b, s));
-                    list.push((t, p, true));
+                    list.push((t, p));
                     if p != a && p != b && !on_edge.iter().any(|e| e.1 == p) {
                         on_edge.push((s, p));
                     }
@@ -62,8 +62,8 @@ pub fn cut(rings: &[Vec<(f64, f64)>], roof: &RoofShape) -> Cut {
     let mut pieces = Vec::new();
     for (&[p, q], mut list) in creases.iter().zip(along) {
         // A crease's own ends, unless they are on the outline (then they snap to it).
-        list.push((0.0, points.snap(p), false));
-        list.push((1.0, points.snap(q), false));
+        list.push((0.0, points.snap(p)));
+        list.push((1.0, points.snap(q)));
         list.sort_by(|x, y| x.0.total_cmp(&y.0));
         for w in list.windows(2) {
             let (u, v) = (w[0].1, w[1].1);
