@@ -238,7 +238,7 @@ fn generate(work: &Path, size: usize, count: usize) {
         .map(|b| {
             let prism = Prism {
                 rings: vec![b.ring.clone()],
-                roof_z: 0.0,
+                roof: dbms::roof::RoofShape::flat(0.0),
             };
             rasterise_prisms(&grid, std::slice::from_ref(&prism))
                 .into_iter()

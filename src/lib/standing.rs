@@ -12,10 +12,14 @@
 //! object cell is its top voxel's (the orthophoto never saw objects placed afterwards), while a
 //! building cell keeps the photo's roof colour.
 //!
-//! * Buildings are flat-roofed prisms (GeoJSON polygons with an absolute `roof_z` in metres, the
-//!   `buildings` layer that `dbms shadow-height --apply` writes): a cell is inside when its
+//! * Buildings are prisms (GeoJSON polygons with an absolute `roof_z` in metres, the
+//!   `buildings` layer that `dbms shadow-height --apply` writes), flat-roofed or pitched
+//!   (gable, hip, shed: [`crate::roof`], whose `roof_z` is the ridge): a cell is inside when its
 //!   **centre** is inside the polygon (even-odd rule, so holes work), like `gdal_rasterize`.
-//!   A building cell is one piece from the ground to the roof.
+//!   A building cell is one piece from the ground to the roof at the cell's centre
+//!   ([`RoofShape::z_at`]; `roof_z` everywhere for a flat roof), so a pitched roof's columns
+//!   rise from the eaves to the ridge, and shading, cast shadows and the pyramid see its
+//!   slopes through the cells alone.
 //! * A voxel object marks every cell whose centre lies inside one of its voxels' footprints (the
 //!   voxel's square rotated by the heading), and always the cell holding the voxel's centre, so
 //!   voxels smaller than a cell are not lost. Each voxel is a piece `[bottom, top]` in every
@@ -29,6 +33,7 @@ use crate::db::{Database, PlacedObject};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::raster::{Elevation, RowSource};
+use crate::roof::{self, Pitch, RoofShape};
 use crate::voxel::object::VoxelObject;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -343,17 +348,21 @@ impl Raised {
     }
 }
 
-/// A flat-roofed prism: a polygon (outer ring and holes, CRS units) raised to `roof_z` metres.
+/// A prism: a polygon (outer ring and holes, CRS units) raised to its roof, flat or pitched.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Prism {
     /// Rings of `(x, y)` vertices; the even-odd rule decides inside, so holes are just rings.
     pub rings: Vec<Vec<(f64, f64)>>,
-    /// Absolute roof height, metres.
-    pub roof_z: f64,
+    /// The roof: its top (`roof_z`, absolute metres: the ridge of a pitched roof) and pitch,
+    /// over the extent of the whole feature (every part of a MultiPolygon).
+    pub roof: RoofShape,
 }
 
 /// Read the `buildings` layer: a GeoJSON FeatureCollection of Polygon / MultiPolygon features
-/// in the database CRS, each with a numeric `roof_z` property (absolute metres).
+/// in the database CRS, each with a numeric `roof_z` property (absolute metres: the top of the
+/// roof) and, for a pitched roof, `roof_form`, `eave_z` and `roof_azimuth_deg` together
+/// ([`crate::roof::Pitch::from_properties`]). A MultiPolygon is a prism per part, all under
+/// one roof.
 pub fn read_buildings(path: &Path) -> Result<Vec<Prism>> {
     let features = crate::geojson::read_features(path, "re-run `dbms shadow-height --apply`")?;
     let mut prisms = Vec::new();
@@ -369,16 +378,28 @@ pub fn read_buildings(path: &Path) -> Result<Vec<Prism>> {
         if !roof_z.is_finite() {
             return Err(bad("roof_z is not finite"));
         }
+        let pitch = Pitch::from_properties(&f["properties"], roof_z).map_err(|e| {
+            Error::file(path, format!("feature {i}: {e}")).fix(format!(
+                "a pitched roof states {}, {} (metres, at most roof_z) and {} (degrees) \
+                 together; leave {} out for a flat roof",
+                roof::property::FORM,
+                roof::property::EAVE_Z,
+                roof::property::AZIMUTH,
+                roof::property::FORM
+            ))
+        })?;
         let geometry = f.get("geometry").ok_or_else(|| bad("no geometry"))?;
-        for rings in crate::geojson::polygons(geometry).map_err(|e| bad(&e))? {
-            prisms.push(Prism { rings, roof_z });
-        }
+        let parts = crate::geojson::polygons(geometry).map_err(|e| bad(&e))?;
+        let outline: Vec<Vec<(f64, f64)>> = parts.iter().flatten().cloned().collect();
+        let roof = RoofShape::new(&outline, roof_z, pitch);
+        prisms.extend(parts.into_iter().map(|rings| Prism { rings, roof }));
     }
     Ok(prisms)
 }
 
-/// The cells of `grid` whose centres are inside each prism, raised to its roof (opaque, photo
-/// colour), by [`polygon_cells`].
+/// The cells of `grid` whose centres are inside each prism ([`polygon_cells`]), raised to its
+/// roof at the cell's centre ([`RoofShape::z_at`]: a pitched roof's columns rise with it),
+/// opaque, photo colour.
 pub fn rasterise_prisms(grid: &Grid, prisms: &[Prism]) -> Vec<RaisedCell> {
     prisms
         .par_iter()
@@ -387,7 +408,10 @@ pub fn rasterise_prisms(grid: &Grid, prisms: &[Prism]) -> Vec<RaisedCell> {
                 .into_iter()
                 .map(|index| RaisedCell {
                     index,
-                    top_z: prism.roof_z as f32,
+                    top_z: prism
+                        .roof
+                        .z_at(grid.cell_centre(index % grid.width, index / grid.width))
+                        as f32,
                     colour: None,
                     partial: false,
                 })
@@ -502,7 +526,7 @@ pub type Marked<'a> = Vec<(&'a PlacedObject, Vec<usize>)>;
 /// one) and its placed voxel objects, each merged, and both together. The surface shadows are
 /// cast over is the terrain with `all` laid over it.
 pub struct Standing {
-    /// Raised buildings (flat-roofed prisms).
+    /// Raised buildings (prisms, each cell at its roof).
     pub buildings: Raised,
     /// Placed voxel objects.
     pub objects: Raised,
@@ -760,7 +784,7 @@ mod tests {
         // 2..8 × 2..8 with a hole 4..6 × 4..6: 36 − 4 = 32 cells.
         let p = Prism {
             rings: vec![square(2.0, 2.0, 8.0, 8.0), square(4.0, 4.0, 6.0, 6.0)],
-            roof_z: 110.0,
+            roof: crate::roof::RoofShape::flat(110.0),
         };
         let raised = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
         assert_eq!(raised.len(), 32);
@@ -778,12 +802,12 @@ mod tests {
         t.data[5] = f32::NAN;
         let low = Prism {
             rings: vec![square(0.0, 0.0, 4.0, 4.0)],
-            roof_z: 99.0,
+            roof: crate::roof::RoofShape::flat(99.0),
         };
         assert!(Raised::new(rasterise_prisms(&t.grid, &[low]), &t).is_empty());
         let high = Prism {
             rings: vec![square(0.0, 0.0, 4.0, 4.0)],
-            roof_z: 101.0,
+            roof: crate::roof::RoofShape::flat(101.0),
         };
         let r = Raised::new(rasterise_prisms(&t.grid, &[high]), &t);
         assert_eq!(r.len(), 15);
@@ -795,11 +819,11 @@ mod tests {
         let t = flat(4, 4, 0.0);
         let a = Prism {
             rings: vec![square(0.0, 0.0, 3.0, 3.0)],
-            roof_z: 5.0,
+            roof: crate::roof::RoofShape::flat(5.0),
         };
         let b = Prism {
             rings: vec![square(1.0, 1.0, 4.0, 4.0)],
-            roof_z: 9.0,
+            roof: crate::roof::RoofShape::flat(9.0),
         };
         let r = Raised::new(rasterise_prisms(&t.grid, &[a, b]), &t);
         assert_eq!(r.get(t.grid.index(0, 3)).unwrap().top_z, 5.0);
@@ -816,7 +840,7 @@ mod tests {
             {"type":"Feature","properties":{"roof_z":3},"geometry":{"type":"MultiPolygon","coordinates":[[[[0,0],[1,0],[1,1],[0,0]]],[[[5,5],[6,5],[6,6],[5,5]]]]}}]}"#).unwrap();
         let b = read_buildings(&p).unwrap();
         assert_eq!(b.len(), 3);
-        assert_eq!(b[0].roof_z, 12.5);
+        assert_eq!(b[0].roof, RoofShape::flat(12.5));
         assert_eq!(b[2].rings[0][0], (5.0, 5.0));
         std::fs::write(&p, r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{},"geometry":{"type":"Polygon","coordinates":[]}}]}"#).unwrap();
         let e = read_buildings(&p).unwrap_err().to_string();
@@ -824,6 +848,75 @@ mod tests {
             e.contains("b.geojson") && e.contains("feature 0") && e.contains("roof_z"),
             "{e}"
         );
+    }
+
+    /// A gable roof 8 m wide (eaves 104, ridge 110 along the east–west centre line y = 5) on
+    /// 1 m cells: each cell's column reaches the roof at its centre, exactly; the cells under
+    /// the ridge are the highest, those by the eaves the lowest.
+    #[test]
+    fn a_pitched_roof_raises_each_cell_to_the_roof_at_its_centre() {
+        let t = flat(12, 10, 100.0);
+        let rings = vec![square(1.0, 1.0, 11.0, 9.0)];
+        let pitch = Pitch {
+            form: roof::RoofForm::Gable,
+            eave_z: 104.0,
+            azimuth_deg: 90.0,
+        };
+        let p = Prism {
+            roof: RoofShape::new(&rings, 110.0, Some(pitch)),
+            rings,
+        };
+        let raised = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
+        assert_eq!(raised.len(), 80);
+        for c in raised.cells() {
+            let (_, y) = t.grid.cell_centre(c.index % 12, c.index / 12);
+            // Across the ridge: 1.5 m of rise per metre from the centre line.
+            let want = 110.0 - 1.5 * (y - 5.0).abs();
+            assert_eq!(c.top_z, want as f32, "cell {}", c.index);
+        }
+        let top = |row: usize| raised.get(t.grid.index(5, row)).unwrap().top_z;
+        // Rows 4 and 5 have centres half a metre from the ridge; rows 1 and 8 by the eaves.
+        assert_eq!(
+            (top(4), top(5), top(1), top(8)),
+            (109.25, 109.25, 104.75, 104.75)
+        );
+    }
+
+    /// A MultiPolygon's parts are one building under one roof: its extent spans both parts.
+    /// A bad pitch names the file, the feature and the property.
+    #[test]
+    fn pitched_buildings_parse_under_one_roof_and_bad_pitches_name_the_property() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("b.geojson");
+        std::fs::write(&p, r#"{"type":"FeatureCollection","features":[
+            {"type":"Feature","properties":{"roof_z":12,"roof_form":"shed","eave_z":8,"roof_azimuth_deg":90},"geometry":{"type":"MultiPolygon","coordinates":[[[[0,0],[2,0],[2,2],[0,0]]],[[[6,0],[8,0],[8,2],[6,0]]]]}}]}"#).unwrap();
+        let b = read_buildings(&p).unwrap();
+        assert_eq!(b.len(), 2);
+        assert_eq!(b[0].roof, b[1].roof);
+        // Rising east over x 0..8: 0.5 m per metre, the parts on the same plane.
+        assert_eq!(b[0].roof.z_at((0.0, 1.0)), 8.0);
+        assert_eq!(b[1].roof.z_at((8.0, 1.0)), 12.0);
+        assert_eq!(b[1].roof.z_at((6.0, 1.0)), 11.0);
+        for (props, property) in [
+            (
+                r#""roof_form":"dome","eave_z":8,"roof_azimuth_deg":0"#,
+                "roof_form",
+            ),
+            (r#""roof_form":"gable","roof_azimuth_deg":0"#, "eave_z"),
+            (r#""roof_form":"hip","eave_z":8"#, "roof_azimuth_deg"),
+            (
+                r#""roof_form":"hip","eave_z":13,"roof_azimuth_deg":0"#,
+                "eave_z",
+            ),
+        ] {
+            std::fs::write(&p, format!(r#"{{"type":"FeatureCollection","features":[{{"type":"Feature","properties":{{"roof_z":12,{props}}},"geometry":{{"type":"Polygon","coordinates":[[[0,0],[2,0],[2,2],[0,0]]]}}}}]}}"#)).unwrap();
+            let e = read_buildings(&p).unwrap_err().to_string();
+            assert!(
+                e.contains("b.geojson") && e.contains("feature 0") && e.contains(property),
+                "{e}"
+            );
+            assert!(!e.contains('\n'), "one line: {e}");
+        }
     }
 
     fn object(voxels: Vec<([f64; 3], [u8; 3])>, heading_deg: f64) -> PlacedVoxels {
@@ -1044,7 +1137,7 @@ mod tests {
         };
         let prism = Prism {
             rings: vec![square(2.0, 2.0, 9.0, 6.0)],
-            roof_z: 106.0,
+            roof: crate::roof::RoofShape::flat(106.0),
         };
         let prism_cells = rasterise_prisms(&g, &[prism]);
         let mut wanted: Vec<usize> = prism_cells.iter().map(|c| c.index).collect();

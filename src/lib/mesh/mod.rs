@@ -10,6 +10,7 @@
 //! positions, triangles counter-clockwise seen from their outer side (from above for terrain
 //! and roofs, from outside for walls and objects).
 
+pub mod creases;
 pub mod export;
 pub mod gltf;
 pub mod prisms;

@@ -218,7 +218,13 @@ pub fn things(db: &Database) -> Result<Vec<Thing>> {
 
 fn building(grid: &Grid, prism: &Prism) -> Thing {
     use sha2::{Digest, Sha256};
-    let text = format!("{:?} {:?}", prism.rings, prism.roof_z);
+    // A flat roof's text is what it was before roofs could be pitched (ledgers stay valid); a
+    // pitched one adds its pitch and extent, so a change of form, eaves or direction, or of
+    // another part of the same feature (the extent), touches the building's pages.
+    let text = match prism.roof.pitch {
+        None => format!("{:?} {:?}", prism.rings, prism.roof.top_z),
+        Some(pitch) => format!("{:?} {:?} {:?}", prism.rings, prism.roof.top_z, pitch),
+    };
     let pts = prism.rings.iter().flatten();
     let b = pts.fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, &(x, y)| {
         [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]
@@ -229,7 +235,7 @@ fn building(grid: &Grid, prism: &Prism) -> Thing {
             crate::manifest::hex(&Sha256::digest(text.as_bytes()))
         ),
         cells: box_cells(grid, b),
-        top: prism.roof_z,
+        top: prism.roof.top_z,
     }
 }
 
@@ -737,4 +743,57 @@ pub fn stage_ledger(tiles: &Path, ledger: &Ledger) -> Result<Staged> {
     serde_json::to_writer(&mut *w, ledger).map_err(|e| Error::file(&path, e.to_string()))?;
     w.write_all(b"\n").map_err(|e| Error::io(&path, e))?;
     file.stage()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crs::Crs;
+    use crate::roof::{Pitch, RoofForm, RoofShape};
+
+    /// A building's ledger entry changes with its roof's form, eaves or direction, so the pages
+    /// it touches are made again; a flat roof's entry is what it was before roofs could be
+    /// pitched, so ledgers written then stay valid.
+    #[test]
+    fn a_roof_change_is_a_building_change() {
+        use sha2::{Digest, Sha256};
+        let grid = Grid::north_up(0.0, 20.0, 1.0, 20, 20, Crs::unknown());
+        let rings = vec![vec![(2.0, 2.0), (12.0, 2.0), (12.0, 8.0), (2.0, 8.0)]];
+        let prism = |pitch| Prism {
+            roof: RoofShape::new(&rings, 30.0, pitch),
+            rings: rings.clone(),
+        };
+        let gable = Pitch {
+            form: RoofForm::Gable,
+            eave_z: 25.0,
+            azimuth_deg: 90.0,
+        };
+        let roofs = [
+            None,
+            Some(gable),
+            Some(Pitch {
+                form: RoofForm::Hip,
+                ..gable
+            }),
+            Some(Pitch {
+                eave_z: 26.0,
+                ..gable
+            }),
+            Some(Pitch {
+                azimuth_deg: 0.0,
+                ..gable
+            }),
+        ];
+        let whats: Vec<String> = (roofs.iter())
+            .map(|&p| building(&grid, &prism(p)).what)
+            .collect();
+        for (i, a) in whats.iter().enumerate() {
+            for b in &whats[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
+        let before = format!("{:?} {:?}", rings, 30.0);
+        let before = crate::manifest::hex(&Sha256::digest(before.as_bytes()));
+        assert_eq!(whats[0], format!("building {before}"));
+    }
 }

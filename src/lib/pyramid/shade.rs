@@ -1033,7 +1033,7 @@ mod tests {
         let t = terrain(20, 20, |_, _| 0.0);
         let p = Prism {
             rings: vec![vec![(8.0, 8.0), (12.0, 8.0), (12.0, 12.0), (8.0, 12.0)]],
-            roof_z: 6.0,
+            roof: crate::roof::RoofShape::flat(6.0),
         };
         let b = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
         (t, b)
@@ -1154,7 +1154,7 @@ mod tests {
                 (x0 + 6.0, y0 + 6.0),
                 (x0, y0 + 6.0),
             ]],
-            roof_z,
+            roof: crate::roof::RoofShape::flat(roof_z),
         };
         // The photo saw two 5 m blocks: one the database does not hold (unmeasured, a tree…),
         // one it holds 12 m tall (a height measured wrong), so its cast reaches too far west.
@@ -1165,7 +1165,7 @@ mod tests {
             rasterise_prisms(
                 &t.grid,
                 &[Prism {
-                    roof_z: 12.0,
+                    roof: crate::roof::RoofShape::flat(12.0),
                     ..wrong
                 }],
             ),
@@ -1207,7 +1207,7 @@ mod tests {
         let t = terrain(n, n, |c, r| (c as f32 * 0.3).sin() * 2.0 + r as f32 * 0.1);
         let p = Prism {
             rings: vec![vec![(8.0, 8.0), (13.0, 8.0), (13.0, 14.0), (8.0, 14.0)]],
-            roof_z: 12.0,
+            roof: crate::roof::RoofShape::flat(12.0),
         };
         let b = Raised::new(rasterise_prisms(&t.grid, &[p]), &t);
         let (o, all) = with_object(&t, &b, [(25, 20), (26, 20), (25, 21), (26, 21)], 9.0);

@@ -206,7 +206,7 @@ fn building(
 ) -> Building {
     let prism = Prism {
         rings: vec![world_ring(&plan.ring)],
-        roof_z: 0.0,
+        roof: crate::roof::RoofShape::flat(0.0),
     };
     let n = dem_grid.width;
     let under: Vec<f64> = rasterise_prisms(dem_grid, std::slice::from_ref(&prism))
@@ -437,7 +437,7 @@ fn render_ortho(
     for (i, b) in buildings.iter().enumerate() {
         let prism = Prism {
             rings: vec![b.footprint.iter().map(|p| (p[0], p[1])).collect()],
-            roof_z: b.roof_z,
+            roof: crate::roof::RoofShape::flat(b.roof_z),
         };
         for c in rasterise_prisms(&grid, &[prism]) {
             owner[c.index] = i as u32 + 1;

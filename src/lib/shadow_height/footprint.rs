@@ -131,7 +131,7 @@ impl Footprint {
     pub fn cells(&self, grid: &Grid) -> Vec<usize> {
         let prism = Prism {
             rings: self.rings.clone(),
-            roof_z: 0.0,
+            roof: crate::roof::RoofShape::flat(0.0),
         };
         rasterise_prisms(grid, &[prism])
             .into_iter()

@@ -165,7 +165,7 @@ fn cells_under(grid: &Grid, ring: &[(f64, f64)]) -> Vec<RaisedCell> {
         grid,
         &[Prism {
             rings: vec![ring.to_vec()],
-            roof_z: 0.0,
+            roof: crate::roof::RoofShape::flat(0.0),
         }],
     )
 }

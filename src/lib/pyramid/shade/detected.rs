@@ -278,7 +278,7 @@ mod tests {
         let prisms: Vec<Prism> = (scene.buildings.iter())
             .map(|b| Prism {
                 rings: vec![b.footprint.iter().map(|p| (p[0], p[1])).collect()],
-                roof_z: b.roof_z,
+                roof: crate::roof::RoofShape::flat(b.roof_z),
             })
             .collect();
         let raised = Raised::new(rasterise_prisms(&grid, &prisms), &t);
@@ -308,7 +308,7 @@ mod tests {
             let t = resample_elevation(&scene.dem, &grid, Resampling::Bilinear);
             let prism = |b: &Building, dz: f64| Prism {
                 rings: vec![b.footprint.iter().map(|p| (p[0], p[1])).collect()],
-                roof_z: b.roof_z + dz,
+                roof: crate::roof::RoofShape::flat(b.roof_z + dz),
             };
             let every: Vec<Prism> = scene.buildings.iter().map(|b| prism(b, 0.0)).collect();
             let roofs = Raised::new(rasterise_prisms(&grid, &every), &t);
