@@ -211,9 +211,7 @@ struct Rays {
     /// Unit vector toward the sun (east, north).
     d: (f64, f64),
     tan_e: f64,
-    /// Per ray: its member (corridor cell), start (world metres), terrain above `ground_z`
-    /// (metres), and its wall crossings' range in `crossings`.
-    rays: Vec<(u32, (f64, f64), f64, std::ops::Range<usize>)>,
+    rays: Vec<Ray>,
     /// Wall crossings, metres along the ray, ascending per ray.
     crossings: Vec<f64>,
 }
@@ -251,7 +249,12 @@ impl Rays {
                 if here.first().is_some_and(|&t0| z + t0 * tan_e <= z_hi) {
                     let start = crossings.len();
                     crossings.extend_from_slice(&here);
-                    rays.push((m as u32, p, z, start..crossings.len()));
+                    rays.push(Ray {
+                        member: m as u32,
+                        start: p,
+                        z,
+                        walls: start..crossings.len(),
+                    });
                 }
             }
         }
@@ -271,9 +274,9 @@ impl Rays {
         let d = self.d;
         let mut at = Vec::new();
         let mut start = Vec::with_capacity(self.rays.len() + 1);
-        for (_, p, _, range) in &self.rays {
+        for ray in &self.rays {
             start.push(at.len());
-            let walls = &self.crossings[range.clone()];
+            let (p, walls) = (ray.start, &self.crossings[ray.walls.clone()]);
             let point = |t: f64| (p.0 + t * d.0, p.1 + t * d.1);
             for &t in walls {
                 at.push((t * self.tan_e, shape.z_at(point(t))));
@@ -298,6 +301,18 @@ impl Rays {
     }
 }
 
+/// One of [`Rays`].
+struct Ray {
+    /// The corridor cell (index into its members).
+    member: u32,
+    /// Where it starts, world metres.
+    start: (f64, f64),
+    /// The terrain there above `ground_z`, metres.
+    z: f64,
+    /// Its wall crossings' range in [`Rays::crossings`].
+    walls: std::ops::Range<usize>,
+}
+
 /// [`Rays::candidates`]: ray `j`'s are `at[start[j]..start[j + 1]]`.
 struct Candidates {
     at: Vec<(f64, f64)>,
@@ -309,14 +324,14 @@ impl Candidates {
     /// (module docs), those up to `z_top`.
     fn events(&self, rays: &Rays, rise: f64, z_top: f64) -> Vec<Event> {
         let mut out = Vec::with_capacity(rays.rays.len());
-        for (j, (member, _, z, _)) in rays.rays.iter().enumerate() {
+        for (j, ray) in rays.rays.iter().enumerate() {
             let least = self.at[self.start[j]..self.start[j + 1]]
                 .iter()
                 .map(|&(tt, p)| tt - rise * p)
                 .fold(f64::INFINITY, f64::min);
-            let th = (z + least).max(0.0);
+            let th = (ray.z + least).max(0.0);
             if th <= z_top {
-                out.push(Event::new(th, *member as usize));
+                out.push(Event::new(th, ray.member as usize));
             }
         }
         out
@@ -480,11 +495,17 @@ mod tests {
                         if !here.is_empty() && !fp.contains(p.0, p.1) {
                             let k = rays.crossings.len();
                             rays.crossings.extend_from_slice(&here);
-                            rays.rays.push((0, p, 0.0, k..rays.crossings.len()));
+                            rays.rays.push(Ray {
+                                member: 0,
+                                start: p,
+                                z: 0.0,
+                                walls: k..rays.crossings.len(),
+                            });
                         }
                     }
                     let cand = rays.candidates(&shape);
-                    for (j, (_, p, _, _)) in rays.rays.iter().enumerate() {
+                    for (j, ray) in rays.rays.iter().enumerate() {
+                        let p = ray.start;
                         for rise in [0.5, 3.0, 9.0] {
                             let got = cand.at[cand.start[j]..cand.start[j + 1]]
                                 .iter()
