@@ -31,7 +31,12 @@ use crate::roof::{Pitch, RoofForm, RoofShape};
 
 /// A pitched fit is taken only when its unexplained variance of brightness (1 − R² of
 /// [`refine::best_fit`]'s line) is at most `1 − MIN_IMPROVEMENT` of the flat fit's.
-pub const MIN_IMPROVEMENT: f64 = 0.2;
+pub const MIN_IMPROVEMENT: f64 = 0.4;
+/// … and when its rise is at least this many cells of shadow as height (`cell · tan e`
+/// each): a pitch of a cell of shadow is within the flat fit's own uncertainty. (On POV-Ray
+/// hip roofs pitched 50°, whose ridges lay above the search's ceiling, the only silent error
+/// was a one-cell "gable".)
+pub const MIN_RISE_CELLS: f64 = 2.0;
 /// … and when it raises the R² by at least this much (a perfect flat fit is not improved on
 /// by rounding).
 pub const MIN_GAIN: f64 = 1e-6;
@@ -133,7 +138,8 @@ pub fn fit(
     }
     let (t, pitch, rise) = best?;
     let (unexplained, flat_unexplained) = ((1.0 - t.score).max(0.0), (1.0 - flat.score).max(0.0));
-    if unexplained >= (1.0 - MIN_IMPROVEMENT) * flat_unexplained
+    if rise < MIN_RISE_CELLS * step
+        || unexplained >= (1.0 - MIN_IMPROVEMENT) * flat_unexplained
         || flat_unexplained - unexplained < MIN_GAIN
     {
         return None;
