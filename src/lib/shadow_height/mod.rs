@@ -19,7 +19,9 @@
 //!    shadow cast with exact rays from every open cell and compared with the observed one (the
 //!    shadow attached to the footprint); every height is scored by how well the photo's
 //!    brightness is a lit and a shadow level mixed in its synthetic shadow's fractions (a
-//!    least-squares fit), and the best wins.
+//!    least-squares fit), and the best wins. A roof that looks pitched ([`roof`]) is then
+//!    fitted as a gable or hip roof ([`pitched::fit`]), taken only when it explains the photo
+//!    clearly better: its ridge is the height and its form, eaves and direction are reported.
 //!
 //! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
 //! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is
