@@ -19,7 +19,9 @@
 //!    shadow cast with exact rays from every open cell and compared with the observed one (the
 //!    shadow attached to the footprint); every height is scored by how well the photo's
 //!    brightness is a lit and a shadow level mixed in its synthetic shadow's fractions (a
-//!    least-squares fit), and the best wins.
+//!    least-squares fit), and the best wins. A roof that looks pitched ([`roof`]) is then
+//!    fitted as a gable or hip roof ([`pitched::fit`]), taken only when it explains the photo
+//!    clearly better: its ridge is the height and its form, eaves and direction are reported.
 //!
 //! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
 //! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is
@@ -38,6 +40,7 @@ pub mod footprint;
 pub mod index;
 pub mod local;
 pub mod output;
+pub mod pitched;
 pub mod refine;
 pub mod register;
 pub mod roof;
@@ -155,9 +158,11 @@ pub struct Flags {
     pub low_sun: bool,
     /// Sun elevation above [`HIGH_SUN_DEG`].
     pub high_sun: bool,
-    /// The roof looks pitched in the photo (faces of different brightness, [`roof`]): the
+    /// The roof looks pitched in the photo (faces of different brightness, [`roof`]) but no
+    /// pitched roof explains its shadow clearly better than a flat one ([`pitched`]): the
     /// height is that of a flat roof casting the same shadow — the eaves where the far face is
-    /// lit, between eaves and ridge otherwise — not the ridge.
+    /// lit, between eaves and ridge otherwise — not the ridge. Not set when a pitch is fitted
+    /// ([`Measurement::pitch`]).
     pub pitched_roof: bool,
     /// The footprint's own registration estimate is clear and more than a cell from the
     /// scene's shift that was applied: its outline does not fit its roof in the photo
@@ -166,8 +171,9 @@ pub struct Flags {
     /// Fewer than [`MIN_AGREEING_LINES`] of the valid scan lines imply a roof within
     /// [`AGREE_CELLS`] cells of shadow of their median: the lines measured different things.
     pub lines_disagree: bool,
-    /// The refined roof is more than [`AGREE_CELLS`] cells of shadow from the roof the scan
-    /// lines imply over the real terrain (median of tip terrain + length · tan e).
+    /// The roof the scan lines imply over the real terrain (median of tip terrain + length ·
+    /// tan e) is more than [`AGREE_CELLS`] cells of shadow from the refined roof (for a fitted
+    /// pitch: outside its eaves-to-ridge range by more than that).
     pub estimates_disagree: bool,
     /// The synthetic shadow at the refined height overlaps the observed one by less than
     /// [`MIN_OVERLAP`] (IoU).
@@ -239,6 +245,8 @@ pub struct Measurement {
     pub roof_z_at_least: Option<f64>,
     /// Hard cases met.
     pub flags: Flags,
+    /// The pitched roof fitted ([`pitched`]), whose ridge is `roof_z`; `None`: flat.
+    pub pitch: Option<crate::roof::Pitch>,
 }
 
 /// How footprints were registered to the photo before measuring ([`register_footprints`]).
@@ -1343,6 +1351,7 @@ impl PassInputs<'_> {
                 pitched_roof: !self.sketch && self.looks_pitched(id, fp, cells, sought.lean),
                 ..Flags::default()
             },
+            pitch: None,
         };
         let s = sought.scan_growing(&mut local);
         m.lines_total = s.lines;
@@ -1439,9 +1448,23 @@ impl PassInputs<'_> {
             m.roof_z_at_least = uncertainty::at_least(s, ground_z);
             return Ok(m);
         };
-        m.height_m = Some(r.height_m);
-        m.roof_z = Some(ground_z + r.height_m);
-        m.overlap = Some(r.overlap);
+        // A pitched-looking roof whose shape fits clearly better: the ridge is its height,
+        // the eaves the lowest the scan lines may see; otherwise the flat roof, still flagged.
+        let fitted = m.flags.pitched_roof.then(|| {
+            let sub_points = self.opts.sub_points;
+            pitched::fit(&sub, fp, &keep, u, tan_e, ground_z, z_hi, sub_points, cell)
+        });
+        let (top_m, eave_m, overlap) = match fitted.flatten() {
+            Some(p) => {
+                m.pitch = Some(p.pitch);
+                m.flags.pitched_roof = false;
+                (p.top_m, p.pitch.eave_z - ground_z, p.overlap)
+            }
+            None => (r.height_m, r.height_m, r.overlap),
+        };
+        m.height_m = Some(top_m);
+        m.roof_z = Some(ground_z + top_m);
+        m.overlap = Some(overlap);
         // Never a silent wrong height: unflagged only when the lines agree with each other, the
         // refinement agrees with them, and its shadow matches the photo's.
         let tol = AGREE_CELLS * m.uncertainty_m;
@@ -1459,18 +1482,29 @@ impl PassInputs<'_> {
                     .count();
                 m.flags.lines_disagree =
                     (agreeing as f64) < MIN_AGREEING_LINES * line_roofs.len() as f64;
-                m.flags.estimates_disagree = (ground_z + r.height_m - ray_roof).abs() > tol;
+                let (eave, top) = (ground_z + eave_m, ground_z + top_m);
+                m.flags.estimates_disagree = ray_roof < eave - tol || ray_roof > top + tol;
             }
             None => m.flags.estimates_disagree = true,
         }
-        m.flags.poor_shadow_match = r.overlap < MIN_OVERLAP;
+        m.flags.poor_shadow_match = overlap < MIN_OVERLAP;
         let least = uncertainty::at_least(s, ground_z);
-        m.flags.shadow_reaches_further = least.is_some_and(|z| z > ground_z + r.height_m + tol);
+        m.flags.shadow_reaches_further = least.is_some_and(|z| z > ground_z + top_m + tol);
+        // A fitted pitched roof's ridge has no profile over its rise yet: its interval is the
+        // walls' place and the lines' spread around the ridge.
+        let fit = match m.pitch {
+            Some(_) => refine::Refined {
+                height_m: top_m,
+                overlap,
+                plausible: [(top_m, top_m); 2],
+            },
+            None => r,
+        };
         m.roof_z_intervals = Some(uncertainty::intervals(
             &m,
-            &r,
+            &fit,
             least,
-            self.opts.max_height_m,
+            [z_hi, self.opts.max_height_m],
         ));
         Ok(m)
     }

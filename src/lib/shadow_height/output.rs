@@ -65,6 +65,9 @@ pub fn heights_geojson(
                     );
                     p.insert("shadow_threshold".into(), json!(m.threshold));
                     p.insert("flags".into(), json!(m.flags.names()));
+                    if let Some(pitch) = m.pitch {
+                        pitch.to_properties(&mut p);
+                    }
                 }
                 Err(e) => {
                     p.insert("height_m".into(), Value::Null);

@@ -78,6 +78,38 @@ pub fn refine(
     z_hi: f64,
     sub: usize,
 ) -> Option<Refined> {
+    let c = corridor(local, fp, keep, u, tan_e, ground_z, z_hi, sub);
+    best_fit(
+        &mut Buckets::new(c.events, z_hi),
+        &c.brightness,
+        &c.observed,
+        z_hi,
+        sub * sub,
+    )
+}
+
+/// What [`refine`] compares, before any height is tried: the corridor's cells (`members`,
+/// indices of `local`'s cells in cell order), the flat roof's events (threshold, member), and
+/// per member the brightness fitted and the shadow observed.
+pub(super) struct Corridor {
+    pub(super) members: Vec<usize>,
+    pub(super) events: Vec<Event>,
+    pub(super) brightness: Vec<f64>,
+    pub(super) observed: Vec<f64>,
+}
+
+/// The [`Corridor`] of [`refine`]'s search (same arguments).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn corridor(
+    local: &Local,
+    fp: &Footprint,
+    keep: &[bool],
+    u: (f64, f64),
+    tan_e: f64,
+    ground_z: f64,
+    z_hi: f64,
+    sub: usize,
+) -> Corridor {
     let w = local.grid.width;
     let n_sub = sub * sub;
     let points = SubPoints::new(n_sub);
@@ -128,13 +160,12 @@ pub fn refine(
     // Only the corridor is compared (its brightness is the finite one, its cells all there
     // is observed), so the fit runs over the members: a few thousand cells, not the window.
     let of_members = |v: &[f64]| members.iter().map(|&i| v[i]).collect::<Vec<_>>();
-    best_fit(
-        &mut Buckets::new(events, z_hi),
-        &of_members(&brightness),
-        &of_members(&observed),
-        z_hi,
-        n_sub,
-    )
+    Corridor {
+        brightness: of_members(&brightness),
+        observed: of_members(&observed),
+        members,
+        events,
+    }
 }
 
 /// How much more than the best so far a score must be to count as better ([`best_fit`]).
@@ -149,23 +180,23 @@ const SCORE_SKIP: f64 = 1e-9;
 /// Invariant: the threshold is never negative, so the keys ascend with the thresholds, then
 /// the cells (the bits of non-negative floats ascend with their values).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-struct Event(u64);
+pub(super) struct Event(u64);
 
 impl Event {
     /// The event of a point of `cell` (below 2³²: a window is at most
     /// [`super::MAX_SHADOW_CELLS`] cells across and as wide) at `threshold` metres (≥ 0).
-    fn new(threshold: f64, cell: usize) -> Event {
+    pub(super) fn new(threshold: f64, cell: usize) -> Event {
         // `+ 0.0` makes a −0 threshold +0, whose bits sort first.
         let bits = (threshold as f32 + 0.0).to_bits();
         Event((bits as u64) << 32 | cell as u32 as u64)
     }
 
     /// The threshold, metres.
-    fn threshold(self) -> f64 {
+    pub(super) fn threshold(self) -> f64 {
         f32::from_bits((self.0 >> 32) as u32) as f64
     }
 
-    fn cell(self) -> usize {
+    pub(super) fn cell(self) -> usize {
         self.0 as u32 as usize
     }
 }
@@ -174,14 +205,14 @@ impl Event {
 /// threshold in it below every threshold of the buckets after it (buckets by a monotone
 /// function of the threshold, spread evenly over `[0, z_hi]`), in no order within. Events
 /// with one threshold share a bucket.
-struct Buckets {
-    events: Vec<Event>,
+pub(super) struct Buckets {
+    pub(super) events: Vec<Event>,
     start: Vec<usize>,
 }
 
 impl Buckets {
     /// `events` (thresholds in `[0, z_hi]` metres) in about four events a bucket.
-    fn new(events: Vec<Event>, z_hi: f64) -> Buckets {
+    pub(super) fn new(events: Vec<Event>, z_hi: f64) -> Buckets {
         let n = events.len();
         let buckets = (n / 4).max(1);
         let scale = buckets as f64 / z_hi;
@@ -259,7 +290,7 @@ fn fitted_brightness(
 /// (exact scores there, in any order within) and, from the sums at both ends, a bound on the
 /// score inside; a bucket whose bound is below the best end score by more than
 /// [`SCORE_SKIP`] cannot hold the answer, nor change which earlier score is taken.
-fn best_fit(
+pub(super) fn best_fit(
     buckets: &mut Buckets,
     brightness: &[f64],
     observed: &[f64],
@@ -316,7 +347,7 @@ impl Swept {
 /// The sums over the covered sub-points: of fractions, squared fractions (per cell), and
 /// fraction × brightness.
 #[derive(Clone, Copy, Default)]
-struct Sums {
+pub(super) struct Sums {
     s: f64,
     ss: f64,
     sb: f64,
@@ -324,7 +355,7 @@ struct Sums {
 
 /// [`best_fit`]'s least-squares line through the cells' (synthetic fraction, brightness): the
 /// brightness and its sums, which every height's score shares.
-struct LineFit<'a> {
+pub(super) struct LineFit<'a> {
     /// Each cell's brightness (shadow index).
     brightness: &'a [f64],
     /// What one sub-point adds to its cell's synthetic fraction: 1 / sub-points a cell.
@@ -340,7 +371,7 @@ struct LineFit<'a> {
 impl<'a> LineFit<'a> {
     /// The fit to `brightness` with sub-points `step` of a cell each; `None` without any
     /// spread of brightness.
-    fn new(brightness: &'a [f64], step: f64) -> Option<LineFit<'a>> {
+    pub(super) fn new(brightness: &'a [f64], step: f64) -> Option<LineFit<'a>> {
         let n = brightness.len() as f64;
         let sb: f64 = brightness.iter().sum();
         let syy = brightness.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
@@ -357,7 +388,7 @@ impl<'a> LineFit<'a> {
     }
 
     /// The score of the fractions summed in `m`: the line's R² (0 to 1), 0 unless it falls.
-    fn score(&self, m: &Sums) -> f64 {
+    pub(super) fn score(&self, m: &Sums) -> f64 {
         let (n, sb, syy) = (self.n, self.sb, self.syy);
         let sxx = m.ss - m.s * m.s / n;
         let sxy = m.sb - m.s * sb / n;
@@ -386,7 +417,7 @@ impl<'a> LineFit<'a> {
 
     /// One more sub-point of cell `i` in the synthetic shadow: added to `m`, counted in
     /// `covered` (sub-points covered per cell).
-    fn add(&self, m: &mut Sums, covered: &mut [u32], i: usize) {
+    pub(super) fn add(&self, m: &mut Sums, covered: &mut [u32], i: usize) {
         let step = self.step;
         let before = covered[i] as f64 * step;
         let after = before + step;
@@ -542,16 +573,16 @@ fn lattice(n: usize) -> Vec<(f64, f64)> {
 /// Invariant: [`SubPoints::terrain`] is the terrain at point `k` of a cell bilinear between
 /// the four cell centres around it, taken from the cell's 3 × 3 neighbourhood
 /// ([`heights_around`]); the cell's own height where one of the four is outside or nodata.
-struct SubPoints {
+pub(super) struct SubPoints {
     /// The points, as fractions of the cell (column, row) from its first corner.
-    at: Vec<(f64, f64)>,
+    pub(super) at: Vec<(f64, f64)>,
     /// Per point, the index into the 3 × 3 neighbourhood of the first of the four centres
     /// around it, and the point's fractions from that centre (column, row).
     bilinear: Vec<(usize, f64, f64)>,
 }
 
 impl SubPoints {
-    fn new(n: usize) -> SubPoints {
+    pub(super) fn new(n: usize) -> SubPoints {
         let at = lattice(n);
         let bilinear = at
             .iter()
@@ -568,7 +599,7 @@ impl SubPoints {
     }
 
     /// Terrain height (metres) at point `k` of the cell whose neighbourhood is `around`.
-    fn terrain(&self, k: usize, around: &[f64; 9]) -> f64 {
+    pub(super) fn terrain(&self, k: usize, around: &[f64; 9]) -> f64 {
         let (i, fx, fy) = self.bilinear[k];
         let (a, b, c, d) = (around[i], around[i + 1], around[i + 3], around[i + 4]);
         let z = (1.0 - fy) * ((1.0 - fx) * a + fx * b) + fy * ((1.0 - fx) * c + fx * d);
@@ -582,7 +613,7 @@ impl SubPoints {
 
 /// The terrain heights (metres) of cell `(c, r)` of `local` and its eight neighbours, row by
 /// row from the north-west; NaN off the window.
-fn heights_around(local: &Local, c: usize, r: usize) -> [f64; 9] {
+pub(super) fn heights_around(local: &Local, c: usize, r: usize) -> [f64; 9] {
     let (w, h) = (local.grid.width, local.grid.height);
     let mut out = [f64::NAN; 9];
     for (k, v) in out.iter_mut().enumerate() {
@@ -698,6 +729,22 @@ impl Walls {
             .min_by(f64::total_cmp)
     }
 
+    /// The distances (metres) from `p` along the direction to every wall the ray crosses, in
+    /// ascending order, into `out` (cleared first): [`Self::first`] is the first of them.
+    pub(super) fn crossings(&self, p: (f64, f64), out: &mut Vec<f64>) {
+        out.clear();
+        let d = self.d;
+        let (o, lo, hi) = self.across;
+        if !(lo..=hi).contains(&cross((p.0 - o.0, p.1 - o.1), d)) {
+            return;
+        }
+        out.extend(self.edges.iter().filter_map(|w| {
+            let (t, s) = w.meet(p, d);
+            (t >= 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
+        }));
+        out.sort_unstable_by(f64::total_cmp);
+    }
+
     /// The walls for rays from the points of grid cells whose sides are the vectors `ex`
     /// (from a cell's first corner to the next column's, metres east and north) and `ey` (to
     /// the next row's).
@@ -783,7 +830,8 @@ impl Wall {
     }
 }
 
-fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
+/// The cross product `a × b` of two plane vectors.
+pub(super) fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
     a.0 * b.1 - a.1 * b.0
 }
 
@@ -837,7 +885,7 @@ fn around(i: usize, w: usize, h: usize, mut f: impl FnMut(usize)) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::{Grid, Window};
@@ -849,6 +897,17 @@ mod tests {
     /// its shadow observed as a photo would show it for a roof at `roof_z` and `sun`: cast by the
     /// shared caster on a grid 8 × 8 finer, a cell in shadow when most of it is.
     fn scene(sun: &Sun, roof_z: f32) -> (Local, Footprint) {
+        let square = [(10.0, 10.0), (16.0, 10.0), (16.0, 16.0), (10.0, 16.0)];
+        scene_of(sun, &square, |_| roof_z)
+    }
+
+    /// [`scene`] with the footprint `ring` (world metres, inside the 40 × 40 m) and the roof
+    /// `roof(p)` metres high at each point `p` inside it.
+    pub(in crate::shadow_height) fn scene_of(
+        sun: &Sun,
+        ring: &[(f64, f64)],
+        roof: impl Fn((f64, f64)) -> f32,
+    ) -> (Local, Footprint) {
         let g = Grid::north_up(0.0, 40.0, 1.0, 40, 40, Crs::epsg(32632));
         let w = Window {
             col: 0,
@@ -856,19 +915,16 @@ mod tests {
             width: 40,
             height: 40,
         };
-        let fp = Footprint::new(vec![vec![vec![
-            (10.0, 10.0),
-            (16.0, 10.0),
-            (16.0, 16.0),
-            (10.0, 16.0),
-        ]]])
-        .unwrap();
-        let inside = |(x, y): (f64, f64)| (10.0..16.0).contains(&x) && (10.0..16.0).contains(&y);
+        let fp = Footprint::new(vec![vec![ring.to_vec()]]).unwrap();
+        let inside = |(x, y): (f64, f64)| fp.contains(x, y);
         let fine = Grid::north_up(0.0, 40.0, 0.125, 320, 320, Crs::epsg(32632));
         let raised: Vec<f32> = (0..fine.len())
-            .map(|i| match inside(fine.cell_centre(i % 320, i / 320)) {
-                true => roof_z,
-                false => 100.0,
+            .map(|i| {
+                let p = fine.cell_centre(i % 320, i / 320);
+                match inside(p) {
+                    true => roof(p),
+                    false => 100.0,
+                }
             })
             .collect();
         let cast = cast_shadows_reference(&Raster::new(fine, raised), sun).unwrap();

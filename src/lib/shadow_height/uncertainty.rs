@@ -19,6 +19,9 @@
 //! * **a poor match** of the synthetic and the observed shadow (`poor_shadow_match`): the fit
 //!   explains little of the photo, so the 95 % interval is every height sought, from the
 //!   ground to `--max-height`;
+//! * **a roof that looks pitched but whose pitch the shadow does not tell** (`pitched_roof`
+//!   still set): the height measured is the eaves' or between eaves and ridge, so the 95 %
+//!   interval reaches the highest roof the refinement searched;
 //! * **a shadow seen to reach further** (`shadow_reaches_further`): lines dropped where the
 //!   shadow ran into a neighbour or the grid's edge saw it reach a higher roof ([`at_least`])
 //!   than the valid lines say: that roof enters the 68 % interval, and the 95 % one is every
@@ -42,13 +45,13 @@ pub const EDGE_CELLS: f64 = 0.15;
 
 /// The 68 % and 95 % intervals of the roof of `m` (absolute metres), measured with `m.flags`
 /// and `m.line_roofs` set, from the refinement `r` and the dropped lines' lower bound `least`
-/// ([`at_least`], absolute metres); `max_height_m` is the tallest building sought (metres
-/// above the ground).
+/// ([`at_least`], absolute metres); `[searched_m, max_height_m]` are the highest roof the
+/// refinement searched and the tallest building sought (metres above the ground).
 pub fn intervals(
     m: &Measurement,
     r: &refine::Refined,
     least: Option<f64>,
-    max_height_m: f64,
+    [searched_m, max_height_m]: [f64; 2],
 ) -> [(f64, f64); 2] {
     let roof = m.ground_z + r.height_m;
     let edge = EDGE_CELLS * m.uncertainty_m;
@@ -75,6 +78,9 @@ pub fn intervals(
         if let Some(z) = least {
             take(&mut out[0], z);
         }
+    }
+    if m.flags.pitched_roof {
+        take(&mut out[1], m.ground_z + searched_m);
     }
     if m.flags.poor_shadow_match || m.flags.shadow_reaches_further {
         take(&mut out[1], m.ground_z);
@@ -127,6 +133,7 @@ mod tests {
             line_roofs: None,
             threshold: None,
             roof_z_intervals: None,
+            pitch: None,
             roof_z_at_least: None,
             flags,
         }
@@ -144,12 +151,12 @@ mod tests {
     fn a_sharp_fit_is_as_sure_as_its_edges_and_a_loose_one_as_its_fit() {
         let m = measured(Flags::default());
         // The fit pins the height to a point: the edges' place is all that is left.
-        let [a, b] = intervals(&m, &refined([(10.0, 10.0); 2]), None, 150.0);
+        let [a, b] = intervals(&m, &refined([(10.0, 10.0); 2]), None, [150.0; 2]);
         let edge = EDGE_CELLS * 0.5;
         assert!((a.0 - (110.0 - edge)).abs() < 1e-12 && (a.1 - (110.0 + edge)).abs() < 1e-12);
         assert!((b.1 - (110.0 + 1.96 * edge)).abs() < 1e-12);
         // A lopsided fit stays lopsided, widened a little by the edges.
-        let [a, b] = intervals(&m, &refined([(9.0, 13.0), (7.0, 16.0)]), None, 150.0);
+        let [a, b] = intervals(&m, &refined([(9.0, 13.0), (7.0, 16.0)]), None, [150.0; 2]);
         assert!(
             a.0 < 109.0 && a.0 > 108.99 && a.1 > 113.0 && a.1 < 113.01,
             "{a:?}"
@@ -162,24 +169,24 @@ mod tests {
         let tight = refined([(10.0, 10.0); 2]);
         let mut m = measured(Flags::default());
         m.line_roofs = Some([108.0, 111.0, 112.0]);
-        let [a, b] = intervals(&m, &tight, None, 150.0);
+        let [a, b] = intervals(&m, &tight, None, [150.0; 2]);
         assert_eq!((a.0, a.1), (108.0, 112.0));
         assert_eq!((b.0, b.1), (108.0 - 6.0, 112.0 + 6.0));
         // Lines that agree add nothing.
         m.line_roofs = Some([110.0; 3]);
-        let [a, _] = intervals(&m, &tight, None, 150.0);
+        let [a, _] = intervals(&m, &tight, None, [150.0; 2]);
         assert!(a.1 - a.0 < 0.2, "{a:?}");
         // A refinement away from the lines takes their median into the 68 % interval.
         m.line_roofs = Some([104.0, 104.5, 105.0]);
         m.flags.estimates_disagree = true;
-        let [a, b] = intervals(&m, &tight, None, 150.0);
+        let [a, b] = intervals(&m, &tight, None, [150.0; 2]);
         assert!(a.0 <= 104.0 && b.0 <= 102.5, "{a:?} {b:?}");
         // A poor match of the shadows: anything from the ground to the tallest sought.
         let poor = Flags {
             poor_shadow_match: true,
             ..Flags::default()
         };
-        let [a, b] = intervals(&measured(poor), &tight, None, 150.0);
+        let [a, b] = intervals(&measured(poor), &tight, None, [150.0; 2]);
         assert!(a.1 - a.0 < 0.2, "{a:?}");
         assert_eq!((b.0, b.1), (100.0, 250.0));
         // Dropped lines saw the shadow reach a higher roof: it is in the 68 % interval.
@@ -187,7 +194,7 @@ mod tests {
             shadow_reaches_further: true,
             ..Flags::default()
         };
-        let [a, b] = intervals(&measured(further), &tight, Some(117.0), 150.0);
+        let [a, b] = intervals(&measured(further), &tight, Some(117.0), [150.0; 2]);
         assert_eq!(a.1, 117.0);
         assert_eq!((b.0, b.1), (100.0, 250.0));
     }
