@@ -49,7 +49,8 @@ pub struct Args {
     #[arg(long, value_name = "EAST,NORTH,Z")]
     camera: Option<String>,
     /// Also write the measured buildings into the database as its `buildings` layer
-    /// (flat-roofed prisms for `dbms pyramid` and `dbms shadows`).
+    /// (prisms with their roofs, flat or the gable or hip the shadow showed, for `dbms pyramid`,
+    /// `dbms shadows` and `dbms export mesh`).
     #[arg(long)]
     apply: bool,
     /// Output heights GeoJSON.
