@@ -14,8 +14,8 @@
 //! * **the scan lines**: each valid line implies a roof over the real terrain; their middle
 //!   half is in the 68 % interval and [`LINE_FENCE`] interquartile ranges beyond it in the
 //!   95 % one (lines that agree add nothing; lines split by a neighbour, a tree or a car
-//!   widen it), and a refinement away from their median (`estimates_disagree`) takes the
-//!   median into the 68 % one;
+//!   widen it; a refinement away from their median, `estimates_disagree`, so has the median
+//!   in its 68 % interval);
 //! * **a poor match** of the synthetic and the observed shadow (`poor_shadow_match`): the fit
 //!   explains little of the photo, so the 95 % interval is every height sought, from the
 //!   ground to `--max-height`;
@@ -31,9 +31,9 @@
 //! hides its end — another building, the grid's edge, nodata: the shadow reached at least
 //! there.
 //!
-//! The constants ([`EDGE_CELLS`], [`LINE_FENCE`], [`refine::NOISE_INFLATION`]) are calibrated on the POV-Ray
-//! harnesses so that truth falls outside the 95 % interval for at most 5 % of the buildings
-//! (docs/shadow-height.md, "Heights with their uncertainty").
+//! The constants ([`EDGE_CELLS`], [`LINE_FENCE`], [`refine::NOISE_INFLATION`]) are calibrated
+//! on the POV-Ray harnesses so that truth falls outside the 95 % interval for at most 5 % of
+//! the buildings (docs/shadow-height.md, "Heights with their uncertainty").
 
 use super::refine::{self, PLAUSIBLE_SIGMAS};
 use super::scan::{self, Scan};
@@ -64,15 +64,12 @@ pub fn intervals(
         )
     });
     let take = |iv: &mut (f64, f64), z: f64| *iv = (iv.0.min(z), iv.1.max(z));
-    if let Some([q1, median, q3]) = m.line_roofs {
+    if let Some([q1, _, q3]) = m.line_roofs {
         take(&mut out[0], q1);
         take(&mut out[0], q3);
         let fence = LINE_FENCE * (q3 - q1);
         take(&mut out[1], q1 - fence);
         take(&mut out[1], q3 + fence);
-        if m.flags.estimates_disagree {
-            take(&mut out[0], median);
-        }
     }
     if m.flags.shadow_reaches_further {
         if let Some(z) = least {
