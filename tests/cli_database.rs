@@ -421,3 +421,32 @@ fn outputs_that_would_destroy_something_are_refused() {
         .is_symlink());
     assert!(!d.join("v.png").exists());
 }
+
+/// Issue 40, defect 8: the leftover clean-up once removed the DEM being ingested when its name
+/// had the form of a layer file (`elevation-<12 hex>.tif`, a copy of a database's layer). It
+/// now clears only a directory a dbms change has written before, and never a run's input.
+#[test]
+fn ingest_never_removes_its_own_input_or_files_of_a_directory_that_is_no_database() {
+    let s = Scene::new();
+    let d = s.path();
+    let layer = names(&s.db())
+        .into_iter()
+        .find(|f| f.starts_with("elevation-"))
+        .unwrap();
+    // Into a directory that is no database yet, from a layer-named copy inside it.
+    std::fs::create_dir(d.join("x")).unwrap();
+    std::fs::copy(s.db().join(&layer), d.join("x/elevation-0123456789ab.tif")).unwrap();
+    std::fs::copy(s.db().join(&layer), d.join("x/notes-0123456789ab.txt")).unwrap();
+    let ingest = |dem: &str, out: &str| {
+        let args = ["-q", "ingest", "--dem", dem, "--ortho", "s/ortho.tif", "-o", out];
+        ok(d, &args);
+    };
+    ingest("x/elevation-0123456789ab.tif", "x");
+    assert!(d.join("x/elevation-0123456789ab.tif").exists(), "the input went");
+    assert!(d.join("x/notes-0123456789ab.txt").exists(), "a user's file went");
+    // Into an existing database, from a copy the manifest does not name.
+    std::fs::copy(s.db().join(&layer), s.db().join("elevation-ba9876543210.tif")).unwrap();
+    ingest("db/elevation-ba9876543210.tif", "db");
+    assert!(s.db().join("elevation-ba9876543210.tif").exists(), "the input went");
+    s.verify();
+}

@@ -378,6 +378,8 @@ pub struct Change {
     written: Vec<PathBuf>,
     /// Inset directories this change created (removed if it is dropped uncommitted).
     written_dirs: Vec<PathBuf>,
+    /// What the change may remove of the files it did not write.
+    leftovers: Leftovers,
     committed: bool,
     _lock: std::fs::File,
 }
@@ -390,7 +392,7 @@ impl Database {
             Database::open(dir)?; // the one-line error for a missing directory or a file
         }
         let lock = lock(dir, wait)?;
-        Change::new(Database::open(dir)?, lock)
+        Change::new(Database::open(dir)?, lock, Leftovers::clear(&[]))
     }
 
     /// Begin a change that creates the database in `dir` (made if missing) for `grid`, or
@@ -404,6 +406,14 @@ impl Database {
     ) -> Result<(Change, Option<Manifest>)> {
         std::fs::create_dir_all(dir)
             .map_err(|e| Error::io(dir, e).fix("choose a writable output directory"))?;
+        // A directory no dbms change has written before (no manifest, no lock file) holds
+        // nothing of ours to clear: a file there named like a layer is the user's.
+        let ours = dir.join(MANIFEST_FILE).exists() || dir.join(LOCK_FILE).exists();
+        let inputs_read: Vec<PathBuf> = inputs.iter().map(|i| PathBuf::from(&i.path)).collect();
+        let leftovers = match ours {
+            true => Leftovers::clear(&inputs_read),
+            false => Leftovers::Keep,
+        };
         let lock = lock(dir, wait)?;
         let old = dir
             .join(MANIFEST_FILE)
@@ -413,11 +423,38 @@ impl Database {
         let db = Database::create(dir, grid, inputs)?;
         if let Some(old) = &old {
             // The files of the database being replaced are removed by the commit unless kept.
-            let mut change = Change::new(old.clone(), lock)?;
+            let mut change = Change::new(old.clone(), lock, leftovers)?;
             change.db = db;
             return Ok((change, Some(old.manifest.clone())));
         }
-        Ok((Change::new(db, lock)?, None))
+        Ok((Change::new(db, lock, leftovers)?, None))
+    }
+}
+
+/// What a [`Change`] may remove of what it finds in the database directory.
+enum Leftovers {
+    /// Nothing: the directory was no database (a first ingest into a user's directory).
+    Keep,
+    /// What killed changes left and what the commit drops, except these files (canonical
+    /// paths): the run's own inputs, which may lie in the directory under a layer's name.
+    Clear(Vec<PathBuf>),
+}
+
+impl Leftovers {
+    /// Clear, sparing `inputs` (paths as given; those that do not exist spare nothing).
+    fn clear(inputs: &[PathBuf]) -> Leftovers {
+        Leftovers::Clear(inputs.iter().filter_map(|p| p.canonicalize().ok()).collect())
+    }
+
+    /// Whether `path` may be removed: not a run's input, nor a directory holding one.
+    fn may_remove(&self, path: &Path) -> bool {
+        let Leftovers::Clear(inputs) = self else {
+            return false;
+        };
+        let Ok(path) = path.canonicalize() else {
+            return true; // gone already, or a dangling name: nothing of the inputs
+        };
+        !inputs.iter().any(|i| i.starts_with(&path))
     }
 }
 
@@ -453,12 +490,13 @@ fn lock(dir: &Path, wait: std::time::Duration) -> Result<std::fs::File> {
 }
 
 impl Change {
-    fn new(db: Database, lock: std::fs::File) -> Result<Change> {
+    fn new(db: Database, lock: std::fs::File, leftovers: Leftovers) -> Result<Change> {
         let before: Vec<String> = db.manifest.files().map(|(f, _)| f.clone()).collect();
         let before_insets: Vec<String> = db.insets().into_iter().map(|s| s.name).collect();
-        clear_leftovers(&db.dir, &before)?;
-        clear_inset_leftovers(&db.dir, &before_insets)?;
+        clear_leftovers(&db.dir, &before, &leftovers)?;
+        clear_inset_leftovers(&db.dir, &before_insets, &leftovers)?;
         Ok(Change {
+            leftovers,
             db,
             before,
             before_insets,
@@ -539,12 +577,16 @@ impl Change {
         fault_point("after-commit");
         let now: Vec<&String> = self.db.manifest.files().map(|(f, _)| f).collect();
         for f in self.before.iter().filter(|f| !now.contains(f)) {
-            let _ = std::fs::remove_file(self.db.dir.join(f));
+            let path = self.db.dir.join(f);
+            if self.leftovers.may_remove(&path) {
+                let _ = std::fs::remove_file(path);
+            }
         }
         let insets = self.db.insets();
         for name in &self.before_insets {
-            if !insets.iter().any(|s| s.name == *name) {
-                let _ = std::fs::remove_dir_all(self.db.inset_dir(name));
+            let dir = self.db.inset_dir(name);
+            if !insets.iter().any(|s| s.name == *name) && self.leftovers.may_remove(&dir) {
+                let _ = std::fs::remove_dir_all(dir);
             }
         }
         Ok(())
@@ -566,13 +608,15 @@ impl Drop for Change {
 
 /// Remove what killed changes left in `dir` (under its lock, so nobody is writing them): the
 /// staging files of layers, and layer files the committed manifest does not name (`named`,
-/// the files it does) — written and renamed by a change killed before its commit.
-fn clear_leftovers(dir: &Path, named: &[String]) -> Result<()> {
+/// the files it does) — written and renamed by a change killed before its commit — except
+/// what `leftovers` spares.
+fn clear_leftovers(dir: &Path, named: &[String], leftovers: &Leftovers) -> Result<()> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        if name.starts_with(STAGING_PREFIX)
-            || (content_named(&name) && !named.iter().any(|f| *f == name))
+        if (name.starts_with(STAGING_PREFIX)
+            || (content_named(&name) && !named.iter().any(|f| *f == name)))
+            && leftovers.may_remove(&e.path())
         {
             let _ = std::fs::remove_file(e.path());
         }
@@ -583,14 +627,14 @@ fn clear_leftovers(dir: &Path, named: &[String]) -> Result<()> {
 /// Remove the inset directories of `dir` (under its lock) that its committed manifest does
 /// not name (`named`): made by a change killed before its commit, or left by one that dropped
 /// them.
-fn clear_inset_leftovers(dir: &Path, named: &[String]) -> Result<()> {
+fn clear_inset_leftovers(dir: &Path, named: &[String], leftovers: &Leftovers) -> Result<()> {
     let insets = dir.join(INSETS_DIR);
     let Ok(entries) = std::fs::read_dir(&insets) else {
         return Ok(()); // no insets directory: nothing to clear
     };
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        if !named.contains(&name) {
+        if !named.contains(&name) && leftovers.may_remove(&e.path()) {
             let path = e.path();
             let _ = match path.is_dir() {
                 true => std::fs::remove_dir_all(&path),
