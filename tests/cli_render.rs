@@ -488,9 +488,73 @@ fn a_flight_renders_every_frame_and_an_animation_the_same_on_every_run() {
     fly("4");
     assert!(read(0) == first && read(20) == last && std::fs::read(&anim).unwrap() == animation);
     fly("2");
-    let left = std::fs::read_dir(&frames).unwrap().count();
+    let left = std::fs::read_dir(&frames)
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().file_name() != "frames.json")
+        .count();
     assert_eq!(left, 11);
     assert_eq!(apng_frames(&std::fs::read(&anim).unwrap()), Some((11, 0)));
+}
+
+/// Issue 40, defect 10: a flight killed while rendering into a directory that holds an earlier
+/// flight once left frames of both, as many as a complete run. The earlier flight now stays
+/// whole with its record (`frames.json`, every frame's SHA-256) until the new one is rendered;
+/// a run killed while renaming its frames into place leaves no record.
+#[test]
+fn a_killed_flight_leaves_the_earlier_one_whole_or_no_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = hills(dir.path());
+    let frames = dir.path().join("frames");
+    let fly = |path: &str, fault: Option<&str>| {
+        let csv = dir.path().join("flight.csv");
+        std::fs::write(&csv, path).unwrap();
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_dbms"));
+        c.args(["-q", "render", "--tiles", tiles.to_str().unwrap(), "-o"])
+            .arg(&frames)
+            .args(["--path", csv.to_str().unwrap(), "--speed", "100", "--fps", "4"])
+            .args(["--size", "48x32", "--attitude", "0,-10,0"]);
+        if let Some(f) = fault {
+            c.env("DBMS_FAULT", f);
+        }
+        c.output().unwrap().status.success()
+    };
+    let record = || -> Value {
+        serde_json::from_slice(&std::fs::read(frames.join("frames.json")).unwrap()).unwrap()
+    };
+    let holds = |r: &Value| {
+        r["files"].as_array().unwrap().iter().all(|f| {
+            let bytes = std::fs::read(frames.join(f["file"].as_str().unwrap())).unwrap();
+            let sha: String = sha256_hex(&bytes);
+            f["sha256"] == sha.as_str()
+        })
+    };
+    let (a, b) = (
+        "x,y,z\n431050,4581650,200\n431500,4581900,200\n",
+        "x,y,z\n431500,4581900,150\n431050,4581650,150\n",
+    );
+    assert!(fly(a, None));
+    let first = record();
+    let schema = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/flight-frames.schema.json");
+    let schema: Value = serde_json::from_slice(&std::fs::read(schema).unwrap()).unwrap();
+    assert!(jsonschema::is_valid(&schema, &first), "{first}");
+    assert_eq!(first["frames"], 21);
+    assert!(holds(&first));
+    assert!(!fly(b, Some("flight-frame-staged")), "the fault did not fire");
+    assert_eq!(record(), first, "the record changed");
+    assert!(holds(&first), "a frame of the killed flight replaced one of the earlier");
+    assert!(!fly(b, Some("flight-frames-renamed")), "the fault did not fire");
+    assert!(!frames.join("frames.json").exists(), "a record of a mixed set");
+    assert!(fly(b, None));
+    let second = record();
+    assert!(holds(&second) && second != first);
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 #[test]

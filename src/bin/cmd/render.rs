@@ -131,7 +131,8 @@ pub struct Args {
     /// per sensor layer).
     #[arg(long, default_value_t = 512)]
     cache_pages: usize,
-    /// Output PNG (with --path: the directory of frame-NNNNN.png files, created if missing).
+    /// Output PNG (with --path: the directory of frame-NNNNN.png files, created if missing, and
+    /// their record frames.json, written once every frame is in place).
     #[arg(short, long)]
     output: PathBuf,
 }

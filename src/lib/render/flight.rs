@@ -1,13 +1,18 @@
 //! `dbms render --path`: every frame of a flight rendered in one process, the page cache warm
 //! from frame to frame, written as numbered PNG files and, for quick looks, one animated PNG.
 //!
-//! Invariant: each file is written atomically, frame by frame, and the animation last (its
-//! rename is the run's end: `make` may take it as the target); frames are the same bytes on
-//! every run, and frame files left from a longer earlier flight in the directory are removed.
+//! Invariant: the frames are written and synced under temporary names as they are rendered, and
+//! renamed into place only when the last one is: a run killed while rendering leaves the
+//! directory's earlier flight whole. The renames run between the removal of the directory's
+//! record ([`RECORD_FILE`]: the frames and their SHA-256) and the writing of the new one, so a
+//! record always describes the frames beside it; the animation comes last (its rename is the
+//! run's end: `make` may take it as the target). Frames are the same bytes on every run, and
+//! frame files left from a longer earlier flight in the directory are removed.
 
 use super::{render_view, Frame, ViewOptions, Viewpoint};
 use crate::error::{Error, Result};
-use crate::io::atomic::AtomicFile;
+use crate::db::fault_point;
+use crate::io::atomic::{commit_all, write_bytes_atomic, AtomicFile};
 use crate::progress::Progress;
 use crate::tiles::TileReader;
 use serde::Serialize;
@@ -32,6 +37,33 @@ pub struct FlightStats {
     pub pages_read_max: u64,
     /// Level cells stepped per ray, mean over the flight.
     pub cells_stepped_per_ray: f64,
+}
+
+/// The record a flight leaves in its frame directory once every frame is in place
+/// (schemas/flight-frames.schema.json): the frame count and size, and each frame file with its
+/// SHA-256, so a reader can tell a complete set from a mixed or partial one.
+pub const RECORD_FILE: &str = "frames.json";
+
+/// The record of a complete flight ([`RECORD_FILE`]).
+#[derive(Debug, Clone, Serialize)]
+struct Record {
+    /// `dbms-flight-frames`.
+    format: &'static str,
+    /// 1.
+    version: u32,
+    /// Frames in the flight.
+    frames: usize,
+    /// Frame width and height, pixels.
+    width: usize,
+    height: usize,
+    /// Each frame file (its name in the directory) and the hex SHA-256 of its bytes.
+    files: Vec<RecordedFrame>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct RecordedFrame {
+    file: String,
+    sha256: String,
 }
 
 /// The file of frame `k` in `dir`.
@@ -68,6 +100,7 @@ pub fn fly(
         None => None,
     };
     let (mut render_seconds, mut pages, mut pages_max, mut steps, mut rays) = (0.0, 0, 0, 0, 0);
+    let (mut staged, mut recorded) = (Vec::new(), Vec::new());
     for (k, camera) in viewpoints.iter().enumerate() {
         let mut frame = render_view(reader, camera, opts)
             .map_err(|e| Error::msg(format!("frame {k} (eye {:?}): {e}", camera.eye)))?;
@@ -79,13 +112,34 @@ pub fn fly(
         pages_max = pages_max.max(s.reader.pages_read);
         steps += s.cells_stepped;
         rays += s.rays;
-        frame.write(&frame_file(dir, k), None)?;
+        let (file, sha256) = stage_frame(&frame, &frame_file(dir, k), &mut staged)?;
+        recorded.push(RecordedFrame { file, sha256 });
+        fault_point("flight-frame-staged");
         if let Some(a) = animated.as_mut() {
             a.push(&frame)?;
         }
         progress.inc(1);
     }
+    let record = Record {
+        format: "dbms-flight-frames",
+        version: 1,
+        frames: viewpoints.len(),
+        width: first.width,
+        height: first.height,
+        files: recorded,
+    };
+    let record_file = dir.join(RECORD_FILE);
+    match std::fs::remove_file(&record_file) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            return Err(Error::io(&record_file, e))
+        }
+        _ => {}
+    }
+    commit_all(staged)?;
     remove_stale_frames(dir, viewpoints.len())?;
+    fault_point("flight-frames-renamed");
+    let json = serde_json::to_vec_pretty(&record).expect("a record serialises");
+    write_bytes_atomic(&record_file, &json)?;
     if let Some(a) = animated {
         a.finish()?;
     }
@@ -99,6 +153,23 @@ pub fn fly(
         pages_read_max: pages_max,
         cells_stepped_per_ray: steps as f64 / rays.max(1) as f64,
     })
+}
+
+/// Write `frame` as a PNG under a temporary name beside `file`, staged in `staged` for the
+/// rename that puts the whole flight in place; returns the file's name and its hex SHA-256.
+fn stage_frame(
+    frame: &Frame,
+    file: &Path,
+    staged: &mut Vec<crate::io::atomic::Staged>,
+) -> Result<(String, String)> {
+    use sha2::Digest;
+    let bytes = frame.png()?;
+    let mut out = AtomicFile::create(file)?;
+    std::io::Write::write_all(out.writer(), &bytes).map_err(|e| Error::io(file, e))?;
+    staged.push(out.stage()?);
+    let sha = crate::manifest::hex(&sha2::Sha256::digest(&bytes));
+    let name = file.file_name().map(|n| n.to_string_lossy().into_owned());
+    Ok((name.unwrap_or_default(), sha))
 }
 
 /// Remove `frame-NNNNN.png` files numbered `count` or more (left by a longer earlier flight).
