@@ -72,7 +72,7 @@ struct Vrt {
 /// Anything else (a warped VRT, resampled or cropped sources, scaling, lookup tables, kernel
 /// filters, pixel functions) is a one-line error naming the fix.
 fn read_vrt(path: &Path) -> Result<Vrt> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = super::read_text(path)?;
     let fix = "make a plain mosaic of tiles on one lattice (gdalbuildvrt over gdalwarp -tap -tr tiles), or give the tiles as a directory";
     let bad = |what: String| Error::file(path, what).fix(fix);
     let doc =
@@ -207,7 +207,7 @@ pub fn tile_paths(path: &Path) -> Result<Vec<PathBuf>> {
         tifs.sort();
         tifs
     } else {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e).fix(fix))?;
+        let text = super::read_settings(path).map_err(|e| e.fix(fix))?;
         let base = path.parent().unwrap_or(Path::new(""));
         let lines = text.lines().map(str::trim);
         let named = lines.filter(|l| !l.is_empty() && !l.starts_with('#'));

@@ -482,7 +482,7 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
     })?;
     let mut inputs_record = Vec::new();
     if let Some(path) = &opts.table {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::io::read_settings(path)?.into_bytes();
         change.write_layer(MATERIAL_TABLE, "material-table", "json", |dest| {
             crate::io::atomic::write_bytes_atomic(dest, &bytes)?;
             Ok(None)
