@@ -642,6 +642,26 @@ pub(crate) fn sibling(path: &Path, exts: &[&str]) -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
+/// The error for the input `path`, which has no CRS, used with the `other` input (or the
+/// database) in `crs`: an input without a CRS is never assumed to be in another's, and the fix
+/// states the CRS beside the file, where every reader looks for it.
+pub fn no_crs(path: &Path, other: &str, crs: &Crs) -> Error {
+    let prj = path.with_extension("prj");
+    Error::file(
+        path,
+        format!(
+            "has no CRS (no GeoKeys, no .prj beside it) while the {other} is in {}",
+            crs.name()
+        ),
+    )
+    .fix(format!(
+        "if it is in that CRS too, say so beside it: gdalsrsinfo -o wkt1 {} > {}",
+        crs.epsg
+            .map_or("EPSG:CODE".to_string(), |c| format!("EPSG:{c}")),
+        prj.display()
+    ))
+}
+
 /// The CRS of a raster from its sibling `.prj` (WKT), or unknown when there is none.
 /// The EPSG code is taken from a final `AUTHORITY["EPSG","nnnn"]` (the CRS's own, not a
 /// component's); geographic-ness from the WKT's outer keyword.
