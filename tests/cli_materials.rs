@@ -753,7 +753,23 @@ fn radar_backscatter_shadow_dihedral_and_layover() {
 
     let d = dir.to_str().unwrap();
     for (args, want) in [
-        (vec!["--azimuth", "90", "--elevation", "0"], "elevation"),
+        (
+            vec!["--azimuth", "90", "--elevation", "0"],
+            "the elevation must be",
+        ),
+        (
+            vec!["--azimuth", "90", "--elevation", "NaN"],
+            "the elevation must be",
+        ),
+        // Issue 40: a NaN azimuth was reported as an elevation error.
+        (
+            vec!["--azimuth", "NaN", "--elevation", "30"],
+            "the azimuth must be a finite",
+        ),
+        (
+            vec!["--azimuth", "inf", "--elevation", "30"],
+            "the azimuth must be a finite",
+        ),
         (
             vec!["--azimuth", "90", "--elevation", "30", "--band", "Q"],
             "--band Q",
