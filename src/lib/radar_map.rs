@@ -322,7 +322,7 @@ fn preview_colour(s: f32, c: u8) -> [u8; 3] {
 /// σ⁰ (linear) as grey: [`PREVIEW_FLOOR_DB`] and below black (0: no return, too), 0 dB and
 /// above white, linear in dB between.
 pub fn grey_db(s: f32) -> u8 {
-    if !(s > 0.0) {
+    if s.is_nan() || s <= 0.0 {
         return 0;
     }
     let db = 10.0 * f64::from(s).log10();

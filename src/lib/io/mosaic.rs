@@ -235,7 +235,7 @@ impl Mosaic {
             inputs.push(RasterInput::open(p)?);
         }
         let first = inputs[0].meta();
-        let lattice = inputs[0].grid().transform.clone();
+        let lattice = inputs[0].grid().transform;
         let crs = inputs[0].grid().crs.clone();
         let (mut x0, mut y0) = (f64::INFINITY, f64::INFINITY);
         let (mut x1, mut y1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
@@ -292,11 +292,11 @@ impl Mosaic {
                 )
                 .fix("build the VRT at the tiles' resolution (gdalbuildvrt without -tr), or give the tiles as a directory"));
             }
-            Some(v) => v.transform.clone(),
+            Some(v) => v.transform,
             None => GeoTransform {
                 origin_x: x0,
                 origin_y: if lattice.cell_y < 0.0 { y1 } else { y0 },
-                ..lattice.clone()
+                ..lattice
             },
         };
         let cells = |v: f64, step: f64, p: &Path, axis: &str| -> Result<usize> {
