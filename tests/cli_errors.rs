@@ -1,6 +1,7 @@
 //! The one-line error contract across commands (issue 14, defect 13): argument errors, I/O
 //! errors, a file given as a database, GeoJSON with a byte order mark or in lon/lat, and
-//! warnings summarised rather than one line per skipped feature.
+//! warnings summarised rather than one line per skipped feature; inputs that are not regular
+//! files or are too large to be what they claim (issue 40, defect 4).
 
 use dbms::crs::Crs;
 use dbms::grid::Grid;
@@ -11,7 +12,8 @@ use std::path::Path;
 use std::process::Output;
 #[path = "support/cli.rs"]
 mod cli;
-use cli::dbms_in;
+use cli::{dbms_in, dbms_in_within};
+use std::time::Duration;
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -193,4 +195,205 @@ fn footprints_with_a_bom_in_lon_lat_and_many_bad_features() {
         .count();
     assert_eq!(all, 12);
     assert!(run("bom.geojson", &["-q"]).stderr.is_empty());
+}
+
+/// A FIFO at `path` (no writer ever opens it: a read of it would block for ever).
+fn fifo(path: &Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0, "mkfifo");
+}
+
+/// [`assert_one_line`] for a run that must end within 20 s (killed and failed otherwise).
+fn refused_promptly(dir: &Path, args: &[&str], needle: &str) {
+    let o = dbms_in_within(dir, args, Duration::from_secs(20));
+    assert_one_line(&o, 1, needle);
+}
+
+#[test]
+fn devices_and_fifos_as_inputs_are_refused_without_reading() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    database(dir);
+    let inset = [
+        "ingest",
+        "-q",
+        "--dem",
+        "dem.tif",
+        "--ortho",
+        "ortho.tif",
+        "-o",
+        "db",
+    ];
+    let o = dbms_in(
+        dir,
+        &[
+            &inset[..],
+            &["--inset", "town:2:500010,5300010,500020,5300020"],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = dbms_in(dir, &["pyramid", "-q", "--db", "db", "-o", "t.dbt"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cone = [
+        "object", "cone", "-q", "--height", "2", "--radius", "1", "--voxel", "0.5",
+    ];
+    let o = dbms_in(dir, &[&cone[..], &["-o", "c.dvox"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    fifo(&dir.join("fifo"));
+    let zero = "/dev/zero: is a character device, not a regular file";
+    let pipe = "fifo: is a FIFO (named pipe), not a regular file";
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec![
+                "render",
+                "--tiles",
+                "t.dbt",
+                "--path",
+                "/dev/zero",
+                "--speed",
+                "3",
+                "-o",
+                "out",
+            ],
+            zero,
+        ),
+        (
+            vec![
+                "render", "--tiles", "t.dbt", "--path", "fifo", "--speed", "3", "-o", "out",
+            ],
+            pipe,
+        ),
+        (
+            vec!["render", "--tiles", "fifo", "--top", "-o", "v.png"],
+            pipe,
+        ),
+        (vec!["tiles", "fifo"], pipe),
+        (vec!["build", "/dev/zero"], zero),
+        (vec!["plan", "fifo"], pipe),
+        (
+            vec![
+                "object",
+                "extrude",
+                "--footprints",
+                "/dev/zero",
+                "--voxel",
+                "1",
+                "-o",
+                "x.dvox",
+            ],
+            zero,
+        ),
+        (
+            vec![
+                "object",
+                "extrude",
+                "--footprints",
+                "fifo",
+                "--voxel",
+                "1",
+                "-o",
+                "x.dvox",
+            ],
+            pipe,
+        ),
+        (
+            vec![
+                "shadow-height",
+                "--db",
+                "db",
+                "--footprints",
+                "fifo",
+                "--sun-elevation",
+                "40",
+                "--sun-azimuth",
+                "135",
+                "-o",
+                "h.geojson",
+            ],
+            pipe,
+        ),
+        (
+            vec![
+                "place", "--db", "db", "--object", "c.dvox", "--points", "fifo",
+            ],
+            pipe,
+        ),
+        (
+            vec![
+                "ingest",
+                "--dem",
+                "fifo",
+                "--ortho",
+                "ortho.tif",
+                "-o",
+                "db2",
+            ],
+            pipe,
+        ),
+        (
+            vec![
+                "ingest",
+                "--dem",
+                "dem.tif",
+                "--ortho",
+                "/dev/zero",
+                "-o",
+                "db2",
+            ],
+            zero,
+        ),
+        (vec!["materials", "--db", "db", "--table", "fifo"], pipe),
+        (
+            vec!["materials", "--db", "db", "--features", "/dev/zero"],
+            zero,
+        ),
+        (
+            vec!["pyramid", "--db", "db", "--lights", "fifo", "-o", "x.dbt"],
+            pipe,
+        ),
+    ];
+    for (args, needle) in cases {
+        refused_promptly(dir, &args, needle);
+    }
+    // A region file replaced by a FIFO: refused when the tile set opens its regions.
+    std::fs::remove_file(dir.join("t.town.dbt")).unwrap();
+    fifo(&dir.join("t.town.dbt"));
+    refused_promptly(
+        dir,
+        &["tiles", "t.dbt", "--verify"],
+        "t.town.dbt: is a FIFO (named pipe), not a regular file",
+    );
+}
+
+#[test]
+fn text_inputs_larger_than_their_limit_are_refused_before_reading() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    // Sparse files: their length is what is refused, nothing is read.
+    let sparse = |name: &str, len: u64| {
+        let f = std::fs::File::create(dir.join(name)).unwrap();
+        f.set_len(len).unwrap();
+    };
+    sparse("big.geojson", (1 << 30) + 1);
+    sparse("big.toml", (64 << 20) + 1);
+    refused_promptly(
+        dir,
+        &[
+            "object",
+            "extrude",
+            "--footprints",
+            "big.geojson",
+            "--voxel",
+            "1",
+            "-o",
+            "x.dvox",
+        ],
+        "big.geojson: is 1073741825 bytes, over the 1 GiB dbms reads of a data file",
+    );
+    refused_promptly(
+        dir,
+        &["plan", "big.toml"],
+        "big.toml: is 67108865 bytes, over the 64 MiB dbms reads of a settings file",
+    );
 }

@@ -753,7 +753,23 @@ fn radar_backscatter_shadow_dihedral_and_layover() {
 
     let d = dir.to_str().unwrap();
     for (args, want) in [
-        (vec!["--azimuth", "90", "--elevation", "0"], "elevation"),
+        (
+            vec!["--azimuth", "90", "--elevation", "0"],
+            "the elevation must be",
+        ),
+        (
+            vec!["--azimuth", "90", "--elevation", "NaN"],
+            "the elevation must be",
+        ),
+        // Issue 40: a NaN azimuth was reported as an elevation error.
+        (
+            vec!["--azimuth", "NaN", "--elevation", "30"],
+            "the azimuth must be a finite",
+        ),
+        (
+            vec!["--azimuth", "inf", "--elevation", "30"],
+            "the azimuth must be a finite",
+        ),
         (
             vec!["--azimuth", "90", "--elevation", "30", "--band", "Q"],
             "--band Q",
@@ -1060,4 +1076,117 @@ fn radar_at_the_eye_lights_each_pixel_at_its_own_incidence() {
     );
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("--top"), "{e}");
+}
+
+/// `o` failed with one `dbms: error:` line containing each of `needles`.
+fn refused(o: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(err.starts_with("dbms: error: "), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "want {n:?} in: {err}");
+    }
+}
+
+/// A photo, a σ⁰ map, a map in °C given as the temperature; a temperature map or σ⁰ in dB
+/// given as the backscatter; a temperature map as the radiance: each is refused, naming what
+/// it holds and what the layer holds, before any tile is made (issue 40, defect 5).
+#[test]
+fn a_map_of_another_kind_is_refused_as_a_sensor_layer() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    let (d, p) = (dir.to_str().unwrap(), |n: &str| t.path().join(n));
+    let s = |n: &str| p(n).to_str().unwrap().to_string();
+    ok(dbms(&["materials", "--db", d, "-q"]));
+    ok(thermal(d, "2026-07-01T13:24:00Z", &p("k.tif"), "-q"));
+    let radar = ["radar", "--db", d, "--azimuth", "135", "--elevation", "40"];
+    ok(dbms(
+        &[&radar[..], &["--band", "X", "-q", "-o", &s("s0.tif")]].concat(),
+    ));
+    let grid = Grid::north_up(ORIGIN.0, ORIGIN.1, 1.0, 40, 20, Crs::epsg(32632));
+    let filled = |name: &str, v: f32| {
+        geotiff::write_f32(&p(name), &Raster::filled(grid.clone(), v)).unwrap();
+        s(name)
+    };
+    let (celsius, db) = (filled("c.tif", 21.5), filled("db.tif", -14.0));
+    let photo = dir.join("c.tif").to_str().unwrap().to_string();
+    let ids = Database::open(&dir)
+        .unwrap()
+        .layer_path("materials")
+        .unwrap();
+    let ids = ids.to_str().unwrap().to_string();
+    let cases: [(&str, &str, &[&str]); 7] = [
+        ("--temperature", &photo, &["has 4 bands of Byte samples (an image?), but a temperature map has one band of kelvin"]),
+        ("--temperature", &ids, &["has Byte samples, but a temperature map holds kelvin as floating point"]),
+        ("--temperature", &s("s0.tif"), &["holds values from 0 to", "outside the 150 to 400 K a temperature map holds"]),
+        ("--temperature", &celsius, &["holds values from 21.5 to 21.5", "in °C? add 273.15"]),
+        ("--backscatter", &s("k.tif"), &["outside the 0 to 100 (+20 dB) a linear σ⁰ map holds"]),
+        ("--backscatter", &db, &["holds values from -14 to -14", "in dB? convert"]),
+        ("--radiance", &s("k.tif"), &["outside the 0 to"]),
+    ];
+    for (option, map, needles) in cases {
+        let out = p("x.dbt");
+        let o = dbms(&[
+            "pyramid",
+            "--db",
+            d,
+            "--materials",
+            option,
+            map,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        refused(&o, needles);
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains(map),
+            "names the file"
+        );
+        assert!(!out.exists(), "{option} {map}: no tile file");
+    }
+}
+
+/// A land-cover raster without a CRS over a database with one, and one wholly outside the
+/// grid: each refused in one line (issue 40, defect 5).
+#[test]
+fn land_cover_without_a_crs_or_off_the_grid_is_refused() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path().join("db");
+    database(&dir);
+    let d = dir.to_str().unwrap();
+    let before = std::fs::read(dir.join("manifest.json")).unwrap();
+    let landcover = |name: &str, x: f64, crs: Crs| {
+        let g = Grid::north_up(x, ORIGIN.1, 10.0, 4, 2, crs);
+        let path = t.path().join(name);
+        geotiff::write_u8(
+            &path,
+            &Raster::new(g, vec![80, 80, 10, 10, 80, 80, 10, 10]),
+            None,
+        )
+        .unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let materials = |lc: &str| {
+        dbms(&[
+            "materials",
+            "--db",
+            d,
+            "--landcover",
+            lc,
+            "--legend",
+            "esa_worldcover",
+        ])
+    };
+    let no_crs = landcover("nocrs.tif", ORIGIN.0, Crs::unknown());
+    refused(
+        &materials(&no_crs),
+        &["nocrs.tif: has no CRS (no GeoKeys, no .prj beside it) while the database is in EPSG:32632", "gdalsrsinfo -o wkt1 EPSG:32632 >"],
+    );
+    let far = landcover("far.tif", ORIGIN.0 + 10_000.0, Crs::epsg(32632));
+    refused(
+        &materials(&far),
+        &["far.tif: covers [510000, 5300000, 510040, 5300020] (EPSG:32632), no cell of the database's [500000, 5300000, 500040, 5300020]"],
+    );
+    assert_eq!(std::fs::read(dir.join("manifest.json")).unwrap(), before);
 }

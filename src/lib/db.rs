@@ -711,7 +711,7 @@ impl<T: Clone + Send + Sync> RowSource<T> for LayerRows<T> {
 
 /// Lower-case hex SHA-256 of a file's bytes, streamed.
 pub fn sha256_file(path: &Path) -> Result<String> {
-    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut f = crate::io::open_regular(path)?;
     let mut hasher = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];
     loop {

@@ -108,6 +108,19 @@ pub struct Bounds {
     pub max_y: f64,
 }
 
+/// `[min_x, min_y, max_x, max_y]`, as errors quote an extent.
+impl std::fmt::Display for Bounds {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let Bounds {
+            min_x,
+            min_y,
+            max_x,
+            max_y,
+        } = self;
+        write!(f, "[{min_x}, {min_y}, {max_x}, {max_y}]")
+    }
+}
+
 impl Bounds {
     /// The overlap of two rectangles, or `None` when they do not overlap with positive area.
     pub fn intersection(&self, other: &Bounds) -> Option<Bounds> {

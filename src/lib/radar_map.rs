@@ -131,9 +131,16 @@ pub fn parse_band(s: &str) -> Result<Band> {
 /// The radar map of `db` for `opts`, and its summary.
 pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarSummary)> {
     let (az, el) = (opts.azimuth_deg, opts.elevation_deg);
-    if !(az.is_finite() && el.is_finite() && el > 0.0 && el < 90.0) {
+    let at = format!("radar at azimuth {az}°, elevation {el}°");
+    if !az.is_finite() {
         return Err(Error::msg(format!(
-            "radar at azimuth {az}°, elevation {el}°: the elevation must be between 0 and 90 degrees"
+            "{at}: the azimuth must be a finite number of degrees"
+        ))
+        .fix("give the grid azimuth from the scene toward the radar, e.g. --azimuth 135"));
+    }
+    if !(el > 0.0 && el < 90.0) {
+        return Err(Error::msg(format!(
+            "{at}: the elevation must be between 0 and 90 degrees"
         ))
         .fix("give the radar's depression angle, e.g. --elevation 30"));
     }
@@ -315,7 +322,7 @@ fn preview_colour(s: f32, c: u8) -> [u8; 3] {
 /// σ⁰ (linear) as grey: [`PREVIEW_FLOOR_DB`] and below black (0: no return, too), 0 dB and
 /// above white, linear in dB between.
 pub fn grey_db(s: f32) -> u8 {
-    if !(s > 0.0) {
+    if s.is_nan() || s <= 0.0 {
         return 0;
     }
     let db = 10.0 * f64::from(s).log10();

@@ -407,25 +407,9 @@ fn target_crs(opts: &IngestOptions, dem: &Grid, ortho: &Grid) -> Result<Crs> {
         ))
         .fix("build dbms with --features gdal, or reproject the inputs with gdalwarp -t_srs"));
     }
-    let no_crs = |path: &Path, other: &str, crs: &Crs| {
-        let prj = path.with_extension("prj");
-        Error::file(
-            path,
-            format!(
-                "has no CRS (no GeoKeys, no .prj beside it) while the {other} is in {}",
-                crs.name()
-            ),
-        )
-        .fix(format!(
-            "if it is in that CRS too, say so beside it: gdalsrsinfo -o wkt1 {} > {}",
-            crs.epsg
-                .map_or("EPSG:CODE".to_string(), |c| format!("EPSG:{c}")),
-            prj.display()
-        ))
-    };
     match (dem.crs.is_unknown(), ortho.crs.is_unknown()) {
-        (true, false) => Err(no_crs(&opts.dem, "orthophoto", &ortho.crs)),
-        (false, true) => Err(no_crs(&opts.ortho, "DEM", &dem.crs)),
+        (true, false) => Err(crate::io::no_crs(&opts.dem, "orthophoto", &ortho.crs)),
+        (false, true) => Err(crate::io::no_crs(&opts.ortho, "DEM", &dem.crs)),
         _ => Ok(dem.crs.clone()),
     }
 }
@@ -482,11 +466,7 @@ pub fn plan_grid(
     let overlap = db.intersection(&ob).ok_or_else(|| {
         Error::file(
             &opts.ortho,
-            format!(
-                "orthophoto extent {} does not overlap the DEM's {}",
-                show(&ob),
-                show(&db)
-            ),
+            format!("orthophoto extent {ob} does not overlap the DEM's {db}"),
         )
         .fix("check that both files cover the same area in the same CRS")
     })?;
@@ -565,11 +545,7 @@ fn given_grid(
         if extent.intersection(&db).is_none() {
             return Err(Error::file(
                 path,
-                format!(
-                    "the {what}'s extent {} does not reach the database grid's {}",
-                    show(&extent),
-                    show(&db)
-                ),
+                format!("the {what}'s extent {extent} does not reach the database grid's {db}"),
             )
             .fix(format!("give a {what} that covers it")));
         }
@@ -636,8 +612,4 @@ fn with_cells(b: &Bounds, cell_x: f64, cell_y: f64, crs: crate::crs::Crs) -> Res
         g.transform.cell_y = -cell_y;
     }
     Ok(g)
-}
-
-fn show(b: &Bounds) -> String {
-    format!("[{}, {}, {}, {}]", b.min_x, b.min_y, b.max_x, b.max_y)
 }

@@ -59,7 +59,7 @@ struct Header {
 /// Read an Esri ASCII grid and its sibling `.prj`.
 /// Errors name the line: missing or repeated header keys, non-numbers, wrong value counts.
 pub fn read(path: &Path) -> Result<SourceRaster> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::read_bytes(path)?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
         Error::file(
             path,

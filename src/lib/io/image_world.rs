@@ -117,7 +117,7 @@ pub fn read_world_file(path: &Path) -> Result<Option<GeoTransform>> {
     let Some(wf) = find_world_file(path) else {
         return Ok(None);
     };
-    let text = std::fs::read_to_string(&wf).map_err(|e| Error::io(&wf, e))?;
+    let text = super::read_settings(&wf)?;
     parse_world_file(&text)
         .map(Some)
         .map_err(|e| e.in_file(&wf))

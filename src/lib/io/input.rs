@@ -133,7 +133,7 @@ impl RasterInput {
 /// when its layout must be decoded whole, or when its header does not read (the whole read
 /// then reports the problem in the words every reader uses).
 fn chunked_height(path: &Path) -> Option<usize> {
-    let file = std::fs::File::open(path).ok()?;
+    let file = super::open_regular(path).ok()?;
     let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).ok()?;
     let height = dec.dimensions().ok()?.1 as usize;
     super::chunks::layout(&mut dec).ok()?.map(|_| height)

@@ -72,7 +72,7 @@ struct Vrt {
 /// Anything else (a warped VRT, resampled or cropped sources, scaling, lookup tables, kernel
 /// filters, pixel functions) is a one-line error naming the fix.
 fn read_vrt(path: &Path) -> Result<Vrt> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = super::read_text(path)?;
     let fix = "make a plain mosaic of tiles on one lattice (gdalbuildvrt over gdalwarp -tap -tr tiles), or give the tiles as a directory";
     let bad = |what: String| Error::file(path, what).fix(fix);
     let doc =
@@ -207,7 +207,7 @@ pub fn tile_paths(path: &Path) -> Result<Vec<PathBuf>> {
         tifs.sort();
         tifs
     } else {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e).fix(fix))?;
+        let text = super::read_settings(path).map_err(|e| e.fix(fix))?;
         let base = path.parent().unwrap_or(Path::new(""));
         let lines = text.lines().map(str::trim);
         let named = lines.filter(|l| !l.is_empty() && !l.starts_with('#'));
@@ -235,7 +235,7 @@ impl Mosaic {
             inputs.push(RasterInput::open(p)?);
         }
         let first = inputs[0].meta();
-        let lattice = inputs[0].grid().transform.clone();
+        let lattice = inputs[0].grid().transform;
         let crs = inputs[0].grid().crs.clone();
         let (mut x0, mut y0) = (f64::INFINITY, f64::INFINITY);
         let (mut x1, mut y1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
@@ -292,11 +292,11 @@ impl Mosaic {
                 )
                 .fix("build the VRT at the tiles' resolution (gdalbuildvrt without -tr), or give the tiles as a directory"));
             }
-            Some(v) => v.transform.clone(),
+            Some(v) => v.transform,
             None => GeoTransform {
                 origin_x: x0,
                 origin_y: if lattice.cell_y < 0.0 { y1 } else { y0 },
-                ..lattice.clone()
+                ..lattice
             },
         };
         let cells = |v: f64, step: f64, p: &Path, axis: &str| -> Result<usize> {

@@ -15,37 +15,37 @@ use rayon::prelude::*;
 use std::path::Path;
 
 /// The class code under each cell centre of `grid` (row-major), from the land-cover raster
-/// `path` (band 1); `None` outside the raster and on its nodata.
+/// `path` (band 1); `None` outside the raster and on its nodata. A raster without a CRS over a
+/// grid with one, or one under no cell centre of the grid, is refused.
 pub fn sample_codes(path: &Path, grid: &Grid) -> Result<Vec<Option<u32>>> {
     let raster = crate::io::read_raster(path)?;
     let src = &raster.grid;
-    let reproject = || {
-        Error::file(
+    let geographic = is_geographic(path, src, grid)?;
+    // The raster's pixel holding cell `i`'s centre, if any.
+    let pixel_of = |i: usize| {
+        let (x, y) = grid.cell_centre(i % grid.width, i / grid.width);
+        let at = match geographic {
+            false => Some((x, y)),
+            true => grid.crs.to_lat_lon(x, y).map(|(lat, lon)| (lon, lat)),
+        };
+        at.and_then(|(x, y)| src.cell_at(x, y))
+    };
+    if !(0..grid.len())
+        .into_par_iter()
+        .any(|i| pixel_of(i).is_some())
+    {
+        return Err(Error::file(
             path,
             format!(
-                "the land cover is in {}, the database in {}",
+                "covers {} ({}), no cell of the database's {} ({})",
+                src.bounds(),
                 src.crs.name(),
+                grid.bounds(),
                 grid.crs.name()
             ),
         )
-        .fix(format!(
-            "warp it onto the database's CRS with nearest or mode resampling: gdalwarp -t_srs {} -r mode {} out.tif",
-            grid.crs.epsg.map_or("<the database's CRS>".into(), |c| format!("EPSG:{c}")),
-            path.display()
-        ))
-    };
-    let geographic = if src.crs.same_as(&grid.crs) {
-        false
-    } else if src.crs.geographic
-        && grid
-            .crs
-            .to_lat_lon(grid.centre().0, grid.centre().1)
-            .is_some()
-    {
-        true
-    } else {
-        return Err(reproject());
-    };
+        .fix("give the land cover of the database's area"));
+    }
     let band = raster.bands;
     let is_nodata = |v: f64| {
         raster
@@ -57,12 +57,7 @@ pub fn sample_codes(path: &Path, grid: &Grid) -> Result<Vec<Option<u32>>> {
     let sampled: Vec<std::result::Result<Option<u32>, f64>> = (0..grid.len())
         .into_par_iter()
         .map(|i| {
-            let (x, y) = grid.cell_centre(i % grid.width, i / grid.width);
-            let at = match geographic {
-                false => Some((x, y)),
-                true => grid.crs.to_lat_lon(x, y).map(|(lat, lon)| (lon, lat)),
-            };
-            let Some((col, row)) = at.and_then(|(x, y)| src.cell_at(x, y)) else {
+            let Some((col, row)) = pixel_of(i) else {
                 return Ok(None);
             };
             let v = raster.samples.get(src.index(col, row) * band);
@@ -83,6 +78,36 @@ pub fn sample_codes(path: &Path, grid: &Grid) -> Result<Vec<Option<u32>>> {
         ));
     }
     Ok(sampled.into_iter().map(|r| r.unwrap_or(None)).collect())
+}
+
+/// Whether the land cover `path` on `src` is sampled through longitude/latitude (a geographic
+/// raster over a grid whose CRS converts to them) rather than in the grid's own CRS. Refused: a
+/// raster without a CRS over a grid with one ([`crate::io::no_crs`]: never assumed), and any
+/// other CRS, with the `gdalwarp` that fixes it.
+fn is_geographic(path: &Path, src: &Grid, grid: &Grid) -> Result<bool> {
+    if src.crs.is_unknown() && !grid.crs.is_unknown() {
+        return Err(crate::io::no_crs(path, "database", &grid.crs));
+    }
+    if src.crs.same_as(&grid.crs) {
+        return Ok(false);
+    }
+    let (x, y) = grid.centre();
+    if src.crs.geographic && grid.crs.to_lat_lon(x, y).is_some() {
+        return Ok(true);
+    }
+    Err(Error::file(
+        path,
+        format!(
+            "the land cover is in {}, the database in {}",
+            src.crs.name(),
+            grid.crs.name()
+        ),
+    )
+    .fix(format!(
+        "warp it onto the database's CRS with nearest or mode resampling: gdalwarp -t_srs {} -r mode {} out.tif",
+        grid.crs.epsg.map_or("<the database's CRS>".into(), |c| format!("EPSG:{c}")),
+        path.display()
+    )))
 }
 
 #[cfg(test)]

@@ -104,15 +104,32 @@ impl std::fmt::Display for MaterialSummary {
             )?;
         }
         if !self.landcover_unmapped.is_empty() {
-            let codes: Vec<String> = self.landcover_unmapped.keys().map(u32::to_string).collect();
-            writeln!(
-                f,
-                "  land-cover codes the legend does not map: {}",
-                codes.join(", ")
-            )?;
+            writeln!(f, "  {}", unmapped_line(&self.landcover_unmapped))?;
         }
         Ok(())
     }
+}
+
+/// Unmapped land-cover codes shown by name in the summary; `--json` lists them all.
+const UNMAPPED_SHOWN: usize = 5;
+
+/// The summary's line for the land-cover codes the legend does not map (`unmapped`: code →
+/// cells): how many codes and cells, and the first [`UNMAPPED_SHOWN`] codes, so a raster of
+/// thousands of codes (the wrong legend, a raster of ids) stays one short line.
+fn unmapped_line(unmapped: &BTreeMap<u32, u64>) -> String {
+    let cells: u64 = unmapped.values().sum();
+    let first: Vec<String> = (unmapped.keys().take(UNMAPPED_SHOWN))
+        .map(u32::to_string)
+        .collect();
+    let more = match unmapped.len().saturating_sub(UNMAPPED_SHOWN) {
+        0 => String::new(),
+        n => format!(" and {n} more (--json lists them all)"),
+    };
+    format!(
+        "{} land-cover codes the legend does not map ({cells} cells, from the photo): {}{more}",
+        unmapped.len(),
+        first.join(", ")
+    )
 }
 
 /// Everything the classification reads, on one grid (row-major cells).
@@ -482,7 +499,7 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
     })?;
     let mut inputs_record = Vec::new();
     if let Some(path) = &opts.table {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::io::read_settings(path)?.into_bytes();
         change.write_layer(MATERIAL_TABLE, "material-table", "json", |dest| {
             crate::io::atomic::write_bytes_atomic(dest, &bytes)?;
             Ok(None)
@@ -535,6 +552,31 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Thousands of unmapped codes (the wrong legend for a float raster of ids, say): the
+    /// summary says how many and shows the first five, not one line of every code.
+    #[test]
+    fn many_unmapped_codes_are_a_count_and_the_first_five() {
+        let summary = |codes: std::ops::Range<u32>| MaterialSummary {
+            cells: 10,
+            sources: SourceCounts::default(),
+            materials: BTreeMap::new(),
+            table: "default".into(),
+            landcover_unmapped: codes.map(|c| (c, 2)).collect(),
+        };
+        let text = summary(100..50_100).to_string();
+        let line = text.lines().last().unwrap();
+        assert_eq!(
+            line,
+            "  50000 land-cover codes the legend does not map (100000 cells, from the photo): 100, 101, 102, 103, 104 and 49995 more (--json lists them all)"
+        );
+        let few = summary(7..9).to_string();
+        let line = few.lines().last().unwrap();
+        assert_eq!(
+            line,
+            "  2 land-cover codes the legend does not map (4 cells, from the photo): 7, 8"
+        );
+    }
 
     fn painted(material: &str, cells: Vec<usize>) -> features::Painted {
         features::Painted {

@@ -180,7 +180,7 @@ impl MaterialTable {
 
     /// Read and check the material table at `path`.
     pub fn read(path: &Path) -> Result<MaterialTable> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_settings(path)?;
         MaterialTable::parse(&text, path)
     }
 

@@ -269,7 +269,9 @@ pub struct Earlier {
 /// follows).
 pub fn earlier(out: &Path, key: &serde_json::Value) -> std::result::Result<Earlier, String> {
     let path = ledger_path(out);
-    let text = std::fs::read(&path).map_err(|_| format!("no ledger {}", path.display()))?;
+    let text = (crate::io::read_text(&path))
+        .map_err(|e| format!("no ledger {} ({})", path.display(), e.problem))?
+        .into_bytes();
     let ledger: Ledger = serde_json::from_slice(&text)
         .map_err(|e| format!("the ledger {} cannot be read: {e}", path.display()))?;
     if ledger.format != LEDGER_FORMAT || ledger.version != 1 {

@@ -553,12 +553,14 @@ impl SensorReaders {
             }
             false => None,
         };
-        let map = |p: &Option<PathBuf>| p.as_deref().map(|p| db.values_on_grid(p)).transpose();
+        let map = |p: &Option<PathBuf>, l| {
+            (p.as_deref().map(|p| sensor::open_values(db, p, l))).transpose()
+        };
         Ok(SensorReaders {
             material,
-            temperature: map(&inputs.temperature)?,
-            radiance: map(&inputs.radiance)?,
-            backscatter: map(&inputs.backscatter)?,
+            temperature: map(&inputs.temperature, SensorLayer::Temperature)?,
+            radiance: map(&inputs.radiance, SensorLayer::Radiance)?,
+            backscatter: map(&inputs.backscatter, SensorLayer::Backscatter)?,
         })
     }
 

@@ -9,7 +9,9 @@
 //! level-0 cell is valid in a sensor layer when it is valid in `max_z` and its own value is not
 //! nodata; a coarse cell with no valid level-0 cell is nodata.
 
-use crate::error::Result;
+use crate::db::{Database, LayerRows};
+use crate::error::{Error, Result};
+use crate::io::SourceRaster;
 use crate::material::table::MaterialTable;
 use crate::raster::RowSource;
 use crate::standing::Raised;
@@ -17,6 +19,7 @@ use crate::tiles::{
     pack_normal, MaterialAttributes, SensorCells, SensorLayer, MATERIAL_NODATA, NORMAL_NODATA,
 };
 use rayon::prelude::*;
+use std::path::Path;
 use std::sync::Arc;
 
 /// The material ids a build counts: every id its materials layer holds, and 0 (unclassified)
@@ -298,6 +301,169 @@ fn mean(sum: f64, count: u64) -> f32 {
     match count {
         0 => f32::NAN,
         n => (sum / n as f64) as f32,
+    }
+}
+
+/// What a value map carried as a sensor layer holds: one band of floating-point values in a
+/// plausible range (inclusive; NaN and the declared nodata aside).
+///
+/// * Temperature, kelvin: 150 to 400 K. Earth's land surface lies between about 180 K (the
+///   coldest skin temperature measured from orbit, on the East Antarctic plateau) and about
+///   345 K (the hottest, in the Lut desert); the margin holds a sun-heated metal roof. A map in
+///   °C (−90 to 70) or a σ⁰ map (0 to a few) falls below it.
+/// * Radiance, 8–12 µm, W·m⁻²·sr⁻¹: 0 to a black body's at 400 K (emissivity ≤ 1), 134 rounded up.
+/// * Backscatter σ⁰, linear power ratio (docs/sensors.md: `dbms radar` writes it linear): 0 (radar
+///   shadow, specular surfaces) to 100 (+20 dB). The published models of distributed surfaces
+///   (Ulaby & Dobson's handbook; the default table's γ of −21 to −15 dB) stay well below
+///   +20 dB, and a temperature map in kelvin (≥ 150) cannot pass as σ⁰; a map in dB is
+///   negative almost everywhere.
+struct Holds {
+    /// The map, in words: "a temperature map".
+    what: &'static str,
+    /// Its band, in words: "kelvin".
+    band: &'static str,
+    /// The plausible range of its values.
+    range: (f64, f64),
+    /// The range in words, with its unit: "150 to 400 K".
+    range_words: String,
+    /// The command that writes such a map.
+    maker: &'static str,
+}
+
+/// What the value map carried as `layer` holds, or `None` for a layer no map carries
+/// (materials and normals come from the database).
+fn holds(layer: SensorLayer) -> Option<Holds> {
+    let holds = |what, band, range: (f64, f64), unit, maker| Holds {
+        what,
+        band,
+        range,
+        range_words: format!("{} to {}{unit}", range.0, range.1),
+        maker,
+    };
+    match layer {
+        SensorLayer::Temperature => Some(holds(
+            "a temperature map",
+            "kelvin",
+            (150.0, 400.0),
+            " K",
+            "dbms thermal -o",
+        )),
+        SensorLayer::Radiance => {
+            let band = crate::thermal::planck::BAND_8_12_UM;
+            let hottest = crate::thermal::planck::band_radiance(400.0, band).ok()?;
+            Some(holds(
+                "an 8–12 µm radiance map",
+                "W·m⁻²·sr⁻¹",
+                (0.0, hottest.ceil()),
+                " W·m⁻²·sr⁻¹",
+                "dbms thermal --radiance-out",
+            ))
+        }
+        SensorLayer::Backscatter => Some(holds(
+            "a linear σ⁰ map",
+            "linear power ratios (m²/m²)",
+            (0.0, 100.0),
+            " (+20 dB)",
+            "dbms radar -o",
+        )),
+        SensorLayer::Material | SensorLayer::Normal => None,
+    }
+}
+
+/// The map at `path` opened as the level-0 source of `layer` (temperature, radiance or
+/// backscatter), checked to be such a map before anything is built from it: one band of
+/// floating-point samples (a photo, a class layer refused), on the database grid
+/// ([`Database::values_on_grid`]), every value in the layer's plausible range ([`Holds`]: a σ⁰
+/// map given as the temperature, a temperature map as the σ⁰, °C or dB refused). Checking the
+/// range reads the map once, band by band.
+pub fn open_values(db: &Database, path: &Path, layer: SensorLayer) -> Result<LayerRows<f32>> {
+    let Some(holds) = holds(layer) else {
+        return Err(Error::file(
+            path,
+            format!("no map carries the {layer:?} layer"),
+        ));
+    };
+    let head = crate::io::geotiff::read_rows(path, 0..1)?;
+    check_samples(&head, &holds)?;
+    let rows = db.values_on_grid(path)?;
+    let Some((lo, hi)) = value_range(&rows)? else {
+        return Ok(rows);
+    };
+    if f64::from(lo) < holds.range.0 || f64::from(hi) > holds.range.1 {
+        return Err(Error::file(
+            path,
+            format!(
+                "holds values from {lo} to {hi}, outside the {} {} holds",
+                holds.range_words, holds.what
+            ),
+        )
+        .fix(range_fix(layer, &holds, lo.into(), hi.into())));
+    }
+    Ok(rows)
+}
+
+/// An error unless `head` (a map's first row) is one band of floating-point samples.
+fn check_samples(head: &SourceRaster, holds: &Holds) -> Result<()> {
+    let fix = format!("give the map `{}` writes", holds.maker);
+    let kind = head.samples.type_name();
+    if head.bands != 1 {
+        return Err(Error::file(
+            &head.path,
+            format!(
+                "has {} bands of {kind} samples (an image?), but {} has one band of {}",
+                head.bands, holds.what, holds.band
+            ),
+        )
+        .fix(fix));
+    }
+    if !matches!(kind, "Float32" | "Float64") {
+        return Err(Error::file(
+            &head.path,
+            format!(
+                "has {kind} samples, but {} holds {} as floating point",
+                holds.what, holds.band
+            ),
+        )
+        .fix(format!("{fix} (Float32)")));
+    }
+    Ok(())
+}
+
+/// The smallest and largest value of `rows` (NaN, nodata, skipped), read band by band; `None`
+/// when there is none.
+fn value_range(rows: &LayerRows<f32>) -> Result<Option<(f32, f32)>> {
+    let grid = rows.grid();
+    let band = crate::raster::band_rows(grid.width);
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for row0 in (0..grid.height).step_by(band) {
+        let values = rows.read_rows(row0, band.min(grid.height - row0))?;
+        let (l, h) = (values.par_iter().copied())
+            .filter(|v| !v.is_nan())
+            .fold(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |(l, h), v| (l.min(v), h.max(v)),
+            )
+            .reduce(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |a, b| (a.0.min(b.0), a.1.max(b.1)),
+            );
+        (lo, hi) = (lo.min(l), hi.max(h));
+    }
+    Ok((lo <= hi).then_some((lo, hi)))
+}
+
+/// The fix for a map of `layer` whose values `lo..hi` are out of its range: what it likely
+/// is (°C for a temperature, dB for a σ⁰) and the conversion, else the command that makes one.
+fn range_fix(layer: SensorLayer, holds: &Holds, lo: f64, hi: f64) -> String {
+    let calc = |expr: &str| format!("gdal_calc.py -A IN.tif --calc=\"{expr}\" --outfile=OUT.tif");
+    match layer {
+        SensorLayer::Temperature if lo >= -100.0 && hi <= 100.0 && hi > 1.0 => {
+            format!("in °C? add 273.15: {}", calc("A+273.15"))
+        }
+        SensorLayer::Backscatter if lo < 0.0 && hi <= 40.0 => {
+            format!("in dB? convert to linear power: {}", calc("10**(A/10)"))
+        }
+        _ => format!("give the map `{}` writes", holds.maker),
     }
 }
 

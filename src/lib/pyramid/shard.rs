@@ -150,7 +150,9 @@ fn stage_json<T: Serialize>(path: &Path, value: &T) -> Result<Staged> {
 }
 
 fn read_json<T: serde::de::DeserializeOwned>(path: &Path, what: &str, fix: &str) -> Result<T> {
-    let text = std::fs::read(path).map_err(|e| Error::io(path, e).fix(fix.to_string()))?;
+    let text = crate::io::read_text(path)
+        .map_err(|e| e.fix(fix.to_string()))?
+        .into_bytes();
     serde_json::from_slice(&text)
         .map_err(|e| Error::file(path, format!("not a {what}: {e}")).fix(fix.to_string()))
 }

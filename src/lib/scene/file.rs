@@ -519,8 +519,8 @@ impl Scene {
     /// Read and check the scene file at `path`; relative paths in it become relative to its
     /// directory.
     pub fn read(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::io(path, e).fix("give the path of a scene file (TOML)"))?;
+        let text = crate::io::read_settings(path)
+            .map_err(|e| e.fix("give the path of a scene file (TOML)"))?;
         let mut scene = Scene::parse(&text).map_err(|e| e.in_file(path))?;
         let base = path.parent().unwrap_or(Path::new(""));
         scene.resolve_paths(base);

@@ -767,7 +767,7 @@ fn stamp_of(step: &Step, before: &BTreeMap<String, Stamp>, old: Option<&Stamp>) 
 }
 
 fn read_stamp(path: &Path) -> Option<Stamp> {
-    let text = std::fs::read_to_string(path).ok()?;
+    let text = crate::io::read_settings(path).ok()?;
     serde_json::from_str(&text).ok()
 }
 

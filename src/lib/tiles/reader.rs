@@ -60,7 +60,7 @@ impl TileReader {
     /// magic, version, length, header and index checksums, the header's consistency and every
     /// index entry's bounds; a failure is one line naming the file and what is wrong.
     pub fn open(path: &Path, cache_pages: usize) -> Result<TileReader> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let file = crate::io::open_regular(path)?;
         let pre = read_preamble(&file, path)?;
         let info = read_header(&file, path, &pre)?;
         let layout = Layout::of(&info);

@@ -110,7 +110,7 @@ pub fn write(path: &Path, obj: &VoxelObject, source: &str) -> Result<()> {
 
 /// Read a `.dvox` file.
 pub fn read(path: &Path) -> Result<(VoxelObject, Header)> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::read_bytes(path)?;
     decode(&bytes).map_err(|e| e.in_file(path))
 }
 

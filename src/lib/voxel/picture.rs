@@ -49,7 +49,7 @@ impl Picture {
 
     /// Read a PNG, JPEG or TIFF file.
     pub fn read(path: &Path) -> Result<Picture> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::io::read_bytes(path)?;
         match bytes.get(..4) {
             Some([b'I', b'I', 42, 0]) | Some([b'M', b'M', 0, 42]) => {
                 read_tiff(&bytes).map_err(|e| e.in_file(path))

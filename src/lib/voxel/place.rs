@@ -296,7 +296,7 @@ fn store_object(change: &mut Change, path: &Path, sha256: &str) -> Result<String
     if !dest.exists() {
         let dir = change.db.dir.join("objects");
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::io::read_bytes(path)?;
         crate::io::atomic::write_bytes_atomic(&dest, &bytes)?;
         change.wrote(&file);
     }

@@ -162,7 +162,7 @@ impl ViewsFile {
     /// Parse a `VIEWS.json` file: an object `{"views": [...], "bounds": [...]}` or just the list
     /// (a leading UTF-8 byte order mark is skipped).
     pub fn read(path: &Path) -> Result<ViewsFile> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_settings(path)?;
         let parsed = if text.trim_start().starts_with('[') {
             serde_json::from_str::<Vec<ViewSpec>>(&text).map(|views| ViewsFile {
                 views,

@@ -86,14 +86,14 @@ pub fn read_rows(path: &Path, rows: Range<usize>) -> Result<SourceRaster> {
 
 /// Width and height of a TIFF's first image, in pixels, without decoding it.
 pub fn size(path: &Path) -> Result<(usize, usize)> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = super::open_regular(path)?;
     let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| corrupt(path, e))?;
     let (w, h) = dec.dimensions().map_err(|e| corrupt(path, e))?;
     Ok((w as usize, h as usize))
 }
 
 fn read_impl(path: &Path, window: Option<Range<usize>>) -> Result<SourceRaster> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = super::open_regular(path)?;
     let limits = {
         let mut l = Limits::default();
         l.decoding_buffer_size = MAX_DECODED_BYTES;
