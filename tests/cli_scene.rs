@@ -1048,3 +1048,69 @@ fn the_makefile_escapes_what_make_can_and_refuses_the_rest() {
     );
     assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
 }
+
+/// The scene's `at` placements are one `dbms place` (a change of the database each would
+/// rewrite its manifest: a build in quadratic time), in the scene's order, giving the
+/// database placement by placement gives.
+#[test]
+fn at_placements_are_placed_by_one_command() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(dbms_in(dir, &["--json", "plan", "scene.toml"]), "plan")).unwrap();
+    let place = json["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "place")
+        .unwrap();
+    let commands = place["commands"].as_array().unwrap();
+    assert_eq!(commands.len(), 1, "{place}");
+    let line = commands[0].to_string();
+    let first = line.find("500030,5300030").unwrap();
+    assert!(first < line.find("500050,5300040").unwrap(), "{line}");
+    ok(dbms_in(dir, &["-q", "build", "scene.toml"]), "build");
+    assert!(std::fs::read(dir.join("build/day.dbt")).unwrap() == stage_by_stage(dir, 30.0));
+}
+
+/// A scale the database cannot hold (the object wider than its extent, or taller than
+/// `Z_MARGIN_M`) is refused in one line, by `dbms place` and so by a scene's build.
+#[test]
+fn a_scale_the_grid_cannot_hold_is_refused() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let text = scene_toml(30.0).replace("heading = 30\n", "heading = 30\nscale = 150\n");
+    std::fs::write(dir.join("scene.toml"), text).unwrap();
+    let out = dbms_in(dir, &["build", "scene.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("step place failed") && err.contains("--scale 150"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    // Moved to a scale it cannot hold: refused, the placement unchanged.
+    std::fs::write(dir.join("scene.toml"), scene_toml(30.0)).unwrap();
+    ok(dbms_in(dir, &["-q", "build", "scene.toml"]), "build");
+    let out = dbms_in(
+        dir,
+        &[
+            "place",
+            "--db",
+            "build/db",
+            "--move",
+            "1",
+            "--at",
+            "500030,5300030",
+            "--scale",
+            "100",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--scale 100"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
+}

@@ -432,49 +432,59 @@ fn heights_step(scene: &Scene) -> Option<Step> {
     })
 }
 
-/// One `place` per placement, after the database step `last` and every object; `None` without
-/// placements.
+/// Most `at` placements one `place` command line carries (its arguments stay far below the
+/// system's limit on a command line's length, about 150 bytes each).
+const AT_PER_COMMAND: usize = 1000;
+
+/// The `place` step after the database step `last` and every object: one `dbms place` for
+/// each run of `at` placements (up to [`AT_PER_COMMAND`]: one change of the database, not one
+/// each, which rewrote the manifest once a placement) and one per point layer, in the scene's
+/// order; `None` without placements.
 fn place_step(scene: &Scene, last: &str) -> Option<Step> {
     if scene.placements.is_empty() {
         return None;
     }
-    let commands = scene
-        .placements
-        .iter()
-        .map(|p| {
-            let mut c = vec![
-                s("place"),
-                s("--db"),
-                s(scene.database.dir.display()),
-                s("--object"),
-                s(object_file(scene, &p.object).display()),
-            ];
-            match (&p.at, &p.points) {
-                (Some(at), _) => {
-                    let heading = p.heading.unwrap_or(0.0);
-                    let at: Vec<String> = at.iter().map(s).collect();
-                    c.extend([s("--at"), at.join(","), s("--heading"), s(heading)]);
-                    if let Some(k) = p.scale.filter(|&k| k != 1.0) {
-                        c.extend([s("--scale"), s(k)]);
-                    }
+    let db = s(scene.database.dir.display());
+    let mut commands: Vec<Vec<String>> = Vec::new();
+    let mut run: Vec<String> = Vec::new();
+    let at_count = |c: &[String]| c.iter().filter(|a| *a == "--at").count();
+    for p in &scene.placements {
+        let object = s(object_file(scene, &p.object).display());
+        match (&p.at, &p.points) {
+            (Some(at), _) => {
+                if run.is_empty() || at_count(&run) == AT_PER_COMMAND {
+                    commands.extend((!run.is_empty()).then(|| std::mem::take(&mut run)));
+                    run = vec![s("place"), s("--db"), db.clone()];
                 }
-                (None, Some(points)) => {
-                    c.extend([s("--points"), s(points.display())]);
-                    if p.random_heading == Some(true) {
-                        c.push(s("--random-heading"));
-                    }
-                    if let Some([lo, hi]) = p.scale_range {
-                        c.extend([s("--scale-range"), format!("{lo},{hi}")]);
-                    }
-                    if let Some(seed) = p.seed.filter(|&n| n != 0) {
-                        c.extend([s("--seed"), s(seed)]);
-                    }
-                }
-                (None, None) => unreachable!("Scene::check requires at or points"),
+                let at: Vec<String> = at.iter().map(s).collect();
+                let heading = p.heading.unwrap_or(0.0);
+                run.extend([s("--object"), object, s("--at"), at.join(",")]);
+                run.extend([
+                    s("--heading"),
+                    s(heading),
+                    s("--scale"),
+                    s(p.scale.unwrap_or(1.0)),
+                ]);
             }
-            c
-        })
-        .collect();
+            (None, Some(points)) => {
+                commands.extend((!run.is_empty()).then(|| std::mem::take(&mut run)));
+                let mut c = vec![s("place"), s("--db"), db.clone(), s("--object"), object];
+                c.extend([s("--points"), s(points.display())]);
+                if p.random_heading == Some(true) {
+                    c.push(s("--random-heading"));
+                }
+                if let Some([lo, hi]) = p.scale_range {
+                    c.extend([s("--scale-range"), format!("{lo},{hi}")]);
+                }
+                if let Some(seed) = p.seed.filter(|&n| n != 0) {
+                    c.extend([s("--seed"), s(seed)]);
+                }
+                commands.push(c);
+            }
+            (None, None) => unreachable!("Scene::check requires at or points"),
+        }
+    }
+    commands.extend((!run.is_empty()).then_some(run));
     // A point layer and the object files its features name themselves (read here; one that
     // cannot be read is the place step's error when it runs).
     let mut inputs: Vec<PathBuf> = Vec::new();
