@@ -122,8 +122,13 @@ fn stage_by_stage_with(dir: &Path, heading: f64, inset: Option<&str>) -> Vec<u8>
 }
 
 fn make(dir: &Path) -> String {
+    make_scene(dir, "scene.toml")
+}
+
+/// Run the Makefile `dbms plan SCENE --makefile` writes for `scene` in `dir`.
+fn make_scene(dir: &Path, scene: &str) -> String {
     let makefile = ok(
-        dbms_in(dir, &["plan", "scene.toml", "--makefile"]),
+        dbms_in(dir, &["plan", scene, "--makefile"]),
         "plan --makefile",
     );
     std::fs::write(dir.join("Makefile.scene"), makefile).unwrap();
@@ -746,4 +751,366 @@ fn a_sharded_scene_through_snakemake_gives_the_same_bytes() {
         "build --shards 4",
     );
     assert!(std::fs::read(dir.join("build/day.dbt")).unwrap() == want);
+}
+
+/// The placements in the manifest of the database at `db`.
+fn placements(db: &Path) -> usize {
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(db.join("manifest.json")).unwrap()).unwrap();
+    m["objects"].as_array().unwrap().len()
+}
+
+/// Two `dbms build`s of one scene started at once give the database one build gives: the
+/// second waits for the first's lock and finds its steps up to date (each placement once).
+#[test]
+fn two_builds_at_once_give_the_database_one_build_gives() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let start = || {
+        cli::command()
+            .args(["-q", "build", "scene.toml"])
+            .current_dir(dir)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let (a, b) = (start(), start());
+    for build in [a, b] {
+        ok(build.wait_with_output().unwrap(), "build");
+    }
+    assert_eq!(placements(&dir.join("build/db")), 2);
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
+    assert!(std::fs::read(dir.join("build/day.dbt")).unwrap() == stage_by_stage(dir, 30.0));
+}
+
+/// The ids of the running processes (other than `but`) whose command line names `marker`.
+#[cfg(target_os = "linux")]
+fn processes_naming(marker: &str, but: u32) -> Vec<(u32, String)> {
+    let mut found = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Some(pid) = e.file_name().to_str().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        let Ok(cmdline) = std::fs::read(e.path().join("cmdline")) else {
+            continue;
+        };
+        let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+        if pid != but && cmdline.contains(marker) {
+            found.push((pid, cmdline));
+        }
+    }
+    found
+}
+
+/// A build ended by SIGTERM (what `timeout` sends) while a step runs leaves no step running:
+/// each child is sent SIGTERM when the build dies. (The test holds the database's lock, so the
+/// ingest step waits for it: it would outlive the build by a minute.)
+#[cfg(target_os = "linux")]
+#[test]
+fn a_build_ended_by_sigterm_leaves_no_step_running() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    std::fs::create_dir_all(dir.join("build/db")).unwrap();
+    let lock = std::fs::File::create(dir.join("build/db/.dbms.lock")).unwrap();
+    lock.lock().unwrap();
+    // Absolute paths in every command line: a step is a process naming the temporary directory.
+    let scene = dir.join("scene.toml");
+    let marker = dir.to_str().unwrap();
+    let mut build = cli::command()
+        .args(["-q", "build", scene.to_str().unwrap()])
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while !processes_naming(marker, build.id())
+        .iter()
+        .any(|(_, c)| c.contains(" ingest "))
+    {
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "the ingest step never started"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let kill = Command::new("kill")
+        .args(["-TERM", &build.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    build.wait().unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let left = processes_naming(marker, build.id());
+    for (pid, _) in &left {
+        let _ = Command::new("kill")
+            .args(["-KILL", &pid.to_string()])
+            .status();
+    }
+    assert!(left.is_empty(), "steps left running: {left:?}");
+}
+
+/// A step given a build's owner (DBMS_BUILD_OWNER, TOKEN:LOCK) commits its output only while
+/// that build holds its lock with that token: not once it was killed (nobody holds the lock),
+/// nor once a later build took it over (another token).
+#[test]
+fn a_step_whose_build_has_ended_commits_nothing() {
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    let lock = dir.join("build.lock");
+    std::fs::write(&lock, "41-7").unwrap();
+    let run = |token: &str| {
+        cli::command()
+            .env("DBMS_BUILD_OWNER", format!("{token}:{}", lock.display()))
+            .args([&TREE[..], &["-o", "tree.dvox"]].concat())
+            .current_dir(dir)
+            .output()
+            .unwrap()
+    };
+    let refused = |out: std::process::Output| {
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("has ended"), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        assert!(!dir.join("tree.dvox").exists());
+    };
+    refused(run("41-7"));
+    let held = std::fs::File::open(&lock).unwrap();
+    held.lock().unwrap();
+    refused(run("40-1"));
+    ok(run("41-7"), "object while its build runs");
+    assert!(dir.join("tree.dvox").exists());
+}
+
+/// Every file a build writes, derived ones included, is checked against the others and the
+/// inputs before anything runs, with paths normalised (`db/../t.dbt` is `t.dbt` even when
+/// `db` does not exist yet), and nothing goes inside the database directory.
+#[test]
+fn outputs_that_collide_are_refused_before_anything_runs() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let product = |name: &str, tiles: &str| {
+        format!("[products.{name}]\nsensor = \"visual\"\ntiles = \"{tiles}\"\n")
+    };
+    let cases = [
+        // Another product's region file for the inset.
+        (
+            scene_toml(0.0) + TOWN.0 + &product("night", "build/day.town.dbt"),
+            "day.town.dbt, which the region file of inset town of products.day.tiles also names",
+        ),
+        // The heights step's own file, and another product's ledger.
+        (
+            scene_toml(0.0) + &product("x", "build/db.steps/heights.geojson"),
+            "which the heights step's output also names",
+        ),
+        (
+            scene_toml(0.0) + &product("x", "build/day.dbt.ledger.json"),
+            "the ledger of products.day.tiles also names",
+        ),
+        (
+            scene_toml(0.0) + &product("x", "build/db.steps/place.done"),
+            "which the place step's stamp also names",
+        ),
+        // Through a directory that does not exist yet.
+        (
+            scene_toml(0.0) + &product("x", "build/db/../day.dbt"),
+            "which products.day.tiles also names",
+        ),
+        (
+            scene_toml(0.0) + &product("x", "build/db/x.dbt"),
+            "inside database.dir",
+        ),
+        (
+            scene_toml(0.0) + &product("x", "scene/dem.tif"),
+            "which terrain.dem also names",
+        ),
+    ];
+    for (text, want) in cases {
+        std::fs::write(dir.join("scene.toml"), &text).unwrap();
+        for command in ["plan", "build"] {
+            let out = dbms_in(dir, &[command, "scene.toml"]);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(!out.status.success() && err.contains(want), "{want}: {err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        }
+        assert!(!dir.join("build").exists(), "nothing ran: {want}");
+    }
+}
+
+/// A scene's `at = [x, y, z]` stands the object at height z, as `dbms place --at X,Y,Z`
+/// does; four numbers are refused in one line naming the file and the placement.
+#[test]
+fn a_scene_placement_at_a_height_keeps_it_and_four_numbers_are_refused() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let text = scene_toml(0.0).replace("at = [500050, 5300040]", "at = [500050, 5300040, 7.5]");
+    std::fs::write(dir.join("scene.toml"), &text).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(dbms_in(dir, &["--json", "plan", "scene.toml"]), "plan")).unwrap();
+    let place = json["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "place")
+        .unwrap();
+    assert!(
+        place["commands"]
+            .to_string()
+            .contains("\"500050,5300040,7.5\""),
+        "{place}"
+    );
+    let text = scene_toml(0.0).replace("at = [500050, 5300040]", "at = [500050, 5300040, 7, 1]");
+    std::fs::write(dir.join("scene.toml"), &text).unwrap();
+    let out = dbms_in(dir, &["plan", "scene.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("scene.toml")
+            && err.contains("placements[1].at has 4 numbers"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+}
+
+/// `plan --begin STEP` (what the Makefile's rules run before a step) hashes the inputs when
+/// the step starts: an input changed while it runs is not recorded as built by its
+/// `--stamp STEP`, and the next plan runs the step again.
+#[test]
+fn an_input_changed_while_its_step_runs_is_not_recorded_as_built() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    ok(
+        dbms_in(dir, &["plan", "scene.toml", "--begin", "heights"]),
+        "--begin",
+    );
+    let footprints = dir.join("scene/buildings.geojson");
+    let mut text = std::fs::read_to_string(&footprints).unwrap();
+    text.push('\n');
+    std::fs::write(&footprints, text).unwrap();
+    ok(
+        dbms_in(dir, &["plan", "scene.toml", "--stamp", "heights"]),
+        "--stamp",
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(dbms_in(dir, &["--json", "plan", "scene.toml"]), "plan")).unwrap();
+    let heights = &json["steps"][1];
+    assert_eq!(heights["name"], "heights");
+    assert!(
+        heights["why"][0]
+            .as_str()
+            .unwrap()
+            .ends_with("buildings.geojson changed"),
+        "{heights}"
+    );
+    let makefile = ok(
+        dbms_in(dir, &["plan", "scene.toml", "--makefile"]),
+        "makefile",
+    );
+    let begin = makefile.find("--begin heights").unwrap();
+    let shadow = makefile.find("shadow-height").unwrap();
+    assert!(begin < shadow, "{makefile}");
+}
+
+/// A scene in a directory with a space, `#` and `$` in its name: make runs the Makefile's
+/// rules (escaped targets, quoted recipes); a `:` in a path is refused in one line. A `{` in
+/// a path is refused for the Snakefile (Snakemake would read a wildcard), a `{` in a recipe
+/// kept.
+#[test]
+fn the_makefile_escapes_what_make_can_and_refuses_the_rest() {
+    let t = sample_with_scene();
+    let root = t.path();
+    let odd = root.join("my scene #1 $x");
+    std::fs::create_dir(&odd).unwrap();
+    std::fs::rename(root.join("scene"), odd.join("scene")).unwrap();
+    std::fs::write(odd.join("scene.toml"), scene_toml(30.0)).unwrap();
+    // The scene's paths are then absolute, each with the directory's name.
+    let scene = odd.join("scene.toml");
+    let scene = scene.to_str().unwrap();
+    assert!(ok(dbms_in(&odd, &["plan", scene, "--makefile"]), "plan")
+        .contains("my\\ scene\\ \\#1\\ $$x/build/db.steps/place.done"));
+    make_scene(&odd, scene);
+    assert!(std::fs::read(odd.join("build/day.dbt")).unwrap() == stage_by_stage(&odd, 30.0));
+    let plan = ok(dbms_in(&odd, &["plan", scene]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
+    let text = scene_toml(30.0).replace("build/db", "build/d:b");
+    std::fs::write(odd.join("scene.toml"), text).unwrap();
+    let out = dbms_in(&odd, &["plan", "scene.toml", "--makefile"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("a Makefile rule cannot name"),
+        "{err}"
+    );
+    let text = scene_toml(30.0).replace("build/db", "build/{db}");
+    std::fs::write(odd.join("scene.toml"), text).unwrap();
+    let out = dbms_in(&odd, &["plan", "scene.toml", "--snakefile"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("a Snakefile rule cannot name"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+}
+
+/// The scene's `at` placements are one `dbms place` (a change of the database each would
+/// rewrite its manifest: a build in quadratic time), in the scene's order, giving the
+/// database placement by placement gives.
+#[test]
+fn at_placements_are_placed_by_one_command() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(dbms_in(dir, &["--json", "plan", "scene.toml"]), "plan")).unwrap();
+    let place = json["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "place")
+        .unwrap();
+    let commands = place["commands"].as_array().unwrap();
+    assert_eq!(commands.len(), 1, "{place}");
+    let line = commands[0].to_string();
+    let first = line.find("500030,5300030").unwrap();
+    assert!(first < line.find("500050,5300040").unwrap(), "{line}");
+    ok(dbms_in(dir, &["-q", "build", "scene.toml"]), "build");
+    assert!(std::fs::read(dir.join("build/day.dbt")).unwrap() == stage_by_stage(dir, 30.0));
+}
+
+/// A scale the database cannot hold (the object wider than its extent, or taller than
+/// `Z_MARGIN_M`) is refused in one line, by `dbms place` and so by a scene's build.
+#[test]
+fn a_scale_the_grid_cannot_hold_is_refused() {
+    let t = sample_with_scene();
+    let dir = t.path();
+    let text = scene_toml(30.0).replace("heading = 30\n", "heading = 30\nscale = 150\n");
+    std::fs::write(dir.join("scene.toml"), text).unwrap();
+    let out = dbms_in(dir, &["build", "scene.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("step place failed") && err.contains("--scale 150"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    // Moved to a scale it cannot hold: refused, the placement unchanged.
+    std::fs::write(dir.join("scene.toml"), scene_toml(30.0)).unwrap();
+    ok(dbms_in(dir, &["-q", "build", "scene.toml"]), "build");
+    let out = dbms_in(
+        dir,
+        &[
+            "place",
+            "--db",
+            "build/db",
+            "--move",
+            "1",
+            "--at",
+            "500030,5300030",
+            "--scale",
+            "100",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--scale 100"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    let plan = ok(dbms_in(dir, &["plan", "scene.toml"]), "plan");
+    assert!(plan.contains("all up to date"), "{plan}");
 }

@@ -460,33 +460,8 @@ impl Leftovers {
 
 /// Take `dir`'s write lock, retrying every 50 ms for up to `wait`.
 fn lock(dir: &Path, wait: std::time::Duration) -> Result<std::fs::File> {
-    let path = dir.join(LOCK_FILE);
-    let file = std::fs::OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&path)
-        .map_err(|e| Error::io(&path, e).fix("check that the database directory is writable"))?;
-    let start = std::time::Instant::now();
-    loop {
-        match file.try_lock() {
-            Ok(()) => return Ok(file),
-            Err(std::fs::TryLockError::WouldBlock) if start.elapsed() < wait => {
-                std::thread::sleep(std::time::Duration::from_millis(50));
-            }
-            Err(std::fs::TryLockError::WouldBlock) => {
-                return Err(Error::file(
-                    dir,
-                    format!(
-                        "another dbms is changing this database (waited {:.0} s for its lock)",
-                        wait.as_secs_f64()
-                    ),
-                )
-                .fix("wait for it to finish, or give a longer --wait SECONDS"))
-            }
-            Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&path, e)),
-        }
-    }
+    let busy = "another dbms is changing this database";
+    crate::io::lock::wait_for_lock(&dir.join(LOCK_FILE), wait, dir, busy)
 }
 
 impl Change {

@@ -24,7 +24,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let exe = std::env::current_exe()
         .map_err(|e| dbms::Error::msg(format!("cannot find the dbms binary to run steps: {e}")))?;
     let progress = ctx.progress(0, "steps");
-    let built = build::build(&scene, &exe, args.jobs, &progress)?;
+    let built = build::build(&scene, &exe, args.jobs, ctx.wait, &progress)?;
     progress.finish();
     ctx.report(&Summary {
         scene: args.scene,

@@ -11,18 +11,21 @@ pub struct Args {
     #[arg(long)]
     db: PathBuf,
     /// The voxel object (.dvox from `dbms sculpt` or `dbms object`); with --points, the object
-    /// of points without an `object` property.
+    /// of points without an `object` property. With several --at: once for all, or once each.
     #[arg(long)]
-    object: Option<PathBuf>,
+    object: Vec<PathBuf>,
     /// X,Y[,Z]: world position of the object's anchor (bottom centre); Z absolute metres, default the ground.
+    /// Repeat to place several objects in one change (one manifest write).
     #[arg(long, allow_hyphen_values = true)]
-    at: Option<String>,
-    /// Rotation about the vertical, degrees clockwise from north.
+    at: Vec<String>,
+    /// Rotation about the vertical, degrees clockwise from north. With several --at: once for
+    /// all, or once each.
     #[arg(long, allow_hyphen_values = true)]
-    heading: Option<f64>,
-    /// Size factor about the anchor (2: twice as large); with --move, the new one.
+    heading: Vec<f64>,
+    /// Size factor about the anchor (2: twice as large); with --move, the new one. With several
+    /// --at: once for all, or once each. At most what the database holds (docs/voxel-object.md).
     #[arg(long)]
-    scale: Option<f64>,
+    scale: Vec<f64>,
     /// Place one object per Point of this GeoJSON FeatureCollection (properties: `object`, a
     /// path relative to the file; `heading`, degrees; `scale`), all in one change.
     #[arg(long, value_name = "FILE.geojson", conflicts_with_all = ["at", "heading", "scale", "remove", "move_id"])]
@@ -80,19 +83,64 @@ fn parse_at(at: &str) -> dbms::Result<(f64, f64, Option<f64>)> {
     Ok((v[0], v[1], v.get(2).copied()))
 }
 
+/// The value of option `name` for the `k`-th of `n` placements: given `values` once for all,
+/// once for each, or not at all (`None`).
+fn nth<T: Clone>(values: &[T], k: usize, n: usize, name: &str) -> dbms::Result<Option<T>> {
+    match values.len() {
+        0 => Ok(None),
+        1 => Ok(Some(values[0].clone())),
+        m if m == n => Ok(Some(values[k].clone())),
+        m => Err(dbms::Error::msg(format!(
+            "--{name} is given {m} times for {n} --at: give it once for all, or once for each"
+        ))
+        .fix("e.g. --object tree.dvox --at 1,2 --at 3,4 --heading 10 --heading 20")),
+    }
+}
+
+/// The placements `--object`, `--at`, `--heading` and `--scale` give, in order.
+fn placements(args: &Args) -> dbms::Result<Vec<Placement>> {
+    let n = args.at.len();
+    if args.object.is_empty() || n == 0 {
+        return Err(dbms::Error::msg(
+            "nothing to place: give --object FILE --at X,Y, or --points, --remove or --move",
+        )
+        .fix("see dbms place --help"));
+    }
+    (0..n)
+        .map(|k| {
+            let (x, y, z) = parse_at(&args.at[k])?;
+            Ok(Placement {
+                object: nth(&args.object, k, n, "object")?.expect("given"),
+                x,
+                y,
+                z,
+                heading_deg: nth(&args.heading, k, n, "heading")?.unwrap_or(0.0),
+                scale: nth(&args.scale, k, n, "scale")?.unwrap_or(1.0),
+            })
+        })
+        .collect()
+}
+
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     let (objects, action) = if let Some(id) = args.remove {
         (vec![remove(&args.db, ctx.wait, id)?], "removed")
     } else if let Some(id) = args.move_id {
-        let at = parse_at(args.at.as_deref().expect("clap requires --at"))?;
+        let at = match args.at.as_slice() {
+            [at] => parse_at(at)?,
+            _ => {
+                return Err(
+                    dbms::Error::msg("--move takes one --at").fix("move one placement at a time")
+                )
+            }
+        };
         (
             vec![move_to(
                 &args.db,
                 ctx.wait,
                 id,
                 at,
-                args.heading,
-                args.scale,
+                nth(&args.heading, 0, 1, "heading")?,
+                nth(&args.scale, 0, 1, "scale")?,
             )?],
             "moved",
         )
@@ -102,29 +150,18 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
             random_heading: args.random_heading,
             scale_range: args.scale_range.as_deref().map(parse_range).transpose()?,
         };
-        let placements = read_points(points, args.object.as_deref(), &vary)?;
+        let object = nth(&args.object, 0, 1, "object")?;
+        let placements = read_points(points, object.as_deref(), &vary)?;
         let progress = ctx.progress(placements.len() as u64, "placements");
         let placed = place_all(&args.db, ctx.wait, &placements)?;
         progress.inc(placed.len() as u64);
         progress.finish();
         (placed, "placed")
     } else {
-        let (Some(object), Some(at)) = (&args.object, &args.at) else {
-            return Err(dbms::Error::msg(
-                "nothing to place: give --object FILE --at X,Y, or --points, --remove or --move",
-            )
-            .fix("see dbms place --help"));
-        };
-        let (x, y, z) = parse_at(at)?;
-        let one = Placement {
-            object: object.clone(),
-            x,
-            y,
-            z,
-            heading_deg: args.heading.unwrap_or(0.0),
-            scale: args.scale.unwrap_or(1.0),
-        };
-        (place_all(&args.db, ctx.wait, &[one])?, "placed")
+        (
+            place_all(&args.db, ctx.wait, &placements(&args)?)?,
+            "placed",
+        )
     };
     ctx.report(&Placed {
         objects,

@@ -18,9 +18,14 @@ pub struct Args {
     /// on a cluster with an executor).
     #[arg(long, conflicts_with = "stamp")]
     snakefile: bool,
-    /// Record that step STEP has just run (what the Makefile's rules call after a step).
-    #[arg(long, value_name = "STEP")]
+    /// Record that step STEP has just run (what the Makefile's rules call after a step): the
+    /// stamp --begin STEP recorded when it started, or else one taken now.
+    #[arg(long, value_name = "STEP", conflicts_with = "begin")]
     stamp: Option<String>,
+    /// Record that step STEP starts now, its inputs hashed now (what the Makefile's rules call
+    /// before a step): an input changed while it runs is not recorded as built.
+    #[arg(long, value_name = "STEP", conflicts_with_all = ["makefile", "snakefile"])]
+    begin: Option<String>,
     /// Build each visual product as N shards merged at the end, instead of the scene's
     /// `[build] shards` (1: one dbms pyramid).
     #[arg(long, value_name = "N")]
@@ -32,12 +37,15 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
     if let Some(step) = &args.stamp {
         return plan::stamp(&scene, step);
     }
+    if let Some(step) = &args.begin {
+        return plan::begin(&scene, step);
+    }
     if args.snakefile {
-        super::stdout(snakefile::snakefile(&scene, &args.scene).trim_end());
+        super::stdout(snakefile::snakefile(&scene, &args.scene)?.trim_end());
         return Ok(());
     }
     if args.makefile {
-        super::stdout(makefile::makefile(&scene, &args.scene).trim_end());
+        super::stdout(makefile::makefile(&scene, &args.scene)?.trim_end());
         return Ok(());
     }
     ctx.report(&Planned {

@@ -107,8 +107,10 @@ impl Staged {
         &self.tmp
     }
 
-    /// Rename the file over its destination.
+    /// Rename the file over its destination (unless the build that started this process has
+    /// ended: [`super::lock::check_owner`]).
     pub fn commit(self) -> Result<()> {
+        super::lock::check_owner()?;
         self.tmp
             .persist(&self.path)
             .map_err(|e| Error::io(&self.path, e.error))

@@ -17,6 +17,7 @@ pub mod gdal;
 pub mod geotiff;
 pub mod image_world;
 pub mod input;
+pub mod lock;
 pub mod mosaic;
 pub mod png;
 

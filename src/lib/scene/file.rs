@@ -71,6 +71,7 @@ impl Scene {
     pub fn with_shards(mut self, n: usize) -> Result<Scene> {
         self.build = Some(BuildSpec { shards: n });
         self.check()?;
+        super::plan::check_written(&self)?;
         Ok(self)
     }
 }
@@ -324,9 +325,10 @@ fn default_vary() -> f64 {
 pub struct Placement {
     /// The name of an object in `[objects]` (with `points`: for points without an `object`).
     pub object: String,
-    /// Where its origin goes, `[x, y]` in the database CRS.
+    /// Where its anchor goes, `[x, y]` in the database CRS, or `[x, y, z]` with `z` absolute
+    /// metres (default the ground's), as `dbms place --at X,Y[,Z]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub at: Option<[f64; 2]>,
+    pub at: Option<Vec<f64>>,
     /// Rotation clockwise from grid north, degrees (with `at`; default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heading: Option<f64>,
@@ -359,7 +361,7 @@ impl Placement {
             ("heading", self.heading.is_some()),
             ("scale", self.scale.is_some()),
         ];
-        let (given, fix) = match (self.at, &self.points) {
+        let (given, fix) = match (&self.at, &self.points) {
             (Some(_), None) => (
                 with_points.iter().find(|k| k.1),
                 "it goes with points = \"FILE.geojson\", not at: remove it",
@@ -383,7 +385,14 @@ impl Placement {
                 fix,
             ));
         }
-        let at = self.at.unwrap_or([0.0; 2]);
+        let at = self.at.as_deref().unwrap_or_default();
+        if !(at.is_empty() || at.len() == 2 || at.len() == 3) {
+            return Err(key_error(
+                &format!("{key}.at"),
+                format!("has {} numbers, not [x, y] or [x, y, z]", at.len()),
+                "give the anchor's x and y, and its absolute height z if it is not the ground's",
+            ));
+        }
         if at.iter().chain(&self.heading).any(|v| !v.is_finite()) {
             return Err(key_error(
                 key,
@@ -731,52 +740,43 @@ impl Scene {
         }
     }
 
-    /// The inputs exist, and no output is an input or another output.
-    fn check_paths(&self) -> Result<()> {
+    /// The files the scene names as inputs, each with its key (`terrain.dem`).
+    pub fn inputs(&self) -> Vec<(String, PathBuf)> {
         let mut inputs = vec![
-            ("terrain.dem", &self.terrain.dem),
-            ("terrain.ortho", &self.terrain.ortho),
+            ("terrain.dem".to_string(), self.terrain.dem.clone()),
+            ("terrain.ortho".to_string(), self.terrain.ortho.clone()),
         ];
-        let inset_keys: Vec<(String, &PathBuf)> = self
-            .insets
-            .iter()
-            .flat_map(|(name, i)| {
-                let key = |k: &str| format!("insets.{name}.{k}");
-                let files = [
-                    (key("dem"), i.dem.as_ref()),
-                    (key("ortho"), i.ortho.as_ref()),
-                    (key("corridor.route"), i.corridor.as_ref().map(|c| &c.route)),
-                ];
-                files.into_iter().filter_map(|(k, p)| Some((k, p?)))
-            })
-            .collect();
-        for (key, path) in &inset_keys {
-            inputs.push((key, path));
+        for (name, i) in &self.insets {
+            let key = |k: &str| format!("insets.{name}.{k}");
+            let files = [
+                (key("dem"), i.dem.as_ref()),
+                (key("ortho"), i.ortho.as_ref()),
+                (key("corridor.route"), i.corridor.as_ref().map(|c| &c.route)),
+            ];
+            inputs.extend(files.into_iter().filter_map(|(k, p)| Some((k, p?.clone()))));
         }
         if let Some(b) = &self.buildings {
-            inputs.push(("buildings.footprints", &b.footprints));
+            inputs.push(("buildings.footprints".into(), b.footprints.clone()));
         }
-        let keys: Vec<String> = (0..self.placements.len())
-            .map(|k| format!("placements[{k}].points"))
-            .collect();
-        for (key, p) in keys.iter().zip(&self.placements) {
+        for (k, p) in self.placements.iter().enumerate() {
             if let Some(points) = &p.points {
-                inputs.push((key, points));
+                inputs.push((format!("placements[{k}].points"), points.clone()));
             }
         }
-        let light_keys: Vec<(String, &PathBuf)> = self
-            .products
-            .iter()
-            .filter_map(|(name, p)| Some((format!("products.{name}.lights"), p.lights.as_ref()?)))
-            .collect();
-        for (key, path) in &light_keys {
-            inputs.push((key, path));
+        for (name, p) in &self.products {
+            if let Some(lights) = &p.lights {
+                inputs.push((format!("products.{name}.lights"), lights.clone()));
+            }
         }
-        let material_keys = self.materials.as_ref().map_or(vec![], |m| m.inputs());
-        for (key, path) in &material_keys {
-            inputs.push((key, path));
-        }
-        for (key, path) in &inputs {
+        let materials = self.materials.as_ref().map_or(vec![], |m| m.inputs());
+        inputs.extend(materials.into_iter().map(|(k, p)| (k, p.clone())));
+        inputs
+    }
+
+    /// The inputs exist, and no file the build writes is an input or another output
+    /// ([`super::plan::check_written`]).
+    fn check_paths(&self) -> Result<()> {
+        for (key, path) in &self.inputs() {
             if !path.is_file() {
                 return Err(key_error(
                     key,
@@ -785,26 +785,7 @@ impl Scene {
                 ));
             }
         }
-        let mut outputs: Vec<(String, &PathBuf)> =
-            vec![("database.dir".into(), &self.database.dir)];
-        for (name, p) in &self.products {
-            outputs.push((format!("products.{name}.tiles"), &p.tiles));
-        }
-        for (k, (key, out)) in outputs.iter().enumerate() {
-            let clash = inputs
-                .iter()
-                .map(|(k, p)| (k.to_string(), *p))
-                .chain(outputs[..k].iter().map(|(k, p)| (k.clone(), *p)))
-                .find(|(_, p)| same_path(p, out));
-            if let Some((other, _)) = clash {
-                return Err(key_error(
-                    key,
-                    format!("is {}, which {other} also names: a step would overwrite what another reads or writes", out.display()),
-                    "give each output its own path",
-                ));
-            }
-        }
-        Ok(())
+        super::plan::check_written(self)
     }
 }
 
@@ -954,17 +935,8 @@ impl Product {
     }
 }
 
-/// Whether two paths name the same file (compared as written, and canonically when both exist).
-fn same_path(a: &Path, b: &Path) -> bool {
-    a == b
-        || matches!(
-            (a.canonicalize(), b.canonicalize()),
-            (Ok(x), Ok(y)) if x == y
-        )
-}
-
 /// An error about the value of `key`.
-fn key_error(key: &str, problem: String, fix: &str) -> Error {
+pub(super) fn key_error(key: &str, problem: String, fix: &str) -> Error {
     let e = Error::msg(format!("{key} {problem}"));
     if fix.is_empty() {
         e

@@ -9,6 +9,7 @@
 
 use super::file::Scene;
 use super::plan::{stamp_path, steps, steps_dir, Step};
+use crate::error::{Error, Result};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -24,9 +25,34 @@ pub(super) fn shell_word(word: &str) -> String {
     }
 }
 
-/// `word` quoted for the shell and make when it needs it (spaces, quotes, `$`).
+/// `word` quoted for the shell and make when it needs it (spaces, quotes, `$`): a word of a
+/// recipe line.
 fn quote(word: &str) -> String {
     shell_word(word).replace('$', "$$")
+}
+
+/// Characters make cannot take in a target or prerequisite, escaped or not: `:` `;` `|` `=`
+/// end or change the rule, `%` makes a pattern rule, `*?[]~` are globs, `()` an archive member,
+/// `\` an escape, and control characters end the line.
+const NOT_IN_MAKE: &str = ":;|=%*?[]~()\\";
+
+/// `path` as a target or prerequisite of a rule: spaces and `#` escaped with `\`, `$` doubled;
+/// an error naming it for what make cannot express ([`NOT_IN_MAKE`]).
+fn make_word(path: &Path) -> Result<String> {
+    let text = path.display().to_string();
+    if let Some(c) = text
+        .chars()
+        .find(|&c| NOT_IN_MAKE.contains(c) || c.is_control())
+    {
+        return Err(Error::msg(format!(
+            "{text:?} has {c:?} in it, which a Makefile rule cannot name"
+        ))
+        .fix("rename it, or build with dbms build SCENE instead of make"));
+    }
+    Ok(text
+        .replace('$', "$$")
+        .replace(' ', "\\ ")
+        .replace('#', "\\#"))
 }
 
 /// The files a step's rule depends on besides the scene file: its inputs and the stamps of the
@@ -71,8 +97,9 @@ pub(super) fn stamp_options(scene: &Scene, name: &str) -> Vec<String> {
     c
 }
 
-/// The Makefile of `scene`, read from `scene_path`.
-pub fn makefile(scene: &Scene, scene_path: &Path) -> String {
+/// The Makefile of `scene`, read from `scene_path`; an error for a path make cannot name
+/// ([`NOT_IN_MAKE`]).
+pub fn makefile(scene: &Scene, scene_path: &Path) -> Result<String> {
     let all = steps(scene);
     let dir = steps_dir(scene);
     let path = |p: &Path| quote(&p.display().to_string());
@@ -80,42 +107,61 @@ pub fn makefile(scene: &Scene, scene_path: &Path) -> String {
     let mut m = String::new();
     let _ = writeln!(
         m,
-        "# The steps of {scene_file}, written by `dbms plan --makefile`."
+        "# The steps of {}, written by `dbms plan --makefile`.",
+        make_word(scene_path)?
     );
     let _ = writeln!(
         m,
         "# Run with `make -f FILE`; DBMS=/path/to/dbms to pick the binary."
     );
-    let _ = writeln!(m, "DBMS ?= dbms\nSCENE := {scene_file}\n");
+    // In an assignment `#` starts a comment unless escaped.
+    let scene_value = scene_file.replace('#', "\\#");
+    let _ = writeln!(m, "DBMS ?= dbms\nSCENE := {scene_value}\n");
     let _ = writeln!(m, ".DELETE_ON_ERROR:");
-    let products: Vec<String> = product_stamps(&all, &dir).iter().map(|p| path(p)).collect();
+    let products = product_stamps(&all, &dir)
+        .iter()
+        .map(|p| make_word(p))
+        .collect::<Result<Vec<String>>>()?;
     let _ = writeln!(m, "all: {}\n", products.join(" "));
     for s in &all {
-        let mut deps = vec!["$(SCENE)".to_string()];
-        deps.extend(dependencies(&all, s, &dir).iter().map(|p| path(p)));
+        let mut deps = vec![make_word(scene_path)?];
+        for p in dependencies(&all, s, &dir) {
+            deps.push(make_word(&p)?);
+        }
+        let stamp = stamp_options(scene, &s.name);
+        let plan = |options: &[String]| {
+            let options: Vec<String> = options.iter().map(|a| quote(a)).collect();
+            format!("\t$(DBMS) plan --quiet $(SCENE) {}", options.join(" "))
+        };
         let _ = writeln!(m, "# {}: {}", s.name, s.does);
-        let _ = writeln!(
-            m,
-            "{}: {}",
-            path(&stamp_path(&dir, &s.name)),
-            deps.join(" ")
-        );
+        let target = make_word(&stamp_path(&dir, &s.name))?;
+        let _ = writeln!(m, "{target}: {}", deps.join(" "));
         for o in &s.outputs {
             if let Some(parent) = o.parent().filter(|p| !p.as_os_str().is_empty()) {
                 let _ = writeln!(m, "\tmkdir -p {}", path(parent));
             }
         }
+        let _ = writeln!(m, "{}", plan(&begin_options(&stamp)));
         for c in &s.commands {
             let args: Vec<String> = c.iter().map(|a| quote(a)).collect();
             let _ = writeln!(m, "\t$(DBMS) {}", args.join(" "));
         }
-        let stamp: Vec<String> = stamp_options(scene, &s.name)
-            .iter()
-            .map(|a| quote(a))
-            .collect();
-        let _ = writeln!(m, "\t$(DBMS) plan --quiet $(SCENE) {}\n", stamp.join(" "));
+        let _ = writeln!(m, "{}\n", plan(&stamp));
     }
-    m
+    Ok(m)
+}
+
+/// The `dbms plan SCENE` options that record step `name` as begun, from its `--stamp` options
+/// ([`stamp_options`]): its inputs are hashed before its commands run, and the stamp its
+/// `--stamp` writes after them is that one.
+pub(super) fn begin_options(stamp: &[String]) -> Vec<String> {
+    stamp
+        .iter()
+        .map(|o| match o.as_str() {
+            "--stamp" => "--begin".to_string(),
+            _ => o.clone(),
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -130,5 +176,25 @@ mod tests {
         assert_eq!(quote("it's"), "'it'\\''s'");
         assert_eq!(quote("$HOME"), "'$$HOME'");
         assert_eq!(quote(""), "''");
+    }
+
+    /// Spaces, `#` and `$` are escaped in targets and prerequisites (make runs the rule:
+    /// tests/cli_scene.rs); what make cannot name is refused in one line.
+    #[test]
+    fn paths_make_cannot_name_are_refused_and_the_rest_escaped() {
+        let word = |p: &str| make_word(Path::new(p));
+        assert_eq!(word("my dir/a#1$.done").unwrap(), "my\\ dir/a\\#1$$.done");
+        for bad in [
+            "a:b/s.done",
+            "50%/s.done",
+            "a*b",
+            "x(y)",
+            "back\\slash",
+            "new\nline",
+        ] {
+            let e = word(bad).unwrap_err().to_string();
+            assert!(e.contains("a Makefile rule cannot name"), "{bad}: {e}");
+            assert!(!e.contains('\n'), "one line: {e}");
+        }
     }
 }

@@ -129,6 +129,119 @@ pub fn steps_dir(scene: &Scene) -> PathBuf {
     PathBuf::from(dir)
 }
 
+/// The lock a build of the scene holds while it runs, in its [`steps_dir`].
+pub fn lock_path(scene: &Scene) -> PathBuf {
+    steps_dir(scene).join("build.lock")
+}
+
+/// Every file or directory a build of `scene` writes, each with what names it (the scene's key,
+/// or the step and what the file is for): the database, each step's outputs and stamp, what
+/// the pyramid derives from a product's tile file (its ledger, a region file per inset:
+/// [`crate::pyramid::regions::region_file`]) and the build's lock.
+pub fn written(scene: &Scene) -> Vec<(String, PathBuf)> {
+    let dir = steps_dir(scene);
+    let mut out = vec![("database.dir".to_string(), scene.database.dir.clone())];
+    for step in steps(scene) {
+        for o in step.outputs.iter().filter(|&o| *o != scene.database.dir) {
+            // The product of this tile file not named yet (two may name one file).
+            let key = scene
+                .products
+                .iter()
+                .filter(|(_, p)| step.name.starts_with("product") && p.tiles == *o)
+                .map(|(name, _)| format!("products.{name}.tiles"))
+                .find(|key| !out.iter().any(|(k, _)| k == key));
+            let Some(key) = key else {
+                out.push((format!("the {} step's output", step.name), o.clone()));
+                continue;
+            };
+            out.push((key.clone(), o.clone()));
+            let ledger = crate::pyramid::incremental::ledger_path(o);
+            out.push((format!("the ledger of {key}"), ledger));
+            for inset in scene.insets.keys() {
+                let region = crate::pyramid::regions::region_file(o, inset);
+                out.push((format!("the region file of inset {inset} of {key}"), region));
+            }
+        }
+        let stamp = stamp_path(&dir, &step.name);
+        out.push((format!("the {} step's stamp", step.name), stamp));
+        let begun = begun_path(&dir, &step.name);
+        out.push((format!("the {} step's start record", step.name), begun));
+    }
+    out.push(("the build's lock".into(), lock_path(scene)));
+    out
+}
+
+/// An error unless every file a build of `scene` writes ([`written`]) is its own: not another
+/// output, not an input ([`Scene::inputs`]), not inside another output (the database directory)
+/// and holding none. Paths are compared as absolute paths with `.` and `..` resolved lexically
+/// and the part that exists resolved by the file system (symbolic links), so `db/../t.dbt` is
+/// `t.dbt` also before `db` exists.
+pub fn check_written(scene: &Scene) -> Result<()> {
+    let inputs: Vec<(String, PathBuf, PathBuf)> = scene
+        .inputs()
+        .into_iter()
+        .map(|(k, p)| (k, normal(&p), p))
+        .collect();
+    let written: Vec<(String, PathBuf, PathBuf)> = written(scene)
+        .into_iter()
+        .map(|(k, p)| (k, normal(&p), p))
+        .collect();
+    for (k, (key, out, given)) in written.iter().enumerate() {
+        let others = written[..k].iter().chain(&inputs);
+        let Some((other, at, _)) = others
+            .clone()
+            .find(|(_, p, _)| p.starts_with(out) || out.starts_with(p))
+        else {
+            continue;
+        };
+        let how = match (at == out, out.starts_with(at)) {
+            (true, _) => format!("which {other} also names"),
+            (false, true) => format!("inside {other}"),
+            (false, false) => format!("which holds {other}"),
+        };
+        return Err(super::file::key_error(
+            key,
+            format!(
+                "is {}, {how}: a step would overwrite what another reads or writes",
+                given.display()
+            ),
+            "give each output its own path, outside the database directory",
+        ));
+    }
+    Ok(())
+}
+
+/// `path` made absolute with `.` and `..` resolved lexically, then its longest existing
+/// ancestor resolved by the file system (symbolic links) and the rest appended.
+fn normal(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut lexical = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            Component::ParentDir => {
+                lexical.pop();
+            }
+            Component::CurDir => {}
+            c => lexical.push(c),
+        }
+    }
+    let mut rest = Vec::new();
+    let mut at = lexical.as_path();
+    loop {
+        if let Ok(real) = at.canonicalize() {
+            return rest.iter().rev().fold(real, |p, c| p.join(c));
+        }
+        match (at.parent(), at.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                at = parent;
+            }
+            _ => return lexical,
+        }
+    }
+}
+
 fn s(v: impl ToString) -> String {
     v.to_string()
 }
@@ -319,48 +432,59 @@ fn heights_step(scene: &Scene) -> Option<Step> {
     })
 }
 
-/// One `place` per placement, after the database step `last` and every object; `None` without
-/// placements.
+/// Most `at` placements one `place` command line carries (its arguments stay far below the
+/// system's limit on a command line's length, about 150 bytes each).
+const AT_PER_COMMAND: usize = 1000;
+
+/// The `place` step after the database step `last` and every object: one `dbms place` for
+/// each run of `at` placements (up to [`AT_PER_COMMAND`]: one change of the database, not one
+/// each, which rewrote the manifest once a placement) and one per point layer, in the scene's
+/// order; `None` without placements.
 fn place_step(scene: &Scene, last: &str) -> Option<Step> {
     if scene.placements.is_empty() {
         return None;
     }
-    let commands = scene
-        .placements
-        .iter()
-        .map(|p| {
-            let mut c = vec![
-                s("place"),
-                s("--db"),
-                s(scene.database.dir.display()),
-                s("--object"),
-                s(object_file(scene, &p.object).display()),
-            ];
-            match (&p.at, &p.points) {
-                (Some([x, y]), _) => {
-                    let heading = p.heading.unwrap_or(0.0);
-                    c.extend([s("--at"), format!("{x},{y}"), s("--heading"), s(heading)]);
-                    if let Some(k) = p.scale.filter(|&k| k != 1.0) {
-                        c.extend([s("--scale"), s(k)]);
-                    }
+    let db = s(scene.database.dir.display());
+    let mut commands: Vec<Vec<String>> = Vec::new();
+    let mut run: Vec<String> = Vec::new();
+    let at_count = |c: &[String]| c.iter().filter(|a| *a == "--at").count();
+    for p in &scene.placements {
+        let object = s(object_file(scene, &p.object).display());
+        match (&p.at, &p.points) {
+            (Some(at), _) => {
+                if run.is_empty() || at_count(&run) == AT_PER_COMMAND {
+                    commands.extend((!run.is_empty()).then(|| std::mem::take(&mut run)));
+                    run = vec![s("place"), s("--db"), db.clone()];
                 }
-                (None, Some(points)) => {
-                    c.extend([s("--points"), s(points.display())]);
-                    if p.random_heading == Some(true) {
-                        c.push(s("--random-heading"));
-                    }
-                    if let Some([lo, hi]) = p.scale_range {
-                        c.extend([s("--scale-range"), format!("{lo},{hi}")]);
-                    }
-                    if let Some(seed) = p.seed.filter(|&n| n != 0) {
-                        c.extend([s("--seed"), s(seed)]);
-                    }
-                }
-                (None, None) => unreachable!("Scene::check requires at or points"),
+                let at: Vec<String> = at.iter().map(s).collect();
+                let heading = p.heading.unwrap_or(0.0);
+                run.extend([s("--object"), object, s("--at"), at.join(",")]);
+                run.extend([
+                    s("--heading"),
+                    s(heading),
+                    s("--scale"),
+                    s(p.scale.unwrap_or(1.0)),
+                ]);
             }
-            c
-        })
-        .collect();
+            (None, Some(points)) => {
+                commands.extend((!run.is_empty()).then(|| std::mem::take(&mut run)));
+                let mut c = vec![s("place"), s("--db"), db.clone(), s("--object"), object];
+                c.extend([s("--points"), s(points.display())]);
+                if p.random_heading == Some(true) {
+                    c.push(s("--random-heading"));
+                }
+                if let Some([lo, hi]) = p.scale_range {
+                    c.extend([s("--scale-range"), format!("{lo},{hi}")]);
+                }
+                if let Some(seed) = p.seed.filter(|&n| n != 0) {
+                    c.extend([s("--seed"), s(seed)]);
+                }
+                commands.push(c);
+            }
+            (None, None) => unreachable!("Scene::check requires at or points"),
+        }
+    }
+    commands.extend((!run.is_empty()).then_some(run));
     // A point layer and the object files its features name themselves (read here; one that
     // cannot be read is the place step's error when it runs).
     let mut inputs: Vec<PathBuf> = Vec::new();
@@ -805,15 +929,45 @@ fn reasons(now: &Stamp, old: Option<&Stamp>) -> Vec<String> {
     why
 }
 
+/// Record that step `name` of `scene` starts now (what the Makefile's rules call before the
+/// step's commands): the stamp it will leave, its inputs hashed now, in
+/// `<step>.begun` ([`begun_path`]) for [`stamp`] to write once the commands succeeded. An
+/// input changed while the step runs is then recorded as it was when the step read it, and
+/// the next plan runs the step again.
+pub fn begin(scene: &Scene, name: &str) -> Result<()> {
+    let (step, stamp) = stamp_now(scene, name)?;
+    write_json(&begun_path(&steps_dir(scene), &step.name), &stamp)
+}
+
 /// Record that step `name` of `scene` has just run: its stamp, written atomically (what the
-/// Makefile's rules call; [`super::build`] writes the planned step's own).
+/// Makefile's rules call after a step; [`super::build`] writes the planned step's own). The
+/// stamp is the one [`begin`] recorded when the step started, or else one taken now.
 pub fn stamp(scene: &Scene, name: &str) -> Result<()> {
+    let dir = steps_dir(scene);
+    let (step, now) = stamp_now(scene, name)?;
+    let begun = begun_path(&dir, &step.name);
+    let stamp = read_stamp(&begun).unwrap_or(now);
+    write_stamp(scene, &step.name, &stamp)?;
+    match std::fs::remove_file(&begun) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(&begun, e)),
+        _ => Ok(()),
+    }
+}
+
+/// Step `name` of `scene` with the stamp it would leave now.
+fn stamp_now(scene: &Scene, name: &str) -> Result<(Step, Stamp)> {
     let mut stamps = stamps(scene, Some(name))?;
     match stamps.pop() {
-        Some((step, stamp, _)) if step.name == name => write_stamp(scene, &step.name, &stamp),
+        Some((step, stamp, _)) if step.name == name => Ok((step, stamp)),
         _ => Err(Error::msg(format!("the scene has no step {name:?}"))
             .fix("dbms plan SCENE lists its steps")),
     }
+}
+
+/// Where [`begin`] records the stamp of step `name` as it started, in a scene's
+/// [`steps_dir`] `dir`.
+pub fn begun_path(dir: &Path, name: &str) -> PathBuf {
+    dir.join(format!("{name}.begun"))
 }
 
 /// Record that the planned step `p` of `scene` has just run, taking `seconds` of wall-clock
@@ -827,12 +981,16 @@ pub fn stamp_planned(scene: &Scene, p: &PlannedStep, seconds: f64) -> Result<()>
 }
 
 fn write_stamp(scene: &Scene, name: &str, stamp: &Stamp) -> Result<()> {
-    let dir = steps_dir(scene);
-    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-    let path = stamp_path(&dir, name);
-    let mut f = AtomicFile::create(&path)?;
+    write_json(&stamp_path(&steps_dir(scene), name), stamp)
+}
+
+/// Write `stamp` to `path` atomically, its directory made if missing.
+fn write_json(path: &Path, stamp: &Stamp) -> Result<()> {
+    let dir = crate::io::atomic::output_dir(path);
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut f = AtomicFile::create(path)?;
     let text = serde_json::to_string_pretty(stamp).expect("a stamp serialises");
-    writeln!(f.writer(), "{text}").map_err(|e| Error::io(&path, e))?;
+    writeln!(f.writer(), "{text}").map_err(|e| Error::io(path, e))?;
     f.commit()
 }
 

@@ -84,6 +84,14 @@ pub fn place_all(
     for p in placements {
         if !objects.contains_key(p.object.as_path()) {
             let (obj, _): (VoxelObject, _) = format::read(&p.object)?;
+            let most = largest_scale(&change.db, &obj.grid);
+            if let Some(k) = placements
+                .iter()
+                .filter(|q| q.object == p.object)
+                .find(|q| q.scale > most)
+            {
+                return Err(too_large(&change.db, &obj.grid, k.scale, most));
+            }
             objects.insert(&p.object, (sha256_file(&p.object)?, obj.len()));
         }
     }
@@ -161,6 +169,13 @@ pub fn move_to(
     let mut change = Database::begin(dir, wait)?;
     let db = &mut change.db;
     let k = position_of(db, id)?;
+    if let Some(scale) = scale {
+        let (obj, _): (VoxelObject, _) = format::read(&db.dir.join(&db.manifest.objects[k].file))?;
+        let most = largest_scale(db, &obj.grid);
+        if scale > most {
+            return Err(too_large(db, &obj.grid, scale, most));
+        }
+    }
     let ground = match z {
         Some(_) => None,
         None => Some(db.read_elevation()?),
@@ -227,6 +242,43 @@ fn check_scale(scale: f64) -> Result<()> {
                 .fix("1 places the object as made, 2 twice as large"),
         ),
     }
+}
+
+/// The largest size factor an object on `grid` may be placed at in `db`: its grid's
+/// horizontal diagonal (so at any heading) no wider than the database's narrower side, and its
+/// height no more than [`Z_MARGIN_M`]. Larger, it would stand over the whole database and
+/// beyond: each of its voxels repeated over many cells, and the pyramid's time and memory
+/// with them.
+pub fn largest_scale(db: &Database, grid: &super::grid::VoxelGrid) -> f64 {
+    let (across, tall) = object_size(grid);
+    (database_width(db) / across).min(Z_MARGIN_M / tall)
+}
+
+/// An object's horizontal diagonal and height, metres, at scale 1.
+fn object_size(grid: &super::grid::VoxelGrid) -> (f64, f64) {
+    let [nx, ny, nz] = grid.dims.map(f64::from);
+    (nx.hypot(ny) * grid.voxel_size, nz * grid.voxel_size)
+}
+
+/// The narrower side of `db`'s extent, metres.
+fn database_width(db: &Database) -> f64 {
+    let b = db.grid().bounds();
+    (b.max_x - b.min_x).min(b.max_y - b.min_y)
+}
+
+/// The error for an object on `grid` placed at `scale` in `db`, above `most` ([`largest_scale`]).
+fn too_large(db: &Database, grid: &super::grid::VoxelGrid, scale: f64, most: f64) -> Error {
+    let (across, tall) = object_size(grid);
+    Error::file(
+        &db.dir,
+        format!(
+            "--scale {scale}: the object would be {:.0} m across and {:.0} m tall, more than the database holds ({:.0} m across, {Z_MARGIN_M} m tall)",
+            across * scale,
+            tall * scale,
+            database_width(db)
+        ),
+    )
+    .fix(format!("give a scale of at most {most:.3}"))
 }
 
 fn require_projected(db: &Database) -> Result<()> {
