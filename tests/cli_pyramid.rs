@@ -1601,3 +1601,76 @@ fn render_descends_into_regions(
     );
     let _ = regions;
 }
+
+/// The `pyramid` stages a database records.
+fn pyramid_stages(db: &Path) -> usize {
+    let m = Database::open(db).unwrap();
+    m.manifest
+        .stages
+        .iter()
+        .filter(|s| s.name == "pyramid")
+        .count()
+}
+
+/// The products of one run commit together or not at all: a second product in a directory
+/// that does not exist is refused before any work, and one whose writing fails (a full disk)
+/// leaves neither product, ledger nor stage.
+#[test]
+fn a_failing_product_leaves_no_other_product() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = make_db(dir.path(), None);
+    let (a, b) = (dir.path().join("a.dbt"), dir.path().join("b.dbt"));
+    let nodir = dir.path().join("nodir/b.dbt");
+    let run = |second: &Path, fault: Option<&str>| {
+        let product = format!("{}@none", second.display());
+        let mut c = cli::command();
+        c.args(["pyramid", "--db", db.dir.to_str().unwrap(), "--page", "32"]);
+        c.args(["--incremental", "-o", a.to_str().unwrap(), "--product", &product]);
+        if let Some(f) = fault {
+            c.env("DBMS_FAULT", f);
+        }
+        let o = c.output().unwrap();
+        assert!(!o.status.success());
+        let e = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+        e
+    };
+    let e = run(&nodir, None);
+    assert!(e.contains("nodir") && e.contains("no such directory"), "{e}");
+    let e = run(&b, Some("enospc:b.dbt"));
+    assert!(e.contains("b.dbt"), "{e}");
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["db"], "nothing but the database");
+    assert_eq!(pyramid_stages(&db.dir), 0);
+    // Both built: one stage each.
+    pyramid_json(&db.dir, &a, &["--product", &format!("{}@none", b.display())]);
+    assert!(a.exists() && b.exists());
+    assert_eq!(pyramid_stages(&db.dir), 2);
+}
+
+/// A merge refuses to write over one of its parts (or a part's record), before any work.
+#[test]
+fn a_merge_never_overwrites_a_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = make_db(dir.path(), None);
+    let parts = shards(&db.dir, dir.path(), 2, &[]);
+    let before: Vec<Vec<u8>> = parts.iter().map(|p| std::fs::read(p).unwrap()).collect();
+    let p: Vec<&str> = parts.iter().map(|p| p.to_str().unwrap()).collect();
+    for out in [p[0], p[1]] {
+        let o = dbms(&[
+            "pyramid", "--db", db.dir.to_str().unwrap(), "--page", "32", "-o", out, "--merge",
+            p[0], p[1],
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "merged over {out}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+        assert!(e.contains("also an input"), "{e}");
+    }
+    for (part, bytes) in parts.iter().zip(&before) {
+        assert_eq!(&std::fs::read(part).unwrap(), bytes, "{}", part.display());
+    }
+    assert_eq!(pyramid_stages(&db.dir), 0);
+}

@@ -324,8 +324,9 @@ pub fn build_pyramid(
 /// [`build_pyramid`] for several products of `db` in one run, in order, each with `opts` but its
 /// own sun: what stands on the terrain is read once, and a cast or the photo's detected shadows
 /// one product made serve every later product that needs the same ([`shade::Shared`]); each
-/// summary's `reused` says what it took from an earlier one. Each product is committed when it
-/// is built: an error stops the run, and the products before it stay built.
+/// summary's `reused` says what it took from an earlier one. Every product's outputs are
+/// checked before any work ([`check_products`]) and committed together once all are built (one
+/// change of the database records a stage for each): an error at any point leaves none of them.
 pub fn build_pyramids(
     db: &Database,
     wait: std::time::Duration,
@@ -337,19 +338,42 @@ pub fn build_pyramids(
         return Err(Error::msg("--export-levels with more than one product")
             .fix("export the levels of one product at a time"));
     }
-    let tiles: Vec<&Path> = products.iter().map(|p| p.tiles.as_path()).collect();
-    crate::io::atomic::check_outputs(&tiles, &[])?;
+    check_products(db, products, opts, &[])?;
     let shared = Shared::default();
-    products
+    let ready = products
         .iter()
         .map(|p| {
             let opts = PyramidOptions {
                 sun: p.sun,
                 ..opts.clone()
             };
-            build_product(db, wait, &p.tiles, &opts, &shared, progress)
+            build_product(db, &p.tiles, &opts, &shared, progress)
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()?;
+    commit(db, wait, ready)
+}
+
+/// Before any work: every file the run of `products` writes (each tile file, its regions' files
+/// and, with `--incremental`, its ledger) is one [`check_request`] accepts, in a directory that
+/// exists, none is written twice and none is one of `inputs`.
+fn check_products(
+    db: &Database,
+    products: &[Product],
+    opts: &PyramidOptions,
+    inputs: &[&Path],
+) -> Result<()> {
+    let mut outputs = Vec::new();
+    for p in products {
+        check_request(&p.tiles, opts)?;
+        outputs.push(p.tiles.clone());
+        let regions = db.insets().into_iter();
+        outputs.extend(regions.map(|spec| regions::region_file(&p.tiles, &spec.name)));
+        if opts.incremental {
+            outputs.push(incremental::ledger_path(&p.tiles));
+        }
+    }
+    let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
+    crate::io::atomic::check_outputs(&outputs, inputs)
 }
 
 /// What the products of one run share: the sun effects' work and what stands on the terrain.
@@ -359,16 +383,14 @@ struct Shared {
     standing: std::sync::OnceLock<crate::standing::Standing>,
 }
 
-/// One product of [`build_pyramids`].
+/// One product of [`build_pyramids`], built, not yet committed.
 fn build_product(
     db: &Database,
-    wait: std::time::Duration,
     out: &Path,
     opts: &PyramidOptions,
     shared: &Shared,
     progress: &Progress,
-) -> Result<PyramidSummary> {
-    check_request(out, opts)?;
+) -> Result<Ready> {
     let has_insets = !db.insets().is_empty();
     let mut full_build = None;
     if opts.incremental {
@@ -378,10 +400,10 @@ fn build_product(
             None if opts.sensor.any() => Err(
                 "sensor layers and light points are not in the incremental ledger yet".to_string(),
             ),
-            None => incremental_build(db, wait, out, opts, &tile_info(db, opts)?, progress)?,
+            None => incremental_build(db, out, opts, &tile_info(db, opts)?, progress)?,
         };
         match attempt {
-            Ok(summary) => return Ok(summary),
+            Ok(ready) => return Ok(ready),
             Err(why) => full_build = Some(why),
         }
     }
@@ -392,8 +414,39 @@ fn build_product(
     };
     let (staged, params, mut summary) = make_product(db, db, out, opts, shared, progress, made)?;
     summary.full_build = full_build;
-    commit(db, wait, || Ok((staged, params)))?;
-    Ok(summary)
+    Ok(Ready {
+        outputs: Outputs::Staged(staged),
+        params,
+        summary,
+    })
+}
+
+/// A product built and waiting for [`commit`]: its outputs, the `pyramid` stage's params and
+/// its summary.
+struct Ready {
+    outputs: Outputs,
+    params: serde_json::Value,
+    summary: PyramidSummary,
+}
+
+/// The outputs of a [`Ready`] product.
+enum Outputs {
+    /// Written and staged, its tile file last.
+    Staged(Vec<crate::io::atomic::Staged>),
+    /// The earlier tile file to change in place (under the database's lock, so it is away from
+    /// its name only while it is changed, not while the run waits for another), and the
+    /// ledger staged.
+    InPlace(crate::tiles::InPlace, crate::io::atomic::Staged),
+}
+
+impl Outputs {
+    /// Everything staged, the tile file last (an in-place change applied now).
+    fn stage(self) -> Result<Vec<crate::io::atomic::Staged>> {
+        match self {
+            Outputs::Staged(staged) => Ok(staged),
+            Outputs::InPlace(change, ledger) => Ok(vec![ledger, change.apply()?]),
+        }
+    }
 }
 
 /// The tile set `opts` describe over `db`'s grid (no effects, no regions yet).
@@ -588,20 +641,30 @@ impl SensorReaders {
     }
 }
 
-/// Take the database's lock (waiting up to `wait`), `finish` the run's outputs (staged, with
-/// the `pyramid` stage's params), record the stage, then rename the outputs into place, the
-/// tile file last (a rename that fails leaves it out, not the levels or the ledger without
-/// it). Whatever `finish` does happens under the lock, not while this run waits for another.
+/// Take the database's lock (waiting up to `wait`), finish the outputs of every product of
+/// the run (an in-place change is applied now), record a `pyramid` stage for each in one
+/// change, then rename the outputs into place: the first product's last, and each product's
+/// tile file after its levels, regions and ledger (a rename that fails leaves it out, not the
+/// others without it). Returns the summaries, in the products' order.
 fn commit(
     db: &Database,
     wait: std::time::Duration,
-    finish: impl FnOnce() -> Result<(Vec<crate::io::atomic::Staged>, serde_json::Value)>,
-) -> Result<()> {
+    ready: Vec<Ready>,
+) -> Result<Vec<PyramidSummary>> {
     let mut change = Database::begin(&db.dir, wait)?;
-    let (staged, params) = finish()?;
-    change.db.record_stage(Stage::now("pyramid", params));
+    let (mut staged, mut summaries) = (Vec::new(), Vec::new());
+    for mut r in ready {
+        let clock = std::time::Instant::now();
+        let mut outputs = r.outputs.stage()?;
+        r.summary.seconds.finish += clock.elapsed().as_secs_f64();
+        outputs.append(&mut staged);
+        staged = outputs;
+        change.db.record_stage(Stage::now("pyramid", r.params));
+        summaries.push(r.summary);
+    }
     change.commit()?;
-    crate::io::atomic::commit_all(staged)
+    crate::io::atomic::commit_all(staged)?;
+    Ok(summaries)
 }
 
 /// The sun effects `opts` asks for over the terrain and what stands on it (`standing`:
@@ -647,12 +710,11 @@ fn photo_sun_for(db: &Database, opts: &PyramidOptions) -> Result<Option<Sun>> {
 /// ([`incremental`]), or why it cannot (a full build follows).
 fn incremental_build(
     db: &Database,
-    wait: std::time::Duration,
     out: &Path,
     opts: &PyramidOptions,
     info: &TileSetInfo,
     progress: &Progress,
-) -> Result<std::result::Result<PyramidSummary, String>> {
+) -> Result<std::result::Result<Ready, String>> {
     use incremental::PageStats;
     let mut lap = stopwatch();
     let mut seconds = Timings::default();
@@ -732,22 +794,11 @@ fn incremental_build(
     };
     // In place when every other page keeps its offset, else a new file with them copied.
     let replaced: Vec<_> = new.iter().collect();
-    match crate::tiles::InPlace::plan(out, &info, &earlier.tiles, &replaced)? {
+    let outputs = match crate::tiles::InPlace::plan(out, &info, &earlier.tiles, &replaced)? {
         Some(change) => {
             ledger.tiles = change.stamp();
-            let ledger = incremental::stage_ledger(out, &ledger)?;
             summary.in_place = true;
-            // Changed under the database's lock: the tile file is away from its name only
-            // while it is changed, not while this run waits for another.
-            commit(db, wait, || {
-                let tiles = change.apply()?;
-                summary.seconds.finish = lap();
-                progress.finish();
-                Ok((
-                    vec![ledger, tiles],
-                    stage_params(out, opts, &info, &summary),
-                ))
-            })?;
+            Outputs::InPlace(change, incremental::stage_ledger(out, &ledger)?)
         }
         None => {
             let writer = TileWriter::create(out, info.clone())?;
@@ -758,20 +809,27 @@ fn incremental_build(
             }
             let tiles = writer.stage()?;
             ledger.tiles = incremental::stamp(&tiles)?;
-            let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
-            summary.seconds.finish = lap();
-            progress.finish();
-            let params = stage_params(out, opts, &info, &summary);
-            commit(db, wait, || Ok((staged, params)))?;
+            Outputs::Staged(vec![incremental::stage_ledger(out, &ledger)?, tiles])
         }
-    }
-    Ok(Ok(summary))
+    };
+    summary.seconds.finish = lap();
+    progress.finish();
+    Ok(Ok(Ready {
+        outputs,
+        params: stage_params(out, opts, &info, &summary),
+        summary,
+    }))
 }
 
-/// Before any work: the tile file must not be a special file or one of the database's, and the
-/// shadow factor must be in (0, 1].
+/// Before any work: the tile file must not be a special file or one of the database's, its
+/// directory must exist, and the shadow factor must be in (0, 1].
 fn check_request(out: &Path, opts: &PyramidOptions) -> Result<()> {
     crate::io::atomic::check_output(out)?;
+    let dir = crate::io::atomic::output_dir(out);
+    if !dir.is_dir() {
+        return Err(Error::file(dir, "no such directory for the tile file")
+            .fix("create the directory first, or give another path"));
+    }
     if !(opts.shadow_factor > 0.0 && opts.shadow_factor <= 1.0) {
         return Err(Error::msg(format!(
             "--shadow-factor {}: must be in (0, 1]",
