@@ -1625,7 +1625,13 @@ fn a_failing_product_leaves_no_other_product() {
         let product = format!("{}@none", second.display());
         let mut c = cli::command();
         c.args(["pyramid", "--db", db.dir.to_str().unwrap(), "--page", "32"]);
-        c.args(["--incremental", "-o", a.to_str().unwrap(), "--product", &product]);
+        c.args([
+            "--incremental",
+            "-o",
+            a.to_str().unwrap(),
+            "--product",
+            &product,
+        ]);
         if let Some(f) = fault {
             c.env("DBMS_FAULT", f);
         }
@@ -1636,7 +1642,10 @@ fn a_failing_product_leaves_no_other_product() {
         e
     };
     let e = run(&nodir, None);
-    assert!(e.contains("nodir") && e.contains("no such directory"), "{e}");
+    assert!(
+        e.contains("nodir") && e.contains("no such directory"),
+        "{e}"
+    );
     let e = run(&b, Some("enospc:b.dbt"));
     assert!(e.contains("b.dbt"), "{e}");
     let names: Vec<String> = std::fs::read_dir(dir.path())
@@ -1646,7 +1655,11 @@ fn a_failing_product_leaves_no_other_product() {
     assert_eq!(names, ["db"], "nothing but the database");
     assert_eq!(pyramid_stages(&db.dir), 0);
     // Both built: one stage each.
-    pyramid_json(&db.dir, &a, &["--product", &format!("{}@none", b.display())]);
+    pyramid_json(
+        &db.dir,
+        &a,
+        &["--product", &format!("{}@none", b.display())],
+    );
     assert!(a.exists() && b.exists());
     assert_eq!(pyramid_stages(&db.dir), 2);
 }
@@ -1661,8 +1674,16 @@ fn a_merge_never_overwrites_a_part() {
     let p: Vec<&str> = parts.iter().map(|p| p.to_str().unwrap()).collect();
     for out in [p[0], p[1]] {
         let o = dbms(&[
-            "pyramid", "--db", db.dir.to_str().unwrap(), "--page", "32", "-o", out, "--merge",
-            p[0], p[1],
+            "pyramid",
+            "--db",
+            db.dir.to_str().unwrap(),
+            "--page",
+            "32",
+            "-o",
+            out,
+            "--merge",
+            p[0],
+            p[1],
         ]);
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success(), "merged over {out}");
@@ -1673,4 +1694,78 @@ fn a_merge_never_overwrites_a_part() {
         assert_eq!(&std::fs::read(part).unwrap(), bytes, "{}", part.display());
     }
     assert_eq!(pyramid_stages(&db.dir), 0);
+}
+
+/// A ledger edited outside dbms (one digit of a placement's cells changed: its box inside out)
+/// is not trusted: its checksum no longer matches, and moving that placement makes a full
+/// build that says why, byte for byte the full build (trusting it left the placement's old
+/// cells standing). A ledger without its checksum is not trusted either.
+#[test]
+fn an_edited_ledger_is_not_trusted() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = make_db(dir.path(), None);
+    let object = mushroom(&db.dir);
+    apply(&mut db, &Edit::Add(120, 20, 0.0, 1.0), &object);
+    apply(&mut db, &Edit::Add(20, 90, 0.0, 1.0), &object);
+    let (out, full) = (dir.path().join("t.dbt"), dir.path().join("full.dbt"));
+    let args = [
+        "--incremental",
+        "--sun-elevation",
+        "40",
+        "--sun-azimuth",
+        "90",
+    ];
+    let ledger_path = dir.path().join("t.dbt.ledger.json");
+    let edit_ledger = |edit: &dyn Fn(&mut Value)| {
+        let mut ledger: Value =
+            serde_json::from_slice(&std::fs::read(&ledger_path).unwrap()).unwrap();
+        edit(&mut ledger);
+        std::fs::write(&ledger_path, ledger.to_string()).unwrap();
+    };
+    let inside_out = |ledger: &mut Value| {
+        let cells = &mut ledger["things"][0]["cells"];
+        cells[0] = json!(cells[2].as_u64().unwrap() + 5);
+    };
+    for (k, edit) in [&inside_out as &dyn Fn(&mut Value), &|l: &mut Value| {
+        l.as_object_mut().unwrap().remove("checksum");
+    }]
+    .into_iter()
+    .enumerate()
+    {
+        pyramid(&db.dir, &out, &args);
+        check_schema(
+            "pyramid-ledger",
+            &serde_json::from_slice(&std::fs::read(&ledger_path).unwrap()).unwrap(),
+        );
+        edit_ledger(edit);
+        apply(&mut db, &Edit::Move(0, 60 + k, 70), &object);
+        let o = cli::command()
+            .args([
+                "--json",
+                "pyramid",
+                "--db",
+                db.dir.to_str().unwrap(),
+                "--page",
+                "32",
+            ])
+            .args(["-o", out.to_str().unwrap()])
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+        let s: Value = serde_json::from_slice(&o.stdout).unwrap();
+        let why = s["full_build"].as_str().unwrap_or_default();
+        assert!(why.contains("checksum"), "{s}");
+        let warning = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(warning.lines().count(), 1, "{warning}");
+        assert!(
+            warning.starts_with("dbms: warning: ") && warning.contains("checksum"),
+            "{warning}"
+        );
+        pyramid(&db.dir, &full, &args[1..]);
+        assert!(
+            std::fs::read(&out).unwrap() == std::fs::read(&full).unwrap(),
+            "{why}"
+        );
+    }
 }

@@ -167,6 +167,10 @@ pub struct PyramidSummary {
     /// absent when only the changed pages were.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub full_build: Option<String>,
+    /// What the user is warned of on stderr (not in `--json`: `full_build` says it there): a
+    /// ledger or earlier tile file found edited or damaged, so every page was made again.
+    #[serde(skip)]
+    pub warnings: Vec<String>,
     /// In a run of several products ([`build_pyramids`]), what this one took from an earlier
     /// one instead of making it again, in words (casts, detected shadows, what stands).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -265,6 +269,7 @@ impl PyramidSummary {
             pages_rebuilt: info.page_count(),
             in_place: false,
             full_build: None,
+            warnings: Vec::new(),
             reused: Vec::new(),
             building_cells: total.building_cells,
             object_cells: total.object_cells,
@@ -394,12 +399,13 @@ fn build_product(
     let has_insets = !db.insets().is_empty();
     let mut full_build = None;
     if opts.incremental {
+        let not_yet = |why: &str| Err(incremental::FullBuild::from(why.to_string()));
         let attempt = match &opts.export_levels {
-            _ if has_insets => Err("the database has insets, not in the ledger yet".to_string()),
-            Some(_) => Err("--export-levels writes every level".to_string()),
-            None if opts.sensor.any() => Err(
-                "sensor layers and light points are not in the incremental ledger yet".to_string(),
-            ),
+            _ if has_insets => not_yet("the database has insets, not in the ledger yet"),
+            Some(_) => not_yet("--export-levels writes every level"),
+            None if opts.sensor.any() => {
+                not_yet("sensor layers and light points are not in the incremental ledger yet")
+            }
             None => incremental_build(db, out, opts, &tile_info(db, opts)?, progress)?,
         };
         match attempt {
@@ -413,7 +419,15 @@ fn build_product(
         false => regions::Made::default(),
     };
     let (staged, params, mut summary) = make_product(db, db, out, opts, shared, progress, made)?;
-    summary.full_build = full_build;
+    if let Some(full) = full_build {
+        if full.warn {
+            let tiles = out.display();
+            summary
+                .warnings
+                .push(format!("{tiles}: every page made again: {}", full.why));
+        }
+        summary.full_build = Some(full.why);
+    }
     Ok(Ready {
         outputs: Outputs::Staged(staged),
         params,
@@ -553,6 +567,7 @@ fn make_product(
             terrain: incremental::terrain_range(&terrain)?,
             things: incremental::things(db)?,
             pages,
+            checksum: None,
         };
         staged.push(incremental::stage_ledger(out, &ledger)?);
     }
@@ -569,6 +584,7 @@ fn make_product(
         pages_rebuilt: info.page_count(),
         in_place: false,
         full_build: None,
+        warnings: Vec::new(),
         reused,
         building_cells: buildings.len(),
         object_cells: objects.len(),
@@ -714,7 +730,7 @@ fn incremental_build(
     opts: &PyramidOptions,
     info: &TileSetInfo,
     progress: &Progress,
-) -> Result<std::result::Result<Ready, String>> {
+) -> Result<std::result::Result<Ready, incremental::FullBuild>> {
     use incremental::PageStats;
     let mut lap = stopwatch();
     let mut seconds = Timings::default();
@@ -758,9 +774,8 @@ fn incremental_build(
     let total = pages.iter().fold(PageStats::default(), |a, &b| a + b);
     let raised = [total.building_cells > 0, total.object_cells > 0];
     if raised != before.raised {
-        return Ok(Err(
-            "buildings or objects now raise cells where none did, or none where some did (the effects that run change)".into(),
-        ));
+        let why = "buildings or objects now raise cells where none did, or none where some did (the effects that run change)";
+        return Ok(Err(why.to_string().into()));
     }
     let counts = effects_run.then(|| total.effects.unwrap_or_default());
     let effects_record =
@@ -772,7 +787,9 @@ fn incremental_build(
 
     // The earlier file's pages are trusted by their header and index CRCs; one that turns out
     // damaged when read (a coarse page folded, a page copied) makes a full build.
-    let damaged = |e: Error| format!("the earlier tile file cannot serve: {e}");
+    let damaged = |e: Error| {
+        incremental::FullBuild::warning(format!("the earlier tile file cannot serve: {e}"))
+    };
     let new = match incremental::NewPages::new(&info, &earlier.tiles, level0) {
         Ok(new) => new,
         Err(e) => return Ok(Err(damaged(e))),
@@ -787,6 +804,7 @@ fn incremental_build(
         terrain: before.terrain,
         things,
         pages,
+        checksum: None,
     };
     let mut summary = PyramidSummary {
         pages_rebuilt: new.len(),
