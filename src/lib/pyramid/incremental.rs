@@ -809,6 +809,20 @@ pub fn write_pages(
     })
 }
 
+/// Check every page of `earlier` that `new` does not make again against its CRC (read, not
+/// decoded): a change in place keeps those pages as they are on disk, so one damaged since it
+/// was written must be found here, not kept (the copy into a new file, [`write_pages`], checks
+/// each page it copies the same way).
+pub fn check_kept(info: &TileSetInfo, new: &NewPages, earlier: &TileReader) -> Result<()> {
+    (0..info.page_count()).into_par_iter().try_for_each(|pos| {
+        let (level, tx, ty) = info.page_at(pos).expect("a position of the tile set");
+        match new.get(level, tx, ty) {
+            Some(_) => Ok(()),
+            None => earlier.stored(level, tx, ty).map(|_| ()),
+        }
+    })
+}
+
 /// `[file length, header CRC, index CRC]` of a tile file written but not yet renamed.
 pub fn stamp(tiles: &Staged) -> Result<[u64; 3]> {
     let written = TileReader::open(tiles.written(), 0)?;

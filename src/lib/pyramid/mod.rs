@@ -785,8 +785,8 @@ fn incremental_build(
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
 
-    // The earlier file's pages are trusted by their header and index CRCs; one that turns out
-    // damaged when read (a coarse page folded, a page copied) makes a full build.
+    // A page of the earlier file damaged on disk (found when a coarse page is folded, a page
+    // copied, or a page kept in place is checked) makes a full build, warned of.
     let damaged = |e: Error| {
         incremental::FullBuild::warning(format!("the earlier tile file cannot serve: {e}"))
     };
@@ -795,7 +795,7 @@ fn incremental_build(
         Err(e) => return Ok(Err(damaged(e))),
     };
     seconds.levels = lap();
-    let mut ledger = incremental::Ledger {
+    let ledger = incremental::Ledger {
         format: incremental::LEDGER_FORMAT.into(),
         version: 1,
         key,
@@ -810,25 +810,12 @@ fn incremental_build(
         pages_rebuilt: new.len(),
         ..PyramidSummary::of_pages(out, &info, total, effects_record, seconds)
     };
-    // In place when every other page keeps its offset, else a new file with them copied.
-    let replaced: Vec<_> = new.iter().collect();
-    let outputs = match crate::tiles::InPlace::plan(out, &info, &earlier.tiles, &replaced)? {
-        Some(change) => {
-            ledger.tiles = change.stamp();
-            summary.in_place = true;
-            Outputs::InPlace(change, incremental::stage_ledger(out, &ledger)?)
+    let outputs = match incremental_outputs(out, &info, &new, &earlier.tiles, ledger, progress)? {
+        Ok((outputs, in_place)) => {
+            summary.in_place = in_place;
+            outputs
         }
-        None => {
-            let writer = TileWriter::create(out, info.clone())?;
-            progress.phase(info.page_count() as u64, "pyramid");
-            let copied = incremental::write_pages(&info, &new, &earlier.tiles, &writer, progress);
-            if let Err(e) = copied {
-                return Ok(Err(damaged(e)));
-            }
-            let tiles = writer.stage()?;
-            ledger.tiles = incremental::stamp(&tiles)?;
-            Outputs::Staged(vec![incremental::stage_ledger(out, &ledger)?, tiles])
-        }
+        Err(e) => return Ok(Err(damaged(e))),
     };
     summary.seconds.finish = lap();
     progress.finish();
@@ -837,6 +824,39 @@ fn incremental_build(
         params: stage_params(out, opts, &info, &summary),
         summary,
     }))
+}
+
+/// The outputs of an incremental build of `out` whose pages made again are `new`, the rest the
+/// `earlier` file's, with its `ledger` (stamped here), and whether the file changes in place:
+/// in place when every other page keeps its offset (each kept page checked first), else a new
+/// file with them copied (each checked as it is copied). `Ok(Err)`: a page of the earlier file
+/// is damaged.
+fn incremental_outputs(
+    out: &Path,
+    info: &TileSetInfo,
+    new: &incremental::NewPages,
+    earlier: &crate::tiles::TileReader,
+    mut ledger: incremental::Ledger,
+    progress: &Progress,
+) -> Result<std::result::Result<(Outputs, bool), Error>> {
+    let replaced: Vec<_> = new.iter().collect();
+    if let Some(change) = crate::tiles::InPlace::plan(out, info, earlier, &replaced)? {
+        if let Err(e) = incremental::check_kept(info, new, earlier) {
+            return Ok(Err(e));
+        }
+        ledger.tiles = change.stamp();
+        let ledger = incremental::stage_ledger(out, &ledger)?;
+        return Ok(Ok((Outputs::InPlace(change, ledger), true)));
+    }
+    let writer = TileWriter::create(out, info.clone())?;
+    progress.phase(info.page_count() as u64, "pyramid");
+    if let Err(e) = incremental::write_pages(info, new, earlier, &writer, progress) {
+        return Ok(Err(e));
+    }
+    let tiles = writer.stage()?;
+    ledger.tiles = incremental::stamp(&tiles)?;
+    let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
+    Ok(Ok((Outputs::Staged(staged), false)))
 }
 
 /// Before any work: the tile file must not be a special file or one of the database's, its
