@@ -1601,3 +1601,220 @@ fn render_descends_into_regions(
     );
     let _ = regions;
 }
+
+/// The `pyramid` stages a database records.
+fn pyramid_stages(db: &Path) -> usize {
+    let m = Database::open(db).unwrap();
+    m.manifest
+        .stages
+        .iter()
+        .filter(|s| s.name == "pyramid")
+        .count()
+}
+
+/// The products of one run commit together or not at all: a second product in a directory
+/// that does not exist is refused before any work, and one whose writing fails (a full disk)
+/// leaves neither product, ledger nor stage.
+#[test]
+fn a_failing_product_leaves_no_other_product() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = make_db(dir.path(), None);
+    let (a, b) = (dir.path().join("a.dbt"), dir.path().join("b.dbt"));
+    let nodir = dir.path().join("nodir/b.dbt");
+    let run = |second: &Path, fault: Option<&str>| {
+        let product = format!("{}@none", second.display());
+        let mut c = cli::command();
+        c.args(["pyramid", "--db", db.dir.to_str().unwrap(), "--page", "32"]);
+        c.args([
+            "--incremental",
+            "-o",
+            a.to_str().unwrap(),
+            "--product",
+            &product,
+        ]);
+        if let Some(f) = fault {
+            c.env("DBMS_FAULT", f);
+        }
+        let o = c.output().unwrap();
+        assert!(!o.status.success());
+        let e = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+        e
+    };
+    let e = run(&nodir, None);
+    assert!(
+        e.contains("nodir") && e.contains("no such directory"),
+        "{e}"
+    );
+    let e = run(&b, Some("enospc:b.dbt"));
+    assert!(e.contains("b.dbt"), "{e}");
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["db"], "nothing but the database");
+    assert_eq!(pyramid_stages(&db.dir), 0);
+    // Both built: one stage each.
+    pyramid_json(
+        &db.dir,
+        &a,
+        &["--product", &format!("{}@none", b.display())],
+    );
+    assert!(a.exists() && b.exists());
+    assert_eq!(pyramid_stages(&db.dir), 2);
+}
+
+/// A merge refuses to write over one of its parts (or a part's record), before any work.
+#[test]
+fn a_merge_never_overwrites_a_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = make_db(dir.path(), None);
+    let parts = shards(&db.dir, dir.path(), 2, &[]);
+    let before: Vec<Vec<u8>> = parts.iter().map(|p| std::fs::read(p).unwrap()).collect();
+    let p: Vec<&str> = parts.iter().map(|p| p.to_str().unwrap()).collect();
+    for out in [p[0], p[1]] {
+        let o = dbms(&[
+            "pyramid",
+            "--db",
+            db.dir.to_str().unwrap(),
+            "--page",
+            "32",
+            "-o",
+            out,
+            "--merge",
+            p[0],
+            p[1],
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "merged over {out}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+        assert!(e.contains("also an input"), "{e}");
+    }
+    for (part, bytes) in parts.iter().zip(&before) {
+        assert_eq!(&std::fs::read(part).unwrap(), bytes, "{}", part.display());
+    }
+    assert_eq!(pyramid_stages(&db.dir), 0);
+}
+
+/// A ledger edited outside dbms (one digit of a placement's cells changed: its box inside out)
+/// is not trusted: its checksum no longer matches, and moving that placement makes a full
+/// build that says why, byte for byte the full build (trusting it left the placement's old
+/// cells standing). A ledger without its checksum is not trusted either.
+#[test]
+fn an_edited_ledger_is_not_trusted() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = make_db(dir.path(), None);
+    let object = mushroom(&db.dir);
+    apply(&mut db, &Edit::Add(120, 20, 0.0, 1.0), &object);
+    apply(&mut db, &Edit::Add(20, 90, 0.0, 1.0), &object);
+    let (out, full) = (dir.path().join("t.dbt"), dir.path().join("full.dbt"));
+    let args = [
+        "--incremental",
+        "--sun-elevation",
+        "40",
+        "--sun-azimuth",
+        "90",
+    ];
+    let ledger_path = dir.path().join("t.dbt.ledger.json");
+    let edit_ledger = |edit: &dyn Fn(&mut Value)| {
+        let mut ledger: Value =
+            serde_json::from_slice(&std::fs::read(&ledger_path).unwrap()).unwrap();
+        edit(&mut ledger);
+        std::fs::write(&ledger_path, ledger.to_string()).unwrap();
+    };
+    let inside_out = |ledger: &mut Value| {
+        let cells = &mut ledger["things"][0]["cells"];
+        cells[0] = json!(cells[2].as_u64().unwrap() + 5);
+    };
+    for (k, edit) in [&inside_out as &dyn Fn(&mut Value), &|l: &mut Value| {
+        l.as_object_mut().unwrap().remove("checksum");
+    }]
+    .into_iter()
+    .enumerate()
+    {
+        pyramid(&db.dir, &out, &args);
+        check_schema(
+            "pyramid-ledger",
+            &serde_json::from_slice(&std::fs::read(&ledger_path).unwrap()).unwrap(),
+        );
+        edit_ledger(edit);
+        apply(&mut db, &Edit::Move(0, 60 + k, 70), &object);
+        let o = cli::command()
+            .args([
+                "--json",
+                "pyramid",
+                "--db",
+                db.dir.to_str().unwrap(),
+                "--page",
+                "32",
+            ])
+            .args(["-o", out.to_str().unwrap()])
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+        let s: Value = serde_json::from_slice(&o.stdout).unwrap();
+        let why = s["full_build"].as_str().unwrap_or_default();
+        assert!(why.contains("checksum"), "{s}");
+        let warning = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(warning.lines().count(), 1, "{warning}");
+        assert!(
+            warning.starts_with("dbms: warning: ") && warning.contains("checksum"),
+            "{warning}"
+        );
+        pyramid(&db.dir, &full, &args[1..]);
+        assert!(
+            std::fs::read(&out).unwrap() == std::fs::read(&full).unwrap(),
+            "{why}"
+        );
+    }
+}
+
+/// A page damaged on disk since the last build is not kept: an incremental build that would
+/// change the file in place checks every page it keeps, finds the damage and builds every page
+/// (one warning line), byte for byte a full build, and the file verifies.
+#[test]
+fn an_incremental_build_does_not_keep_a_damaged_page() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = make_db(dir.path(), None);
+    let object = mushroom(&db.dir);
+    apply(&mut db, &Edit::Add(120, 20, 0.0, 1.0), &object);
+    let (out, full) = (dir.path().join("t.dbt"), dir.path().join("full.dbt"));
+    pyramid(&db.dir, &out, &["--incremental"]);
+    // Damage a level-0 page far from the placement: one byte of its stored data.
+    let at = TileReader::open(&out, 0)
+        .unwrap()
+        .entry(0, 0, 3)
+        .unwrap()
+        .offset
+        + 7;
+    let mut bytes = std::fs::read(&out).unwrap();
+    bytes[at as usize] ^= 0x5a;
+    std::fs::write(&out, &bytes).unwrap();
+    apply(&mut db, &Edit::Move(0, 121, 20), &object);
+    let o = cli::command()
+        .args([
+            "--json",
+            "pyramid",
+            "--db",
+            db.dir.to_str().unwrap(),
+            "--page",
+            "32",
+        ])
+        .args(["--incremental", "-o", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let why = s["full_build"].as_str().unwrap_or_default();
+    assert!(
+        why.contains("page (level 0, 0, 3) checksum mismatch"),
+        "{s}"
+    );
+    let warning = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(warning.lines().count(), 1, "{warning}");
+    pyramid(&db.dir, &full, &[]);
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(&full).unwrap());
+    let v = dbms(&["-q", "tiles", out.to_str().unwrap(), "--verify"]);
+    assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stderr));
+}

@@ -1152,3 +1152,40 @@ fn a_placement_scales_its_object_about_the_anchor() {
         "{err}"
     );
 }
+
+/// An object too large for memory is refused up front in one line naming the fix (it needed
+/// 5.4 GB and aborted under a memory limit); under the budget, an allocation that fails (a
+/// memory limit, `ulimit -v`) is the same one-line error, not an abort.
+#[test]
+fn an_object_too_large_for_memory_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("big.dvox");
+    let o = out.to_str().unwrap();
+    let (ok, _, err) = run(&[
+        "object", "cone", "--height", "100", "--radius", "80", "--voxel", "0.1", "-o", o,
+    ]);
+    assert!(!ok);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("budget") && err.contains("use a larger --voxel"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // Under the budget (about 1 GB), under a 300 MB limit of address space.
+    let limited = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 300000 && exec \"$0\" object cone --height 60 --radius 40 --voxel 0.1 -o {o}"
+        ))
+        .arg(env!("CARGO_BIN_EXE_dbms"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&limited.stderr);
+    assert_eq!(limited.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("out of memory") && err.contains("--voxel"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

@@ -66,21 +66,32 @@ fn is_zero(v: &u64) -> bool {
     *v == 0
 }
 
+/// The text dbms saves a JSON document as: pretty JSON with a final newline.
+fn pretty_text<T: Serialize>(doc: &T) -> String {
+    let mut text = serde_json::to_string_pretty(doc).expect("a dbms document serialises");
+    text.push('\n');
+    text
+}
+
+/// The checksum a document dbms writes carries of its own content (the manifest's, a pyramid
+/// ledger's): the lower-case hex SHA-256 of `bare`, the document without its `checksum`
+/// member, saved as [`pretty_text`]. A reader computes it again and compares.
+pub fn content_checksum<T: Serialize>(bare: &T) -> String {
+    hex(&Sha256::digest(pretty_text(bare).as_bytes()))
+}
+
 impl Manifest {
     /// The manifest's text as saved: pretty JSON with a final newline.
     pub(crate) fn text(&self) -> String {
-        let mut text = serde_json::to_string_pretty(self).expect("manifest serialises");
-        text.push('\n');
-        text
+        pretty_text(self)
     }
 
-    /// SHA-256 of the manifest's text without its `checksum` member.
+    /// SHA-256 of the manifest's text without its `checksum` member ([`content_checksum`]).
     pub fn content_sha256(&self) -> String {
-        let bare = Manifest {
+        content_checksum(&Manifest {
             checksum: None,
             ..self.clone()
-        };
-        hex(&Sha256::digest(bare.text().as_bytes()))
+        })
     }
 
     /// Every file the manifest names (layers, then objects), relative to the directory.

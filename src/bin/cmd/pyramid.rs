@@ -196,6 +196,8 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         products.push(product(text, &db)?);
     }
     let built = build_pyramids(&db, ctx.wait, &products, &opts, &progress)?;
+    let warnings: Vec<String> = built.iter().flat_map(|s| s.warnings.clone()).collect();
+    ctx.warn_all(&warnings);
     ctx.report(&Built(built));
     Ok(())
 }

@@ -79,6 +79,56 @@ pub struct Ledger {
     pub things: Vec<Thing>,
     /// Each level-0 page's counts, row-major over the pages.
     pub pages: Vec<PageStats>,
+    /// Lower-case hex SHA-256 of the ledger without this member, as the manifest's
+    /// ([`crate::manifest::content_checksum`]); [`stage_ledger`] sets it. A ledger without one,
+    /// or whose content does not match it, is not trusted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checksum: Option<String>,
+}
+
+impl Ledger {
+    /// SHA-256 of the ledger's content without its `checksum` member.
+    pub fn content_sha256(&self) -> String {
+        crate::manifest::content_checksum(&Ledger {
+            checksum: None,
+            ..self.clone()
+        })
+    }
+
+    /// Why this ledger of a tile set on `grid` cannot be trusted, if it cannot: no checksum, or
+    /// one its content does not match (edited outside dbms, or damaged), a thing whose cells
+    /// are not a box inside the grid (`col0 ≤ col1 ≤ width`, `row0 ≤ row1 ≤ height`) or a
+    /// terrain range that is not `lowest ≤ highest`. Trusting such a ledger would leave pages
+    /// an edit touches as they were.
+    pub fn distrust(&self, grid: &Grid) -> Option<String> {
+        match &self.checksum {
+            None => return Some("it has no checksum (written by an older dbms)".into()),
+            Some(sum) if *sum != self.content_sha256() => {
+                return Some(
+                    "its checksum does not match its content (changed outside dbms or damaged)"
+                        .into(),
+                )
+            }
+            Some(_) => {}
+        }
+        let inside = |[c0, r0, c1, r1]: [usize; 4]| {
+            c0 <= c1 && c1 <= grid.width && r0 <= r1 && r1 <= grid.height
+        };
+        if let Some(t) = self.things.iter().find(|t| !inside(t.cells)) {
+            return Some(format!(
+                "the cells {:?} of {:?} are not a box inside the {}×{} grid",
+                t.cells, t.what, grid.width, grid.height
+            ));
+        }
+        let [low, high] = self.terrain;
+        match low <= high {
+            true => None,
+            false => Some(format!(
+                "its terrain range {:?} is not low to high",
+                self.terrain
+            )),
+        }
+    }
 }
 
 /// A building or a placement as the ledger keeps it.
@@ -265,25 +315,55 @@ pub struct Earlier {
     pub ledger: Ledger,
 }
 
+/// Why an incremental build makes every page, and whether to warn of it: a ledger or earlier
+/// tile file found edited or damaged is warned of, the usual reasons (no ledger yet, options
+/// changed) are not.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FullBuild {
+    /// The reason, in words (the summary's `full_build`).
+    pub why: String,
+    /// Whether it is a warning: something beside the tile file was found edited or damaged.
+    pub warn: bool,
+}
+
+impl FullBuild {
+    /// A full build because something was found edited or damaged: warned of.
+    pub fn warning(why: String) -> FullBuild {
+        FullBuild { why, warn: true }
+    }
+}
+
+impl From<String> for FullBuild {
+    fn from(why: String) -> FullBuild {
+        FullBuild { why, warn: false }
+    }
+}
+
 /// The earlier build of `out` if its pages can serve this one, else why not (a full build
 /// follows).
-pub fn earlier(out: &Path, key: &serde_json::Value) -> std::result::Result<Earlier, String> {
+pub fn earlier(out: &Path, key: &serde_json::Value) -> std::result::Result<Earlier, FullBuild> {
     let path = ledger_path(out);
     let text = (crate::io::read_text(&path))
         .map_err(|e| format!("no ledger {} ({})", path.display(), e.problem))?
         .into_bytes();
-    let ledger: Ledger = serde_json::from_slice(&text)
-        .map_err(|e| format!("the ledger {} cannot be read: {e}", path.display()))?;
+    let ledger: Ledger = serde_json::from_slice(&text).map_err(|e| {
+        FullBuild::warning(format!("the ledger {} cannot be read: {e}", path.display()))
+    })?;
     if ledger.format != LEDGER_FORMAT || ledger.version != 1 {
-        return Err(format!("{} is not a version 1 ledger", path.display()));
+        return Err(format!("{} is not a version 1 ledger", path.display()).into());
     }
     let tiles = TileReader::open(out, 64).map_err(|e| e.to_string())?;
+    if let Some(why) = ledger.distrust(&tiles.info().grid) {
+        let why = format!("the ledger {} is not trusted: {why}", path.display());
+        return Err(FullBuild::warning(why));
+    }
     let (h, i) = tiles.checksums();
     if ledger.tiles != [tiles.file_len(), h as u64, i as u64] {
         return Err(format!(
             "{} is not the tile file its ledger describes",
             out.display()
-        ));
+        )
+        .into());
     }
     let level0 = &tiles.info().levels[0];
     if ledger.pages.len() != level0.pages_x * level0.pages_y {
@@ -292,10 +372,12 @@ pub fn earlier(out: &Path, key: &serde_json::Value) -> std::result::Result<Earli
             path.display(),
             ledger.pages.len(),
             level0.pages_x * level0.pages_y
-        ));
+        )
+        .into());
     }
     if &ledger.key != key {
-        return Err("the options, the sun or the database's terrain or photo changed".into());
+        let why = "the options, the sun or the database's terrain or photo changed";
+        return Err(why.to_string().into());
     }
     Ok(Earlier { tiles, ledger })
 }
@@ -729,6 +811,20 @@ pub fn write_pages(
     })
 }
 
+/// Check every page of `earlier` that `new` does not make again against its CRC (read, not
+/// decoded): a change in place keeps those pages as they are on disk, so one damaged since it
+/// was written must be found here, not kept (the copy into a new file, [`write_pages`], checks
+/// each page it copies the same way).
+pub fn check_kept(info: &TileSetInfo, new: &NewPages, earlier: &TileReader) -> Result<()> {
+    (0..info.page_count()).into_par_iter().try_for_each(|pos| {
+        let (level, tx, ty) = info.page_at(pos).expect("a position of the tile set");
+        match new.get(level, tx, ty) {
+            Some(_) => Ok(()),
+            None => earlier.stored(level, tx, ty).map(|_| ()),
+        }
+    })
+}
+
 /// `[file length, header CRC, index CRC]` of a tile file written but not yet renamed.
 pub fn stamp(tiles: &Staged) -> Result<[u64; 3]> {
     let written = TileReader::open(tiles.written(), 0)?;
@@ -740,9 +836,13 @@ pub fn stamp(tiles: &Staged) -> Result<[u64; 3]> {
 pub fn stage_ledger(tiles: &Path, ledger: &Ledger) -> Result<Staged> {
     use std::io::Write;
     let path = ledger_path(tiles);
+    let ledger = Ledger {
+        checksum: Some(ledger.content_sha256()),
+        ..ledger.clone()
+    };
     let mut file = AtomicFile::create(&path)?;
     let w = file.writer();
-    serde_json::to_writer(&mut *w, ledger).map_err(|e| Error::file(&path, e.to_string()))?;
+    serde_json::to_writer(&mut *w, &ledger).map_err(|e| Error::file(&path, e.to_string()))?;
     w.write_all(b"\n").map_err(|e| Error::io(&path, e))?;
     file.stage()
 }
@@ -752,6 +852,48 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::roof::{Pitch, RoofForm, RoofShape};
+
+    /// A ledger is trusted only with its checksum matching its content, every thing's cells a
+    /// box inside the grid and its terrain range low to high.
+    #[test]
+    fn a_ledger_is_trusted_only_sealed_and_with_boxes_inside_the_grid() {
+        let grid = Grid::north_up(0.0, 20.0, 1.0, 20, 10, Crs::unknown());
+        let thing = |cells| Thing {
+            what: "placement 1 t.dvox 00 1.0 2.0 3.0 0.0 1.0".into(),
+            cells,
+            top: 4.0,
+        };
+        let ledger = |cells, terrain| {
+            let l = Ledger {
+                format: LEDGER_FORMAT.into(),
+                version: 1,
+                key: serde_json::json!({}),
+                raised: [false, true],
+                tiles: [0; 3],
+                terrain,
+                things: vec![thing([0, 0, 3, 3]), thing(cells)],
+                pages: vec![PageStats::default()],
+                checksum: None,
+            };
+            Ledger {
+                checksum: Some(l.content_sha256()),
+                ..l
+            }
+        };
+        let good = ledger([2, 3, 20, 10], [1.0, 5.0]);
+        assert_eq!(good.distrust(&grid), None);
+        let why = |l: &Ledger| l.distrust(&grid).unwrap_or_default();
+        for bad in [[5, 3, 4, 6], [2, 7, 20, 6], [2, 3, 21, 6], [2, 3, 4, 11]] {
+            assert!(why(&ledger(bad, [1.0, 5.0])).contains("not a box inside the 20×10 grid"));
+        }
+        assert!(why(&ledger([2, 3, 4, 6], [5.0, 1.0])).contains("terrain range"));
+        assert!(why(&ledger([2, 3, 4, 6], [f64::NAN, 1.0])).contains("terrain range"));
+        let mut edited = good.clone();
+        edited.things[1].top = 40.0;
+        assert!(why(&edited).contains("checksum does not match"));
+        edited.checksum = None;
+        assert!(why(&edited).contains("no checksum"));
+    }
 
     /// A building's ledger entry changes with its roof's form, eaves or direction, so the pages
     /// it touches are made again; a flat roof's entry is what it was before roofs could be

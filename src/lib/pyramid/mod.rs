@@ -167,6 +167,10 @@ pub struct PyramidSummary {
     /// absent when only the changed pages were.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub full_build: Option<String>,
+    /// What the user is warned of on stderr (not in `--json`: `full_build` says it there): a
+    /// ledger or earlier tile file found edited or damaged, so every page was made again.
+    #[serde(skip)]
+    pub warnings: Vec<String>,
     /// In a run of several products ([`build_pyramids`]), what this one took from an earlier
     /// one instead of making it again, in words (casts, detected shadows, what stands).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -265,6 +269,7 @@ impl PyramidSummary {
             pages_rebuilt: info.page_count(),
             in_place: false,
             full_build: None,
+            warnings: Vec::new(),
             reused: Vec::new(),
             building_cells: total.building_cells,
             object_cells: total.object_cells,
@@ -324,8 +329,9 @@ pub fn build_pyramid(
 /// [`build_pyramid`] for several products of `db` in one run, in order, each with `opts` but its
 /// own sun: what stands on the terrain is read once, and a cast or the photo's detected shadows
 /// one product made serve every later product that needs the same ([`shade::Shared`]); each
-/// summary's `reused` says what it took from an earlier one. Each product is committed when it
-/// is built: an error stops the run, and the products before it stay built.
+/// summary's `reused` says what it took from an earlier one. Every product's outputs are
+/// checked before any work ([`check_products`]) and committed together once all are built (one
+/// change of the database records a stage for each): an error at any point leaves none of them.
 pub fn build_pyramids(
     db: &Database,
     wait: std::time::Duration,
@@ -337,19 +343,42 @@ pub fn build_pyramids(
         return Err(Error::msg("--export-levels with more than one product")
             .fix("export the levels of one product at a time"));
     }
-    let tiles: Vec<&Path> = products.iter().map(|p| p.tiles.as_path()).collect();
-    crate::io::atomic::check_outputs(&tiles, &[])?;
+    check_products(db, products, opts, &[])?;
     let shared = Shared::default();
-    products
+    let ready = products
         .iter()
         .map(|p| {
             let opts = PyramidOptions {
                 sun: p.sun,
                 ..opts.clone()
             };
-            build_product(db, wait, &p.tiles, &opts, &shared, progress)
+            build_product(db, &p.tiles, &opts, &shared, progress)
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()?;
+    commit(db, wait, ready)
+}
+
+/// Before any work: every file the run of `products` writes (each tile file, its regions' files
+/// and, with `--incremental`, its ledger) is one [`check_request`] accepts, in a directory that
+/// exists, none is written twice and none is one of `inputs`.
+fn check_products(
+    db: &Database,
+    products: &[Product],
+    opts: &PyramidOptions,
+    inputs: &[&Path],
+) -> Result<()> {
+    let mut outputs = Vec::new();
+    for p in products {
+        check_request(&p.tiles, opts)?;
+        outputs.push(p.tiles.clone());
+        let regions = db.insets().into_iter();
+        outputs.extend(regions.map(|spec| regions::region_file(&p.tiles, &spec.name)));
+        if opts.incremental {
+            outputs.push(incremental::ledger_path(&p.tiles));
+        }
+    }
+    let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
+    crate::io::atomic::check_outputs(&outputs, inputs)
 }
 
 /// What the products of one run share: the sun effects' work and what stands on the terrain.
@@ -359,29 +388,28 @@ struct Shared {
     standing: std::sync::OnceLock<crate::standing::Standing>,
 }
 
-/// One product of [`build_pyramids`].
+/// One product of [`build_pyramids`], built, not yet committed.
 fn build_product(
     db: &Database,
-    wait: std::time::Duration,
     out: &Path,
     opts: &PyramidOptions,
     shared: &Shared,
     progress: &Progress,
-) -> Result<PyramidSummary> {
-    check_request(out, opts)?;
+) -> Result<Ready> {
     let has_insets = !db.insets().is_empty();
     let mut full_build = None;
     if opts.incremental {
+        let not_yet = |why: &str| Err(incremental::FullBuild::from(why.to_string()));
         let attempt = match &opts.export_levels {
-            _ if has_insets => Err("the database has insets, not in the ledger yet".to_string()),
-            Some(_) => Err("--export-levels writes every level".to_string()),
-            None if opts.sensor.any() => Err(
-                "sensor layers and light points are not in the incremental ledger yet".to_string(),
-            ),
-            None => incremental_build(db, wait, out, opts, &tile_info(db, opts)?, progress)?,
+            _ if has_insets => not_yet("the database has insets, not in the ledger yet"),
+            Some(_) => not_yet("--export-levels writes every level"),
+            None if opts.sensor.any() => {
+                not_yet("sensor layers and light points are not in the incremental ledger yet")
+            }
+            None => incremental_build(db, out, opts, &tile_info(db, opts)?, progress)?,
         };
         match attempt {
-            Ok(summary) => return Ok(summary),
+            Ok(ready) => return Ok(ready),
             Err(why) => full_build = Some(why),
         }
     }
@@ -391,9 +419,48 @@ fn build_product(
         false => regions::Made::default(),
     };
     let (staged, params, mut summary) = make_product(db, db, out, opts, shared, progress, made)?;
-    summary.full_build = full_build;
-    commit(db, wait, || Ok((staged, params)))?;
-    Ok(summary)
+    if let Some(full) = full_build {
+        if full.warn {
+            let tiles = out.display();
+            summary
+                .warnings
+                .push(format!("{tiles}: every page made again: {}", full.why));
+        }
+        summary.full_build = Some(full.why);
+    }
+    Ok(Ready {
+        outputs: Outputs::Staged(staged),
+        params,
+        summary,
+    })
+}
+
+/// A product built and waiting for [`commit`]: its outputs, the `pyramid` stage's params and
+/// its summary.
+struct Ready {
+    outputs: Outputs,
+    params: serde_json::Value,
+    summary: PyramidSummary,
+}
+
+/// The outputs of a [`Ready`] product.
+enum Outputs {
+    /// Written and staged, its tile file last.
+    Staged(Vec<crate::io::atomic::Staged>),
+    /// The earlier tile file to change in place (under the database's lock, so it is away from
+    /// its name only while it is changed, not while the run waits for another), and the
+    /// ledger staged.
+    InPlace(crate::tiles::InPlace, crate::io::atomic::Staged),
+}
+
+impl Outputs {
+    /// Everything staged, the tile file last (an in-place change applied now).
+    fn stage(self) -> Result<Vec<crate::io::atomic::Staged>> {
+        match self {
+            Outputs::Staged(staged) => Ok(staged),
+            Outputs::InPlace(change, ledger) => Ok(vec![ledger, change.apply()?]),
+        }
+    }
 }
 
 /// The tile set `opts` describe over `db`'s grid (no effects, no regions yet).
@@ -500,6 +567,7 @@ fn make_product(
             terrain: incremental::terrain_range(&terrain)?,
             things: incremental::things(db)?,
             pages,
+            checksum: None,
         };
         staged.push(incremental::stage_ledger(out, &ledger)?);
     }
@@ -516,6 +584,7 @@ fn make_product(
         pages_rebuilt: info.page_count(),
         in_place: false,
         full_build: None,
+        warnings: Vec::new(),
         reused,
         building_cells: buildings.len(),
         object_cells: objects.len(),
@@ -590,20 +659,30 @@ impl SensorReaders {
     }
 }
 
-/// Take the database's lock (waiting up to `wait`), `finish` the run's outputs (staged, with
-/// the `pyramid` stage's params), record the stage, then rename the outputs into place, the
-/// tile file last (a rename that fails leaves it out, not the levels or the ledger without
-/// it). Whatever `finish` does happens under the lock, not while this run waits for another.
+/// Take the database's lock (waiting up to `wait`), finish the outputs of every product of
+/// the run (an in-place change is applied now), record a `pyramid` stage for each in one
+/// change, then rename the outputs into place: the first product's last, and each product's
+/// tile file after its levels, regions and ledger (a rename that fails leaves it out, not the
+/// others without it). Returns the summaries, in the products' order.
 fn commit(
     db: &Database,
     wait: std::time::Duration,
-    finish: impl FnOnce() -> Result<(Vec<crate::io::atomic::Staged>, serde_json::Value)>,
-) -> Result<()> {
+    ready: Vec<Ready>,
+) -> Result<Vec<PyramidSummary>> {
     let mut change = Database::begin(&db.dir, wait)?;
-    let (staged, params) = finish()?;
-    change.db.record_stage(Stage::now("pyramid", params));
+    let (mut staged, mut summaries) = (Vec::new(), Vec::new());
+    for mut r in ready {
+        let clock = std::time::Instant::now();
+        let mut outputs = r.outputs.stage()?;
+        r.summary.seconds.finish += clock.elapsed().as_secs_f64();
+        outputs.append(&mut staged);
+        staged = outputs;
+        change.db.record_stage(Stage::now("pyramid", r.params));
+        summaries.push(r.summary);
+    }
     change.commit()?;
-    crate::io::atomic::commit_all(staged)
+    crate::io::atomic::commit_all(staged)?;
+    Ok(summaries)
 }
 
 /// The sun effects `opts` asks for over the terrain and what stands on it (`standing`:
@@ -649,12 +728,11 @@ fn photo_sun_for(db: &Database, opts: &PyramidOptions) -> Result<Option<Sun>> {
 /// ([`incremental`]), or why it cannot (a full build follows).
 fn incremental_build(
     db: &Database,
-    wait: std::time::Duration,
     out: &Path,
     opts: &PyramidOptions,
     info: &TileSetInfo,
     progress: &Progress,
-) -> Result<std::result::Result<PyramidSummary, String>> {
+) -> Result<std::result::Result<Ready, incremental::FullBuild>> {
     use incremental::PageStats;
     let mut lap = stopwatch();
     let mut seconds = Timings::default();
@@ -698,9 +776,8 @@ fn incremental_build(
     let total = pages.iter().fold(PageStats::default(), |a, &b| a + b);
     let raised = [total.building_cells > 0, total.object_cells > 0];
     if raised != before.raised {
-        return Ok(Err(
-            "buildings or objects now raise cells where none did, or none where some did (the effects that run change)".into(),
-        ));
+        let why = "buildings or objects now raise cells where none did, or none where some did (the effects that run change)";
+        return Ok(Err(why.to_string().into()));
     }
     let counts = effects_run.then(|| total.effects.unwrap_or_default());
     let effects_record =
@@ -710,15 +787,17 @@ fn incremental_build(
     info.effects = serde_json::to_value(&effects_record).expect("the effects record serialises");
     seconds.prepare = lap();
 
-    // The earlier file's pages are trusted by their header and index CRCs; one that turns out
-    // damaged when read (a coarse page folded, a page copied) makes a full build.
-    let damaged = |e: Error| format!("the earlier tile file cannot serve: {e}");
+    // A page of the earlier file damaged on disk (found when a coarse page is folded, a page
+    // copied, or a page kept in place is checked) makes a full build, warned of.
+    let damaged = |e: Error| {
+        incremental::FullBuild::warning(format!("the earlier tile file cannot serve: {e}"))
+    };
     let new = match incremental::NewPages::new(&info, &earlier.tiles, level0) {
         Ok(new) => new,
         Err(e) => return Ok(Err(damaged(e))),
     };
     seconds.levels = lap();
-    let mut ledger = incremental::Ledger {
+    let ledger = incremental::Ledger {
         format: incremental::LEDGER_FORMAT.into(),
         version: 1,
         key,
@@ -727,53 +806,70 @@ fn incremental_build(
         terrain: before.terrain,
         things,
         pages,
+        checksum: None,
     };
     let mut summary = PyramidSummary {
         pages_rebuilt: new.len(),
         ..PyramidSummary::of_pages(out, &info, total, effects_record, seconds)
     };
-    // In place when every other page keeps its offset, else a new file with them copied.
-    let replaced: Vec<_> = new.iter().collect();
-    match crate::tiles::InPlace::plan(out, &info, &earlier.tiles, &replaced)? {
-        Some(change) => {
-            ledger.tiles = change.stamp();
-            let ledger = incremental::stage_ledger(out, &ledger)?;
-            summary.in_place = true;
-            // Changed under the database's lock: the tile file is away from its name only
-            // while it is changed, not while this run waits for another.
-            commit(db, wait, || {
-                let tiles = change.apply()?;
-                summary.seconds.finish = lap();
-                progress.finish();
-                Ok((
-                    vec![ledger, tiles],
-                    stage_params(out, opts, &info, &summary),
-                ))
-            })?;
+    let outputs = match incremental_outputs(out, &info, &new, &earlier.tiles, ledger, progress)? {
+        Ok((outputs, in_place)) => {
+            summary.in_place = in_place;
+            outputs
         }
-        None => {
-            let writer = TileWriter::create(out, info.clone())?;
-            progress.phase(info.page_count() as u64, "pyramid");
-            let copied = incremental::write_pages(&info, &new, &earlier.tiles, &writer, progress);
-            if let Err(e) = copied {
-                return Ok(Err(damaged(e)));
-            }
-            let tiles = writer.stage()?;
-            ledger.tiles = incremental::stamp(&tiles)?;
-            let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
-            summary.seconds.finish = lap();
-            progress.finish();
-            let params = stage_params(out, opts, &info, &summary);
-            commit(db, wait, || Ok((staged, params)))?;
-        }
-    }
-    Ok(Ok(summary))
+        Err(e) => return Ok(Err(damaged(e))),
+    };
+    summary.seconds.finish = lap();
+    progress.finish();
+    Ok(Ok(Ready {
+        outputs,
+        params: stage_params(out, opts, &info, &summary),
+        summary,
+    }))
 }
 
-/// Before any work: the tile file must not be a special file or one of the database's, and the
-/// shadow factor must be in (0, 1].
+/// The outputs of an incremental build of `out` whose pages made again are `new`, the rest the
+/// `earlier` file's, with its `ledger` (stamped here), and whether the file changes in place:
+/// in place when every other page keeps its offset (each kept page checked first), else a new
+/// file with them copied (each checked as it is copied). `Ok(Err)`: a page of the earlier file
+/// is damaged.
+fn incremental_outputs(
+    out: &Path,
+    info: &TileSetInfo,
+    new: &incremental::NewPages,
+    earlier: &crate::tiles::TileReader,
+    mut ledger: incremental::Ledger,
+    progress: &Progress,
+) -> Result<std::result::Result<(Outputs, bool), Error>> {
+    let replaced: Vec<_> = new.iter().collect();
+    if let Some(change) = crate::tiles::InPlace::plan(out, info, earlier, &replaced)? {
+        if let Err(e) = incremental::check_kept(info, new, earlier) {
+            return Ok(Err(e));
+        }
+        ledger.tiles = change.stamp();
+        let ledger = incremental::stage_ledger(out, &ledger)?;
+        return Ok(Ok((Outputs::InPlace(change, ledger), true)));
+    }
+    let writer = TileWriter::create(out, info.clone())?;
+    progress.phase(info.page_count() as u64, "pyramid");
+    if let Err(e) = incremental::write_pages(info, new, earlier, &writer, progress) {
+        return Ok(Err(e));
+    }
+    let tiles = writer.stage()?;
+    ledger.tiles = incremental::stamp(&tiles)?;
+    let staged = vec![incremental::stage_ledger(out, &ledger)?, tiles];
+    Ok(Ok((Outputs::Staged(staged), false)))
+}
+
+/// Before any work: the tile file must not be a special file or one of the database's, its
+/// directory must exist, and the shadow factor must be in (0, 1].
 fn check_request(out: &Path, opts: &PyramidOptions) -> Result<()> {
     crate::io::atomic::check_output(out)?;
+    let dir = crate::io::atomic::output_dir(out);
+    if !dir.is_dir() {
+        return Err(Error::file(dir, "no such directory for the tile file")
+            .fix("create the directory first, or give another path"));
+    }
     if !(opts.shadow_factor > 0.0 && opts.shadow_factor <= 1.0) {
         return Err(Error::msg(format!(
             "--shadow-factor {}: must be in (0, 1]",

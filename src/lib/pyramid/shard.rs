@@ -459,7 +459,14 @@ pub fn merge(
 ) -> Result<PyramidSummary> {
     let mut lap = super::stopwatch();
     let mut seconds = Timings::default();
-    super::check_request(out, opts)?;
+    // Nothing it writes (the tile file, its regions' files) may be a part or a part's record.
+    let records: Vec<PathBuf> = parts.iter().map(|p| record_path(p)).collect();
+    let inputs: Vec<&Path> = parts.iter().chain(&records).map(PathBuf::as_path).collect();
+    let product = super::Product {
+        tiles: out.to_path_buf(),
+        sun: opts.sun,
+    };
+    super::check_products(db, &[product], opts, &inputs)?;
     let mut info = tile_set(db, opts, "--merge")?;
     let photo_sun = super::photo_sun_for(db, opts)?;
     let key = incremental::key(db, &info, opts, photo_sun);
@@ -547,9 +554,12 @@ pub fn merge(
         regions: made.built,
         ..PyramidSummary::of_pages(out, &info, total, record, seconds)
     };
-    let params = super::stage_params(out, opts, &info, &summary);
-    super::commit(db, wait, || Ok((staged, params)))?;
-    Ok(summary)
+    let ready = super::Ready {
+        outputs: super::Outputs::Staged(staged),
+        params: super::stage_params(out, opts, &info, &summary),
+        summary,
+    };
+    Ok(super::commit(db, wait, vec![ready])?.remove(0))
 }
 
 #[cfg(test)]

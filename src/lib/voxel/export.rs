@@ -99,7 +99,7 @@ pub fn write_with_exports(
     source: &str,
     planned: &[PlannedExport],
 ) -> Result<()> {
-    let object = stage_bytes(object_path, &format::encode(obj, source))?;
+    let object = stage_bytes(object_path, &format::encode(obj, source)?)?;
     let mut staged = planned
         .iter()
         .map(|(k, p)| match k {

@@ -7,7 +7,7 @@
 //! of solid voxels, sorted by `(y, x, z0)` — followed by 3 bytes of RGB per solid voxel in run
 //! order (the object's storage order). Same object → same bytes.
 
-use super::grid::VoxelGrid;
+use super::grid::{try_reserve, VoxelGrid};
 use super::object::VoxelObject;
 use super::occupancy::Occupancy;
 use crate::error::{Error, Result};
@@ -48,8 +48,9 @@ pub struct Header {
     pub source: String,
 }
 
-/// Encode `obj` as `.dvox` bytes, with `source` in the header.
-pub fn encode(obj: &VoxelObject, source: &str) -> Vec<u8> {
+/// Encode `obj` as `.dvox` bytes, with `source` in the header; the body's buffers are
+/// allocated fallibly (a memory limit is [`super::grid::out_of_memory`], not an abort).
+pub fn encode(obj: &VoxelObject, source: &str) -> Result<Vec<u8>> {
     let g = &obj.grid;
     let nz = g.dims[2] as usize;
     let mut runs: Vec<u8> = Vec::new();
@@ -79,7 +80,7 @@ pub fn encode(obj: &VoxelObject, source: &str) -> Vec<u8> {
     // One exact allocation and one copy: a city's colours are gigabytes, and growing the body
     // byte by byte took most of `object extrude`'s time.
     let mut body = runs;
-    body.reserve_exact(3 * obj.colours.len());
+    try_reserve(&mut body, 3 * obj.colours.len(), "the voxel file's body")?;
     body.extend_from_slice(obj.colours.as_flattened());
     let packed = lz4_flex::compress_prepend_size(&body);
     let header = Header {
@@ -95,17 +96,18 @@ pub fn encode(obj: &VoxelObject, source: &str) -> Vec<u8> {
         source: source.to_string(),
     };
     let json = serde_json::to_vec(&header).expect("header serialises");
-    let mut out = Vec::with_capacity(12 + json.len() + packed.len());
+    let mut out = Vec::new();
+    try_reserve(&mut out, 12 + json.len() + packed.len(), "the voxel file")?;
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(&json);
     out.extend_from_slice(&packed);
-    out
+    Ok(out)
 }
 
 /// Write `obj` to `path` atomically.
 pub fn write(path: &Path, obj: &VoxelObject, source: &str) -> Result<()> {
-    write_bytes_atomic(path, &encode(obj, source))
+    write_bytes_atomic(path, &encode(obj, source)?)
 }
 
 /// Read a `.dvox` file.
@@ -208,8 +210,8 @@ mod tests {
                 let h = (i as u64 ^ seed).wrapping_mul(0x9E37_79B9_7F4A_7C15);
                 (h >> 60 < 9).then_some([(h >> 8) as u8, (h >> 16) as u8, (h >> 24) as u8])
             });
-            let bytes = encode(&o, "test");
-            prop_assert_eq!(&bytes, &encode(&o, "test"));
+            let bytes = encode(&o, "test").unwrap();
+            prop_assert_eq!(&bytes, &encode(&o, "test").unwrap());
             let (back, h) = decode(&bytes).unwrap();
             prop_assert_eq!(&back, &o);
             prop_assert_eq!(h.source, "test");
@@ -220,7 +222,7 @@ mod tests {
     fn corrupt_and_foreign_files_are_clear_errors() {
         let g = VoxelGrid::new([0.0; 3], 1.0, [2, 2, 2]).unwrap();
         let o = VoxelObject::from_fn(g, |p, _| (p[2] < 1.0).then_some([1, 2, 3]));
-        let mut bytes = encode(&o, "");
+        let mut bytes = encode(&o, "").unwrap();
         assert!(decode(b"PK\x03\x04 zip file")
             .unwrap_err()
             .to_string()

@@ -17,6 +17,39 @@ pub const MAX_DIM: u32 = 65_535;
 /// Largest number of voxels in one grid (keeps the dense occupancy bitset below 512 MiB).
 pub const MAX_VOXELS: u64 = 1 << 32;
 
+/// Most memory one voxel object may take while it is made and written (`dbms object`), bytes:
+/// 6 GiB. An object estimated above it is refused up front with the voxel size that fits
+/// ([`VoxelGrid::check_memory`]).
+pub const MEMORY_BUDGET: u64 = 6 << 30;
+
+/// Bytes a solid voxel takes while its object is made and written when its colours do not
+/// compress (a tree's crown, each voxel's shade jittered): its colour (3), and its share of the
+/// file's body before compression, compressed and in the file (3 each).
+pub const BYTES_PER_SOLID_VOXEL: f64 = 12.0;
+
+/// [`BYTES_PER_SOLID_VOXEL`] for objects of a few colours (extruded walls and roofs), whose
+/// body compresses to little: measured 7.7 on 522 M voxels (docs/sculpt.md).
+pub const BYTES_PER_PLAIN_VOXEL: f64 = 8.0;
+
+/// Bytes in a GiB.
+const GIB: f64 = (1u64 << 30) as f64;
+
+/// The one-line error of an allocation of `bytes` for `what` that failed (a memory limit,
+/// `ulimit -v`): made instead of the abort an infallible allocation ends in.
+pub fn out_of_memory(what: &str, bytes: usize) -> Error {
+    Error::msg(format!(
+        "out of memory for {what} ({:.1} MB could not be allocated)",
+        bytes as f64 / 1e6
+    ))
+    .fix("use a larger --voxel, or give dbms more memory")
+}
+
+/// Reserve room for `more` items in `v`, or [`out_of_memory`] for `what`.
+pub fn try_reserve<T>(v: &mut Vec<T>, more: usize, what: &str) -> Result<()> {
+    v.try_reserve_exact(more)
+        .map_err(|_| out_of_memory(what, more.saturating_mul(std::mem::size_of::<T>())))
+}
+
 /// Position, voxel size and dimensions of a voxel grid (see the module invariant).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct VoxelGrid {
@@ -80,6 +113,31 @@ impl VoxelGrid {
                 .clamp(1.0, u32::MAX as f64) as u32
         };
         VoxelGrid::new(min, voxel_size, [n(0), n(1), n(2)])
+    }
+
+    /// Refuse an object on this grid with about `solid` solid voxels when making and writing it
+    /// would take more than [`MEMORY_BUDGET`] (its occupancy, a bit per voxel of the grid, and
+    /// `per_solid` bytes a solid voxel: [`BYTES_PER_SOLID_VOXEL`] or [`BYTES_PER_PLAIN_VOXEL`]);
+    /// the error names the voxel size that fits (memory falls with its cube).
+    pub fn check_memory(&self, solid: f64, per_solid: f64) -> Result<()> {
+        let bytes = self.len() as f64 / 8.0 + solid * per_solid;
+        let budget = MEMORY_BUDGET as f64;
+        if bytes <= budget {
+            return Ok(());
+        }
+        let fits = self.voxel_size * (bytes / budget).cbrt();
+        let [nx, ny, nz] = self.dims;
+        Err(Error::msg(format!(
+            "a {nx}×{ny}×{nz} grid of {} m voxels, about {solid:.3e} of them solid, would take \
+             about {:.1} GiB to make and write, over the {} GiB budget",
+            self.voxel_size,
+            bytes / GIB,
+            MEMORY_BUDGET >> 30
+        ))
+        .fix(format!(
+            "use a larger --voxel ({} m or more fits)",
+            (fits * 1000.0).ceil() / 1000.0
+        )))
     }
 
     /// Number of voxels.
@@ -158,6 +216,34 @@ pub fn parse_box(s: &str) -> Result<[f64; 6]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The memory budget: the cone of issue 40 (100 m tall, 80 m crown radius, 0.1 m voxels:
+    /// 5.4 GB) is refused, naming a voxel size that fits; at that size the same cone fits, and
+    /// so does an ordinary tree.
+    #[test]
+    fn the_memory_budget_refuses_what_would_not_fit_and_names_a_voxel_that_does() {
+        let cone = |voxel: f64| {
+            let n = |m: f64| (m / voxel).ceil() as u32 | 1;
+            let grid = VoxelGrid::new([0.0; 3], voxel, [n(164.0), n(164.0), n(102.7)]).unwrap();
+            let solid = std::f64::consts::PI * 82.0 * 82.0 * 77.0 / 3.0 / voxel.powi(3);
+            grid.check_memory(solid, BYTES_PER_SOLID_VOXEL)
+        };
+        let e = cone(0.1).unwrap_err();
+        assert!(e.problem.contains("over the 6 GiB budget"), "{}", e.problem);
+        let fix = e.fix.clone().unwrap_or_default();
+        let fits: f64 = fix
+            .split_once('(')
+            .and_then(|(_, rest)| rest.split(' ').next()?.parse().ok())
+            .unwrap_or_else(|| panic!("no voxel size in {fix:?}"));
+        assert!(fits > 0.1 && fits < 0.11, "{fix}");
+        cone(fits).unwrap();
+        assert!(cone(fits * 0.97).is_err());
+        let tree = VoxelGrid::new([0.0; 3], 0.25, [21, 21, 40]).unwrap();
+        tree.check_memory(2000.0, BYTES_PER_SOLID_VOXEL).unwrap();
+        // The city of docs/sculpt.md (100 000 footprints at 1 m, 522 M voxels, 4.0 GB) fits.
+        let city = VoxelGrid::new([0.0; 3], 1.0, [9986, 10018, 30]).unwrap();
+        city.check_memory(522e6, BYTES_PER_PLAIN_VOXEL).unwrap();
+    }
 
     #[test]
     fn index_and_coords_are_inverse_and_columns_contiguous() {

@@ -6,8 +6,9 @@
 //! The object's **anchor** is the centre of the bottom face of its grid: the point placement puts
 //! on the ground.
 
-use super::grid::VoxelGrid;
+use super::grid::{try_reserve, VoxelGrid};
 use super::occupancy::{AtomicOccupancy, Occupancy, Rank};
+use crate::error::Result;
 use rayon::prelude::*;
 
 /// A coloured voxel object (see the module invariant).
@@ -43,12 +44,23 @@ impl VoxelObject {
 
     /// The object whose voxel at centre `p` (world metres) is solid with colour `c` when
     /// `shade(p, index)` is `Some(c)`; `index` is the voxel's storage index (for seeded
-    /// per-voxel variation). Evaluated in parallel, once per voxel.
+    /// per-voxel variation). Evaluated in parallel, once per voxel. Panics when the memory
+    /// cannot be had ([`Self::try_from_fn`] returns the error).
     pub fn from_fn(
         grid: VoxelGrid,
         shade: impl Fn([f64; 3], usize) -> Option<[u8; 3]> + Sync,
     ) -> VoxelObject {
-        let occ = AtomicOccupancy::new(&grid);
+        Self::try_from_fn(grid, shade).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Self::from_fn`], every large allocation fallible: memory that cannot be had (a memory
+    /// limit) is the one-line error [`super::grid::out_of_memory`], not an abort.
+    pub fn try_from_fn(
+        grid: VoxelGrid,
+        shade: impl Fn([f64; 3], usize) -> Option<[u8; 3]> + Sync,
+    ) -> Result<VoxelObject> {
+        let what = "the voxel object's colours";
+        let occ = AtomicOccupancy::try_new(&grid)?;
         // One y-slab per task; slabs are contiguous in storage order, so concatenating them in y
         // order keeps the colours in storage order.
         let slabs: Vec<Vec<[u8; 3]>> = (0..grid.dims[1])
@@ -60,14 +72,23 @@ impl VoxelObject {
                         let i = grid.index(x, y, z);
                         if let Some(c) = shade(grid.centre(x, y, z), i) {
                             occ.set(i);
+                            if out.len() == out.capacity() {
+                                let more = out.len().max(64); // doubling, as push would
+                                try_reserve(&mut out, more, what)?;
+                            }
                             out.push(c);
                         }
                     }
                 }
-                out
+                Ok(out)
             })
-            .collect();
-        VoxelObject::new(grid, occ.finish(), slabs.concat())
+            .collect::<Result<_>>()?;
+        let mut colours = Vec::new();
+        try_reserve(&mut colours, slabs.iter().map(Vec::len).sum(), what)?;
+        for slab in slabs {
+            colours.extend_from_slice(&slab);
+        }
+        Ok(VoxelObject::new(grid, occ.finish(), colours))
     }
 
     /// Number of solid voxels.

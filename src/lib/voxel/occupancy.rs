@@ -173,14 +173,22 @@ pub struct AtomicOccupancy {
 }
 
 impl AtomicOccupancy {
-    /// All voxels empty.
+    /// All voxels empty; panics when the memory cannot be had (see [`Self::try_new`]).
     pub fn new(grid: &VoxelGrid) -> AtomicOccupancy {
+        Self::try_new(grid).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// All voxels empty, or the one-line error of an allocation that fails.
+    pub fn try_new(grid: &VoxelGrid) -> crate::error::Result<AtomicOccupancy> {
         let len = grid.len();
-        AtomicOccupancy {
+        let mut words = Vec::new();
+        super::grid::try_reserve(&mut words, len.div_ceil(64), "the voxel occupancy")?;
+        words.extend((0..len.div_ceil(64)).map(|_| AtomicU64::new(0)));
+        Ok(AtomicOccupancy {
             dims: grid.dims,
             len,
-            words: (0..len.div_ceil(64)).map(|_| AtomicU64::new(0)).collect(),
-        }
+            words,
+        })
     }
 
     /// Mark storage index `i` occupied.

@@ -10,7 +10,7 @@
 //! * Extruded footprints keep their world x, y; z = 0 is the ground.
 //! * Randomness is a SplitMix64 stream from the user's seed: same seed, same object.
 
-use super::grid::VoxelGrid;
+use super::grid::{try_reserve, VoxelGrid, BYTES_PER_PLAIN_VOXEL, BYTES_PER_SOLID_VOXEL};
 use super::object::VoxelObject;
 use super::occupancy::AtomicOccupancy;
 use crate::error::{Error, Result};
@@ -62,9 +62,12 @@ pub fn revolve(profile: &[[f64; 2]], voxel: f64, colour: [u8; 3]) -> Result<Voxe
     ring.extend_from_slice(profile);
     ring.push([0.0, profile[profile.len() - 1][1]]);
     let grid = local_grid(rmax, zmax, voxel)?;
-    solid(VoxelObject::from_fn(grid, |p, _| {
+    // At most the cylinder round the profile is solid.
+    let cylinder = std::f64::consts::PI * rmax * rmax * zmax / voxel.powi(3);
+    grid.check_memory(cylinder, BYTES_PER_SOLID_VOXEL)?;
+    solid(VoxelObject::try_from_fn(grid, |p, _| {
         inside_ring(&ring, [p[0].hypot(p[1]), p[2]]).then_some(colour)
-    }))
+    })?)
 }
 
 /// `obj`, refused when no voxel is solid: an object smaller than a voxel (no voxel centre inside
@@ -140,7 +143,12 @@ pub fn cone_tree(p: &TreeParams, voxel: f64) -> Result<(VoxelObject, f64)> {
     let seed = p.seed;
     let vary = p.vary;
     let grid = local_grid(r.max(p.trunk_radius), h, voxel)?;
-    let obj = VoxelObject::from_fn(grid, |q, index| {
+    // The crown's cone and the trunk's cylinder (at least one column of voxels).
+    let pi = std::f64::consts::PI;
+    let volume = pi * r * r * (h - base) / 3.0 + pi * p.trunk_radius.powi(2) * base;
+    let solid_voxels = volume / voxel.powi(3) + grid.dims[2] as f64;
+    grid.check_memory(solid_voxels, BYTES_PER_SOLID_VOXEL)?;
+    let obj = VoxelObject::try_from_fn(grid, |q, index| {
         let rad = q[0].hypot(q[1]);
         if q[2] >= base && q[2] <= h && rad <= r * (h - q[2]) / (h - base) {
             let jitter = 1.0
@@ -155,7 +163,7 @@ pub fn cone_tree(p: &TreeParams, voxel: f64) -> Result<(VoxelObject, f64)> {
         } else {
             None
         }
-    });
+    })?;
     Ok((solid(obj)?, h))
 }
 
@@ -397,7 +405,11 @@ pub fn extrude(
             h.iter().map(|&h| column_voxels(&grid, h) as usize).sum()
         })
         .collect();
-    let mut colours = vec![[0u8; 3]; counts.iter().sum()];
+    let total = counts.iter().sum();
+    grid.check_memory(total as f64, BYTES_PER_PLAIN_VOXEL)?;
+    let mut colours = Vec::new();
+    try_reserve(&mut colours, total, "the voxel object's colours")?;
+    colours.resize(total, [0u8; 3]);
     let mut slices = Vec::with_capacity(bands.len());
     let mut rest = colours.as_mut_slice();
     for &n in &counts {
@@ -405,7 +417,7 @@ pub fn extrude(
         slices.push(head);
         rest = tail;
     }
-    let occ = AtomicOccupancy::new(&grid);
+    let occ = AtomicOccupancy::try_new(&grid)?;
     let s = grid.voxel_size;
     bands
         .par_iter()
