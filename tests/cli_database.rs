@@ -438,15 +438,37 @@ fn ingest_never_removes_its_own_input_or_files_of_a_directory_that_is_no_databas
     std::fs::copy(s.db().join(&layer), d.join("x/elevation-0123456789ab.tif")).unwrap();
     std::fs::copy(s.db().join(&layer), d.join("x/notes-0123456789ab.txt")).unwrap();
     let ingest = |dem: &str, out: &str| {
-        let args = ["-q", "ingest", "--dem", dem, "--ortho", "s/ortho.tif", "-o", out];
+        let args = [
+            "-q",
+            "ingest",
+            "--dem",
+            dem,
+            "--ortho",
+            "s/ortho.tif",
+            "-o",
+            out,
+        ];
         ok(d, &args);
     };
     ingest("x/elevation-0123456789ab.tif", "x");
-    assert!(d.join("x/elevation-0123456789ab.tif").exists(), "the input went");
-    assert!(d.join("x/notes-0123456789ab.txt").exists(), "a user's file went");
+    assert!(
+        d.join("x/elevation-0123456789ab.tif").exists(),
+        "the input went"
+    );
+    assert!(
+        d.join("x/notes-0123456789ab.txt").exists(),
+        "a user's file went"
+    );
     // Into an existing database, from a copy the manifest does not name.
-    std::fs::copy(s.db().join(&layer), s.db().join("elevation-ba9876543210.tif")).unwrap();
+    std::fs::copy(
+        s.db().join(&layer),
+        s.db().join("elevation-ba9876543210.tif"),
+    )
+    .unwrap();
     ingest("db/elevation-ba9876543210.tif", "db");
-    assert!(s.db().join("elevation-ba9876543210.tif").exists(), "the input went");
+    assert!(
+        s.db().join("elevation-ba9876543210.tif").exists(),
+        "the input went"
+    );
     s.verify();
 }

@@ -511,7 +511,14 @@ fn a_killed_flight_leaves_the_earlier_one_whole_or_no_record() {
         let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_dbms"));
         c.args(["-q", "render", "--tiles", tiles.to_str().unwrap(), "-o"])
             .arg(&frames)
-            .args(["--path", csv.to_str().unwrap(), "--speed", "100", "--fps", "4"])
+            .args([
+                "--path",
+                csv.to_str().unwrap(),
+                "--speed",
+                "100",
+                "--fps",
+                "4",
+            ])
             .args(["--size", "48x32", "--attitude", "0,-10,0"]);
         if let Some(f) = fault {
             c.env("DBMS_FAULT", f);
@@ -539,11 +546,23 @@ fn a_killed_flight_leaves_the_earlier_one_whole_or_no_record() {
     assert!(jsonschema::is_valid(&schema, &first), "{first}");
     assert_eq!(first["frames"], 21);
     assert!(holds(&first));
-    assert!(!fly(b, Some("flight-frame-staged")), "the fault did not fire");
+    assert!(
+        !fly(b, Some("flight-frame-staged")),
+        "the fault did not fire"
+    );
     assert_eq!(record(), first, "the record changed");
-    assert!(holds(&first), "a frame of the killed flight replaced one of the earlier");
-    assert!(!fly(b, Some("flight-frames-renamed")), "the fault did not fire");
-    assert!(!frames.join("frames.json").exists(), "a record of a mixed set");
+    assert!(
+        holds(&first),
+        "a frame of the killed flight replaced one of the earlier"
+    );
+    assert!(
+        !fly(b, Some("flight-frames-renamed")),
+        "the fault did not fire"
+    );
+    assert!(
+        !frames.join("frames.json").exists(),
+        "a record of a mixed set"
+    );
     assert!(fly(b, None));
     let second = record();
     assert!(holds(&second) && second != first);

@@ -443,7 +443,12 @@ enum Leftovers {
 impl Leftovers {
     /// Clear, sparing `inputs` (paths as given; those that do not exist spare nothing).
     fn clear(inputs: &[PathBuf]) -> Leftovers {
-        Leftovers::Clear(inputs.iter().filter_map(|p| p.canonicalize().ok()).collect())
+        Leftovers::Clear(
+            inputs
+                .iter()
+                .filter_map(|p| p.canonicalize().ok())
+                .collect(),
+        )
     }
 
     /// Whether `path` may be removed: not a run's input, nor a directory holding one.

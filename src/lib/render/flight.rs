@@ -10,8 +10,8 @@
 //! frame files left from a longer earlier flight in the directory are removed.
 
 use super::{render_view, Frame, ViewOptions, Viewpoint};
-use crate::error::{Error, Result};
 use crate::db::fault_point;
+use crate::error::{Error, Result};
 use crate::io::atomic::{commit_all, write_bytes_atomic, AtomicFile};
 use crate::progress::Progress;
 use crate::tiles::TileReader;
