@@ -877,17 +877,9 @@ impl Product {
                         "give one of L, S, C, X, Ku, Ka, W",
                     )
                 })?;
-                if !(r.elevation > 0.0 && r.elevation < 90.0 && r.azimuth.is_finite()) {
-                    return Err(key_error(
-                        &format!("{key}.radar"),
-                        format!(
-                            "elevation {} azimuth {}: the radar must be above the horizon, (0, 90) degrees",
-                            r.elevation, r.azimuth
-                        ),
-                        "give degrees above the horizon and clockwise from grid north",
-                    ));
-                }
-                Ok(())
+                let above = r.elevation > 0.0 && r.elevation < 90.0;
+                let look = Look("radar", r.elevation, r.azimuth);
+                look.check(&format!("{key}.radar"), above, "(0, 90)")
             }
             _ => Ok(()),
         }
@@ -912,16 +904,9 @@ impl Product {
             }
             (Some(t), None) => check_time(&format!("{key}.time"), t)?,
             (None, Some(s)) => {
-                if !(s.elevation > 0.0 && s.elevation <= 90.0 && s.azimuth.is_finite()) {
-                    return Err(key_error(
-                        &format!("{key}.sun"),
-                        format!(
-                            "elevation {} azimuth {}: the sun must be above the horizon (0, 90] degrees",
-                            s.elevation, s.azimuth
-                        ),
-                        "give degrees above the horizon and clockwise from grid north",
-                    ));
-                }
+                let above = s.elevation > 0.0 && s.elevation <= 90.0;
+                let look = Look("sun", s.elevation, s.azimuth);
+                look.check(&format!("{key}.sun"), above, "(0, 90]")?;
             }
             (None, None) => {}
         }
@@ -932,6 +917,32 @@ impl Product {
         let names = ["air_temp_c", "air_range_k", "wind_m_s", "humidity"].map(name);
         let names = [&*names[0], &*names[1], &*names[2], &*names[3]];
         self.conditions.thermal().check_named(names)
+    }
+}
+/// A direction a product gives (the sun's, the radar's): what it is, its elevation and its
+/// azimuth, degrees.
+struct Look(&'static str, f64, f64);
+
+impl Look {
+    /// An error naming `key` unless the azimuth is finite and the elevation `above` the horizon
+    /// (`range` says which degrees are): each named for what is wrong.
+    fn check(&self, key: &str, above: bool, range: &str) -> Result<()> {
+        let Look(what, elevation, azimuth) = *self;
+        if !azimuth.is_finite() {
+            return Err(key_error(
+                &format!("{key}.azimuth"),
+                format!("is {azimuth}: the {what}'s azimuth must be a finite number of degrees"),
+                "give degrees clockwise from grid north",
+            ));
+        }
+        if !above {
+            return Err(key_error(
+                &format!("{key}.elevation"),
+                format!("is {elevation}: the {what} must be above the horizon, {range} degrees"),
+                "give degrees above the horizon",
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -1109,7 +1120,9 @@ conditions = { visibility_m = 2000 }
             (format!("sensor = \"nvg\"\ntiles = \"n.dbt\"\n{t}"), "products.day.time is given"),
             (format!("sensor = \"visual\"\ntiles = \"v.dbt\"\n{look}"), "products.day.radar"),
             ("sensor = \"ir\"\ntiles = \"v.dbt\"\nsun = { elevation = 5, azimuth = 1 }".into(), "products.day.sun"),
-            ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 95 }".into(), "products.day.radar"),
+            ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 95 }".into(), "products.day.radar.elevation is 95"),
+            ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = nan, elevation = 30 }".into(), "products.day.radar.azimuth is NaN"),
+            ("sensor = \"visual\"\ntiles = \"v.dbt\"\nsun = { azimuth = inf, elevation = 30 }".into(), "products.day.sun.azimuth is inf"),
             ("sensor = \"radar\"\ntiles = \"r.dbt\"\nradar = { azimuth = 1, elevation = 9, band = \"Q\" }".into(), "products.day.radar.band"),
             ("sensor = \"visual\"\ntiles = \"v.dbt\"\nconditions = { wind_m_s = 3 }".into(), "products.day.conditions.wind_m_s is given"),
             (format!("sensor = \"ir\"\ntiles = \"ir.dbt\"\n{t}\nconditions = {{ humidity = 0 }}"), "products.day.conditions.humidity 0"),
