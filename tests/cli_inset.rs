@@ -476,3 +476,26 @@ fn the_inset_border_lies_on_the_parent_surface() {
         assert!(factor != 2 || needed_blending);
     }
 }
+
+/// Issue 40, defect 8 (an input removed as a leftover): an inset's sources kept in a directory
+/// of `DB/insets/` that names no inset were removed with it by the change that adds the inset,
+/// before they were read. A run's inputs are never cleared.
+#[test]
+fn an_insets_sources_kept_inside_the_database_are_not_cleared() {
+    let dir = tempfile::tempdir().unwrap();
+    let (d, o, db) = base(dir.path());
+    let sources = db.join("insets/sources");
+    std::fs::create_dir_all(&sources).unwrap();
+    let (d2, o2) = (sources.join("dem.tif"), sources.join("ortho.tif"));
+    std::fs::copy(&d, &d2).unwrap();
+    std::fs::copy(&o, &o2).unwrap();
+    let out = add(
+        &d2,
+        &o2,
+        &db,
+        &["--inset", "town:2:500010,5299970,500050,5299990"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(d2.exists() && o2.exists(), "the inset's sources went");
+    info_json(&db);
+}

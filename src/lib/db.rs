@@ -386,13 +386,15 @@ pub struct Change {
 
 impl Database {
     /// Begin a change to the database in `dir`: wait up to `wait` for its write lock, clear
-    /// what killed changes left, and read the manifest as it is now.
-    pub fn begin(dir: &Path, wait: std::time::Duration) -> Result<Change> {
+    /// what killed changes left (never one of the run's `inputs`, which a user may keep in
+    /// the database's directory), and read the manifest as it is now.
+    pub fn begin(dir: &Path, wait: std::time::Duration, inputs: &[&Path]) -> Result<Change> {
         if !dir.is_dir() {
             Database::open(dir)?; // the one-line error for a missing directory or a file
         }
         let lock = lock(dir, wait)?;
-        Change::new(Database::open(dir)?, lock, Leftovers::clear(&[]))
+        let inputs: Vec<PathBuf> = inputs.iter().map(|p| p.to_path_buf()).collect();
+        Change::new(Database::open(dir)?, lock, Leftovers::clear(&inputs))
     }
 
     /// Begin a change that creates the database in `dir` (made if missing) for `grid`, or
@@ -895,14 +897,14 @@ mod tests {
         let db = with_inset(dir.path());
         let wait = std::time::Duration::from_secs(1);
         {
-            let mut change = Database::begin(dir.path(), wait).unwrap();
+            let mut change = Database::begin(dir.path(), wait, &[]).unwrap();
             assert!(change.wrote_inset("a").is_err());
             change.wrote_inset("b").unwrap();
             std::fs::create_dir_all(db.inset_dir("b")).unwrap();
         }
         assert!(!db.inset_dir("b").exists() && db.inset_dir("a").exists());
         std::fs::create_dir_all(db.inset_dir("killed")).unwrap();
-        let mut change = Database::begin(dir.path(), wait).unwrap();
+        let mut change = Database::begin(dir.path(), wait, &[]).unwrap();
         assert!(!db.inset_dir("killed").exists());
         change.db.manifest.insets.clear();
         change.commit().unwrap();

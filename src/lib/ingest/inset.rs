@@ -198,7 +198,7 @@ pub fn add_inset(
         ))
         .fix("leave it out; give the inset's factor and bounds in --inset"));
     }
-    let mut change = Database::begin(db_dir, opts.wait)?;
+    let mut change = Database::begin(db_dir, opts.wait, &[&opts.dem, &opts.ortho])?;
     let base = change.db.grid().clone();
     let mut specs = change.db.insets();
     inset::check_name(&req.name)?;
@@ -309,7 +309,7 @@ fn blend_seam(
     let parent_rows = parent_db.elevation_rows()?;
     let parent_z = parent_rows.read_rows(rows.start, rows.len())?;
     let surface = ParentSurface::new(spec, parent, &parent_z);
-    let mut change = Database::begin(dir, wait)?;
+    let mut change = Database::begin(dir, wait, &[])?;
     let source = change.db.elevation_rows()?;
     let grid = change.db.grid().clone();
     let nodata = change.db.manifest.layers[db::ELEVATION].nodata_cells;

@@ -482,7 +482,13 @@ pub fn build(dir: &Path, opts: &MaterialOptions) -> Result<MaterialSummary> {
             .zip(opts.landcover.as_ref().map(|(_, l)| l.as_str())),
     };
     let (ids, summary) = classify(&inputs, &table, &table_name)?;
-    let mut change = Database::begin(dir, opts.wait)?;
+    let read = opts
+        .features
+        .iter()
+        .chain(&opts.table)
+        .chain(opts.landcover.iter().map(|l| &l.0));
+    let read: Vec<&Path> = read.map(PathBuf::as_path).collect();
+    let mut change = Database::begin(dir, opts.wait, &read)?;
     if change.db.manifest.layers.get(crate::db::COLOUR) != db.manifest.layers.get(crate::db::COLOUR)
     {
         return Err(Error::file(

@@ -669,7 +669,7 @@ fn commit(
     wait: std::time::Duration,
     ready: Vec<Ready>,
 ) -> Result<Vec<PyramidSummary>> {
-    let mut change = Database::begin(&db.dir, wait)?;
+    let mut change = Database::begin(&db.dir, wait, &[])?;
     let (mut staged, mut summaries) = (Vec::new(), Vec::new());
     for mut r in ready {
         let clock = std::time::Instant::now();

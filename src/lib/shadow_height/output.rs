@@ -154,7 +154,7 @@ pub fn apply_buildings(
     params: Value,
     wait: std::time::Duration,
 ) -> Result<()> {
-    let mut change = Database::begin(&measured_from.dir, wait)?;
+    let mut change = Database::begin(&measured_from.dir, wait, &[])?;
     for layer in [crate::db::ELEVATION, crate::db::COLOUR] {
         if change.db.manifest.layers.get(layer) != measured_from.manifest.layers.get(layer) {
             return Err(Error::file(

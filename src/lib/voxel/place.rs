@@ -77,7 +77,8 @@ pub fn place_all(
         check_finite(p.x, p.y, p.z, p.heading_deg)?;
         check_scale(p.scale)?;
     }
-    let mut change = Database::begin(dir, wait)?;
+    let objects: Vec<&Path> = placements.iter().map(|p| p.object.as_path()).collect();
+    let mut change = Database::begin(dir, wait, &objects)?;
     require_projected(&change.db)?;
     // Everything is checked before anything is written: the objects, then every position.
     let mut objects: BTreeMap<&Path, (String, usize)> = BTreeMap::new();
@@ -144,7 +145,7 @@ pub fn place_all(
 /// Remove placement `id` from the database in `dir` (its object file stays, as other
 /// placements may use it); returns what was removed.
 pub fn remove(dir: &Path, wait: std::time::Duration, id: u64) -> Result<PlacedObject> {
-    let mut change = Database::begin(dir, wait)?;
+    let mut change = Database::begin(dir, wait, &[])?;
     let db = &mut change.db;
     let k = position_of(db, id)?;
     let removed = db.manifest.objects.remove(k);
@@ -166,7 +167,7 @@ pub fn move_to(
 ) -> Result<PlacedObject> {
     check_finite(x, y, z, heading_deg.unwrap_or(0.0))?;
     scale.map(check_scale).transpose()?;
-    let mut change = Database::begin(dir, wait)?;
+    let mut change = Database::begin(dir, wait, &[])?;
     let db = &mut change.db;
     let k = position_of(db, id)?;
     if let Some(scale) = scale {
