@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 #[path = "support/cli.rs"]
 mod cli;
-use cli::dbms_in;
+use cli::{dbms_in, dbms_in_within};
 
 fn ok(dir: &Path, args: &[&str]) -> Output {
     let out = dbms_in(dir, args);
@@ -471,4 +471,31 @@ fn ingest_never_removes_its_own_input_or_files_of_a_directory_that_is_no_databas
         "the input went"
     );
     s.verify();
+}
+
+/// Issue 40, defect 4 (no input makes a command block or read without bound), for the one file
+/// every database command reads first: a `manifest.json` that is a FIFO or leads to
+/// `/dev/zero` is refused in one line at once.
+#[test]
+fn a_manifest_that_is_a_fifo_or_a_device_is_refused_without_blocking() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (db, make) in [
+        ("fifo", "mkfifo fifo/manifest.json"),
+        ("zero", "ln -s /dev/zero zero/manifest.json"),
+    ] {
+        std::fs::create_dir(d.join(db)).unwrap();
+        let made = Command::new("sh")
+            .args(["-c", make])
+            .current_dir(d)
+            .status()
+            .unwrap();
+        assert!(made.success(), "{make}");
+        let out = dbms_in_within(d, &["info", db], std::time::Duration::from_secs(20));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains("not a regular file") && err.lines().count() == 1,
+            "{db}: {err}"
+        );
+    }
 }

@@ -42,6 +42,7 @@ pub mod progress;
 pub mod pyramid;
 pub mod radar_map;
 pub mod raster;
+pub mod reading;
 pub mod render;
 pub mod roof;
 pub mod sample_scene;

@@ -253,13 +253,12 @@ impl Manifest {
             return Err(Error::file(dir, "no such database directory")
                 .fix("create it with `dbms ingest ... -o DIR`"));
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => {
-                Error::file(dir, "not a dbms database (no manifest.json)")
-                    .fix("create it with `dbms ingest ... -o DIR`")
-            }
-            _ => Error::io(&path, e),
-        })?;
+        if std::fs::symlink_metadata(&path).is_err() {
+            return Err(Error::file(dir, "not a dbms database (no manifest.json)")
+                .fix("create it with `dbms ingest ... -o DIR`"));
+        }
+        // Placements make it grow: a data file's cap, and never a FIFO or a device.
+        let text = crate::reading::read_text(&path)?;
         let mut manifest: Manifest = serde_json::from_str(&text).map_err(|e| {
             Error::file(&path, format!("not a valid dbms manifest: {e}"))
                 .fix("re-create the database with `dbms ingest`")
