@@ -245,20 +245,52 @@ fn check_scale(scale: f64) -> Result<()> {
     }
 }
 
+/// The most cells of the database a placed object's bounding box may fill, columns times the
+/// cell heights it stands (its width, depth and height each in cells): 2^28. The pyramid's time
+/// and memory for a placement grow with it, as the cube of the scale. On the 0.25 m cells of
+/// the 2048-pixel sample (4096² cells), with a 5 m wide, 8 m tall tree placed at scale 1
+/// (1.3e4 cells) the pyramid took 10 s and 79 MB; at scale 10 (1.3e7 cells) 10.8 s and 89 MB;
+/// at scale 40 (8.2e8) 33 s and 380 MB; at scale 100 (1.3e10) 256 s and 1.5 GB (debug build,
+/// 2 cores, shared, 2026-11-29). 2^28 cells (scale 27.6 there) cost a few seconds and about
+/// 100 MB more.
+pub const MAX_OBJECT_CELLS: f64 = (1u64 << 28) as f64;
+
 /// The largest size factor an object on `grid` may be placed at in `db`: its grid's
-/// horizontal diagonal (so at any heading) no wider than the database's narrower side, and its
-/// height no more than [`Z_MARGIN_M`]. Larger, it would stand over the whole database and
-/// beyond: each of its voxels repeated over many cells, and the pyramid's time and memory
-/// with them.
+/// horizontal diagonal (so at any heading) no wider than the database's narrower side, its
+/// height no more than [`Z_MARGIN_M`], and its box no more than [`MAX_OBJECT_CELLS`] of the
+/// database's cells. Larger, each of its voxels is repeated over many cells, and the pyramid's
+/// time and memory with them.
 pub fn largest_scale(db: &Database, grid: &super::grid::VoxelGrid) -> f64 {
+    largest_scale_in(database_width(db), database_cell(db), grid)
+}
+
+/// [`largest_scale`] in a database `width` metres wide (its narrower side) of `cell` metre
+/// cells.
+fn largest_scale_in(width: f64, cell: f64, grid: &super::grid::VoxelGrid) -> f64 {
     let (across, tall) = object_size(grid);
-    (database_width(db) / across).min(Z_MARGIN_M / tall)
+    let fills = (MAX_OBJECT_CELLS / cells_at_scale_1(cell, grid)).cbrt();
+    (width / across).min(Z_MARGIN_M / tall).min(fills)
 }
 
 /// An object's horizontal diagonal and height, metres, at scale 1.
 fn object_size(grid: &super::grid::VoxelGrid) -> (f64, f64) {
     let [nx, ny, nz] = grid.dims.map(f64::from);
     (nx.hypot(ny) * grid.voxel_size, nz * grid.voxel_size)
+}
+
+/// The cells of `cell` metres the box of an object on `grid` fills at scale 1 (width, depth
+/// and height each in cells; at scale k, k³ times as many).
+fn cells_at_scale_1(cell: f64, grid: &super::grid::VoxelGrid) -> f64 {
+    grid.dims
+        .map(|n| f64::from(n) * grid.voxel_size / cell)
+        .iter()
+        .product()
+}
+
+/// The smaller side of `db`'s cells, metres.
+fn database_cell(db: &Database) -> f64 {
+    let (cx, cy) = db.grid().cell_size();
+    cx.abs().min(cy.abs())
 }
 
 /// The narrower side of `db`'s extent, metres.
@@ -270,10 +302,11 @@ fn database_width(db: &Database) -> f64 {
 /// The error for an object on `grid` placed at `scale` in `db`, above `most` ([`largest_scale`]).
 fn too_large(db: &Database, grid: &super::grid::VoxelGrid, scale: f64, most: f64) -> Error {
     let (across, tall) = object_size(grid);
+    let cells = cells_at_scale_1(database_cell(db), grid) * scale.powi(3);
     Error::file(
         &db.dir,
         format!(
-            "--scale {scale}: the object would be {:.0} m across and {:.0} m tall, more than the database holds ({:.0} m across, {Z_MARGIN_M} m tall)",
+            "--scale {scale}: the object would be {:.0} m across and {:.0} m tall, filling {cells:.1e} cells, more than a placement may ({:.0} m across, {Z_MARGIN_M} m tall, {MAX_OBJECT_CELLS:.1e} cells: the pyramid's time and memory grow with them)",
             across * scale,
             tall * scale,
             database_width(db)
@@ -495,6 +528,24 @@ mod tests {
     use super::*;
     use crate::crs::Crs;
     use crate::grid::Grid;
+
+    /// Issue 40, defect 13: a 5 m wide, 8 m tall tree at scale 100 on the 2048-pixel sample's
+    /// 0.25 m cells (1024 m across) fitted the database, yet made the pyramid take 256 s and
+    /// 1.5 GB: the bound counts the cells its box fills too.
+    #[test]
+    fn the_largest_scale_bounds_the_cells_an_object_fills() {
+        let tree = super::super::grid::VoxelGrid::new([0.0; 3], 0.25, [20, 20, 32]).unwrap();
+        let most = largest_scale_in(1024.0, 0.25, &tree);
+        // (2^28 / (20 · 20 · 32))^(1/3) = 27.6: under the width's 1024 / 7.07 = 145 and the
+        // height's 1000 / 8 = 125.
+        assert!((most - 27.6).abs() < 0.05, "{most}");
+        assert!(cells_at_scale_1(0.25, &tree) * most.powi(3) <= MAX_OBJECT_CELLS * 1.000001);
+        // On a small database the width binds, and on coarse cells the height.
+        assert!(
+            (largest_scale_in(160.0, 0.25, &tree) - 160.0 / 20f64.hypot(20.0) / 0.25).abs() < 1e-9
+        );
+        assert!((largest_scale_in(1e5, 2.0, &tree) - 1000.0 / 8.0).abs() < 1e-9);
+    }
 
     #[test]
     fn ground_height_is_bilinear_between_centres() {
