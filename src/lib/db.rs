@@ -393,8 +393,7 @@ impl Database {
             Database::open(dir)?; // the one-line error for a missing directory or a file
         }
         let lock = lock(dir, wait)?;
-        let inputs: Vec<PathBuf> = inputs.iter().map(|p| p.to_path_buf()).collect();
-        Change::new(Database::open(dir)?, lock, Leftovers::clear(&inputs))
+        Change::new(Database::open(dir)?, lock, Leftovers::clear(inputs))
     }
 
     /// Begin a change that creates the database in `dir` (made if missing) for `grid`, or
@@ -444,11 +443,11 @@ enum Leftovers {
 
 impl Leftovers {
     /// Clear, sparing `inputs` (paths as given; those that do not exist spare nothing).
-    fn clear(inputs: &[PathBuf]) -> Leftovers {
+    fn clear(inputs: &[impl AsRef<Path>]) -> Leftovers {
         Leftovers::Clear(
             inputs
                 .iter()
-                .filter_map(|p| p.canonicalize().ok())
+                .filter_map(|p| p.as_ref().canonicalize().ok())
                 .collect(),
         )
     }
