@@ -139,7 +139,7 @@ pub fn synth_scene(spec: &SynthSpec) -> SynthScene {
     let k = spec.supersample.max(1);
     let fine = Grid::north_up(ORIGIN_X, top, spec.cell / k as f64, w * k, h * k, crs);
     let roof = roof_mask(&fine, &rings);
-    let shadow = shadowed(spec, &fine, &roof_z);
+    let shadow = shadowed(spec, &fine, &roof, &roof_z);
     let colour = box_average(&fine_photo(&roof, &shadow), &grid, k);
     let height_m = spec.buildings.iter().map(|b| b.height_m).collect();
     SynthScene {
@@ -179,49 +179,61 @@ fn highest_under(terrain: &Elevation, ring: &[(f64, f64)]) -> f64 {
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
-/// Per cell of the `fine` grid, whether one of the footprints `rings` holds its centre.
-fn roof_mask(fine: &Grid, rings: &[Vec<(f64, f64)>]) -> Vec<bool> {
-    let mut roof = vec![false; fine.len()];
-    for r in rings {
+/// Per cell of the `fine` grid, the footprint of `rings` that holds its centre (the last
+/// one when several do), if any.
+fn roof_mask(fine: &Grid, rings: &[Vec<(f64, f64)>]) -> Vec<Option<usize>> {
+    let mut roof = vec![None; fine.len()];
+    for (k, r) in rings.iter().enumerate() {
         for c in cells_under(fine, r) {
-            roof[c.index] = true;
+            roof[c.index] = Some(k);
         }
     }
     roof
 }
 
-/// Per cell of the `fine` grid, whether its centre is in shadow: its ray toward the sun enters
-/// a building below its roof (`roof_z`, absolute metres), or the plane rises toward the sun
-/// faster than the rays and shadows itself everywhere.
-fn shadowed(spec: &SynthSpec, fine: &Grid, roof_z: &[f64]) -> Vec<bool> {
+/// Per cell of the `fine` grid, whether its centre is in shadow: its ray toward the sun, from
+/// the ground or from the `roof` it is on (`roof_z`, absolute metres), enters another
+/// building below that one's roof; or, on the ground, the plane rises toward the sun faster
+/// than the rays and shadows itself everywhere.
+fn shadowed(spec: &SynthSpec, fine: &Grid, roof: &[Option<usize>], roof_z: &[f64]) -> Vec<bool> {
     let tan_e = spec.sun.elevation_deg.to_radians().tan();
     let toward_sun = spec.sun.direction();
     let plane_dark = spec.slope.0 * toward_sun.0 + spec.slope.1 * toward_sun.1 > tan_e;
-    cells(fine, |x, y| {
-        plane_dark
-            || spec.buildings.iter().zip(roof_z).any(|(b, &z)| {
-                b.ray_entry((x, y), toward_sun)
-                    .is_some_and(|t| spec.ground_z(x, y) + t * tan_e < z)
-            })
-    })
+    let w = fine.width;
+    (0..fine.len())
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = fine.cell_centre(i % w, i / w);
+            let (own, z) = match roof[i] {
+                Some(k) => (Some(k), roof_z[k]),
+                None if plane_dark => return true,
+                None => (None, spec.ground_z(x, y)),
+            };
+            spec.buildings
+                .iter()
+                .zip(roof_z)
+                .enumerate()
+                .filter(|(k, _)| Some(*k) != own)
+                .any(|(_, (b, &top))| {
+                    b.ray_entry((x, y), toward_sun)
+                        .is_some_and(|t| z + t * tan_e < top)
+                })
+        })
+        .collect()
 }
 
-/// The photo's RGB (0–255) at each fine cell: roof or [`grass`], the ground darkened by
-/// [`SHADOW_FACTOR`] where `shadow` says (a roof is never in shadow).
-fn fine_photo(roof: &[bool], shadow: &[bool]) -> Vec<[f64; 3]> {
+/// The photo's RGB (0–255) at each fine cell: roof or [`grass`], darkened by
+/// [`SHADOW_FACTOR`] where `shadow` says (a roof in a taller neighbour's shadow too).
+fn fine_photo(roof: &[Option<usize>], shadow: &[bool]) -> Vec<[f64; 3]> {
     (0..roof.len())
         .into_par_iter()
         .map(|i| {
-            let base = if roof[i] {
+            let base = if roof[i].is_some() {
                 [170.0, 95.0, 80.0]
             } else {
                 grass(i as u64)
             };
-            let f = if shadow[i] && !roof[i] {
-                SHADOW_FACTOR
-            } else {
-                1.0
-            };
+            let f = if shadow[i] { SHADOW_FACTOR } else { 1.0 };
             [base[0] * f, base[1] * f, base[2] * f]
         })
         .collect()
