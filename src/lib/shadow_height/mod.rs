@@ -1517,7 +1517,8 @@ impl PassInputs<'_> {
     fn looks_pitched(&self, id: u32, fp: &Footprint, cells: &[usize], lean: (f64, f64)) -> bool {
         if lean != (0.0, 0.0) {
             let seen = register::moved(fp, lean.0, lean.1);
-            return roof::looks_pitched(&seen, &self.band.colour, &seen.cells(self.grid));
+            let cells = seen.cells(self.grid);
+            return roof::looks_pitched(&seen, &self.band.colour, &cells, self.sun.direction());
         }
         let unshaded: Vec<usize>;
         let cells = match self.roofs[id as usize - 1] {
@@ -1537,7 +1538,7 @@ impl PassInputs<'_> {
             }
             None => cells,
         };
-        roof::looks_pitched(fp, &self.band.colour, cells)
+        roof::looks_pitched(fp, &self.band.colour, cells, self.sun.direction())
     }
 
     /// A [`detect::weak_threshold`] for footprint `fp`'s open ground (`open`: window offset and

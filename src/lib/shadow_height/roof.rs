@@ -12,7 +12,10 @@
 //! cell from its outline (no mixed edge cells). The roof looks pitched when Otsu's split of their
 //! luminance gives two classes of at least [`MIN_FACE`] of the cells each, the darker mean below
 //! [`MAX_FACE_RATIO`] of the brighter, and the classes are *faces*, not texture: at least
-//! [`MIN_COHERENCE`] of the 4-neighbour pairs of roof cells are of the same class.
+//! [`MIN_COHERENCE`] of the 4-neighbour pairs of roof cells are of the same class; and the
+//! dark class lies *away from the sun* (its centroid beyond the bright one's, along the
+//! shadows): a face is darker because it tilts away from the sun, while a taller neighbour's
+//! shadow darkens the side of a flat roof toward the sun, where the neighbour stands.
 
 use super::footprint::Footprint;
 use crate::raster::RowBand;
@@ -27,9 +30,15 @@ pub const MIN_COHERENCE: f64 = 0.85;
 /// Fewest roof cells the test is made on (a smaller roof is not judged).
 const MIN_CELLS: usize = 24;
 
-/// Whether the roof of `fp` looks pitched in `colour` (see the module doc); `cells` are the
-/// footprint's own cells (centre inside), as indices of `colour`'s grid.
-pub fn looks_pitched(fp: &Footprint, colour: &RowBand<[u8; 4]>, cells: &[usize]) -> bool {
+/// Whether the roof of `fp` looks pitched in `colour` (see the module doc) under a sun
+/// `toward_sun` (unit vector, east and north); `cells` are the footprint's own cells (centre
+/// inside), as indices of `colour`'s grid.
+pub fn looks_pitched(
+    fp: &Footprint,
+    colour: &RowBand<[u8; 4]>,
+    cells: &[usize],
+    toward_sun: (f64, f64),
+) -> bool {
     let grid = &colour.grid;
     let (cx, cy) = grid.cell_size();
     let cell = cx.max(cy);
@@ -88,7 +97,17 @@ pub fn looks_pitched(fp: &Footprint, colour: &RowBand<[u8; 4]>, cells: &[usize])
             }
         }
     }
-    pairs > 0 && same as f64 >= MIN_COHERENCE * pairs as f64
+    let faces = pairs > 0 && same as f64 >= MIN_COHERENCE * pairs as f64;
+    let centroid = |want: bool| {
+        let (mut x, mut y, mut n) = (0.0, 0.0, 0.0);
+        for (&i, _) in inner.iter().zip(&dark).filter(|(_, &d)| d == want) {
+            let p = grid.cell_centre(i % w, i / w);
+            (x, y, n) = (x + p.0, y + p.1, n + 1.0);
+        }
+        (x / n, y / n)
+    };
+    let (d, b) = (centroid(true), centroid(false));
+    faces && (d.0 - b.0) * toward_sun.0 + (d.1 - b.1) * toward_sun.1 < 0.0
 }
 
 /// Squared distance (square metres) from `p` to the nearest edge of `fp`.
@@ -145,14 +164,27 @@ mod tests {
     fn a_gable_looks_pitched_a_flat_textured_roof_does_not() {
         let noise = |i: usize| ((i * 7919) % 17) as u8;
         let (fp, c, cells) = roof(|_, y, i| if y < 14.0 { 170 } else { 120 } + noise(i));
-        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells));
+        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH));
         let (fp, c, cells) = roof(|_, _, i| 130 + 3 * noise(i));
         assert!(
-            !looks_pitched(&fp, &RowBand::whole(&c), &cells),
+            !looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH),
             "speckled texture is not faces"
         );
         let (fp, c, cells) = roof(|_, _, i| 150 + noise(i) / 2);
-        assert!(!looks_pitched(&fp, &RowBand::whole(&c), &cells));
+        assert!(!looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH));
+    }
+
+    /// Toward a sun in the south.
+    const SOUTH: (f64, f64) = (0.0, -1.0);
+
+    #[test]
+    fn a_neighbours_shadow_on_a_flat_roofs_sunny_side_is_not_a_face() {
+        // The southern third dark under a sun from the south: a taller neighbour south of it
+        // shades it there. Under a sun from the north the same picture is a face turned away.
+        let noise = |i: usize| ((i * 7919) % 17) as u8;
+        let (fp, c, cells) = roof(|_, y, i| if y < 13.0 { 100 } else { 170 } + noise(i));
+        assert!(!looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH));
+        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells, (0.0, 1.0)));
     }
 
     #[test]
@@ -167,6 +199,6 @@ mod tests {
                 140
             }
         });
-        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells));
+        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells, (-1.0, 0.0)));
     }
 }
