@@ -37,6 +37,12 @@ pub struct Args {
     /// (N × N)ths; more resolves heights finer than a cell of shadow, slower.
     #[arg(long, default_value_t = sh::Options::default().sub_points)]
     sub_points: usize,
+    /// Joint passes (0 for none): the buildings whose shadow ran into a neighbour, or that got
+    /// no height, measured again with every other building at its measured roof — its shadow
+    /// hiding the ground, its flat roof a surface their shadow is fitted on. Each pass costs
+    /// about a pass over those buildings; see docs/shadow-height.md.
+    #[arg(long, default_value_t = sh::Options::default().joint_passes)]
+    joint_passes: usize,
     /// Largest footprint misregistration sought, metres: the footprints are moved by the
     /// scene's robust shift onto their roofs in the photo (median of the buildings' clear
     /// estimates); 0 takes them as given.
@@ -86,6 +92,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         max_height_m: args.max_height,
         line_spacing_cells: args.line_spacing,
         sub_points: args.sub_points,
+        joint_passes: args.joint_passes,
         ..sh::Options::default()
     };
     let (registration, results) = sh::measure_features(
@@ -188,7 +195,7 @@ fn stage_params(
     json!({
         "footprints": args.footprints, "sun": SunUsed::new(sun, &args.sun),
         "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": buildings,
-        "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points,
+        "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points, "joint_passes": args.joint_passes,
         "max_shift_m": args.max_shift, "camera": args.camera,
         "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
         "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),

@@ -47,9 +47,27 @@ pub struct Local {
     /// Empty in a window classified for the scan lines, which read only the classes; the
     /// refinement's crop has it for its open cells (NaN elsewhere: never read).
     pub index: Vec<f32>,
+    /// Per cell, the known roof of the neighbour under it: in the joint pass, the
+    /// [`Class::Other`] cells of neighbours whose roof was measured flat, where no third
+    /// building's shadow falls on it. Empty when no neighbour's roof is known.
+    pub roofs: Vec<Option<RoofCell>>,
+}
+
+/// A cell of a neighbour's roof whose height is known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoofCell {
+    /// The neighbour's id (index + 1 in the footprints).
+    pub owner: u32,
+    /// The roof's height there, absolute metres.
+    pub z: f32,
 }
 
 impl Local {
+    /// The known neighbour's roof at cell `i`, if any ([`Local::roofs`]).
+    pub fn roof(&self, i: usize) -> Option<RoofCell> {
+        self.roofs.get(i).copied().flatten()
+    }
+
     /// The part of this local view inside `w` (a window of the database grid), clipped to
     /// `self.win`: a crop never reaches outside what was classified.
     pub fn crop(&self, w: Window, db_grid: &Grid) -> Local {
@@ -68,12 +86,16 @@ impl Local {
         let mut class = Vec::with_capacity(w.width * w.height);
         let mut heights = Vec::with_capacity(w.width * w.height);
         let mut index = Vec::with_capacity(w.width * w.height);
+        let mut roofs = Vec::new();
         for r in 0..w.height {
             let start = (r + dr) * self.win.width + dc;
             class.extend_from_slice(&self.class[start..start + w.width]);
             heights.extend_from_slice(&self.heights[start..start + w.width]);
             if !self.index.is_empty() {
                 index.extend_from_slice(&self.index[start..start + w.width]);
+            }
+            if !self.roofs.is_empty() {
+                roofs.extend_from_slice(&self.roofs[start..start + w.width]);
             }
         }
         Local {
@@ -82,6 +104,7 @@ impl Local {
             class,
             heights,
             index,
+            roofs,
         }
     }
 }
@@ -141,6 +164,7 @@ mod tests {
             class: vec![Class::Lit; 14 * 34],
             heights: vec![0.0; 14 * 34],
             index: (0..14 * 34).map(|i| i as f32).collect(),
+            roofs: Vec::new(),
         };
         let c = l.crop(
             Window {

@@ -38,6 +38,7 @@
 
 pub mod footprint;
 pub mod index;
+pub mod joint;
 pub mod local;
 pub mod output;
 pub mod pitched;
@@ -105,6 +106,12 @@ pub struct Options {
     /// footprints are measured band of rows by band of rows, each band read with the rows
     /// its footprints' windows reach. A band is never smaller than one footprint's window.
     pub band_cells: usize,
+    /// Joint passes after the second (default 1; 0: none): the footprints whose shadow ran
+    /// into a neighbour, or that got no height, measured again with every other footprint at
+    /// the roof the pass before measured — its shadow cast over the ground (unusable there),
+    /// its flat roof a surface this footprint's shadow may lie on ([`refine::corridor`]) —
+    /// and the whole corridor read but for the bands of scan lines that disagree.
+    pub joint_passes: usize,
 }
 
 /// See [`Options::band_cells`]: 32 M cells, about 18 bytes each while a band is measured
@@ -119,6 +126,7 @@ impl Default for Options {
             line_spacing_cells: 0.5,
             sub_points: 4,
             band_cells: BAND_CELLS,
+            joint_passes: 1,
         }
     }
 }
@@ -519,7 +527,7 @@ pub fn measure(
     // merging into a taller neighbour's would otherwise be measured to the end of the
     // neighbour's.
     let no_roofs = vec![None; footprints.len()];
-    let first = passes.run(&no_roofs, true, None)?;
+    let first = passes.run(&no_roofs, true, None, None)?;
     let roofs: Vec<Option<f64>> = first
         .iter()
         .map(|m| {
@@ -532,7 +540,29 @@ pub fn measure(
         .iter()
         .map(|m| m.as_ref().ok().and_then(|m| m.threshold))
         .collect();
-    passes.run(&roofs, false, Some(&thresholds))
+    let mut measured = passes.run(&roofs, false, Some(&thresholds), None)?;
+    // The joint passes: the footprints the others' shadows and roofs bear on, measured again
+    // with the others at their roofs so far (every one from the same pass: the order of the
+    // footprints changes nothing).
+    let again: Vec<usize> = (0..footprints.len())
+        .filter(|&k| measured[k].as_ref().is_ok_and(joint::wanted))
+        .collect();
+    for _ in 0..opts.joint_passes {
+        if again.is_empty() {
+            break;
+        }
+        let known = joint::Known::from(&measured, &roofs);
+        let redone = passes.run(
+            &known.shading,
+            false,
+            Some(&thresholds),
+            Some((&again, &known)),
+        )?;
+        for (&k, m) in again.iter().zip(redone) {
+            measured[k] = m;
+        }
+    }
+    Ok(measured)
 }
 
 /// Whether [`measure`] can run: the colour, elevation and any mask on one grid, and the
@@ -627,19 +657,30 @@ impl<'a> Passes<'a> {
         }
     }
 
-    /// One pass over every footprint, band by band, with the others' `roofs`, `sketch` and the
-    /// first pass's `thresholds` as [`PassInputs`] takes them; one result per footprint, in
-    /// order.
+    /// One pass over every footprint — or, in a joint pass, over those listed with what is
+    /// [`joint::Known`] of the others — band by band, with the others' `roofs` (whose shadows
+    /// make ground unusable), `sketch` and the first pass's `thresholds` as [`PassInputs`]
+    /// takes them; one result per footprint measured, in order.
     fn run(
         &self,
         roofs: &[Option<f64>],
         sketch: bool,
         thresholds: Option<&[Option<f64>]>,
+        joint: Option<(&[usize], &joint::Known)>,
     ) -> Result<Vec<std::result::Result<Measurement, String>>> {
         let grid = self.inputs.terrain.grid();
         let footprints = self.footprints;
         let max_rows = rows_in(self.opts.band_cells, grid.width);
-        in_bands(&self.needs, max_rows, |rows, members| {
+        let every: Vec<usize>;
+        let which = match joint {
+            Some((listed, _)) => listed,
+            None => {
+                every = (0..footprints.len()).collect();
+                &every
+            }
+        };
+        let needs: Vec<Range<usize>> = which.iter().map(|&k| self.needs[k].clone()).collect();
+        in_bands(&needs, max_rows, |rows, members| {
             let band = BandLayers::read(
                 &self.inputs,
                 rows,
@@ -664,10 +705,12 @@ impl<'a> Passes<'a> {
                 sketch,
                 thresholds,
                 shadows: &self.shadows,
+                known: joint.map(|j| j.1),
             };
             Ok(members
                 .par_iter()
-                .map(|&k| {
+                .map(|&m| {
+                    let k = which[m];
                     pass_inputs.measure_footprint(k as u32 + 1, &footprints[k], band.cells_of(k))
                 })
                 .collect())
@@ -1086,15 +1129,47 @@ pub fn read_mask(path: &std::path::Path, grid: &Grid) -> Result<Raster<u8>> {
 
 /// Which open or unusable cells of `local` lie in the band (half a cell either side) of an
 /// *inlier* scan line (every other cell is false: the refinement reads the bands only there):
-/// a valid line whose length is within 30 % + 2 cells of the median `len`. Lines that met other
-/// buildings, left the grid, or ran on into a neighbour's shadow do not lead the refinement.
+/// a valid line whose length is within [`LINE_TOLERANCE`] of the median `len`. Lines that
+/// met other buildings, left the grid, or ran on into a neighbour's shadow do not lead the
+/// refinement.
 fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f64) -> Vec<bool> {
-    let tol = 0.3 * len + 2.0 * cell;
+    let tol = LINE_TOLERANCE.0 * len + LINE_TOLERANCE.1 * cell;
+    line_bands(local, s, n, cell, |l| (l - len).abs() <= tol)
+}
+
+/// Which open or unusable cells of `local` lie in the band of a valid scan line whose length
+/// is *not* within [`LINE_TOLERANCE`] of the median `len`: where something else's shadow, or
+/// a lit car or tree top in this one's, made the line disagree (the joint pass reads every
+/// other band).
+fn disagreeing_bands(
+    local: &Local,
+    s: &scan::Scan,
+    len: f64,
+    n: (f64, f64),
+    cell: f64,
+) -> Vec<bool> {
+    let tol = LINE_TOLERANCE.0 * len + LINE_TOLERANCE.1 * cell;
+    line_bands(local, s, n, cell, |l| (l - len).abs() > tol)
+}
+
+/// How far a valid line's length may be from the median and still agree: this share of the
+/// median plus this many cells.
+const LINE_TOLERANCE: (f64, f64) = (0.3, 2.0);
+
+/// Which open or unusable cells of `local` lie in the band (half a cell either side, across
+/// the lines: `n`, unit) of a valid line of `s` whose length (metres) is `chosen`.
+fn line_bands(
+    local: &Local,
+    s: &scan::Scan,
+    n: (f64, f64),
+    cell: f64,
+    chosen: impl Fn(f64) -> bool,
+) -> Vec<bool> {
     let mut ts: Vec<f64> = s
         .line_t
         .iter()
         .zip(&s.lengths)
-        .filter(|(_, &l)| (l - len).abs() <= tol)
+        .filter(|(_, &l)| chosen(l))
         .map(|(&t, _)| t)
         .collect();
     ts.sort_by(f64::total_cmp);
@@ -1298,6 +1373,8 @@ struct PassInputs<'a> {
     roofs: &'a [Option<f64>],
     /// Second pass: each footprint's detection threshold from the first (`None` in the first).
     thresholds: Option<&'a [Option<f64>]>,
+    /// A joint pass: the others' roofs as measured so far.
+    known: Option<&'a joint::Known>,
     /// The first pass: only the roofs are wanted, to within their uncertainty (one cell of
     /// shadow), which is added to them. The roof is the one the scan lines imply over the
     /// real terrain (the median of their tips' terrain + length · tan e), not refined, and it
@@ -1366,6 +1443,10 @@ impl PassInputs<'_> {
         m.flags.no_shadow = s.with_shadow == 0 && !s.lengths.is_empty();
         let Some(len) = shadow_length(&s, sought.cell) else {
             m.roof_z_at_least = uncertainty::at_least(&s, ground_z);
+            if self.known.is_some() {
+                // No length, but the others' roofs known: the whole corridor may tell.
+                return self.refine_height(m, &sought, local, &s, None);
+            }
             return Ok(m);
         };
         let z0 = len * sought.tan_e;
@@ -1377,7 +1458,7 @@ impl PassInputs<'_> {
             m.roof_z = Some(ground_z + z_ray);
             return Ok(m);
         }
-        self.refine_height(m, &sought, local, &s, [len, z0, z_ray])
+        self.refine_height(m, &sought, local, &s, Some([len, z0, z_ray]))
     }
 
     /// The highest valid terrain under a footprint's cells, metres.
@@ -1406,23 +1487,31 @@ impl PassInputs<'_> {
     }
 
     /// The refinement of `m` (scanned: `s`, with shadow length, first height and the scan
-    /// lines' roof above the ground `[len, z0, z_ray]`) over the cells `local` classified: its
-    /// height, overlap and agreement flags. No height when none of the shadow the lines saw is
-    /// attached to the footprint (nothing to refine against: no height is better than an
-    /// unchecked one).
+    /// lines' roof above the ground `[len, z0, z_ray]`, if the lines measured a length) over
+    /// the cells `local` classified: its height, overlap and agreement flags. No height when
+    /// none of the shadow the lines saw is attached to the footprint (nothing to refine
+    /// against: no height is better than an unchecked one).
+    ///
+    /// Heights are sought up to twice the lines' (or, without a length, up to
+    /// [`Options::max_height_m`]), over the bands of the scan lines that agree
+    /// ([`inlier_bands`]) — in a joint pass, over every band but those of valid lines that
+    /// disagree, with the neighbours' known roofs ([`Self::neighbour_roofs`]).
     fn refine_height(
         &self,
         mut m: Measurement,
         sought: &Sought,
         mut local: Local,
         s: &scan::Scan,
-        [len, z0, z_ray]: [f64; 3],
+        lines: Option<[f64; 3]>,
     ) -> std::result::Result<Measurement, String> {
         let (fp, u, cell, tan_e) = (sought.fp, sought.u, sought.cell, sought.tan_e);
-        let z_hi = (2.0 * z0)
-            .max(1.5 * z_ray)
-            .max(z0 + 4.0 * cell * tan_e)
-            .min(self.opts.max_height_m.max(z0 + cell * tan_e));
+        let z_hi = match lines {
+            Some([_, z0, z_ray]) => (2.0 * z0)
+                .max(1.5 * z_ray)
+                .max(z0 + 4.0 * cell * tan_e)
+                .min(self.opts.max_height_m.max(z0 + cell * tan_e)),
+            None => self.opts.max_height_m,
+        };
         let sub_len = z_hi / tan_e + cell;
         if sub_len > sought.classified_len && sought.classified_len < self.reach {
             local = sought.classified(sub_len).0;
@@ -1431,8 +1520,19 @@ impl PassInputs<'_> {
             local::window_for(self.grid, fp.bbox(), u, sub_len, 3),
             self.grid,
         );
+        if let Some(known) = self.known {
+            sub.roofs = self.neighbour_roofs(sought.id, &sub, known);
+        }
         sub.index = self.shade(&sub);
-        let keep = inlier_bands(&sub, s, len, (-u.1, u.0), cell);
+        let n = (-u.1, u.0);
+        let keep = match (self.known, lines) {
+            (None, Some([len, ..])) => inlier_bands(&sub, s, len, n, cell),
+            (Some(_), Some([len, ..])) => disagreeing_bands(&sub, s, len, n, cell)
+                .into_iter()
+                .map(|b| !b)
+                .collect(),
+            (_, None) => vec![true; sub.class.len()],
+        };
         let ground_z = m.ground_z;
         let Some(r) = refine::refine(
             &sub,
@@ -1444,10 +1544,17 @@ impl PassInputs<'_> {
             z_hi,
             self.opts.sub_points,
         ) else {
-            m.flags.no_shadow = true;
+            m.flags.no_shadow |= lines.is_some();
             m.roof_z_at_least = uncertainty::at_least(s, ground_z);
             return Ok(m);
         };
+        if lines.is_none() && r.plausible[1].1 >= z_hi - 1e-6 {
+            // Censored: the shadow may reach as far as any height sought. What the fit rules
+            // out is a lower bound, no height.
+            let fitted = ground_z + r.plausible[1].0;
+            m.roof_z_at_least = Some(m.roof_z_at_least.map_or(fitted, |z| z.max(fitted)));
+            return Ok(m);
+        }
         // A pitched-looking roof whose shape fits clearly better: the ridge is its height,
         // the eaves the lowest the scan lines may see; otherwise the flat roof, still flagged.
         let fitted = m.flags.pitched_roof.then(|| {
@@ -1485,7 +1592,8 @@ impl PassInputs<'_> {
                 let (eave, top) = (ground_z + eave_m, ground_z + top_m);
                 m.flags.estimates_disagree = ray_roof < eave - tol || ray_roof > top + tol;
             }
-            None => m.flags.estimates_disagree = true,
+            // No valid line: nothing to disagree with when none was needed (a joint pass).
+            None => m.flags.estimates_disagree = lines.is_some(),
         }
         m.flags.poor_shadow_match = overlap < MIN_OVERLAP;
         let least = uncertainty::at_least(s, ground_z);
@@ -1674,6 +1782,7 @@ impl PassInputs<'_> {
                 class,
                 heights: cells.heights,
                 index: Vec::new(),
+                roofs: Vec::new(),
             },
             threshold,
         )
@@ -1798,9 +1907,10 @@ impl PassInputs<'_> {
             .collect()
     }
 
-    /// The shadow index of `local`'s open cells ([`Class::Lit`], [`Class::Shadow`]: the only
-    /// ones the refinement reads it of), row-major, NaN for the others: [`detect::shadow_index`]
-    /// of the photo, or from a given mask 0 where it says shadow and 255 where lit.
+    /// The shadow index of `local`'s open cells ([`Class::Lit`], [`Class::Shadow`]) and known
+    /// neighbours' roofs ([`Local::roofs`]: the only ones the refinement reads it of),
+    /// row-major, NaN for the others: [`detect::shadow_index`] of the photo, or from a given
+    /// mask 0 where it says shadow and 255 where lit.
     fn shade(&self, local: &Local) -> Vec<f32> {
         let (w, win) = (self.grid.width, &local.win);
         let band = self.band;
@@ -1808,12 +1918,57 @@ impl PassInputs<'_> {
             .flat_map(|r| r * w + win.col..r * w + win.col + win.width);
         cells
             .zip(&local.class)
-            .map(|(i, class)| match (class, band.mask.as_ref()) {
-                (Class::Lit | Class::Shadow, Some(mask)) => mask_index(*mask.at(i)) as f32,
-                (Class::Lit | Class::Shadow, None) => {
-                    detect::shadow_index(*band.colour.at(i)) as f32
+            .enumerate()
+            .map(|(k, (i, class))| {
+                let read = matches!(class, Class::Lit | Class::Shadow) || local.roof(k).is_some();
+                match (read, band.mask.as_ref()) {
+                    (false, _) => f32::NAN,
+                    (true, Some(mask)) => mask_index(*mask.at(i)) as f32,
+                    (true, None) => detect::shadow_index(*band.colour.at(i)) as f32,
                 }
-                _ => f32::NAN,
+            })
+            .collect()
+    }
+
+    /// The known roofs ([`Local::roofs`]) under `local`'s cells for footprint `id`: the
+    /// [`Class::Other`] cells of footprints whose roof is a surface in `known`, where no third
+    /// footprint's shadow falls at that roof's height ([`ShadowRays::shade`], the others at
+    /// their `known` shading roofs).
+    fn neighbour_roofs(
+        &self,
+        id: u32,
+        local: &Local,
+        known: &joint::Known,
+    ) -> Vec<Option<local::RoofCell>> {
+        let (w, win) = (self.grid.width, &local.win);
+        let toward_sun = self.sun.direction();
+        let tan_e = self.sun.elevation_deg.to_radians().tan();
+        let shaders: Vec<(usize, refine::Walls, f64)> = self
+            .reaching(id, window_box(self.grid, win))
+            .filter_map(|j| {
+                let roof = known.shading[j]?;
+                Some((j, refine::Walls::new(&self.footprints[j], toward_sun), roof))
+            })
+            .collect();
+        (0..local.class.len())
+            .map(|k| {
+                if local.class[k] != Class::Other {
+                    return None;
+                }
+                let (c, r) = (win.col + k % win.width, win.row + k / win.width);
+                let owner = *self.band.owner.at(r * w + c);
+                let z = known.surfaces[(owner as usize).checked_sub(1)?]?;
+                let p = self.grid.cell_centre(c, r);
+                let others = shaders.iter().filter(|s| s.0 + 1 != owner as usize);
+                let third = others.map(|(_, walls, roof)| (walls, *roof));
+                let rays = ShadowRays {
+                    tan_e,
+                    reach: self.reach,
+                };
+                let shaded = third
+                    .into_iter()
+                    .any(|(walls, roof)| rays.shade(walls, roof, p, z));
+                (!shaded).then_some(local::RoofCell { owner, z: z as f32 })
             })
             .collect()
     }
@@ -1874,6 +2029,14 @@ mod tests {
 
     /// Measure a generated scene; per building the measurement (or its error) and the truth.
     fn run(s: &SynthSpec) -> Vec<(std::result::Result<Measurement, String>, f64)> {
+        run_with(s, &Options::default())
+    }
+
+    /// [`run`] with options `opts`.
+    fn run_with(
+        s: &SynthSpec,
+        opts: &Options,
+    ) -> Vec<(std::result::Result<Measurement, String>, f64)> {
         let scene = synth_scene(s);
         let inputs = Inputs {
             terrain: &scene.terrain,
@@ -1881,7 +2044,7 @@ mod tests {
             mask: None,
             leans: None,
         };
-        let out = measure(&inputs, &scene.footprints, &s.sun, &Options::default()).unwrap();
+        let out = measure(&inputs, &scene.footprints, &s.sun, opts).unwrap();
         out.into_iter().zip(scene.height_m).collect()
     }
 
@@ -2088,10 +2251,12 @@ mod tests {
     }
 
     #[test]
-    fn hard_case_shadow_almost_all_on_a_neighbour_is_flagged_not_measured() {
+    fn hard_case_shadow_almost_all_on_a_neighbour_is_measured_jointly_and_flagged() {
         // The neighbour covers the north side of the first building's shadow but for its
         // easternmost scan line: too few to measure from (an adjacent pair of `dbms sample`,
-        // seed 3, gave 0.9 m for an 18.5 m building from one such line).
+        // seed 3, gave 0.9 m for an 18.5 m building from one such line). The joint pass
+        // measures the neighbour's roof, fits the shadow lying on it and the ground beside,
+        // and gets the height; flagged, as the shadow met the neighbour.
         let a = SynthBuilding {
             centre: (40.1, 30.0),
             size: (12.0, 8.0),
@@ -2108,7 +2273,17 @@ mod tests {
         let m = r[0].0.as_ref().unwrap();
         assert!(m.lines_used > 0 && m.lines_used < MIN_VALID_LINES, "{m:?}");
         assert!(m.flags.shadow_on_other_building, "{m:?}");
-        assert_eq!((m.height_m, m.initial_height_m), (None, None), "{m:?}");
+        assert_eq!(m.initial_height_m, None, "{m:?}");
+        let h = m.height_m.unwrap_or_else(|| panic!("no height: {m:?}"));
+        assert!((h - r[0].1).abs() <= 0.5, "{h} vs {}: {m:?}", r[0].1);
+        let [_, (lo, hi)] = m.roof_z_intervals.unwrap();
+        assert!(lo <= 410.0 && 410.0 <= hi, "{m:?}");
+        let alone = Options {
+            joint_passes: 0,
+            ..Options::default()
+        };
+        let m = &run_with(&spec(40.0, 180.0, (0.0, 0.0), vec![a, b]), &alone)[0].0;
+        assert_eq!(m.as_ref().unwrap().height_m, None, "{m:?}");
     }
 
     #[test]

@@ -90,15 +90,22 @@ pub fn refine(
 
 /// What [`refine`] compares, before any height is tried: the corridor's cells (`members`,
 /// indices of `local`'s cells in cell order), the flat roof's events (threshold, member), and
-/// per member the brightness fitted and the shadow observed.
+/// per member the brightness fitted (on its surface) and the shadow observed (NaN on a
+/// neighbour's roof: the overlap is the ground's).
 pub(super) struct Corridor {
     pub(super) members: Vec<usize>,
     pub(super) events: Vec<Event>,
-    pub(super) brightness: Vec<f64>,
+    pub(super) brightness: Brightness,
     pub(super) observed: Vec<f64>,
 }
 
 /// The [`Corridor`] of [`refine`]'s search (same arguments).
+///
+/// Its cells are the kept open cells and the kept cells of neighbours whose roof is known
+/// ([`Local::roof`]): a point on such a roof, at the roof's height `z`, is in this
+/// footprint's shadow exactly as a ground point is, when `Z > z + t·tan e − ground_z` — so a
+/// shadow lying on a lower neighbour's roof is evidence of the height, fitted on that roof's
+/// own levels ([`Brightness`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn corridor(
     local: &Local,
@@ -116,15 +123,16 @@ pub(super) fn corridor(
     let t = &local.grid.transform;
     let walls = Walls::new(fp, (-u.0, -u.1));
     let mut rays = walls.for_cells((t.cell_x, 0.0), (0.0, t.cell_y));
-    // The corridor: the open kept cells with a point whose threshold is up to `z_hi` (also
-    // listed in `members`, in cell order); the events: (threshold, member) of those points.
-    // `th` holds a cell's points' thresholds (NaN: never shadowed).
+    // The corridor: the kept cells with a point whose threshold is up to `z_hi` (also listed
+    // in `members`, in cell order); the events: (threshold, member) of those points. `th`
+    // holds a cell's points' thresholds (NaN: never shadowed).
     let mut corridor = vec![false; local.class.len()];
     let mut members: Vec<usize> = Vec::new();
     let mut events: Vec<Event> = Vec::new();
     let mut th = vec![f64::NAN; n_sub];
     for i in 0..local.class.len() {
-        if !keep[i] || !matches!(local.class[i], Class::Lit | Class::Shadow) {
+        let roof = local.roof(i);
+        if !keep[i] || !(matches!(local.class[i], Class::Lit | Class::Shadow) || roof.is_some()) {
             continue;
         }
         let (c, r) = (i % w, i / w);
@@ -132,7 +140,8 @@ pub(super) fn corridor(
         let around = heights_around(local, c, r);
         for (k, v) in th.iter_mut().enumerate() {
             if !v.is_nan() {
-                *v = (points.terrain(k, &around) + *v * tan_e - ground_z).max(0.0);
+                let z = roof.map_or_else(|| points.terrain(k, &around), |r| r.z as f64);
+                *v = (z + *v * tan_e - ground_z).max(0.0);
             }
         }
         if th.iter().any(|&v| v <= z_hi) {
@@ -161,11 +170,37 @@ pub(super) fn corridor(
     // is observed), so the fit runs over the members: a few thousand cells, not the window.
     let of_members = |v: &[f64]| members.iter().map(|&i| v[i]).collect::<Vec<_>>();
     Corridor {
-        brightness: of_members(&brightness),
+        brightness: Brightness {
+            value: of_members(&brightness),
+            surface: surfaces(local, &members),
+        },
         observed: of_members(&observed),
         members,
         events,
     }
+}
+
+/// Per corridor member (`members`: cells of `local`), its surface for [`Brightness`]: 0 on
+/// the open ground, and 1, 2, … for the neighbours' roofs in the order their first cell
+/// comes.
+fn surfaces(local: &Local, members: &[usize]) -> Vec<u16> {
+    let mut owners: Vec<u32> = Vec::new();
+    members
+        .iter()
+        .map(|&i| match local.roof(i) {
+            None => 0,
+            Some(r) => {
+                let k = owners
+                    .iter()
+                    .position(|&o| o == r.owner)
+                    .unwrap_or_else(|| {
+                        owners.push(r.owner);
+                        owners.len() - 1
+                    });
+                (k + 1).min(u16::MAX as usize) as u16
+            }
+        })
+        .collect()
 }
 
 /// How much more than the best so far a score must be to count as better ([`best_fit`]).
@@ -255,8 +290,8 @@ fn touching(local: &Local, corridor: &[bool], attached: &[bool]) -> Vec<bool> {
 }
 
 /// The brightness (shadow index) each corridor cell is fitted with, NaN outside the corridor:
-/// the photo's on the attached shadow, its mixed edge (`touching`) and lit ground; elsewhere
-/// (shadow not attached to this footprint is someone else's: this one casts none there) the
+/// the photo's on the attached shadow, its mixed edge (`touching`), lit ground and the
+/// neighbours' known roofs; elsewhere (shadow not attached to this footprint is someone else's: this one casts none there) the
 /// `lit` level, where there is one.
 fn fitted_brightness(
     local: &Local,
@@ -266,7 +301,7 @@ fn fitted_brightness(
 ) -> Vec<f64> {
     (0..corridor.len())
         .map(|i| {
-            let own = touching[i] || local.class[i] == Class::Lit;
+            let own = touching[i] || local.class[i] == Class::Lit || local.roof(i).is_some();
             match (corridor[i], own, lit) {
                 (false, _, _) => f64::NAN,
                 (true, false, Some(l)) => l,
@@ -278,9 +313,10 @@ fn fitted_brightness(
 
 /// The best fit over `Z` in `(0, z_hi]`: `buckets` hold sub-point thresholds `(Z, cell)`,
 /// `per_cell` sub-points to a cell (a sub-point is in the synthetic shadow when `Z` is above
-/// it); `brightness[i]` is cell `i`'s. The score is the R² of the least-squares line through
-/// the cells' (synthetic fraction, brightness), 0 unless it falls (shadow darker than lit);
-/// the answer is the middle of the first interval reaching the best (a score counts as better
+/// it); `brightness` is each cell's, on its surface. The score is the pooled R² of the
+/// least-squares lines through each surface's cells' (synthetic fraction, brightness), a
+/// surface counting only where its line falls (shadow darker than lit; [`LineFit`]); the
+/// answer is the middle of the first interval reaching the best (a score counts as better
 /// only by more than [`SCORE_TIE`]), with the IoU of its synthetic fractions and `observed`
 /// as the overlap. `None` without observed shadow, without any spread of brightness, or when
 /// no height fits at all.
@@ -292,13 +328,13 @@ fn fitted_brightness(
 /// [`SCORE_SKIP`] cannot hold the answer, nor change which earlier score is taken.
 pub(super) fn best_fit(
     buckets: &mut Buckets,
-    brightness: &[f64],
+    brightness: &Brightness,
     observed: &[f64],
     z_hi: f64,
     per_cell: usize,
 ) -> Option<Refined> {
     let step = 1.0 / per_cell as f64;
-    if observed.iter().sum::<f64>() == 0.0 {
+    if observed.iter().filter(|o| o.is_finite()).sum::<f64>() == 0.0 {
         return None;
     }
     let fit = LineFit::new(brightness, step)?;
@@ -306,7 +342,7 @@ pub(super) fn best_fit(
     // Every height plausible for the best is plausible for the best end score at least as
     // widely (the level only rises with the best), so the buckets that can reach that level
     // hold all of them.
-    let widest = plausible_level(floor, fit.n, PLAUSIBLE_SIGMAS[1]).min(floor);
+    let widest = plausible_level(floor, fit.cells_for_noise(), PLAUSIBLE_SIGMAS[1]).min(floor);
     let swept = fit.best_end(buckets, &at_start, widest - SCORE_SKIP)?;
     let (score, next) = swept.best;
     if score <= 0.0 {
@@ -314,8 +350,10 @@ pub(super) fn best_fit(
     }
     let (lo, hi) = answer_interval(buckets, next, z_hi);
     let mut answer = refined(lo, hi, &buckets.events[..next], observed, step);
-    answer.plausible = PLAUSIBLE_SIGMAS
-        .map(|sigmas| swept.reaching(plausible_level(score, fit.n, sigmas), buckets, z_hi));
+    answer.plausible = PLAUSIBLE_SIGMAS.map(|sigmas| {
+        let level = plausible_level(score, fit.cells_for_noise(), sigmas);
+        swept.reaching(level, buckets, z_hi)
+    });
     Some(answer)
 }
 
@@ -344,99 +382,177 @@ impl Swept {
     }
 }
 
-/// The sums over the covered sub-points: of fractions, squared fractions (per cell), and
-/// fraction × brightness.
+/// The sums over one surface's covered sub-points: of fractions, squared fractions (per
+/// cell), and fraction × brightness.
 #[derive(Clone, Copy, Default)]
-pub(super) struct Sums {
+pub(super) struct GroupSums {
     s: f64,
     ss: f64,
     sb: f64,
 }
 
-/// [`best_fit`]'s least-squares line through the cells' (synthetic fraction, brightness): the
-/// brightness and its sums, which every height's score shares.
+/// The sums over the covered sub-points, per surface ([`Brightness::surface`]); a surface
+/// not listed yet has none covered.
+#[derive(Clone, Default)]
+pub(super) struct Sums {
+    of: Vec<GroupSums>,
+}
+
+/// The brightness (shadow index) each corridor cell is fitted with, and the surface it lies
+/// on: the open ground (0) or a neighbour's roof (1, 2, …), each with its own lit and shadow
+/// level (a roof's tiles are not the ground's grass).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(super) struct Brightness {
+    /// Per cell, its brightness.
+    pub(super) value: Vec<f64>,
+    /// Per cell, its surface.
+    pub(super) surface: Vec<u16>,
+}
+
+impl Brightness {
+    /// Every cell on the open ground.
+    #[cfg(test)]
+    pub(super) fn ground(value: Vec<f64>) -> Brightness {
+        let surface = vec![0; value.len()];
+        Brightness { value, surface }
+    }
+
+    /// The number of cells.
+    pub(super) fn len(&self) -> usize {
+        self.value.len()
+    }
+}
+
+/// One surface's share of [`LineFit`]: its cells' count and summed brightness.
+#[derive(Clone, Copy)]
+struct Surface {
+    n: f64,
+    sb: f64,
+}
+
+/// [`best_fit`]'s least-squares lines through the cells' (synthetic fraction, brightness), one
+/// per surface, each with its own two levels: the brightness and its sums, which every
+/// height's score shares. The score is the share of the brightness's variance about each
+/// surface's mean that the lines explain (R², pooled), a surface counting only where its line
+/// falls (darker in shadow). With one surface this is the plain line's R².
 pub(super) struct LineFit<'a> {
-    /// Each cell's brightness (shadow index).
-    brightness: &'a [f64],
+    /// Each cell's brightness and surface.
+    brightness: &'a Brightness,
     /// What one sub-point adds to its cell's synthetic fraction: 1 / sub-points a cell.
     step: f64,
     /// The number of cells.
     n: f64,
-    /// The sum of the brightness.
-    sb: f64,
-    /// The brightness's sum of squares about its mean.
+    /// Per surface, its cells and their summed brightness.
+    surfaces: Vec<Surface>,
+    /// The brightness's sum of squares about each surface's mean, summed.
     syy: f64,
 }
 
 impl<'a> LineFit<'a> {
     /// The fit to `brightness` with sub-points `step` of a cell each; `None` without any
-    /// spread of brightness.
-    pub(super) fn new(brightness: &'a [f64], step: f64) -> Option<LineFit<'a>> {
-        let n = brightness.len() as f64;
-        let sb: f64 = brightness.iter().sum();
-        let syy = brightness.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
+    /// spread of brightness on any surface.
+    pub(super) fn new(brightness: &'a Brightness, step: f64) -> Option<LineFit<'a>> {
+        let count = brightness.surface.iter().map(|&g| g as usize + 1).max()?;
+        let mut surfaces = vec![Surface { n: 0.0, sb: 0.0 }; count];
+        let mut sum_sq = 0.0;
+        for (&b, &g) in brightness.value.iter().zip(&brightness.surface) {
+            let s = &mut surfaces[g as usize];
+            s.n += 1.0;
+            s.sb += b;
+            sum_sq += b * b;
+        }
+        let syy = sum_sq
+            - surfaces
+                .iter()
+                .filter(|s| s.n > 0.0)
+                .map(|s| s.sb * s.sb / s.n)
+                .sum::<f64>();
         if syy.is_nan() || syy <= 0.0 {
             return None;
         }
         Some(LineFit {
             brightness,
             step,
-            n,
-            sb,
+            n: brightness.len() as f64,
+            surfaces,
             syy,
         })
     }
 
-    /// The score of the fractions summed in `m`: the line's R² (0 to 1), 0 unless it falls.
+    /// The cells the fit's noise is estimated from, as [`plausible_level`] counts them (it
+    /// takes two fitted levels off): every cell less two for each surface past the first.
+    fn cells_for_noise(&self) -> f64 {
+        self.n - 2.0 * (self.surfaces.len() - 1) as f64
+    }
+
+    /// The score of the fractions summed in `m`: the lines' pooled R² (0 to 1), each surface
+    /// counting only where its line falls.
     pub(super) fn score(&self, m: &Sums) -> f64 {
-        let (n, sb, syy) = (self.n, self.sb, self.syy);
-        let sxx = m.ss - m.s * m.s / n;
-        let sxy = m.sb - m.s * sb / n;
-        if sxy < 0.0 && sxx > 0.0 {
-            sxy * sxy / (sxx * syy)
-        } else {
-            0.0
-        }
+        m.of.iter()
+            .zip(&self.surfaces)
+            .map(|(g, s)| {
+                let sxx = g.ss - g.s * g.s / s.n;
+                let sxy = g.sb - g.s * s.sb / s.n;
+                if sxy < 0.0 && sxx > 0.0 {
+                    sxy * sxy / (sxx * self.syy)
+                } else {
+                    0.0
+                }
+            })
+            .sum()
     }
 
     /// A bound on the score anywhere between the sums `a` and `z` at a bucket's two ends:
-    /// every sum lies between its values there (they only grow), so the score is at most the
-    /// largest |sxy|² over the smallest sxx.
-    fn bound(&self, a: &Sums, z: &Sums) -> f64 {
-        let (n, sb, syy) = (self.n, self.sb, self.syy);
-        let sxy = a.sb - z.s * sb / n;
-        let sxx = a.ss - z.s * z.s / n;
-        if sxy >= 0.0 {
-            0.0
-        } else if sxx <= 0.0 {
-            f64::INFINITY
-        } else {
-            sxy * sxy / (sxx * syy) * (1.0 + 1e-9)
+    /// every sum lies between its values there (they only grow), so each surface's share is
+    /// at most its largest |sxy|² over its smallest sxx.
+    fn bound(&self, a: &[GroupSums], z: &[GroupSums]) -> f64 {
+        let mut total = 0.0;
+        for ((a, z), s) in a.iter().zip(z).zip(&self.surfaces) {
+            let sxy = a.sb - z.s * s.sb / s.n;
+            let sxx = a.ss - z.s * z.s / s.n;
+            if sxy >= 0.0 {
+                continue;
+            }
+            if sxx <= 0.0 {
+                return f64::INFINITY;
+            }
+            total += sxy * sxy / (sxx * self.syy) * (1.0 + 1e-9);
         }
+        total
     }
 
     /// One more sub-point of cell `i` in the synthetic shadow: added to `m`, counted in
     /// `covered` (sub-points covered per cell).
     pub(super) fn add(&self, m: &mut Sums, covered: &mut [u32], i: usize) {
+        if m.of.len() < self.surfaces.len() {
+            m.of.resize(self.surfaces.len(), GroupSums::default());
+        }
         let step = self.step;
         let before = covered[i] as f64 * step;
         let after = before + step;
         covered[i] += 1;
-        m.s += step;
-        m.ss += after * after - before * before;
-        m.sb += step * self.brightness[i];
+        let g = &mut m.of[self.brightness.surface[i] as usize];
+        g.s += step;
+        g.ss += after * after - before * before;
+        g.sb += step * self.brightness.value[i];
     }
 
     /// The first sweep, bucket by bucket in any order within: the sums at each bucket's start
     /// (and after the last), and the best score at the end of a bucket with events.
-    fn bucket_starts(&self, buckets: &Buckets) -> (Vec<Sums>, f64) {
+    fn bucket_starts(&self, buckets: &Buckets) -> (BucketStarts, f64) {
         let count = buckets.start.len() - 1;
+        let width = self.surfaces.len();
         let mut covered = vec![0u32; self.brightness.len()];
-        let mut at_start = Vec::with_capacity(count + 1);
-        let mut sums = Sums::default();
+        let mut at_start = BucketStarts {
+            sums: Vec::with_capacity((count + 1) * width),
+            width,
+        };
+        let mut sums = Sums {
+            of: vec![GroupSums::default(); width],
+        };
         let mut floor = 0.0f64;
         for b in 0..count {
-            at_start.push(sums);
+            at_start.sums.extend_from_slice(&sums.of);
             for k in buckets.of(b) {
                 self.add(&mut sums, &mut covered, buckets.events[k].cell());
             }
@@ -444,7 +560,7 @@ impl<'a> LineFit<'a> {
                 floor = floor.max(self.score(&sums));
             }
         }
-        at_start.push(sums);
+        at_start.sums.extend_from_slice(&sums.of);
         (at_start, floor)
     }
 
@@ -454,20 +570,27 @@ impl<'a> LineFit<'a> {
     /// their sums `at_start`. Returns the best score and the number of events up to the
     /// answer's end, in the buckets' new order, and every score swept; `None` when no event is
     /// swept.
-    fn best_end(&self, buckets: &mut Buckets, at_start: &[Sums], sweep: f64) -> Option<Swept> {
+    fn best_end(
+        &self,
+        buckets: &mut Buckets,
+        at_start: &BucketStarts,
+        sweep: f64,
+    ) -> Option<Swept> {
         let mut covered = vec![0u32; self.brightness.len()];
         let mut best: Option<(f64, usize)> = None;
         let mut scores = Vec::new();
+        let mut sums = Sums::default();
         for b in 0..buckets.start.len() - 1 {
             let range = buckets.of(b);
-            if self.bound(&at_start[b], &at_start[b + 1]) < sweep {
+            if self.bound(at_start.of(b), at_start.of(b + 1)) < sweep {
                 for k in range {
                     covered[buckets.events[k].cell()] += 1;
                 }
                 continue;
             }
             buckets.events[range.clone()].sort_unstable();
-            let mut sums = at_start[b];
+            sums.of.clear();
+            sums.of.extend_from_slice(at_start.of(b));
             for k in range.clone() {
                 let e = buckets.events[k];
                 self.add(&mut sums, &mut covered, e.cell());
@@ -485,6 +608,20 @@ impl<'a> LineFit<'a> {
             best: best?,
             scores,
         })
+    }
+}
+
+/// [`LineFit::bucket_starts`]'s sums at each bucket's start, every surface's in a row.
+struct BucketStarts {
+    sums: Vec<GroupSums>,
+    /// Surfaces a bucket.
+    width: usize,
+}
+
+impl BucketStarts {
+    /// The sums at bucket `b`'s start, per surface.
+    fn of(&self, b: usize) -> &[GroupSums] {
+        &self.sums[b * self.width..(b + 1) * self.width]
     }
 }
 
@@ -509,14 +646,16 @@ fn answer_interval(buckets: &Buckets, next: usize, z_hi: f64) -> (f64, f64) {
 }
 
 /// The answer between thresholds `lo` and `hi` (metres): their middle, with the IoU of the
-/// synthetic fractions the `covered` events give (each `step` of its cell) and `observed`.
+/// synthetic fractions the `covered` events give (each `step` of its cell) and `observed`
+/// where it is finite (the ground's).
 fn refined(lo: f64, hi: f64, covered: &[Event], observed: &[f64], step: f64) -> Refined {
     let mut s = vec![0.0; observed.len()];
     for e in covered {
         s[e.cell()] += step;
     }
-    let num: f64 = s.iter().zip(observed).map(|(a, b)| a.min(*b)).sum();
-    let den: f64 = s.iter().zip(observed).map(|(a, b)| a.max(*b)).sum();
+    let ground = || s.iter().zip(observed).filter(|(_, b)| b.is_finite());
+    let num: f64 = ground().map(|(a, b)| a.min(*b)).sum();
+    let den: f64 = ground().map(|(a, b)| a.max(*b)).sum();
     Refined {
         height_m: (lo + hi) / 2.0,
         overlap: (num / den).clamp(0.0, 1.0),
@@ -628,7 +767,8 @@ pub(super) fn heights_around(local: &Local, c: usize, r: usize) -> [f64; 9] {
 /// How much of each corridor cell the photo shows in this footprint's shadow, in [0, 1] (for
 /// the reported overlap): the attached shadow cells and the cells touching them (the shadow's
 /// mixed edge) read their shadow index between the `lit` level and the shadow level; every
-/// other cell is 0. Without both levels, the attached cells are 1.
+/// other cell is 0. Without both levels, the attached cells are 1. A neighbour's known roof
+/// is NaN: its levels are its own, and the overlap is read on the ground.
 fn observed_fraction(
     local: &Local,
     attached: &[bool],
@@ -647,6 +787,7 @@ fn observed_fraction(
     );
     (0..attached.len())
         .map(|i| match (shadow, lit) {
+            _ if local.roof(i).is_some() => f64::NAN,
             (Some(s), Some(l)) if l > s && touching[i] => {
                 ((l - local.index[i] as f64) / (l - s)).clamp(0.0, 1.0)
             }
@@ -840,16 +981,19 @@ pub(super) fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
 /// along the corridor beyond lit ground is someone else's (a neighbour's, a tree's) and would
 /// pull the search toward a height whose shadow reaches it. The connection may also run through
 /// kept [`Class::Unusable`] cells (another building's shadow over the start of this one's):
-/// they hide the shadow, they do not end it.
+/// they hide the shadow, they do not end it; and over a neighbour's known roof in the
+/// corridor, which it may cross.
 fn attached_shadow(local: &Local, corridor: &[bool], keep: &[bool]) -> Vec<bool> {
     let (w, h) = (local.grid.width, local.grid.height);
     let open = |i: usize| corridor[i] && local.class[i] == Class::Shadow;
-    // Unusable cells hide the shadow; the footprint's edge cells mix it with the roof.
+    // Unusable cells hide the shadow; the footprint's edge cells mix it with the roof; a
+    // neighbour's known roof carries it on (fitted on its own levels) to the ground beyond.
     let through: Vec<bool> = (0..corridor.len())
         .map(|i| {
             open(i)
                 || local.class[i] == Class::Edge
                 || (keep[i] && local.class[i] == Class::Unusable)
+                || corridor[i] && local.roof(i).is_some()
         })
         .collect();
     let mut seen = vec![false; corridor.len()];
@@ -956,6 +1100,7 @@ pub(super) mod tests {
             class,
             heights: vec![100.0; 1600],
             index,
+            roofs: Vec::new(),
         };
         (local, fp)
     }
@@ -1006,8 +1151,10 @@ pub(super) mod tests {
         ev.extend((0..16).map(|k| Event::new(2.0 + (k / 8) as f64, 1)));
         ev.extend((0..16).map(|_| Event::new(4.0, 2)));
         let observed = [1.0, 0.5, 0.0, 0.0];
-        let fit =
-            |b: &[f64], o: &[f64]| best_fit(&mut Buckets::new(ev.clone(), 5.0), b, o, 5.0, 16);
+        let fit = |b: &[f64], o: &[f64]| {
+            let b = Brightness::ground(b.to_vec());
+            best_fit(&mut Buckets::new(ev.clone(), 5.0), &b, o, 5.0, 16)
+        };
         for (lit, shadow) in [(70.0, 20.0), (200.0, 190.0), (1.0, 0.0)] {
             let b: Vec<f64> = observed.iter().map(|o| lit + (shadow - lit) * o).collect();
             let r = fit(&b, &observed).unwrap();
@@ -1021,10 +1168,12 @@ pub(super) mod tests {
         assert_eq!(fit(&[50.0; 4], &observed), None);
     }
 
-    /// [`best_fit`] the plain way: every threshold swept in ascending order, scored at each.
+    /// [`best_fit`] the plain way: every threshold swept in ascending order, and scored at
+    /// each from the cells' fractions: per surface, the least-squares line of brightness on
+    /// fraction, its explained sum of squares counted where it falls.
     fn best_fit_by_full_sweep(
         events: &[Event],
-        brightness: &[f64],
+        brightness: &Brightness,
         observed: &[f64],
         z_hi: f64,
         per_cell: usize,
@@ -1032,34 +1181,53 @@ pub(super) mod tests {
         let mut events = events.to_vec();
         events.sort_unstable();
         let step = 1.0 / per_cell as f64;
-        let n = brightness.len() as f64;
-        let sb: f64 = brightness.iter().sum();
-        let syy = brightness.iter().map(|b| b * b).sum::<f64>() - sb * sb / n;
-        if observed.iter().sum::<f64>() == 0.0 || syy.is_nan() || syy <= 0.0 {
+        let (b, g) = (&brightness.value, &brightness.surface);
+        let surfaces = g.iter().map(|&k| k as usize + 1).max()?;
+        let mean_of = |v: &[f64], k: usize| {
+            let of: Vec<f64> = (0..v.len())
+                .filter(|&i| g[i] as usize == k)
+                .map(|i| v[i])
+                .collect();
+            of.iter().sum::<f64>() / of.len().max(1) as f64
+        };
+        let syy: f64 = (0..surfaces)
+            .map(|k| {
+                let m = mean_of(b, k);
+                (0..b.len())
+                    .filter(|&i| g[i] as usize == k)
+                    .map(|i| (b[i] - m).powi(2))
+                    .sum::<f64>()
+            })
+            .sum();
+        if observed.iter().filter(|o| o.is_finite()).sum::<f64>() == 0.0 || syy <= 1e-9 {
             return None;
         }
-        let (mut s, mut ss, mut sxb) = (0.0, 0.0, 0.0);
-        let mut covered = vec![0u32; brightness.len()];
+        let score_of = |x: &[f64]| -> f64 {
+            (0..surfaces)
+                .map(|k| {
+                    let (mx, mb) = (mean_of(x, k), mean_of(b, k));
+                    let on = (0..b.len()).filter(|&i| g[i] as usize == k);
+                    let sxx: f64 = on.clone().map(|i| (x[i] - mx).powi(2)).sum();
+                    let sxy: f64 = on.map(|i| (x[i] - mx) * (b[i] - mb)).sum();
+                    if sxy < 0.0 && sxx > 1e-12 {
+                        sxy * sxy / (sxx * syy)
+                    } else {
+                        0.0
+                    }
+                })
+                .sum()
+        };
+        let mut x = vec![0.0; b.len()];
         let mut best: Option<(f64, usize)> = None;
         let mut scores = Vec::new();
         for (k, e) in events.iter().enumerate() {
-            let i = e.cell();
-            let before = covered[i] as f64 * step;
-            covered[i] += 1;
-            s += step;
-            ss += (before + step) * (before + step) - before * before;
-            sxb += step * brightness[i];
+            x[e.cell()] += step;
             if events.get(k + 1).is_some_and(|f| f.0 >> 32 == e.0 >> 32) {
                 continue;
             }
-            let (sxx, sxy) = (ss - s * s / n, sxb - s * sb / n);
-            let score = if sxy < 0.0 && sxx > 0.0 {
-                sxy * sxy / (sxx * syy)
-            } else {
-                0.0
-            };
+            let score = score_of(&x);
             scores.push((score, k + 1));
-            if best.is_none_or(|b| score > b.0 + SCORE_TIE) {
+            if best.is_none_or(|b| score > b.0 + 1e-9) {
                 best = Some((score, k + 1));
             }
         }
@@ -1071,8 +1239,9 @@ pub(super) mod tests {
         let lo = events[next - 1].threshold();
         let hi = end(next).max(lo);
         let mut r = refined(lo, hi, &events[..next], observed, step);
+        let cells = b.len() as f64 - 2.0 * (surfaces - 1) as f64;
         r.plausible = PLAUSIBLE_SIGMAS.map(|sigmas| {
-            let level = plausible_level(score, n, sigmas);
+            let level = plausible_level(score, cells, sigmas);
             if level <= 0.0 {
                 return (0.0, z_hi);
             }
@@ -1105,8 +1274,10 @@ pub(super) mod tests {
             let z_hi = 10.0 + 30.0 * rnd();
             let h = z_hi * (0.2 + 0.6 * rnd());
             let mut events = Vec::new();
-            let mut brightness = Vec::new();
+            let mut brightness = Brightness::default();
             let mut observed = Vec::new();
+            // One surface, or the strip's far part on one or two roofs with their own levels.
+            let surfaces = 1 + case % 3;
             for i in 0..cells {
                 let at = z_hi * i as f64 / cells as f64;
                 for k in 0..per_cell {
@@ -1120,8 +1291,13 @@ pub(super) mod tests {
                     }
                 }
                 let shadowed = (at < h) as u8 as f64;
-                observed.push(shadowed);
-                brightness.push(150.0 - 100.0 * shadowed + 20.0 * rnd());
+                let surface = (i * surfaces / cells).min(surfaces - 1) as u16;
+                let (lit, dark) = [(150.0, 50.0), (230.0, 120.0), (90.0, 40.0)][surface as usize];
+                observed.push(if surface == 0 { shadowed } else { f64::NAN });
+                brightness
+                    .value
+                    .push(lit + (dark - lit) * shadowed + 20.0 * rnd());
+                brightness.surface.push(surface);
             }
             let want = best_fit_by_full_sweep(&events, &brightness, &observed, z_hi, per_cell);
             let got = best_fit(

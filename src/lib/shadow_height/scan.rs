@@ -392,6 +392,7 @@ mod tests {
                 class,
                 heights: vec![5.0; 1600],
                 index: vec![100.0; 1600],
+                roofs: Vec::new(),
             },
             fp,
         )
