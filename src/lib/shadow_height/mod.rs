@@ -1853,8 +1853,7 @@ fn behind_the_walls(hist: &[u64; 256], clear: f64, behind: &[u16]) -> f64 {
     }
     detect::weak_splits_above(hist, clear)
         .into_iter()
-        .filter(|&t| mostly_shadow(t))
-        .last()
+        .rfind(|&t| mostly_shadow(t))
         .unwrap_or(clear)
 }
 
