@@ -190,6 +190,83 @@ fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
     assert!(totals.4 <= 1, "{} silent gross errors", totals.4);
 }
 
+/// A 12° sun from the south-west over the slice's densest window: in an sRGB photo the shadow
+/// is barely darker than lit grass (0.82 of it) and the tree crowns and dark cars in it darker
+/// still (0.72 of the shadow); Otsu split them off as the shadow and every scan line ended at
+/// its first cell (the bench's two 150 m windows: `no_shadow` on 61 of 70, 62 with neither a
+/// height nor a lower bound). The cells behind the walls say which split is the shadow: most
+/// buildings get a height or a lower bound, no silent gross error, no lower bound above the
+/// truth by more than two cells.
+#[test]
+fn a_twelve_degree_sun_gives_heights_or_lower_bounds() {
+    if !povray::available() {
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let town = Town::load(root, 39).unwrap();
+    let (sw, el) = (windows(&town)[0], 12.0);
+    let shot = Shot {
+        sw,
+        side: SIDE,
+        margin: 20.0,
+        cell: 0.5,
+        sun_azimuth_deg: 225.0,
+        sun_elevation_deg: el,
+        gradient: (0.0, 0.0),
+        camera: Camera::Ortho,
+        footprint_shift: (0.0, 0.0),
+        unlisted: 0.0,
+        antialias: povray::antialias_for(el),
+        seed: 0,
+    };
+    let ws = window_scene(&town, &shot);
+    let photo = Photo {
+        sun_disc_deg: Some(0.53),
+        area_samples: 9,
+        srgb: true,
+        jpeg_quality: None,
+        crs_wkt: UTM13N_WKT,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
+    let (out, _) = measure_prepared(&ws.scene, &p).unwrap();
+    let scored: Vec<_> = out
+        .iter()
+        .filter(|o| ws.core.contains(&o.building))
+        .collect();
+    let n = scored.len();
+    let no_shadow = scored
+        .iter()
+        .filter(|o| o.flags.iter().any(|f| f == "no_shadow"))
+        .count();
+    let numbered = scored
+        .iter()
+        .filter(|o| o.roof_z.is_some() || o.at_least().is_some())
+        .count();
+    let silent = scored
+        .iter()
+        .filter(|o| !o.flagged() && o.error_m().is_some_and(|e| e.abs() > 1.0))
+        .count();
+    let bound_above = scored
+        .iter()
+        .filter(|o| o.at_least().is_some_and(|z| z > o.truth_z + 1.0))
+        .count();
+    eprintln!(
+        "sun 225° / {el}° at {sw:?}: {n} scored, {numbered} with a height or a lower bound, {no_shadow} no_shadow, {silent} silent gross, {bound_above} lower bounds above the truth"
+    );
+    assert!(n >= 15, "{n} buildings scored");
+    assert!(
+        2 * numbered >= n,
+        "a height or a bound for {numbered} of {n}"
+    );
+    assert!(4 * no_shadow <= n, "no_shadow on {no_shadow} of {n}");
+    assert_eq!(silent, 0, "silent gross errors");
+    assert!(
+        bound_above <= 1,
+        "{bound_above} lower bounds above the truth"
+    );
+}
+
 /// The roof planes written for POV-Ray, as (a, b, c, d) of `a x + b y + c z = d` (local x east,
 /// y up, z north; the solid is below every plane).
 fn planes(pov: &str) -> Vec<[f64; 4]> {

@@ -16,6 +16,7 @@
 
 use super::footprint::Footprint;
 use super::local::{Class, Local};
+use crate::grid::Grid;
 use crate::walk::{Corner, Walk};
 
 /// What the scan lines of one footprint found.
@@ -103,6 +104,39 @@ pub fn scan(
         }
     }
     out
+}
+
+/// The first open cell each scan line of `fp` reads past its sun-far edge, as [`scan`] casts
+/// the lines (`u`, `cell`, `spacing`) over the cells of `grid` (a window's) whose classes are
+/// `base` (row-major; `None`: open ground, lit or shadow not decided yet): where the line
+/// leaves the footprint and the cells it covers in part ([`Class::Own`], [`Class::Edge`]).
+/// Lines that read anything else first, or leave the window, give none. Window indices.
+///
+/// Any building casts a shadow from its walls: at the elevations shadows are measured at,
+/// these cells are in it, whatever else is.
+pub fn first_open_cells(
+    fp: &Footprint,
+    grid: &Grid,
+    base: &[Option<Class>],
+    u: (f64, f64),
+    cell: f64,
+    spacing: f64,
+) -> Vec<usize> {
+    let frame = Frame::new(fp, u);
+    frame
+        .line_offsets(fp, cell, spacing)
+        .into_iter()
+        .filter_map(|t| {
+            let exit = frame.last_exit(fp, t);
+            if !exit.is_finite() {
+                return None;
+            }
+            cells_along(grid, frame.point(exit, t), u)
+                .map(|(_, _, at)| at.map(|(c, r)| (r * grid.width + c, base[r * grid.width + c])))
+                .find(|at| !matches!(at, Some((_, Some(Class::Own | Class::Edge)))))?
+                .and_then(|(i, class)| class.is_none().then_some(i))
+        })
+        .collect()
 }
 
 /// Where the scan lines run: positions as metres along the shadow direction `u` and across it
@@ -214,7 +248,7 @@ impl ShadowWalk<'_> {
         let mut roof_until = 0.0f64;
         // The lowest roof the shadow crossed so far implies (before any unusable cell).
         let mut reached: Option<f64> = None;
-        let mut walk = cells_along(local, start, self.u);
+        let mut walk = cells_along(&local.grid, start, self.u);
         loop {
             let (x, x_out, cell_at) = walk.next().expect("a walk along a unit vector never ends");
             // Past the longest shadow sought beyond the footprint and its edge cells (a line
@@ -294,18 +328,18 @@ fn on_border(local: &Local, at: Option<(usize, usize)>) -> bool {
     at.is_none_or(|(c, r)| c == 0 || r == 0 || c + 1 == w || r + 1 == h)
 }
 
-/// The cells of `local` a scan line from `start` (world metres) along the unit vector `u` crosses
+/// The cells of `grid` (a window's) a scan line from `start` (world metres) along the unit vector `u` crosses
 /// ([`Corner::Diagonal`]: a line through a cell corner steps into the diagonal cell, the side
 /// cells touch it at a point only): the metres at which it enters and leaves each, and the
 /// cell (`None` once outside the window).
 fn cells_along(
-    local: &Local,
+    grid: &Grid,
     start: (f64, f64),
     u: (f64, f64),
 ) -> impl Iterator<Item = (f64, f64, Option<(usize, usize)>)> {
-    let tr = &local.grid.transform;
+    let tr = &grid.transform;
     let p = tr.world_to_pixel(start.0, start.1);
-    let (w, h) = (local.grid.width as i64, local.grid.height as i64);
+    let (w, h) = (grid.width as i64, grid.height as i64);
     Walk::new(
         [p.0, p.1],
         [u.0 / tr.cell_x, u.1 / tr.cell_y],
