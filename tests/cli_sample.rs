@@ -1,5 +1,6 @@
 //! `dbms sample` end to end at a small size: files open, counts agree, output is deterministic.
 
+use dbms::choice::Choice;
 use std::path::Path;
 use std::process::Command;
 #[path = "support/cli.rs"]
@@ -67,9 +68,47 @@ fn files_open_and_agree_with_each_other() {
             f["properties"].get("roof_z").is_none(),
             "footprints carry no heights"
         );
+        assert!(
+            f["properties"].get("roof_form").is_none(),
+            "footprints carry no roofs"
+        );
         assert_eq!(f["geometry"]["coordinates"][0], b["footprint"]);
         let h = b["height_m"].as_f64().unwrap();
         assert!((3.0..=25.0).contains(&h));
+    }
+    // The roofs in dbms's convention: the second lot a gable house, the fourth a hip house,
+    // two storeys under a 30–40° roof; the rest flat.
+    let roofs: Vec<_> = buildings
+        .iter()
+        .map(|b| {
+            let top = b["roof_z"].as_f64().unwrap();
+            (b, dbms::roof::Pitch::from_properties(b, top).unwrap())
+        })
+        .collect();
+    let forms: Vec<&str> = roofs
+        .iter()
+        .map(|(_, p)| p.map_or("flat", |p| p.form.name()))
+        .collect();
+    assert_eq!(forms, ["flat", "gable", "flat", "flat", "hip"]);
+    for (b, p) in roofs.iter().filter_map(|(b, p)| Some((b, (*p)?))) {
+        let eaves = p.eave_z - b["ground_max_z"].as_f64().unwrap();
+        assert!((5.5..=6.5).contains(&eaves), "{b}");
+        let ring = &b["footprint"];
+        let side = |k: usize| (ring[2][k].as_f64().unwrap() - ring[0][k].as_f64().unwrap()).abs();
+        // Half the side across the ridge (azimuth 0: the east–west side).
+        let half = if p.azimuth_deg == 0.0 {
+            side(0)
+        } else {
+            side(1)
+        } / 2.0;
+        let pitch = ((b["roof_z"].as_f64().unwrap() - p.eave_z) / half)
+            .atan()
+            .to_degrees();
+        assert!((30.0 - 1e-9..=40.0 + 1e-9).contains(&pitch), "{pitch}° {b}");
+        assert!(
+            half <= (side(0).max(side(1))) / 2.0,
+            "the ridge runs along the long side"
+        );
     }
     let el = truth["sun"]["elevation_deg"].as_f64().unwrap();
     assert!((30.0..=50.0).contains(&el), "{el}");

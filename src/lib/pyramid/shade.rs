@@ -23,9 +23,13 @@
 //! Normals are central differences of the heights (one-sided at edges, nodata and class
 //! boundaries: terrain, building and object cells only use neighbours of their own class, so a
 //! wall's jump does not tilt the roof or the ground at its foot). A **wall cell** is a building
-//! or object cell with a 4-neighbour lower by at least one cell size; the renderer sees the wall
-//! as that column's side, so its colour becomes the roof's colour times the mean illumination of
-//! its exposed vertical faces (face normals horizontal, toward the lower neighbours).
+//! or object cell with a 4-neighbour lower by at least one cell size, unless both are building
+//! cells and the drop is no steeper than [`MAX_ROOF_PITCH_DEG`]: the roof's own slope (a steep
+//! roof's faces, ridge and hips, whose neighbours lie a cell or more lower, are roof, shaded
+//! by their normals; its eaves and gable ends, over the terrain, are walls). The
+//! renderer sees the wall as that column's side, so its colour becomes the roof's colour times
+//! the mean illumination of its exposed vertical faces (face normals horizontal, toward the
+//! lower neighbours).
 //!
 //! # Memory
 //! The terrain is read through a [`RowSource`] band by band, never whole: the surfaces are the
@@ -64,6 +68,10 @@ pub const DEFAULT_SHADOW_FACTOR: f64 = 0.45;
 /// Most a tilted surface can be brighter than flat lit ground (caps `n·s / s_z`, which grows
 /// without bound for a low sun).
 pub const G_MAX: f64 = 2.0;
+
+/// The steepest roof (degrees from the horizontal) a building cell's drop to a neighbouring
+/// building cell is read as ([`Effects::faces`]); a steeper drop is a wall.
+pub const MAX_ROOF_PITCH_DEG: f64 = 70.0;
 
 /// Two sun directions closer than this (degrees, in elevation and azimuth) are the same sun.
 pub const SAME_SUN_DEG: f64 = 0.01;
@@ -859,11 +867,18 @@ impl Effects<'_> {
     }
 
     /// Horizontal normals of the exposed vertical faces of a raised cell: toward each
-    /// 4-neighbour of the new surface lower by at least one cell size (valid neighbours only).
+    /// 4-neighbour of the new surface lower by at least one cell size (valid neighbours only),
+    /// unless the cell and that neighbour are both building cells and the drop is within
+    /// [`MAX_ROOF_PITCH_DEG`] over a cell: then it is the roof's own slope (a steep roof's
+    /// faces, ridge and hips), shaded by its normal. A building's outline (a drop to the
+    /// terrain or an object: its eaves and gable ends) and a steeper drop between two roofs
+    /// are walls; a smaller step between two roofs reads as a steep slope.
     fn faces(&self, surface: &Surfaces, col: usize, row: usize) -> Vec<[f64; 3]> {
         let g = self.terrain.grid();
         let z = surface.new_height(col, row) as f64;
         let step = g.cell_size().0.min(g.cell_size().1);
+        let steepest = MAX_ROOF_PITCH_DEG.to_radians().tan() * step;
+        let on_roof = surface.class(col, row) == BUILDING;
         let (c, r) = (col as isize, row as isize);
         [
             (1, 0, [1.0, 0.0, 0.0]),
@@ -877,8 +892,11 @@ impl Effects<'_> {
             if nc < 0 || nr < 0 || nc >= g.width as isize || nr >= g.height as isize {
                 return false;
             }
-            let nz = surface.new_height(nc as usize, nr as usize);
-            !nz.is_nan() && z - nz as f64 >= step
+            let (nc, nr) = (nc as usize, nr as usize);
+            let nz = surface.new_height(nc, nr);
+            let drop = z - nz as f64;
+            let roof_slope = on_roof && surface.class(nc, nr) == BUILDING && drop <= steepest;
+            !nz.is_nan() && drop >= step && !roof_slope
         })
         .map(|(_, _, n)| n)
         .collect()
@@ -1065,6 +1083,86 @@ mod tests {
         let (east, west) = (fx.factor_at(11, 10).unwrap(), fx.factor_at(8, 10).unwrap());
         assert!(east > 1.0 && west < 1.0, "east {east} west {west}");
         assert_eq!(json(&fx.record())["wall_cells"], json!(12));
+    }
+
+    /// A 50° gable house on flat ground at the sample's cell size (0.25 m): 10 m × 8 m, the
+    /// ridge east–west, eaves at 6 m, so each face drops 0.30 m (1.19 cells) a cell.
+    fn steep_gable() -> (Elevation, Raised, Prism) {
+        let g = Grid::north_up(0.0, 15.0, 0.25, 60, 60, Crs::unknown());
+        let t = Elevation::new(g, vec![0.0; 3600]);
+        let rings = vec![vec![(2.5, 3.5), (12.5, 3.5), (12.5, 11.5), (2.5, 11.5)]];
+        let pitch = crate::roof::Pitch {
+            form: crate::roof::RoofForm::Gable,
+            eave_z: 6.0,
+            azimuth_deg: 90.0,
+        };
+        let ridge = 6.0 + 4.0 * 50f64.to_radians().tan();
+        let roof = crate::roof::RoofShape::new(&rings, ridge, Some(pitch));
+        let p = Prism { rings, roof };
+        let b = Raised::new(rasterise_prisms(&t.grid, std::slice::from_ref(&p)), &t);
+        (t, b, p)
+    }
+
+    #[test]
+    fn a_steep_roof_is_shaded_as_a_sloped_roof_not_as_walls() {
+        let (t, b, p) = steep_gable();
+        let inside = |c: isize, r: isize| {
+            c >= 0 && r >= 0 && b.get(t.grid.index(c as usize, r as usize)).is_some()
+        };
+        // The outline's cells (a 4-neighbour outside the footprint): the eaves and gable ends.
+        let outline = b
+            .cells()
+            .iter()
+            .filter(|cell| {
+                let (c, r) = ((cell.index % 60) as isize, (cell.index / 60) as isize);
+                [(1, 0), (-1, 0), (0, 1), (0, -1)]
+                    .iter()
+                    .any(|&(dc, dr)| !inside(c + dc, r + dr))
+            })
+            .count();
+        assert_eq!((b.cells().len(), outline), (1280, 140));
+        // The photo's own sun: the photo holds the faces' shading; only the outline is walls.
+        let s = sun(35.0, 160.0);
+        let fx = prepare(
+            Some(s),
+            Some(s),
+            0.5,
+            &t,
+            &plain(&t),
+            [&b, none(), &b],
+            None,
+        )
+        .unwrap()
+        .unwrap();
+        assert_eq!(json(&fx.record())["wall_cells"], json!(outline));
+        for (c, r) in [(30, 20), (30, 30), (30, 35), (30, 40), (20, 25)] {
+            assert_eq!(fx.factor_at(c, r).unwrap(), 1.0, "roof cell ({c}, {r})");
+        }
+        // A photo without a sun, shaded for one: the south face at a 50° plane's Lambert
+        // factor (heights are f32), the north face darker, not a wall's horizontal normal.
+        let fx = prepare(Some(s), None, 0.5, &t, &plain(&t), [&b, none(), &b], None)
+            .unwrap()
+            .unwrap();
+        let (c, r) = (30, 40);
+        let (x, y) = t.grid.cell_centre(c, r);
+        assert!(
+            y < 7.5
+                && (p.roof.z_at((x, y)) - 6.0 - (y - 3.5) * 50f64.to_radians().tan()).abs() < 1e-9
+        );
+        let (a, e) = (160f64.to_radians(), 35f64.to_radians());
+        let sv = [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()];
+        let n = [0.0, -(50f64.to_radians().sin()), 50f64.to_radians().cos()];
+        let ns = n[0] * sv[0] + n[1] * sv[1] + n[2] * sv[2];
+        let want = 0.5 + 0.5 * (ns / sv[2]).min(G_MAX);
+        let got = fx.factor_at(c, r).unwrap();
+        assert!(
+            (got - want).abs() < 1e-4,
+            "south face {got}, a 50° plane {want}"
+        );
+        assert!(
+            fx.factor_at(30, 20).unwrap() < 0.6,
+            "the north face faces away"
+        );
     }
 
     #[test]

@@ -1,9 +1,12 @@
 //! Where the sample's roads and buildings go: a square grid of 36 m lots with roads along two
 //! lot boundaries; some lots hold a building (a rectangle, an adjacent pair sharing a wall, or an
-//! L-shape). Coordinates here are local metres from the scene's south-west corner, snapped to
-//! 0.25 m so no orthophoto or DEM cell centre lies exactly on a wall.
+//! L-shape) or a house with a pitched roof (gable or hip). Coordinates here are local metres
+//! from the scene's south-west corner, snapped to 0.25 m so no orthophoto or DEM cell centre
+//! lies exactly on a wall (a house's sides to 0.5 m, so its ridge lies on orthophoto cell
+//! edges too).
 
-use super::noise::Rng;
+use super::noise::{mix, Rng};
+use crate::roof::RoofForm;
 
 /// Distance between lot boundaries, metres.
 const LOT_PITCH: f64 = 36.0;
@@ -56,11 +59,36 @@ pub struct PlannedBuilding {
     pub ring: Vec<(f64, f64)>,
     /// Kind of footprint.
     pub shape: Shape,
-    /// Roof above the highest ground under the footprint, metres.
+    /// Flat roof (a pitched roof's eaves) above the highest ground under the footprint, metres.
     pub height_m: f64,
     /// Roof colour.
     pub roof: [u8; 3],
+    /// A house's pitched roof; `None` for a flat roof.
+    pub pitch: Option<HouseRoof>,
 }
+
+/// A house's pitched roof, before it meets the terrain (its eaves are the building's
+/// `height_m`; the ridge follows from the pitch and the footprint's width across the ridge).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HouseRoof {
+    /// Gable or hip.
+    pub form: RoofForm,
+    /// The roof planes' pitch, degrees above the horizontal.
+    pub pitch_deg: f64,
+    /// The ridge's direction, degrees clockwise from grid north (0 or 90: along the long side).
+    pub azimuth_deg: f64,
+}
+
+/// A house's eaves above the highest ground: two storeys, metres (range, step).
+const HOUSE_EAVES_M: (f64, f64, f64) = (5.5, 7.0, 0.5);
+/// A house's sides, metres: along the ridge and across it (ranges), in steps of `HOUSE_STEP`.
+const HOUSE_LENGTH_M: (f64, f64) = (10.0, 14.0);
+/// See [`HOUSE_LENGTH_M`].
+const HOUSE_WIDTH_M: (f64, f64) = (8.0, 10.5);
+/// Step of a house's sides, metres: its ridge (the middle) lies on a multiple of `SNAP`.
+const HOUSE_STEP: f64 = 0.5;
+/// A house's roof pitch, degrees (range, whole degrees).
+const HOUSE_PITCH_DEG: (f64, f64) = (30.0, 41.0);
 
 /// Roof colours: terracotta, slate, tar, concrete, weathered copper.
 pub const ROOFS: [[u8; 3]; 5] = [
@@ -95,8 +123,12 @@ pub fn roads(extent: f64) -> Vec<Road> {
 }
 
 /// Buildings for a scene `extent` metres wide: about one lot in ten (at least 4 when there are
-/// 4 lots, at most [`MAX_LOTS`]); the first chosen lot holds the L-shape and every fourth an
-/// adjacent pair.
+/// 4 lots, at most [`MAX_LOTS`]); the first chosen lot holds the L-shape, every fourth an
+/// adjacent pair, the second and every fourth after it a gable-roofed house, the fourth and
+/// every fourth after it a hip-roofed house, the others a flat-roofed rectangle. A house draws
+/// its footprint, eaves and colour from the same stream as the rectangle it replaces (one
+/// value each), and its pitch and ridge from a stream of its own, so the other lots are the
+/// same whatever the houses are.
 pub fn buildings(seed: u64, extent: f64) -> Vec<PlannedBuilding> {
     let (n, offset) = lot_grid(extent);
     let mut rng = Rng::new(seed);
@@ -131,6 +163,7 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<PlannedBuilding> {
                 shape: Shape::LShape,
                 height_m: height(&mut rng),
                 roof: roof(&mut rng),
+                pitch: None,
             });
         } else if k % 4 == 2 {
             let (w1, w2) = (rng.stepped(7.0, 12.0, SNAP), rng.stepped(7.0, 12.0, SNAP));
@@ -147,13 +180,22 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<PlannedBuilding> {
                 shape: Shape::Adjacent,
                 height_m: h1,
                 roof: roof(&mut rng),
+                pitch: None,
             });
             plans.push(PlannedBuilding {
                 ring: rectangle(x0 + w1, y0, w2, d2),
                 shape: Shape::Adjacent,
                 height_m: h2,
                 roof: roof(&mut rng),
+                pitch: None,
             });
+        } else if k % 2 == 1 {
+            let form = if k % 4 == 1 {
+                RoofForm::Gable
+            } else {
+                RoofForm::Hip
+            };
+            plans.push(house(&mut rng, mix(seed ^ k as u64), form, (x0, y0), room));
         } else {
             let (w, d) = (rng.stepped(8.0, 20.0, SNAP), rng.stepped(8.0, 16.0, SNAP));
             let (dx, dy) = (
@@ -165,10 +207,50 @@ pub fn buildings(seed: u64, extent: f64) -> Vec<PlannedBuilding> {
                 shape: Shape::Rectangle,
                 height_m: height(&mut rng),
                 roof: roof(&mut rng),
+                pitch: None,
             });
         }
     }
     plans
+}
+
+/// A two-storey house with a `form` roof in the lot whose free square (`room` metres wide)
+/// starts at local `(x0, y0)`: its sides, position, eaves and colour take one value each from
+/// `rng` (as many as a flat rectangle takes), its pitch and ridge direction come from
+/// `own_seed`. The ridge runs along the longer side; its roof is tiles (terracotta or slate).
+fn house(
+    rng: &mut Rng,
+    own_seed: u64,
+    form: RoofForm,
+    (x0, y0): (f64, f64),
+    room: f64,
+) -> PlannedBuilding {
+    let length = rng.stepped(HOUSE_LENGTH_M.0, HOUSE_LENGTH_M.1, HOUSE_STEP);
+    let width = rng.stepped(HOUSE_WIDTH_M.0, HOUSE_WIDTH_M.1, HOUSE_STEP);
+    let mut own = Rng::new(own_seed);
+    let ridge_north = own.next_u64() % 2 == 0;
+    let pitch_deg = own.stepped(HOUSE_PITCH_DEG.0, HOUSE_PITCH_DEG.1, 1.0);
+    let (w, d) = if ridge_north {
+        (width, length)
+    } else {
+        (length, width)
+    };
+    let (dx, dy) = (
+        rng.stepped(0.0, room - w, HOUSE_STEP),
+        rng.stepped(0.0, room - d, HOUSE_STEP),
+    );
+    let (lo, hi, step) = HOUSE_EAVES_M;
+    PlannedBuilding {
+        ring: rectangle(x0 + dx, y0 + dy, w, d),
+        shape: Shape::Rectangle,
+        height_m: rng.stepped(lo, hi, step),
+        roof: ROOFS[(rng.next_u64() % 2) as usize],
+        pitch: Some(HouseRoof {
+            form,
+            pitch_deg,
+            azimuth_deg: if ridge_north { 0.0 } else { 90.0 },
+        }),
+    }
 }
 
 /// Counter-clockwise ring of an axis-aligned rectangle.

@@ -8,11 +8,13 @@
 //!   three octaves of value noise (slopes mostly under 20 %), with a small triangle of nodata
 //!   cells in the south-east corner (real DEMs have voids).
 //! * `ortho.tif`: an orthophoto-like RGBA8 image (alpha 255) at [`ORTHO_CELL_M`] over the same
-//!   extent: grass/soil texture, two asphalt roads with a dashed centre line, flat roofs, and the
-//!   shadows cast over terrain + buildings for the sun at [`SUN_TIME`] over the scene centre,
-//!   shadowed colour multiplied by [`SHADOW_FACTOR`].
+//!   extent: grass/soil texture, two asphalt roads with a dashed centre line, flat roofs and
+//!   houses' gable and hip roofs (each face lit by the sun at its own incidence), and the
+//!   shadows cast over terrain + buildings (pitched roofs at their real shape) for the sun at
+//!   [`SUN_TIME`] over the scene centre, shadowed colour multiplied by [`SHADOW_FACTOR`].
 //! * `buildings.geojson`: footprints (polygons, property `id`, no heights): shadow-height's input.
-//! * `truth.json`: each building's height and roof z, the sun and the shadow factor (schema
+//! * `truth.json`: each building's height and roof z (a pitched roof's ridge, with its form,
+//!   eaves and ridge direction in `crate::roof`'s convention), the sun and the shadow factor (schema
 //!   `schemas/sample-truth.schema.json`); `scene.json`: the scene and how to run the pipeline
 //!   (schema `schemas/sample-scene.schema.json`). See docs/sample.md.
 
@@ -27,6 +29,7 @@ use crate::grid::Grid;
 use crate::io::atomic::{commit_all, AtomicFile, Staged};
 use crate::io::geotiff::GeoTiffWriter;
 use crate::raster::{Colour, Elevation, Raster};
+use crate::roof::{Extent, Pitch, RoofShape};
 use crate::shadow::{cast_shadows_slice, SHADOW};
 use crate::standing::{rasterise_prisms, Prism};
 use crate::sun::Sun;
@@ -92,10 +95,14 @@ pub struct Building {
     pub shape: Shape,
     /// Exterior ring in scene CRS metres, counter-clockwise, closed (first = last).
     pub footprint: Vec<[f64; 2]>,
-    /// Roof above the highest ground under the footprint, metres (the lowest wall).
+    /// Roof above the highest ground under the footprint, metres (a flat roof's lowest wall;
+    /// a pitched roof's ridge).
     pub height_m: f64,
-    /// Absolute flat-roof height, metres.
+    /// Absolute height of the flat roof or of the pitched roof's ridge, metres.
     pub roof_z: f64,
+    /// A pitched roof's form, eaves (absolute metres) and ridge direction; `None` when flat.
+    #[serde(skip)]
+    pub pitch: Option<Pitch>,
     /// Lowest and highest terrain under the footprint (DEM cell centres inside it), metres.
     pub ground_min_z: f64,
     /// See `ground_min_z`.
@@ -195,9 +202,32 @@ fn cut_nodata_corner(dem: &mut Elevation) {
     }
 }
 
+impl Building {
+    /// The building's roof over its footprint (`crate::roof`'s convention).
+    pub fn roof(&self) -> RoofShape {
+        let ring: Vec<(f64, f64)> = self.footprint.iter().map(|p| (p[0], p[1])).collect();
+        RoofShape::new(&[ring], self.roof_z, self.pitch)
+    }
+
+    /// The building as truth.json states it: its fields and its roof's properties
+    /// (`roof_form`, and for a pitched roof `eave_z` and `roof_azimuth_deg`).
+    fn truth_json(&self) -> serde_json::Value {
+        let mut v = serde_json::to_value(self).expect("a building serialises");
+        let map = v.as_object_mut().expect("a building is an object");
+        match self.pitch {
+            Some(p) => p.to_properties(map),
+            None => {
+                map.insert(crate::roof::property::FORM.into(), "flat".into());
+            }
+        }
+        v
+    }
+}
+
 /// The building `id` stands on `plan`'s footprint: its ground is the lowest and highest
-/// terrain (metres) under the DEM cells the footprint covers, and its flat roof stands
-/// `plan.height_m` above the highest.
+/// terrain (metres) under the DEM cells the footprint covers; its flat roof, or its pitched
+/// roof's eaves, stand `plan.height_m` above the highest, and a pitched roof's ridge rises
+/// from them at the plan's pitch over half the footprint's width across the ridge.
 fn building(
     id: u32,
     plan: &PlannedBuilding,
@@ -224,12 +254,29 @@ fn building(
         });
     let mut footprint: Vec<[f64; 2]> = prism.rings[0].iter().map(|&(x, y)| [x, y]).collect();
     footprint.push(footprint[0]);
+    let eave_z = hi + plan.height_m;
+    let (pitch, rise) = match plan.pitch {
+        None => (None, 0.0),
+        Some(house) => {
+            let extent = Extent::new(&prism.rings, house.azimuth_deg).expect("a ring has vertices");
+            let pitch = Pitch {
+                form: house.form,
+                eave_z,
+                azimuth_deg: house.azimuth_deg,
+            };
+            (
+                Some(pitch),
+                extent.half.1 * house.pitch_deg.to_radians().tan(),
+            )
+        }
+    };
     Building {
         id,
         shape: plan.shape,
         footprint,
-        height_m: plan.height_m,
-        roof_z: hi + plan.height_m,
+        height_m: plan.height_m + rise,
+        roof_z: eave_z + rise,
+        pitch,
         ground_min_z: lo,
         ground_max_z: hi,
     }
@@ -309,7 +356,7 @@ fn truth_json(scene: &Scene) -> serde_json::Value {
         "crs": format!("EPSG:{EPSG}"),
         "sun": sun_json(scene),
         "shadow_factor": SHADOW_FACTOR,
-        "buildings": scene.buildings,
+        "buildings": scene.buildings.iter().map(Building::truth_json).collect::<Vec<_>>(),
     })
 }
 
@@ -434,25 +481,25 @@ fn render_ortho(
     let grid = Grid::north_up(MIN_X, MIN_Y + extent, ORTHO_CELL_M, m, m, crs.clone());
     // Which building (index + 1) covers each cell centre; 0 = none.
     let mut owner = vec![0u32; grid.len()];
+    let roofs: Vec<RoofShape> = buildings.iter().map(Building::roof).collect();
     for (i, b) in buildings.iter().enumerate() {
         let prism = Prism {
             rings: vec![b.footprint.iter().map(|p| (p[0], p[1])).collect()],
-            roof: crate::roof::RoofShape::flat(b.roof_z),
+            roof: roofs[i],
         };
         for c in rasterise_prisms(&grid, &[prism]) {
             owner[c.index] = i as u32 + 1;
         }
     }
     let terrain = sample_grid(&grid, |x, y| ground(x, y) as f32);
+    let at = |i: usize| grid.cell_centre(i % grid.width, i / grid.width);
     let surface: Vec<f32> = terrain
         .iter()
         .zip(&owner)
-        .map(|(&z, &o)| {
-            if o == 0 {
-                z
-            } else {
-                buildings[o as usize - 1].roof_z as f32
-            }
+        .enumerate()
+        .map(|(i, (&z, &o))| match o {
+            0 => z,
+            o => roofs[o as usize - 1].z_at(at(i)) as f32,
         })
         .collect();
     let shadow = cast_shadows_slice(&surface, &grid, sun)
@@ -463,16 +510,19 @@ fn render_ortho(
     let data: Vec<[u8; 4]> = (0..grid.len())
         .into_par_iter()
         .map(|i| {
-            let rgb = match owner[i] {
-                0 => lit[i].0,
-                o => roof_colour(texture_seed, plans[o as usize - 1].roof, i),
+            let (rgb, k) = match owner[i] {
+                0 => (lit[i].0, 1.0),
+                o => (
+                    roof_colour(texture_seed, plans[o as usize - 1].roof, i),
+                    roof_light(&roofs[o as usize - 1], sun, at(i)),
+                ),
             };
             let k = if shadow[i] == SHADOW {
                 SHADOW_FACTOR
             } else {
-                1.0
+                k
             };
-            let c = |v: u8| (v as f64 * k).round() as u8;
+            let c = |v: u8| (v as f64 * k).round().min(255.0) as u8;
             [c(rgb[0]), c(rgb[1]), c(rgb[2]), 255]
         })
         .collect();
@@ -515,6 +565,26 @@ fn ground_colour(seed: u64, roads: &[Road], x: f64, y: f64) -> ([u8; 3], u8) {
     let dirt = [132.0, 108.0, 78.0];
     let mix = |k: usize| (grass[k] + soil * (dirt[k] - grass[k]) + tuft).clamp(0.0, 255.0) as u8;
     ([mix(0), mix(1), mix(2)], if soil < 0.5 { 1 } else { 2 })
+}
+
+/// The sun's light on a roof at world point `p`, relative to a flat roof's (1 for a flat
+/// roof): a face of unit normal `n` gets `F + (1 − F) · max(0, n·s) / s_z`, `F` the skylight
+/// ([`SHADOW_FACTOR`], what a shadowed surface keeps), `s` the unit vector to the sun. The
+/// normal is the roof's slope by central differences 1 mm apart (a cell centre on a crease
+/// gets the mean of its faces' slopes).
+fn roof_light(roof: &RoofShape, sun: &Sun, p: (f64, f64)) -> f64 {
+    if roof.pitch.is_none() {
+        return 1.0;
+    }
+    const H: f64 = 1e-3;
+    let dz = |dx: f64, dy: f64| roof.z_at((p.0 + dx, p.1 + dy));
+    let (gx, gy) = (
+        (dz(H, 0.0) - dz(-H, 0.0)) / (2.0 * H),
+        (dz(0.0, H) - dz(0.0, -H)) / (2.0 * H),
+    );
+    let s = sun.direction_enu();
+    let ns = (s[2] - gx * s[0] - gy * s[1]) / (gx * gx + gy * gy + 1.0).sqrt();
+    SHADOW_FACTOR + (1.0 - SHADOW_FACTOR) * ns.max(0.0) / s[2]
 }
 
 /// A roof colour with a little per-cell grain (cell index `i` seeds it).
@@ -635,6 +705,73 @@ mod tests {
             "{}",
             s.shadow_fraction
         );
+    }
+
+    /// The houses' faces in the orthophoto: each lit at its own incidence (the roof convex, a
+    /// face's point is lit exactly when its normal is toward the sun), checked at the middle of
+    /// each face 1 m inside the eaves against the normal the truth's pitch gives.
+    #[test]
+    fn a_house_roof_is_lit_face_by_face() {
+        let s = small(1);
+        let texture_seed = mix(1 ^ 0x0c01);
+        let plans = layout::buildings(mix(1 ^ 0xb1d), MIN_SIZE as f64 * DEM_CELL_M);
+        let sv = s.sun.direction_enu();
+        let houses: Vec<_> = s.buildings.iter().filter(|b| b.pitch.is_some()).collect();
+        assert_eq!(houses.len(), 2);
+        for b in houses {
+            let p = b.pitch.unwrap();
+            let (xs, ys) = (
+                b.footprint.iter().map(|q| q[0]),
+                b.footprint.iter().map(|q| q[1]),
+            );
+            let (x0, x1) = (
+                xs.clone().fold(f64::MAX, f64::min),
+                xs.fold(f64::MIN, f64::max),
+            );
+            let (y0, y1) = (
+                ys.clone().fold(f64::MAX, f64::min),
+                ys.fold(f64::MIN, f64::max),
+            );
+            // Across the ridge: east for a north–south ridge, north for an east–west one.
+            let across = if p.azimuth_deg == 0.0 {
+                (1.0, 0.0)
+            } else {
+                (0.0, 1.0)
+            };
+            let half = if p.azimuth_deg == 0.0 {
+                x1 - x0
+            } else {
+                y1 - y0
+            } / 2.0;
+            let slope = (b.roof_z - p.eave_z) / half;
+            let (pitch, mid) = (slope.atan(), ((x0 + x1) / 2.0, (y0 + y1) / 2.0));
+            for side in [-1.0, 1.0] {
+                let at = (
+                    mid.0 + side * across.0 * (half - 1.0),
+                    mid.1 + side * across.1 * (half - 1.0),
+                );
+                let (c, r) = s.ortho.grid.cell_at(at.0, at.1).unwrap();
+                let n = [
+                    side * across.0 * pitch.sin(),
+                    side * across.1 * pitch.sin(),
+                    pitch.cos(),
+                ];
+                let ns = n[0] * sv[0] + n[1] * sv[1] + n[2] * sv[2];
+                let k = SHADOW_FACTOR + (1.0 - SHADOW_FACTOR) * ns.max(0.0) / sv[2];
+                let base = roof_colour(
+                    texture_seed,
+                    plans[b.id as usize - 1].roof,
+                    r * s.ortho.width() + c,
+                );
+                let want = base.map(|v| (v as f64 * k).round().min(255.0) as u8);
+                assert_eq!(
+                    s.ortho.get(c, r)[..3],
+                    want[..],
+                    "house {} side {side}: k {k}",
+                    b.id
+                );
+            }
+        }
     }
 
     #[test]
