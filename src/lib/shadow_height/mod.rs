@@ -3,7 +3,8 @@
 //!
 //! # Method (the invariant)
 //! For each valid footprint, independently (in parallel), in two passes — the second with the
-//! ground in the other buildings' shadows at their first-pass roofs unusable:
+//! ground in the other buildings' shadows at their first-pass roofs unusable — and the joint
+//! passes (step 5):
 //! 1. **Observe.** The cells around the footprint (a window reaching [`Options::max_height_m`]
 //!    worth of shadow along the sun azimuth) are classified ([`local::Class`]): own footprint,
 //!    other footprints, unusable (nodata colour or elevation, or shadowed by the bare terrain
@@ -22,6 +23,12 @@
 //!    least-squares fit), and the best wins. A roof that looks pitched ([`roof`]) is then
 //!    fitted as a gable or hip roof ([`pitched::fit`]), taken only when it explains the photo
 //!    clearly better: its ridge is the height and its form, eaves and direction are reported.
+//! 5. **Jointly** ([`joint`], [`Options::joint_passes`]). The footprints whose shadow met
+//!    another footprint, or that got no height, are measured again with every other footprint
+//!    at its measured roof: its shadow hides the ground, and its roof, where measured flat and
+//!    sure, is a surface this footprint's shadow is fitted on (with that roof's own levels);
+//!    the corridor is every band but those of lines that disagree, and a fit the photo cannot
+//!    close from above is a lower bound, not a height.
 //!
 //! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
 //! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is
