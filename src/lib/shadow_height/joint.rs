@@ -37,6 +37,11 @@ pub struct Known {
     /// (a pitch, a poor match, a shadow reaching further, an outline off its roof), and its
     /// 95 % interval at most [`SURFACE_INTERVAL_CELLS`] cells of shadow wide.
     pub surfaces: Vec<Option<f64>>,
+    /// Per footprint, its measurement in the pass before: what a joint pass keeps for a
+    /// footprint whose corridor holds no known roof (the ground alone says nothing new there;
+    /// measured again over the whole corridor, the town's 12° photos got more heights, but
+    /// fewer right).
+    pub previous: Vec<Option<Measurement>>,
 }
 
 impl Known {
@@ -57,7 +62,12 @@ impl Known {
         let surfaces = (0..measured.len())
             .map(|k| ok(k).and_then(surface))
             .collect();
-        Known { shading, surfaces }
+        let previous = measured.iter().map(|m| m.as_ref().ok().cloned()).collect();
+        Known {
+            shading,
+            surfaces,
+            previous,
+        }
     }
 }
 

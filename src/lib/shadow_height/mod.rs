@@ -28,7 +28,8 @@
 //!    at its measured roof: its shadow hides the ground, and its roof, where measured flat and
 //!    sure, is a surface this footprint's shadow is fitted on (with that roof's own levels);
 //!    the corridor is every band but those of lines that disagree, and a fit the photo cannot
-//!    close from above is a lower bound, not a height.
+//!    close from above is a lower bound, not a height. Without a known roof in its window a
+//!    footprint keeps its second-pass result.
 //!
 //! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
 //! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is
@@ -1529,6 +1530,10 @@ impl PassInputs<'_> {
         );
         if let Some(known) = self.known {
             sub.roofs = self.neighbour_roofs(sought.id, &sub, known);
+            let previous = &known.previous[sought.id as usize - 1];
+            if let (true, Some(m)) = (sub.roofs.iter().all(Option::is_none), previous) {
+                return Ok(m.clone());
+            }
         }
         sub.index = self.shade(&sub);
         let n = (-u.1, u.0);
