@@ -23,9 +23,9 @@
 //!    least-squares fit), and the best wins. A roof that looks pitched ([`roof`]) is then
 //!    fitted as a gable or hip roof ([`pitched::fit`]), taken only when it explains the photo
 //!    clearly better: its ridge is the height and its form, eaves and direction are reported.
-//! 5. **Jointly** ([`joint`], [`Options::joint_passes`]). The footprints whose shadow met
-//!    another footprint, or that got no height, are measured again with every other footprint
-//!    at its measured roof: its shadow hides the ground, and its roof, where measured flat and
+//! 5. **Jointly** ([`joint`], [`Options::joint_passes`]; off by default). The footprints
+//!    whose shadow met another footprint, or that got no height, are measured again with
+//!    every other footprint at its measured roof: its shadow hides the ground, and its roof, where measured flat and
 //!    sure, is a surface this footprint's shadow is fitted on (with that roof's own levels);
 //!    the corridor is every band but those of lines that disagree, and a fit the photo cannot
 //!    close from above is a lower bound, not a height. Without a known roof in its window a
@@ -114,7 +114,8 @@ pub struct Options {
     /// footprints are measured band of rows by band of rows, each band read with the rows
     /// its footprints' windows reach. A band is never smaller than one footprint's window.
     pub band_cells: usize,
-    /// Joint passes after the second (default 1; 0: none): the footprints whose shadow ran
+    /// Joint passes after the second (default 0: none; see docs/shadow-height.md for what one
+    /// gains and costs): the footprints whose shadow ran
     /// into a neighbour, or that got no height, measured again with every other footprint at
     /// the roof the pass before measured — its shadow cast over the ground (unusable there),
     /// its flat roof a surface this footprint's shadow may lie on ([`refine::corridor`]) —
@@ -134,7 +135,7 @@ impl Default for Options {
             line_spacing_cells: 0.5,
             sub_points: 4,
             band_cells: BAND_CELLS,
-            joint_passes: 1,
+            joint_passes: 0,
         }
     }
 }
@@ -2384,7 +2385,11 @@ mod tests {
             rotation_deg: 0.0,
             height_m: 6.0,
         };
-        let r = run(&spec(40.0, 180.0, (0.0, 0.0), vec![a, b]));
+        let joint = Options {
+            joint_passes: 1,
+            ..Options::default()
+        };
+        let r = run_with(&spec(40.0, 180.0, (0.0, 0.0), vec![a, b]), &joint);
         let m = r[0].0.as_ref().unwrap();
         assert!(m.lines_used > 0 && m.lines_used < MIN_VALID_LINES, "{m:?}");
         assert!(m.flags.shadow_on_other_building, "{m:?}");
@@ -2393,11 +2398,7 @@ mod tests {
         assert!((h - r[0].1).abs() <= 0.5, "{h} vs {}: {m:?}", r[0].1);
         let [_, (lo, hi)] = m.roof_z_intervals.unwrap();
         assert!(lo <= 410.0 && 410.0 <= hi, "{m:?}");
-        let alone = Options {
-            joint_passes: 0,
-            ..Options::default()
-        };
-        let m = &run_with(&spec(40.0, 180.0, (0.0, 0.0), vec![a, b]), &alone)[0].0;
+        let m = &run(&spec(40.0, 180.0, (0.0, 0.0), vec![a, b]))[0].0;
         assert_eq!(m.as_ref().unwrap().height_m, None, "{m:?}");
     }
 
