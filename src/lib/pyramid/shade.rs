@@ -957,6 +957,14 @@ mod tests {
         .unwrap()
     }
 
+    /// The effects of buildings `b` over terrain `t` in a plain grey photo taken under the
+    /// sun `s`, shaded for that same sun.
+    fn under_the_photos_sun<'a>(s: Sun, t: &'a Elevation, b: &'a Raised) -> Effects<'a> {
+        prepare(Some(s), Some(s), 0.5, t, &plain(t), [b, none(), b], None)
+            .unwrap()
+            .unwrap()
+    }
+
     #[test]
     fn no_sun_prepares_nothing() {
         let t = terrain(8, 8, |c, _| c as f32);
@@ -1063,17 +1071,7 @@ mod tests {
         let s = sun(35.0, 90.0);
         // Nothing raised: nothing at all to do.
         assert!(bare(Some(s), Some(s), 0.5, &t).is_none());
-        let fx = prepare(
-            Some(s),
-            Some(s),
-            0.5,
-            &t,
-            &plain(&t),
-            [&b, none(), &b],
-            None,
-        )
-        .unwrap()
-        .unwrap();
+        let fx = under_the_photos_sun(s, &t, &b);
         assert_eq!(json(&fx.record())["applied"], json!(["wall_shading"]));
         // Ground in the building's shadow (west of it) and plain ground: unchanged.
         assert_eq!(fx.factor_at(6, 10).unwrap(), 1.0);
@@ -1123,17 +1121,7 @@ mod tests {
         assert_eq!((b.cells().len(), outline), (1280, 140));
         // The photo's own sun: the photo holds the faces' shading; only the outline is walls.
         let s = sun(35.0, 160.0);
-        let fx = prepare(
-            Some(s),
-            Some(s),
-            0.5,
-            &t,
-            &plain(&t),
-            [&b, none(), &b],
-            None,
-        )
-        .unwrap()
-        .unwrap();
+        let fx = under_the_photos_sun(s, &t, &b);
         assert_eq!(json(&fx.record())["wall_cells"], json!(outline));
         for (c, r) in [(30, 20), (30, 30), (30, 35), (30, 40), (20, 25)] {
             assert_eq!(fx.factor_at(c, r).unwrap(), 1.0, "roof cell ({c}, {r})");
