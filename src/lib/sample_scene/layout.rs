@@ -228,7 +228,7 @@ fn house(
     let length = rng.stepped(HOUSE_LENGTH_M.0, HOUSE_LENGTH_M.1, HOUSE_STEP);
     let width = rng.stepped(HOUSE_WIDTH_M.0, HOUSE_WIDTH_M.1, HOUSE_STEP);
     let mut own = Rng::new(own_seed);
-    let ridge_north = own.next_u64() % 2 == 0;
+    let ridge_north = own.next_u64().is_multiple_of(2);
     let pitch_deg = own.stepped(HOUSE_PITCH_DEG.0, HOUSE_PITCH_DEG.1, 1.0);
     let (w, d) = if ridge_north {
         (width, length)
