@@ -27,7 +27,7 @@ pub const SURFACE_INTERVAL_CELLS: f64 = 4.0;
 
 /// What a joint pass knows of every footprint, from the pass before it.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Known {
+pub struct Known<'a> {
     /// Per footprint, the roof (absolute metres) whose shadow makes the ground unusable for
     /// the others: the one measured plus its uncertainty (one cell of shadow), else the first
     /// pass's sketch (as given).
@@ -37,20 +37,20 @@ pub struct Known {
     /// (a pitch, a poor match, a shadow reaching further, an outline off its roof), and its
     /// 95 % interval at most [`SURFACE_INTERVAL_CELLS`] cells of shadow wide.
     pub surfaces: Vec<Option<f64>>,
-    /// Per footprint, its measurement in the pass before: what a joint pass keeps for a
-    /// footprint whose corridor holds no known roof (the ground alone says nothing new there;
-    /// measured again over the whole corridor, the town's 12° photos got more heights, but
-    /// fewer right).
-    pub previous: Vec<Option<Measurement>>,
+    /// Per footprint, its result in the pass before: what a joint pass keeps for a footprint
+    /// whose corridor holds no known roof (the ground alone says nothing new there; measured
+    /// again over the whole corridor, the town's 12° photos got more heights, but fewer
+    /// right).
+    pub previous: &'a [std::result::Result<Measurement, String>],
 }
 
-impl Known {
+impl<'a> Known<'a> {
     /// What the results `measured` (one per footprint) say, with `sketched` the first pass's
     /// shading roofs for the footprints measured without a height.
     pub fn from(
-        measured: &[std::result::Result<Measurement, String>],
+        measured: &'a [std::result::Result<Measurement, String>],
         sketched: &[Option<f64>],
-    ) -> Known {
+    ) -> Known<'a> {
         let ok = |k: usize| measured[k].as_ref().ok();
         let shading = (0..measured.len())
             .map(|k| {
@@ -62,11 +62,10 @@ impl Known {
         let surfaces = (0..measured.len())
             .map(|k| ok(k).and_then(surface))
             .collect();
-        let previous = measured.iter().map(|m| m.as_ref().ok().cloned()).collect();
         Known {
             shading,
             surfaces,
-            previous,
+            previous: measured,
         }
     }
 }
@@ -123,16 +122,14 @@ mod tests {
             (113.9, 114.1),
         );
         let none = measured(None, Flags::default(), (0.0, 0.0));
-        let known = Known::from(
-            &[
-                Ok(sure),
-                Ok(wide),
-                Ok(poor),
-                Ok(none),
-                Err("off the grid".into()),
-            ],
-            &[None, None, None, Some(120.0), Some(130.0)],
-        );
+        let results = [
+            Ok(sure),
+            Ok(wide),
+            Ok(poor),
+            Ok(none),
+            Err("off the grid".into()),
+        ];
+        let known = Known::from(&results, &[None, None, None, Some(120.0), Some(130.0)]);
         assert_eq!(known.surfaces, vec![Some(110.0), None, None, None, None]);
         assert_eq!(
             known.shading,

@@ -25,11 +25,11 @@
 //!    clearly better: its ridge is the height and its form, eaves and direction are reported.
 //! 5. **Jointly** ([`joint`], [`Options::joint_passes`]; off by default). The footprints
 //!    whose shadow met another footprint, or that got no height, are measured again with
-//!    every other footprint at its measured roof: its shadow hides the ground, and its roof, where measured flat and
-//!    sure, is a surface this footprint's shadow is fitted on (with that roof's own levels);
-//!    the corridor is every band but those of lines that disagree, and a fit the photo cannot
-//!    close from above is a lower bound, not a height. Without a known roof in its window a
-//!    footprint keeps its second-pass result.
+//!    every other footprint at its measured roof: its shadow hides the ground, and its roof,
+//!    where measured flat and sure, is a surface this footprint's shadow is fitted on (with
+//!    that roof's own levels); the corridor is every band but those of lines that disagree,
+//!    and a fit the photo cannot close from above is a lower bound, not a height. Without a
+//!    known roof in its window a footprint keeps its second-pass result.
 //!
 //! Heights: `height_m` is the roof above the **highest** terrain cell under the footprint (cell
 //! centres inside it) — the lowest wall, as `dbms sample`'s truth defines it; `roof_z` is
@@ -115,11 +115,11 @@ pub struct Options {
     /// its footprints' windows reach. A band is never smaller than one footprint's window.
     pub band_cells: usize,
     /// Joint passes after the second (default 0: none; see docs/shadow-height.md for what one
-    /// gains and costs): the footprints whose shadow ran
-    /// into a neighbour, or that got no height, measured again with every other footprint at
-    /// the roof the pass before measured — its shadow cast over the ground (unusable there),
-    /// its flat roof a surface this footprint's shadow may lie on ([`refine::corridor`]) —
-    /// and the whole corridor read but for the bands of scan lines that disagree.
+    /// gains and costs): the footprints whose shadow ran into a neighbour, or that got no
+    /// height, measured again with every other footprint at the roof the pass before
+    /// measured — its shadow cast over the ground (unusable there), its flat roof a surface
+    /// this footprint's shadow may lie on ([`refine::corridor`]) — and the whole corridor
+    /// read but for the bands of scan lines that disagree.
     pub joint_passes: usize,
 }
 
@@ -1142,8 +1142,7 @@ pub fn read_mask(path: &std::path::Path, grid: &Grid) -> Result<Raster<u8>> {
 /// met other buildings, left the grid, or ran on into a neighbour's shadow do not lead the
 /// refinement.
 fn inlier_bands(local: &Local, s: &scan::Scan, len: f64, n: (f64, f64), cell: f64) -> Vec<bool> {
-    let tol = LINE_TOLERANCE.0 * len + LINE_TOLERANCE.1 * cell;
-    line_bands(local, s, n, cell, |l| (l - len).abs() <= tol)
+    line_bands(local, s, n, cell, agreeing(len, cell))
 }
 
 /// Which open or unusable cells of `local` lie in the band of a valid scan line whose length
@@ -1157,13 +1156,20 @@ fn disagreeing_bands(
     n: (f64, f64),
     cell: f64,
 ) -> Vec<bool> {
-    let tol = LINE_TOLERANCE.0 * len + LINE_TOLERANCE.1 * cell;
-    line_bands(local, s, n, cell, |l| (l - len).abs() > tol)
+    let agrees = agreeing(len, cell);
+    line_bands(local, s, n, cell, |l| !agrees(l))
 }
 
 /// How far a valid line's length may be from the median and still agree: this share of the
 /// median plus this many cells.
 const LINE_TOLERANCE: (f64, f64) = (0.3, 2.0);
+
+/// Whether a line's length (metres) agrees with the median `len`: within [`LINE_TOLERANCE`],
+/// with `cell` the cell edge (metres).
+fn agreeing(len: f64, cell: f64) -> impl Fn(f64) -> bool {
+    let tol = LINE_TOLERANCE.0 * len + LINE_TOLERANCE.1 * cell;
+    move |l| (l - len).abs() <= tol
+}
 
 /// Which open or unusable cells of `local` lie in the band (half a cell either side, across
 /// the lines: `n`, unit) of a valid line of `s` whose length (metres) is `chosen`.
@@ -1383,7 +1389,7 @@ struct PassInputs<'a> {
     /// Second pass: each footprint's detection threshold from the first (`None` in the first).
     thresholds: Option<&'a [Option<f64>]>,
     /// A joint pass: the others' roofs as measured so far.
-    known: Option<&'a joint::Known>,
+    known: Option<&'a joint::Known<'a>>,
     /// The first pass: only the roofs are wanted, to within their uncertainty (one cell of
     /// shadow), which is added to them. The roof is the one the scan lines imply over the
     /// real terrain (the median of their tips' terrain + length · tan e), not refined, and it
@@ -1531,7 +1537,7 @@ impl PassInputs<'_> {
         );
         if let Some(known) = self.known {
             sub.roofs = self.neighbour_roofs(sought.id, &sub, known);
-            let previous = &known.previous[sought.id as usize - 1];
+            let previous = known.previous[sought.id as usize - 1].as_ref().ok();
             if let (true, Some(m)) = (sub.roofs.iter().all(Option::is_none), previous) {
                 return Ok(m.clone());
             }
@@ -1974,12 +1980,17 @@ impl PassInputs<'_> {
     ) -> Vec<Option<local::RoofCell>> {
         let (w, win) = (self.grid.width, &local.win);
         let toward_sun = self.sun.direction();
-        let tan_e = self.sun.elevation_deg.to_radians().tan();
-        let shaders: Vec<(usize, refine::Walls, f64)> = self
+        let rays = ShadowRays {
+            tan_e: self.sun.elevation_deg.to_radians().tan(),
+            reach: self.reach,
+        };
+        // Each shading footprint's id, walls toward the sun and shading roof.
+        let shaders: Vec<(u32, refine::Walls, f64)> = self
             .reaching(id, window_box(self.grid, win))
             .filter_map(|j| {
                 let roof = known.shading[j]?;
-                Some((j, refine::Walls::new(&self.footprints[j], toward_sun), roof))
+                let walls = refine::Walls::new(&self.footprints[j], toward_sun);
+                Some((j as u32 + 1, walls, roof))
             })
             .collect();
         (0..local.class.len())
@@ -1991,15 +2002,9 @@ impl PassInputs<'_> {
                 let owner = *self.band.owner.at(r * w + c);
                 let z = known.surfaces[(owner as usize).checked_sub(1)?]?;
                 let p = self.grid.cell_centre(c, r);
-                let others = shaders.iter().filter(|s| s.0 + 1 != owner as usize);
-                let third = others.map(|(_, walls, roof)| (walls, *roof));
-                let rays = ShadowRays {
-                    tan_e,
-                    reach: self.reach,
-                };
-                let shaded = third
-                    .into_iter()
-                    .any(|(walls, roof)| rays.shade(walls, roof, p, z));
+                let shaded = shaders
+                    .iter()
+                    .any(|(j, walls, roof)| *j != owner && rays.shade(walls, *roof, p, z));
                 (!shaded).then_some(local::RoofCell { owner, z: z as f32 })
             })
             .collect()
