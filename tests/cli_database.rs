@@ -44,6 +44,8 @@ const APPLY: &[&str] = &[
     "40",
     "--sun-azimuth",
     "135",
+    "--photo-encoding",
+    "linear",
     "--apply",
     "-o",
     "h.geojson",

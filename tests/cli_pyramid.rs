@@ -1007,6 +1007,8 @@ fn a_building_removed_under_another_sun_rebuilds_the_detectors_reach() {
             footprints,
             "--time",
             photo,
+            "--photo-encoding",
+            "linear",
             "--apply",
             "-o",
             "heights.geojson",

@@ -28,6 +28,7 @@ ortho = "scene/ortho.tif"
 photo_time = "{SUN}"
 [buildings]
 footprints = "scene/buildings.geojson"
+photo_encoding = "linear"
 [objects.tree]
 kind = "cone"
 height = 10
@@ -88,6 +89,8 @@ fn stage_by_stage_with(dir: &Path, heading: f64, inset: Option<&str>) -> Vec<u8>
         "scene/buildings.geojson",
         "--time",
         SUN,
+        "--photo-encoding",
+        "linear",
         "--apply",
         "-o",
         "manual/heights.geojson",

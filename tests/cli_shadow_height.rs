@@ -3,7 +3,7 @@
 
 use dbms::choice::Choice;
 use dbms::io::geotiff;
-use dbms::roof::Pitch;
+use dbms::roof::{Pitch, RoofForm};
 use dbms::sun::Sun;
 use dbms::testing::shadow_scene::{synth_scene, SynthBuilding, SynthSpec};
 use serde_json::{json, Value};
@@ -494,7 +494,8 @@ fn sample_within_a_cell(
         ],
         &s,
     );
-    // No sun given: the photo time recorded by ingest.
+    // No sun given: the photo time recorded by ingest. The sample's photo is shaded in its
+    // byte values: linear in light.
     ok(
         &[
             "shadow-height",
@@ -502,6 +503,8 @@ fn sample_within_a_cell(
             "db",
             "--footprints",
             "buildings.geojson",
+            "--photo-encoding",
+            "linear",
             "-o",
             "heights.geojson",
         ],
@@ -535,10 +538,19 @@ fn sample_within_a_cell(
                 let ridge = p["roof_z"].as_f64().unwrap() - roof_z;
                 let eaves = g.eave_z - w.eave_z;
                 let turn = (g.azimuth_deg - w.azimuth_deg).rem_euclid(180.0);
+                let ridge_cells = match w.form {
+                    RoofForm::Hip => HIP_RIDGE_CELLS,
+                    _ => RIDGE_CELLS,
+                };
+                let [lo, hi] = [0, 1].map(|k| p["roof_z_interval_95"][k].as_f64().unwrap());
+                assert!(
+                    (lo..=hi).contains(&roof_z),
+                    "house {id}: ridge {roof_z} outside its 95 % interval [{lo}, {hi}]"
+                );
                 assert!(
                     g.form == w.form
                         && turn.min(180.0 - turn) <= 5.0
-                        && ridge.abs() <= RIDGE_CELLS * cell
+                        && ridge.abs() <= ridge_cells * cell
                         && eaves.abs() <= EAVES_CELLS * cell,
                     "house {id}: fitted {g:?} ridge {ridge:+.3} m, eaves {eaves:+.3} m; truth {w:?}"
                 );
@@ -585,6 +597,9 @@ fn sample_within_a_cell(
 /// at the default size and one at `--size 200`, all came back low, by 0.06–0.14 m, 0.23–0.57
 /// cells; the issue's goal is 2 cells).
 const RIDGE_CELLS: f64 = 1.0;
+/// The same for a hip roof: pitched below the sun, its shadow shows only its eaves, and its
+/// ridge comes from its faces' shading (issue 39; the issue's goal, 2 cells).
+const HIP_RIDGE_CELLS: f64 = 2.0;
 /// How close (orthophoto cells) a house's fitted eaves, or a flagged house's flat measurement
 /// below its eaves, must come to truth: the fit's eaves were 0.01–0.03 m low on the sample, the
 /// flagged hips measured 0.01–0.05 m from their eaves (0.2 cells).

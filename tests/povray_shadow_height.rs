@@ -384,9 +384,10 @@ fn pitched_scene(
 }
 
 /// Measure the pitched houses of `s`: how many came back with the right form, ridge direction
-/// (within 5°), ridge and eaves (each within two cells); and the silent gross errors (an
-/// unflagged roof whose top is off by more than two cells) as a list.
-fn pitched_tally(name: &str, s: &Scene) -> (usize, usize, Vec<String>) {
+/// (within 5°), ridge and eaves (each within two cells); the silent gross errors (an unflagged
+/// roof whose top is off by more than two cells) as a list; and how many tops lie outside
+/// their 95 % interval.
+fn pitched_tally(name: &str, s: &Scene) -> (usize, usize, Vec<String>, usize) {
     let dir = tempfile::tempdir().unwrap();
     let p = prepare_scene(s, dir.path()).unwrap_or_else(|e| panic!("{name}: {e}"));
     let (out, secs) = measure_prepared(s, &p).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -394,6 +395,7 @@ fn pitched_tally(name: &str, s: &Scene) -> (usize, usize, Vec<String>) {
     let tol = 2.0 * s.cell;
     let mut right = 0;
     let mut silent = Vec::new();
+    let mut outside = 0;
     for (o, b) in out.iter().zip(&s.buildings) {
         let (form, eave_z) = match b.roof {
             Roof::Gable { eave_z, .. } => ("gable", eave_z),
@@ -403,25 +405,72 @@ fn pitched_tally(name: &str, s: &Scene) -> (usize, usize, Vec<String>) {
         let p = &o.properties;
         // The ridge runs along the first side: its azimuth, clockwise from north.
         let truth_az = (90.0 - b.rotation_deg).rem_euclid(180.0);
+        // A hip along its shorter side is a hip along the longer one rising `l / w` of the
+        // rise (its top is below `ridge_z`: [`Roof::Hip`]'s profile): judged by its real top
+        // and as that roof.
+        let (l, w) = (b.size.0 / 2.0, b.size.1 / 2.0);
+        let (top_z, truth_az) = match b.roof {
+            Roof::Hip { ridge_z, .. } if l < w => (
+                eave_z + (ridge_z - eave_z) * l / w,
+                (truth_az + 90.0) % 180.0,
+            ),
+            _ => (o.truth_z, truth_az),
+        };
         let az_off = p["roof_azimuth_deg"].as_f64().map_or(f64::INFINITY, |a| {
             let d = (a - truth_az).rem_euclid(180.0);
             d.min(180.0 - d)
         });
         let eave_off = p["eave_z"].as_f64().map_or(f64::INFINITY, |z| z - eave_z);
-        let top_off = o.error_m().unwrap_or(f64::INFINITY);
+        let top_off = o.roof_z.map_or(f64::INFINITY, |z| z - top_z);
         if p["roof_form"] == form && az_off < 5.0 && eave_off.abs() <= tol && top_off.abs() <= tol {
             right += 1;
         }
         if !o.flagged() && top_off.abs() > tol {
             silent.push(format!("{name}: {o:?}"));
         }
+        let i95 = &p["roof_z_interval_95"];
+        if let (Some(lo), Some(hi)) = (i95[0].as_f64(), i95[1].as_f64()) {
+            outside += usize::from(!(lo..=hi).contains(&top_z));
+        }
         eprintln!(
-            "{name}: {form} truth eaves {eave_z:.2} ridge {:.2} az {truth_az:.1}; got {} eaves \
-             {:?} ridge {:?} az {:?} flags {:?}",
-            o.truth_z, p["roof_form"], p["eave_z"], o.roof_z, p["roof_azimuth_deg"], o.flags
+            "{name}: {form} truth eaves {eave_z:.2} ridge {top_z:.2} az {truth_az:.1}; got {} \
+             eaves {:?} ridge {:?} az {:?} 95 % {i95} flags {:?}",
+            p["roof_form"], p["eave_z"], o.roof_z, p["roof_azimuth_deg"], o.flags
         );
     }
-    (out.len(), right, silent)
+    (out.len(), right, silent, outside)
+}
+
+/// Roofs pitched below the sun cast their eaves' shadow whatever their pitch — a hip roof
+/// always, a gable with the sun across its ridge — so the shadow cannot tell ridge from eaves
+/// (issue 39, item 3). Their faces, lit at different angles, can: POV-Ray's Lambert shading
+/// of hips pitched 25° under a 35° sun, rotated every way, and of gables pitched 20–37° with
+/// the sun exactly across their ridges. The photos are linear, and dbms is told so (as every
+/// scene here: `measure_prepared`).
+#[test]
+fn hard_case_roofs_pitched_below_the_sun_are_measured_from_their_faces() {
+    if !povray::available() {
+        return;
+    }
+    let hip_rise = |b: &Building| 0.5 * b.size.1 * 25f64.to_radians().tan();
+    for (name, s) in [
+        (
+            "hips at 25°, sun 160°",
+            pitched_scene(false, 160.0, true, 6, hip_rise),
+        ),
+        (
+            "gables, sun across the ridges",
+            pitched_scene(true, 180.0, false, 6, |_| 3.0),
+        ),
+    ] {
+        let (n, right, silent, outside) = pitched_tally(name, &s);
+        assert!(silent.is_empty(), "{silent:#?}");
+        assert!(right * 5 >= n * 4, "{name}: {right} of {n} right");
+        assert!(
+            outside * 20 <= n,
+            "{name}: {outside} of {n} outside their 95 % interval"
+        );
+    }
 }
 
 #[test]
@@ -451,22 +500,18 @@ fn pitched_roofs_are_measured_ridge_and_eaves() {
             pitched_scene(true, 135.0, false, 6, |_| 3.0),
         ),
     ] {
-        let (n, right, silent) = pitched_tally(name, &s);
+        let (n, right, silent, _) = pitched_tally(name, &s);
         assert!(silent.is_empty(), "{silent:#?}");
         assert!(right * 5 >= n * 4, "{name}: {right} of {n} right");
     }
     // Steep hips: ridges 5–12 m above the eaves, above the refinement's ceiling (twice the
     // first estimate) for most: measured right or flagged, never silently wrong.
     let s = pitched_scene(false, 200.0, true, 12, hip_rise);
-    let (_, right, silent) = pitched_tally("steep hips, sun 200°", &s);
+    let (_, right, silent, _) = pitched_tally("steep hips, sun 200°", &s);
     assert!(silent.is_empty(), "{silent:#?}");
     assert!(right >= 2, "steep hips: {right} right");
-    // The sun exactly across the ridges: the shadow is a rectangle whatever the pitch, so
-    // nothing tells ridge from eaves — flagged `pitched_roof` (the roofs' faces differ), no
-    // silent error.
-    let s = pitched_scene(true, 180.0, false, 6, |_| 3.0);
-    let (_, _, silent) = pitched_tally("gables, sun across the ridges", &s);
-    assert!(silent.is_empty(), "{silent:#?}");
+    // The sun exactly across the ridges, where the shadow is a rectangle whatever the pitch:
+    // `hard_case_roofs_pitched_below_the_sun_are_measured_from_their_faces`.
 }
 
 /// A tower whose whole shadow falls on a lower neighbour: across a 4 m alley, up its wall and

@@ -85,6 +85,9 @@ pub struct Prepared {
     pub render_secs: f64,
     /// Wall clock of `dbms ingest`, seconds.
     pub ingest_secs: f64,
+    /// Whether the photo's bytes are sRGB (else linear): `dbms shadow-height` is told, as a user
+    /// who knows their photo would tell it.
+    pub srgb: bool,
 }
 
 /// Render `scene` into `dir` and ingest it (`dir/db`).
@@ -117,11 +120,12 @@ pub fn prepare_scene_photo<B: Structure>(
         db,
         render_secs,
         ingest_secs: t.elapsed().as_secs_f64(),
+        srgb: photo.srgb,
     })
 }
 
 /// Run `dbms shadow-height` on a prepared scene (the scene's sun, its camera for a perspective
-/// photo, default options otherwise; output
+/// photo, the photo's encoding, default options otherwise; output
 /// `heights.geojson` beside the photo): one outcome per listed building in scene order, and the
 /// command's wall clock in seconds (process start, reading the database and footprints,
 /// measuring, writing).
@@ -148,6 +152,9 @@ pub fn measure_prepared_with<B: Structure>(
         .arg(format!("--sun-azimuth={}", scene.sun_azimuth_deg))
         .arg("-o")
         .arg(&heights);
+    if !p.srgb {
+        sh.arg("--photo-encoding=linear");
+    }
     if let super::povray::Camera::Perspective { nadir, height_m } = scene.camera {
         // A frame photo: dbms is told where it was taken from.
         sh.arg(format!(

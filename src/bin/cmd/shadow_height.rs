@@ -1,6 +1,7 @@
 //! `dbms shadow-height`: building heights from their shadows in the database's orthophoto.
 
 use super::{Ctx, SunUsed};
+use clap::ValueEnum as _;
 use dbms::db::Database;
 use dbms::error::Error;
 use dbms::io::atomic::AtomicFile;
@@ -43,6 +44,10 @@ pub struct Args {
     /// about a pass over those buildings; see docs/shadow-height.md.
     #[arg(long, default_value_t = sh::Options::default().joint_passes)]
     joint_passes: usize,
+    /// How the photo's bytes encode light: `srgb` (the usual photo) or `linear`. Pitched roofs'
+    /// faces are compared as light: a wrong encoding misreads their pitch.
+    #[arg(long, value_enum, default_value = "srgb")]
+    photo_encoding: EncodingArg,
     /// Largest footprint misregistration sought, metres: the footprints are moved by the
     /// scene's robust shift onto their roofs in the photo (median of the buildings' clear
     /// estimates); 0 takes them as given.
@@ -62,6 +67,13 @@ pub struct Args {
     /// Output heights GeoJSON.
     #[arg(short, long)]
     output: PathBuf,
+}
+
+/// The photo encodings `--photo-encoding` names.
+#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+enum EncodingArg {
+    Srgb,
+    Linear,
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -93,6 +105,10 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         line_spacing_cells: args.line_spacing,
         sub_points: args.sub_points,
         joint_passes: args.joint_passes,
+        photo_encoding: match args.photo_encoding {
+            EncodingArg::Srgb => sh::shading::PhotoEncoding::Srgb,
+            EncodingArg::Linear => sh::shading::PhotoEncoding::Linear,
+        },
         ..sh::Options::default()
     };
     let (registration, results) = sh::measure_features(
@@ -196,6 +212,7 @@ fn stage_params(
         "footprints": args.footprints, "sun": SunUsed::new(sun, &args.sun),
         "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": buildings,
         "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points, "joint_passes": args.joint_passes,
+        "photo_encoding": args.photo_encoding.to_possible_value().map(|v| v.get_name().to_string()),
         "max_shift_m": args.max_shift, "camera": args.camera,
         "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
         "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),

@@ -280,6 +280,10 @@ fn rects_overlap(a: &[f64; 4], b: &[f64; 4]) -> bool {
 pub struct Buildings {
     /// GeoJSON FeatureCollection of footprint polygons.
     pub footprints: PathBuf,
+    /// How the orthophoto's bytes encode light (`shadow-height --photo-encoding`; `None`: its
+    /// default, sRGB). Pitched roofs' faces are read as light.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photo_encoding: Option<crate::shadow_height::shading::PhotoEncoding>,
 }
 
 /// `[objects.NAME]`: a synthetic voxel object, as `dbms object KIND` makes it.

@@ -12,6 +12,7 @@ use super::file::{ObjectSpec, Product, Scene};
 use crate::db::sha256_file;
 use crate::error::{Error, Result};
 use crate::io::atomic::AtomicFile;
+use crate::shadow_height::shading::PhotoEncoding;
 use crate::voxel::place::Variation;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -410,21 +411,27 @@ fn heights_step(scene: &Scene) -> Option<Step> {
         return None;
     };
     let heights = steps_dir(scene).join("heights.geojson");
+    let mut command = vec![
+        s("shadow-height"),
+        s("--db"),
+        s(scene.database.dir.display()),
+        s("--footprints"),
+        s(b.footprints.display()),
+        s("--time"),
+        t.clone(),
+    ];
+    if let Some(e) = b.photo_encoding {
+        let name = match e {
+            PhotoEncoding::Srgb => "srgb",
+            PhotoEncoding::Linear => "linear",
+        };
+        command.extend([s("--photo-encoding"), s(name)]);
+    }
+    command.extend([s("--apply"), s("-o"), s(heights.display())]);
     Some(Step {
         name: "heights".into(),
         does: "building heights from the photo's shadows, into the database".into(),
-        commands: vec![vec![
-            s("shadow-height"),
-            s("--db"),
-            s(scene.database.dir.display()),
-            s("--footprints"),
-            s(b.footprints.display()),
-            s("--time"),
-            t.clone(),
-            s("--apply"),
-            s("-o"),
-            s(heights.display()),
-        ]],
+        commands: vec![command],
         inputs: vec![b.footprints.clone()],
         outputs: vec![heights],
         after: vec!["ingest".into()],

@@ -54,6 +54,7 @@ pub mod refine;
 pub mod register;
 pub mod roof;
 pub mod scan;
+pub mod shading;
 pub mod uncertainty;
 
 pub use footprint::{read_footprints, Footprint, InputFeature};
@@ -121,6 +122,9 @@ pub struct Options {
     /// this footprint's shadow may lie on ([`refine::corridor`]) — and the whole corridor
     /// read but for the bands of scan lines that disagree.
     pub joint_passes: usize,
+    /// How the photo's bytes encode light (default sRGB): the faces' shading compares light,
+    /// not bytes ([`shading`]).
+    pub photo_encoding: shading::PhotoEncoding,
 }
 
 /// See [`Options::band_cells`]: 32 M cells, about 18 bytes each while a band is measured
@@ -136,6 +140,7 @@ impl Default for Options {
             sub_points: 4,
             band_cells: BAND_CELLS,
             joint_passes: 0,
+            photo_encoding: shading::PhotoEncoding::Srgb,
         }
     }
 }
@@ -1576,17 +1581,24 @@ impl PassInputs<'_> {
         }
         // A pitched-looking roof whose shape fits clearly better: the ridge is its height,
         // the eaves the lowest the scan lines may see; otherwise the flat roof, still flagged.
+        // Faces whose shading tells a pitch make a pitched-looking roof too.
+        let shading = self.shading(sought, &sub);
+        let shading = shading.as_ref().map(|(r, l)| (r, l));
+        m.flags.pitched_roof |= shading.is_some_and(|(r, l)| pitched::shading_tells(fp, r, l));
         let fitted = m.flags.pitched_roof.then(|| {
             let sub_points = self.opts.sub_points;
-            pitched::fit(&sub, fp, &keep, u, tan_e, ground_z, z_hi, sub_points, cell)
+            pitched::fit(
+                shading, &sub, fp, &keep, u, tan_e, ground_z, z_hi, sub_points, cell,
+            )
         });
-        let (top_m, eave_m, overlap) = match fitted.flatten() {
+        let (top_m, eave_m, overlap, plausible) = match fitted.flatten() {
             Some(p) => {
                 m.pitch = Some(p.pitch);
                 m.flags.pitched_roof = false;
-                (p.top_m, p.pitch.eave_z - ground_z, p.overlap)
+                let eave_m = p.pitch.eave_z - ground_z;
+                (p.top_m, eave_m, p.overlap, Some(p.top_plausible_m))
             }
-            None => (r.height_m, r.height_m, r.overlap),
+            None => (r.height_m, r.height_m, r.overlap, None),
         };
         m.height_m = Some(top_m);
         m.roof_z = Some(ground_z + top_m);
@@ -1617,13 +1629,14 @@ impl PassInputs<'_> {
         m.flags.poor_shadow_match = overlap < MIN_OVERLAP;
         let least = uncertainty::at_least(s, ground_z);
         m.flags.shadow_reaches_further = least.is_some_and(|z| z > ground_z + top_m + tol);
-        // A fitted pitched roof's ridge has no profile over its rise yet: its interval is the
-        // walls' place and the lines' spread around the ridge.
-        let fit = match m.pitch {
-            Some(_) => refine::Refined {
+        // A fitted pitched roof's ridge: its interval is what chose the rise (a point when the
+        // shadow did, the pitch's range when the faces' shading did), widened by the walls'
+        // place and the lines' spread.
+        let fit = match plausible {
+            Some(plausible) => refine::Refined {
                 height_m: top_m,
                 overlap,
-                plausible: [(top_m, top_m); 2],
+                plausible,
             },
             None => r,
         };
@@ -1631,41 +1644,88 @@ impl PassInputs<'_> {
             &m,
             &fit,
             least,
-            [z_hi, self.opts.max_height_m],
+            // A roof left pitched-looking may rise above the search, up to the steepest pitch.
+            [
+                z_hi.max(top_m + pitched::highest_rise(fp)),
+                self.opts.max_height_m,
+            ],
         ));
         Ok(m)
     }
 
-    /// Whether the roof of `fp` (own cells `cells`) looks pitched where the photo shows it: over
-    /// the footprint moved by its `lean` (metres) in a perspective photo. Without a lean, roof
-    /// cells in a taller neighbour's shadow (second pass: at this building's first-pass roof)
-    /// are left out: a roof half in a neighbour's shadow is two brightnesses with a straight
-    /// boundary too (`dbms sample`'s adjacent pairs). A leaning roof is read whole.
+    /// Whether the roof of `fp` (own cells `cells`) looks pitched where the photo shows it
+    /// ([`Self::roof_in_photo`]).
     fn looks_pitched(&self, id: u32, fp: &Footprint, cells: &[usize], lean: (f64, f64)) -> bool {
+        let (seen, cells) = self.roof_in_photo(id, fp, cells, lean);
+        roof::looks_pitched(&seen, &self.band.colour, &cells, self.sun.direction())
+    }
+
+    /// The roof of `fp` (own cells `cells`) where the photo shows it: the footprint moved by
+    /// its `lean` (metres) in a perspective photo, and the cells of it to read. Without a lean,
+    /// roof cells in a taller neighbour's shadow (second pass: at this building's first-pass
+    /// roof) are left out: a roof half in a neighbour's shadow is two brightnesses with a
+    /// straight boundary too (`dbms sample`'s adjacent pairs). A leaning roof is read whole.
+    fn roof_in_photo(
+        &self,
+        id: u32,
+        fp: &Footprint,
+        cells: &[usize],
+        lean: (f64, f64),
+    ) -> (std::borrow::Cow<'_, Footprint>, Vec<usize>) {
         if lean != (0.0, 0.0) {
             let seen = register::moved(fp, lean.0, lean.1);
             let cells = seen.cells(self.grid);
-            return roof::looks_pitched(&seen, &self.band.colour, &cells, self.sun.direction());
+            return (std::borrow::Cow::Owned(seen), cells);
         }
-        let unshaded: Vec<usize>;
-        let cells = match self.roofs[id as usize - 1] {
-            Some(own) => {
-                let w = self.grid.width;
-                let taller = self.shading_neighbours(id, fp, own);
-                let tan_e = self.sun.elevation_deg.to_radians().tan();
-                unshaded = cells
-                    .iter()
-                    .copied()
-                    .filter(|&i| {
-                        let p = self.grid.cell_centre(i % w, i / w);
-                        !self.in_shadow_of(&taller, p, own, tan_e)
-                    })
-                    .collect();
-                &unshaded[..]
-            }
-            None => cells,
+        let Some(own) = self.roofs[id as usize - 1] else {
+            return (std::borrow::Cow::Owned(fp.clone()), cells.to_vec());
         };
-        roof::looks_pitched(fp, &self.band.colour, cells, self.sun.direction())
+        let w = self.grid.width;
+        let taller = self.shading_neighbours(id, fp, own);
+        let tan_e = self.sun.elevation_deg.to_radians().tan();
+        let unshaded = cells
+            .iter()
+            .copied()
+            .filter(|&i| {
+                let p = self.grid.cell_centre(i % w, i / w);
+                !self.in_shadow_of(&taller, p, own, tan_e)
+            })
+            .collect();
+        (std::borrow::Cow::Owned(fp.clone()), unshaded)
+    }
+
+    /// What the faces' shading of `sought`'s roof needs ([`shading`]): its inner cells as the
+    /// photo shows them, moved back onto the footprint by the lean, and the light read off the
+    /// open ground of `sub` (lit and shadow cells). `None` when the ground does not tell the
+    /// light.
+    fn shading(&self, sought: &Sought, sub: &Local) -> Option<(shading::Roof, shading::Light)> {
+        let colour = &self.band.colour;
+        let w = self.grid.width;
+        let ground = |want: Class| -> Vec<[u8; 4]> {
+            (0..sub.class.len())
+                .filter(|&k| sub.class[k] == want)
+                .map(|k| *colour.at(grid_index(&sub.win, w, k)))
+                .filter(|c| c[3] != 0)
+                .collect()
+        };
+        let light = shading::Light::from_ground(
+            self.sun.direction(),
+            self.sun.elevation_deg.to_radians(),
+            &ground(Class::Lit),
+            &ground(Class::Shadow),
+            self.opts.photo_encoding,
+        )?;
+        let own = sought.fp.cells(self.grid);
+        let (seen, cells) = self.roof_in_photo(sought.id, sought.fp, &own, sought.lean);
+        let (le, ln) = sought.lean;
+        let samples = roof::inner_cells(&seen, colour, &cells)
+            .into_iter()
+            .map(|i| {
+                let (x, y) = self.grid.cell_centre(i % w, i / w);
+                ((x - le, y - ln), *colour.at(i))
+            });
+        let roof = shading::Roof::new(samples, sought.cell, self.opts.photo_encoding);
+        Some((roof, light))
     }
 
     /// A [`detect::weak_threshold`] for footprint `fp`'s open ground (`open`: window offset and

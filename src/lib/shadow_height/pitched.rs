@@ -27,6 +27,7 @@
 use super::footprint::Footprint;
 use super::local::Local;
 use super::refine::{self, best_fit, cross, Buckets, Event, LineFit, Refined, SubPoints, Walls};
+use super::shading;
 use crate::roof::{Pitch, RoofForm, RoofShape};
 
 /// A pitched fit is taken only when its unexplained variance of brightness (1 − R² of
@@ -45,6 +46,13 @@ pub const MIN_GAIN: f64 = 1e-6;
 /// variance is at most `1 − MIN_PREFERENCE` of the best's: where the shadow hardly tells two
 /// shapes apart (a cell or two of it), the usual one is taken.
 pub const MIN_PREFERENCE: f64 = 0.1;
+/// A pitch the faces' shading tells ([`shading`]) is taken, where the shadow cannot tell one,
+/// unless the shadow of that roof leaves more than `1 + MAX_CONTRADICTION` times the flat
+/// roof's unexplained variance of brightness: a ridge that high would show in the shadow.
+pub const MAX_CONTRADICTION: f64 = 0.25;
+/// Least pitch, degrees, the faces' shading must show (the low end of its 95 % interval) for a
+/// roof to be taken as pitched on the shading alone ([`shading_tells`]).
+pub const MIN_SHADED_PITCH_DEG: f64 = 5.0;
 /// Steepest pitch tried, degrees from horizontal.
 pub const MAX_PITCH_DEG: f64 = 60.0;
 /// The forms fitted.
@@ -63,13 +71,20 @@ pub struct Fitted {
     pub score: f64,
     /// See `score`.
     pub flat_score: f64,
+    /// The ridge's 68 % and 95 % plausible ranges above `ground_z`, metres, from what chose the
+    /// rise: half a cell and a cell of shadow as height (`cell · tan e`) around it where the
+    /// shadow did, the pitch's intervals where the faces' shading did ([`shading`]).
+    pub top_plausible_m: [(f64, f64); 2],
 }
 
 /// The best pitched roof for footprint `fp`, or `None` when none explains the photo clearly
-/// better than a flat roof (see the module docs). The arguments are [`refine::refine`]'s;
-/// `cell` is the cell edge (metres). Tops up to `z_hi` metres above `ground_z` are tried.
+/// better than a flat roof (see the module docs) and the faces' `shading` (the roof as the
+/// photo shows it, and the light) does not tell a pitch either. The other arguments are
+/// [`refine::refine`]'s; `cell` is the cell edge (metres). Tops up to `z_hi` metres above
+/// `ground_z` are tried.
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
+    shading: Option<(&shading::Roof, &shading::Light)>,
     local: &Local,
     fp: &Footprint,
     keep: &[bool],
@@ -87,6 +102,7 @@ pub fn fit(
     let rays = Rays::new(local, fp, &c.members, u, tan_e, ground_z, z_hi, sub);
     let step = cell * tan_e;
     let mut best: Option<(Trial, Pitch, f64)> = None;
+    let mut shaded: Option<Shaded> = None;
     for azimuth_deg in axes(fp) {
         for form in FORMS {
             let pitch = Pitch {
@@ -134,26 +150,109 @@ pub fn fit(
                     best = Some((t, pitch, rise));
                 }
             }
+            let Some((roof, light)) = shading else {
+                continue;
+            };
+            let faces = shading::Faces::new(roof, &extent, form);
+            let Some(estimate) = shading::estimate(&faces, light) else {
+                continue;
+            };
+            let rise_at = |deg: f64| extent.half.1 * deg.to_radians().tan();
+            let rise = rise_at(estimate.pitch_deg);
+            if shaded.is_none_or(|b| {
+                1.0 - estimate.explained < (1.0 - MIN_PREFERENCE) * (1.0 - b.estimate.explained)
+            }) {
+                if let Some((t, _)) = (rise <= z_hi - step).then(|| trial(rise)).flatten() {
+                    let rises = estimate
+                        .intervals_deg
+                        .map(|(lo, hi)| (rise_at(lo), rise_at(hi)));
+                    shaded = Some(Shaded {
+                        trial: t,
+                        pitch,
+                        rise,
+                        rises,
+                        estimate,
+                    });
+                }
+            }
         }
     }
-    let (t, pitch, rise) = best?;
-    let (unexplained, flat_unexplained) = ((1.0 - t.score).max(0.0), (1.0 - flat.score).max(0.0));
-    if rise < MIN_RISE_CELLS * step
-        || unexplained >= (1.0 - MIN_IMPROVEMENT) * flat_unexplained
-        || flat_unexplained - unexplained < MIN_GAIN
-    {
-        return None;
+    let flat_unexplained = (1.0 - flat.score).max(0.0);
+    let from_shadow = best.filter(|(t, _, rise)| {
+        let unexplained = (1.0 - t.score).max(0.0);
+        *rise >= MIN_RISE_CELLS * step
+            && unexplained < (1.0 - MIN_IMPROVEMENT) * flat_unexplained
+            && flat_unexplained - unexplained >= MIN_GAIN
+    });
+    if let Some((t, pitch, rise)) = from_shadow {
+        let top_m = t.refined.height_m + rise;
+        return Some(Fitted {
+            pitch: Pitch {
+                eave_z: ground_z + t.refined.height_m,
+                ..pitch
+            },
+            top_m,
+            overlap: t.refined.overlap,
+            score: t.score,
+            flat_score: flat.score,
+            // The rise is sought in steps of a cell of shadow as height, then quarter steps
+            // around the best; the shadow's outline places it to about that cell.
+            top_plausible_m: [0.5, 1.0].map(|k| (top_m - k * step, top_m + k * step)),
+        });
     }
+    // The shadow cannot tell: the faces' shading may, unless the shadow of the roof it
+    // tells leaves clearly more of the photo unexplained than the flat roof's.
+    let s = shaded.filter(|s| {
+        (1.0 - s.trial.score).max(0.0) <= (1.0 + MAX_CONTRADICTION) * flat_unexplained
+    })?;
+    let eave_m = s.trial.refined.height_m;
     Some(Fitted {
         pitch: Pitch {
-            eave_z: ground_z + t.refined.height_m,
-            ..pitch
+            eave_z: ground_z + eave_m,
+            ..s.pitch
         },
-        top_m: t.refined.height_m + rise,
-        overlap: t.refined.overlap,
-        score: t.score,
+        top_m: eave_m + s.rise,
+        overlap: s.trial.refined.overlap,
+        score: s.trial.score,
         flat_score: flat.score,
+        top_plausible_m: s.rises.map(|(lo, hi)| (eave_m + lo, eave_m + hi)),
     })
+}
+
+/// The pitched roof the faces' shading tells best ([`shading`]), its eaves fitted to the
+/// shadow.
+#[derive(Clone, Copy)]
+struct Shaded {
+    trial: Trial,
+    pitch: Pitch,
+    /// Ridge above the eaves, metres, and its 68 % and 95 % ranges.
+    rise: f64,
+    rises: [(f64, f64); 2],
+    estimate: shading::Estimate,
+}
+
+/// Whether the faces' shading of `roof` under `light` tells a pitched roof over `fp`: a gable
+/// or hip along one of its axes whose pitch's 95 % interval lies at or above
+/// [`MIN_SHADED_PITCH_DEG`]. It sees faces whose brightnesses differ too little for
+/// [`super::roof::looks_pitched`] (a low pitch, the sun nearly along the ridge).
+pub fn shading_tells(fp: &Footprint, roof: &shading::Roof, light: &shading::Light) -> bool {
+    axes(fp).into_iter().any(|azimuth_deg| {
+        let Some(extent) = crate::roof::Extent::new(&fp.rings, azimuth_deg) else {
+            return false;
+        };
+        FORMS.into_iter().any(|form| {
+            let faces = shading::Faces::new(roof, &extent, form);
+            shading::estimate(&faces, light)
+                .is_some_and(|e| e.intervals_deg[1].0 >= MIN_SHADED_PITCH_DEG)
+        })
+    })
+}
+
+/// The highest a pitched roof over `fp` may rise above its eaves, metres: the steepest pitch
+/// ([`MAX_PITCH_DEG`]) over half its minimum-area rectangle's width.
+pub fn highest_rise(fp: &Footprint) -> f64 {
+    crate::roof::Extent::new(&fp.rings, axes(fp)[0])
+        .map_or(0.0, |e| e.half.1 * MAX_PITCH_DEG.to_radians().tan())
 }
 
 /// The directions (degrees clockwise from grid north, in `[0, 180)`) of the long axis of the
@@ -368,7 +467,18 @@ mod tests {
         let (dx, dy) = sun.direction();
         let tan_e = 35f64.to_radians().tan();
         let keep = vec![true; local.class.len()];
-        fit(&local, &fp, &keep, (-dx, -dy), tan_e, 100.0, 15.0, 4, 1.0)
+        fit(
+            None,
+            &local,
+            &fp,
+            &keep,
+            (-dx, -dy),
+            tan_e,
+            100.0,
+            15.0,
+            4,
+            1.0,
+        )
     }
 
     /// The fit is `form`, eaves and ridge each within `tol` metres of the truth (eaves 3 m,

@@ -40,17 +40,8 @@ pub fn looks_pitched(
     toward_sun: (f64, f64),
 ) -> bool {
     let grid = &colour.grid;
-    let (cx, cy) = grid.cell_size();
-    let cell = cx.max(cy);
     let w = grid.width;
-    let inner: Vec<usize> = cells
-        .iter()
-        .copied()
-        .filter(|&i| {
-            let p = grid.cell_centre(i % w, i / w);
-            colour.at(i)[3] != 0 && distance2_to_outline(fp, p) >= cell * cell
-        })
-        .collect();
+    let inner = inner_cells(fp, colour, cells);
     if inner.len() < MIN_CELLS {
         return false;
     }
@@ -108,6 +99,23 @@ pub fn looks_pitched(
     };
     let (d, b) = (centroid(true), centroid(false));
     faces && (d.0 - b.0) * toward_sun.0 + (d.1 - b.1) * toward_sun.1 < 0.0
+}
+
+/// The roof cells of `fp` among its own `cells` (indices of `colour`'s grid): opaque in the
+/// photo and at least a cell from the outline (module docs).
+pub fn inner_cells(fp: &Footprint, colour: &RowBand<[u8; 4]>, cells: &[usize]) -> Vec<usize> {
+    let grid = &colour.grid;
+    let (cx, cy) = grid.cell_size();
+    let cell = cx.max(cy);
+    let w = grid.width;
+    cells
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let p = grid.cell_centre(i % w, i / w);
+            colour.at(i)[3] != 0 && distance2_to_outline(fp, p) >= cell * cell
+        })
+        .collect()
 }
 
 /// Squared distance (square metres) from `p` to the nearest edge of `fp`.

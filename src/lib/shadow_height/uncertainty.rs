@@ -19,9 +19,10 @@
 //! * **a poor match** of the synthetic and the observed shadow (`poor_shadow_match`): the fit
 //!   explains little of the photo, so the 95 % interval is every height sought, from the
 //!   ground to `--max-height`;
-//! * **a roof that looks pitched but whose pitch the shadow does not tell** (`pitched_roof`
-//!   still set): the height measured is the eaves' or between eaves and ridge, so the 95 %
-//!   interval reaches the highest roof the refinement searched;
+//! * **a roof that looks pitched but whose pitch neither the shadow nor the faces' shading
+//!   tells** (`pitched_roof` still set): the height measured is the eaves' or between eaves
+//!   and ridge, so the 95 % interval reaches the highest roof the refinement searched, or the
+//!   ridge of the steepest pitch sought over it if higher;
 //! * **a shadow seen to reach further** (`shadow_reaches_further`): lines dropped where the
 //!   shadow ran into a neighbour or the grid's edge saw it reach a higher roof ([`at_least`])
 //!   than the valid lines say: that roof enters the 68 % interval, and the 95 % one is every
@@ -45,8 +46,9 @@ pub const EDGE_CELLS: f64 = 0.15;
 
 /// The 68 % and 95 % intervals of the roof of `m` (absolute metres), measured with `m.flags`
 /// and `m.line_roofs` set, from the refinement `r` and the dropped lines' lower bound `least`
-/// ([`at_least`], absolute metres); `[searched_m, max_height_m]` are the highest roof the
-/// refinement searched and the tallest building sought (metres above the ground).
+/// ([`at_least`], absolute metres); `[searched_m, max_height_m]` are the highest roof a
+/// pitched-looking roof may have (what the refinement searched, or a steep pitch's ridge) and
+/// the tallest building sought (metres above the ground).
 pub fn intervals(
     m: &Measurement,
     r: &refine::Refined,
