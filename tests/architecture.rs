@@ -4,7 +4,8 @@
 //! in its module column, the modules of one row, and rows lower on the page are lower layers.
 //! A library module may name (`crate::m`) only modules of its own row or rows below it, and the
 //! items the crate root re-exports (`crate::Error`). Test code (`#[cfg(test)]` modules,
-//! `tests.rs` and `*_tests.rs` files) is exempt: tests may build their scenes with any stage.
+//! `tests.rs` and `*_tests.rs` files, and modules declared under `#[cfg(feature = "testing")]`,
+//! which only tests and benches build) is exempt: tests may build their scenes with any stage.
 //! So are comments: a doc link may point up the layers (to say who uses a thing) without
 //! making the module depend on it.
 
@@ -59,6 +60,37 @@ fn module_of(path: &Path) -> Option<String> {
         Some(stem) => Some(stem.to_string()),
         None => Some(first),
     }
+}
+
+/// The files of the modules `files` declare under `#[cfg(feature = "testing")]` (compiled for
+/// tests and benches only): each module's file `m.rs` and its directory `m/`.
+fn testing_only(files: &[PathBuf]) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for path in files {
+        let text = std::fs::read_to_string(path).expect("readable source");
+        let lines: Vec<&str> = text.lines().map(str::trim).collect();
+        // The children of `lib.rs` or `mod.rs` live beside it, those of `m.rs` in `m/`.
+        let dir = match path.file_name().and_then(|n| n.to_str()) {
+            Some("lib.rs" | "mod.rs") => path.parent().expect("a parent").to_path_buf(),
+            _ => path.with_extension(""),
+        };
+        for (i, line) in lines.iter().enumerate() {
+            if *line != r#"#[cfg(feature = "testing")]"# {
+                continue;
+            }
+            // The declaration may carry more attributes (`#[doc(hidden)]`) first.
+            let name = lines[i + 1..]
+                .iter()
+                .find(|l| !l.starts_with("#["))
+                .and_then(|l| l.trim_start_matches("pub ").strip_prefix("mod "))
+                .and_then(|l| l.strip_suffix(';'));
+            if let Some(name) = name {
+                out.push(dir.join(format!("{name}.rs")));
+                out.push(dir.join(name));
+            }
+        }
+    }
+    out
 }
 
 /// The code of a file that is not test code or comments: its lines up to its first
@@ -117,8 +149,12 @@ fn no_library_module_names_a_module_above_its_row() {
     let mut files = Vec::new();
     sources(Path::new("src/lib"), &mut files);
     files.sort();
+    let testing_only = testing_only(&files);
     let mut against = Vec::new();
     for path in &files {
+        if testing_only.iter().any(|m| path.starts_with(m)) {
+            continue;
+        }
         let Some(module) = module_of(path) else {
             continue;
         };
@@ -164,6 +200,19 @@ fn the_diagram_places_every_library_module() {
     assert!(rows["error"] > rows["io"] && rows["io"] > rows["sun"]);
     assert!(rows["sun"] > rows["standing"] && rows["standing"] > rows["pyramid"]);
     assert!(rows["pyramid"] > rows["render"] && rows["render"] > rows["testing"]);
+}
+
+#[test]
+fn the_test_helpers_are_behind_the_testing_feature() {
+    let mut files = Vec::new();
+    sources(Path::new("src/lib"), &mut files);
+    let gated = testing_only(&files);
+    for module in ["src/lib/testing", "src/lib/render/mesh.rs"] {
+        assert!(
+            gated.contains(&PathBuf::from(module)),
+            "{module} is compiled into every build: declare it under #[cfg(feature = \"testing\")] ({gated:?})"
+        );
+    }
 }
 
 #[test]
