@@ -995,7 +995,7 @@ fn radar_at_the_eye_lights_each_pixel_at_its_own_incidence() {
         (1.0 / n, xp / n, yp / n)
     };
     let gamma = 10f64.powf(-20.0 / 10.0);
-    let grey = |cos_inc: f64| dbms::radar_map::grey_db((gamma * cos_inc) as f32);
+    let grey = |cos_inc: f64| dbms::backscatter::grey_db((gamma * cos_inc) as f32);
     let close = |got: u8, want: u8, at: &str| {
         assert!(got.abs_diff(want) <= 1, "{at}: {got} against {want}");
     };

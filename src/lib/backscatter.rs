@@ -3,7 +3,8 @@
 //! radar view evaluate them (issue 18).
 //!
 //! Invariant: a model is evaluated exactly as its source publishes it, at the incidence angle
-//! from the surface normal; no model is extrapolated to another band.
+//! from the surface normal; no model is extrapolated to another band. σ⁰ is drawn on one grey
+//! scale ([`grey_db`]): `dbms radar`'s preview and the radar views of `dbms render` share it.
 
 use serde::{Deserialize, Serialize};
 
@@ -104,4 +105,17 @@ impl RadarModel {
             }
         }
     }
+}
+
+/// Lowest σ⁰ [`grey_db`] draws above black, dB; 0 dB is white.
+pub const GREY_FLOOR_DB: f64 = -30.0;
+
+/// σ⁰ (linear) as grey: [`GREY_FLOOR_DB`] and below black (0: no return, too), 0 dB and
+/// above white, linear in dB between.
+pub fn grey_db(s: f32) -> u8 {
+    if s.is_nan() || s <= 0.0 {
+        return 0;
+    }
+    let db = 10.0 * f64::from(s).log10();
+    (255.0 * (db / -GREY_FLOOR_DB + 1.0).clamp(0.0, 1.0)).round() as u8
 }

@@ -52,6 +52,7 @@ pub mod shadow_height;
 pub mod shadow_mask;
 pub mod standing;
 pub mod sun;
+#[cfg(feature = "testing")]
 #[doc(hidden)]
 pub mod testing;
 pub mod thermal;

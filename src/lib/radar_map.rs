@@ -22,6 +22,7 @@
 //! Surfaces: terrain normals ([`crate::raster::surface_normal`]); roofs and objects' tops are
 //! level.
 
+use crate::backscatter::grey_db;
 use crate::db::Database;
 use crate::error::{Error, Result};
 use crate::material::surface::TopSurface;
@@ -268,14 +269,12 @@ pub fn class_name(c: Class) -> &'static str {
     }
 }
 
-/// Lowest σ⁰ the preview draws above black, dB; 0 dB is white.
-pub const PREVIEW_FLOOR_DB: f64 = -30.0;
-
 impl RadarMap {
     /// Write σ⁰ (linear, Float32 GeoTIFF) at `sigma0`, and when asked the classes (byte
-    /// GeoTIFF, [`Class`] ids) and a picture: σ⁰ in dB from [`PREVIEW_FLOOR_DB`] (black) to
-    /// 0 dB (white); shadow and specular black; dihedral cells yellow, layover magenta, cells
-    /// without a model dark red. All staged, then renamed together.
+    /// GeoTIFF, [`Class`] ids) and a picture: σ⁰ on the grey scale of [`grey_db`] (dB from
+    /// [`GREY_FLOOR_DB`](crate::backscatter::GREY_FLOOR_DB) black to 0 dB white); shadow and
+    /// specular black; dihedral cells yellow, layover magenta, cells without a model dark red.
+    /// All staged, then renamed together.
     pub fn write(&self, sigma0: &Path, class: Option<&Path>, preview: Option<&Path>) -> Result<()> {
         let paths: Vec<&Path> = [Some(sigma0), class, preview]
             .into_iter()
@@ -317,14 +316,4 @@ fn preview_colour(s: f32, c: u8) -> [u8; 3] {
         }
         _ => [grey_db(s); 3],
     }
-}
-
-/// σ⁰ (linear) as grey: [`PREVIEW_FLOOR_DB`] and below black (0: no return, too), 0 dB and
-/// above white, linear in dB between.
-pub fn grey_db(s: f32) -> u8 {
-    if s.is_nan() || s <= 0.0 {
-        return 0;
-    }
-    let db = 10.0 * f64::from(s).log10();
-    (255.0 * (db / -PREVIEW_FLOOR_DB + 1.0).clamp(0.0, 1.0)).round() as u8
 }

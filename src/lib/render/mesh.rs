@@ -1,5 +1,6 @@
 //! Ray-casting a triangle mesh with the tile renderer's camera rays: the check that an exported
-//! mesh ([`crate::mesh`]) shows what the tiles show.
+//! mesh ([`crate::mesh`]) shows what the tiles show. A test and benchmark tool (`cargo bench
+//! --bench mesh`), compiled only with the `testing` feature, as `crate::testing` is.
 //!
 //! Each pixel `(i, j)` casts the ray [`render_view`](super::render_view) casts: from the eye along
 //! `forward + x′·right + y′·up` with `x′`, `y′` the terms of the pixel's centre

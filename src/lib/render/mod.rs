@@ -22,6 +22,7 @@ pub mod camera;
 pub mod column;
 pub mod flight;
 pub mod march;
+#[cfg(feature = "testing")]
 pub mod mesh;
 pub mod path;
 pub mod ray;

@@ -223,7 +223,7 @@ pub fn view(
                 filter: values_filter(SensorLayer::Backscatter, |s| match s.is_nan() {
                     true => NO_ATTRIBUTE,
                     false => {
-                        let g = crate::radar_map::grey_db(s);
+                        let g = crate::backscatter::grey_db(s);
                         [g, g, g, 255]
                     }
                 }),
@@ -264,7 +264,7 @@ pub fn view(
 /// The radar view with the radar at the eye (`--sensor radar --band B`): each pixel is drawn in
 /// the σ⁰ of the surface its centre ray hits, from the hit cell's material model for the band
 /// at the incidence between the ray and the surface's normal, on the scale of `dbms radar`'s
-/// preview (`radar_map::grey_db`). What the eye does not see, the radar does not light: its
+/// preview (`backscatter::grey_db`). What the eye does not see, the radar does not light: its
 /// shadows are the view's occlusion.
 ///
 /// The hit is the range image's point on the pixel's centre ray, its cell the level-0 cell just
@@ -309,7 +309,7 @@ impl EyeRadar {
                 let d = d.map(|c| c / len);
                 let hit = [0, 1, 2].map(|k| camera.eye[k] + d[k] * f64::from(r));
                 *px = match self.sigma0(reader, hit, d)? {
-                    Some(s) => [crate::radar_map::grey_db(s); 3],
+                    Some(s) => [crate::backscatter::grey_db(s); 3],
                     None => [NO_ATTRIBUTE[0], NO_ATTRIBUTE[1], NO_ATTRIBUTE[2]],
                 };
             }

@@ -199,11 +199,6 @@ pub fn encode_vox(obj: &VoxelObject) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// Write `obj` as a MagicaVoxel `.vox` file.
-pub fn write_vox(path: &Path, obj: &VoxelObject) -> Result<()> {
-    stage_bytes(path, &encode_vox(obj)?)?.commit()
-}
-
 /// Maps a voxel colour to its palette index (1..=255).
 type IndexOf<'a> = Box<dyn Fn([u8; 3]) -> u8 + 'a>;
 

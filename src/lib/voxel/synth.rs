@@ -3,7 +3,7 @@
 //! GeoJSON footprints (the heights the shadow stage measures).
 //!
 //! # Invariants
-//! * A voxel is solid when its **centre** is inside the solid (same rule as [`crate::testing::solids`]).
+//! * A voxel is solid when its **centre** is inside the solid (same rule as `testing::solids`).
 //! * Revolved objects and trees are built in their local frame with the anchor (centre of the
 //!   grid's bottom face) at `(0, 0, 0)` and an odd number of voxels across, so the axis runs
 //!   through a column of voxel centres and a trunk thinner than a voxel still shows as one column.
