@@ -20,7 +20,10 @@
 //!
 //! The shift is searched on a grid of whole cells within ±`max_shift_m` (reading every other
 //! sample, a sample a cell), then on the half cells around the best, then refined to an eighth
-//! of a cell around that. A building's estimate counts only when its best contrast
+//! of a cell around that. In a frame photo with a known camera the whole cells run on along
+//! the building's radial direction over the leans of every height sought ([`Reach`]); a lean
+//! beyond the square is taken only when it beats the square's best by [`LEAN_MARGIN`], and
+//! the background stays the square's. An orthophoto's search is the square alone. A building's estimate counts only when its best contrast
 //! stands clear of its search's typical one ([`MIN_PEAK_RATIO`]); the scene's shift is the
 //! component-wise median over the buildings that count, so a few wrong estimates (a roof the
 //! colour of its ground, a neighbour's edge) do not move it.
@@ -32,6 +35,10 @@ use crate::raster::RowBand;
 /// A building's best contrast must be at least this many times the median contrast over its
 /// search for its estimate to count.
 pub const MIN_PEAK_RATIO: f64 = 1.5;
+
+/// A roof's best contrast leaning beyond ±`max_shift_m` must be at least this many times the
+/// best within it to be taken ([`Reach`]).
+pub const LEAN_MARGIN: f64 = 1.2;
 
 /// How far either side of the outline (pixels) the contrast is read. A sharp edge between two
 /// pixels is a one-pixel ramp in the bilinear luminance, so its contrast read at ±¾ is the full
@@ -429,7 +436,7 @@ pub fn estimate(
     let (cx, cy) = (t.cell_x, t.cell_y); // metres per pixel (cy < 0 for north-up)
     let reach = reach.in_pixels(cx, cy);
     let luma = search_luma(colour, &samples, &reach);
-    let (scores, whole) = whole_pixel_search(&luma, &samples, &reach);
+    let (scores, whole, reach) = whole_pixel_search(&luma, &samples, &reach);
     let half = half_pixel_search(&luma, &samples, whole?, &reach)?;
     let median = super::scan::median(&scores)?;
     let top = plateau_centre(&luma, &samples, half, median);
@@ -498,18 +505,28 @@ fn search_luma(colour: &RowBand<[u8; 4]>, samples: &[Sample], reach: &PixelReach
 
 /// The shifts by whole pixels within `reach`, read on every other sample (a sample a cell):
 /// they only seed the finer searches and give the background, and are most of the
-/// evaluations. Returns every contrast read (the background), and the best shift, if any.
+/// evaluations. Returns the background (the contrasts read within ±`across` of no shift, the
+/// old square; all of them when none is), the best shift, if any, and the part of the reach
+/// the finer searches stay in.
+///
+/// A lean beyond ±`across` is taken only when its best beats the square's by
+/// [`LEAN_MARGIN`]: a roof whose lean the square holds (most from 1500 m up) keeps the
+/// square's estimate, and the longer search adds no chance of a neighbour's edges winning.
 fn whole_pixel_search(
     luma: &Luma,
     samples: &[Sample],
     reach: &PixelReach,
-) -> (Vec<f64>, Option<Candidate>) {
+) -> (Vec<f64>, Option<Candidate>, PixelReach) {
     // The square grid around the reach's middle (whole pixels) that holds it.
     let (x0, y0, x1, y1) = reach.bounds();
     let (mx, my) = (((x0 + x1) / 2.0).round(), ((y0 + y1) / 2.0).round());
     let whole = (x1 - mx).max(mx - x0).max(y1 - my).max(my - y0).floor() as i64;
-    let mut scores = Vec::new();
-    let mut best = None;
+    let square = PixelReach {
+        lean: (0.0, 0.0),
+        ..*reach
+    };
+    let (mut near_scores, mut far_scores) = (Vec::new(), Vec::new());
+    let (mut near, mut far) = (None, None);
     let sparse: Vec<Sample> = samples.iter().step_by(2).copied().collect();
     let pixels = Shifts::new(luma, &sparse, (mx, my), 1.0, whole as usize);
     for j in -whole..=whole {
@@ -520,12 +537,31 @@ fn whole_pixel_search(
             }
             let at = ((i + whole) as usize, (j + whole) as usize);
             if let Some(s) = pixels.contrast(at.0, at.1) {
-                scores.push(s);
-                keep_best(&mut best, Candidate { score: s, x, y });
+                let c = Candidate { score: s, x, y };
+                if square.contains(x, y) {
+                    near_scores.push(s);
+                    keep_best(&mut near, c);
+                } else {
+                    far_scores.push(s);
+                    keep_best(&mut far, c);
+                }
             }
         }
     }
-    (scores, best)
+    let leaning = match (near, far) {
+        (Some(n), Some(f)) => f.score >= LEAN_MARGIN * n.score,
+        (n, f) => n.is_none() && f.is_some(),
+    };
+    let background = if near_scores.is_empty() {
+        far_scores
+    } else {
+        near_scores
+    };
+    if leaning {
+        (background, far, *reach)
+    } else {
+        (background, near, square)
+    }
 }
 
 /// The best of the half-pixel shifts around the whole-pixel best `whole`, all read on every
