@@ -361,6 +361,78 @@ fn real_photo_effects_are_handled_or_flagged() {
     tally("sun at 8°", &s);
 }
 
+#[test]
+fn hard_case_roofs_leaning_beyond_max_shift_from_500_m() {
+    if !povray::available() {
+        return;
+    }
+    // A frame photo from 500 m, the camera given, the nadir 420–580 m from the buildings: the
+    // roofs (6–18 m) lean 6–19 m, far beyond `--max-shift` (3 m), which the footprint search
+    // was once capped at around no shift (every roof's lean came out under 5 m, the tallest
+    // unmeasured). The search now runs along each building's radial direction over the leans
+    // of every height it may have: every roof is found where it leans (the scene's shift plus
+    // its lean within two cells of the truth), the tallest (17.6 m, leaning 18.2 m) is
+    // measured within two cells, unflagged, and at most one building in four is flagged.
+    let mut s = slice_scene(0.5, 135.0, 40.0, (250.0, 0.0, 0.0), true, 5);
+    let (nadir, z) = ((499_700.0, 5_299_800.0), 500.0);
+    s.camera = Camera::Perspective { nadir, height_m: z };
+    let lean = |b: &Building| {
+        let h = b.roof.top_z() - 250.0;
+        let k = h / (z - h);
+        (k * (b.centre.0 - nadir.0), k * (b.centre.1 - nadir.1))
+    };
+    let tallest = (0..s.buildings.len())
+        .max_by(|&a, &b| {
+            s.buildings[a]
+                .roof
+                .top_z()
+                .total_cmp(&s.buildings[b].roof.top_z())
+        })
+        .unwrap();
+    let (le, ln) = lean(&s.buildings[tallest]);
+    assert!(le.hypot(ln) > 12.0, "the hard case leans 12 m or more");
+    let dir = tempfile::tempdir().unwrap();
+    let out = measure_scene(&s, dir.path()).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("heights.geojson")).unwrap())
+            .unwrap();
+    let g = &v["footprint_shift"];
+    let g = (
+        g["east_m"].as_f64().unwrap_or(0.0),
+        g["north_m"].as_f64().unwrap_or(0.0),
+    );
+    for (b, o) in s.buildings.iter().zip(&out) {
+        let seen = &o.properties["lean_m"];
+        let seen = (seen[0].as_f64().unwrap(), seen[1].as_f64().unwrap());
+        let truth = lean(b);
+        let off = (g.0 + seen.0 - truth.0).hypot(g.1 + seen.1 - truth.1);
+        assert!(
+            off <= 2.0 * s.cell,
+            "roof seen {off:.2} m from where it leans ({truth:.1?} m): {o:?}"
+        );
+    }
+    let o = &out[tallest];
+    let e = o.error_m().unwrap_or(f64::NAN);
+    assert!(
+        !o.flagged() && e.abs() <= 2.0 * s.cell,
+        "the tallest: {o:?}"
+    );
+    let flagged = out
+        .iter()
+        .filter(|o| o.flagged() || o.roof_z.is_none())
+        .count();
+    assert!(
+        flagged * 4 <= out.len(),
+        "{flagged} of {} flagged: {out:#?}",
+        out.len()
+    );
+    let silent: Vec<&Outcome> = out
+        .iter()
+        .filter(|o| !o.flagged() && o.error_m().is_some_and(|e| e.abs() > 2.0 * s.cell))
+        .collect();
+    assert!(silent.is_empty(), "silent gross errors: {silent:#?}");
+}
+
 /// The scene of [`slice_scene`] (0.5 m cells, flat ground) with every house's roof pitched:
 /// `gable` or hip, its eaves `rise(b)` metres below the flat roof's height (the ridge).
 fn pitched_scene(

@@ -186,6 +186,11 @@ impl<'a, T: Clone> RowBand<'a, T> {
         self.at(row * self.grid.width + col)
     }
 
+    /// Whether grid row `row` is held.
+    pub fn holds_row(&self, row: usize) -> bool {
+        self.rows.contains(&row)
+    }
+
     /// The values held, row-major from the first row held.
     pub fn values(&self) -> &[T] {
         &self.data

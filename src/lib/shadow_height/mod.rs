@@ -328,36 +328,52 @@ impl Registration {
     }
 }
 
-/// Estimate every footprint's shift onto its roof in `colour` lit by `sun` (within
-/// ±`max_shift_m` metres), then the scene's shift: the median of the clear estimates for an
-/// orthophoto, or, with the `camera` of a perspective photo, the shift that leaves only radial
-/// leans ([`register::with_camera`]). Returns the registration and the footprints moved by
-/// the scene's shift.
+/// Estimate every footprint's shift onto its roof in `inputs.colour` lit by `sun`, then the
+/// scene's shift: the median of the clear estimates for an orthophoto (each sought within
+/// ±`max_shift_m` metres), or, with the `camera` of a perspective photo, the shift that leaves
+/// only radial leans ([`register::with_camera`]; each sought along its radial direction over
+/// the leans of roofs up to `opts.max_height_m` above the ground under it, within
+/// ±`max_shift_m`: [`register::Reach::leaning`]). Returns the registration and the footprints
+/// moved by the scene's shift.
 pub fn register_footprints(
-    colour: &dyn RowSource<[u8; 4]>,
+    inputs: &Inputs,
     footprints: &[Footprint],
     sun: &Sun,
     max_shift_m: f64,
     camera: Option<&register::PerspectiveCentre>,
-    band_cells: usize,
+    opts: &Options,
 ) -> Result<(Registration, Vec<Footprint>)> {
+    let colour = inputs.colour;
     let grid = colour.grid();
     let (e, n) = sun.direction();
     let (cx, cy) = grid.cell_size();
+    let reaches: Vec<register::Reach> = match camera {
+        None => vec![register::Reach::square(max_shift_m); footprints.len()],
+        Some(cam) => grounds_under(inputs.terrain, footprints, opts.band_cells)?
+            .iter()
+            .zip(footprints)
+            .map(|(&g, f)| register::Reach::leaning(f, cam, g, max_shift_m, opts.max_height_m))
+            .collect(),
+    };
     // The search reads the photo up to the largest shift away, plus the fine search's ¾ pixel,
     // the samples' offset across the outline and the bilinear neighbour: 4 cells more.
     let margin = max_shift_m.max(0.0) / cy.abs().min(cx.abs()) + 4.0;
     let needs: Vec<Range<usize>> = footprints
         .iter()
-        .map(|f| box_rows(grid, f.bbox(), margin))
+        .zip(&reaches)
+        .map(|(f, r)| box_rows(grid, r.leaned_box(f.bbox()), margin))
         .collect();
-    let buildings = in_bands(&needs, rows_in(band_cells, grid.width), |rows, members| {
-        let band = RowBand::read(colour, rows)?;
-        Ok(members
-            .par_iter()
-            .map(|&k| register::estimate(&footprints[k], &band, (-e, -n), max_shift_m))
-            .collect())
-    })?;
+    let buildings = in_bands(
+        &needs,
+        rows_in(opts.band_cells, grid.width),
+        |rows, members| {
+            let band = RowBand::read(colour, rows)?;
+            Ok(members
+                .par_iter()
+                .map(|&k| register::estimate(&footprints[k], &band, (-e, -n), &reaches[k]))
+                .collect())
+        },
+    )?;
     let (scene, leans) = match camera {
         None => (
             register::scene_shift(&buildings),
@@ -377,6 +393,38 @@ pub fn register_footprints(
         .map(|f| register::moved(f, e, n))
         .collect();
     Ok((reg, moved))
+}
+
+/// The bare ground under each footprint's box centre, absolute metres (NaN off the grid or on
+/// nodata), read band by band.
+fn grounds_under(
+    terrain: &dyn RowSource<f32>,
+    footprints: &[Footprint],
+    band_cells: usize,
+) -> Result<Vec<f64>> {
+    let grid = terrain.grid();
+    let needs: Vec<Range<usize>> = footprints
+        .iter()
+        .map(|f| box_rows(grid, f.bbox(), 1.0))
+        .collect();
+    in_bands(&needs, rows_in(band_cells, grid.width), |rows, members| {
+        let band = RowBand::read(terrain, rows)?;
+        Ok(members
+            .iter()
+            .map(|&k| {
+                let (x, y) = footprints[k].bbox_centre();
+                let (px, py) = grid.transform.world_to_pixel(x, y);
+                let (c, r) = (px.floor(), py.floor());
+                let inside =
+                    c >= 0.0 && r >= 0.0 && (c as usize) < grid.width && band.holds_row(r as usize);
+                if inside {
+                    *band.get(c as usize, r as usize) as f64
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect())
+    })
 }
 
 /// The whole stage for footprints as given: register them to the photo (unless
@@ -413,28 +461,15 @@ pub fn register_and_measure(
     if max_shift_m <= 0.0 {
         return run(Registration::none(given.len()), given.to_vec());
     }
-    let (reg, moved) = register_footprints(
-        inputs.colour,
-        given,
-        sun,
-        max_shift_m,
-        camera,
-        opts.band_cells,
-    )?;
+    let (reg, moved) = register_footprints(inputs, given, sun, max_shift_m, camera, opts)?;
     if camera.is_some() || !may_be_perspective(&reg, cell) {
         return run(reg, moved);
     }
     match camera_from_heights(inputs, given, sun, opts, &reg, cell)? {
         None => run(reg, moved),
         Some(cam) => {
-            let (mut reg, moved) = register_footprints(
-                inputs.colour,
-                given,
-                sun,
-                max_shift_m,
-                Some(&cam),
-                opts.band_cells,
-            )?;
+            let (mut reg, moved) =
+                register_footprints(inputs, given, sun, max_shift_m, Some(&cam), opts)?;
             reg.camera = Some((cam, true));
             run(reg, moved)
         }

@@ -20,7 +20,10 @@
 //!
 //! The shift is searched on a grid of whole cells within ±`max_shift_m` (reading every other
 //! sample, a sample a cell), then on the half cells around the best, then refined to an eighth
-//! of a cell around that. A building's estimate counts only when its best contrast
+//! of a cell around that. In a frame photo with a known camera the whole cells run on along
+//! the building's radial direction over the leans of every height sought ([`Reach`]); a lean
+//! beyond the square is taken only when it beats the square's best by [`LEAN_MARGIN`], and
+//! the background stays the square's. An orthophoto's search is the square alone. A building's estimate counts only when its best contrast
 //! stands clear of its search's typical one ([`MIN_PEAK_RATIO`]); the scene's shift is the
 //! component-wise median over the buildings that count, so a few wrong estimates (a roof the
 //! colour of its ground, a neighbour's edge) do not move it.
@@ -32,6 +35,10 @@ use crate::raster::RowBand;
 /// A building's best contrast must be at least this many times the median contrast over its
 /// search for its estimate to count.
 pub const MIN_PEAK_RATIO: f64 = 1.5;
+
+/// A roof's best contrast leaning beyond ±`max_shift_m` must be at least this many times the
+/// best within it to be taken ([`Reach`]).
+pub const LEAN_MARGIN: f64 = 1.2;
 
 /// How far either side of the outline (pixels) the contrast is read. A sharp edge between two
 /// pixels is a one-pixel ramp in the bilinear luminance, so its contrast read at ±¾ is the full
@@ -296,9 +303,122 @@ impl<'a> Shifts<'a> {
     }
 }
 
-/// The shift (within ±`max_shift_m` metres on each axis) that best fits `fp` to its roof in
-/// `colour` with shadows cast along `away` (world east, north, away from the sun); `None` when
-/// the outline is mostly off the grid or on nodata.
+/// Where a footprint's shift onto its roof is sought: every shift within `across_m` on each
+/// axis of a point of the segment from no shift to `lean_m`. An orthophoto's is the square
+/// ±`across_m` (`lean_m` zero); a frame photo's runs along the building's radial direction
+/// from the nadir over the leans of every height it may have ([`Reach::leaning`]), with the
+/// footprint's misregistration either side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reach {
+    /// The largest misregistration sought on each axis, metres.
+    pub across_m: f64,
+    /// The lean of the tallest roof sought, metres (east, north).
+    pub lean_m: (f64, f64),
+}
+
+impl Reach {
+    /// Within ±`max_shift_m` metres on each axis of no shift (an orthophoto).
+    pub fn square(max_shift_m: f64) -> Reach {
+        Reach {
+            across_m: max_shift_m.max(0.0),
+            lean_m: (0.0, 0.0),
+        }
+    }
+
+    /// For `fp` in a frame photo taken from `camera` over ground at `ground_z` (absolute
+    /// metres): its roof, `h` above the ground, is seen `r·h / (Z − h)` from its base, radially
+    /// away from the nadir (`r` from the nadir to the footprint's box centre, `Z` the camera
+    /// above the ground); sought for `h` from 0 to `max_height_m` — no more than half of `Z`,
+    /// whose leans would exceed `r` — within ±`max_shift_m`. The square when the ground is
+    /// unknown (NaN), at or above the camera, or the footprint under the nadir.
+    pub fn leaning(
+        fp: &Footprint,
+        camera: &PerspectiveCentre,
+        ground_z: f64,
+        max_shift_m: f64,
+        max_height_m: f64,
+    ) -> Reach {
+        let (x, y) = fp.bbox_centre();
+        let (dx, dy) = (x - camera.east, y - camera.north);
+        let r = dx.hypot(dy);
+        let z = camera.z - ground_z;
+        if !(z > 0.0 && r > 0.0) {
+            return Reach::square(max_shift_m);
+        }
+        let h = max_height_m.clamp(0.0, z / 2.0);
+        let lean = h / (z - h); // metres of lean per metre from the nadir
+        Reach {
+            lean_m: (lean * dx, lean * dy),
+            ..Reach::square(max_shift_m)
+        }
+    }
+
+    /// The footprint's box `b` (world metres: west, south, east, north) grown to hold it moved
+    /// by any lean sought.
+    pub fn leaned_box(&self, b: (f64, f64, f64, f64)) -> (f64, f64, f64, f64) {
+        let (le, ln) = self.lean_m;
+        (
+            b.0 + le.min(0.0),
+            b.1 + ln.min(0.0),
+            b.2 + le.max(0.0),
+            b.3 + ln.max(0.0),
+        )
+    }
+
+    /// The reach in pixels of a grid with cells `cx` by `cy` metres (`cy` < 0 north-up): the
+    /// misregistration over the larger cell side, as always.
+    fn in_pixels(&self, cx: f64, cy: f64) -> PixelReach {
+        PixelReach {
+            across: self.across_m / cx.abs().max(cy.abs()),
+            lean: (self.lean_m.0 / cx, self.lean_m.1 / cy),
+        }
+    }
+}
+
+/// A [`Reach`] in pixels (columns, rows).
+///
+/// Invariant: with no lean, [`PixelReach::contains`] is exactly `|x|, |y| ≤ across`, the square
+/// searched before frame photos had their own reach: an orthophoto's search is unchanged.
+#[derive(Debug, Clone, Copy)]
+struct PixelReach {
+    across: f64,
+    lean: (f64, f64),
+}
+
+impl PixelReach {
+    /// Whether the shift `(x, y)` pixels is within `across` on both axes of `λ·lean` for some
+    /// `λ` in [0, 1]: the intervals of `λ` each axis allows meet.
+    fn contains(&self, x: f64, y: f64) -> bool {
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for (s, l) in [(x, self.lean.0), (y, self.lean.1)] {
+            if l == 0.0 {
+                if s.abs() > self.across {
+                    return false;
+                }
+            } else {
+                let (a, b) = ((s - self.across) / l, (s + self.across) / l);
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            }
+        }
+        lo <= hi
+    }
+
+    /// The smallest and largest shifts sought on each axis: (x0, y0, x1, y1) pixels.
+    fn bounds(&self) -> (f64, f64, f64, f64) {
+        let (lx, ly) = self.lean;
+        (
+            lx.min(0.0) - self.across,
+            ly.min(0.0) - self.across,
+            lx.max(0.0) + self.across,
+            ly.max(0.0) + self.across,
+        )
+    }
+}
+
+/// The shift (within `reach`) that best fits `fp` to its roof in `colour` with shadows cast
+/// along `away` (world east, north, away from the sun); `None` when the outline is mostly off
+/// the grid or on nodata.
 ///
 /// Whole pixels first (their scores are the search's background, whose median the peak is
 /// judged against), then the half pixels around the best: a quarter of the evaluations of a
@@ -309,15 +429,15 @@ pub fn estimate(
     fp: &Footprint,
     colour: &RowBand<[u8; 4]>,
     away: (f64, f64),
-    max_shift_m: f64,
+    reach: &Reach,
 ) -> Option<Shift> {
     let samples = outline_samples(fp, colour, away);
     let t = &colour.grid.transform;
     let (cx, cy) = (t.cell_x, t.cell_y); // metres per pixel (cy < 0 for north-up)
-    let reach = (max_shift_m / cx.abs().max(cy.abs())).max(0.0); // pixels
-    let luma = search_luma(colour, &samples, reach);
-    let (scores, whole) = whole_pixel_search(&luma, &samples, reach);
-    let half = half_pixel_search(&luma, &samples, whole?, reach)?;
+    let reach = reach.in_pixels(cx, cy);
+    let luma = search_luma(colour, &samples, &reach);
+    let (scores, whole, reach) = whole_pixel_search(&luma, &samples, &reach);
+    let half = half_pixel_search(&luma, &samples, whole?, &reach)?;
     let median = super::scan::median(&scores)?;
     let top = plateau_centre(&luma, &samples, half, median);
     Some(Shift {
@@ -349,10 +469,10 @@ fn keep_best(best: &mut Option<Candidate>, c: Candidate) {
     }
 }
 
-/// The luminance of every pixel the search of `samples` can read: the samples moved up to
-/// `reach` pixels and the fine search's ¾ pixel, read ¾ pixel across, with the bilinear
+/// The luminance of every pixel the search of `samples` can read: the samples moved by any
+/// shift within `reach` and the fine search's ¾ pixel, read ¾ pixel across, with the bilinear
 /// neighbour.
-fn search_luma(colour: &RowBand<[u8; 4]>, samples: &[Sample], reach: f64) -> Luma {
+fn search_luma(colour: &RowBand<[u8; 4]>, samples: &[Sample], reach: &PixelReach) -> Luma {
     let (x0, y0, x1, y1) = samples.iter().fold(
         (
             f64::INFINITY,
@@ -369,57 +489,91 @@ fn search_luma(colour: &RowBand<[u8; 4]>, samples: &[Sample], reach: f64) -> Lum
             )
         },
     );
-    let m = reach + 4.0;
+    let (r0, s0, r1, s1) = reach.bounds();
     Luma::new(
         colour,
-        ((x0 - m).floor() as i64, (x1 + m).ceil() as i64),
-        ((y0 - m).floor() as i64, (y1 + m).ceil() as i64),
+        (
+            (x0 + r0 - 4.0).floor() as i64,
+            (x1 + r1 + 4.0).ceil() as i64,
+        ),
+        (
+            (y0 + s0 - 4.0).floor() as i64,
+            (y1 + s1 + 4.0).ceil() as i64,
+        ),
     )
 }
 
-/// The shifts by whole pixels within `reach` pixels, read on every other sample (a sample a
-/// cell): they only seed the finer searches and give the background, and are most of the
-/// evaluations. Returns every contrast read (the background), and the best shift, if any.
+/// The shifts by whole pixels within `reach`, read on every other sample (a sample a cell):
+/// they only seed the finer searches and give the background, and are most of the
+/// evaluations. Returns the background (the contrasts read within ±`across` of no shift, the
+/// old square; all of them when none is), the best shift, if any, and the part of the reach
+/// the finer searches stay in.
+///
+/// A lean beyond ±`across` is taken only when its best beats the square's by
+/// [`LEAN_MARGIN`]: a roof whose lean the square holds (most from 1500 m up) keeps the
+/// square's estimate, and the longer search adds no chance of a neighbour's edges winning.
 fn whole_pixel_search(
     luma: &Luma,
     samples: &[Sample],
-    reach: f64,
-) -> (Vec<f64>, Option<Candidate>) {
-    let whole = reach.floor() as i64;
-    let mut scores = Vec::new();
-    let mut best = None;
+    reach: &PixelReach,
+) -> (Vec<f64>, Option<Candidate>, PixelReach) {
+    // The square grid around the reach's middle (whole pixels) that holds it.
+    let (x0, y0, x1, y1) = reach.bounds();
+    let (mx, my) = (((x0 + x1) / 2.0).round(), ((y0 + y1) / 2.0).round());
+    let whole = (x1 - mx).max(mx - x0).max(y1 - my).max(my - y0).floor() as i64;
+    let square = PixelReach {
+        lean: (0.0, 0.0),
+        ..*reach
+    };
+    let (mut near_scores, mut far_scores) = (Vec::new(), Vec::new());
+    let (mut near, mut far) = (None, None);
     let sparse: Vec<Sample> = samples.iter().step_by(2).copied().collect();
-    let pixels = Shifts::new(luma, &sparse, (0.0, 0.0), 1.0, whole as usize);
+    let pixels = Shifts::new(luma, &sparse, (mx, my), 1.0, whole as usize);
     for j in -whole..=whole {
         for i in -whole..=whole {
+            let (x, y) = (mx + i as f64, my + j as f64);
+            if !reach.contains(x, y) {
+                continue;
+            }
             let at = ((i + whole) as usize, (j + whole) as usize);
             if let Some(s) = pixels.contrast(at.0, at.1) {
-                scores.push(s);
-                keep_best(
-                    &mut best,
-                    Candidate {
-                        score: s,
-                        x: i as f64,
-                        y: j as f64,
-                    },
-                );
+                let c = Candidate { score: s, x, y };
+                if square.contains(x, y) {
+                    near_scores.push(s);
+                    keep_best(&mut near, c);
+                } else {
+                    far_scores.push(s);
+                    keep_best(&mut far, c);
+                }
             }
         }
     }
-    (scores, best)
+    let leaning = match (near, far) {
+        (Some(n), Some(f)) => f.score >= LEAN_MARGIN * n.score,
+        (n, f) => n.is_none() && f.is_some(),
+    };
+    let background = if near_scores.is_empty() {
+        far_scores
+    } else {
+        near_scores
+    };
+    if leaning {
+        (background, far, *reach)
+    } else {
+        (background, near, square)
+    }
 }
 
 /// The best of the half-pixel shifts around the whole-pixel best `whole`, all read on every
-/// sample (`whole` itself scored again first); none beyond the largest half-pixel shift
-/// within `reach` pixels. `None` when none can be read.
+/// sample (`whole` itself scored again first); none outside `reach`. `None` when none can be
+/// read.
 fn half_pixel_search(
     luma: &Luma,
     samples: &[Sample],
     whole: Candidate,
-    reach: f64,
+    reach: &PixelReach,
 ) -> Option<Candidate> {
     let (wx, wy) = (whole.x, whole.y);
-    let half = (reach * 2.0).floor() / 2.0; // the largest half-pixel shift searched
     let halves = Shifts::new(luma, samples, (wx, wy), 0.5, 1);
     let mut best = halves.contrast(1, 1).map(|s| Candidate {
         score: s,
@@ -429,7 +583,7 @@ fn half_pixel_search(
     for j in -1..=1 {
         for i in -1..=1 {
             let (sx, sy) = (wx + i as f64 / 2.0, wy + j as f64 / 2.0);
-            if (i, j) == (0, 0) || sx.abs() > half || sy.abs() > half {
+            if (i, j) == (0, 0) || !reach.contains(sx, sy) {
                 continue;
             }
             if let Some(s) = halves.contrast((i + 1) as usize, (j + 1) as usize) {
@@ -877,7 +1031,7 @@ mod tests {
                 &square(20.0 + dx, 30.0 + dy),
                 &RowBand::whole(&p),
                 NORTH,
-                3.0,
+                &Reach::square(3.0),
             )
             .unwrap();
             assert!(
@@ -886,6 +1040,60 @@ mod tests {
             );
             assert!(s.counts(), "{s:?}");
         }
+    }
+
+    #[test]
+    fn a_reach_without_lean_is_the_square_and_with_one_follows_it() {
+        let square = Reach::square(3.0).in_pixels(0.5, -0.5);
+        for (x, y) in [(6.0, -6.0), (0.0, 6.0), (-5.5, 2.5)] {
+            assert!(square.contains(x, y), "{x} {y}");
+        }
+        for (x, y) in [(6.5, 0.0), (0.0, -6.125), (7.0, 7.0)] {
+            assert!(!square.contains(x, y), "{x} {y}");
+        }
+        // Leaning 12 m east and 9 m north (24 and -18 pixels), ±3 m (6 pixels) either side.
+        let leaning = Reach {
+            across_m: 3.0,
+            lean_m: (12.0, 9.0),
+        }
+        .in_pixels(0.5, -0.5);
+        for (x, y) in [
+            (0.0, 0.0),
+            (12.0, -9.0),
+            (24.0, -18.0),
+            (30.0, -24.0),
+            (6.0, 0.0),
+        ] {
+            assert!(leaning.contains(x, y), "{x} {y}");
+        }
+        for (x, y) in [(-7.0, 0.0), (31.0, -18.0), (12.0, 6.0), (0.0, -13.0)] {
+            assert!(!leaning.contains(x, y), "{x} {y}");
+        }
+        assert_eq!(leaning.bounds(), (-6.0, -24.0, 30.0, 6.0));
+    }
+
+    #[test]
+    fn a_roof_leaning_beyond_max_shift_is_found_along_its_lean() {
+        // The roof seen 7 m east and 5 m north of its footprint: beyond ±3 m, within the lean
+        // of the heights sought from a camera 400 m up whose nadir is 280 m west and 200 m south.
+        let p = photo();
+        let fp = square(20.0 - 7.0, 30.0 - 5.0);
+        let (x, y) = fp.bbox_centre();
+        let camera = PerspectiveCentre {
+            east: x - 280.0,
+            north: y - 200.0,
+            z: 400.0,
+        };
+        let band = RowBand::whole(&p);
+        let near = estimate(&fp, &band, NORTH, &Reach::square(3.0)).unwrap();
+        assert!((near.east_m - 7.0).abs() > 2.0, "{near:?}");
+        let reach = Reach::leaning(&fp, &camera, 0.0, 3.0, 30.0);
+        let s = estimate(&fp, &band, NORTH, &reach).unwrap();
+        assert!(
+            (s.east_m - 7.0).abs() <= 0.25 && (s.north_m - 5.0).abs() <= 0.25,
+            "{reach:?}: {s:?}"
+        );
+        assert!(s.counts(), "{s:?}");
     }
 
     /// The mean contrast across `samples` moved by `(sx, sy)` pixels, read from the photo's
@@ -985,7 +1193,7 @@ mod tests {
                     &square(20.0 + dx, 30.0 + dy),
                     &RowBand::whole(&p),
                     NORTH,
-                    3.0,
+                    &Reach::square(3.0),
                 )
                 .unwrap();
                 assert!(
