@@ -1731,11 +1731,26 @@ impl PassInputs<'_> {
 
     /// What the faces' shading of `sought`'s roof needs ([`shading`]): its inner cells as the
     /// photo shows them, moved back onto the footprint by the lean, and the light read off the
-    /// open ground of `sub` (lit and shadow cells). `None` when the ground does not tell the
-    /// light.
+    /// open ground of `sub` (lit and shadow cells). `None` for a roof of fewer than
+    /// [`roof::MIN_CELLS`] cells or of one colour, or when the ground does not tell the light.
     fn shading(&self, sought: &Sought, sub: &Local) -> Option<(shading::Roof, shading::Light)> {
         let colour = &self.band.colour;
         let w = self.grid.width;
+        let own = sought.fp.cells(self.grid);
+        let (seen, cells) = self.roof_in_photo(sought.id, sought.fp, &own, sought.lean);
+        let inner = roof::inner_cells(&seen, colour, &cells);
+        if inner.len() < roof::MIN_CELLS {
+            return None;
+        }
+        let (le, ln) = sought.lean;
+        let samples = inner.into_iter().map(|i| {
+            let (x, y) = self.grid.cell_centre(i % w, i / w);
+            ((x - le, y - ln), *colour.at(i))
+        });
+        let roof = shading::Roof::new(samples, sought.cell, self.opts.photo_encoding);
+        if !roof.varies() {
+            return None;
+        }
         let ground = |want: Class| -> Vec<[u8; 4]> {
             (0..sub.class.len())
                 .filter(|&k| sub.class[k] == want)
@@ -1750,16 +1765,6 @@ impl PassInputs<'_> {
             &ground(Class::Shadow),
             self.opts.photo_encoding,
         )?;
-        let own = sought.fp.cells(self.grid);
-        let (seen, cells) = self.roof_in_photo(sought.id, sought.fp, &own, sought.lean);
-        let (le, ln) = sought.lean;
-        let samples = roof::inner_cells(&seen, colour, &cells)
-            .into_iter()
-            .map(|i| {
-                let (x, y) = self.grid.cell_centre(i % w, i / w);
-                ((x - le, y - ln), *colour.at(i))
-            });
-        let roof = shading::Roof::new(samples, sought.cell, self.opts.photo_encoding);
         Some((roof, light))
     }
 

@@ -28,7 +28,7 @@ pub const MAX_FACE_RATIO: f64 = 0.85;
 /// Fraction of 4-neighbour pairs of roof cells in the same class for the classes to be faces.
 pub const MIN_COHERENCE: f64 = 0.85;
 /// Fewest roof cells the test is made on (a smaller roof is not judged).
-const MIN_CELLS: usize = 24;
+pub const MIN_CELLS: usize = 24;
 
 /// Whether the roof of `fp` looks pitched in `colour` (see the module doc) under a sun
 /// `toward_sun` (unit vector, east and north); `cells` are the footprint's own cells (centre

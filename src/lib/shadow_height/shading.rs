@@ -11,8 +11,8 @@
 //! gable or hip roof in [`crate::roof`]'s convention has the same pitch `p` and slopes down
 //! across the ridge (either way) or, on a hip's ends, along it. For each `p` the albedo that fits
 //! best is a least-squares ratio per channel, and the squared residual over the roof's cells
-//! scores `p` ([`Faces::residual`]); the pitch is the best `p` in `[0, MAX_PITCH_DEG]`, by
-//! [`STEP_DEG`].
+//! scores `p` ([`Faces::residual`]); the pitch is the best `p` in `[0, MAX_PITCH_DEG]`, by whole
+//! degrees, then by [`STEP_DEG`] around the best.
 //!
 //! **Invariants.** Cells within a cell of a crease are left out (they mix two faces; the caller
 //! leaves out those within a cell of the outline). At `p = 0` every face reads alike, so the
@@ -30,7 +30,7 @@
 use super::pitched::MAX_PITCH_DEG;
 use crate::roof::{Extent, RoofForm};
 
-/// Pitches tried, degrees apart.
+/// Pitches tried, degrees apart (near the best whole degree).
 pub const STEP_DEG: f64 = 0.25;
 /// Least share of the roof's variance of brightness the faces must explain for a pitch.
 pub const MIN_EXPLAINED: f64 = 0.5;
@@ -95,12 +95,12 @@ impl Light {
         })
     }
 
-    /// `cos θ` of a face pitched `p` radians that slopes down toward `down` (unit, east and
-    /// north), clamped at 0 (a face turned from the sun is lit by the sky alone).
-    fn cos_incidence(&self, p: f64, down: (f64, f64)) -> f64 {
+    /// `cos θ` of faces pitched `p` radians that slope down toward `down` (unit vectors, east
+    /// and north), clamped at 0 (a face turned from the sun is lit by the sky alone).
+    fn cos_incidence(&self, p: f64, down: &[(f64, f64); 4]) -> [f64; 4] {
         let (s, c) = p.sin_cos();
         let [x, y, z] = self.toward_sun;
-        (s * (down.0 * x + down.1 * y) + c * z).max(0.0)
+        down.map(|d| (s * (d.0 * x + d.1 * y) + c * z).max(0.0))
     }
 }
 
@@ -119,11 +119,21 @@ pub enum PhotoEncoding {
 impl PhotoEncoding {
     /// Byte `v` as linear light in [0, 1].
     pub fn linear(self, v: u8) -> f64 {
-        let c = f64::from(v) / 255.0;
         match self {
-            PhotoEncoding::Linear => c,
-            PhotoEncoding::Srgb if c <= 0.04045 => c / 12.92,
-            PhotoEncoding::Srgb => ((c + 0.055) / 1.055).powf(2.4),
+            PhotoEncoding::Linear => f64::from(v) / 255.0,
+            PhotoEncoding::Srgb => {
+                static TABLE: std::sync::OnceLock<[f64; 256]> = std::sync::OnceLock::new();
+                TABLE.get_or_init(|| {
+                    std::array::from_fn(|v| {
+                        let c = v as f64 / 255.0;
+                        if c <= 0.04045 {
+                            c / 12.92
+                        } else {
+                            ((c + 0.055) / 1.055).powf(2.4)
+                        }
+                    })
+                })[usize::from(v)]
+            }
         }
     }
 }
@@ -162,6 +172,15 @@ impl Roof {
                 .collect(),
             cell,
         }
+    }
+
+    /// Whether the roof's cells differ at all (a roof of one colour shows no faces).
+    pub fn varies(&self) -> bool {
+        let mut it = self.samples.iter().map(|s| s.1);
+        let Some(first) = it.next() else {
+            return false;
+        };
+        it.any(|c| c != first)
     }
 }
 
@@ -226,11 +245,12 @@ impl Faces {
     /// `light`, with its `k` scaled by `k_scale`. Faces with fewer than [`MIN_FACE_CELLS`]
     /// cells are left out.
     pub fn residual(&self, light: &Light, p: f64, k_scale: f64) -> f64 {
+        let cos = light.cos_incidence(p, &self.down);
         let mut r = 0.0;
         for ch in 0..3 {
             let (mut sg, mut gg, mut sq) = (0.0, 0.0, 0.0);
             for f in (0..4).filter(|&f| self.counts(f)) {
-                let g = 1.0 + k_scale * light.k[ch] * light.cos_incidence(p, self.down[f]);
+                let g = 1.0 + k_scale * light.k[ch] * cos[f];
                 sg += self.sum[f][ch] * g;
                 gg += self.n[f] * g * g;
                 sq += self.sum_sq[f][ch];
@@ -251,12 +271,10 @@ impl Faces {
     /// predicted light over its mean, averaged over the channels (the albedo cancels).
     fn contrast(&self, light: &Light, p: f64) -> f64 {
         let faces: Vec<usize> = (0..4).filter(|&f| self.counts(f)).collect();
+        let cos = light.cos_incidence(p, &self.down);
         let mut sum = 0.0;
         for k in light.k {
-            let g: Vec<f64> = faces
-                .iter()
-                .map(|&f| 1.0 + k * light.cos_incidence(p, self.down[f]))
-                .collect();
+            let g: Vec<f64> = faces.iter().map(|&f| 1.0 + k * cos[f]).collect();
             let (lo, hi) = g
                 .iter()
                 .fold((f64::INFINITY, 0f64), |(l, h), &v| (l.min(v), h.max(v)));
@@ -267,12 +285,25 @@ impl Faces {
 
     /// The pitch (radians) whose shading fits best with `k` scaled by `k_scale`, and its
     /// residual.
+    /// Whole degrees first, then [`STEP_DEG`] steps within a degree of the best: the residual
+    /// is smooth in the pitch.
     fn best(&self, light: &Light, k_scale: f64) -> (f64, f64) {
-        let steps = (MAX_PITCH_DEG / STEP_DEG).round() as usize;
-        (0..=steps)
-            .map(|i| (i as f64 * STEP_DEG).to_radians())
-            .map(|p| (p, self.residual(light, p, k_scale)))
-            .fold((0.0, f64::INFINITY), |b, t| if t.1 < b.1 { t } else { b })
+        let at = |deg: f64| {
+            let p = deg.to_radians();
+            (p, self.residual(light, p, k_scale))
+        };
+        let least = |b: (f64, f64), t: (f64, f64)| if t.1 < b.1 { t } else { b };
+        let coarse = (0..=MAX_PITCH_DEG as usize)
+            .map(|d| at(d as f64))
+            .fold((0.0, f64::INFINITY), least);
+        let centre = coarse.0.to_degrees();
+        let fine = (1..(1.0 / STEP_DEG) as usize).flat_map(|j| {
+            let d = j as f64 * STEP_DEG;
+            [centre - d, centre + d]
+        });
+        fine.filter(|d| (0.0..=MAX_PITCH_DEG).contains(d))
+            .map(at)
+            .fold(coarse, least)
     }
 }
 
