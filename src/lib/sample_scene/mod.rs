@@ -669,16 +669,7 @@ mod tests {
             .iter()
             .max_by(|a, b| a.height_m.total_cmp(&b.height_m))
             .unwrap();
-        let xs = tallest.footprint.iter().map(|p| p[0]);
-        let ys = tallest.footprint.iter().map(|p| p[1]);
-        let (x0, x1) = (
-            xs.clone().fold(f64::INFINITY, f64::min),
-            xs.fold(f64::NEG_INFINITY, f64::max),
-        );
-        let (y0, y1) = (
-            ys.clone().fold(f64::INFINITY, f64::min),
-            ys.fold(f64::NEG_INFINITY, f64::max),
-        );
+        let [x0, x1, y0, y1] = bounds(&tallest.footprint);
         // Leave the footprint's bounding box 1 m beyond its corner, away from the sun (in its
         // shadow) and toward the sun (lit).
         let corner = |toward: f64| {
@@ -707,6 +698,20 @@ mod tests {
         );
     }
 
+    /// A footprint's `[min x, max x, min y, max y]`, metres.
+    fn bounds(footprint: &[[f64; 2]]) -> [f64; 4] {
+        let (xs, ys) = (
+            footprint.iter().map(|p| p[0]),
+            footprint.iter().map(|p| p[1]),
+        );
+        [
+            xs.clone().fold(f64::INFINITY, f64::min),
+            xs.fold(f64::NEG_INFINITY, f64::max),
+            ys.clone().fold(f64::INFINITY, f64::min),
+            ys.fold(f64::NEG_INFINITY, f64::max),
+        ]
+    }
+
     /// The houses' faces in the orthophoto: each lit at its own incidence (the roof convex, a
     /// face's point is lit exactly when its normal is toward the sun), checked at the middle of
     /// each face 1 m inside the eaves against the normal the truth's pitch gives.
@@ -720,18 +725,7 @@ mod tests {
         assert_eq!(houses.len(), 2);
         for b in houses {
             let p = b.pitch.unwrap();
-            let (xs, ys) = (
-                b.footprint.iter().map(|q| q[0]),
-                b.footprint.iter().map(|q| q[1]),
-            );
-            let (x0, x1) = (
-                xs.clone().fold(f64::MAX, f64::min),
-                xs.fold(f64::MIN, f64::max),
-            );
-            let (y0, y1) = (
-                ys.clone().fold(f64::MAX, f64::min),
-                ys.fold(f64::MIN, f64::max),
-            );
+            let [x0, x1, y0, y1] = bounds(&b.footprint);
             // Across the ridge: east for a north–south ridge, north for an east–west one.
             let across = if p.azimuth_deg == 0.0 {
                 (1.0, 0.0)
