@@ -281,6 +281,26 @@ impl Colour {
     }
 }
 
+/// sRGB byte → linear light, in [0, 1] (IEC 61966-2-1).
+pub fn srgb_to_linear(v: u8) -> f64 {
+    let c = f64::from(v) / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear in [0, 1] → the nearest sRGB byte.
+pub fn linear_to_srgb(l: f64) -> u8 {
+    let c = if l <= 0.003_130_8 {
+        12.92 * l
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    };
+    (c * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

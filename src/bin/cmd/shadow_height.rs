@@ -1,11 +1,12 @@
 //! `dbms shadow-height`: building heights from their shadows in the database's orthophoto.
 
 use super::{Ctx, SunUsed};
-use clap::ValueEnum as _;
+use dbms::choice::Choice;
 use dbms::db::Database;
 use dbms::error::Error;
 use dbms::io::atomic::AtomicFile;
 use dbms::raster::RowSource;
+use dbms::shadow_height::shading::PhotoEncoding;
 use dbms::shadow_height::{self as sh, output};
 use dbms::sun::Sun;
 use serde_json::json;
@@ -46,8 +47,8 @@ pub struct Args {
     joint_passes: usize,
     /// How the photo's bytes encode light: `srgb` (the usual photo) or `linear`. Pitched roofs'
     /// faces are compared as light: a wrong encoding misreads their pitch.
-    #[arg(long, value_enum, default_value = "srgb")]
-    photo_encoding: EncodingArg,
+    #[arg(long, value_parser = super::choice::<PhotoEncoding>(), default_value = "srgb")]
+    photo_encoding: PhotoEncoding,
     /// Largest footprint misregistration sought, metres: the footprints are moved by the
     /// scene's robust shift onto their roofs in the photo (median of the buildings' clear
     /// estimates); 0 takes them as given.
@@ -67,13 +68,6 @@ pub struct Args {
     /// Output heights GeoJSON.
     #[arg(short, long)]
     output: PathBuf,
-}
-
-/// The photo encodings `--photo-encoding` names.
-#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
-enum EncodingArg {
-    Srgb,
-    Linear,
 }
 
 pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
@@ -105,10 +99,7 @@ pub fn run(args: Args, ctx: &Ctx) -> dbms::Result<()> {
         line_spacing_cells: args.line_spacing,
         sub_points: args.sub_points,
         joint_passes: args.joint_passes,
-        photo_encoding: match args.photo_encoding {
-            EncodingArg::Srgb => sh::shading::PhotoEncoding::Srgb,
-            EncodingArg::Linear => sh::shading::PhotoEncoding::Linear,
-        },
+        photo_encoding: args.photo_encoding,
         ..sh::Options::default()
     };
     let (registration, results) = sh::measure_features(
@@ -212,7 +203,7 @@ fn stage_params(
         "footprints": args.footprints, "sun": SunUsed::new(sun, &args.sun),
         "shadow_mask": args.shadow_mask, "max_height_m": args.max_height, "buildings": buildings,
         "line_spacing_cells": args.line_spacing, "sub_points": args.sub_points, "joint_passes": args.joint_passes,
-        "photo_encoding": args.photo_encoding.to_possible_value().map(|v| v.get_name().to_string()),
+        "photo_encoding": args.photo_encoding.name(),
         "max_shift_m": args.max_shift, "camera": args.camera,
         "camera_estimated": registration.camera.filter(|c| c.1).map(|(c, _)| json!({ "east": c.east, "north": c.north, "z": c.z })),
         "footprint_shift": registration.scene.map(|(e, n, k)| json!({ "east_m": e, "north_m": n, "buildings": k })),

@@ -48,6 +48,7 @@
 
 use super::{Drape, Lighting, Mesh, Part};
 use crate::error::{Error, Result};
+use crate::raster::{linear_to_srgb, srgb_to_linear};
 use serde_json::{json, Map, Value};
 
 /// The largest position error (metres) the 16-bit encoding may make; a box needing more is
@@ -82,26 +83,6 @@ fn to_local(p: [f64; 3], origin: [f64; 3]) -> [f64; 3] {
 /// glTF (east, up, −north) → world (east, north, up) with `origin` added back.
 fn to_world(l: [f64; 3], origin: [f64; 3]) -> [f64; 3] {
     [origin[0] + l[0], origin[1] - l[2], origin[2] + l[1]]
-}
-
-/// sRGB byte → linear, in [0, 1].
-fn srgb_to_linear(v: u8) -> f64 {
-    let c = f64::from(v) / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// Linear in [0, 1] → the nearest sRGB byte.
-fn linear_to_srgb(l: f64) -> u8 {
-    let c = if l <= 0.003_130_8 {
-        12.92 * l
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (c * 255.0).round().clamp(0.0, 255.0) as u8
 }
 
 /// How positions are stored: the node's transform and the encoding of the deltas.

@@ -9,10 +9,10 @@
 //! taken again only when its size or modification time differ from those its stamp recorded.
 
 use super::file::{ObjectSpec, Product, Scene};
+use crate::choice::Choice;
 use crate::db::sha256_file;
 use crate::error::{Error, Result};
 use crate::io::atomic::AtomicFile;
-use crate::shadow_height::shading::PhotoEncoding;
 use crate::voxel::place::Variation;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -421,11 +421,7 @@ fn heights_step(scene: &Scene) -> Option<Step> {
         t.clone(),
     ];
     if let Some(e) = b.photo_encoding {
-        let name = match e {
-            PhotoEncoding::Srgb => "srgb",
-            PhotoEncoding::Linear => "linear",
-        };
-        command.extend([s("--photo-encoding"), s(name)]);
+        command.extend([s("--photo-encoding"), s(e.name())]);
     }
     command.extend([s("--apply"), s("-o"), s(heights.display())]);
     Some(Step {

@@ -1334,6 +1334,9 @@ struct Sought<'p, 'a, 'h> {
     /// Cell edge (the larger), metres.
     cell: f64,
     tan_e: f64,
+    /// The roof cells the photo shows ([`PassInputs::roof_cells`]; none in a sketch): read
+    /// for the pitched look and the faces' shading.
+    roof: Vec<usize>,
 }
 
 impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
@@ -1361,6 +1364,7 @@ impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
             },
             cell: cx.max(cy),
             tan_e: pass.sun.elevation_deg.to_radians().tan(),
+            roof: Vec::new(),
         }
     }
 
@@ -1461,6 +1465,9 @@ impl PassInputs<'_> {
             }
         };
         let mut sought = Sought::new(self, id, fp, u, full, source);
+        if !self.sketch {
+            sought.roof = self.roof_cells(id, fp, cells, sought.lean);
+        }
         let (mut local, threshold) = sought.classified(sought.classified_len);
         let e = self.sun.elevation_deg;
         let mut m = Measurement {
@@ -1480,7 +1487,11 @@ impl PassInputs<'_> {
             flags: Flags {
                 low_sun: e < LOW_SUN_DEG,
                 high_sun: e > HIGH_SUN_DEG,
-                pitched_roof: !self.sketch && self.looks_pitched(id, fp, cells, sought.lean),
+                pitched_roof: roof::looks_pitched(
+                    &self.band.colour,
+                    &sought.roof,
+                    self.sun.direction(),
+                ),
                 ..Flags::default()
             },
             pitch: None,
@@ -1617,13 +1628,14 @@ impl PassInputs<'_> {
         // A pitched-looking roof whose shape fits clearly better: the ridge is its height,
         // the eaves the lowest the scan lines may see; otherwise the flat roof, still flagged.
         // Faces whose shading tells a pitch make a pitched-looking roof too.
-        let shading = self.shading(sought, &sub);
-        let shading = shading.as_ref().map(|(r, l)| (r, l));
-        m.flags.pitched_roof |= shading.is_some_and(|(r, l)| pitched::shading_tells(fp, r, l));
+        let shaded_by = self
+            .shading(sought, &sub)
+            .map_or_else(Vec::new, |(r, l)| pitched::shaded_roofs(fp, &r, &l));
+        m.flags.pitched_roof |= pitched::shading_tells(&shaded_by);
         let fitted = m.flags.pitched_roof.then(|| {
             let sub_points = self.opts.sub_points;
             pitched::fit(
-                shading, &sub, fp, &keep, u, tan_e, ground_z, z_hi, sub_points, cell,
+                &shaded_by, &sub, fp, &keep, u, tan_e, ground_z, z_hi, sub_points, cell,
             )
         });
         let (top_m, eave_m, overlap, plausible) = match fitted.flatten() {
@@ -1688,62 +1700,46 @@ impl PassInputs<'_> {
         Ok(m)
     }
 
-    /// Whether the roof of `fp` (own cells `cells`) looks pitched where the photo shows it
-    /// ([`Self::roof_in_photo`]).
-    fn looks_pitched(&self, id: u32, fp: &Footprint, cells: &[usize], lean: (f64, f64)) -> bool {
-        let (seen, cells) = self.roof_in_photo(id, fp, cells, lean);
-        roof::looks_pitched(&seen, &self.band.colour, &cells, self.sun.direction())
-    }
-
-    /// The roof of `fp` (own cells `cells`) where the photo shows it: the footprint moved by
-    /// its `lean` (metres) in a perspective photo, and the cells of it to read. Without a lean,
-    /// roof cells in a taller neighbour's shadow (second pass: at this building's first-pass
-    /// roof) are left out: a roof half in a neighbour's shadow is two brightnesses with a
-    /// straight boundary too (`dbms sample`'s adjacent pairs). A leaning roof is read whole.
-    fn roof_in_photo(
-        &self,
-        id: u32,
-        fp: &Footprint,
-        cells: &[usize],
-        lean: (f64, f64),
-    ) -> (std::borrow::Cow<'_, Footprint>, Vec<usize>) {
+    /// The roof cells of `fp` (own cells `cells`) to read where the photo shows it
+    /// ([`roof::inner_cells`]): of the footprint moved by its `lean` (metres) in a perspective
+    /// photo. Without a lean, roof cells in a taller neighbour's shadow (second pass: at this
+    /// building's first-pass roof) are left out: a roof half in a neighbour's shadow is two
+    /// brightnesses with a straight boundary too (`dbms sample`'s adjacent pairs). A leaning
+    /// roof is read whole.
+    fn roof_cells(&self, id: u32, fp: &Footprint, cells: &[usize], lean: (f64, f64)) -> Vec<usize> {
+        let colour = &self.band.colour;
         if lean != (0.0, 0.0) {
             let seen = register::moved(fp, lean.0, lean.1);
-            let cells = seen.cells(self.grid);
-            return (std::borrow::Cow::Owned(seen), cells);
+            return roof::inner_cells(&seen, colour, &seen.cells(self.grid));
         }
+        let inner = roof::inner_cells(fp, colour, cells);
         let Some(own) = self.roofs[id as usize - 1] else {
-            return (std::borrow::Cow::Owned(fp.clone()), cells.to_vec());
+            return inner;
         };
         let w = self.grid.width;
         let taller = self.shading_neighbours(id, fp, own);
         let tan_e = self.sun.elevation_deg.to_radians().tan();
-        let unshaded = cells
-            .iter()
-            .copied()
+        inner
+            .into_iter()
             .filter(|&i| {
                 let p = self.grid.cell_centre(i % w, i / w);
                 !self.in_shadow_of(&taller, p, own, tan_e)
             })
-            .collect();
-        (std::borrow::Cow::Owned(fp.clone()), unshaded)
+            .collect()
     }
 
-    /// What the faces' shading of `sought`'s roof needs ([`shading`]): its inner cells as the
-    /// photo shows them, moved back onto the footprint by the lean, and the light read off the
+    /// What the faces' shading of `sought`'s roof needs ([`shading`]): its roof cells
+    /// ([`Sought::roof`]), moved back onto the footprint by the lean, and the light read off the
     /// open ground of `sub` (lit and shadow cells). `None` for a roof of fewer than
     /// [`roof::MIN_CELLS`] cells or of one colour, or when the ground does not tell the light.
     fn shading(&self, sought: &Sought, sub: &Local) -> Option<(shading::Roof, shading::Light)> {
         let colour = &self.band.colour;
         let w = self.grid.width;
-        let own = sought.fp.cells(self.grid);
-        let (seen, cells) = self.roof_in_photo(sought.id, sought.fp, &own, sought.lean);
-        let inner = roof::inner_cells(&seen, colour, &cells);
-        if inner.len() < roof::MIN_CELLS {
+        if sought.roof.len() < roof::MIN_CELLS {
             return None;
         }
         let (le, ln) = sought.lean;
-        let samples = inner.into_iter().map(|i| {
+        let samples = sought.roof.iter().map(|&i| {
             let (x, y) = self.grid.cell_centre(i % w, i / w);
             ((x - le, y - ln), *colour.at(i))
         });

@@ -78,13 +78,12 @@ pub struct Fitted {
 }
 
 /// The best pitched roof for footprint `fp`, or `None` when none explains the photo clearly
-/// better than a flat roof (see the module docs) and the faces' `shading` (the roof as the
-/// photo shows it, and the light) does not tell a pitch either. The other arguments are
-/// [`refine::refine`]'s; `cell` is the cell edge (metres). Tops up to `z_hi` metres above
-/// `ground_z` are tried.
+/// better than a flat roof (see the module docs) and the faces' shading (`shaded_by`,
+/// [`shaded_roofs`]) does not tell a pitch either. The other arguments are [`refine::refine`]'s;
+/// `cell` is the cell edge (metres). Tops up to `z_hi` metres above `ground_z` are tried.
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
-    shading: Option<(&shading::Roof, &shading::Light)>,
+    shaded_by: &[ShadedRoof],
     local: &Local,
     fp: &Footprint,
     keep: &[bool],
@@ -150,11 +149,11 @@ pub fn fit(
                     best = Some((t, pitch, rise));
                 }
             }
-            let Some((roof, light)) = shading else {
-                continue;
-            };
-            let faces = shading::Faces::new(roof, &extent, form);
-            let Some(estimate) = shading::estimate(&faces, light) else {
+            let Some(estimate) = shaded_by
+                .iter()
+                .find(|s| s.form == form && s.azimuth_deg == azimuth_deg)
+                .map(|s| s.estimate)
+            else {
                 continue;
             };
             let rise_at = |deg: f64| extent.half.1 * deg.to_radians().tan();
@@ -231,21 +230,51 @@ struct Shaded {
     estimate: shading::Estimate,
 }
 
-/// Whether the faces' shading of `roof` under `light` tells a pitched roof over `fp`: a gable
-/// or hip along one of its axes whose pitch's 95 % interval lies at or above
-/// [`MIN_SHADED_PITCH_DEG`]. It sees faces whose brightnesses differ too little for
-/// [`super::roof::looks_pitched`] (a low pitch, the sun nearly along the ridge).
-pub fn shading_tells(fp: &Footprint, roof: &shading::Roof, light: &shading::Light) -> bool {
-    axes(fp).into_iter().any(|azimuth_deg| {
+/// A pitch the faces' shading tells for one of the roofs [`fit`] tries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadedRoof {
+    /// The roof tried: its form and ridge direction (degrees clockwise from grid north).
+    pub form: RoofForm,
+    /// See `form`.
+    pub azimuth_deg: f64,
+    /// What the faces tell.
+    pub estimate: shading::Estimate,
+}
+
+/// The pitches the faces' shading of `roof` under `light` tells over `fp`: one per gable or
+/// hip along either axis of its minimum-area rectangle whose faces tell one.
+pub fn shaded_roofs(
+    fp: &Footprint,
+    roof: &shading::Roof,
+    light: &shading::Light,
+) -> Vec<ShadedRoof> {
+    let mut out = Vec::new();
+    for azimuth_deg in axes(fp) {
         let Some(extent) = crate::roof::Extent::new(&fp.rings, azimuth_deg) else {
-            return false;
+            continue;
         };
-        FORMS.into_iter().any(|form| {
+        for form in FORMS {
             let faces = shading::Faces::new(roof, &extent, form);
-            shading::estimate(&faces, light)
-                .is_some_and(|e| e.intervals_deg[1].0 >= MIN_SHADED_PITCH_DEG)
-        })
-    })
+            if let Some(estimate) = shading::estimate(&faces, light) {
+                out.push(ShadedRoof {
+                    form,
+                    azimuth_deg,
+                    estimate,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Whether the faces' shading tells a pitched roof (`roofs`, from [`shaded_roofs`]): a pitch
+/// whose 95 % interval lies at or above [`MIN_SHADED_PITCH_DEG`]. It sees faces whose
+/// brightnesses differ too little for [`super::roof::looks_pitched`] (a low pitch, the sun
+/// nearly along the ridge).
+pub fn shading_tells(roofs: &[ShadedRoof]) -> bool {
+    roofs
+        .iter()
+        .any(|s| s.estimate.intervals_deg[1].0 >= MIN_SHADED_PITCH_DEG)
 }
 
 /// The highest a pitched roof over `fp` may rise above its eaves, metres: the steepest pitch
@@ -468,7 +497,7 @@ mod tests {
         let tan_e = 35f64.to_radians().tan();
         let keep = vec![true; local.class.len()];
         fit(
-            None,
+            &[],
             &local,
             &fp,
             &keep,

@@ -30,18 +30,12 @@ pub const MIN_COHERENCE: f64 = 0.85;
 /// Fewest roof cells the test is made on (a smaller roof is not judged).
 pub const MIN_CELLS: usize = 24;
 
-/// Whether the roof of `fp` looks pitched in `colour` (see the module doc) under a sun
-/// `toward_sun` (unit vector, east and north); `cells` are the footprint's own cells (centre
-/// inside), as indices of `colour`'s grid.
-pub fn looks_pitched(
-    fp: &Footprint,
-    colour: &RowBand<[u8; 4]>,
-    cells: &[usize],
-    toward_sun: (f64, f64),
-) -> bool {
+/// Whether a roof looks pitched in `colour` (see the module doc) under a sun `toward_sun` (unit
+/// vector, east and north); `inner` are its roof cells ([`inner_cells`]), as indices of
+/// `colour`'s grid.
+pub fn looks_pitched(colour: &RowBand<[u8; 4]>, inner: &[usize], toward_sun: (f64, f64)) -> bool {
     let grid = &colour.grid;
     let w = grid.width;
-    let inner = inner_cells(fp, colour, cells);
     if inner.len() < MIN_CELLS {
         return false;
     }
@@ -50,7 +44,7 @@ pub fn looks_pitched(
         0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64
     };
     let mut hist = [0u64; 256];
-    for &i in &inner {
+    for &i in inner {
         hist[index_bin(y(i))] += 1;
     }
     // Otsu's split without the shadow-specific retry: the dark class may be most of the roof.
@@ -172,14 +166,20 @@ mod tests {
     fn a_gable_looks_pitched_a_flat_textured_roof_does_not() {
         let noise = |i: usize| ((i * 7919) % 17) as u8;
         let (fp, c, cells) = roof(|_, y, i| if y < 14.0 { 170 } else { 120 } + noise(i));
-        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH));
+        assert!(looks(&fp, &c, &cells, SOUTH));
         let (fp, c, cells) = roof(|_, _, i| 130 + 3 * noise(i));
         assert!(
-            !looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH),
+            !looks(&fp, &c, &cells, SOUTH),
             "speckled texture is not faces"
         );
         let (fp, c, cells) = roof(|_, _, i| 150 + noise(i) / 2);
-        assert!(!looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH));
+        assert!(!looks(&fp, &c, &cells, SOUTH));
+    }
+
+    /// [`looks_pitched`] over the inner cells of `fp` (own cells `cells`) in `c`.
+    fn looks(fp: &Footprint, c: &Colour, cells: &[usize], toward_sun: (f64, f64)) -> bool {
+        let band = RowBand::whole(c);
+        looks_pitched(&band, &inner_cells(fp, &band, cells), toward_sun)
     }
 
     /// Toward a sun in the south.
@@ -191,8 +191,8 @@ mod tests {
         // shades it there. Under a sun from the north the same picture is a face turned away.
         let noise = |i: usize| ((i * 7919) % 17) as u8;
         let (fp, c, cells) = roof(|_, y, i| if y < 13.0 { 100 } else { 170 } + noise(i));
-        assert!(!looks_pitched(&fp, &RowBand::whole(&c), &cells, SOUTH));
-        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells, (0.0, 1.0)));
+        assert!(!looks(&fp, &c, &cells, SOUTH));
+        assert!(looks(&fp, &c, &cells, (0.0, 1.0)));
     }
 
     #[test]
@@ -207,6 +207,6 @@ mod tests {
                 140
             }
         });
-        assert!(looks_pitched(&fp, &RowBand::whole(&c), &cells, (-1.0, 0.0)));
+        assert!(looks(&fp, &c, &cells, (-1.0, 0.0)));
     }
 }

@@ -28,6 +28,7 @@
 //! docs/shadow-height.md, "Pitch from the faces' shading").
 
 use super::pitched::MAX_PITCH_DEG;
+use crate::raster::srgb_to_linear;
 use crate::roof::{Extent, RoofForm};
 
 /// Pitches tried, degrees apart (near the best whole degree).
@@ -104,16 +105,17 @@ impl Light {
     }
 }
 
-/// How a photo's bytes encode light (`srgb` or `linear` in files).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum PhotoEncoding {
-    /// sRGB (IEC 61966-2-1): the usual 8-bit photo, and what a camera or a renderer writes
-    /// unless told otherwise.
-    #[default]
-    Srgb,
-    /// Linear: bytes proportional to the light.
-    Linear,
+crate::choice! {
+    /// How a photo's bytes encode light (named as on the command line in scene files too).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+    #[serde(rename_all = "lowercase")]
+    pub enum PhotoEncoding {
+        /// sRGB (IEC 61966-2-1): the usual 8-bit photo, and what a camera or a renderer writes
+        /// unless told otherwise (the default).
+        Srgb = "srgb",
+        /// Linear: bytes proportional to the light.
+        Linear = "linear",
+    }
 }
 
 impl PhotoEncoding {
@@ -123,16 +125,8 @@ impl PhotoEncoding {
             PhotoEncoding::Linear => f64::from(v) / 255.0,
             PhotoEncoding::Srgb => {
                 static TABLE: std::sync::OnceLock<[f64; 256]> = std::sync::OnceLock::new();
-                TABLE.get_or_init(|| {
-                    std::array::from_fn(|v| {
-                        let c = v as f64 / 255.0;
-                        if c <= 0.04045 {
-                            c / 12.92
-                        } else {
-                            ((c + 0.055) / 1.055).powf(2.4)
-                        }
-                    })
-                })[usize::from(v)]
+                TABLE.get_or_init(|| std::array::from_fn(|v| srgb_to_linear(v as u8)))
+                    [usize::from(v)]
             }
         }
     }
@@ -523,25 +517,21 @@ mod tests {
                     && (l.toward_sun[2] - e.sin()).abs() < 1e-12
             );
         }
-        assert_eq!(
-            Light::from_ground(
-                (0.0, -1.0),
-                e,
-                &[[90; 4]; 20],
-                &[[90; 4]; 20],
-                PhotoEncoding::Srgb
-            ),
-            None
-        );
-        assert_eq!(
-            Light::from_ground(
-                (0.0, -1.0),
-                e,
-                &[[200; 4]; 3],
-                &[[90; 4]; 20],
-                PhotoEncoding::Srgb
-            ),
-            None
-        );
+        // Lit no brighter than the shadow; too few lit cells.
+        for (lit, shadow) in [
+            (vec![[90; 4]; 20], [[90; 4]; 20]),
+            (vec![[200; 4]; 3], [[90; 4]; 20]),
+        ] {
+            let l = Light::from_ground((0.0, -1.0), e, &lit, &shadow, PhotoEncoding::Srgb);
+            assert_eq!(l, None, "{lit:?}");
+        }
+    }
+
+    #[test]
+    fn the_encodings_have_the_same_names_in_files_and_on_the_command_line() {
+        use crate::choice::Choice;
+        for &e in PhotoEncoding::ALL {
+            assert_eq!(serde_json::to_value(e).unwrap(), e.name());
+        }
     }
 }
