@@ -413,15 +413,9 @@ fn grounds_under(
             .iter()
             .map(|&k| {
                 let (x, y) = footprints[k].bbox_centre();
-                let (px, py) = grid.transform.world_to_pixel(x, y);
-                let (c, r) = (px.floor(), py.floor());
-                let inside =
-                    c >= 0.0 && r >= 0.0 && (c as usize) < grid.width && band.holds_row(r as usize);
-                if inside {
-                    *band.get(c as usize, r as usize) as f64
-                } else {
-                    f64::NAN
-                }
+                grid.cell_at(x, y)
+                    .filter(|&(_, r)| band.holds_row(r))
+                    .map_or(f64::NAN, |(c, r)| f64::from(*band.get(c, r)))
             })
             .collect())
     })
