@@ -391,7 +391,11 @@ fn terrain(c: usize, r: usize) -> (f32, [u8; 4]) {
     let roof = blocks::roof(c, r, ground);
     let (building, z) = (roof.is_some(), roof.unwrap_or(ground));
     let shade = (ground - 60.0).clamp(0.0, 255.0) as u8;
-    let stripe = if ((c / 37 + r / 53) % 5) == 0 { 30 } else { 0 };
+    let stripe = if (c / 37 + r / 53).is_multiple_of(5) {
+        30
+    } else {
+        0
+    };
     let noise = ((c.wrapping_mul(31) ^ r.wrapping_mul(17)).wrapping_mul(2654435761) >> 7) % 24;
     let colour = if building {
         [170, 160, 150, 255]

@@ -20,6 +20,10 @@ use povray::{isolated_layout, Camera, Scene};
 use shadow_truth::{measure_prepared_with, prepare_scene, Prepared};
 
 /// 16 isolated buildings on a 4 × 4 layout 60 m apart, 0.5 m cells, flat or sloped ground.
+/// One scene: seed, sun azimuth and elevation (degrees), ground plane `(z0, gx, gy)` and the
+/// footprints' shift (metres), the arguments of [`scene`].
+type Spec = (u64, f64, f64, (f64, f64, f64), (f64, f64));
+
 fn scene(seed: u64, az: f64, el: f64, ground: (f64, f64, f64), shift: (f64, f64)) -> Scene {
     let origin = (500_000.0, 5_300_260.0);
     Scene {
@@ -53,7 +57,7 @@ fn main() {
         (3, 100.0, 60.0, (250.0, 0.0, 0.0), (0.0, 0.0)),
     ];
     let shifted = [(4, 160.0, 40.0, (250.0, 0.0, 0.0), (1.6, -1.2))];
-    let prep = |list: &[(u64, f64, f64, (f64, f64, f64), (f64, f64))]| -> Vec<(Scene, Prepared)> {
+    let prep = |list: &[Spec]| -> Vec<(Scene, Prepared)> {
         list.iter()
             .map(|&(seed, az, el, g, sh)| {
                 let s = scene(seed, az, el, g, sh);
@@ -66,11 +70,11 @@ fn main() {
     let off = prep(&shifted);
     println!("| knob | setting | scenes | buildings | flagged or null | unflagged RMSE m (cells) | worst unflagged, cells | silent > 2 cells | ms / building |");
     println!("|---|---|---|---|---|---|---|---|---|");
-    let knobs: Vec<(&str, Vec<&str>, &Vec<(Scene, Prepared)>)> = vec![
-        ("--line-spacing", vec!["2", "1", "0.5", "0.25"], &plain),
-        ("--sub-points", vec!["1", "2", "4", "8"], &plain),
-        ("--max-height", vec!["40", "150", "400"], &plain),
-        ("--max-shift", vec!["0", "1", "3", "6"], &off),
+    let knobs = [
+        ("--line-spacing", vec!["2", "1", "0.5", "0.25"], &plain[..]),
+        ("--sub-points", vec!["1", "2", "4", "8"], &plain[..]),
+        ("--max-height", vec!["40", "150", "400"], &plain[..]),
+        ("--max-shift", vec!["0", "1", "3", "6"], &off[..]),
     ];
     for (knob, values, scenes) in knobs {
         for v in values {

@@ -323,7 +323,7 @@ fn re_ingest_keeps_placements_and_buildings_on_the_same_grid() {
     assert_eq!(after["layers"]["buildings"], before["layers"]["buildings"]);
     s.verify();
     // On another grid (a 2 m cell) it would drop them: refused, unless --overwrite.
-    let coarse = [&ingest[..], &["--cell", "2"]].concat();
+    let coarse = [ingest, &["--cell", "2"]].concat();
     let out = dbms_in(s.path(), &coarse);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -349,7 +349,7 @@ fn re_ingest_with_overwrite_on_the_same_grid_starts_over() {
     ok(s.path(), APPLY);
     let before = manifest(&s.db());
     assert_eq!(before["objects"].as_array().unwrap().len(), 1);
-    ok(s.path(), &[&INGEST[..], &["--overwrite"]].concat());
+    ok(s.path(), &[INGEST, &["--overwrite"]].concat());
     let m = manifest(&s.db());
     assert!(m["objects"].as_array().unwrap().is_empty() && m["layers"]["buildings"].is_null());
     s.verify();

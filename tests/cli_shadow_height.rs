@@ -455,6 +455,10 @@ fn shadow_mask_on_another_grid_is_refused() {
     );
 }
 
+/// A pitched house of the sample: its id, its true form, and its ridge and eaves errors
+/// (metres), `None` when it was left flagged.
+type PitchedHouse = (u64, String, Option<(f64, f64)>);
+
 /// Run `dbms sample --size SIZE` (seed 1) → ingest → shadow-height (the photo's own sun) and
 /// check the goal: every building either measured, or null with a flag saying why; the measured
 /// flat roofs within one orthophoto cell RMSE of truth.json and never turned pitched; at least
@@ -464,13 +468,8 @@ fn shadow_mask_on_another_grid_is_refused() {
 /// [`EAVES_CELLS`] cells of truth; or, where the fit did not take, flagged `pitched_roof`,
 /// measured between the true eaves and ridge (the shadow of a roof pitched below the sun is
 /// its eaves') and with the true ridge inside the reported 95 % interval. At least
-/// `min_pitched` of them must be fitted. Returns the pitched ones' `(id, form, ridge error m, eaves error m)`, `None`
-/// for one left flagged.
-fn sample_within_a_cell(
-    size: usize,
-    min_measured: usize,
-    min_pitched: usize,
-) -> Vec<(u64, String, Option<(f64, f64)>)> {
+/// `min_pitched` of them must be fitted. Returns the pitched ones.
+fn sample_within_a_cell(size: usize, min_measured: usize, min_pitched: usize) -> Vec<PitchedHouse> {
     let t = tempfile::tempdir().unwrap();
     let size = size.to_string();
     ok(

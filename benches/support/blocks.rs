@@ -13,5 +13,5 @@ pub fn roof(c: usize, r: usize, ground: f32) -> Option<f32> {
         && by < 140
         && (bx / 20 + by / 20) % 2 == 0
         && h.is_multiple_of(3);
-    building.then(|| ground + 8.0 + (h % 33) as f32)
+    building.then_some(ground + 8.0 + (h % 33) as f32)
 }

@@ -595,8 +595,7 @@ fn clear_leftovers(dir: &Path, named: &[String], leftovers: &Leftovers) -> Resul
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        if (name.starts_with(STAGING_PREFIX)
-            || (content_named(&name) && !named.iter().any(|f| *f == name)))
+        if (name.starts_with(STAGING_PREFIX) || (content_named(&name) && !named.contains(&name)))
             && leftovers.may_remove(&e.path())
         {
             let _ = std::fs::remove_file(e.path());

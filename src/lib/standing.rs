@@ -1144,10 +1144,12 @@ mod tests {
         wanted.extend(object_cells(&g, &arch));
         for band_rows in [1, 4, 64] {
             let sample = TerrainSample::read(&t, wanted.clone(), band_rows).unwrap();
-            let from_sample = Raised::new(prism_cells.clone(), &sample)
-                .union(&Raised::objects(&g, &[arch.clone()], &sample), &sample);
+            let from_sample = Raised::new(prism_cells.clone(), &sample).union(
+                &Raised::objects(&g, std::slice::from_ref(&arch), &sample),
+                &sample,
+            );
             let from_whole = Raised::new(prism_cells.clone(), &t)
-                .union(&Raised::objects(&g, &[arch.clone()], &t), &t);
+                .union(&Raised::objects(&g, std::slice::from_ref(&arch), &t), &t);
             assert_eq!(from_sample, from_whole, "bands of {band_rows} rows");
             assert!(
                 from_whole.cells().iter().any(|c| c.partial),

@@ -135,12 +135,15 @@ fn keys_cubic(x: f64) -> f64 {
     }
 }
 
+/// Per target cell along one axis, the source cell containing its centre (`None` off the source).
+type Homes = Vec<Option<u32>>;
+
 /// Per-axis taps from `src` onto `dst` for one method.
 struct AxisTaps {
     cols: Vec<Taps>,
     rows: Vec<Taps>,
     /// Source cell containing each target centre, per axis; `None` for `average`, which has no home.
-    homes: Option<(Vec<Option<u32>>, Vec<Option<u32>>)>,
+    homes: Option<(Homes, Homes)>,
 }
 
 impl AxisTaps {

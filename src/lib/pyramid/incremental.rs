@@ -523,6 +523,9 @@ pub struct WholeGrid<'s> {
     pub covers: &'s [crate::tiles::region::Cover],
 }
 
+/// Takes a made page `(tx, ty)` with its counts ([`make_level0`]), from any thread.
+pub type EmitPage<'a> = dyn Fn((usize, usize), &Page, PageStats) -> Result<()> + Sync + 'a;
+
 /// Make the level-0 pages `touched` of `info` as a full build makes them, bit for bit, and hand
 /// each with its counts to `emit((tx, ty), page, stats)` (from many threads, each page once,
 /// page row by page row top to bottom): only what stands or shades near them is read.
@@ -533,7 +536,7 @@ pub fn make_level0(
     photo_sun: Option<Sun>,
     touched: &BTreeSet<(usize, usize)>,
     whole: &WholeGrid,
-    emit: &(dyn Fn((usize, usize), &Page, PageStats) -> Result<()> + Sync),
+    emit: &EmitPage<'_>,
 ) -> Result<()> {
     let WholeGrid {
         suns,

@@ -193,7 +193,7 @@ pub fn record_path(part: &Path) -> PathBuf {
 pub fn windows(info: &TileSetInfo, n: usize) -> Result<Vec<[usize; 4]>> {
     let (px, py) = (info.levels[0].pages_x, info.levels[0].pages_y);
     let best = (1..=n)
-        .filter(|a| n % a == 0 && *a <= px && n / a <= py)
+        .filter(|a| n.is_multiple_of(*a) && *a <= px && n / a <= py)
         .min_by_key(|&a| {
             let (wx, wy) = (px.div_ceil(a), py.div_ceil(n / a));
             (wx * wy, wx.abs_diff(wy))
@@ -583,7 +583,7 @@ mod tests {
                 continue;
             };
             assert_eq!(ws.len(), n);
-            let mut seen = vec![0u8; 16 * 11];
+            let mut seen = [0u8; 16 * 11];
             for [x0, y0, x1, y1] in &ws {
                 assert!(x0 < x1 && y0 < y1, "{n}: empty window");
                 for y in *y0..*y1 {

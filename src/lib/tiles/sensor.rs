@@ -332,9 +332,8 @@ pub(crate) fn check_attributes(
     materials: &[MaterialAttributes],
 ) -> Result<(), String> {
     for (k, l) in lights.iter().enumerate() {
-        if ![l.x, l.y, l.z].iter().all(|v| v.is_finite())
-            || !(l.intensity_cd > 0.0 && l.intensity_cd.is_finite())
-        {
+        let placed = [l.x, l.y, l.z].iter().all(|v| v.is_finite());
+        if !(placed && l.intensity_cd > 0.0 && l.intensity_cd.is_finite()) {
             return Err(format!(
                 "light {k} has a position that is not finite or an intensity that is not positive"
             ));
@@ -532,7 +531,7 @@ mod tests {
             radar_specular: false,
             radar: vec![],
         };
-        check_attributes(&[lamp], &[grass.clone()]).unwrap();
+        check_attributes(&[lamp], std::slice::from_ref(&grass)).unwrap();
         let bad_lamps = [
             LightPoint {
                 z: f64::NAN,
