@@ -75,7 +75,7 @@ fn pretty_text<T: Serialize>(doc: &T) -> String {
 
 /// The checksum a document dbms writes carries of its own content (the manifest's, a pyramid
 /// ledger's): the lower-case hex SHA-256 of `bare`, the document without its `checksum`
-/// member, saved as [`pretty_text`]. A reader computes it again and compares.
+/// member, saved as `pretty_text`. A reader computes it again and compares.
 pub fn content_checksum<T: Serialize>(bare: &T) -> String {
     hex(&Sha256::digest(pretty_text(bare).as_bytes()))
 }

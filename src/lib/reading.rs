@@ -92,13 +92,13 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
 }
 
 /// A data file (GeoJSON, a flight path, a ledger, a survey) as text, at most
-/// [`MAX_TEXT_BYTES`] of it; see [`read_text_at_most`].
+/// [`MAX_TEXT_BYTES`] of it; see `read_text_at_most`.
 pub fn read_text(path: &Path) -> Result<String> {
     read_text_at_most(path, MAX_TEXT_BYTES, "data file")
 }
 
 /// A settings file (a scene, a material table, a views file, a tile list, a `.prj` or world
-/// file, a stamp) as text, at most [`MAX_SETTINGS_BYTES`] of it; see [`read_text_at_most`].
+/// file, a stamp) as text, at most [`MAX_SETTINGS_BYTES`] of it; see `read_text_at_most`.
 pub fn read_settings(path: &Path) -> Result<String> {
     read_text_at_most(path, MAX_SETTINGS_BYTES, "settings file")
 }

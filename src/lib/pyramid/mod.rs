@@ -330,7 +330,7 @@ pub fn build_pyramid(
 /// own sun: what stands on the terrain is read once, and a cast or the photo's detected shadows
 /// one product made serve every later product that needs the same ([`shade::Shared`]); each
 /// summary's `reused` says what it took from an earlier one. Every product's outputs are
-/// checked before any work ([`check_products`]) and committed together once all are built (one
+/// checked before any work (`check_products`) and committed together once all are built (one
 /// change of the database records a stage for each): an error at any point leaves none of them.
 pub fn build_pyramids(
     db: &Database,

@@ -220,7 +220,7 @@ impl LevelRows for CoarseRows {
     }
 }
 
-/// The rounded average colour of a coarse cell (the tile format's rule, [`average_colour`]).
+/// The rounded average colour of a coarse cell (the tile format's rule, [`crate::tiles::average_colour`]).
 pub use crate::tiles::average_colour as average;
 
 /// Reduce the rows `fine` by `factor` in both directions: coarse row `r` is made of fine rows

@@ -373,7 +373,7 @@ fn holds(layer: SensorLayer) -> Option<Holds> {
 /// The map at `path` opened as the level-0 source of `layer` (temperature, radiance or
 /// backscatter), checked to be such a map before anything is built from it: one band of
 /// floating-point samples (a photo, a class layer refused), on the database grid
-/// ([`Database::values_on_grid`]), every value in the layer's plausible range ([`Holds`]: a σ⁰
+/// ([`Database::values_on_grid`]), every value in the layer's plausible range (`Holds`: a σ⁰
 /// map given as the temperature, a temperature map as the σ⁰, °C or dB refused). Checking the
 /// range reads the map once, band by band.
 pub fn open_values(db: &Database, path: &Path, layer: SensorLayer) -> Result<LayerRows<f32>> {

@@ -70,7 +70,7 @@ pub const DEFAULT_SHADOW_FACTOR: f64 = 0.45;
 pub const G_MAX: f64 = 2.0;
 
 /// The steepest roof (degrees from the horizontal) a building cell's drop to a neighbouring
-/// building cell is read as ([`Effects::faces`]); a steeper drop is a wall.
+/// building cell is read as (`Effects::faces`); a steeper drop is a wall.
 pub const MAX_ROOF_PITCH_DEG: f64 = 70.0;
 
 /// Two sun directions closer than this (degrees, in elevation and azimuth) are the same sun.

@@ -202,7 +202,7 @@ pub struct Corridor {
 }
 
 impl Inset {
-    /// The factor as a whole number (after [`Scene::check`]).
+    /// The factor as a whole number (after `Scene::check`).
     pub fn factor(&self) -> usize {
         self.factor as usize
     }
@@ -681,7 +681,7 @@ impl Scene {
 
     /// The insets' names in the order they are added: in name order, each after its parent
     /// (a parent declared later comes first, with its own parents). An error when insets nest
-    /// in each other in a cycle. Parents are declared ([`Scene::check`]).
+    /// in each other in a cycle. Parents are declared (`Scene::check`).
     pub fn inset_order(&self) -> Result<Vec<&String>> {
         let mut done: Vec<&String> = Vec::new();
         for name in self.insets.keys() {

@@ -98,7 +98,7 @@ pub(super) fn stamp_options(scene: &Scene, name: &str) -> Vec<String> {
 }
 
 /// The Makefile of `scene`, read from `scene_path`; an error for a path make cannot name
-/// ([`NOT_IN_MAKE`]).
+/// (`NOT_IN_MAKE`).
 pub fn makefile(scene: &Scene, scene_path: &Path) -> Result<String> {
     let all = steps(scene);
     let dir = steps_dir(scene);

@@ -53,7 +53,7 @@ fn python_list<'a>(paths: impl Iterator<Item = &'a Path>) -> Result<String> {
 }
 
 /// The Snakefile of `scene`, read from `scene_path`; an error for a path a rule cannot name
-/// ([`snake_path`]).
+/// (`snake_path`).
 pub fn snakefile(scene: &Scene, scene_path: &Path) -> Result<String> {
     let all = steps(scene);
     let dir = steps_dir(scene);

@@ -359,7 +359,7 @@ fn require_inside(db: &Database, x: f64, y: f64) -> Result<()> {
 }
 
 /// The name an object was placed under: its stored file's name (`objects/<stem>-<12 hex>.dvox`,
-/// [`store_object`]) without the directory, the hash and the extension. `"tree"` for
+/// `store_object`) without the directory, the hash and the extension. `"tree"` for
 /// `objects/tree-514b4940741c.dvox`; a name not of that form comes back as its file stem.
 pub fn placed_name(file: &str) -> &str {
     let name = file.rsplit('/').next().unwrap_or(file);
