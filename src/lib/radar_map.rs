@@ -19,8 +19,8 @@
 //! * **specular** materials (calm water, flat roofs) have no return away from normal incidence:
 //!   σ⁰ 0, marked.
 //!
-//! Surfaces: terrain normals ([`crate::raster::surface_normal`]); roofs and objects' tops are
-//! level.
+//! Surfaces: terrain normals ([`crate::raster::surface_normal`]), roofs' faces (a pitched roof
+//! slopes, [`crate::standing::Raised::top_normal`]); objects' tops are level.
 
 use crate::backscatter::grey_db;
 use crate::db::Database;

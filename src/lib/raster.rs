@@ -253,10 +253,18 @@ impl Elevation {
 /// before and after the cell, central where both are valid, one-sided where one is, level where
 /// neither is (nor off the grid).
 pub fn surface_normal(heights: &[f32], grid: &Grid, i: usize) -> [f64; 3] {
+    let w = grid.width;
+    normal_from(grid, i, |c, r| {
+        Some(f64::from(heights[r * w + c])).filter(|v| v.is_finite())
+    })
+}
+
+/// [`surface_normal`] of any surface: `z(col, row)` is its height at a cell (metres), `None`
+/// where the cell is not part of it. Cell `i` itself must be part of it.
+pub fn normal_from(grid: &Grid, i: usize, z: impl Fn(usize, usize) -> Option<f64>) -> [f64; 3] {
     let (w, h) = (grid.width, grid.height);
     let (col, row) = (i % w, i / w);
-    let z = |c: usize, r: usize| Some(f64::from(heights[r * w + c])).filter(|v| v.is_finite());
-    let here = f64::from(heights[i]);
+    let here = z(col, row).unwrap_or(f64::NAN);
     let slope = |before: Option<f64>, after: Option<f64>, step: f64| match (before, after) {
         (Some(a), Some(b)) => (b - a) / (2.0 * step),
         (Some(a), None) => (here - a) / step,

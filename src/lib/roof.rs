@@ -52,6 +52,10 @@ pub struct Pitch {
     pub azimuth_deg: f64,
 }
 
+/// The steepest roof face (degrees from the horizontal) a drop between two neighbouring cells of
+/// buildings is read as; a steeper drop is a wall (between two buildings, or a roof's step).
+pub const MAX_PITCH_DEG: f64 = 70.0;
+
 /// The property names of a roof in GeoJSON (the buildings layer, `dbms shadow-height`'s output).
 pub mod property {
     /// `"flat"`, `"gable"`, `"hip"` or `"shed"`; absent means flat.

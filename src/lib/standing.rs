@@ -338,6 +338,23 @@ impl Raised {
         self.range(index, index + 1).first()
     }
 
+    /// The unit upward normal `[east, north, up]` of the tops at raised cell `index` on `grid`
+    /// ([`crate::raster::normal_from`]): a pitched roof's face, from the neighbouring raised
+    /// cells whose top lies within [`roof::MAX_PITCH_DEG`] of this one's over the cell
+    /// between them. A steeper drop or rise is a wall (an eave over the ground, a neighbour's
+    /// taller roof), not part of this face, so a flat roof is level up to its edges.
+    pub fn top_normal(&self, grid: &Grid, index: usize) -> [f64; 3] {
+        let Some(here) = self.get(index).map(|c| f64::from(c.top_z)) else {
+            return [0.0, 0.0, 1.0];
+        };
+        let (dx, dy) = grid.cell_size();
+        let steepest = roof::MAX_PITCH_DEG.to_radians().tan() * dx.min(dy);
+        crate::raster::normal_from(grid, index, |c, r| {
+            let z = f64::from(self.get(r * grid.width + c)?.top_z);
+            ((z - here).abs() <= steepest).then_some(z)
+        })
+    }
+
     /// The terrain with every raised cell at its top: the surface shadows are cast over.
     pub fn heights(&self, terrain: &Elevation) -> Elevation {
         let mut h = terrain.clone();

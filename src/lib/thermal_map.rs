@@ -8,7 +8,7 @@
 //! * the sun (NREL SPA over the database centre) through a clear sky: direct normal irradiance
 //!   `1353 · 0.7^(AM^0.678)` W/m² (Meinel & Meinel 1976, *Applications of Solar Energy*, as
 //!   given by Honsberg & Bowden, PVEducation, "Air Mass"), air mass of Kasten & Young (1989,
-//!   *Applied Optics* 28(22)), on the cell's plane (terrain normal; roofs are flat) when the
+//!   *Applied Optics* 28(22)), on the cell's plane (the terrain's normal, a roof's face: [`crate::material::surface`]) when the
 //!   cell is lit in the step's cast shadow (terrain, buildings and placed objects, the
 //!   `dbms shadows` cast); diffuse light on a horizontal plane of a tenth of the direct normal
 //!   (the same source's clear-sky rule), times the sky-view factor `(1 + n_z) / 2`;
@@ -361,8 +361,8 @@ pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
         });
     }
 
-    // A valid cell's unit normal's east and north components, quantised to 0.01 (level on
-    // roofs and objects' tops).
+    // A valid cell's unit normal's east and north components, quantised to 0.01 (a roof's face,
+    // level on objects' tops).
     let normal = |i: usize| -> [i16; 2] {
         let [e, n, _] = surface.normal(i);
         [e, n].map(|v| (v * 100.0).round() as i16)

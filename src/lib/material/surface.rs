@@ -2,8 +2,9 @@
 //! `dbms radar`): each cell's material, terrain height, whether something stands on it, and
 //! the surface's normal.
 //!
-//! Invariant: every vector holds one value per grid cell, row-major; a cell something stands on
-//! (a roof, an object's top) is level, any other cell has the terrain's normal
+//! Invariant: every vector holds one value per grid cell, row-major; a roof has its own faces'
+//! normal (a pitched roof's slope, [`crate::standing::Raised::top_normal`]), a placed object's
+//! top is level, and any other cell has the terrain's normal
 //! ([`crate::raster::surface_normal`]).
 
 use super::layer::{table_of, MATERIALS};
@@ -26,7 +27,7 @@ pub struct TopSurface {
     pub material: Vec<u8>,
     /// Terrain height of every cell, metres; NaN nodata.
     pub heights: Vec<f32>,
-    /// Whether something stands on the cell (its top is level).
+    /// Whether something stands on the cell (a roof or an object's top).
     pub on_top: Vec<bool>,
 }
 
@@ -67,11 +68,13 @@ impl TopSurface {
         self.terrain.grid()
     }
 
-    /// The unit upward normal `[east, north, up]` of cell `i`: level on what stands, the
-    /// terrain's elsewhere.
+    /// The unit upward normal `[east, north, up]` of cell `i`: a roof's face on a building,
+    /// level on a placed object, the terrain's elsewhere.
     pub fn normal(&self, i: usize) -> [f64; 3] {
+        let s = &self.standing;
         match self.on_top[i] {
-            true => [0.0, 0.0, 1.0],
+            true if s.objects.contains(i) => [0.0, 0.0, 1.0],
+            true => s.buildings.top_normal(self.grid(), i),
             false => crate::raster::surface_normal(&self.heights, self.grid(), i),
         }
     }

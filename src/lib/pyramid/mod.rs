@@ -540,7 +540,7 @@ fn make_product(
     seconds.prepare = lap();
 
     let level0 = base::Level0::new(&terrain, &colour, all, effects.as_ref(), opts.page_size)
-        .with_sensor(sensor.sources(opts.sensor.normals, &terrain, all));
+        .with_sensor(sensor.sources(opts.sensor.normals, &terrain, standing));
     let (writer, exporter) = write_levels(&info, &level0, &covers, out, opts, progress)?;
     seconds.levels = lap();
     // Every output is finished under its temporary name, and all are renamed together once the
@@ -634,12 +634,12 @@ impl SensorReaders {
     }
 
     /// The level-0 sources, in the tile set's order; the normals, when asked for, of `terrain`
-    /// with what stands on it (`raised`) level.
+    /// with what stands on it (`standing`: roofs' faces, objects' level tops).
     fn sources<'a>(
         &'a self,
         normals: bool,
         terrain: &'a dyn crate::raster::RowSource<f32>,
-        raised: &'a crate::standing::Raised,
+        standing: &'a crate::standing::Standing,
     ) -> Vec<sensor::SensorSource<'a>> {
         let material = self
             .material
@@ -654,7 +654,7 @@ impl SensorReaders {
             let rows = rows.as_ref()?;
             Some(sensor::SensorSource::Values(l, rows))
         });
-        let normals = normals.then_some(sensor::SensorSource::Normals(terrain, raised));
+        let normals = normals.then_some(sensor::SensorSource::Normals(terrain, standing));
         material.chain(values).chain(normals).collect()
     }
 }

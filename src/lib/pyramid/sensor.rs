@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::io::SourceRaster;
 use crate::material::table::MaterialTable;
 use crate::raster::RowSource;
-use crate::standing::Raised;
+use crate::standing::{Raised, Standing};
 use crate::tiles::{
     pack_normal, MaterialAttributes, SensorCells, SensorLayer, MATERIAL_NODATA, NORMAL_NODATA,
 };
@@ -474,9 +474,10 @@ pub enum SensorSource<'a> {
     /// A map of values on the database grid (temperature or radiance), NaN = nodata.
     Values(SensorLayer, &'a dyn RowSource<f32>),
     /// The normals of the terrain's heights (NaN = nodata) by [`crate::raster::surface_normal`],
-    /// straight up on every cell something stands on (its top is level, as `dbms thermal` and
-    /// `dbms radar` take it).
-    Normals(&'a dyn RowSource<f32>, &'a Raised),
+    /// a roof's face on a building ([`Raised::top_normal`]) and straight up on a placed
+    /// object's top: the surface `dbms thermal` and `dbms radar` take
+    /// ([`crate::material::surface`]).
+    Normals(&'a dyn RowSource<f32>, &'a Standing),
 }
 
 impl SensorSource<'_> {
@@ -498,8 +499,8 @@ impl SensorSource<'_> {
             SensorSource::Values(_, src) => {
                 SensorData::Values(src.read_rows(row0, rows)?.into_owned())
             }
-            SensorSource::Normals(terrain, raised) => {
-                SensorData::Vectors(normals(*terrain, raised, row0, rows)?)
+            SensorSource::Normals(terrain, standing) => {
+                SensorData::Vectors(normals(*terrain, standing, row0, rows)?)
             }
         };
         Ok(SensorRows {
@@ -511,11 +512,11 @@ impl SensorSource<'_> {
 
 /// The normals of rows `row0 .. row0 + rows` of `terrain`, read with a row of neighbours above
 /// and below (where the grid has them) so each is the whole grid's
-/// [`crate::raster::surface_normal`]; up where `raised` has a cell; `[0; 3]` where the height
-/// is nodata.
+/// [`crate::raster::surface_normal`]; a roof's face where `standing` has a building, up on a
+/// placed object; `[0; 3]` where the height is nodata.
 fn normals(
     terrain: &dyn RowSource<f32>,
-    raised: &Raised,
+    standing: &Standing,
     row0: usize,
     rows: usize,
 ) -> Result<Vec<[f64; 3]>> {
@@ -535,7 +536,11 @@ fn normals(
         })
         .collect();
     let start = row0 * g.width;
-    for rc in raised.range(start, start + out.len()) {
+    let (buildings, objects) = (&standing.buildings, &standing.objects);
+    for rc in buildings.range(start, start + out.len()) {
+        out[rc.index - start] = buildings.top_normal(g, rc.index);
+    }
+    for rc in objects.range(start, start + out.len()) {
         out[rc.index - start] = [0.0, 0.0, 1.0];
     }
     Ok(out)
@@ -599,7 +604,8 @@ mod tests {
     }
 
     /// Bands of any height give the whole grid's normals (the halo rows make them so), with
-    /// raised cells up and nodata cells `[0; 3]`.
+    /// a pitched roof's cells along its face (a taller neighbour's wall not tilting them), an
+    /// object's top up and nodata cells `[0; 3]`.
     #[test]
     fn banded_normals_equal_the_whole_grid_s() {
         use crate::grid::Grid;
@@ -612,24 +618,49 @@ mod tests {
             .collect();
         z[3 * w + 4] = f32::NAN;
         let terrain = Raster::new(grid.clone(), z.clone());
-        let raised = Raised::new(
-            vec![RaisedCell {
-                index: 5 * w + 2,
-                top_z: 20.0,
-                colour: None,
-                partial: false,
-            }],
-            &terrain,
-        );
-        let whole = normals(&terrain, &Raised::new(vec![], &terrain), 0, h).unwrap();
+        let cell = |index: usize, top_z: f32| RaisedCell {
+            index,
+            top_z,
+            colour: None,
+            partial: false,
+        };
+        // A roof rising 0.25 m a cell eastward (a 26.6° face) over columns 1–4 of rows 7–9,
+        // and a tower beside it at column 5 of row 8.
+        let mut roof: Vec<RaisedCell> = (7..10)
+            .flat_map(|r| (1..5).map(move |c| (r, c)))
+            .map(|(r, c)| cell(r * w + c, 30.0 + 0.25 * c as f32))
+            .collect();
+        roof.push(cell(8 * w + 5, 45.0));
+        roof.sort_by_key(|c| c.index);
+        let buildings = Raised::new(roof, &terrain);
+        let objects = Raised::new(vec![cell(5 * w + 2, 20.0)], &terrain);
+        let all = buildings.union(&objects, &terrain);
+        let standing = Standing {
+            buildings,
+            objects,
+            all,
+        };
+        let face = {
+            let s = 0.25 / 0.5;
+            let n = (s * s + 1.0f64).sqrt();
+            [-s / n, 0.0, 1.0 / n]
+        };
+        let nothing = Standing {
+            buildings: Raised::new(vec![], &terrain),
+            objects: Raised::new(vec![], &terrain),
+            all: Raised::new(vec![], &terrain),
+        };
+        let whole = normals(&terrain, &nothing, 0, h).unwrap();
         for rows in 1..=h {
             let mut banded = Vec::new();
             for row0 in (0..h).step_by(rows) {
-                banded.extend(normals(&terrain, &raised, row0, rows.min(h - row0)).unwrap());
+                banded.extend(normals(&terrain, &standing, row0, rows.min(h - row0)).unwrap());
             }
             for i in 0..w * h {
+                let (col, row) = (i % w, i / w);
                 let want = match i {
-                    _ if i == 5 * w + 2 => [0.0, 0.0, 1.0],
+                    _ if i == 5 * w + 2 || i == 8 * w + 5 => [0.0, 0.0, 1.0],
+                    _ if (7..10).contains(&row) && (1..5).contains(&col) => face,
                     _ if z[i].is_nan() => [0.0; 3],
                     _ => crate::raster::surface_normal(&z, &grid, i),
                 };

@@ -24,7 +24,7 @@
 //! boundaries: terrain, building and object cells only use neighbours of their own class, so a
 //! wall's jump does not tilt the roof or the ground at its foot). A **wall cell** is a building
 //! or object cell with a 4-neighbour lower by at least one cell size, unless both are building
-//! cells and the drop is no steeper than [`MAX_ROOF_PITCH_DEG`]: the roof's own slope (a steep
+//! cells and the drop is no steeper than [`crate::roof::MAX_PITCH_DEG`]: the roof's own slope (a steep
 //! roof's faces, ridge and hips, whose neighbours lie a cell or more lower, are roof, shaded
 //! by their normals; its eaves and gable ends, over the terrain, are walls). The
 //! renderer sees the wall as that column's side, so its colour becomes the roof's colour times
@@ -68,10 +68,6 @@ pub const DEFAULT_SHADOW_FACTOR: f64 = 0.45;
 /// Most a tilted surface can be brighter than flat lit ground (caps `n·s / s_z`, which grows
 /// without bound for a low sun).
 pub const G_MAX: f64 = 2.0;
-
-/// The steepest roof (degrees from the horizontal) a building cell's drop to a neighbouring
-/// building cell is read as (`Effects::faces`); a steeper drop is a wall.
-pub const MAX_ROOF_PITCH_DEG: f64 = 70.0;
 
 /// Two sun directions closer than this (degrees, in elevation and azimuth) are the same sun.
 pub const SAME_SUN_DEG: f64 = 0.01;
@@ -869,7 +865,7 @@ impl Effects<'_> {
     /// Horizontal normals of the exposed vertical faces of a raised cell: toward each
     /// 4-neighbour of the new surface lower by at least one cell size (valid neighbours only),
     /// unless the cell and that neighbour are both building cells and the drop is within
-    /// [`MAX_ROOF_PITCH_DEG`] over a cell: then it is the roof's own slope (a steep roof's
+    /// [`crate::roof::MAX_PITCH_DEG`] over a cell: then it is the roof's own slope (a steep roof's
     /// faces, ridge and hips), shaded by its normal. A building's outline (a drop to the
     /// terrain or an object: its eaves and gable ends) and a steeper drop between two roofs
     /// are walls; a smaller step between two roofs reads as a steep slope.
@@ -877,7 +873,7 @@ impl Effects<'_> {
         let g = self.terrain.grid();
         let z = surface.new_height(col, row) as f64;
         let step = g.cell_size().0.min(g.cell_size().1);
-        let steepest = MAX_ROOF_PITCH_DEG.to_radians().tan() * step;
+        let steepest = crate::roof::MAX_PITCH_DEG.to_radians().tan() * step;
         let on_roof = surface.class(col, row) == BUILDING;
         let (c, r) = (col as isize, row as isize);
         [
