@@ -55,6 +55,7 @@ pub mod register;
 pub mod roof;
 pub mod scan;
 pub mod shading;
+pub mod specks;
 pub mod uncertainty;
 
 pub use footprint::{read_footprints, Footprint, InputFeature};
@@ -1896,7 +1897,12 @@ impl PassInputs<'_> {
                 (threshold.unwrap_or(f64::NEG_INFINITY), threshold)
             }
         };
-        let class = self.classes(id, &win, &base, &cells.ground, cut);
+        let mut class = self.classes(id, &win, &base, &cells.ground, cut);
+        if threshold.is_some() && specks::weak_split(&class, &cells.ground) {
+            let (cx, cy) = self.grid.cell_size();
+            let max_cells = (specks::MAX_SPECK_M2 / (cx * cy)).round() as usize;
+            specks::fill_lit_specks(&mut class, win.width, max_cells);
+        }
         (
             Local {
                 win,
