@@ -12,7 +12,8 @@
 //!    the [`detect::shadow_index`] of the window's open-ground cells (a local threshold). A
 //!    weak split (a low sun or a bright sky: shadow only 10–25 % darker than lit ground) counts
 //!    only where its dark cells lie in the footprint's possible shadow and hardly anywhere no
-//!    building's shadow can fall ([`WEAK_MAX_STRAY`], [`WEAK_MIN_PLACED`]).
+//!    building's shadow can fall ([`WEAK_MAX_STRAY`], [`WEAK_MIN_PLACED`]). Under a weak split
+//!    the lit specks ringed by shadow are shadow: the shaded ground's texture ([`specks`]).
 //! 2. **Measure.** [`scan::scan`]: parallel lines from the sun-far edges; the median valid
 //!    length `L` (metres).
 //! 3. **First estimate.** `Z0 = L · tan(elevation)`: the formula, exact on flat ground.
