@@ -12,7 +12,8 @@
 //!    the [`detect::shadow_index`] of the window's open-ground cells (a local threshold). A
 //!    weak split (a low sun or a bright sky: shadow only 10–25 % darker than lit ground) counts
 //!    only where its dark cells lie in the footprint's possible shadow and hardly anywhere no
-//!    building's shadow can fall ([`WEAK_MAX_STRAY`], [`WEAK_MIN_PLACED`]).
+//!    building's shadow can fall ([`WEAK_MAX_STRAY`], [`WEAK_MIN_PLACED`]). Under a weak split
+//!    the lit specks ringed by shadow are shadow: the shaded ground's texture ([`specks`]).
 //! 2. **Measure.** [`scan::scan`]: parallel lines from the sun-far edges; the median valid
 //!    length `L` (metres).
 //! 3. **First estimate.** `Z0 = L · tan(elevation)`: the formula, exact on flat ground.
@@ -55,6 +56,7 @@ pub mod register;
 pub mod roof;
 pub mod scan;
 pub mod shading;
+pub mod specks;
 pub mod uncertainty;
 
 pub use footprint::{read_footprints, Footprint, InputFeature};
@@ -1896,7 +1898,12 @@ impl PassInputs<'_> {
                 (threshold.unwrap_or(f64::NEG_INFINITY), threshold)
             }
         };
-        let class = self.classes(id, &win, &base, &cells.ground, cut);
+        let mut class = self.classes(id, &win, &base, &cells.ground, cut);
+        if threshold.is_some() && specks::weak_split(&class, &cells.ground) {
+            let (cx, cy) = self.grid.cell_size();
+            let max_cells = (specks::MAX_SPECK_M2 / (cx * cy)).round() as usize;
+            specks::fill_lit_specks(&mut class, win.width, max_cells);
+        }
         (
             Local {
                 win,
