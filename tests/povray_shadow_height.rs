@@ -557,10 +557,12 @@ fn hard_case_roofs_pitched_below_the_sun_are_measured_from_their_faces() {
     }
 }
 
-/// A hip pitched below the sun casts its eaves' shadow whatever its rise: the shadow cannot
-/// tell a rise, and must not seem to (issue 39: on the town bench, a hip pitched 32° under a
-/// 70° sun came back pitched 46° from its shadow, 1.8 m high, its faces telling 33°). Hips
-/// pitched 32° under a 70° sun from 250°, rotated every way: measured from their faces.
+/// A hip pitched below the sun casts its eaves' shadow whatever its rise, so its rise must
+/// come from its faces (issue 39: on the town bench a hip pitched 32° under a 70° sun came
+/// back 44° from a jog of its outline, 1.8 m high, its faces telling 34°:
+/// `tests/povray_town.rs`). Rectangular hips pitched 32° under a 70° sun from 250°, rotated
+/// every way: a guard that they stay measured from their faces (it passed before the change
+/// that fixed the town's hip too).
 #[test]
 fn hard_case_hips_below_a_high_sun_take_their_rise_from_their_faces_not_their_shadow() {
     if !povray::available() {
