@@ -184,6 +184,22 @@ pub fn fit(
             && flat_unexplained - unexplained >= MIN_GAIN
     });
     if let Some((t, pitch, rise)) = from_shadow {
+        // The rise is sought in steps of a cell of shadow as height, then quarter steps around
+        // the best; the shadow's outline places it to about half that cell (one standard
+        // error), and the faces' shading of the same roof, where it tells one, as well.
+        let faces = shaded_by
+            .iter()
+            .find(|s| s.form == pitch.form && s.azimuth_deg == pitch.azimuth_deg)
+            .and_then(|s| {
+                let extent = crate::roof::Extent::new(&fp.rings, pitch.azimuth_deg)?;
+                let rise_at = |deg: f64| extent.half.1 * deg.to_radians().tan();
+                let (lo, hi) = s.estimate.intervals_deg[0];
+                Some((
+                    rise_at(s.estimate.pitch_deg),
+                    (rise_at(hi) - rise_at(lo)) / 2.0,
+                ))
+            });
+        let (rise, sd) = combined((rise, step / 2.0), faces);
         let top_m = t.refined.height_m + rise;
         return Some(Fitted {
             pitch: Pitch {
@@ -194,9 +210,7 @@ pub fn fit(
             overlap: t.refined.overlap,
             score: t.score,
             flat_score: flat.score,
-            // The rise is sought in steps of a cell of shadow as height, then quarter steps
-            // around the best; the shadow's outline places it to about that cell.
-            top_plausible_m: [0.5, 1.0].map(|k| (top_m - k * step, top_m + k * step)),
+            top_plausible_m: [1.0, 2.0].map(|k| (top_m - k * sd, top_m + k * sd)),
         });
     }
     // The shadow cannot tell: the faces' shading may, unless the shadow of the roof it
@@ -216,6 +230,19 @@ pub fn fit(
         flat_score: flat.score,
         top_plausible_m: s.rises.map(|(lo, hi)| (eave_m + lo, eave_m + hi)),
     })
+}
+
+/// Two estimates `(value, standard error)` of one rise (metres) combined by their inverse
+/// variances; `a` alone without `b` (or where either error is not positive and finite).
+fn combined(a: (f64, f64), b: Option<(f64, f64)>) -> (f64, f64) {
+    let usable = |e: f64| e.is_finite() && e > 0.0;
+    match b {
+        Some(b) if usable(a.1) && usable(b.1) => {
+            let (wa, wb) = (1.0 / (a.1 * a.1), 1.0 / (b.1 * b.1));
+            ((wa * a.0 + wb * b.0) / (wa + wb), (wa + wb).sqrt().recip())
+        }
+        _ => a,
+    }
 }
 
 /// The pitched roof the faces' shading tells best ([`shading`]), its eaves fitted to the
