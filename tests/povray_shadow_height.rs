@@ -459,7 +459,10 @@ fn hard_case_shadows_behind_their_own_leaning_walls_from_500_m_take_the_leans_he
         assert!(lo <= o.truth_z && o.truth_z <= hi, "{o:?}");
         let cut = o.flags.iter().any(|f| f == "shadow_cut_by_edge_or_nodata");
         let from_lean = o.flags.iter().any(|f| f == "height_from_lean");
-        assert!(!from_lean || cut || o.flags.iter().any(|f| f == "no_shadow"), "{o:?}");
+        assert!(
+            !from_lean || cut || o.flags.iter().any(|f| f == "no_shadow"),
+            "{o:?}"
+        );
     }
 }
 

@@ -4,8 +4,8 @@
 //! leaning `L = r·h / (Z − h)` radially outward ([`super::register::with_camera`]), so
 //! `h = Z·L / (r + L)`. The lean is the registration's: the outline's, which is a pitched
 //! roof's eaves; good to [`LEAN_CELLS`] of a cell, one standard error, which is
-//! `Z·r / (r + L)² · LEAN_CELLS · cell` of height (from 500 m and `r` = 300 m, ~0.3 m at
-//! 0.5 m cells; from 3000 m, ~2 m).
+//! `Z·r / (r + L)² · LEAN_CELLS · cell` of height (from 500 m and `r` = 300 m, ~0.4 m at
+//! 0.5 m cells; from 3000 m, ~2.5 m).
 //!
 //! Invariant: the lean is used only where it is *precise* — its 95 % range within
 //! [`PRECISE_CELLS`] cells either side — from a clear registration estimate that fits its roof
@@ -27,8 +27,10 @@ use super::register::PerspectiveCentre;
 use super::Measurement;
 
 /// The lean's standard error, cells: the registration's plateau centre (a sharp edge reads the
-/// same over ±¼ cell) and the scene's shift.
-pub const LEAN_CELLS: f64 = 0.35;
+/// same over ±¼ cell) and the scene's shift. (At 0.35 the POV-Ray hard case from 500 m had a
+/// tall roof's lean 0.7 cell long and a height from the lean 0.3 m high, outside its 95 %
+/// interval.)
+pub const LEAN_CELLS: f64 = 0.5;
 
 /// The lean's height is used only when its 95 % range is within this many cells of height
 /// either side: a height it confirms, or gives, is then within the gross-error bound.
@@ -207,7 +209,7 @@ mod tests {
         let l = 300.0 * 12.0 / 488.0;
         let h = LeanHeight::new(&fp, (l, 0.0), &cam, 100.0, 0.5).unwrap();
         assert!((h.z - 112.0).abs() < 1e-9, "{h:?}");
-        assert!(h.sigma_m > 0.2 && h.sigma_m < 0.35, "{h:?}");
+        assert!(h.sigma_m > 0.3 && h.sigma_m < 0.5, "{h:?}");
         // No lean, or from 3000 m: nothing.
         assert_eq!(LeanHeight::new(&fp, (0.0, 0.0), &cam, 100.0, 0.5), None);
         let high = PerspectiveCentre { z: 3100.0, ..cam };
