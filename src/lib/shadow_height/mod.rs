@@ -48,6 +48,7 @@
 pub mod footprint;
 pub mod index;
 pub mod joint;
+pub mod lean;
 pub mod local;
 pub mod output;
 pub mod pitched;
@@ -207,6 +208,12 @@ pub struct Flags {
     /// ([`uncertainty::at_least`]): the valid lines ended early (a car's or a tree's lit top in
     /// the shadow, a misread cell), and the roof is probably higher.
     pub shadow_reaches_further: bool,
+    /// A frame photo's lean gives a roof ([`lean`]) the shadow's height disagrees with: one of
+    /// the two is wrong.
+    pub lean_disagrees: bool,
+    /// No shadow height: the height is the one the frame photo's lean gives ([`lean`]), the
+    /// outline's (a pitched roof's eaves).
+    pub height_from_lean: bool,
 }
 
 impl Flags {
@@ -227,6 +234,8 @@ impl Flags {
             (self.estimates_disagree, "estimates_disagree"),
             (self.poor_shadow_match, "poor_shadow_match"),
             (self.shadow_reaches_further, "shadow_reaches_further"),
+            (self.lean_disagrees, "lean_disagrees"),
+            (self.height_from_lean, "height_from_lean"),
         ]
         .into_iter()
         .filter_map(|(on, name)| on.then_some(name))
@@ -452,6 +461,9 @@ pub fn register_and_measure(
         };
         let mut measured = measure(&leaned, &moved, sun, opts)?;
         reg.flag_off_photo(&mut measured, grid);
+        if let Some((cam, _)) = reg.camera {
+            meet_leans(&reg, &cam, &moved, &mut measured, cell);
+        }
         Ok((reg, measured))
     };
     if max_shift_m <= 0.0 {
@@ -468,6 +480,24 @@ pub fn register_and_measure(
                 register_footprints(inputs, given, sun, max_shift_m, Some(&cam), opts)?;
             reg.camera = Some((cam, true));
             run(reg, moved)
+        }
+    }
+}
+
+/// Meet each measurement of `footprints` (registered as `reg` in a frame photo taken from
+/// `camera`, `cell` metres) with the height its lean gives ([`lean::meet`]).
+fn meet_leans(
+    reg: &Registration,
+    camera: &register::PerspectiveCentre,
+    footprints: &[Footprint],
+    measured: &mut [std::result::Result<Measurement, String>],
+    cell: f64,
+) {
+    for ((m, fp), &l) in measured.iter_mut().zip(footprints).zip(&reg.leans) {
+        if let Ok(m) = m {
+            if let Some(h) = lean::LeanHeight::new(fp, l, camera, m.ground_z, cell) {
+                lean::meet(m, &h, pitched::highest_rise(fp));
+            }
         }
     }
 }

@@ -693,10 +693,11 @@ pub struct PerspectiveCentre {
 /// is seen moved by the scene's misregistration `g` plus its *lean*, the relief displacement
 /// `λ·ρ`: radially away from the nadir (`ρ`, unit), by `λ = r·h / (Z − h)` ≥ 0 for a roof `h`
 /// above the ground, `r` from the nadir. So the part of a building's estimate `s` across its
-/// radial direction (`n ⟂ ρ`) is `g`'s alone: `s·n = g·n`. `g` is the least-squares solution
-/// over the clear estimates (each a line in the plane; buildings in different directions from
-/// the nadir fix both components; estimates more than `cell` off the first solution are
-/// dropped and it is solved again), and each clear building's lean is `max(0, (s − g)·ρ)·ρ`
+/// radial direction (`n ⟂ ρ`) is `g`'s alone: `s·n = g·n`. Each clear estimate is a line in
+/// the plane (buildings in different directions from the nadir fix both components); `g` is
+/// the least-squares point of the lines that pass within [`CONSENSUS_CELLS`] of the point
+/// most of them pass near ([`consensus`]), solved again over the estimates within `cell` of
+/// it, and each clear building's lean is `max(0, (s − g)·ρ)·ρ`
 /// (0 for unclear estimates). Returns `g` (metres east, north) with the number of buildings
 /// it rests on (`None` with fewer than two), and the leans.
 pub fn with_camera(
@@ -745,7 +746,22 @@ pub fn with_camera(
         let n = (-radial[k].1, radial[k].0);
         ((s.east_m - g.0) * n.0 + (s.north_m - g.1) * n.1).abs()
     };
-    let Some(first) = solve(&clear) else {
+    // Each clear estimate's line `g·n = s·n`.
+    let lines: Vec<((f64, f64), f64)> = clear
+        .iter()
+        .map(|&k| {
+            let (s, n) = (shifts[k].unwrap(), (-radial[k].1, radial[k].0));
+            (n, s.east_m * n.0 + s.north_m * n.1)
+        })
+        .collect();
+    let agreeing = |g: (f64, f64)| -> Vec<usize> {
+        clear
+            .iter()
+            .copied()
+            .filter(|&k| across(k, g) <= CONSENSUS_CELLS * cell)
+            .collect()
+    };
+    let Some(first) = consensus(&lines, cell).and_then(|g| solve(&agreeing(g))) else {
         return (None, vec![(0.0, 0.0); footprints.len()]);
     };
     let kept: Vec<usize> = clear
@@ -764,6 +780,46 @@ pub fn with_camera(
         })
         .collect();
     (Some((g.0, g.1, kept.len())), leans)
+}
+
+/// How far across its radial direction (cells) a clear estimate may be from the scene's
+/// misregistration and still vote for it in [`with_camera`]'s consensus.
+pub const CONSENSUS_CELLS: f64 = 0.5;
+
+/// The misregistration `g` (metres east, north) that the most lines `g·n = d` (`lines`: unit
+/// normal `n`, offset `d` metres) pass within [`CONSENSUS_CELLS`] of, sought every quarter
+/// `cell` within the largest `|d|` on each axis; on a tie the smallest `g`. `None` without a
+/// line.
+///
+/// Why not least squares: the lines of a window seen from one side of the nadir are nearly
+/// parallel, so `g` along the radial direction rests on their small spread, and a few clear
+/// estimates on a neighbour's edges (2–4 m across) tilted the least-squares point by 2 m
+/// along it — every lean 2 m short (the town bench, 500 m, window 15-0: the scene's shift
+/// came out (1.6, 1.0) m for exact footprints). The consensus ignores them; the least
+/// squares then runs on the lines that agree.
+fn consensus(lines: &[((f64, f64), f64)], cell: f64) -> Option<(f64, f64)> {
+    let reach = lines.iter().map(|l| l.1.abs()).fold(f64::NAN, f64::max);
+    if reach.is_nan() || cell <= 0.0 {
+        return None;
+    }
+    let step = (cell / 4.0).max(reach / 64.0);
+    let n = (reach / step).ceil() as i64;
+    let tol = CONSENSUS_CELLS * cell;
+    let mut best: Option<(usize, f64, (f64, f64))> = None;
+    for i in -n..=n {
+        for j in -n..=n {
+            let g = (i as f64 * step, j as f64 * step);
+            let votes = lines
+                .iter()
+                .filter(|(m, d)| (g.0 * m.0 + g.1 * m.1 - d).abs() <= tol)
+                .count();
+            let size = g.0.hypot(g.1);
+            if best.is_none_or(|(v, s, _)| votes > v || (votes == v && size < s)) {
+                best = Some((votes, size, g));
+            }
+        }
+    }
+    best.map(|b| b.2)
 }
 
 /// The perspective centre of a frame photo, estimated from the buildings themselves: their own
@@ -1265,6 +1321,35 @@ mod tests {
             "{c:?}"
         );
         assert!((c.z - truth.z).abs() < 300.0, "{c:?}");
+    }
+
+    #[test]
+    fn a_few_estimates_on_a_neighbours_edges_do_not_move_the_scene_along_the_leans() {
+        // From 500 m over ground at 100 m, the nadir 300 m south-west of the buildings: their
+        // radial directions are within ±15° of north-east, so the shift along it rests on that
+        // spread. Exact footprints (no shift); four of nine clear estimates found a
+        // neighbour's edge 2.5 m across their lean (the town bench, 500 m, window 15-0).
+        let camera = PerspectiveCentre {
+            east: 780.0,
+            north: 1790.0,
+            z: 600.0,
+        };
+        let (fps, shifts, _) = leaning(camera, (0.0, 0.0), |k| {
+            let across = if k % 2 == 1 { -2.5 } else { 0.0 };
+            (-across * 0.7071, across * 0.7071)
+        });
+        let (g, leans) = with_camera(&fps, &shifts, &camera, 0.5);
+        let (ge, gn, _) = g.unwrap();
+        assert!(ge.hypot(gn) < 0.25, "scene shift ({ge:.2}, {gn:.2}) m");
+        for k in (0..9).step_by(2) {
+            let s = shifts[k].unwrap();
+            let off = (s.east_m - leans[k].0).hypot(s.north_m - leans[k].1);
+            assert!(
+                off < 0.25,
+                "building {k}: lean {:?}, {off:.2} m off",
+                leans[k]
+            );
+        }
     }
 
     #[test]
