@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::io::SourceRaster;
 use crate::material::table::MaterialTable;
 use crate::raster::RowSource;
-use crate::standing::{Raised, Standing};
+use crate::standing::Standing;
 use crate::tiles::{
     pack_normal, MaterialAttributes, SensorCells, SensorLayer, MATERIAL_NODATA, NORMAL_NODATA,
 };
@@ -474,7 +474,7 @@ pub enum SensorSource<'a> {
     /// A map of values on the database grid (temperature or radiance), NaN = nodata.
     Values(SensorLayer, &'a dyn RowSource<f32>),
     /// The normals of the terrain's heights (NaN = nodata) by [`crate::raster::surface_normal`],
-    /// a roof's face on a building ([`Raised::top_normal`]) and straight up on a placed
+    /// a roof's face on a building ([`crate::standing::Raised::top_normal`]) and straight up on a placed
     /// object's top: the surface `dbms thermal` and `dbms radar` take
     /// ([`crate::material::surface`]).
     Normals(&'a dyn RowSource<f32>, &'a Standing),
@@ -610,7 +610,7 @@ mod tests {
     fn banded_normals_equal_the_whole_grid_s() {
         use crate::grid::Grid;
         use crate::raster::Raster;
-        use crate::standing::RaisedCell;
+        use crate::standing::{Raised, RaisedCell};
         let (w, h) = (7, 11);
         let grid = Grid::north_up(0.0, 0.0, 0.5, w, h, crate::crs::Crs::unknown());
         let mut z: Vec<f32> = (0..w * h)

@@ -36,6 +36,12 @@ pub const LEAN_CELLS: f64 = 0.5;
 /// either side: a height it confirms, or gives, is then within the gross-error bound.
 pub const PRECISE_CELLS: f64 = 2.0;
 
+/// A lean's height more than this many times the top of the shadow's 95 % interval (above the
+/// ground) is not taken for the shadow's, only flagged: on the town bench from 500 m a gable's
+/// outline matched another building's edges 70 m out and reported 107 m for a 10 m roof,
+/// while every lean's height there that corrected a doubted shadow was within twice its top.
+pub const FAR_LEAN: f64 = 2.0;
+
 /// Two-sided 68 % and 95 % normal quantiles.
 const SIGMAS: [f64; 2] = [1.0, 1.96];
 
@@ -116,6 +122,11 @@ pub fn meet(m: &mut Measurement, lean: &LeanHeight, rise_m: f64) {
         // A roof left pitched-looking is measured between its eaves and its ridge: eaves
         // below that agree.
         m.flags.lean_disagrees = true;
+        // The shadow's own evidence, before the lean widens it: a lean far above it is a match
+        // on something else (a neighbour's edges far along the radial direction).
+        let shadow_allows = m
+            .roof_z_intervals
+            .is_none_or(|[_, iv95]| lean.z - m.ground_z <= FAR_LEAN * (iv95.1 - m.ground_z));
         if let Some(ivs) = m.roof_z_intervals.as_mut() {
             for (iv, l) in ivs.iter_mut().zip(lean_iv) {
                 *iv = (iv.0.min(l.0), iv.1.max(l.1));
@@ -123,9 +134,9 @@ pub fn meet(m: &mut Measurement, lean: &LeanHeight, rise_m: f64) {
             let inner = ivs[0];
             ivs[1] = (ivs[1].0.min(inner.0), ivs[1].1.max(inner.1));
         }
-        if flat && doubted(&m.flags) {
-            // A shadow the town doubted already, against a clear lean: the lean is the
-            // likelier (the town bench from 500 m: right in 9 of 11 such flat roofs).
+        if flat && doubted(&m.flags) && shadow_allows {
+            // A shadow the town doubted already, against a clear lean it does not rule out: the
+            // lean is the likelier (the town bench from 500 m: right in 9 of 11 such flat roofs).
             m.roof_z = Some(lean.z);
             m.height_m = Some(lean.z - m.ground_z);
         }
@@ -259,6 +270,29 @@ mod tests {
         let mut m = measured(Some(116.0), off);
         meet(&mut m, &h, 3.0);
         assert!(!m.flags.lean_disagrees);
+    }
+
+    /// A lean found on something else far out (the town from 500 m: 107 m for a 10 m gable)
+    /// is flagged, never reported in place of a doubted shadow more than [`FAR_LEAN`] × lower.
+    #[test]
+    fn a_lean_far_above_the_shadow_s_evidence_is_not_taken_for_it() {
+        let (fp, cam) = setting();
+        let doubted = Flags {
+            shadow_on_other_building: true,
+            ..Flags::default()
+        };
+        // The shadow says 107 (7 m, 95 % up to 107.2: leans up to 14.4 m are taken); a 12 m
+        // lean is taken.
+        let h12 = LeanHeight::new(&fp, (300.0 * 12.0 / 488.0, 0.0), &cam, 100.0, 0.5).unwrap();
+        let mut m = measured(Some(107.0), doubted);
+        meet(&mut m, &h12, 3.0);
+        assert_eq!(m.roof_z, Some(h12.z));
+        // A 15 m one is not.
+        let h = LeanHeight::new(&fp, (300.0 * 15.0 / 485.0, 0.0), &cam, 100.0, 0.5).unwrap();
+        let mut m = measured(Some(107.0), doubted);
+        meet(&mut m, &h, 3.0);
+        assert!(m.flags.lean_disagrees && m.roof_z == Some(107.0), "{m:?}");
+        assert!(m.roof_z_intervals.unwrap()[1].1 >= h.z);
     }
 
     #[test]
