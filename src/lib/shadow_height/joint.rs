@@ -6,7 +6,7 @@
 //! What it knows of each other footprint ([`Known`]) enters a footprint's measurement two
 //! ways: the ground its shadow covers is unusable (it hides this footprint's shadow, it does
 //! not end it), and its roof, where measured flat and sure, is a surface this footprint's
-//! shadow may lie on ([`super::refine::corridor`]). So a shadow that climbs a lower
+//! shadow may lie on (`super::refine::corridor`). So a shadow that climbs a lower
 //! neighbour's wall and lies on its roof is evidence of the height, not a reason to drop the
 //! scan line; and a shadow that disappears into a taller neighbour's is censored, its fit
 //! free over every height the hidden part allows (the interval says how far).

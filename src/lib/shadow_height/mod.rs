@@ -122,7 +122,7 @@ pub struct Options {
     /// gains and costs): the footprints whose shadow ran into a neighbour, or that got no
     /// height, measured again with every other footprint at the roof the pass before
     /// measured — its shadow cast over the ground (unusable there), its flat roof a surface
-    /// this footprint's shadow may lie on ([`refine::corridor`]) — and the whole corridor
+    /// this footprint's shadow may lie on (`refine::corridor`) — and the whole corridor
     /// read but for the bands of scan lines that disagree.
     pub joint_passes: usize,
     /// How the photo's bytes encode light (default sRGB): the faces' shading compares light,

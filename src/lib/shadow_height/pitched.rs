@@ -7,7 +7,7 @@
 //! at terrain `z` exactly when, for some distance `t` along its ray toward the sun inside the
 //! footprint, `E + Δ·P(t) > z − ground_z + t·tan e`: when `E` is above the point's threshold
 //! `z − ground_z + min_t (t·tan e − Δ·P(t))`. For one form, direction and `Δ` that is one
-//! threshold per sub-point, so [`refine::best_fit`]'s sweep scores every `E` at once, as for a
+//! threshold per sub-point, so `refine::best_fit`'s sweep scores every `E` at once, as for a
 //! flat roof (`Δ = 0`). The minimum is exact, not sampled: a gable's or hip's profile is the
 //! least of its planes, so concave over the footprint's extent, and `t·tan e − Δ·P` is convex
 //! along the ray; its minimum over the parts of the ray inside the footprint lies where the ray
@@ -31,7 +31,7 @@ use super::shading;
 use crate::roof::{Pitch, RoofForm, RoofShape};
 
 /// A pitched fit is taken only when its unexplained variance of brightness (1 − R² of
-/// [`refine::best_fit`]'s line) is at most `1 − MIN_IMPROVEMENT` of the flat fit's.
+/// `refine::best_fit`'s line) is at most `1 − MIN_IMPROVEMENT` of the flat fit's.
 pub const MIN_IMPROVEMENT: f64 = 0.4;
 /// … and when its rise is at least this many cells of shadow as height (`cell · tan e`
 /// each): a pitch of a cell of shadow is within the flat fit's own uncertainty. (On POV-Ray

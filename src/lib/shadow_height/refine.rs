@@ -68,6 +68,7 @@ pub fn plausible_level(best: f64, n: f64, sigmas: f64) -> f64 {
 /// (the caller drops the bands of scan lines that met other buildings or disagreed with the
 /// median length). `None` when the corridor holds no observed shadow, or no height's synthetic
 /// shadow falls where the photo is darker.
+#[allow(clippy::too_many_arguments)] // the corridor's inputs, passed through
 pub fn refine(
     local: &Local,
     fp: &Footprint,
@@ -375,7 +376,7 @@ impl Swept {
         }
         let mut above = self.scores.iter().filter(|&&(s, _)| s >= level);
         let first = above.next().map_or(self.best.1, |&(_, k)| k);
-        let last = above.last().map_or(first, |&(_, k)| k).max(first);
+        let last = above.next_back().map_or(first, |&(_, k)| k).max(first);
         let lo = answer_interval(buckets, first, z_hi).0;
         let hi = answer_interval(buckets, last, z_hi).1;
         (lo.min(hi), hi)

@@ -47,6 +47,9 @@ pub const LEAN_MARGIN: f64 = 1.2;
 /// sweep's 80° slice that gave 13 silent gross errors instead of 3.)
 const ACROSS: f64 = 0.75;
 
+/// A scene's shift, metres east and north, with the number of buildings it rests on.
+pub type SceneShift = (f64, f64, usize);
+
 /// One footprint's estimated shift onto the photo.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Shift {
@@ -666,7 +669,7 @@ fn plateau_centre(luma: &Luma, samples: &[Sample], half: Candidate, median: f64)
 
 /// The scene's shift: the component-wise median of the estimates that count; `None` when none
 /// does.
-pub fn scene_shift(shifts: &[Option<Shift>]) -> Option<(f64, f64, usize)> {
+pub fn scene_shift(shifts: &[Option<Shift>]) -> Option<SceneShift> {
     let good: Vec<&Shift> = shifts.iter().flatten().filter(|s| s.counts()).collect();
     let e: Vec<f64> = good.iter().map(|s| s.east_m).collect();
     let n: Vec<f64> = good.iter().map(|s| s.north_m).collect();
@@ -696,7 +699,7 @@ pub struct PerspectiveCentre {
 /// radial direction (`n ⟂ ρ`) is `g`'s alone: `s·n = g·n`. Each clear estimate is a line in
 /// the plane (buildings in different directions from the nadir fix both components); `g` is
 /// the least-squares point of the lines that pass within [`CONSENSUS_CELLS`] of the point
-/// most of them pass near ([`consensus`]), solved again over the estimates within `cell` of
+/// most of them pass near (`consensus`), solved again over the estimates within `cell` of
 /// it, and each clear building's lean is `max(0, (s − g)·ρ)·ρ`
 /// (0 for unclear estimates). Returns `g` (metres east, north) with the number of buildings
 /// it rests on (`None` with fewer than two), and the leans.
@@ -705,7 +708,7 @@ pub fn with_camera(
     shifts: &[Option<Shift>],
     camera: &PerspectiveCentre,
     cell: f64,
-) -> (Option<(f64, f64, usize)>, Vec<(f64, f64)>) {
+) -> (Option<SceneShift>, Vec<(f64, f64)>) {
     let radial: Vec<(f64, f64)> = footprints
         .iter()
         .map(|f| {
@@ -1007,8 +1010,9 @@ fn solve5(mut a: [[f64; 5]; 5], mut b: [f64; 5]) -> Option<[f64; 5]> {
         b.swap(col, piv);
         for r in col + 1..5 {
             let f = a[r][col] / a[col][col];
-            for c in col..5 {
-                a[r][c] -= f * a[col][c];
+            let pivot = a[col];
+            for (x, p) in a[r][col..].iter_mut().zip(&pivot[col..]) {
+                *x -= f * p;
             }
             b[r] -= f * b[col];
         }
@@ -1325,6 +1329,7 @@ mod tests {
 
     #[test]
     fn a_few_estimates_on_a_neighbours_edges_do_not_move_the_scene_along_the_leans() {
+        use std::f64::consts::FRAC_1_SQRT_2;
         // From 500 m over ground at 100 m, the nadir 300 m south-west of the buildings: their
         // radial directions are within ±15° of north-east, so the shift along it rests on that
         // spread. Exact footprints (no shift); four of nine clear estimates found a
@@ -1336,7 +1341,7 @@ mod tests {
         };
         let (fps, shifts, _) = leaning(camera, (0.0, 0.0), |k| {
             let across = if k % 2 == 1 { -2.5 } else { 0.0 };
-            (-across * 0.7071, across * 0.7071)
+            (-across * FRAC_1_SQRT_2, across * FRAC_1_SQRT_2)
         });
         let (g, leans) = with_camera(&fps, &shifts, &camera, 0.5);
         let (ge, gn, _) = g.unwrap();

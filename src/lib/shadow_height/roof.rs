@@ -56,7 +56,7 @@ pub fn looks_pitched(colour: &RowBand<[u8; 4]>, inner: &[usize], toward_sun: (f6
     let dark: Vec<bool> = inner.iter().map(|&i| y(i) < t).collect();
     let n_dark = dark.iter().filter(|&&d| d).count();
     let frac = n_dark as f64 / inner.len() as f64;
-    if frac < MIN_FACE || frac > 1.0 - MIN_FACE {
+    if !(MIN_FACE..=1.0 - MIN_FACE).contains(&frac) {
         return false;
     }
     let mean = |want: bool| {

@@ -67,7 +67,7 @@ pub struct Light {
 impl Light {
     /// The light from open ground lit (`lit`) and in shadow (`shadow`) around a building, under
     /// a sun toward `toward_sun` (unit horizontal vector, east and north) at `elevation_rad`
-    /// radians. `None` with fewer than [`MIN_GROUND_CELLS`] of either, or where the lit ground
+    /// radians. `None` with fewer than `MIN_GROUND_CELLS` of either, or where the lit ground
     /// is not brighter than the shadow in every channel.
     pub fn from_ground(
         toward_sun: (f64, f64),

@@ -200,8 +200,10 @@ mod tests {
 
     #[test]
     fn a_lower_bound_needs_enough_lines_above_the_ground() {
-        let mut s = Scan::default();
-        s.reached_roofs = vec![99.0, 112.0, 115.0];
+        let mut s = Scan {
+            reached_roofs: vec![99.0, 112.0, 115.0],
+            ..Scan::default()
+        };
         assert_eq!(at_least(&s, 100.0), None);
         s.reached_roofs.push(113.0);
         assert_eq!(at_least(&s, 100.0), Some(113.0));
