@@ -38,6 +38,35 @@ fn assert_schema(doc: &Value) {
     );
 }
 
+/// Every flag dbms can write is one the schema allows: all set, listed without `..` (a new
+/// flag must be added here, and so to the schema's enum).
+#[test]
+fn every_flag_is_in_the_heights_schema() {
+    let all = dbms::shadow_height::Flags {
+        no_shadow: true,
+        shadow_cut_by_edge_or_nodata: true,
+        shadow_on_other_building: true,
+        low_sun: true,
+        high_sun: true,
+        pitched_roof: true,
+        footprint_off_photo: true,
+        lines_disagree: true,
+        estimates_disagree: true,
+        poor_shadow_match: true,
+        shadow_reaches_further: true,
+        lean_disagrees: true,
+        height_from_lean: true,
+    };
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas/heights.schema.json");
+    let text = std::fs::read_to_string(path).unwrap();
+    for name in all.names() {
+        assert!(
+            text.contains(&format!("\"{name}\"")),
+            "{name} not in heights.schema.json"
+        );
+    }
+}
+
 fn read_json(p: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
 }
