@@ -133,6 +133,7 @@ pub fn meet(m: &mut Measurement, lean: &LeanHeight, rise_m: f64) {
             }
             let inner = ivs[0];
             ivs[1] = (ivs[1].0.min(inner.0), ivs[1].1.max(inner.1));
+            *ivs = super::uncertainty::above_ground(*ivs, m.ground_z);
         }
         if flat && doubted(&m.flags) && shadow_allows {
             // A shadow the town doubted already, against a clear lean it does not rule out: the
@@ -166,7 +167,7 @@ fn given_by_lean(m: &mut Measurement, lean: &LeanHeight, rise_m: f64) {
     }
     m.roof_z = Some(lean.z);
     m.height_m = Some(lean.z - m.ground_z);
-    m.roof_z_intervals = Some(ivs);
+    m.roof_z_intervals = Some(super::uncertainty::above_ground(ivs, m.ground_z));
     m.flags.height_from_lean = true;
 }
 

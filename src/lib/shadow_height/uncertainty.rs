@@ -1,7 +1,8 @@
 //! How sure a measured roof is: its plausible range at 68 % and 95 %, and a lower bound where
 //! only a lower bound is seen.
 //!
-//! Invariant: every interval holds the reported roof, the 95 % one holds the 68 % one, and
+//! Invariant: every interval holds the reported roof and lies above the footprint's ground,
+//! the 95 % one holds the 68 % one, and
 //! evidence the refinement did not follow widens them rather than being dropped:
 //! * **the fit** ([`refine::Refined::plausible`]): the heights whose synthetic shadow explains
 //!   the photo within its noise (a profile likelihood over every height, so an interval can be
@@ -89,7 +90,13 @@ pub fn intervals(
     let inner = out[0];
     take(&mut out[1], inner.0);
     take(&mut out[1], inner.1);
-    out
+    above_ground(out, m.ground_z)
+}
+
+/// `ivs` (absolute metres) with no end below `ground_z`: a roof is not below its own ground,
+/// however far the lines' fences or a second estimate reach.
+pub fn above_ground(ivs: [(f64, f64); 2], ground_z: f64) -> [(f64, f64); 2] {
+    ivs.map(|(lo, hi)| (lo.max(ground_z), hi.max(ground_z)))
 }
 
 /// How far beyond the scan lines' middle half the 95 % interval reaches, in interquartile
@@ -196,6 +203,12 @@ mod tests {
         let [a, b] = intervals(&measured(further), &tight, Some(117.0), [150.0; 2]);
         assert_eq!(a.1, 117.0);
         assert_eq!((b.0, b.1), (100.0, 250.0));
+        // Lines split far apart: their fences stop at the ground (a roof is not below it).
+        m.flags = Flags::default();
+        m.line_roofs = Some([101.0, 110.0, 116.0]);
+        let [a, b] = intervals(&m, &tight, None, [150.0; 2]);
+        assert_eq!((a.0, b.0), (101.0, 100.0));
+        assert_eq!(b.1, 116.0 + 1.5 * 15.0);
     }
 
     #[test]
