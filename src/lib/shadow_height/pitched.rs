@@ -100,7 +100,7 @@ pub fn fit(
     let flat = Trial::new(std::mem::take(&mut c.events), z_hi, &c, &line, n_sub)?;
     let rays = Rays::new(local, fp, &c.members, u, tan_e, ground_z, z_hi, sub);
     let step = cell * tan_e;
-    let mut best: Option<(Trial, Pitch, f64)> = None;
+    let mut best: Option<(Trial, Pitch, f64, Option<FacesRise>)> = None;
     let mut shaded: Option<Shaded> = None;
     for azimuth_deg in axes(fp) {
         for form in FORMS {
@@ -143,62 +143,45 @@ pub fn fit(
                     }
                 }
             }
+            let told = shaded_by
+                .iter()
+                .find(|s| s.form == form && s.azimuth_deg == azimuth_deg)
+                .map(|s| FacesRise::new(&s.estimate, &extent));
             if let Some((t, rise)) = own {
                 if best.is_none_or(|b| (1.0 - t.score) < (1.0 - MIN_PREFERENCE) * (1.0 - b.0.score))
                 {
-                    best = Some((t, pitch, rise));
+                    best = Some((t, pitch, rise, told));
                 }
             }
-            let Some(estimate) = shaded_by
-                .iter()
-                .find(|s| s.form == form && s.azimuth_deg == azimuth_deg)
-                .map(|s| s.estimate)
-            else {
+            let Some(faces) = told else {
                 continue;
             };
-            let rise_at = |deg: f64| extent.half.1 * deg.to_radians().tan();
-            let rise = rise_at(estimate.pitch_deg);
             if shaded.is_none_or(|b| {
-                1.0 - estimate.explained < (1.0 - MIN_PREFERENCE) * (1.0 - b.estimate.explained)
+                1.0 - faces.explained < (1.0 - MIN_PREFERENCE) * (1.0 - b.faces.explained)
             }) {
+                let rise = faces.rise;
                 if let Some((t, _)) = (rise <= z_hi - step).then(|| trial(rise)).flatten() {
-                    let rises = estimate
-                        .intervals_deg
-                        .map(|(lo, hi)| (rise_at(lo), rise_at(hi)));
                     shaded = Some(Shaded {
                         trial: t,
                         pitch,
-                        rise,
-                        rises,
-                        estimate,
+                        faces,
                     });
                 }
             }
         }
     }
     let flat_unexplained = (1.0 - flat.score).max(0.0);
-    let from_shadow = best.filter(|(t, _, rise)| {
+    let from_shadow = best.filter(|(t, _, rise, _)| {
         let unexplained = (1.0 - t.score).max(0.0);
         *rise >= MIN_RISE_CELLS * step
             && unexplained < (1.0 - MIN_IMPROVEMENT) * flat_unexplained
             && flat_unexplained - unexplained >= MIN_GAIN
     });
-    if let Some((t, pitch, rise)) = from_shadow {
+    if let Some((t, pitch, rise, told)) = from_shadow {
         // The rise is sought in steps of a cell of shadow as height, then quarter steps around
         // the best; the shadow's outline places it to about half that cell (one standard
         // error), and the faces' shading of the same roof, where it tells one, as well.
-        let faces = shaded_by
-            .iter()
-            .find(|s| s.form == pitch.form && s.azimuth_deg == pitch.azimuth_deg)
-            .and_then(|s| {
-                let extent = crate::roof::Extent::new(&fp.rings, pitch.azimuth_deg)?;
-                let rise_at = |deg: f64| extent.half.1 * deg.to_radians().tan();
-                let (lo, hi) = s.estimate.intervals_deg[0];
-                Some((
-                    rise_at(s.estimate.pitch_deg),
-                    (rise_at(hi) - rise_at(lo)) / 2.0,
-                ))
-            });
+        let faces = told.map(|f| (f.rise, (f.rises[0].1 - f.rises[0].0) / 2.0));
         let (rise, sd) = combined((rise, step / 2.0), faces);
         let top_m = t.refined.height_m + rise;
         return Some(Fitted {
@@ -224,11 +207,11 @@ pub fn fit(
             eave_z: ground_z + eave_m,
             ..s.pitch
         },
-        top_m: eave_m + s.rise,
+        top_m: eave_m + s.faces.rise,
         overlap: s.trial.refined.overlap,
         score: s.trial.score,
         flat_score: flat.score,
-        top_plausible_m: s.rises.map(|(lo, hi)| (eave_m + lo, eave_m + hi)),
+        top_plausible_m: s.faces.rises.map(|(lo, hi)| (eave_m + lo, eave_m + hi)),
     })
 }
 
@@ -251,10 +234,31 @@ fn combined(a: (f64, f64), b: Option<(f64, f64)>) -> (f64, f64) {
 struct Shaded {
     trial: Trial,
     pitch: Pitch,
+    faces: FacesRise,
+}
+
+/// What the faces' shading tells of one roof tried ([`ShadedRoof`]) as heights over its
+/// `extent`.
+#[derive(Clone, Copy)]
+struct FacesRise {
     /// Ridge above the eaves, metres, and its 68 % and 95 % ranges.
     rise: f64,
     rises: [(f64, f64); 2],
-    estimate: shading::Estimate,
+    /// The share of the roof's brightness the faces' model explains.
+    explained: f64,
+}
+
+impl FacesRise {
+    fn new(estimate: &shading::Estimate, extent: &crate::roof::Extent) -> FacesRise {
+        let rise_at = |deg: f64| extent.half.1 * deg.to_radians().tan();
+        FacesRise {
+            rise: rise_at(estimate.pitch_deg),
+            rises: estimate
+                .intervals_deg
+                .map(|(lo, hi)| (rise_at(lo), rise_at(hi))),
+            explained: estimate.explained,
+        }
+    }
 }
 
 /// A pitch the faces' shading tells for one of the roofs [`fit`] tries.
