@@ -194,6 +194,13 @@ mod tests {
         (Footprint::new(vec![vec![ring]]).unwrap(), camera)
     }
 
+    /// The lean's height in [`setting`] of a roof `h` metres above the ground, whose lean is
+    /// `300·h / (500 − h)` metres east.
+    fn leaning(h: f64) -> LeanHeight {
+        let (fp, cam) = setting();
+        LeanHeight::new(&fp, (300.0 * h / (500.0 - h), 0.0), &cam, 100.0, 0.5).unwrap()
+    }
+
     fn measured(roof_z: Option<f64>, flags: Flags) -> Measurement {
         Measurement {
             height_m: roof_z.map(|z| z - 100.0),
@@ -230,8 +237,7 @@ mod tests {
 
     #[test]
     fn agreement_confirms_a_flat_roof_and_disagreement_flags_it() {
-        let (fp, cam) = setting();
-        let h = LeanHeight::new(&fp, (300.0 * 12.0 / 488.0, 0.0), &cam, 100.0, 0.5).unwrap();
+        let h = leaning(12.0);
         let doubted = Flags {
             shadow_on_other_building: true,
             shadow_cut_by_edge_or_nodata: true,
@@ -277,19 +283,18 @@ mod tests {
     /// is flagged, never reported in place of a doubted shadow more than [`FAR_LEAN`] × lower.
     #[test]
     fn a_lean_far_above_the_shadow_s_evidence_is_not_taken_for_it() {
-        let (fp, cam) = setting();
         let doubted = Flags {
             shadow_on_other_building: true,
             ..Flags::default()
         };
         // The shadow says 107 (7 m, 95 % up to 107.2: leans up to 14.4 m are taken); a 12 m
         // lean is taken.
-        let h12 = LeanHeight::new(&fp, (300.0 * 12.0 / 488.0, 0.0), &cam, 100.0, 0.5).unwrap();
+        let h12 = leaning(12.0);
         let mut m = measured(Some(107.0), doubted);
         meet(&mut m, &h12, 3.0);
         assert_eq!(m.roof_z, Some(h12.z));
         // A 15 m one is not.
-        let h = LeanHeight::new(&fp, (300.0 * 15.0 / 485.0, 0.0), &cam, 100.0, 0.5).unwrap();
+        let h = leaning(15.0);
         let mut m = measured(Some(107.0), doubted);
         meet(&mut m, &h, 3.0);
         assert!(m.flags.lean_disagrees && m.roof_z == Some(107.0), "{m:?}");
@@ -298,8 +303,7 @@ mod tests {
 
     #[test]
     fn without_a_shadow_height_the_lean_gives_one_flagged() {
-        let (fp, cam) = setting();
-        let h = LeanHeight::new(&fp, (300.0 * 12.0 / 488.0, 0.0), &cam, 100.0, 0.5).unwrap();
+        let h = leaning(12.0);
         let cut = Flags {
             shadow_cut_by_edge_or_nodata: true,
             pitched_roof: true,
