@@ -361,6 +361,24 @@ fn real_photo_effects_are_handled_or_flagged() {
     tally("sun at 8°", &s);
 }
 
+/// Where the frame photo of the leaning hard cases is taken from: its nadir (world metres)
+/// and its height above the ground (metres).
+const FRAME_NADIR: (f64, f64) = (499_700.0, 5_299_800.0);
+/// See [`FRAME_NADIR`].
+const FRAME_HEIGHT_M: f64 = 500.0;
+
+/// The leaning hard cases' scene: [`slice_scene`] (0.5 m cells, a 40° sun from 135°, rotated
+/// footprints, seed 5) photographed from [`FRAME_HEIGHT_M`] over [`FRAME_NADIR`], 420–580 m
+/// from the buildings.
+fn frame_scene_from_500_m() -> Scene {
+    let mut s = slice_scene(0.5, 135.0, 40.0, (250.0, 0.0, 0.0), true, 5);
+    s.camera = Camera::Perspective {
+        nadir: FRAME_NADIR,
+        height_m: FRAME_HEIGHT_M,
+    };
+    s
+}
+
 #[test]
 fn hard_case_roofs_leaning_beyond_max_shift_from_500_m() {
     if !povray::available() {
@@ -373,9 +391,8 @@ fn hard_case_roofs_leaning_beyond_max_shift_from_500_m() {
     // of every height it may have: every roof is found where it leans (the scene's shift plus
     // its lean within two cells of the truth), the tallest (17.6 m, leaning 18.2 m) is
     // measured within two cells, unflagged, and at most one building in four is flagged.
-    let mut s = slice_scene(0.5, 135.0, 40.0, (250.0, 0.0, 0.0), true, 5);
-    let (nadir, z) = ((499_700.0, 5_299_800.0), 500.0);
-    s.camera = Camera::Perspective { nadir, height_m: z };
+    let s = frame_scene_from_500_m();
+    let (nadir, z) = (FRAME_NADIR, FRAME_HEIGHT_M);
     let lean = |b: &Building| {
         let h = b.roof.top_z() - 250.0;
         let k = h / (z - h);
@@ -445,11 +462,7 @@ fn hard_case_shadows_behind_their_own_leaning_walls_from_500_m_take_the_leans_he
     // (`h = Z·L / (r + L)`, ~0.3 m from 500 m at 0.5 m cells): now every roof has a height
     // within a metre, the truth inside its 95 % interval, and those from the lean alone
     // say so (`height_from_lean`).
-    let mut s = slice_scene(0.5, 135.0, 40.0, (250.0, 0.0, 0.0), true, 5);
-    s.camera = Camera::Perspective {
-        nadir: (499_700.0, 5_299_800.0),
-        height_m: 500.0,
-    };
+    let s = frame_scene_from_500_m();
     let dir = tempfile::tempdir().unwrap();
     let out = measure_scene(&s, dir.path()).unwrap();
     for o in &out {

@@ -20,9 +20,9 @@ mod shadow_truth;
 mod town;
 
 use povray::{Camera, Clutter, Photo, Roof, UTM13N_WKT};
-use shadow_truth::{measure_prepared, prepare_scene_photo};
+use shadow_truth::{measure_prepared, prepare_scene_photo, Outcome, Prepared};
 use std::path::Path;
-use town::{window_scene, Shot, Town, TOWN_SIDE, TOWN_SW};
+use town::{window_scene, Shot, Town, WindowScene, TOWN_SIDE, TOWN_SW};
 
 /// Window side, metres.
 const SIDE: f64 = 100.0;
@@ -63,6 +63,72 @@ fn windows(town: &Town) -> Vec<(f64, f64)> {
     out
 }
 
+/// A 0.5 m orthophoto of the `side`-metre window at `sw` (a lit `margin` around it) of the
+/// flat town under a sun from `az` degrees, `el` high: footprints exact, every one listed (so
+/// `seed` draws nothing), anti-aliased as the sun needs.
+fn ortho_shot(sw: (f64, f64), side: f64, margin: f64, (az, el): (f64, f64), seed: u64) -> Shot {
+    Shot {
+        sw,
+        side,
+        margin,
+        cell: 0.5,
+        sun_azimuth_deg: az,
+        sun_elevation_deg: el,
+        gradient: (0.0, 0.0),
+        camera: Camera::Ortho,
+        footprint_shift: (0.0, 0.0),
+        unlisted: 0.0,
+        antialias: povray::antialias_for(el),
+        seed,
+    }
+}
+
+/// The bench's photo: the soft sun (the 0.53° disc as a 9 × 9 area light), sRGB, and JPEG at
+/// quality `jpeg` if given.
+fn soft_photo(jpeg: Option<u8>) -> Photo {
+    Photo {
+        sun_disc_deg: Some(0.53),
+        area_samples: 9,
+        srgb: true,
+        jpeg_quality: jpeg,
+        crs_wkt: UTM13N_WKT,
+    }
+}
+
+/// A window photographed, ingested and measured ([`measure`]).
+struct Measured {
+    /// Where the scene, photo, database and heights are (removed when this is dropped).
+    dir: tempfile::TempDir,
+    prepared: Prepared,
+    /// One outcome per listed building, in scene order.
+    out: Vec<Outcome>,
+    /// `dbms shadow-height`'s wall clock, seconds.
+    secs: f64,
+}
+
+impl Measured {
+    /// The outcomes of the buildings scored: those of the window's core.
+    fn scored(&self, ws: &WindowScene) -> Vec<&Outcome> {
+        self.out
+            .iter()
+            .filter(|o| ws.core.contains(&o.building))
+            .collect()
+    }
+}
+
+/// Photograph `ws` as `photo` into a new directory, ingest it and measure it.
+fn measure(ws: &WindowScene, photo: &Photo) -> Measured {
+    let dir = tempfile::tempdir().unwrap();
+    let prepared = prepare_scene_photo(&ws.scene, dir.path(), photo).unwrap();
+    let (out, secs) = measure_prepared(&ws.scene, &prepared).unwrap();
+    Measured {
+        dir,
+        prepared,
+        out,
+        secs,
+    }
+}
+
 #[test]
 fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
     if !povray::available() {
@@ -82,28 +148,7 @@ fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
     .into_iter()
     .enumerate()
     {
-        let shot = Shot {
-            sw,
-            side: SIDE,
-            margin: 20.0,
-            cell: 0.5,
-            sun_azimuth_deg: az,
-            sun_elevation_deg: el,
-            gradient: (0.0, 0.0),
-            camera: Camera::Ortho,
-            footprint_shift: (0.0, 0.0),
-            unlisted: 0.0,
-            antialias: povray::antialias_for(el),
-            seed: k as u64,
-        };
-        let ws = window_scene(&town, &shot);
-        let photo = Photo {
-            sun_disc_deg: Some(0.53),
-            area_samples: 9,
-            srgb: true,
-            jpeg_quality: jpeg,
-            crs_wkt: UTM13N_WKT,
-        };
+        let ws = window_scene(&town, &ortho_shot(sw, SIDE, 20.0, (az, el), k as u64));
         let (w, _, e, n) = ws.scene.extent();
         let s = n - (e - w);
         for c in &ws.scene.clutter {
@@ -125,19 +170,14 @@ fn a_real_town_under_a_soft_sun_is_measured_as_well_as_today() {
             }] += 1;
             towers += town.buildings[b].tower as usize;
         }
-        let dir = tempfile::tempdir().unwrap();
-        let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
-        let pov = std::fs::read_to_string(dir.path().join("scene.pov")).unwrap();
+        let m = measure(&ws, &soft_photo(jpeg));
+        let pov = std::fs::read_to_string(m.dir.path().join("scene.pov")).unwrap();
         assert!(pov.contains("area_light"), "a soft sun");
         if jpeg.is_some() {
-            assert_eq!(p.written.ortho.extension().unwrap(), "jpg");
-            assert!(dir.path().join("ortho.jgw").exists());
+            assert_eq!(m.prepared.written.ortho.extension().unwrap(), "jpg");
+            assert!(m.dir.path().join("ortho.jgw").exists());
         }
-        let (out, secs) = measure_prepared(&ws.scene, &p).unwrap();
-        let scored: Vec<_> = out
-            .iter()
-            .filter(|o| ws.core.contains(&o.building))
-            .collect();
+        let (out, secs, scored) = (&m.out, m.secs, m.scored(&ws));
         let measured = scored.iter().filter(|o| o.roof_z.is_some()).count();
         let within = scored
             .iter()
@@ -205,35 +245,9 @@ fn a_twelve_degree_sun_gives_heights_or_lower_bounds() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let town = Town::load(root, 39).unwrap();
     let (sw, el) = (windows(&town)[0], 12.0);
-    let shot = Shot {
-        sw,
-        side: SIDE,
-        margin: 20.0,
-        cell: 0.5,
-        sun_azimuth_deg: 225.0,
-        sun_elevation_deg: el,
-        gradient: (0.0, 0.0),
-        camera: Camera::Ortho,
-        footprint_shift: (0.0, 0.0),
-        unlisted: 0.0,
-        antialias: povray::antialias_for(el),
-        seed: 0,
-    };
-    let ws = window_scene(&town, &shot);
-    let photo = Photo {
-        sun_disc_deg: Some(0.53),
-        area_samples: 9,
-        srgb: true,
-        jpeg_quality: None,
-        crs_wkt: UTM13N_WKT,
-    };
-    let dir = tempfile::tempdir().unwrap();
-    let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
-    let (out, _) = measure_prepared(&ws.scene, &p).unwrap();
-    let scored: Vec<_> = out
-        .iter()
-        .filter(|o| ws.core.contains(&o.building))
-        .collect();
+    let ws = window_scene(&town, &ortho_shot(sw, SIDE, 20.0, (225.0, el), 0));
+    let m = measure(&ws, &soft_photo(None));
+    let scored = m.scored(&ws);
     let n = scored.len();
     let no_shadow = scored
         .iter()
@@ -282,35 +296,10 @@ fn a_twelve_degree_sun_s_shaded_grass_does_not_end_the_shadows() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let town = Town::load(root, 39).unwrap();
     let el = 12.0;
-    let shot = Shot {
-        sw: (TOWN_SW.0, TOWN_SW.1 + 450.0),
-        side: 150.0,
-        margin: 25.0,
-        cell: 0.5,
-        sun_azimuth_deg: 225.0,
-        sun_elevation_deg: el,
-        gradient: (0.0, 0.0),
-        camera: Camera::Ortho,
-        footprint_shift: (0.0, 0.0),
-        unlisted: 0.0,
-        antialias: povray::antialias_for(el),
-        seed: 1041,
-    };
-    let ws = window_scene(&town, &shot);
-    let photo = Photo {
-        sun_disc_deg: Some(0.53),
-        area_samples: 9,
-        srgb: true,
-        jpeg_quality: None,
-        crs_wkt: UTM13N_WKT,
-    };
-    let dir = tempfile::tempdir().unwrap();
-    let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
-    let (out, _) = measure_prepared(&ws.scene, &p).unwrap();
-    let scored: Vec<_> = out
-        .iter()
-        .filter(|o| ws.core.contains(&o.building))
-        .collect();
+    let sw = (TOWN_SW.0, TOWN_SW.1 + 450.0);
+    let ws = window_scene(&town, &ortho_shot(sw, 150.0, 25.0, (225.0, el), 1041));
+    let m = measure(&ws, &soft_photo(None));
+    let scored = m.scored(&ws);
     // Truth outside the 95 % interval, or below the lower bound.
     let outside = |o: &shadow_truth::Outcome| match (o.roof_z, o.at_least()) {
         (Some(_), _) => o
@@ -599,35 +588,12 @@ fn a_hip_below_a_high_sun_takes_its_rise_from_its_faces() {
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let town = Town::load(root, 39).unwrap();
-    let el = 70.0;
-    let shot = Shot {
-        sw: (476_169.0, 4_428_498.0),
-        side: 40.0,
-        margin: 20.0,
-        cell: 0.5,
-        sun_azimuth_deg: 250.0,
-        sun_elevation_deg: el,
-        gradient: (0.0, 0.0),
-        camera: Camera::Ortho,
-        footprint_shift: (0.0, 0.0),
-        unlisted: 0.0,
-        antialias: povray::antialias_for(el),
-        seed: 0,
-    };
+    let shot = ortho_shot((476_169.0, 4_428_498.0), 40.0, 20.0, (250.0, 70.0), 0);
     let ws = window_scene(&town, &shot);
     assert!(ws.core.contains(&21), "building 21 in the window");
-    let photo = Photo {
-        sun_disc_deg: Some(0.53),
-        area_samples: 9,
-        srgb: true,
-        jpeg_quality: None,
-        crs_wkt: UTM13N_WKT,
-    };
-    let dir = tempfile::tempdir().unwrap();
-    let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
-    let (out, _) = measure_prepared(&ws.scene, &p).unwrap();
+    let m = measure(&ws, &soft_photo(None));
     let tol = 2.0 * shot.cell;
-    for o in out.iter().filter(|o| ws.core.contains(&o.building)) {
+    for o in m.scored(&ws) {
         let pitched = !matches!(ws.scene.buildings[o.building].roof, Roof::Flat { .. });
         eprintln!(
             "building {}: truth {:.2}, roof_z {:?}, 95 % {}, form {}, flags {:?}",
@@ -668,35 +634,16 @@ fn a_frame_photo_from_500_m_keeps_exact_footprints_in_place_and_meets_the_leans(
     let town = Town::load(root, 39).unwrap();
     let sw = (TOWN_SW.0 + 450.0, TOWN_SW.1 + 450.0);
     let shot = Shot {
-        sw,
-        side: 150.0,
-        margin: 25.0,
-        cell: 0.5,
-        sun_azimuth_deg: 135.0,
-        sun_elevation_deg: 40.0,
-        gradient: (0.0, 0.0),
         camera: Camera::Perspective {
             nadir: (sw.0 + 75.0 - 212.0, sw.1 + 75.0 - 212.0),
             height_m: 500.0,
         },
-        footprint_shift: (0.0, 0.0),
-        unlisted: 0.0,
-        antialias: povray::antialias_for(40.0),
-        seed: 1150,
+        ..ortho_shot(sw, 150.0, 25.0, (135.0, 40.0), 1150)
     };
     let ws = window_scene(&town, &shot);
-    let photo = Photo {
-        sun_disc_deg: Some(0.53),
-        area_samples: 9,
-        srgb: true,
-        jpeg_quality: None,
-        crs_wkt: UTM13N_WKT,
-    };
-    let dir = tempfile::tempdir().unwrap();
-    let p = prepare_scene_photo(&ws.scene, dir.path(), &photo).unwrap();
-    let (out, _) = measure_prepared(&ws.scene, &p).unwrap();
+    let m = measure(&ws, &soft_photo(None));
     let v: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(p.written.dir.join("heights.geojson")).unwrap(),
+        &std::fs::read_to_string(m.prepared.written.dir.join("heights.geojson")).unwrap(),
     )
     .unwrap();
     let g = &v["footprint_shift"];
@@ -704,10 +651,7 @@ fn a_frame_photo_from_500_m_keeps_exact_footprints_in_place_and_meets_the_leans(
         g["east_m"].as_f64().unwrap_or(0.0),
         g["north_m"].as_f64().unwrap_or(0.0),
     );
-    let scored: Vec<_> = out
-        .iter()
-        .filter(|o| ws.core.contains(&o.building))
-        .collect();
+    let scored = m.scored(&ws);
     let n = scored.len();
     let within = scored
         .iter()
