@@ -1,3 +1,4 @@
+use super::read::chunks;
 use super::*;
 use std::path::Path;
 
