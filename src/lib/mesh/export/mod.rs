@@ -26,24 +26,23 @@
 //! last; `.glb` files an earlier export left under `DIR/tiles` that this one did not write are
 //! removed after. Same database and options, same bytes.
 
-use super::gltf::write_glb;
-use super::prisms::prism_mesh;
 use super::tileset::{apply, relative, tileset_json, translation, Frame, Matrix, Tile};
-use super::tin::{simplify, Heights, Tin};
-use super::voxels::object_mesh;
-use super::{Drape, Lighting, Mesh, Part};
 use crate::db::{Database, COLOUR};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 use crate::io::atomic::{commit_all, AtomicFile, Staged};
 use crate::progress::Progress;
 use crate::raster::RowSource;
-use crate::standing::{polygon_cells, read_buildings, CellSample, TerrainSample};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+
+mod standing;
+mod tile;
+use standing::standing_meshes;
+use tile::{build_tile, Built};
 
 /// What `dbms export mesh` is asked for.
 #[derive(Debug, Clone, PartialEq)]
@@ -424,96 +423,6 @@ fn origin(grid: &Grid, elevation: &dyn RowSource<f32>) -> Result<[f64; 3]> {
     Ok([cx, cy, (z * 100.0).round() / 100.0])
 }
 
-/// Buildings and objects as meshes, each with the level-0 cell it belongs to.
-struct Things {
-    /// `(cell column, cell row, mesh, wall base)`: the cell each belongs to, and for a building
-    /// the height (metres) its walls start from, the lowest terrain under it, which each level
-    /// lowers by its own bound.
-    meshes: Vec<(usize, usize, Mesh, Option<f64>)>,
-    buildings: usize,
-    over_nodata: usize,
-    objects: usize,
-}
-
-/// Read and mesh what stands on the terrain: buildings (walls from the lowest valid terrain
-/// under the footprint), placed objects.
-fn standing_meshes(
-    db: &Database,
-    elevation: &dyn RowSource<f32>,
-    photo: &dyn RowSource<[u8; 4]>,
-) -> Result<Things> {
-    let grid = db.grid();
-    let mut out = Things {
-        meshes: Vec::new(),
-        buildings: 0,
-        over_nodata: 0,
-        objects: 0,
-    };
-    if db.manifest.layers.contains_key(crate::db::BUILDINGS) {
-        let path = db.layer_path(crate::db::BUILDINGS)?;
-        let prisms = read_buildings(&path)?;
-        let cells: Vec<Vec<usize>> = prisms
-            .iter()
-            .map(|p| {
-                let mut c = polygon_cells(grid, &p.rings);
-                // Small outlines may hold no cell centre: their corners' cells stand in.
-                c.extend(
-                    p.rings
-                        .iter()
-                        .flatten()
-                        .filter_map(|&(x, y)| grid.cell_at(x, y))
-                        .map(|(col, row)| grid.index(col, row)),
-                );
-                c
-            })
-            .collect();
-        let terrain = TerrainSample::read(elevation, cells.concat(), BAND_ROWS)?;
-        let colour = CellSample::read(photo, cells.concat(), BAND_ROWS)?;
-        for (i, (prism, under)) in prisms.iter().zip(&cells).enumerate() {
-            let lowest = under
-                .iter()
-                .map(|&c| crate::standing::TerrainAt::at(&terrain, c))
-                .filter(|z| z.is_finite())
-                .fold(f32::INFINITY, f32::min);
-            if !lowest.is_finite() {
-                out.over_nodata += 1;
-                continue;
-            }
-            let rgb = mean_opaque(under.iter().map(|&c| colour.get(c)));
-            let mesh = prism_mesh(prism, lowest as f64, rgb).map_err(|e| {
-                Error::file(&path, format!("building {i}: {e}"))
-                    .fix("correct the outline (a simple polygon, holes inside it) and export again")
-            })?;
-            let (lo, hi) = mesh.bounds().expect("a prism has vertices");
-            let (col, row) = clamp_cell(grid, (lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0);
-            out.meshes.push((col, row, mesh, Some(lowest as f64)));
-            out.buildings += 1;
-        }
-    }
-    let mut objects: BTreeMap<&str, crate::voxel::object::VoxelObject> = BTreeMap::new();
-    for p in &db.manifest.objects {
-        if !objects.contains_key(p.file.as_str()) {
-            let (obj, _) = crate::voxel::format::read(&db.dir.join(&p.file))?;
-            objects.insert(&p.file, obj);
-        }
-        let mesh = object_mesh(&objects[p.file.as_str()], p);
-        if mesh.is_empty() {
-            continue;
-        }
-        let (col, row) = clamp_cell(grid, p.x, p.y);
-        out.meshes.push((col, row, mesh, None));
-        out.objects += 1;
-    }
-    Ok(out)
-}
-
-/// The grid cell nearest world `(x, y)` (the cell holding it, or the edge cell beside it).
-fn clamp_cell(grid: &Grid, x: f64, y: f64) -> (usize, usize) {
-    let (px, py) = grid.transform.world_to_pixel(x, y);
-    let clamp = |p: f64, n: usize| (p.floor().max(0.0) as usize).min(n - 1);
-    (clamp(px, grid.width), clamp(py, grid.height))
-}
-
 /// The mean of the opaque ones among `pixels` (sRGB, rounded half up), grey when none is.
 fn mean_opaque<'a>(pixels: impl IntoIterator<Item = &'a [u8; 4]>) -> [u8; 3] {
     let (mut sum, mut n) = ([0u64; 3], 0u64);
@@ -527,306 +436,12 @@ fn mean_opaque<'a>(pixels: impl IntoIterator<Item = &'a [u8; 4]>) -> [u8; 3] {
     }
 }
 
-/// What one tile became.
-struct Built {
-    /// Its frame: origin (world), to ECEF, departure at its corners.
-    frame: Frame,
-    /// Its box in its local frame, when it has content.
-    bounds: Option<([f64; 3], [f64; 3])>,
-    uri: Option<String>,
-    terrain_triangles: u64,
-    triangles: u64,
-    bytes: u64,
-    error: Measured,
-}
-
-/// A tile's terrain against level 0.
-#[derive(Default)]
-struct Measured {
-    max: f64,
-    sum_sq: f64,
-    points: u64,
-    uncovered: u64,
-}
-
-#[allow(clippy::too_many_arguments)]
-fn build_tile(
-    levels: &Levels,
-    level: usize,
-    tx: usize,
-    ty: usize,
-    elevation: &dyn RowSource<f32>,
-    colour: &dyn RowSource<[u8; 4]>,
-    standing: &Things,
-    frame: Frame,
-    dir: &Path,
-) -> Result<(Built, Option<Staged>)> {
-    let grid = elevation.grid();
-    let cols = levels.points(level, tx, grid.width);
-    let rows = levels.points(level, ty, grid.height);
-    let z = read_points(elevation, &rows, &cols)?;
-    let heights = Heights {
-        width: cols.len(),
-        height: rows.len(),
-        z: &z,
-    };
-    let tin = simplify(&heights, levels.bound(level));
-    let (terrain, drape, cell_tris) =
-        terrain_mesh(grid, &tin, &rows, &cols, &z, colour, levels.stride(level))?;
-    let (nx, ny) = levels.across(level);
-    let own_cols = levels.owned(level, tx, grid.width, nx);
-    let own_rows = levels.owned(level, ty, grid.height, ny);
-    let error = measure(elevation, &cell_tris, own_cols.clone(), own_rows.clone())?;
-
-    let mut things = Mesh::default();
-    for (col, row, m, base) in &standing.meshes {
-        if own_cols.contains(col) && own_rows.contains(row) {
-            let first = things.positions.len();
-            things.append(m);
-            // Walls reach the level's bound below the lowest terrain: no gap under them.
-            if let Some(base) = base {
-                for p in &mut things.positions[first..] {
-                    if p[2] == *base {
-                        p[2] = base - levels.bound(level);
-                    }
-                }
-            }
-        }
-    }
-    let parts: Vec<Part> = [
-        (terrain, Lighting::Unlit, Some(drape)),
-        (things, Lighting::Lit, None),
-    ]
-    .into_iter()
-    .filter(|(m, _, _)| !m.is_empty())
-    .map(|(mesh, lighting, drape)| Part {
-        mesh,
-        lighting,
-        drape,
-    })
-    .collect();
-    let triangles = parts.iter().map(|p| p.mesh.triangles.len() as u64).sum();
-    let terrain_triangles = parts
-        .iter()
-        .filter(|p| p.lighting == Lighting::Unlit)
-        .map(|p| p.mesh.triangles.len() as u64)
-        .sum();
-    if parts.is_empty() {
-        let built = Built {
-            frame,
-            bounds: None,
-            uri: None,
-            terrain_triangles,
-            triangles,
-            bytes: 0,
-            error,
-        };
-        return Ok((built, None));
-    }
-    let bytes = write_glb(&parts, frame.origin)?;
-    let name = format!("{tx}_{ty}.glb");
-    let path = dir.join(&name);
-    let mut f = AtomicFile::create(&path)?;
-    f.writer()
-        .write_all(&bytes)
-        .map_err(|e| Error::io(&path, e))?;
-    let bounds = parts
-        .iter()
-        .filter_map(|p| p.mesh.bounds())
-        .reduce(|a, b| (min3(a.0, b.0), max3(a.1, b.1)))
-        .map(|(lo, hi)| {
-            let o = frame.origin;
-            (
-                [0, 1, 2].map(|k| lo[k] - o[k]),
-                [0, 1, 2].map(|k| hi[k] - o[k]),
-            )
-        });
-    let built = Built {
-        frame,
-        bounds,
-        uri: Some(format!("tiles/{level}/{name}")),
-        terrain_triangles,
-        triangles,
-        bytes: bytes.len() as u64,
-        error,
-    };
-    Ok((built, Some(f.stage()?)))
-}
-
 fn min3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|k| a[k].min(b[k]))
 }
 
 fn max3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|k| a[k].max(b[k]))
-}
-
-/// Heights at the points `rows × cols` (grid indices), row-major.
-fn read_points(src: &dyn RowSource<f32>, rows: &[usize], cols: &[usize]) -> Result<Vec<f32>> {
-    let w = src.grid().width;
-    let mut out = Vec::with_capacity(rows.len() * cols.len());
-    let contiguous = rows.windows(2).all(|p| p[1] == p[0] + 1);
-    if contiguous {
-        let band = src.read_rows(rows[0], rows.len())?;
-        for r in 0..rows.len() {
-            out.extend(cols.iter().map(|&c| band[r * w + c]));
-        }
-    } else {
-        for &r in rows {
-            let row = src.read_rows(r, 1)?;
-            out.extend(cols.iter().map(|&c| row[c]));
-        }
-    }
-    Ok(out)
-}
-
-/// A triangle in level-0 cell coordinates (column, row as numbers; whole numbers, so the
-/// orientation and inside tests are exact) with its vertices' heights.
-type CellTriangle = [[f64; 3]; 3];
-
-/// The TIN as a mesh in world coordinates with the photo draped over it, and its triangles in
-/// cell coordinates for measuring. The image has a texel per point of the window: the photo at
-/// the point (stride 1) or its mean over the `stride × stride` cells around it; each vertex
-/// samples its own point's texel, and its colour is that texel. A triangle that the grid's
-/// uneven last step would turn over is dropped (its points then count as uncovered).
-fn terrain_mesh(
-    grid: &Grid,
-    tin: &Tin,
-    rows: &[usize],
-    cols: &[usize],
-    z: &[f32],
-    photo: &dyn RowSource<[u8; 4]>,
-    stride: usize,
-) -> Result<(Mesh, Drape, Vec<CellTriangle>)> {
-    let (w, h) = (cols.len(), rows.len());
-    let texels = window_image(photo, rows, cols, stride)?;
-    let mut mesh = Mesh::default();
-    let mut uv = Vec::with_capacity(tin.vertices.len());
-    let mut cell = Vec::with_capacity(tin.vertices.len());
-    for &[i, j] in &tin.vertices {
-        let (c, r) = (cols[i as usize], rows[j as usize]);
-        let height = z[j as usize * w + i as usize] as f64;
-        let (x, y) = grid.cell_centre(c, r);
-        mesh.positions.push([x, y, height]);
-        mesh.colours.push(texels[j as usize * w + i as usize]);
-        // The texel's centre.
-        uv.push([
-            ((i as f64 + 0.5) / w as f64) as f32,
-            ((j as f64 + 0.5) / h as f64) as f32,
-        ]);
-        cell.push([c as f64, r as f64, height]);
-    }
-    let mut cell_tris = Vec::with_capacity(tin.triangles.len());
-    for &t in &tin.triangles {
-        let p = t.map(|i| cell[i as usize]);
-        // Counter-clockwise from above in world terms is clockwise in (column, row).
-        if orient(p) >= 0.0 {
-            continue;
-        }
-        mesh.triangles.push(t);
-        cell_tris.push(p);
-    }
-    let drape = Drape {
-        width: w as u32,
-        height: h as u32,
-        texels,
-        uv,
-    };
-    Ok((mesh, drape, cell_tris))
-}
-
-/// Twice the signed area of a triangle in (column, row): negative when clockwise there.
-fn orient([a, b, c]: CellTriangle) -> f64 {
-    (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
-}
-
-/// The photo at every point `rows × cols` of a window, row-major: the cell's at stride 1, the
-/// mean of the opaque cells within half a stride around it above (grey where none is opaque).
-fn window_image(
-    photo: &dyn RowSource<[u8; 4]>,
-    rows: &[usize],
-    cols: &[usize],
-    stride: usize,
-) -> Result<Vec<[u8; 3]>> {
-    let (w, h) = (photo.grid().width, photo.grid().height);
-    let half = stride / 2;
-    let mut out = Vec::with_capacity(rows.len() * cols.len());
-    for &r in rows {
-        let (r0, r1) = (r.saturating_sub(half), (r + half + 1).min(h));
-        let block = photo.read_rows(r0, r1 - r0)?;
-        for &c in cols {
-            let (c0, c1) = (c.saturating_sub(half), (c + half + 1).min(w));
-            out.push(mean_opaque(
-                (0..r1 - r0).flat_map(|rr| &block[rr * w + c0..rr * w + c1]),
-            ));
-        }
-    }
-    Ok(out)
-}
-
-/// The vertical difference between `tris` and the level-0 heights at the valid points in
-/// `cols × rows`, streamed in bands of [`BAND_ROWS`]. A point on an edge shared by two
-/// triangles counts once.
-fn measure(
-    elevation: &dyn RowSource<f32>,
-    tris: &[CellTriangle],
-    cols: std::ops::Range<usize>,
-    rows: std::ops::Range<usize>,
-) -> Result<Measured> {
-    let w = elevation.grid().width;
-    let mut m = Measured::default();
-    let mut band0 = rows.start;
-    while band0 < rows.end {
-        let band1 = (band0 + BAND_ROWS).min(rows.end);
-        let z = elevation.read_rows(band0, band1 - band0)?;
-        let bw = cols.len();
-        let mut seen = vec![false; bw * (band1 - band0)];
-        for t in tris {
-            let lo = |k: usize| t.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
-            let hi = |k: usize| t.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
-            let (r0, r1) = ((lo(1) as usize).max(band0), (hi(1) as usize + 1).min(band1));
-            let (c0, c1) = (
-                (lo(0) as usize).max(cols.start),
-                (hi(0) as usize + 1).min(cols.end),
-            );
-            let area = orient(*t);
-            for r in r0..r1 {
-                for c in c0..c1 {
-                    let k = (r - band0) * bw + (c - cols.start);
-                    if seen[k] {
-                        continue;
-                    }
-                    let p = [c as f64, r as f64, 0.0];
-                    let [a, b, d] = *t;
-                    let wa = orient([p, b, d]) / area;
-                    let wb = orient([a, p, d]) / area;
-                    let wd = orient([a, b, p]) / area;
-                    if wa < 0.0 || wb < 0.0 || wd < 0.0 {
-                        continue;
-                    }
-                    seen[k] = true;
-                    let h = z[(r - band0) * w + c];
-                    if !h.is_finite() {
-                        continue;
-                    }
-                    let e = (wa * a[2] + wb * b[2] + wd * d[2] - h as f64).abs();
-                    m.max = m.max.max(e);
-                    m.sum_sq += e * e;
-                    m.points += 1;
-                }
-            }
-        }
-        for r in band0..band1 {
-            for c in cols.clone() {
-                if !seen[(r - band0) * bw + (c - cols.start)] && z[(r - band0) * w + c].is_finite()
-                {
-                    m.uncovered += 1;
-                }
-            }
-        }
-        band0 = band1;
-    }
-    Ok(m)
 }
 
 /// The tile `(level, tx, ty)` and the tiles under it, with boxes grown to hold their children
