@@ -324,179 +324,223 @@ struct Key {
 
 /// The thermal map of `db` for `opts`.
 pub fn thermal_map(db: &Database, opts: &ThermalOptions) -> Result<ThermalMap> {
-    let per_day = 86_400.0 / opts.step_s;
-    let n = per_day.round() as usize;
-    let whole = per_day.is_finite() && (per_day - n as f64).abs() <= 1e-9;
-    if opts.step_s <= 0.0 || !whole || !(MIN_STEPS..=MAX_STEPS).contains(&n) {
-        return Err(Error::msg(format!(
-            "--step {} s: a day must be a whole number of steps, {MIN_STEPS} to {MAX_STEPS}",
-            opts.step_s
-        ))
-        .fix("e.g. --step 900 (96 steps) or 1800"));
-    }
+    let n = steps_a_day(opts.step_s)?;
     let c = opts.conditions;
     c.check()?;
     let surface = TopSurface::read(db)?;
-    let TopSurface {
-        table,
-        terrain,
-        standing,
-        material,
-        heights,
-        ..
-    } = &surface;
     let grid: Grid = surface.grid().clone();
-    let raised: &Raised = &standing.all;
     let days = steps(db, opts, n)?;
-
-    // Lit history: one cast per step with the sun up.
-    let mut lit = vec![0u128; grid.len()];
-    for (k, step) in days.iter().enumerate() {
-        let Some(sunlit) = &step.sun else { continue };
-        let bits = ShadowBits::cast(terrain, &sunlit.sun, |s, row| raised.lay_over(s, row))?;
-        lit.par_iter_mut().enumerate().for_each(|(i, l)| {
-            if !bits.get(i) {
-                *l |= 1 << k;
-            }
-        });
-    }
-
-    // A valid cell's unit normal's east and north components, quantised to 0.01 (a roof's face,
-    // level on objects' tops).
-    let normal = |i: usize| -> [i16; 2] {
-        let [e, n, _] = surface.normal(i);
-        [e, n].map(|v| (v * 100.0).round() as i16)
-    };
-
-    // Cells into clusters.
-    let mut index: HashMap<Key, u32> = HashMap::new();
-    let mut keys: Vec<Key> = Vec::new();
-    let mut cluster = vec![u32::MAX; grid.len()];
-    let mut nodata_cells = 0u64;
-    for i in 0..grid.len() {
-        let m = material[i];
-        if heights[i].is_nan() || table.by_id(m).is_none() {
-            nodata_cells += 1;
-            continue;
-        }
-        let nrm = normal(i);
-        let key = Key {
-            material: m,
-            normal: nrm,
-            lit: lit[i],
-        };
-        cluster[i] = *index.entry(key).or_insert_with(|| {
-            keys.push(key);
-            keys.len() as u32 - 1
-        });
-    }
+    let lit = lit_history(&surface, &days)?;
+    let clusters = Clusters::of(&surface, &lit);
 
     // One periodic column per cluster: its temperature at the time, and its band radiance.
-    let deep_k = c.air_mean_c + 273.15;
-    let h_conv = thermal::mcadams_convection(c.wind_m_per_s)?;
-    let last = &days[n - 1];
     let sky_band = {
         // The sky as a blackbody at the temperature that emits its long-wave.
-        let t_sky = (last.longwave / thermal::STEFAN_BOLTZMANN).powf(0.25);
+        let t_sky = (days[n - 1].longwave / thermal::STEFAN_BOLTZMANN).powf(0.25);
         planck::band_radiance(t_sky, planck::BAND_8_12_UM)?
     };
-    let solved: Vec<(f64, f64, usize, f64)> = keys
+    let solved: Vec<Solved> = clusters
+        .keys
         .par_iter()
-        .map(|key| {
-            let m = table
-                .by_id(key.material)
-                .expect("clustered cells have materials");
-            let [a, b] = key.normal.map(|v| v as f64 / 100.0);
-            let nz = (1.0 - a * a - b * b).max(0.0).sqrt();
-            let nrm = [a, b, nz];
-            let forcing: Vec<Forcing> = days
-                .iter()
-                .enumerate()
-                .map(|(k, s)| {
-                    let direct = match &s.sun {
-                        Some(Sunlit { toward: d, dni, .. }) if key.lit >> k & 1 == 1 => {
-                            dni * (d[0] * nrm[0] + d[1] * nrm[1] + d[2] * nrm[2]).max(0.0)
-                        }
-                        _ => 0.0,
-                    };
-                    Forcing {
-                        shortwave_w_per_m2: direct + s.diffuse * (1.0 + nz) / 2.0,
-                        longwave_down_w_per_m2: s.longwave,
-                        air_temperature_k: s.air_k,
-                        convection_w_per_m2_k: h_conv,
-                        vapour_pressure_pa: s.vapour,
-                    }
-                })
-                .collect();
-            let mut column = Column::new(&surface_of(m, deep_k), opts.grid, 1e-6, |_| deep_k)
-                .map_err(|e| Error::msg(format!("material {}: {}", m.name, e.problem)))?;
-            // Start from the steady state under the day's mean: about half the days to periodic.
-            let mean = |f: fn(&Forcing) -> f64| forcing.iter().map(f).sum::<f64>() / n as f64;
-            column.settle(&Forcing {
-                shortwave_w_per_m2: mean(|f| f.shortwave_w_per_m2),
-                longwave_down_w_per_m2: mean(|f| f.longwave_down_w_per_m2),
-                air_temperature_k: mean(|f| f.air_temperature_k),
-                convection_w_per_m2_k: h_conv,
-                vapour_pressure_pa: mean(|f| f.vapour_pressure_pa),
-            })?;
-            let run =
-                column.run_periodic(&forcing, opts.step_s, opts.tolerance_k, opts.max_days)?;
-            let t = *run.surface_k.last().expect("a day has steps");
-            let radiance =
-                planck::surface_band_radiance(t, m.emissivity, sky_band, planck::BAND_8_12_UM)?;
-            Ok((t, radiance, run.cycles, run.change_k))
-        })
+        .map(|key| solve(key, &surface.table, &days, opts, sky_band))
         .collect::<Result<_>>()?;
 
-    let value = |i: usize, f: fn(&(f64, f64, usize, f64)) -> f64| match cluster[i] {
+    let value = |i: usize, f: fn(&Solved) -> f64| match clusters.cluster[i] {
         u32::MAX => f32::NAN,
         k => f(&solved[k as usize]) as f32,
     };
     let temperature: Vec<f32> = (0..grid.len()).map(|i| value(i, |s| s.0)).collect();
     let radiance: Vec<f32> = (0..grid.len()).map(|i| value(i, |s| s.1)).collect();
-    let mut per_id = [(); 256].map(|_| MaterialTemperature {
-        cells: 0,
-        mean_k: 0.0,
-        min_k: f64::INFINITY,
-        max_k: f64::NEG_INFINITY,
-    });
-    for i in (0..grid.len()).filter(|&i| cluster[i] != u32::MAX) {
-        let t = solved[cluster[i] as usize].0;
-        let e = &mut per_id[material[i] as usize];
-        e.cells += 1;
-        e.mean_k += t;
-        e.min_k = e.min_k.min(t);
-        e.max_k = e.max_k.max(t);
-    }
-    let per: BTreeMap<String, MaterialTemperature> = per_id
-        .into_iter()
-        .enumerate()
-        .filter(|(_, e)| e.cells > 0)
-        .map(|(id, mut e)| {
-            e.mean_k /= e.cells as f64;
-            let name = &table
-                .by_id(id as u8)
-                .expect("clustered cells have materials")
-                .name;
-            (name.clone(), e)
-        })
-        .collect();
     let summary = ThermalSummary {
         time: opts.time.to_rfc3339_opts(chrono::SecondsFormat::Secs, true),
         conditions: c,
         steps: n,
         sunlit_steps: days.iter().filter(|s| s.sun.is_some()).count(),
-        clusters: keys.len(),
+        clusters: clusters.keys.len(),
         days_max: solved.iter().map(|s| s.2).max().unwrap_or(0),
         change_k_max: solved.iter().map(|s| s.3).fold(0.0, f64::max),
-        materials: per,
-        nodata_cells,
+        materials: per_material(&surface, &clusters.cluster, &solved),
+        nodata_cells: clusters.nodata_cells,
     };
     Ok(ThermalMap {
         temperature_k: Raster::new(grid.clone(), temperature),
         radiance: Raster::new(grid, radiance),
         summary,
     })
+}
+
+/// The number of steps in a day of `step_s` seconds: an error unless it is whole and from
+/// [`MIN_STEPS`] to [`MAX_STEPS`].
+fn steps_a_day(step_s: f64) -> Result<usize> {
+    let per_day = 86_400.0 / step_s;
+    let n = per_day.round() as usize;
+    let whole = per_day.is_finite() && (per_day - n as f64).abs() <= 1e-9;
+    if step_s <= 0.0 || !whole || !(MIN_STEPS..=MAX_STEPS).contains(&n) {
+        return Err(Error::msg(format!(
+            "--step {step_s} s: a day must be a whole number of steps, {MIN_STEPS} to {MAX_STEPS}"
+        ))
+        .fix("e.g. --step 900 (96 steps) or 1800"));
+    }
+    Ok(n)
+}
+
+/// Each cell's lit history over `days`: bit `k` set when the cell is lit at step `k` (one cast
+/// of the terrain and what stands on it per step with the sun up).
+fn lit_history(surface: &TopSurface, days: &[Step]) -> Result<Vec<u128>> {
+    let raised: &Raised = &surface.standing.all;
+    let mut lit = vec![0u128; surface.grid().len()];
+    for (k, step) in days.iter().enumerate() {
+        let Some(sunlit) = &step.sun else { continue };
+        let bits = ShadowBits::cast(&surface.terrain, &sunlit.sun, |s, row| {
+            raised.lay_over(s, row)
+        })?;
+        lit.par_iter_mut().enumerate().for_each(|(i, l)| {
+            if !bits.get(i) {
+                *l |= 1 << k;
+            }
+        });
+    }
+    Ok(lit)
+}
+
+/// The valid cells grouped by [`Key`]: one column is solved per key.
+struct Clusters {
+    /// The distinct keys, in the order first met (row-major).
+    keys: Vec<Key>,
+    /// Each cell's index into `keys`; `u32::MAX` for nodata.
+    cluster: Vec<u32>,
+    /// Cells with a nodata height or no material in the table.
+    nodata_cells: u64,
+}
+
+impl Clusters {
+    /// The cells of `surface` into clusters by material, normal and `lit` history.
+    fn of(surface: &TopSurface, lit: &[u128]) -> Clusters {
+        // A valid cell's unit normal's east and north components, quantised to 0.01 (a roof's
+        // face, level on objects' tops).
+        let normal = |i: usize| -> [i16; 2] {
+            let [e, n, _] = surface.normal(i);
+            [e, n].map(|v| (v * 100.0).round() as i16)
+        };
+        let len = surface.grid().len();
+        let mut index: HashMap<Key, u32> = HashMap::new();
+        let mut out = Clusters {
+            keys: Vec::new(),
+            cluster: vec![u32::MAX; len],
+            nodata_cells: 0,
+        };
+        for i in 0..len {
+            let m = surface.material[i];
+            if surface.heights[i].is_nan() || surface.table.by_id(m).is_none() {
+                out.nodata_cells += 1;
+                continue;
+            }
+            let key = Key {
+                material: m,
+                normal: normal(i),
+                lit: lit[i],
+            };
+            out.cluster[i] = *index.entry(key).or_insert_with(|| {
+                out.keys.push(key);
+                out.keys.len() as u32 - 1
+            });
+        }
+        out
+    }
+}
+
+/// A cluster's column at the product's time: surface temperature (K), band radiance
+/// (W/m²/sr), the days it took to become periodic and its last day-to-day change (K).
+type Solved = (f64, f64, usize, f64);
+
+/// The periodic column of `key` under `days`, ending at the product's time.
+fn solve(
+    key: &Key,
+    table: &table::MaterialTable,
+    days: &[Step],
+    opts: &ThermalOptions,
+    sky_band: f64,
+) -> Result<Solved> {
+    let c = opts.conditions;
+    let deep_k = c.air_mean_c + 273.15;
+    let h_conv = thermal::mcadams_convection(c.wind_m_per_s)?;
+    let m = table
+        .by_id(key.material)
+        .expect("clustered cells have materials");
+    let [a, b] = key.normal.map(|v| v as f64 / 100.0);
+    let nz = (1.0 - a * a - b * b).max(0.0).sqrt();
+    let nrm = [a, b, nz];
+    let forcing: Vec<Forcing> = days
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let direct = match &s.sun {
+                Some(Sunlit { toward: d, dni, .. }) if key.lit >> k & 1 == 1 => {
+                    dni * (d[0] * nrm[0] + d[1] * nrm[1] + d[2] * nrm[2]).max(0.0)
+                }
+                _ => 0.0,
+            };
+            Forcing {
+                shortwave_w_per_m2: direct + s.diffuse * (1.0 + nz) / 2.0,
+                longwave_down_w_per_m2: s.longwave,
+                air_temperature_k: s.air_k,
+                convection_w_per_m2_k: h_conv,
+                vapour_pressure_pa: s.vapour,
+            }
+        })
+        .collect();
+    let mut column = Column::new(&surface_of(m, deep_k), opts.grid, 1e-6, |_| deep_k)
+        .map_err(|e| Error::msg(format!("material {}: {}", m.name, e.problem)))?;
+    // Start from the steady state under the day's mean: about half the days to periodic.
+    let n = days.len();
+    let mean = |f: fn(&Forcing) -> f64| forcing.iter().map(f).sum::<f64>() / n as f64;
+    column.settle(&Forcing {
+        shortwave_w_per_m2: mean(|f| f.shortwave_w_per_m2),
+        longwave_down_w_per_m2: mean(|f| f.longwave_down_w_per_m2),
+        air_temperature_k: mean(|f| f.air_temperature_k),
+        convection_w_per_m2_k: h_conv,
+        vapour_pressure_pa: mean(|f| f.vapour_pressure_pa),
+    })?;
+    let run = column.run_periodic(&forcing, opts.step_s, opts.tolerance_k, opts.max_days)?;
+    let t = *run.surface_k.last().expect("a day has steps");
+    let radiance = planck::surface_band_radiance(t, m.emissivity, sky_band, planck::BAND_8_12_UM)?;
+    Ok((t, radiance, run.cycles, run.change_k))
+}
+
+/// Per material name, the cells of each cluster's temperature: count, mean, least and most.
+fn per_material(
+    surface: &TopSurface,
+    cluster: &[u32],
+    solved: &[Solved],
+) -> BTreeMap<String, MaterialTemperature> {
+    let mut per_id = [(); 256].map(|_| MaterialTemperature {
+        cells: 0,
+        mean_k: 0.0,
+        min_k: f64::INFINITY,
+        max_k: f64::NEG_INFINITY,
+    });
+    for i in (0..cluster.len()).filter(|&i| cluster[i] != u32::MAX) {
+        let t = solved[cluster[i] as usize].0;
+        let e = &mut per_id[surface.material[i] as usize];
+        e.cells += 1;
+        e.mean_k += t;
+        e.min_k = e.min_k.min(t);
+        e.max_k = e.max_k.max(t);
+    }
+    per_id
+        .into_iter()
+        .enumerate()
+        .filter(|(_, e)| e.cells > 0)
+        .map(|(id, mut e)| {
+            e.mean_k /= e.cells as f64;
+            let name = &surface
+                .table
+                .by_id(id as u8)
+                .expect("clustered cells have materials")
+                .name;
+            (name.clone(), e)
+        })
+        .collect()
 }
 
 impl std::fmt::Display for ThermalSummary {
