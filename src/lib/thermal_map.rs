@@ -429,7 +429,7 @@ impl Clusters {
             cluster: vec![u32::MAX; len],
             nodata_cells: 0,
         };
-        for i in 0..len {
+        for (i, &history) in lit.iter().enumerate() {
             let m = surface.material[i];
             if surface.heights[i].is_nan() || surface.table.by_id(m).is_none() {
                 out.nodata_cells += 1;
@@ -438,7 +438,7 @@ impl Clusters {
             let key = Key {
                 material: m,
                 normal: normal(i),
-                lit: lit[i],
+                lit: history,
             };
             out.cluster[i] = *index.entry(key).or_insert_with(|| {
                 out.keys.push(key);
