@@ -132,6 +132,42 @@ pub fn parse_band(s: &str) -> Result<Band> {
 /// The radar map of `db` for `opts`, and its summary.
 pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarSummary)> {
     let (az, el) = (opts.azimuth_deg, opts.elevation_deg);
+    check_look(az, el)?;
+    let surface = TopSurface::read(db)?;
+    let grid = surface.grid();
+    let radar = Sun::new(el, az)?;
+    let toward = radar.direction_enu();
+    let look = Look {
+        surface: &surface,
+        shadow: ShadowBits::cast(&surface.terrain, &radar, |s, row| {
+            surface.standing.all.lay_over(s, row)
+        })?,
+        toward,
+        facing: facing(grid, toward),
+        models: (0..=255u8)
+            .map(|id| {
+                let m = surface.table.by_id(id)?;
+                Some((m.radar.specular, m.radar.model_for(opts.band)))
+            })
+            .collect(),
+        level_incidence: 90.0 - el,
+    };
+    let cells: Vec<(f32, u8)> = (0..grid.len())
+        .into_par_iter()
+        .map(|i| look.cell(i))
+        .collect();
+    let (sigma0, class): (Vec<f32>, Vec<u8>) = cells.into_iter().unzip();
+    let summary = summarise(opts, &surface, &class);
+    let map = RadarMap {
+        sigma0: Raster::new(grid.clone(), sigma0),
+        class: Raster::new(grid.clone(), class),
+    };
+    Ok((map, summary))
+}
+
+/// An error unless the radar's azimuth (degrees) is finite and its elevation (degrees) is
+/// above the horizon and below the zenith.
+fn check_look(az: f64, el: f64) -> Result<()> {
     let at = format!("radar at azimuth {az}°, elevation {el}°");
     if !az.is_finite() {
         return Err(Error::msg(format!(
@@ -145,102 +181,109 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
         ))
         .fix("give the radar's depression angle, e.g. --elevation 30"));
     }
-    let surface = TopSurface::read(db)?;
-    let TopSurface {
-        table,
-        terrain,
-        standing,
-        material,
-        heights,
-        on_top,
-    } = &surface;
-    let grid = surface.grid();
-    let radar = Sun::new(el, az)?;
-    let shadow = ShadowBits::cast(terrain, &radar, |s, row| standing.all.lay_over(s, row))?;
+    Ok(())
+}
 
-    let (e, a) = (el.to_radians(), az.to_radians());
-    let toward = [e.cos() * a.sin(), e.cos() * a.cos(), e.sin()];
-    // The 4-neighbour offsets that point away from the radar: a ground cell whose neighbour
-    // there is raised stands in front of a wall that faces the radar.
-    let (w, h) = (grid.width as i64, grid.height as i64);
-    let facing: Vec<(i64, i64)> = [(1i64, 0i64), (-1, 0), (0, -1), (0, 1)]
+/// The 4-neighbour offsets `(column, row)` that point away from a radar in direction `toward`
+/// (east, north, up): a ground cell whose neighbour there is raised stands in front of a wall
+/// that faces the radar.
+fn facing(grid: &crate::grid::Grid, toward: [f64; 3]) -> Vec<(i64, i64)> {
+    [(1i64, 0i64), (-1, 0), (0, -1), (0, 1)]
         .into_iter()
         .filter(|&(dc, dr)| {
             // World x grows with the column; world y with −row when north-up.
             let (dx, dy) = (dc as f64, dr as f64 * grid.transform.cell_y.signum());
             dx * toward[0] + dy * toward[1] < -1e-12
         })
-        .collect();
-    let models: Vec<Option<(bool, Option<&RadarModel>)>> = (0..=255u8)
-        .map(|id| {
-            let m = table.by_id(id)?;
-            Some((m.radar.specular, m.radar.model_for(opts.band)))
-        })
-        .collect();
-    let level_incidence = 90.0 - el;
+        .collect()
+}
 
-    let cells: Vec<(f32, u8)> = (0..grid.len())
-        .into_par_iter()
-        .map(|i| {
-            if heights[i].is_nan() {
-                return (f32::NAN, Class::Nodata as u8);
-            }
-            let n = surface.normal(i);
-            let cos_inc = n[0] * toward[0] + n[1] * toward[1] + n[2] * toward[2];
-            if shadow.get(i) || cos_inc <= 0.0 {
-                return (0.0, Class::Shadow as u8);
-            }
-            let (specular, model) = match models[material[i] as usize] {
-                Some(m) => m,
-                None => return (f32::NAN, Class::NoModel as u8),
-            };
-            if specular {
-                return (0.0, Class::Specular as u8);
-            }
-            let Some(model) = model else {
-                return (f32::NAN, Class::NoModel as u8);
-            };
-            let sigma0 = model.sigma0(cos_inc);
-            let (col, row) = ((i % grid.width) as i64, (i / grid.width) as i64);
-            let wall = !on_top[i]
-                && facing.iter().any(|&(dc, dr)| {
-                    let (c, r) = (col + dc, row + dr);
-                    (0..w).contains(&c) && (0..h).contains(&r) && on_top[(r * w + c) as usize]
-                });
-            // Tilt toward the radar: the slope angle of the normal in the radar's vertical plane.
-            let horizontal = (toward[0] * toward[0] + toward[1] * toward[1]).sqrt();
-            let along = (n[0] * toward[0] + n[1] * toward[1]) / horizontal;
-            let tilt_deg = along.atan2(n[2]).to_degrees();
-            let class = if wall {
-                Class::Dihedral
-            } else if tilt_deg > level_incidence {
-                Class::Layover
-            } else {
-                Class::Lit
-            };
-            (sigma0, class as u8)
-        })
-        .collect();
-    let (sigma0, class): (Vec<f32>, Vec<u8>) = cells.into_iter().unzip();
+/// What every cell of one radar look reads.
+struct Look<'a> {
+    surface: &'a TopSurface,
+    /// The radar's shadow: cells it cannot see.
+    shadow: ShadowBits,
+    /// Unit vector toward the radar (east, north, up).
+    toward: [f64; 3],
+    /// [`facing`]'s offsets.
+    facing: Vec<(i64, i64)>,
+    /// Per material id: whether it is specular, and its σ⁰ model at the band; `None` for an id
+    /// the table lacks.
+    models: Vec<Option<(bool, Option<&'a RadarModel>)>>,
+    /// The incidence on level ground, degrees.
+    level_incidence: f64,
+}
+
+impl Look<'_> {
+    /// Cell `i`'s σ⁰ (linear; NaN without a model or a height) and its class.
+    fn cell(&self, i: usize) -> (f32, u8) {
+        let (surface, toward) = (self.surface, self.toward);
+        if surface.heights[i].is_nan() {
+            return (f32::NAN, Class::Nodata as u8);
+        }
+        let n = surface.normal(i);
+        let cos_inc = n[0] * toward[0] + n[1] * toward[1] + n[2] * toward[2];
+        if self.shadow.get(i) || cos_inc <= 0.0 {
+            return (0.0, Class::Shadow as u8);
+        }
+        let (specular, model) = match self.models[surface.material[i] as usize] {
+            Some(m) => m,
+            None => return (f32::NAN, Class::NoModel as u8),
+        };
+        if specular {
+            return (0.0, Class::Specular as u8);
+        }
+        let Some(model) = model else {
+            return (f32::NAN, Class::NoModel as u8);
+        };
+        let sigma0 = model.sigma0(cos_inc);
+        let grid = surface.grid();
+        let (w, h) = (grid.width as i64, grid.height as i64);
+        let (col, row) = ((i % grid.width) as i64, (i / grid.width) as i64);
+        let on_top = &surface.on_top;
+        let wall = !on_top[i]
+            && self.facing.iter().any(|&(dc, dr)| {
+                let (c, r) = (col + dc, row + dr);
+                (0..w).contains(&c) && (0..h).contains(&r) && on_top[(r * w + c) as usize]
+            });
+        // Tilt toward the radar: the slope angle of the normal in the radar's vertical plane.
+        let horizontal = (toward[0] * toward[0] + toward[1] * toward[1]).sqrt();
+        let along = (n[0] * toward[0] + n[1] * toward[1]) / horizontal;
+        let tilt_deg = along.atan2(n[2]).to_degrees();
+        let class = if wall {
+            Class::Dihedral
+        } else if tilt_deg > self.level_incidence {
+            Class::Layover
+        } else {
+            Class::Lit
+        };
+        (sigma0, class as u8)
+    }
+}
+
+/// The summary of a look from `opts` over `surface` whose cells are `class`: each class's
+/// count, and the materials with no model at the band (by id; every id the table lacks is
+/// "unclassified", named once).
+fn summarise(opts: &RadarOptions, surface: &TopSurface, class: &[u8]) -> RadarSummary {
     let mut counts = [0u64; 7];
     class.iter().for_each(|&c| counts[c as usize] += 1);
-    let ids = (0..grid.len())
+    let ids = (0..class.len())
         .filter(|&i| class[i] == Class::NoModel as u8)
-        .map(|i| material[i])
+        .map(|i| surface.material[i])
         .collect::<std::collections::BTreeSet<u8>>();
-    // By id; every id the table lacks is "unclassified", named once.
     let mut no_model: Vec<String> = Vec::new();
     for id in ids {
-        let name = table
+        let name = surface
+            .table
             .by_id(id)
             .map_or("unclassified".to_string(), |m| m.name.clone());
         if !no_model.contains(&name) {
             no_model.push(name);
         }
     }
-    let summary = RadarSummary {
-        azimuth_deg: az,
-        elevation_deg: el,
+    RadarSummary {
+        azimuth_deg: opts.azimuth_deg,
+        elevation_deg: opts.elevation_deg,
         band: format!("{:?}", opts.band),
         cells: CLASSES
             .iter()
@@ -248,12 +291,7 @@ pub fn radar_map(db: &Database, opts: &RadarOptions) -> Result<(RadarMap, RadarS
             .map(|(c, n)| (class_name(*c), n))
             .collect(),
         no_model,
-    };
-    let map = RadarMap {
-        sigma0: Raster::new(grid.clone(), sigma0),
-        class: Raster::new(grid.clone(), class),
-    };
-    Ok((map, summary))
+    }
 }
 
 /// A class's name in summaries.
