@@ -18,6 +18,8 @@
 //!   lean's 95 % range, and a flat roof whose shadow was doubted already (lines dropped on a
 //!   neighbour, lines that disagree, a poor match) reports the lean's height (the interval
 //!   still holds the shadow's);
+//! * a lean sought again along its line alone ([`super::register::off_the_leans`]) only
+//!   confirms or doubts: it never reports its height in place of the shadow's, nor gives one;
 //! * a footprint without a shadow height takes the lean's, flagged `height_from_lean` (and
 //!   `pitched_roof` still when it looks pitched, the 95 % interval then reaching the ridge of
 //!   the steepest pitch over it); a lower bound seen is kept in its 95 % interval.
@@ -41,6 +43,19 @@ pub const PRECISE_CELLS: f64 = 2.0;
 /// outline matched another building's edges 70 m out and reported 107 m for a 10 m roof,
 /// while every lean's height there that corrected a doubted shadow was within twice its top.
 pub const FAR_LEAN: f64 = 2.0;
+
+/// The standard error (metres) of the height a lean `l` gives at `r` from the nadir of a camera
+/// `z` above the ground, in a photo of `cell`-metre cells (all metres).
+fn sigma_m(z: f64, r: f64, l: f64, cell: f64) -> f64 {
+    z * r / (r + l).powi(2) * LEAN_CELLS * cell
+}
+
+/// Whether a lean `l` at `r` from the nadir of a camera `z` above the ground, in a photo of
+/// `cell`-metre cells (all metres), gives a height [`PRECISE_CELLS`]-precise: its 95 % range
+/// within that many cells either side. Shorter leans are the less precise (`l` = 0 the least).
+pub fn precise(z: f64, r: f64, l: f64, cell: f64) -> bool {
+    SIGMAS[1] * sigma_m(z, r, l, cell) <= PRECISE_CELLS * cell
+}
 
 /// Two-sided 68 % and 95 % normal quantiles.
 const SIGMAS: [f64; 2] = [1.0, 1.96];
@@ -73,10 +88,9 @@ impl LeanHeight {
         if !(l > 0.0 && r > 0.0 && z > 0.0) {
             return None;
         }
-        let sigma_m = z * r / (r + l).powi(2) * LEAN_CELLS * cell;
-        (SIGMAS[1] * sigma_m <= PRECISE_CELLS * cell).then_some(LeanHeight {
+        precise(z, r, l, cell).then_some(LeanHeight {
             z: ground_z + z * l / (r + l),
-            sigma_m,
+            sigma_m: sigma_m(z, r, l, cell),
         })
     }
 
@@ -88,13 +102,18 @@ impl LeanHeight {
 
 /// Meet the shadow's measurement `m` of `fp` with the lean's height `lean` (see the module
 /// doc); `rise_m` is the highest a pitched roof over `fp` may rise above its eaves, metres.
-pub fn meet(m: &mut Measurement, lean: &LeanHeight, rise_m: f64) {
+/// A lean found `along_lean` (sought again along the lean alone,
+/// [`super::register::off_the_leans`]) confirms or doubts the shadow's height but never stands
+/// for it: a narrower search always finds a best, on the roof or not.
+pub fn meet(m: &mut Measurement, lean: &LeanHeight, rise_m: f64, along_lean: bool) {
     if m.flags.footprint_off_photo {
         return;
     }
     let lean_iv = lean.ranges();
     let Some(roof) = m.roof_z else {
-        given_by_lean(m, lean, rise_m);
+        if !along_lean {
+            given_by_lean(m, lean, rise_m);
+        }
         return;
     };
     let eaves = m.pitch.map_or(roof, |p| p.eave_z);
@@ -135,7 +154,7 @@ pub fn meet(m: &mut Measurement, lean: &LeanHeight, rise_m: f64) {
             ivs[1] = (ivs[1].0.min(inner.0), ivs[1].1.max(inner.1));
             *ivs = super::uncertainty::above_ground(*ivs, m.ground_z);
         }
-        if flat && doubted(&m.flags) && shadow_allows {
+        if flat && doubted(&m.flags) && shadow_allows && !along_lean {
             // A shadow the town doubted already, against a clear lean it does not rule out: the
             // lean is the likelier (the town bench from 500 m: right in 9 of 11 such flat roofs).
             m.roof_z = Some(lean.z);
@@ -245,13 +264,13 @@ mod tests {
         };
         // The shadow says 112.2: confirmed, the doubts cleared, the interval still holds it.
         let mut m = measured(Some(112.2), doubted);
-        meet(&mut m, &h, 3.0);
+        meet(&mut m, &h, 3.0, false);
         assert!(m.flags.names().is_empty(), "{:?}", m.flags);
         let [a, b] = m.roof_z_intervals.unwrap();
         assert!(a.0 <= 112.2 && a.1 >= 112.2 && b.0 <= a.0 && b.1 >= a.1);
         // The shadow says 116: flagged, and the intervals reach the lean's height.
         let mut m = measured(Some(116.0), doubted);
-        meet(&mut m, &h, 3.0);
+        meet(&mut m, &h, 3.0, false);
         assert!(m.flags.lean_disagrees && m.flags.shadow_on_other_building);
         let [a, b] = m.roof_z_intervals.unwrap();
         assert!(a.0 < 112.0 && b.0 < a.0 && a.1 >= 116.0, "{a:?} {b:?}");
@@ -259,7 +278,7 @@ mod tests {
         assert_eq!(m.roof_z, Some(112.0));
         // An undoubted shadow keeps its height, flagged.
         let mut m = measured(Some(116.0), Flags::default());
-        meet(&mut m, &h, 3.0);
+        meet(&mut m, &h, 3.0, false);
         assert!(m.flags.lean_disagrees && m.roof_z == Some(116.0));
         // A pitched-looking roof is not confirmed by its eaves.
         let pitched = Flags {
@@ -267,7 +286,7 @@ mod tests {
             ..doubted
         };
         let mut m = measured(Some(112.2), pitched);
-        meet(&mut m, &h, 3.0);
+        meet(&mut m, &h, 3.0, false);
         assert!(m.flags.shadow_on_other_building && !m.flags.lean_disagrees);
         // A footprint off its roof: its lean says nothing.
         let off = Flags {
@@ -275,7 +294,7 @@ mod tests {
             ..doubted
         };
         let mut m = measured(Some(116.0), off);
-        meet(&mut m, &h, 3.0);
+        meet(&mut m, &h, 3.0, false);
         assert!(!m.flags.lean_disagrees);
     }
 
@@ -291,14 +310,35 @@ mod tests {
         // lean is taken.
         let h12 = leaning(12.0);
         let mut m = measured(Some(107.0), doubted);
-        meet(&mut m, &h12, 3.0);
+        meet(&mut m, &h12, 3.0, false);
         assert_eq!(m.roof_z, Some(h12.z));
         // A 15 m one is not.
         let h = leaning(15.0);
         let mut m = measured(Some(107.0), doubted);
-        meet(&mut m, &h, 3.0);
+        meet(&mut m, &h, 3.0, false);
         assert!(m.flags.lean_disagrees && m.roof_z == Some(107.0), "{m:?}");
         assert!(m.roof_z_intervals.unwrap()[1].1 >= h.z);
+    }
+
+    /// A lean found by the narrow search along the line from the scene's misregistration
+    /// ([`super::super::register::off_the_leans`]) confirms or doubts, never stands for a height.
+    #[test]
+    fn a_lean_sought_again_along_its_line_confirms_or_doubts_only() {
+        let h = leaning(12.0);
+        let doubted = Flags {
+            shadow_on_other_building: true,
+            ..Flags::default()
+        };
+        let mut m = measured(Some(112.2), doubted);
+        meet(&mut m, &h, 3.0, true);
+        assert!(m.flags.names().is_empty(), "{:?}", m.flags);
+        let mut m = measured(Some(116.0), doubted);
+        meet(&mut m, &h, 3.0, true);
+        assert!(m.flags.lean_disagrees && m.roof_z == Some(116.0), "{m:?}");
+        assert!(m.roof_z_intervals.unwrap()[1].0 <= h.z);
+        let mut m = measured(None, doubted);
+        meet(&mut m, &h, 3.0, true);
+        assert!(m.roof_z.is_none() && !m.flags.height_from_lean, "{m:?}");
     }
 
     #[test]
@@ -311,7 +351,7 @@ mod tests {
         };
         let mut m = measured(None, cut);
         m.roof_z_at_least = Some(130.0);
-        meet(&mut m, &h, 3.0);
+        meet(&mut m, &h, 3.0, false);
         assert_eq!(m.roof_z, Some(112.0));
         assert!(m.flags.height_from_lean && m.flags.shadow_cut_by_edge_or_nodata);
         let [a, b] = m.roof_z_intervals.unwrap();

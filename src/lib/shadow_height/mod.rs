@@ -358,9 +358,13 @@ pub fn register_footprints(
     let grid = colour.grid();
     let (e, n) = sun.direction();
     let (cx, cy) = grid.cell_size();
+    let grounds = match camera {
+        None => Vec::new(),
+        Some(_) => grounds_under(inputs.terrain, footprints, opts.band_cells)?,
+    };
     let reaches: Vec<register::Reach> = match camera {
         None => vec![register::Reach::square(max_shift_m); footprints.len()],
-        Some(cam) => grounds_under(inputs.terrain, footprints, opts.band_cells)?
+        Some(cam) => grounds
             .iter()
             .zip(footprints)
             .map(|(&g, f)| register::Reach::leaning(f, cam, g, max_shift_m, opts.max_height_m))
@@ -369,28 +373,54 @@ pub fn register_footprints(
     // The search reads the photo up to the largest shift away, plus the fine search's ¾ pixel,
     // the samples' offset across the outline and the bilinear neighbour: 4 cells more.
     let margin = max_shift_m.max(0.0) / cy.abs().min(cx.abs()) + 4.0;
-    let needs: Vec<Range<usize>> = footprints
-        .iter()
-        .zip(&reaches)
-        .map(|(f, r)| box_rows(grid, r.leaned_box(f.bbox()), margin))
-        .collect();
-    let buildings = in_bands(
-        &needs,
-        rows_in(opts.band_cells, grid.width),
-        |rows, members| {
-            let band = RowBand::read(colour, rows)?;
-            Ok(members
-                .par_iter()
-                .map(|&k| register::estimate(&footprints[k], &band, (-e, -n), &reaches[k]))
-                .collect())
-        },
-    )?;
+    let estimates = |sought: &[(usize, register::Reach)]| {
+        let needs: Vec<Range<usize>> = sought
+            .iter()
+            .map(|(k, r)| box_rows(grid, r.leaned_box(footprints[*k].bbox()), margin))
+            .collect();
+        in_bands(
+            &needs,
+            rows_in(opts.band_cells, grid.width),
+            |rows, members| {
+                let band = RowBand::read(colour, rows)?;
+                Ok(members
+                    .par_iter()
+                    .map(|&i| {
+                        let (k, reach) = &sought[i];
+                        register::estimate(&footprints[*k], &band, (-e, -n), reach)
+                    })
+                    .collect())
+            },
+        )
+    };
+    let all: Vec<(usize, register::Reach)> = reaches.iter().copied().enumerate().collect();
+    let mut buildings = estimates(&all)?;
     let (scene, leans) = match camera {
         None => (
             register::scene_shift(&buildings),
             vec![(0.0, 0.0); footprints.len()],
         ),
-        Some(cam) => register::with_camera(footprints, &buildings, cam, cx.max(cy)),
+        Some(cam) => {
+            let cell = cx.max(cy);
+            let (scene, _) = register::with_camera(footprints, &buildings, cam, cell);
+            if let Some((ge, gn, _)) = scene {
+                let again =
+                    register::off_the_leans(footprints, &buildings, cam, &grounds, (ge, gn), cell);
+                let sought: Vec<(usize, register::Reach)> = again
+                    .iter()
+                    .map(|&k| (k, reaches[k].along_from((ge, gn), cell)))
+                    .collect();
+                for ((k, _), s) in sought.iter().zip(estimates(&sought)?) {
+                    if let Some(s) = s.filter(|s| s.counts()) {
+                        buildings[*k] = Some(register::Shift {
+                            along_lean: true,
+                            ..s
+                        });
+                    }
+                }
+            }
+            register::with_camera(footprints, &buildings, cam, cell)
+        }
     };
     let reg = Registration {
         scene,
@@ -493,10 +523,16 @@ fn meet_leans(
     measured: &mut [std::result::Result<Measurement, String>],
     cell: f64,
 ) {
-    for ((m, fp), &l) in measured.iter_mut().zip(footprints).zip(&reg.leans) {
+    for (k, ((m, fp), &l)) in measured
+        .iter_mut()
+        .zip(footprints)
+        .zip(&reg.leans)
+        .enumerate()
+    {
         if let Ok(m) = m {
             if let Some(h) = lean::LeanHeight::new(fp, l, camera, m.ground_z, cell) {
-                lean::meet(m, &h, pitched::highest_rise(fp));
+                let along_lean = reg.buildings[k].is_some_and(|s| s.along_lean);
+                lean::meet(m, &h, pitched::highest_rise(fp), along_lean);
             }
         }
     }

@@ -59,6 +59,11 @@ pub struct Shift {
     pub north_m: f64,
     /// Best contrast over the median contrast of the search (≥ 1): how clearly it stands out.
     pub peak_ratio: f64,
+    /// Whether it was sought again along the lean from the scene's misregistration alone
+    /// ([`Reach::along_from`], [`off_the_leans`]), the broad search's best being off it: a
+    /// narrower search always finds a best, so its lean may confirm or doubt a shadow's
+    /// height but not stand for one ([`super::lean::meet`]).
+    pub along_lean: bool,
 }
 
 impl Shift {
@@ -307,16 +312,20 @@ impl<'a> Shifts<'a> {
 }
 
 /// Where a footprint's shift onto its roof is sought: every shift within `across_m` on each
-/// axis of a point of the segment from no shift to `lean_m`. An orthophoto's is the square
-/// ±`across_m` (`lean_m` zero); a frame photo's runs along the building's radial direction
-/// from the nadir over the leans of every height it may have ([`Reach::leaning`]), with the
-/// footprint's misregistration either side.
+/// axis of a point of the segment from `from_m` to `from_m + lean_m`. An orthophoto's is the
+/// square ±`across_m` around no shift (`lean_m` zero); a frame photo's runs along the
+/// building's radial direction from the nadir over the leans of every height it may have
+/// ([`Reach::leaning`]), with the footprint's misregistration either side; once the scene's
+/// misregistration is known, a footprint's roof is sought again along that line alone
+/// ([`Reach::along_from`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reach {
     /// The largest misregistration sought on each axis, metres.
     pub across_m: f64,
     /// The lean of the tallest roof sought, metres (east, north).
     pub lean_m: (f64, f64),
+    /// Where the segment starts: the shift of a roof on the ground, metres (east, north).
+    pub from_m: (f64, f64),
 }
 
 impl Reach {
@@ -325,6 +334,7 @@ impl Reach {
         Reach {
             across_m: max_shift_m.max(0.0),
             lean_m: (0.0, 0.0),
+            from_m: (0.0, 0.0),
         }
     }
 
@@ -356,15 +366,28 @@ impl Reach {
         }
     }
 
+    /// This reach's leans from the scene's misregistration `g` (metres east, north) alone,
+    /// within `across_m` on each axis: the line every roof of the footprint lies on once `g`
+    /// is known. A roof the broad search found off that line (on a neighbour's edges beside
+    /// its lean, on another building far along it) is sought there again.
+    pub fn along_from(&self, g: (f64, f64), across_m: f64) -> Reach {
+        Reach {
+            across_m,
+            lean_m: self.lean_m,
+            from_m: g,
+        }
+    }
+
     /// The footprint's box `b` (world metres: west, south, east, north) grown to hold it moved
-    /// by any lean sought.
+    /// by any shift sought but the misregistration across (the caller's margin).
     pub fn leaned_box(&self, b: (f64, f64, f64, f64)) -> (f64, f64, f64, f64) {
         let (le, ln) = self.lean_m;
+        let (fe, fn_) = self.from_m;
         (
-            b.0 + le.min(0.0),
-            b.1 + ln.min(0.0),
-            b.2 + le.max(0.0),
-            b.3 + ln.max(0.0),
+            b.0 + fe + le.min(0.0),
+            b.1 + fn_ + ln.min(0.0),
+            b.2 + fe + le.max(0.0),
+            b.3 + fn_ + ln.max(0.0),
         )
     }
 
@@ -374,25 +397,29 @@ impl Reach {
         PixelReach {
             across: self.across_m / cx.abs().max(cy.abs()),
             lean: (self.lean_m.0 / cx, self.lean_m.1 / cy),
+            from: (self.from_m.0 / cx, self.from_m.1 / cy),
         }
     }
 }
 
 /// A [`Reach`] in pixels (columns, rows).
 ///
-/// Invariant: with no lean, [`PixelReach::contains`] is exactly `|x|, |y| ≤ across`, the square
-/// searched before frame photos had their own reach: an orthophoto's search is unchanged.
+/// Invariant: with no lean and from no shift, [`PixelReach::contains`] is exactly `|x|, |y| ≤
+/// across`, the square searched before frame photos had their own reach: an orthophoto's
+/// search is unchanged.
 #[derive(Debug, Clone, Copy)]
 struct PixelReach {
     across: f64,
     lean: (f64, f64),
+    from: (f64, f64),
 }
 
 impl PixelReach {
-    /// Whether the shift `(x, y)` pixels is within `across` on both axes of `λ·lean` for some
-    /// `λ` in [0, 1]: the intervals of `λ` each axis allows meet.
+    /// Whether the shift `(x, y)` pixels is within `across` on both axes of `from + λ·lean`
+    /// for some `λ` in [0, 1]: the intervals of `λ` each axis allows meet.
     fn contains(&self, x: f64, y: f64) -> bool {
         let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        let (x, y) = (x - self.from.0, y - self.from.1);
         for (s, l) in [(x, self.lean.0), (y, self.lean.1)] {
             if l == 0.0 {
                 if s.abs() > self.across {
@@ -410,11 +437,12 @@ impl PixelReach {
     /// The smallest and largest shifts sought on each axis: (x0, y0, x1, y1) pixels.
     fn bounds(&self) -> (f64, f64, f64, f64) {
         let (lx, ly) = self.lean;
+        let (fx, fy) = self.from;
         (
-            lx.min(0.0) - self.across,
-            ly.min(0.0) - self.across,
-            lx.max(0.0) + self.across,
-            ly.max(0.0) + self.across,
+            fx + lx.min(0.0) - self.across,
+            fy + ly.min(0.0) - self.across,
+            fx + lx.max(0.0) + self.across,
+            fy + ly.max(0.0) + self.across,
         )
     }
 }
@@ -451,6 +479,7 @@ pub fn estimate(
         } else {
             1.0
         },
+        along_lean: false,
     })
 }
 
@@ -709,19 +738,7 @@ pub fn with_camera(
     camera: &PerspectiveCentre,
     cell: f64,
 ) -> (Option<SceneShift>, Vec<(f64, f64)>) {
-    let radial: Vec<(f64, f64)> = footprints
-        .iter()
-        .map(|f| {
-            let (x, y) = f.bbox_centre();
-            let (dx, dy) = (x - camera.east, y - camera.north);
-            let r = dx.hypot(dy);
-            if r > 0.0 {
-                (dx / r, dy / r)
-            } else {
-                (0.0, 0.0)
-            }
-        })
-        .collect();
+    let radial: Vec<(f64, f64)> = footprints.iter().map(|f| radial(f, camera)).collect();
     let clear: Vec<usize> = (0..shifts.len())
         .filter(|&k| shifts[k].is_some_and(|s| s.counts()) && radial[k] != (0.0, 0.0))
         .collect();
@@ -783,6 +800,52 @@ pub fn with_camera(
         })
         .collect();
     (Some((g.0, g.1, kept.len())), leans)
+}
+
+/// The unit vector (east, north) from the nadir of `camera` to `fp`'s box centre, along which
+/// its roof leans; zero under the nadir.
+fn radial(fp: &Footprint, camera: &PerspectiveCentre) -> (f64, f64) {
+    let (x, y) = fp.bbox_centre();
+    let (dx, dy) = (x - camera.east, y - camera.north);
+    let r = dx.hypot(dy);
+    if r > 0.0 {
+        (dx / r, dy / r)
+    } else {
+        (0.0, 0.0)
+    }
+}
+
+/// The footprints (indices) whose roofs are to be sought again along their leans from the
+/// scene's misregistration `g` ([`Reach::along_from`]): those whose estimate is unclear, or
+/// more than `cell` metres from `g` plus its lean (the outward part of `s − g` along the
+/// radial direction from `camera`'s nadir), as `footprint_off_photo` would flag them; not
+/// those without one (their outline off the photo), nor those whose lean would not be
+/// precise over their ground `grounds[k]` (absolute metres; [`super::lean::precise`]: from
+/// 1500 m up the broad search is the square, and a lean found along a line would only be
+/// a guess).
+pub fn off_the_leans(
+    footprints: &[Footprint],
+    shifts: &[Option<Shift>],
+    camera: &PerspectiveCentre,
+    grounds: &[f64],
+    g: (f64, f64),
+    cell: f64,
+) -> Vec<usize> {
+    (0..footprints.len())
+        .filter(|&k| {
+            let (x, y) = footprints[k].bbox_centre();
+            let r = (x - camera.east).hypot(y - camera.north);
+            super::lean::precise(camera.z - grounds[k], r, 0.0, cell)
+        })
+        .filter(|&k| {
+            let rho = radial(&footprints[k], camera);
+            shifts[k].is_some_and(|s| {
+                let d = (s.east_m - g.0, s.north_m - g.1);
+                let l = (d.0 * rho.0 + d.1 * rho.1).max(0.0);
+                !s.counts() || (d.0 - l * rho.0).hypot(d.1 - l * rho.1) > cell
+            })
+        })
+        .collect()
 }
 
 /// How far across its radial direction (cells) a clear estimate may be from the scene's
@@ -1115,6 +1178,7 @@ mod tests {
         let leaning = Reach {
             across_m: 3.0,
             lean_m: (12.0, 9.0),
+            from_m: (0.0, 0.0),
         }
         .in_pixels(0.5, -0.5);
         for (x, y) in [
@@ -1289,6 +1353,7 @@ mod tests {
                 east_m: g.0 + l * (cx - camera.east) + ne,
                 north_m: g.1 + l * (cy - camera.north) + nn,
                 peak_ratio: 10.0,
+                along_lean: false,
             }));
             fps.push(fp);
             heights.push(Some(h));
@@ -1400,6 +1465,7 @@ mod tests {
                 east_m: e,
                 north_m: n,
                 peak_ratio: r,
+                along_lean: false,
             })
         };
         let all = [
