@@ -219,6 +219,81 @@ pub fn tile_paths(path: &Path) -> Result<Vec<PathBuf>> {
     Ok(paths)
 }
 
+/// Check that `inputs` (opened from `paths`) agree with the first on CRS, cell size, bands,
+/// sample type, nodata and alpha band; their bounds `[west, south, east, north]`, world metres.
+fn alike(inputs: &[RasterInput], paths: &[PathBuf]) -> Result<[f64; 4]> {
+    let first = inputs[0].meta();
+    let lattice = inputs[0].grid().transform;
+    let crs = &inputs[0].grid().crs;
+    let (mut x0, mut y0) = (f64::INFINITY, f64::INFINITY);
+    let (mut x1, mut y1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for (input, p) in inputs.iter().zip(paths) {
+        let (m, g) = (input.meta(), input.grid());
+        let differs = |what: &str, a: String, b: String| {
+            Error::file(
+                p,
+                format!(
+                    "has {what} {a}, but {} has {b}: a mosaic's tiles must agree",
+                    paths[0].display()
+                ),
+            )
+            .fix("make the tiles alike (gdal_translate -ot / -a_nodata, gdalwarp -t_srs -tr -tap)")
+        };
+        if g.crs != *crs {
+            return Err(differs("CRS", g.crs.name(), crs.name()));
+        }
+        let t = &g.transform;
+        if (t.cell_x, t.cell_y) != (lattice.cell_x, lattice.cell_y) {
+            let cell = |t: &GeoTransform| format!("{} × {}", t.cell_x, t.cell_y);
+            return Err(differs("cells", cell(t), cell(&lattice)));
+        }
+        if (m.bands, m.samples.type_name()) != (first.bands, first.samples.type_name()) {
+            let kind = |m: &SourceRaster| format!("{} {} band(s)", m.bands, m.samples.type_name());
+            return Err(differs("samples", kind(m), kind(first)));
+        }
+        let same_nodata = match (m.nodata, first.nodata) {
+            (Some(a), Some(b)) => a == b || (a.is_nan() && b.is_nan()),
+            (a, b) => a.is_none() && b.is_none(),
+        };
+        if !same_nodata || m.alpha_band != first.alpha_band {
+            let nodata = |m: &SourceRaster| {
+                format!("nodata {:?} and alpha band {:?}", m.nodata, m.alpha_band)
+            };
+            return Err(differs("its", nodata(m), nodata(first)));
+        }
+        for (c, r) in [(0.0, 0.0), (g.width as f64, g.height as f64)] {
+            let (x, y) = t.pixel_to_world(c, r);
+            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        }
+    }
+    Ok([x0, y0, x1, y1])
+}
+
+/// `v` metres as a whole, non-negative number of cells of `step` metres along `axis`; the error
+/// names `p`, the file that lies off the mosaic's lattice or outside its grid.
+fn whole_cells(v: f64, step: f64, p: &Path, axis: &str) -> Result<usize> {
+    let k = v / step;
+    let whole = k.round();
+    if whole < 0.0 {
+        return Err(Error::file(
+            p,
+            format!(
+                "lies {} cells outside the mosaic's grid along {axis}",
+                -whole
+            ),
+        )
+        .fix("rebuild the VRT from the tiles as they are (gdalbuildvrt)"));
+    }
+    if (k - whole).abs() > 1e-6 {
+        return Err(Error::file(
+            p,
+            format!("lies {k:.3} cells from the mosaic's corner along {axis}, not a whole number: it is not on the other tiles' cell lattice"),
+        )
+        .fix("align the tiles to one lattice (gdalwarp -tap -tr)"));
+    }
+    Ok(whole as usize)
+}
+
 impl Mosaic {
     /// The tiles `path` names ([`tile_paths`]), each opened and checked to share the first
     /// one's lattice, CRS, bands, sample type and nodata; one-line errors name the tile.
@@ -234,48 +309,9 @@ impl Mosaic {
             }
             inputs.push(RasterInput::open(p)?);
         }
-        let first = inputs[0].meta();
         let lattice = inputs[0].grid().transform;
         let crs = inputs[0].grid().crs.clone();
-        let (mut x0, mut y0) = (f64::INFINITY, f64::INFINITY);
-        let (mut x1, mut y1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for (input, p) in inputs.iter().zip(&paths) {
-            let (m, g) = (input.meta(), input.grid());
-            let differs = |what: &str, a: String, b: String| {
-                Error::file(
-                    p,
-                    format!("has {what} {a}, but {} has {b}: a mosaic's tiles must agree", paths[0].display()),
-                )
-                .fix("make the tiles alike (gdal_translate -ot / -a_nodata, gdalwarp -t_srs -tr -tap)")
-            };
-            if g.crs != crs {
-                return Err(differs("CRS", g.crs.name(), crs.name()));
-            }
-            let t = &g.transform;
-            if (t.cell_x, t.cell_y) != (lattice.cell_x, lattice.cell_y) {
-                let cell = |t: &GeoTransform| format!("{} × {}", t.cell_x, t.cell_y);
-                return Err(differs("cells", cell(t), cell(&lattice)));
-            }
-            if (m.bands, m.samples.type_name()) != (first.bands, first.samples.type_name()) {
-                let kind =
-                    |m: &SourceRaster| format!("{} {} band(s)", m.bands, m.samples.type_name());
-                return Err(differs("samples", kind(m), kind(first)));
-            }
-            let same_nodata = match (m.nodata, first.nodata) {
-                (Some(a), Some(b)) => a == b || (a.is_nan() && b.is_nan()),
-                (a, b) => a.is_none() && b.is_none(),
-            };
-            if !same_nodata || m.alpha_band != first.alpha_band {
-                let nodata = |m: &SourceRaster| {
-                    format!("nodata {:?} and alpha band {:?}", m.nodata, m.alpha_band)
-                };
-                return Err(differs("its", nodata(m), nodata(first)));
-            }
-            for (c, r) in [(0.0, 0.0), (g.width as f64, g.height as f64)] {
-                let (x, y) = t.pixel_to_world(c, r);
-                (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-            }
-        }
+        let [x0, y0, x1, y1] = alike(&inputs, &paths)?;
         // The mosaic's corner: a VRT's own, or the west-most, north-most tile corner (south-most
         // when rows run north); every tile corner must then be a whole number of cells from it.
         let vrt = is_vrt(path).then(|| read_vrt(path)).transpose()?;
@@ -299,40 +335,18 @@ impl Mosaic {
                 ..lattice
             },
         };
-        let cells = |v: f64, step: f64, p: &Path, axis: &str| -> Result<usize> {
-            let k = v / step;
-            let whole = k.round();
-            if whole < 0.0 {
-                return Err(Error::file(
-                    p,
-                    format!(
-                        "lies {} cells outside the mosaic's grid along {axis}",
-                        -whole
-                    ),
-                )
-                .fix("rebuild the VRT from the tiles as they are (gdalbuildvrt)"));
-            }
-            if (k - whole).abs() > 1e-6 {
-                return Err(Error::file(
-                    p,
-                    format!("lies {k:.3} cells from the mosaic's corner along {axis}, not a whole number: it is not on the other tiles' cell lattice"),
-                )
-                .fix("align the tiles to one lattice (gdalwarp -tap -tr)"));
-            }
-            Ok(whole as usize)
-        };
         let mut tiles = Vec::with_capacity(inputs.len());
         for (input, p) in inputs.into_iter().zip(&paths) {
             let t = &input.grid().transform;
-            let col = cells(t.origin_x - transform.origin_x, lattice.cell_x, p, "x")?;
-            let row = cells(t.origin_y - transform.origin_y, lattice.cell_y, p, "y")?;
+            let col = whole_cells(t.origin_x - transform.origin_x, lattice.cell_x, p, "x")?;
+            let row = whole_cells(t.origin_y - transform.origin_y, lattice.cell_y, p, "y")?;
             tiles.push(Placed { input, col, row });
         }
         let (width, height) = match &vrt {
             Some(v) => (v.width, v.height),
             None => (
-                cells(x1 - x0, lattice.cell_x.abs(), path, "x")?,
-                cells(y1 - y0, lattice.cell_y.abs(), path, "y")?,
+                whole_cells(x1 - x0, lattice.cell_x.abs(), path, "x")?,
+                whole_cells(y1 - y0, lattice.cell_y.abs(), path, "y")?,
             ),
         };
         // A VRT places each tile itself: its window must be where the tile's georeference is.
@@ -354,6 +368,12 @@ impl Mosaic {
             transform,
             crs,
         };
+        Mosaic::of(path, grid, tiles)
+    }
+
+    /// The mosaic at `path` of `tiles` placed on `grid`: an error when cells no tile covers
+    /// could not be told from data.
+    fn of(path: &Path, grid: Grid, tiles: Vec<Placed>) -> Result<Mosaic> {
         let covered: u64 = tiles.iter().map(|t| t.input.grid().len() as u64).sum();
         let first = tiles[0].input.meta();
         if covered < grid.len() as u64 && first.nodata.is_none() && first.alpha_band.is_none() {
@@ -368,7 +388,7 @@ impl Mosaic {
             grid: grid.window_grid(&crate::grid::Window {
                 col: 0,
                 row: 0,
-                width,
+                width: grid.width,
                 height: 0,
             }),
             samples: first.samples.slice(0..0),
