@@ -501,6 +501,85 @@ mod tests {
         assert!(s.lengths.iter().all(|&x| x == 6.0), "{:?}", s.lengths);
     }
 
+    /// Mark the cells of `l` at world y `ys` (metres north, 1 m rows) and x 5..25 (wider than
+    /// the footprint) as `class`: another footprint's roof across the shadow.
+    fn roof_across(l: &mut Local, ys: std::ops::Range<usize>, class: Class) {
+        for y in ys {
+            for c in 5..25 {
+                l.class[(39 - y) * 40 + c] = class;
+            }
+        }
+    }
+
+    #[test]
+    fn a_shadow_crossing_a_shaded_roof_is_measured_to_the_lit_ground_beyond() {
+        // Shadow y 20..30 (10 m), with another roof read shaded over y 23..26 in it, then lit
+        // ground: the shadow lies on the roof and runs on; every line is the full 10 m, and
+        // counts as crossed (before Crossed was walked through: 17 lines on the other).
+        let (mut l, fp) = local(10, Class::Lit);
+        roof_across(&mut l, 23..26, Class::Crossed);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
+        assert_eq!((s.on_other, s.cut, s.lengths.len()), (0, 0, 17), "{s:?}");
+        assert!(s.lengths.iter().all(|&x| x == 10.0), "{:?}", s.lengths);
+        assert!(s.tip_roofs.iter().all(|&z| z == 15.0), "{:?}", s.tip_roofs);
+        assert_eq!((s.crossed, s.with_shadow), (17, 17));
+    }
+
+    #[test]
+    fn a_shadow_running_from_a_shaded_roof_into_its_lit_part_met_the_roof() {
+        // Shadow on the ground y 20..23, on the other roof's shaded part y 23..25, then the
+        // roof's lit part (Other) y 25..28: dropped as meeting the other footprint, but the
+        // lower bound runs through the shaded roof: terrain 5 + 4 m (the last crossed cell,
+        // y 24, entered 4 m out) · tan e 1 = 9 m, not 7 m (the last ground shadow cell).
+        let (mut l, fp) = local(10, Class::Lit);
+        roof_across(&mut l, 23..25, Class::Crossed);
+        roof_across(&mut l, 25..28, Class::Other);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
+        assert_eq!(
+            (s.on_other, s.lengths.len(), s.crossed),
+            (17, 0, 17),
+            "{s:?}"
+        );
+        assert_eq!(s.reached_roofs, vec![9.0; 17]);
+    }
+
+    #[test]
+    fn a_shadow_ending_on_a_lit_cell_against_a_crossed_roof_met_it() {
+        // Shadow y 20..23, the shaded roof y 23..26, then a lit cell at y 26: that cell may
+        // read lit only because the roof's lit far edge covers part of it, so the line is
+        // dropped (counting Crossed as not another footprint there: 17 valid lines of 6 m),
+        // with the lower bound from the roof's last cell: 5 + 5 = 10 m.
+        let (mut l, fp) = local(3, Class::Lit);
+        roof_across(&mut l, 23..26, Class::Crossed);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
+        assert_eq!(
+            (s.on_other, s.lengths.len(), s.crossed),
+            (17, 0, 17),
+            "{s:?}"
+        );
+        assert_eq!(s.reached_roofs, vec![10.0; 17]);
+    }
+
+    #[test]
+    fn a_shadow_crossing_a_roof_cut_by_the_window_keeps_its_lower_bound() {
+        // The shaded roof from y 23 to the window's northern edge (y 40), then (second case)
+        // a roof y 23..26 with ground shadow on to the edge: the lines are cut, each with the
+        // lower bound of the last cell it crossed, y 39 entered 19 m out: 5 + 19 = 24 m
+        // (before: on the other at y 23, 7 m).
+        for roof in [23..40, 23..26] {
+            let (mut l, fp) = local(20, Class::Lit);
+            roof_across(&mut l, roof.clone(), Class::Crossed);
+            let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 100.0, 1.0);
+            assert_eq!(
+                (s.cut, s.on_other, s.crossed),
+                (17, 0, 17),
+                "{roof:?}: {s:?}"
+            );
+            assert!(s.at_window_edge && s.lengths.is_empty(), "{roof:?}: {s:?}");
+            assert_eq!(s.reached_roofs, vec![24.0; 17], "{roof:?}");
+        }
+    }
+
     #[test]
     fn median_ignores_nan_and_averages_the_middle_pair() {
         assert_eq!(median(&[3.0, f64::NAN, 1.0, 2.0, 10.0]), Some(2.5));
