@@ -724,3 +724,58 @@ fn a_shadow_lying_on_a_lower_neighbours_roof_measures_the_tower() {
         "truth outside [{lo}, {hi}]: {t:?}"
     );
 }
+
+/// A tower whose shadow crosses a lower neighbour whole: across a 3 m alley, over the
+/// neighbour's flat roof (the ray there is above it) and on along the ground beyond, where it
+/// ends; the neighbour's own shadow lies inside the tower's (the town's building 267, 39 m,
+/// over building 6, 13.6 m: issue 39 item 1). Every scan line from the tower meets the
+/// neighbour, and the neighbour's lines run on through the tower's shadow: before, the tower
+/// had a lower bound of 2.1 m and the neighbour 19.2 m for 10 m, unflagged (a silent gross
+/// error), its 95 % interval above the truth. The tower's lines now cross the roof its shadow covers, so its
+/// shadow is cast in the second pass and the neighbour is not measured through it: every
+/// height given or lower bound is consistent with the truth (within two cells or inside its
+/// 95 % interval; a bound at most the truth), and the tower is known to be at least as high as
+/// the shadow seen across the neighbour's roof says.
+#[test]
+fn a_tower_s_shadow_crossing_a_lower_neighbour_is_not_the_neighbour_s() {
+    if !povray::available() {
+        return;
+    }
+    let (x, y) = (500_050.0, 5_300_025.0);
+    // Sun from the south at 40°: the 30 m tower's shadow is 35.8 m long; at the 10 m
+    // neighbour's far wall (3 + 10 m from the tower) its ray is still 19.1 m up.
+    let tower = Building {
+        centre: (x, y),
+        size: (12.0, 10.0),
+        rotation_deg: 0.0,
+        roof: flat(280.0),
+        colour: [0.55, 0.53, 0.50],
+    };
+    let neighbour = Building {
+        centre: (x + 1.0, y + 5.0 + 3.0 + 5.0),
+        size: (16.0, 10.0),
+        rotation_deg: 0.0,
+        roof: flat(260.0),
+        colour: [0.62, 0.60, 0.58],
+    };
+    let s = scene(0.5, 180.0, 40.0, vec![tower, neighbour]);
+    let dir = tempfile::tempdir().unwrap();
+    let out = measure_scene(&s, dir.path()).unwrap();
+    for o in &out {
+        let consistent = match (o.roof_z, o.at_least()) {
+            (Some(z), _) => {
+                let (lo, hi) = o.pair("roof_z_interval_95").unwrap();
+                (z - o.truth_z).abs() <= 2.0 * s.cell || (lo <= o.truth_z && o.truth_z <= hi)
+            }
+            (None, Some(at_least)) => at_least <= o.truth_z,
+            (None, None) => true,
+        };
+        assert!(consistent, "building {} inconsistent: {o:?}", o.building);
+    }
+    let t = &out[0];
+    let seen = t.roof_z.or(t.at_least()).unwrap_or(f64::NAN);
+    assert!(
+        seen >= 260.0 - s.cell,
+        "the tower's shadow crosses the 10 m roof, yet it is only at least {seen}: {t:?}"
+    );
+}

@@ -27,6 +27,11 @@ pub enum Class {
     Edge,
     /// Under another footprint.
     Other,
+    /// Under another footprint whose roof reads shaded there: this footprint's shadow may lie
+    /// on it and run on beyond ([`crate::shadow_height`]'s crossing scan, only for a footprint
+    /// whose every line met another). Scan lines walk through it; the refinement does not
+    /// compare it, but the shadow attached to the footprint connects through it.
+    Crossed,
     /// Nodata, or shadowed by the terrain alone.
     Unusable,
 }

@@ -1399,6 +1399,8 @@ struct Sought<'p, 'a, 'h> {
     /// The roof cells the photo shows ([`PassInputs::roof_cells`]; none in a sketch): read
     /// for the pitched look and the faces' shading.
     roof: Vec<usize>,
+    /// Whether the others' roofs read shaded are [`Class::Crossed`] ([`PassInputs::crossing`]).
+    crossing: bool,
 }
 
 impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
@@ -1427,6 +1429,7 @@ impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
             cell: cx.max(cy),
             tan_e: pass.sun.elevation_deg.to_radians().tan(),
             roof: Vec::new(),
+            crossing: false,
         }
     }
 
@@ -1435,7 +1438,12 @@ impl<'p, 'a, 'h> Sought<'p, 'a, 'h> {
     fn classified(&self, len: f64) -> (Local, Option<f64>) {
         let p = self.pass;
         let win = local::window_for(p.grid, self.fp.bbox(), self.u, len.min(p.reach), 3);
-        p.classify(self.id, self.fp, self.lean, win, self.full, self.source)
+        let (mut local, threshold) =
+            p.classify(self.id, self.fp, self.lean, win, self.full, self.source);
+        if self.crossing {
+            p.mark_crossed_roofs(&mut local);
+        }
+        (local, threshold)
     }
 
     fn scan(&self, local: &Local) -> scan::Scan {
@@ -1558,7 +1566,7 @@ impl PassInputs<'_> {
             },
             pitch: None,
         };
-        let s = sought.scan_growing(&mut local);
+        let s = self.crossing(&mut sought, &mut local, ground_z);
         m.lines_total = s.lines;
         m.lines_used = s.lengths.len();
         let q = |at| scan::quantile(&s.tip_roofs, at);
@@ -1567,7 +1575,7 @@ impl PassInputs<'_> {
             .zip(q(0.75))
             .map(|((a, b), c)| [a, b, c]);
         m.flags.shadow_cut_by_edge_or_nodata = s.cut > 0;
-        m.flags.shadow_on_other_building = s.on_other > 0;
+        m.flags.shadow_on_other_building = s.on_other > 0 || s.crossed > 0;
         m.flags.no_shadow = s.with_shadow == 0 && !s.lengths.is_empty();
         let Some(len) = shadow_length(&s, sought.cell) else {
             m.roof_z_at_least = uncertainty::at_least(&s, ground_z);
@@ -1587,6 +1595,88 @@ impl PassInputs<'_> {
             return Ok(m);
         }
         self.refine_height(m, &sought, local, &s, Some([len, z0, z_ray]))
+    }
+
+    /// The scan of `sought` over `local`, grown as needed ([`Sought::scan_growing`]). When it
+    /// gives no length and lines met other footprints, in an orthophoto (where the roofs are
+    /// where their footprints are) and outside a joint pass (which fits the shadow on the
+    /// others' known roofs instead), the footprint is scanned again with the others' roofs
+    /// that read shaded walked through ([`Self::mark_crossed_roofs`]) — a tower's shadow over
+    /// a lower neighbour runs on to the ground beyond it — and that scan is kept (with
+    /// `sought` and `local` crossing) when it gives a length, or a higher lower bound over
+    /// `ground_z` ([`uncertainty::at_least`]; the shadow seen on a roof is as far as it
+    /// reached at least).
+    fn crossing(&self, sought: &mut Sought, local: &mut Local, ground_z: f64) -> scan::Scan {
+        let s = sought.scan_growing(local);
+        let blocked = shadow_length(&s, sought.cell).is_none() && s.on_other > 0;
+        if !blocked || sought.lean != (0.0, 0.0) || self.known.is_some() {
+            return s;
+        }
+        sought.crossing = true;
+        let mut crossed = sought.classified(sought.classified_len).0;
+        let c = sought.scan_growing(&mut crossed);
+        let higher = uncertainty::at_least(&c, ground_z) > uncertainty::at_least(&s, ground_z);
+        if shadow_length(&c, sought.cell).is_none() && !higher {
+            sought.crossing = false;
+            return s;
+        }
+        *local = crossed;
+        c
+    }
+
+    /// Mark as [`Class::Crossed`] the cells of `local` under other footprints whose roof reads
+    /// shaded there: a shadow index under [`detect::MAX_DARK_RATIO`] × that roof's lit level
+    /// ([`Self::lit_roof_level`]), as far apart as a clear split of shadow from lit ground. A
+    /// roof of one colour all over (lit, or dark tiles) is never crossed.
+    fn mark_crossed_roofs(&self, local: &mut Local) {
+        let (w, win) = (self.grid.width, local.win);
+        let mut levels: Vec<(u32, Option<f64>)> = Vec::new();
+        for k in 0..local.class.len() {
+            if local.class[k] != Class::Other {
+                continue;
+            }
+            let i = grid_index(&win, w, k);
+            let owner = *self.band.owner.at(i);
+            let level = match levels.iter().find(|(o, _)| *o == owner) {
+                Some(&(_, level)) => level,
+                None => {
+                    let level = self.lit_roof_level(owner as usize - 1);
+                    levels.push((owner, level));
+                    level
+                }
+            };
+            if level.is_some_and(|l| self.index_at(i) < detect::MAX_DARK_RATIO * l) {
+                local.class[k] = Class::Crossed;
+            }
+        }
+    }
+
+    /// The lit level of footprint `k`'s roof: the upper decile of its cells' shadow index in
+    /// the band ([`Self::index_at`]); `None` with fewer than [`roof::MIN_CELLS`] cells there.
+    fn lit_roof_level(&self, k: usize) -> Option<f64> {
+        let rows = self.band.terrain.rows();
+        let w = self.grid.width;
+        let mut index: Vec<f64> = self
+            .band
+            .cells_of(k)
+            .iter()
+            .filter(|&&i| rows.contains(&(i / w)))
+            .map(|&i| self.index_at(i))
+            .collect();
+        if index.len() < roof::MIN_CELLS {
+            return None;
+        }
+        index.sort_by(f64::total_cmp);
+        Some(index[index.len() * 9 / 10])
+    }
+
+    /// The shadow index of the band's cell `i` (whole-grid index): [`detect::shadow_index`] of
+    /// the photo, or from a given mask 0 where it says shadow and 255 where lit.
+    fn index_at(&self, i: usize) -> f64 {
+        match self.band.mask.as_ref() {
+            Some(mask) => mask_index(*mask.at(i)) as f64,
+            None => detect::shadow_index(*self.band.colour.at(i)),
+        }
     }
 
     /// The highest valid terrain under a footprint's cells, metres.
@@ -2120,7 +2210,6 @@ impl PassInputs<'_> {
     /// mask 0 where it says shadow and 255 where lit.
     fn shade(&self, local: &Local) -> Vec<f32> {
         let (w, win) = (self.grid.width, &local.win);
-        let band = self.band;
         let cells = (win.row..win.row + win.height)
             .flat_map(|r| r * w + win.col..r * w + win.col + win.width);
         cells
@@ -2128,10 +2217,10 @@ impl PassInputs<'_> {
             .enumerate()
             .map(|(k, (i, class))| {
                 let read = matches!(class, Class::Lit | Class::Shadow) || local.roof(k).is_some();
-                match (read, band.mask.as_ref()) {
-                    (false, _) => f32::NAN,
-                    (true, Some(mask)) => mask_index(*mask.at(i)) as f32,
-                    (true, None) => detect::shadow_index(*band.colour.at(i)) as f32,
+                if read {
+                    self.index_at(i) as f32
+                } else {
+                    f32::NAN
                 }
             })
             .collect()

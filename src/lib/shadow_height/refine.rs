@@ -983,7 +983,7 @@ pub(super) fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
 /// pull the search toward a height whose shadow reaches it. The connection may also run through
 /// kept [`Class::Unusable`] cells (another building's shadow over the start of this one's):
 /// they hide the shadow, they do not end it; and over a neighbour's known roof in the
-/// corridor, which it may cross.
+/// corridor, or its roof read shaded ([`Class::Crossed`]), which it may cross.
 fn attached_shadow(local: &Local, corridor: &[bool], keep: &[bool]) -> Vec<bool> {
     let (w, h) = (local.grid.width, local.grid.height);
     let open = |i: usize| corridor[i] && local.class[i] == Class::Shadow;
@@ -994,7 +994,7 @@ fn attached_shadow(local: &Local, corridor: &[bool], keep: &[bool]) -> Vec<bool>
             open(i)
                 || local.class[i] == Class::Edge
                 || (keep[i] && local.class[i] == Class::Unusable)
-                || corridor[i] && local.roof(i).is_some()
+                || corridor[i] && (local.roof(i).is_some() || local.class[i] == Class::Crossed)
         })
         .collect();
     let mut seen = vec![false; corridor.len()];

@@ -10,7 +10,8 @@
 //! under another building's shadow, it goes on), and dropped as meeting another footprint when
 //! it enters one or its shadow ends on a lit cell touching one (or with one within a cell
 //! further along): that cell may read lit only because the other building's sunlit roof covers
-//! part of it. For a prism on flat ground every valid line's length is exactly
+//! part of it. Another footprint's roof read shaded ([`Class::Crossed`], only in a crossing scan)
+//! is walked through like the shadow on the ground: the shadow lies on it. For a prism on flat ground every valid line's length is exactly
 //! `H / tan(elevation)`, whatever the footprint's shape, so the median over lines is a robust
 //! length.
 
@@ -36,6 +37,9 @@ pub struct Scan {
     pub origin: (f64, f64),
     /// Valid lines that crossed at least one shadow cell.
     pub with_shadow: usize,
+    /// Lines, valid or dropped, that crossed another footprint's shaded roof
+    /// ([`Class::Crossed`]): the shadow lay on another building.
+    pub crossed: usize,
     /// Lines dropped: shadow left the window or ended in or next to unusable cells.
     pub cut: usize,
     /// Lines dropped: shadow reached another footprint or ended on a lit cell against one.
@@ -82,7 +86,10 @@ pub fn scan(
             out.lines -= 1;
             continue;
         }
-        match lines.follow(frame.point(exit, t), &mut out.at_window_edge) {
+        let mut crossed = false;
+        let end = lines.follow(frame.point(exit, t), &mut out.at_window_edge, &mut crossed);
+        out.crossed += crossed as usize;
+        match end {
             LineEnd::Cut { reached } => {
                 out.cut += 1;
                 out.reached_roofs.extend(reached);
@@ -237,8 +244,9 @@ struct ShadowWalk<'a> {
 impl ShadowWalk<'_> {
     /// Walk the line from `start` (world metres, where it leaves the footprint) to its end.
     /// Sets `at_window_edge` when it reads a cell on the window's border or past it
-    /// ([`Scan::at_window_edge`]).
-    fn follow(&self, start: (f64, f64), at_window_edge: &mut bool) -> LineEnd {
+    /// ([`Scan::at_window_edge`]), and `crossed` when it walks over another footprint's shaded
+    /// roof ([`Scan::crossed`]).
+    fn follow(&self, start: (f64, f64), at_window_edge: &mut bool, crossed: &mut bool) -> LineEnd {
         let (local, cell) = (self.local, self.cell);
         let mut seen_shadow = false;
         // Where the line last left unusable cells (metres along it): a shadow ending within a
@@ -267,8 +275,11 @@ impl ShadowWalk<'_> {
                 Some((_, Class::Other)) => return LineEnd::OnOther { reached },
                 // The own roof, or a cell it covers in part: not yet the shadow's end.
                 Some((_, Class::Own | Class::Edge)) => roof_until = x_out,
-                Some((i, Class::Shadow)) => {
+                // Shadow on the ground, or on a roof it crosses (the ray is above the roof, so
+                // above the ground under it: a lower bound still).
+                Some((i, class @ (Class::Shadow | Class::Crossed))) => {
                     seen_shadow = true;
+                    *crossed |= class == Class::Crossed;
                     if unusable_until == f64::NEG_INFINITY {
                         reached = Some(local.heights[i] as f64 + x * self.tan_e)
                             .filter(|z| z.is_finite());
@@ -299,9 +310,10 @@ impl ShadowWalk<'_> {
 }
 
 /// Whether the lit cell `at` ending a line's shadow is within a cell of another footprint: one
-/// of its 8 neighbours is [`Class::Other`], or the line enters such a cell before `until`
-/// metres. That cell may read lit only because the other building's sunlit roof covers part
-/// of it; the shadow met the building there rather than ending. Sets `at_edge` when a cell
+/// of its 8 neighbours is [`Class::Other`] or [`Class::Crossed`], or the line enters such a
+/// cell before `until` metres. That cell may read lit only because the other building's
+/// sunlit roof covers part of it; the shadow met the building there rather than ending (and
+/// one ending right past a roof it crossed may have ended on the roof's far edge). Sets `at_edge` when a cell
 /// read is on the window's border or past it ([`Scan::at_window_edge`]).
 fn meets_other(
     local: &Local,
@@ -314,11 +326,16 @@ fn meets_other(
     let (c, r) = at;
     let near = (r.saturating_sub(1)..=(r + 1).min(h - 1))
         .flat_map(|rr| (c.saturating_sub(1)..=(c + 1).min(w - 1)).map(move |cc| rr * w + cc))
-        .any(|i| local.class[i] == Class::Other);
+        .any(|i| other(local.class[i]));
     near || walk.take_while(|&(x, _, _)| x <= until).any(|(_, _, a)| {
         *at_edge |= on_border(local, a);
-        a.is_some_and(|(c, r)| local.class[r * w + c] == Class::Other)
+        a.is_some_and(|(c, r)| other(local.class[r * w + c]))
     })
+}
+
+/// Whether a cell is under another footprint.
+fn other(class: Class) -> bool {
+    matches!(class, Class::Other | Class::Crossed)
 }
 
 /// Whether a cell a line reads (`None`: outside the window) is on the border of `local`'s
@@ -482,6 +499,85 @@ mod tests {
         let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
         assert_eq!((s.cut, s.lengths.len()), (0, 17), "{s:?}");
         assert!(s.lengths.iter().all(|&x| x == 6.0), "{:?}", s.lengths);
+    }
+
+    /// Mark the cells of `l` at world y `ys` (metres north, 1 m rows) and x 5..25 (wider than
+    /// the footprint) as `class`: another footprint's roof across the shadow.
+    fn roof_across(l: &mut Local, ys: std::ops::Range<usize>, class: Class) {
+        for y in ys {
+            for c in 5..25 {
+                l.class[(39 - y) * 40 + c] = class;
+            }
+        }
+    }
+
+    #[test]
+    fn a_shadow_crossing_a_shaded_roof_is_measured_to_the_lit_ground_beyond() {
+        // Shadow y 20..30 (10 m), with another roof read shaded over y 23..26 in it, then lit
+        // ground: the shadow lies on the roof and runs on; every line is the full 10 m, and
+        // counts as crossed (before Crossed was walked through: 17 lines on the other).
+        let (mut l, fp) = local(10, Class::Lit);
+        roof_across(&mut l, 23..26, Class::Crossed);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
+        assert_eq!((s.on_other, s.cut, s.lengths.len()), (0, 0, 17), "{s:?}");
+        assert!(s.lengths.iter().all(|&x| x == 10.0), "{:?}", s.lengths);
+        assert!(s.tip_roofs.iter().all(|&z| z == 15.0), "{:?}", s.tip_roofs);
+        assert_eq!((s.crossed, s.with_shadow), (17, 17));
+    }
+
+    #[test]
+    fn a_shadow_running_from_a_shaded_roof_into_its_lit_part_met_the_roof() {
+        // Shadow on the ground y 20..23, on the other roof's shaded part y 23..25, then the
+        // roof's lit part (Other) y 25..28: dropped as meeting the other footprint, but the
+        // lower bound runs through the shaded roof: terrain 5 + 4 m (the last crossed cell,
+        // y 24, entered 4 m out) · tan e 1 = 9 m, not 7 m (the last ground shadow cell).
+        let (mut l, fp) = local(10, Class::Lit);
+        roof_across(&mut l, 23..25, Class::Crossed);
+        roof_across(&mut l, 25..28, Class::Other);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
+        assert_eq!(
+            (s.on_other, s.lengths.len(), s.crossed),
+            (17, 0, 17),
+            "{s:?}"
+        );
+        assert_eq!(s.reached_roofs, vec![9.0; 17]);
+    }
+
+    #[test]
+    fn a_shadow_ending_on_a_lit_cell_against_a_crossed_roof_met_it() {
+        // Shadow y 20..23, the shaded roof y 23..26, then a lit cell at y 26: that cell may
+        // read lit only because the roof's lit far edge covers part of it, so the line is
+        // dropped (counting Crossed as not another footprint there: 17 valid lines of 6 m),
+        // with the lower bound from the roof's last cell: 5 + 5 = 10 m.
+        let (mut l, fp) = local(3, Class::Lit);
+        roof_across(&mut l, 23..26, Class::Crossed);
+        let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 30.0, 1.0);
+        assert_eq!(
+            (s.on_other, s.lengths.len(), s.crossed),
+            (17, 0, 17),
+            "{s:?}"
+        );
+        assert_eq!(s.reached_roofs, vec![10.0; 17]);
+    }
+
+    #[test]
+    fn a_shadow_crossing_a_roof_cut_by_the_window_keeps_its_lower_bound() {
+        // The shaded roof from y 23 to the window's northern edge (y 40), then (second case)
+        // a roof y 23..26 with ground shadow on to the edge: the lines are cut, each with the
+        // lower bound of the last cell it crossed, y 39 entered 19 m out: 5 + 19 = 24 m
+        // (before: on the other at y 23, 7 m).
+        for roof in [23..40, 23..26] {
+            let (mut l, fp) = local(20, Class::Lit);
+            roof_across(&mut l, roof.clone(), Class::Crossed);
+            let s = scan(&fp, &l, (0.0, 1.0), 1.0, 0.5, 100.0, 1.0);
+            assert_eq!(
+                (s.cut, s.on_other, s.crossed),
+                (17, 0, 17),
+                "{roof:?}: {s:?}"
+            );
+            assert!(s.at_window_edge && s.lengths.is_empty(), "{roof:?}: {s:?}");
+            assert_eq!(s.reached_roofs, vec![24.0; 17], "{roof:?}");
+        }
     }
 
     #[test]
