@@ -282,6 +282,24 @@ pub struct Measurement {
     pub pitch: Option<crate::roof::Pitch>,
 }
 
+impl Measurement {
+    /// This measurement with no height, only `least` (absolute metres) as the lowest roof the
+    /// shadow implies, as when no line gave a length; its flags kept as the reasons.
+    fn at_least_only(self, least: Option<f64>) -> Measurement {
+        Measurement {
+            height_m: None,
+            roof_z: None,
+            initial_height_m: None,
+            overlap: None,
+            shadow_length_m: None,
+            roof_z_intervals: None,
+            roof_z_at_least: least,
+            pitch: None,
+            ..self
+        }
+    }
+}
+
 /// How footprints were registered to the photo before measuring ([`register_footprints`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Registration {
@@ -1594,7 +1612,13 @@ impl PassInputs<'_> {
             m.roof_z = Some(ground_z + z_ray);
             return Ok(m);
         }
-        self.refine_height(m, &sought, local, &s, Some([len, z0, z_ray]))
+        let m = self.refine_height(m, &sought, local, &s, Some([len, z0, z_ray]))?;
+        if sought.crossing && m.flags.estimates_disagree {
+            // The length ran over the others' roofs, and the shadow cast on the ground alone
+            // does not agree with it: neither is a height, the lines' reach is a lower bound.
+            return Ok(m.at_least_only(uncertainty::at_least(&s, ground_z)));
+        }
+        Ok(m)
     }
 
     /// The scan of `sought` over `local`, grown as needed ([`Sought::scan_growing`]). When it
