@@ -1804,20 +1804,14 @@ impl PassInputs<'_> {
         // A pitched-looking roof whose shape fits clearly better: the ridge is its height,
         // the eaves the lowest the scan lines may see; otherwise the flat roof, still flagged.
         // Faces whose shading tells a pitch make a pitched-looking roof too.
-        // A roof that does not look pitched is fitted too, as the roofs its faces do not
-        // contradict (faces lit alike: the sun along the ridge, a low pitch).
-        let shading = self.shading(sought, &sub);
-        let shaded_by = shading
-            .as_ref()
-            .map_or_else(Vec::new, |(r, l)| pitched::shaded_roofs(fp, r, l));
+        let shaded_by = self
+            .shading(sought, &sub)
+            .map_or_else(Vec::new, |(r, l)| pitched::shaded_roofs(fp, &r, &l));
         m.flags.pitched_roof |= pitched::shading_tells(&shaded_by);
-        let alike = (!m.flags.pitched_roof)
-            .then_some(shading.as_ref())
-            .flatten();
-        let fitted = (m.flags.pitched_roof || alike.is_some()).then(|| {
-            let (sub_points, alike) = (self.opts.sub_points, alike.map(|(r, l)| (r, l)));
+        let fitted = m.flags.pitched_roof.then(|| {
+            let sub_points = self.opts.sub_points;
             pitched::fit(
-                &shaded_by, alike, &sub, fp, &keep, u, tan_e, ground_z, z_hi, sub_points, cell,
+                &shaded_by, &sub, fp, &keep, u, tan_e, ground_z, z_hi, sub_points, cell,
             )
         });
         let (top_m, eave_m, overlap, plausible) = match fitted.flatten() {

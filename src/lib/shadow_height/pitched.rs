@@ -79,16 +79,11 @@ pub struct Fitted {
 
 /// The best pitched roof for footprint `fp`, or `None` when none explains the photo clearly
 /// better than a flat roof (see the module docs) and the faces' shading (`shaded_by`,
-/// [`shaded_roofs`]) does not tell a pitch either. `alike`, for a roof that does not look
-/// pitched, is its roof and light as the faces' shading reads them: then only the roofs and
-/// rises whose faces would not look clearly different where the photo shows them alike
-/// ([`shading::Faces::contradict`]) are tried, and none when no roof is left. The other
-/// arguments are [`refine::refine`]'s; `cell` is the cell edge (metres). Tops up to `z_hi`
-/// metres above `ground_z` are tried.
+/// [`shaded_roofs`]) does not tell a pitch either. The other arguments are [`refine::refine`]'s;
+/// `cell` is the cell edge (metres). Tops up to `z_hi` metres above `ground_z` are tried.
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     shaded_by: &[ShadedRoof],
-    alike: Option<(&shading::Roof, &shading::Light)>,
     local: &Local,
     fp: &Footprint,
     keep: &[bool],
@@ -100,23 +95,11 @@ pub fn fit(
     cell: f64,
 ) -> Option<Fitted> {
     let n_sub = sub * sub;
-    let step = cell * tan_e;
-    let some_allowed = axes(fp).into_iter().any(|azimuth_deg| {
-        let Some(extent) = crate::roof::Extent::new(&fp.rings, azimuth_deg) else {
-            return false;
-        };
-        FORMS.into_iter().any(|form| {
-            let allows = Allows::new(alike, &extent, form);
-            coarse_rises(&extent, step, z_hi).any(|rise| allows.rise(rise))
-        })
-    });
-    if !some_allowed {
-        return None;
-    }
     let mut c = refine::corridor(local, fp, keep, u, tan_e, ground_z, z_hi, sub);
     let line = LineFit::new(&c.brightness, 1.0 / n_sub as f64)?;
     let flat = Trial::new(std::mem::take(&mut c.events), z_hi, &c, &line, n_sub)?;
     let rays = Rays::new(local, fp, &c.members, u, tan_e, ground_z, z_hi, sub);
+    let step = cell * tan_e;
     let mut best: Option<(Trial, Pitch, f64, Option<FacesRise>)> = None;
     let mut shaded: Option<Shaded> = None;
     for azimuth_deg in axes(fp) {
@@ -130,16 +113,9 @@ pub fn fit(
             let Some((_, extent)) = shape.pitch else {
                 continue;
             };
-            let allows = Allows::new(alike, &extent, form);
-            if !coarse_rises(&extent, step, z_hi).any(|rise| allows.rise(rise)) {
-                continue;
-            }
             let candidates = rays.candidates(&shape);
-            let highest = highest_tried(&extent, step, z_hi);
+            let highest = (extent.half.1 * MAX_PITCH_DEG.to_radians().tan()).min(z_hi - step);
             let trial = |rise: f64| {
-                if !allows.rise(rise) {
-                    return None;
-                }
                 Trial::new(
                     candidates.events(&rays, rise, z_hi - rise),
                     z_hi - rise,
@@ -155,8 +131,9 @@ pub fn fit(
                 (a, _) => *a,
             };
             let mut own: Option<(Trial, f64)> = None;
-            for rise in coarse_rises(&extent, step, z_hi) {
-                own = better(&own, trial(rise));
+            let coarse = (highest / step).floor() as usize;
+            for k in 1..=coarse {
+                own = better(&own, trial(k as f64 * step));
             }
             if let Some((_, rise)) = own {
                 for j in (-3..=3).filter(|j| *j != 0) {
@@ -236,46 +213,6 @@ pub fn fit(
         flat_score: flat.score,
         top_plausible_m: s.faces.rises.map(|(lo, hi)| (eave_m + lo, eave_m + hi)),
     })
-}
-
-/// The highest rise tried over `extent`, metres: the steepest pitch's ([`MAX_PITCH_DEG`]),
-/// below the search's top `z_hi` by a `step` (a cell of shadow as height).
-fn highest_tried(extent: &crate::roof::Extent, step: f64, z_hi: f64) -> f64 {
-    (extent.half.1 * MAX_PITCH_DEG.to_radians().tan()).min(z_hi - step)
-}
-
-/// The first, coarse rises tried over `extent`, metres: every `step` up to [`highest_tried`].
-fn coarse_rises(extent: &crate::roof::Extent, step: f64, z_hi: f64) -> impl Iterator<Item = f64> {
-    let coarse = (highest_tried(extent, step, z_hi) / step).floor().max(0.0) as usize;
-    (1..=coarse).map(move |k| k as f64 * step)
-}
-
-/// Which rises of one roof [`fit`] may try: all, or for a roof that does not look pitched
-/// only those whose faces the photo does not contradict.
-struct Allows<'a> {
-    faces: Option<(shading::Faces, &'a shading::Light)>,
-    /// Half the roof's width across its ridge, metres (the pitch is `atan(rise / half)`).
-    half: f64,
-}
-
-impl<'a> Allows<'a> {
-    fn new(
-        alike: Option<(&shading::Roof, &'a shading::Light)>,
-        extent: &crate::roof::Extent,
-        form: RoofForm,
-    ) -> Allows<'a> {
-        Allows {
-            faces: alike.map(|(roof, light)| (shading::Faces::new(roof, extent, form), light)),
-            half: extent.half.1,
-        }
-    }
-
-    /// Whether a rise of `rise` metres may be tried.
-    fn rise(&self, rise: f64) -> bool {
-        self.faces
-            .as_ref()
-            .is_none_or(|(f, light)| !f.contradict(light, (rise / self.half).atan()))
-    }
 }
 
 /// Two estimates `(value, standard error)` of one rise (metres) combined by their inverse
@@ -592,7 +529,6 @@ mod tests {
         let keep = vec![true; local.class.len()];
         fit(
             &[],
-            None,
             &local,
             &fp,
             &keep,

@@ -41,11 +41,6 @@ pub const MIN_EXPLAINED: f64 = 0.5;
 pub const MIN_CONTRAST: f64 = 0.04;
 /// Fewest cells of a face for it to count.
 pub const MIN_FACE_CELLS: usize = 4;
-/// Faces pitched `p` contradict the photo ([`Faces::contradict`]) when, even under the weaker
-/// sun of `k / K_SPREAD`, they would differ by at least [`MIN_CONTRAST`] and the best albedo
-/// at `p` leaves more than `1 + MAX_CONTRADICTION` times the flat roof's squared residual (the
-/// roof's own variance): the photo shows the faces alike.
-pub const MAX_CONTRADICTION: f64 = 0.25;
 /// The factor `k` (direct over sky light) is uncertain by, one standard error (see the module
 /// docs).
 pub const K_SPREAD: f64 = 1.4;
@@ -266,25 +261,13 @@ impl Faces {
         self.n[f] >= MIN_FACE_CELLS as f64
     }
 
-    /// Whether faces pitched `p` radians would look clearly different under `light` where the
-    /// photo shows them alike (see [`MAX_CONTRADICTION`]). A roof of fewer than two faces with
-    /// [`MIN_FACE_CELLS`] cells contradicts nothing.
-    pub fn contradict(&self, light: &Light, p: f64) -> bool {
-        let weak = 1.0 / K_SPREAD;
-        (0..4).filter(|&f| self.counts(f)).count() >= 2
-            && self.contrast(light, p, weak) >= MIN_CONTRAST
-            && self.residual(light, p, weak)
-                > (1.0 + MAX_CONTRADICTION) * self.residual(light, 0.0, weak)
-    }
-
-    /// The contrast of the faces pitched `p` radians under `light`, its `k` scaled by
-    /// `k_scale`: the spread of their predicted light over its mean, averaged over the
-    /// channels (the albedo cancels).
-    fn contrast(&self, light: &Light, p: f64, k_scale: f64) -> f64 {
+    /// The contrast of the faces pitched `p` radians under `light`: the spread of their
+    /// predicted light over its mean, averaged over the channels (the albedo cancels).
+    fn contrast(&self, light: &Light, p: f64) -> f64 {
         let faces: Vec<usize> = (0..4).filter(|&f| self.counts(f)).collect();
         let cos = light.cos_incidence(p, &self.down);
         let mut sum = 0.0;
-        for k in light.k.map(|k| k * k_scale) {
+        for k in light.k {
             let g: Vec<f64> = faces.iter().map(|&f| 1.0 + k * cos[f]).collect();
             let (lo, hi) = g
                 .iter()
@@ -337,7 +320,7 @@ pub fn estimate(faces: &Faces, light: &Light) -> Option<Estimate> {
         || flat <= 0.0
         || r > (1.0 - MIN_EXPLAINED) * flat
         || p <= 0.0
-        || faces.contrast(light, p, 1.0) < MIN_CONTRAST
+        || faces.contrast(light, p) < MIN_CONTRAST
     {
         return None;
     }
@@ -503,44 +486,6 @@ mod tests {
                 "{form:?}: {got:?}"
             );
         }
-    }
-
-    /// Issue 39: a roof that does not look pitched is fitted to its shadow only as the pitched
-    /// roofs its faces do not contradict. A flat roof (textured) under a sun across the ridge
-    /// tried contradicts a 30° gable there; a real 30° gable with the sun 18° off its ridge at
-    /// 70° (faces a few percent apart: the town's building 117) contradicts no gable along
-    /// its ridge, at its own pitch or another; nor does a gable with the sun exactly along its
-    /// ridge (faces alike at every pitch) contradict a flat roof's photo.
-    #[test]
-    fn faces_contradict_a_pitch_only_where_the_photo_shows_them_alike_and_they_would_differ() {
-        let noise = |p: (f64, f64)| 0.01 * ((p.0 * 7.3 + p.1 * 13.1).sin());
-        let p30 = 30f64.to_radians();
-        // Ridge east–west (90°), sun from the south at 40°: across the ridge.
-        let x = extent(90.0);
-        let l = light(180.0, 40.0, 2.2);
-        let flat = roof(&x, RoofForm::Gable, 0.0, &l, |p, v| v + noise(p));
-        let faces = Faces::new(&flat, &x, RoofForm::Gable);
-        assert!(faces.contradict(&l, p30), "flat roof, sun across");
-        assert!(!faces.contradict(&l, 0.0), "a flat roof contradicts itself");
-        let gable = roof(&x, RoofForm::Gable, 30.0, &l, |p, v| v + noise(p));
-        let faces = Faces::new(&gable, &x, RoofForm::Gable);
-        assert!(!faces.contradict(&l, p30), "the gable's own pitch");
-        // Sun 18° off the ridge at 70°.
-        let l = light(252.0, 70.0, 2.2);
-        let gable = roof(&x, RoofForm::Gable, 30.0, &l, |p, v| v + noise(p));
-        let faces = Faces::new(&gable, &x, RoofForm::Gable);
-        for deg in [20.0, 30.0, 40.0] {
-            let p = f64::to_radians(deg);
-            assert!(!faces.contradict(&l, p), "sun 18° off the ridge, {deg}°");
-        }
-        // Sun exactly along the ridge: a flat roof's photo contradicts no gable along it.
-        let l = light(90.0, 40.0, 2.2);
-        let flat = roof(&x, RoofForm::Gable, 0.0, &l, |p, v| v + noise(p));
-        let faces = Faces::new(&flat, &x, RoofForm::Gable);
-        assert!(!faces.contradict(&l, p30), "sun along the ridge");
-        // … but the hip's ends would differ.
-        let faces = Faces::new(&flat, &x, RoofForm::Hip);
-        assert!(faces.contradict(&l, p30), "hip ends, sun along the ridge");
     }
 
     #[test]
