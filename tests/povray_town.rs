@@ -618,11 +618,14 @@ fn a_hip_below_a_high_sun_takes_its_rise_from_its_faces() {
     }
 }
 
+/// A frame camera: its nadir (world metres) and its height above the ground, metres.
+type Camera500 = ((f64, f64), f64);
+
 /// The bench's 500 m setting, its first window (`cargo bench --bench shadow_height_town --
 /// frame`, row 15, window 0): footprints exact, the nadir 300 m south-west of the window's
 /// centre, so every building leans north-east. Returns the window's south-west corner, its
 /// scene, and the nadir (world metres) with the camera's height above the ground, metres.
-fn frame_500_m_window() -> ((f64, f64), WindowScene, ((f64, f64), f64)) {
+fn frame_500_m_window() -> ((f64, f64), WindowScene, Camera500) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let town = Town::load(root, 39).unwrap();
     let sw = (TOWN_SW.0 + 450.0, TOWN_SW.1 + 450.0);
