@@ -427,23 +427,18 @@ fn make_product(
     progress.finish();
     seconds.finish = lap();
 
-    let summary = PyramidSummary {
-        tiles: out.to_path_buf(),
-        levels: info.levels.iter().map(|l| (l.width, l.height)).collect(),
-        pages: info.page_count(),
-        pages_rebuilt: info.page_count(),
-        in_place: false,
-        full_build: None,
-        warnings: Vec::new(),
-        reused,
+    let total = incremental::PageStats {
         building_cells: buildings.len(),
         object_cells: objects.len(),
         partial_cells: all.cells().iter().filter(|c| c.partial).count(),
         half_valid_cells: level0.half_valid_cells(),
-        effects: effects_record,
+        effects: None,
+    };
+    let summary = PyramidSummary {
+        reused,
         exported,
         regions: built_regions,
-        seconds,
+        ..PyramidSummary::of_pages(out, &info, total, effects_record, seconds)
     };
     let mut params = stage_params(out, opts, &info, &summary);
     if opts.sensor.any() {

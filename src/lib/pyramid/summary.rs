@@ -112,8 +112,9 @@ impl std::fmt::Display for PyramidSummary {
 
 impl PyramidSummary {
     /// The summary of the tile file `out` described by `info`, every page made, whose counts
-    /// are the sums of its level-0 pages' (`total`) and whose effects record is `effects`: a
-    /// build that makes pages apart from the whole grid (incremental, merged from shards).
+    /// are `total` (for a build that makes pages apart from the whole grid, incremental or
+    /// merged from shards, the sums of its level-0 pages') and whose effects record is
+    /// `effects`; nothing reused, exported or in regions.
     pub(super) fn of_pages(
         out: &Path,
         info: &TileSetInfo,
